@@ -1,0 +1,11 @@
+//! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
+//! readers and writers for the data formats users have, Allan-variance noise identification,
+//! the source document's bias-model study, model diagnosis, metrics, plots and reports.
+//!
+//! Every computation that also runs on the MCU lives in `nav-core`; this crate only drives it.
+#![deny(missing_docs)]
+
+pub mod allan;
+pub mod io;
+pub mod noise;
+pub mod sim;

@@ -1,0 +1,33 @@
+//! The `host-sim` command line.
+use clap::{Parser, Subcommand};
+
+/// INS/GNSS navigation core on the host: simulate, identify noise, run, study, diagnose.
+#[derive(Parser, Debug)]
+#[command(name = "host-sim", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// Allan/modified/Hadamard deviation of an IMU record, noise-model fit, plots, config.
+    Allan(host_sim::allan::cli::AllanArgs),
+    /// Simulate a case (trajectory, IMU with errors, GNSS, truth) into the project's formats.
+    Simulate(host_sim::sim::cli::SimulateArgs),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let res = match cli.cmd {
+        Cmd::Allan(a) => host_sim::allan::cli::run(a),
+        Cmd::Simulate(a) => host_sim::sim::cli::run(a),
+    };
+    match res {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
