@@ -75,7 +75,8 @@ pub fn radii(lat_rad: f64) -> Radii {
 pub fn gravity_mps2(lat_rad: f64, h_m: f64) -> f64 {
     let s2 = sin(lat_rad) * sin(lat_rad);
     let g0 = GAMMA_E_MPS2 * (1.0 + SOMIGLIANA_K * s2) / sqrt(1.0 - E2 * s2);
-    g0 * (1.0 - 2.0 / A_M * (1.0 + F + M_RATIO - 2.0 * F * s2) * h_m + 3.0 * h_m * h_m / (A_M * A_M))
+    g0 * (1.0 - 2.0 / A_M * (1.0 + F + M_RATIO - 2.0 * F * s2) * h_m
+        + 3.0 * h_m * h_m / (A_M * A_M))
 }
 
 /// Normal gravity vector in NED, m/s^2 (the north component of the plumb-line deflection of
@@ -136,7 +137,10 @@ pub fn ecef_to_geodetic(p_m: &Vector3<f64>) -> Llh {
     let ep2 = E2 / (1.0 - E2);
     let theta = atan2(p_m.z * A_M, p * B_M);
     let (st, ct) = (sin(theta), cos(theta));
-    let mut lat = atan2(p_m.z + ep2 * B_M * st * st * st, p - E2 * A_M * ct * ct * ct);
+    let mut lat = atan2(
+        p_m.z + ep2 * B_M * st * st * st,
+        p - E2 * A_M * ct * ct * ct,
+    );
     let mut h = 0.0;
     for _ in 0..4 {
         let rn = radii(lat).transverse_m;

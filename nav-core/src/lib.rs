@@ -23,5 +23,6 @@
 )]
 
 pub mod earth;
+pub mod nav;
 pub mod selftest;
 pub mod types;

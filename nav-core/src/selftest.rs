@@ -41,7 +41,11 @@ pub fn compute(out: &mut [f64]) -> usize {
         w.push(r.meridian_m);
         w.push(r.transverse_m);
     }
-    for (lat, lon, h) in [(40.097, -105.147, 1601.0), (-33.9, 151.2, -30.0), (89.9, 10.0, 5e3)] {
+    for (lat, lon, h) in [
+        (40.097, -105.147, 1601.0),
+        (-33.9, 151.2, -30.0),
+        (89.9, 10.0, 5e3),
+    ] {
         let p = earth::Llh::from_deg(lat, lon, h);
         let q = earth::ecef_to_geodetic(&earth::geodetic_to_ecef_m(&p));
         w.push(q.lat_rad);

@@ -109,7 +109,10 @@ impl GnssFix {
             && self.pos_std_ned_m.iter().all(|s| s.is_finite() && *s > 0.0);
         let vel_ok = !self.has_velocity
             || (self.vel_ned_mps.iter().all(|v| v.is_finite())
-                && self.vel_std_ned_mps.iter().all(|s| s.is_finite() && *s > 0.0));
+                && self
+                    .vel_std_ned_mps
+                    .iter()
+                    .all(|s| s.is_finite() && *s > 0.0));
         pos_ok && vel_ok && self.quality != FixQuality::NoFix
     }
 }

@@ -16,7 +16,10 @@ use std::process::Command;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "cargo xtask", about = "Project automation: setup, ci, firmware, vectors")]
+#[command(
+    name = "cargo xtask",
+    about = "Project automation: setup, ci, firmware, vectors"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -121,47 +124,58 @@ fn ci() -> Result<()> {
         steps.push((name, dt));
         r
     };
-    step("setup: embedded toolchain and emulator", &mut || embedded::setup())?;
-    step("cargo fmt --check (host workspace and firmware)", &mut || {
-        run(cargo().args(["fmt", "--all", "--check"]))?;
-        run(cargo().args([
-            "fmt",
-            "--manifest-path",
-            "firmware/Cargo.toml",
-            "--check",
-        ]))
+    step("setup: embedded toolchain and emulator", &mut || {
+        embedded::setup()
     })?;
-    step("cargo clippy -D warnings (host crates, all targets)", &mut || {
-        run(cargo().args([
-            "clippy",
-            "--workspace",
-            "--all-targets",
-            "--release",
-            "--",
-            "-D",
-            "warnings",
-        ]))
-    })?;
-    step("cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf)", &mut || {
-        embedded::clippy_nav_core_thumb()
-    })?;
-    step("self-test vector is what the host computes now", &mut || {
-        vectors::generate(true)
-    })?;
-    step("host test suite (cargo test --workspace --release)", &mut || {
-        run(cargo().args(["test", "--workspace", "--release"]))
-    })?;
-    step("nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)", &mut || {
-        embedded::nav_core_thumb_build()
-    })?;
+    step(
+        "cargo fmt --check (host workspace and firmware)",
+        &mut || {
+            run(cargo().args(["fmt", "--all", "--check"]))?;
+            run(cargo().args(["fmt", "--manifest-path", "firmware/Cargo.toml", "--check"]))
+        },
+    )?;
+    step(
+        "cargo clippy -D warnings (host crates, all targets)",
+        &mut || {
+            run(cargo().args([
+                "clippy",
+                "--workspace",
+                "--all-targets",
+                "--release",
+                "--",
+                "-D",
+                "warnings",
+            ]))
+        },
+    )?;
+    step(
+        "cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf)",
+        &mut || embedded::clippy_nav_core_thumb(),
+    )?;
+    step(
+        "self-test vector is what the host computes now",
+        &mut || vectors::generate(true),
+    )?;
+    step(
+        "host test suite (cargo test --workspace --release)",
+        &mut || run(cargo().args(["test", "--workspace", "--release"])),
+    )?;
+    step(
+        "nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)",
+        &mut || embedded::nav_core_thumb_build(),
+    )?;
     let mut elf = PathBuf::new();
-    step("firmware build (thumbv7em-none-eabihf, release)", &mut || {
-        elf = embedded::fw_build()?;
-        Ok(())
-    })?;
-    step("firmware self-test on qemu mps2-an386 (Cortex-M4F)", &mut || {
-        embedded::fw_run(&elf)
-    })?;
+    step(
+        "firmware build (thumbv7em-none-eabihf, release)",
+        &mut || {
+            elf = embedded::fw_build()?;
+            Ok(())
+        },
+    )?;
+    step(
+        "firmware self-test on qemu mps2-an386 (Cortex-M4F)",
+        &mut || embedded::fw_run(&elf),
+    )?;
     step("firmware size report", &mut || embedded::fw_size(&elf))?;
     eprintln!("\n[ci] summary");
     for (name, dt) in &steps {
