@@ -45,7 +45,11 @@ fn main() -> ! {
             "selftest: {} [{} outputs]: {}",
             name,
             count,
-            if case_bad == 0 { "bit-exact" } else { "MISMATCH" }
+            if case_bad == 0 {
+                "bit-exact"
+            } else {
+                "MISMATCH"
+            }
         );
         mismatches += case_bad;
     }
