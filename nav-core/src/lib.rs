@@ -26,3 +26,4 @@ pub mod earth;
 pub mod nav;
 pub mod selftest;
 pub mod types;
+pub mod wire;
