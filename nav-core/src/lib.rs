@@ -22,6 +22,7 @@
     )
 )]
 
+pub mod attitude;
 pub mod earth;
 pub mod nav;
 pub mod selftest;
