@@ -23,8 +23,12 @@
 )]
 
 pub mod attitude;
+pub mod config;
 pub mod earth;
+pub mod filter;
+pub mod model;
 pub mod nav;
+pub mod scalar;
 pub mod selftest;
 pub mod types;
 pub mod wire;

@@ -1,0 +1,720 @@
+//! Filter configuration: IMU noise parameters in the source document's terms (two-sided
+//! continuous power spectral densities S_N, S_B, S_K and the Gauss-Markov correlation time
+//! T_B), scale-factor and GNSS settings, and the conversions from datasheet units.
+//!
+//! Units (IEEE 952 convention, `N = sqrt(S_N)`, `K = sqrt(S_K)`):
+//!
+//! | parameter | accelerometer | gyro |
+//! |---|---|---|
+//! | white noise S_N | m^2/s^3 (velocity random walk^2) | rad^2/s (angle random walk^2) |
+//! | Gauss-Markov driving PSD S_B | m^2/s^5 | rad^2/s^3 |
+//! | correlation time T_B | s | s |
+//! | random walk S_K | m^2/s^5 | rad^2/s^3 |
+//! | bias sigma | m/s^2 | rad/s |
+//!
+//! The stationary variance of a first-order Gauss-Markov process with driving PSD S_B and
+//! correlation time T_B is `S_B T_B / 2` (DESIGN.md: `Q_GM = (S_B T_B / 2)(1 - Phi^2)`).
+//! Datasheet units are converted only here, at the edge ([`units`]).
+
+use crate::earth::G0_MPS2;
+
+/// Conversions between datasheet units and the SI quantities the filter uses.
+pub mod units {
+    use super::G0_MPS2;
+
+    /// Degrees to radians.
+    pub const DEG: f64 = core::f64::consts::PI / 180.0;
+    /// One micro-g in m/s^2 (standard gravity 9.80665 m/s^2).
+    pub const UG_MPS2: f64 = 1e-6 * G0_MPS2;
+    /// One milligal in m/s^2.
+    pub const MGAL_MPS2: f64 = 1e-5;
+    /// One part per million (dimensionless).
+    pub const PPM: f64 = 1e-6;
+    /// Seconds per hour.
+    pub const HOUR_S: f64 = 3600.0;
+    /// sqrt(seconds per hour) = 60 sqrt(s)/sqrt(h).
+    pub const SQRT_HOUR_S: f64 = 60.0;
+
+    /// Peak Allan deviation of a first-order Gauss-Markov process in units of
+    /// sqrt(S_B T_B): max over tau of sqrt(f(tau/T_B)) with
+    /// `f(x) = (1/x)[1 - (3 - 4 e^-x + e^-2x)/(2x)]`, reached at tau = 1.8926 T_B.
+    pub const GM_PEAK_ADEV: f64 = 0.436_542_471;
+    /// Allan deviation floor of flicker noise in units of its coefficient B:
+    /// sqrt(2 ln 2 / pi) (IEEE 952).
+    pub const FLICKER_FLOOR_ADEV: f64 = 0.664_282_470_268;
+
+    /// Accelerometer white-noise PSD S_N (m^2/s^3) from a noise density in ug/sqrt(Hz).
+    pub fn accel_psd_from_ug_per_sqrt_hz(n_ug_per_sqrt_hz: f64) -> f64 {
+        let n = n_ug_per_sqrt_hz * UG_MPS2;
+        n * n
+    }
+    /// Accelerometer noise density N in ug/sqrt(Hz) from S_N (m^2/s^3).
+    pub fn accel_ug_per_sqrt_hz_from_psd(s_n: f64) -> f64 {
+        libm::sqrt(s_n) / UG_MPS2
+    }
+    /// Accelerometer white-noise PSD S_N (m^2/s^3) from a velocity random walk in
+    /// m/s/sqrt(h) (KF-GINS `vrw`).
+    pub fn accel_psd_from_mps_per_sqrt_h(vrw_mps_per_sqrt_h: f64) -> f64 {
+        let n = vrw_mps_per_sqrt_h / SQRT_HOUR_S;
+        n * n
+    }
+    /// Velocity random walk in m/s/sqrt(h) from S_N (m^2/s^3).
+    pub fn accel_mps_per_sqrt_h_from_psd(s_n: f64) -> f64 {
+        libm::sqrt(s_n) * SQRT_HOUR_S
+    }
+    /// Gyro white-noise PSD S_N (rad^2/s) from an angle random walk in deg/sqrt(h).
+    pub fn gyro_psd_from_deg_per_sqrt_h(arw_deg_per_sqrt_h: f64) -> f64 {
+        let n = arw_deg_per_sqrt_h * DEG / SQRT_HOUR_S;
+        n * n
+    }
+    /// Angle random walk in deg/sqrt(h) from S_N (rad^2/s).
+    pub fn gyro_deg_per_sqrt_h_from_psd(s_n: f64) -> f64 {
+        libm::sqrt(s_n) * SQRT_HOUR_S / DEG
+    }
+    /// Accelerometer rate-random-walk PSD S_K (m^2/s^5) from K in ug/sqrt(h)
+    /// (bias growth per sqrt(hour)).
+    pub fn accel_rw_psd_from_ug_per_sqrt_h(k_ug_per_sqrt_h: f64) -> f64 {
+        let k = k_ug_per_sqrt_h * UG_MPS2 / SQRT_HOUR_S;
+        k * k
+    }
+    /// K in ug/sqrt(h) from the accelerometer random-walk PSD S_K (m^2/s^5).
+    pub fn accel_ug_per_sqrt_h_from_rw_psd(s_k: f64) -> f64 {
+        libm::sqrt(s_k) * SQRT_HOUR_S / UG_MPS2
+    }
+    /// Gyro rate-random-walk PSD S_K (rad^2/s^3) from K in deg/h/sqrt(h).
+    pub fn gyro_rw_psd_from_deg_per_h_per_sqrt_h(k: f64) -> f64 {
+        let k = k * DEG / HOUR_S / SQRT_HOUR_S;
+        k * k
+    }
+    /// m/s^2 from micro-g.
+    pub fn mps2_from_ug(x_ug: f64) -> f64 {
+        x_ug * UG_MPS2
+    }
+    /// micro-g from m/s^2.
+    pub fn ug_from_mps2(x_mps2: f64) -> f64 {
+        x_mps2 / UG_MPS2
+    }
+    /// m/s^2 from milligal.
+    pub fn mps2_from_mgal(x_mgal: f64) -> f64 {
+        x_mgal * MGAL_MPS2
+    }
+    /// rad/s from deg/h.
+    pub fn radps_from_deg_per_h(x_deg_per_h: f64) -> f64 {
+        x_deg_per_h * DEG / HOUR_S
+    }
+    /// deg/h from rad/s.
+    pub fn deg_per_h_from_radps(x_radps: f64) -> f64 {
+        x_radps * HOUR_S / DEG
+    }
+    /// Dimensionless factor from ppm.
+    pub fn from_ppm(x_ppm: f64) -> f64 {
+        x_ppm * PPM
+    }
+    /// Gauss-Markov driving PSD S_B (unit^2/s) from the stationary sigma (unit) and the
+    /// correlation time T (s): S_B = 2 sigma^2 / T.
+    pub fn gm_psd_from_sigma(sigma: f64, t_s: f64) -> f64 {
+        2.0 * sigma * sigma / t_s
+    }
+    /// Stationary sigma sqrt(S_B T_B / 2) of a Gauss-Markov process.
+    pub fn gm_sigma_from_psd(s_b: f64, t_b_s: f64) -> f64 {
+        libm::sqrt(0.5 * s_b * t_b_s)
+    }
+    /// Flicker (bias instability) coefficient B matched to the Gauss-Markov process's peak
+    /// Allan deviation: B = (GM_PEAK_ADEV / FLICKER_FLOOR_ADEV) sqrt(S_B T_B)
+    /// = 0.6572 sqrt(S_B T_B). Units: sqrt(S_B T_B)'s (m/s^2 or rad/s).
+    pub fn flicker_b_from_gm(s_b: f64, t_b_s: f64) -> f64 {
+        GM_PEAK_ADEV / FLICKER_FLOOR_ADEV * libm::sqrt(s_b * t_b_s)
+    }
+    /// Inverse of [`flicker_b_from_gm`]: S_B for a flicker coefficient B and a chosen T_B.
+    pub fn gm_psd_from_flicker_b(b: f64, t_b_s: f64) -> f64 {
+        let r = b * FLICKER_FLOOR_ADEV / GM_PEAK_ADEV;
+        r * r / t_b_s
+    }
+}
+
+/// Noise and bias parameters of one sensor triad (accelerometers or gyros), in the source's
+/// terms. Per-axis arrays are x, y, z (body FRD). Units in the module table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorNoise {
+    /// White-noise PSD S_N: accel m^2/s^3, gyro rad^2/s.
+    pub s_n: [f64; 3],
+    /// Gauss-Markov bias driving PSD S_B: accel m^2/s^5, gyro rad^2/s^3 (0 = none).
+    pub s_b: [f64; 3],
+    /// Gauss-Markov correlation time T_B, s (used only by Gauss-Markov bias models).
+    pub t_b_s: f64,
+    /// Random-walk bias PSD S_K: accel m^2/s^5, gyro rad^2/s^3 (0 = random constant).
+    pub s_k: [f64; 3],
+    /// Initial 1-sigma of the constant / random-walk part of the bias (turn-on bias):
+    /// accel m/s^2, gyro rad/s. The Gauss-Markov part starts at its stationary sigma.
+    pub bias_init_sigma: [f64; 3],
+}
+
+impl SensorNoise {
+    /// Same parameters on all three axes.
+    pub const fn isotropic(s_n: f64, s_b: f64, t_b_s: f64, s_k: f64, bias_init_sigma: f64) -> Self {
+        Self {
+            s_n: [s_n; 3],
+            s_b: [s_b; 3],
+            t_b_s,
+            s_k: [s_k; 3],
+            bias_init_sigma: [bias_init_sigma; 3],
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        let nonneg = |a: &[f64; 3]| a.iter().all(|v| v.is_finite() && *v >= 0.0);
+        nonneg(&self.s_n)
+            && nonneg(&self.s_b)
+            && nonneg(&self.s_k)
+            && nonneg(&self.bias_init_sigma)
+            && self.t_b_s.is_finite()
+            && self.t_b_s > 0.0
+    }
+}
+
+/// A scale-factor error modelled as a first-order Gauss-Markov process (as KF-GINS does).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleFactorNoise {
+    /// Stationary (and initial) 1-sigma per axis, dimensionless (1e-6 = 1 ppm).
+    pub sigma: [f64; 3],
+    /// Correlation time, s.
+    pub t_s: f64,
+}
+
+impl ScaleFactorNoise {
+    /// `sigma_ppm` on all axes with correlation time `t_s`.
+    pub fn from_ppm(sigma_ppm: f64, t_s: f64) -> Self {
+        Self {
+            sigma: [units::from_ppm(sigma_ppm); 3],
+            t_s,
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.sigma.iter().all(|v| v.is_finite() && *v >= 0.0)
+            && self.t_s.is_finite()
+            && self.t_s > 0.0
+    }
+}
+
+/// Chi-square quantiles for the innovation gate, by measurement dimension and probability.
+pub mod chi2 {
+    /// 3 degrees of freedom, P = 0.95.
+    pub const DIM3_P95: f64 = 7.814_727_903;
+    /// 3 degrees of freedom, P = 0.99.
+    pub const DIM3_P99: f64 = 11.344_866_730;
+    /// 3 degrees of freedom, P = 0.999.
+    pub const DIM3_P999: f64 = 16.266_236_196;
+    /// 3 degrees of freedom, P = 0.9999.
+    pub const DIM3_P9999: f64 = 21.107_513_466;
+    /// 6 degrees of freedom, P = 0.95.
+    pub const DIM6_P95: f64 = 12.591_587_244;
+    /// 6 degrees of freedom, P = 0.99.
+    pub const DIM6_P99: f64 = 16.811_893_830;
+    /// 6 degrees of freedom, P = 0.999.
+    pub const DIM6_P999: f64 = 22.457_744_485;
+    /// 6 degrees of freedom, P = 0.9999.
+    pub const DIM6_P9999: f64 = 27.856_341_236;
+}
+
+/// Gate probability for the chi-square innovation test.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GateProbability {
+    /// Accept 95 % of consistent fixes.
+    P95,
+    /// Accept 99 %.
+    P99,
+    /// Accept 99.9 %.
+    P999,
+    /// Accept 99.99 %.
+    P9999,
+}
+
+/// Innovation gating of GNSS updates: a fix whose normalised innovation squared (NIS) exceeds
+/// the threshold for its measurement dimension is rejected and counted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gating {
+    /// NIS threshold for a position-only update (3 degrees of freedom); `f64::INFINITY`
+    /// disables the gate.
+    pub nis_threshold_pos: f64,
+    /// NIS threshold for a position + velocity update (6 degrees of freedom).
+    pub nis_threshold_pos_vel: f64,
+    /// After this many consecutive rejected fixes the next valid fix is accepted without the
+    /// gate (so a filter that drifted away recovers); 0 = never force.
+    pub max_consecutive_rejections: u32,
+}
+
+impl Gating {
+    /// Thresholds at the given probability for dimensions 3 and 6.
+    pub const fn with_probability(p: GateProbability, max_consecutive_rejections: u32) -> Self {
+        let (a, b) = match p {
+            GateProbability::P95 => (chi2::DIM3_P95, chi2::DIM6_P95),
+            GateProbability::P99 => (chi2::DIM3_P99, chi2::DIM6_P99),
+            GateProbability::P999 => (chi2::DIM3_P999, chi2::DIM6_P999),
+            GateProbability::P9999 => (chi2::DIM3_P9999, chi2::DIM6_P9999),
+        };
+        Self {
+            nis_threshold_pos: a,
+            nis_threshold_pos_vel: b,
+            max_consecutive_rejections,
+        }
+    }
+
+    /// No gating: every valid fix is used.
+    pub const fn disabled() -> Self {
+        Self {
+            nis_threshold_pos: f64::INFINITY,
+            nis_threshold_pos_vel: f64::INFINITY,
+            max_consecutive_rejections: 0,
+        }
+    }
+}
+
+impl Default for Gating {
+    /// P = 0.9999 thresholds; force a fix after 10 consecutive rejections.
+    fn default() -> Self {
+        Self::with_probability(GateProbability::P9999, 10)
+    }
+}
+
+/// Errors in a [`FilterConfig`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ConfigError {
+    /// Accelerometer noise parameters negative, non-finite or T_B not positive.
+    AccelNoise,
+    /// Gyro noise parameters negative, non-finite or T_B not positive.
+    GyroNoise,
+    /// Accelerometer scale-factor parameters invalid.
+    AccelScaleFactor,
+    /// Gyro scale-factor parameters invalid.
+    GyroScaleFactor,
+    /// Lever arm not finite.
+    LeverArm,
+    /// Covariance prediction interval not finite or negative.
+    PredictInterval,
+    /// Gating thresholds NaN or not positive, or the GNSS time tolerance invalid.
+    Gnss,
+}
+
+impl core::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::AccelNoise => {
+                "config: accelerometer noise parameters invalid (negative, non-finite or T_B <= 0)"
+            }
+            Self::GyroNoise => {
+                "config: gyro noise parameters invalid (negative, non-finite or T_B <= 0)"
+            }
+            Self::AccelScaleFactor => "config: accelerometer scale-factor sigma/time invalid",
+            Self::GyroScaleFactor => "config: gyro scale-factor sigma/time invalid",
+            Self::LeverArm => "config: GNSS lever arm not finite",
+            Self::PredictInterval => {
+                "config: covariance prediction interval not finite or negative"
+            }
+            Self::Gnss => "config: GNSS gating thresholds or time tolerance invalid",
+        })
+    }
+}
+
+/// Everything numeric the filter needs besides the state layout and the initial state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilterConfig {
+    /// Accelerometer noise and bias parameters (m/s^2 based units).
+    pub accel: SensorNoise,
+    /// Gyro noise and bias parameters (rad/s based units).
+    pub gyro: SensorNoise,
+    /// Accelerometer scale-factor model (used when the layout has the block).
+    pub accel_scale: ScaleFactorNoise,
+    /// Gyro scale-factor model (used when the layout has the block).
+    pub gyro_scale: ScaleFactorNoise,
+    /// GNSS antenna position relative to the IMU reference point, body FRD, m.
+    pub lever_arm_body_m: [f64; 3],
+    /// Use the fix's velocity (6-dimensional update) when it carries one.
+    pub use_gnss_velocity: bool,
+    /// Innovation gating.
+    pub gating: Gating,
+    /// The covariance is predicted once this much IMU time has accumulated, s (the transition
+    /// matrix is integrated over the interval; 0 = every IMU epoch).
+    pub cov_predict_interval_s: f64,
+    /// Largest accepted |fix time - filter time|, s; the difference is bridged with the
+    /// velocity (call `update_gnss` at the IMU epoch nearest the fix).
+    pub max_gnss_time_offset_s: f64,
+}
+
+/// Default covariance prediction interval, s (10 Hz; see `docs/derivations/error_state.md`
+/// for the cost and accuracy measurements behind it).
+pub const DEFAULT_COV_PREDICT_INTERVAL_S: f64 = 0.1;
+
+/// Initial accelerometer bias sigma assumed for the source's models, m/s^2 (100 ug; the
+/// source does not state its turn-on bias, this is a tactical-grade servo accelerometer value).
+pub const SOURCE_ACCEL_BIAS_INIT_SIGMA_MPS2: f64 = 100.0 * units::UG_MPS2;
+/// Initial gyro bias sigma assumed for the source's models, rad/s (0.5 deg/h; the source's
+/// FOG bias instability is < 0.1 deg/h, its turn-on bias is not stated).
+pub const SOURCE_GYRO_BIAS_INIT_SIGMA_RADPS: f64 = 0.5 * units::DEG / units::HOUR_S;
+
+/// The source's identified accelerometer parameters (Tab. 1): S_N, m^2/s^3.
+pub const NBK_ACCEL_S_N: f64 = 6.2865e-9;
+/// The source's identified accelerometer Gauss-Markov PSD S_B, m^2/s^5.
+pub const NBK_ACCEL_S_B: f64 = 2.4360e-11;
+/// The source's identified accelerometer Gauss-Markov correlation time T_B, s.
+pub const NBK_ACCEL_T_B_S: f64 = 45.0;
+/// The source's identified accelerometer random-walk PSD S_K, m^2/s^5.
+pub const NBK_ACCEL_S_K: f64 = 2.6731e-12;
+/// The source's identified gyro white noise S_N, rad^2/s.
+pub const NBK_GYRO_S_N: f64 = 5.3079e-10;
+
+impl FilterConfig {
+    /// Defaults for everything that is not a noise parameter: no lever arm, position-only
+    /// updates, default gating, 10 Hz covariance prediction, 50 ms GNSS time tolerance, and
+    /// scale factors of 1000 ppm with a 1 h correlation time.
+    pub fn with_noise(accel: SensorNoise, gyro: SensorNoise) -> Self {
+        Self {
+            accel,
+            gyro,
+            accel_scale: ScaleFactorNoise::from_ppm(1000.0, 3600.0),
+            gyro_scale: ScaleFactorNoise::from_ppm(1000.0, 3600.0),
+            lever_arm_body_m: [0.0; 3],
+            use_gnss_velocity: false,
+            gating: Gating::default(),
+            cov_predict_interval_s: DEFAULT_COV_PREDICT_INTERVAL_S,
+            max_gnss_time_offset_s: 0.05,
+        }
+    }
+
+    /// The source's classical N model: manufacturer white-noise specification (accelerometer
+    /// 50 ug/sqrt(Hz), gyro 0.15 deg/sqrt(h)), constant biases with the initial sigmas
+    /// [`SOURCE_ACCEL_BIAS_INIT_SIGMA_MPS2`] and [`SOURCE_GYRO_BIAS_INIT_SIGMA_RADPS`].
+    /// Use with [`crate::model::LAYOUT_N`].
+    pub fn source_n_model() -> Self {
+        Self::with_noise(
+            SensorNoise::isotropic(
+                units::accel_psd_from_ug_per_sqrt_hz(50.0),
+                0.0,
+                NBK_ACCEL_T_B_S,
+                0.0,
+                SOURCE_ACCEL_BIAS_INIT_SIGMA_MPS2,
+            ),
+            SensorNoise::isotropic(
+                units::gyro_psd_from_deg_per_sqrt_h(0.15),
+                0.0,
+                NBK_ACCEL_T_B_S,
+                0.0,
+                SOURCE_GYRO_BIAS_INIT_SIGMA_RADPS,
+            ),
+        )
+    }
+
+    /// The source's detailed NBK model with its identified parameters: accelerometer
+    /// S_N = 6.2865e-9 m^2/s^3, S_B = 2.4360e-11 m^2/s^5, T_B = 45 s, S_K = 2.6731e-12 m^2/s^5;
+    /// gyro S_N = 5.3079e-10 rad^2/s with constant biases. Use with
+    /// [`crate::model::LAYOUT_NBK`] (separate Gauss-Markov and random-walk states) or
+    /// [`crate::model::LAYOUT_NBK_SINGLE`] (the source's single decaying state).
+    pub fn source_nbk_model() -> Self {
+        Self::with_noise(
+            SensorNoise::isotropic(
+                NBK_ACCEL_S_N,
+                NBK_ACCEL_S_B,
+                NBK_ACCEL_T_B_S,
+                NBK_ACCEL_S_K,
+                SOURCE_ACCEL_BIAS_INIT_SIGMA_MPS2,
+            ),
+            SensorNoise::isotropic(
+                NBK_GYRO_S_N,
+                0.0,
+                NBK_ACCEL_T_B_S,
+                0.0,
+                SOURCE_GYRO_BIAS_INIT_SIGMA_RADPS,
+            ),
+        )
+    }
+
+    /// Checks every parameter (finite, non-negative, positive times).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !self.accel.is_valid() {
+            return Err(ConfigError::AccelNoise);
+        }
+        if !self.gyro.is_valid() {
+            return Err(ConfigError::GyroNoise);
+        }
+        if !self.accel_scale.is_valid() {
+            return Err(ConfigError::AccelScaleFactor);
+        }
+        if !self.gyro_scale.is_valid() {
+            return Err(ConfigError::GyroScaleFactor);
+        }
+        if !self.lever_arm_body_m.iter().all(|v| v.is_finite()) {
+            return Err(ConfigError::LeverArm);
+        }
+        if !(self.cov_predict_interval_s.is_finite() && self.cov_predict_interval_s >= 0.0) {
+            return Err(ConfigError::PredictInterval);
+        }
+        let g = &self.gating;
+        if !(g.nis_threshold_pos > 0.0
+            && g.nis_threshold_pos_vel > 0.0
+            && self.max_gnss_time_offset_s.is_finite()
+            && self.max_gnss_time_offset_s >= 0.0)
+        {
+            return Err(ConfigError::Gnss);
+        }
+        Ok(())
+    }
+}
+
+/// IMU noise as a KF-GINS configuration file states it (`imunoise` section), in its units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KfGinsImuNoise {
+    /// Angle random walk, deg/sqrt(h).
+    pub arw_deg_per_sqrt_h: [f64; 3],
+    /// Velocity random walk, m/s/sqrt(h).
+    pub vrw_mps_per_sqrt_h: [f64; 3],
+    /// Gyro bias (Gauss-Markov) sigma, deg/h.
+    pub gbstd_deg_per_h: [f64; 3],
+    /// Accelerometer bias (Gauss-Markov) sigma, mGal.
+    pub abstd_mgal: [f64; 3],
+    /// Gyro scale-factor sigma, ppm.
+    pub gsstd_ppm: [f64; 3],
+    /// Accelerometer scale-factor sigma, ppm.
+    pub asstd_ppm: [f64; 3],
+    /// Correlation time of all Gauss-Markov states, h.
+    pub corrtime_h: f64,
+}
+
+impl FilterConfig {
+    /// The equivalent configuration of a KF-GINS `imunoise` section, for
+    /// [`crate::model::LAYOUT_KF_GINS`] (Gauss-Markov gyro and accelerometer biases and scale
+    /// factors with one correlation time; KF-GINS's continuous noise `2 sigma^2 / T`, i.e.
+    /// S_B = 2 sigma^2 / T). The biases start at their stationary sigma (KF-GINS's default when
+    /// no separate initial std is given), so `bias_init_sigma` is 0 here.
+    pub fn from_kf_gins(n: &KfGinsImuNoise) -> Self {
+        let t = n.corrtime_h * units::HOUR_S;
+        let gyro = SensorNoise {
+            s_n: n
+                .arw_deg_per_sqrt_h
+                .map(units::gyro_psd_from_deg_per_sqrt_h),
+            s_b: n
+                .gbstd_deg_per_h
+                .map(|x| units::gm_psd_from_sigma(units::radps_from_deg_per_h(x), t)),
+            t_b_s: t,
+            s_k: [0.0; 3],
+            bias_init_sigma: [0.0; 3],
+        };
+        let accel = SensorNoise {
+            s_n: n
+                .vrw_mps_per_sqrt_h
+                .map(units::accel_psd_from_mps_per_sqrt_h),
+            s_b: n
+                .abstd_mgal
+                .map(|x| units::gm_psd_from_sigma(units::mps2_from_mgal(x), t)),
+            t_b_s: t,
+            s_k: [0.0; 3],
+            bias_init_sigma: [0.0; 3],
+        };
+        let mut c = Self::with_noise(accel, gyro);
+        c.accel_scale = ScaleFactorNoise {
+            sigma: n.asstd_ppm.map(units::from_ppm),
+            t_s: t,
+        };
+        c.gyro_scale = ScaleFactorNoise {
+            sigma: n.gsstd_ppm.map(units::from_ppm),
+            t_s: t,
+        };
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::units::*;
+    use super::*;
+
+    fn close(a: f64, b: f64, rel: f64) -> bool {
+        (a - b).abs() <= rel * b.abs()
+    }
+
+    #[test]
+    fn design_md_checks_of_the_source_table() {
+        // N = sqrt(6.2865e-9) = 8.085 ug/sqrt(Hz)
+        assert!(close(accel_ug_per_sqrt_hz_from_psd(6.2865e-9), 8.085, 2e-4));
+        // K = 1.6350e-6 m/s^2.5 = 10.0 ug/sqrt(h)
+        assert!(close(libm::sqrt(2.6731e-12), 1.6350e-6, 1e-4));
+        assert!(close(
+            accel_ug_per_sqrt_h_from_rw_psd(2.6731e-12),
+            10.0,
+            5e-4
+        ));
+        // gyro N = sqrt(5.3079e-10) rad/sqrt(s) = 0.0792 deg/sqrt(h)
+        assert!(close(
+            gyro_deg_per_sqrt_h_from_psd(5.3079e-10),
+            0.0792,
+            5e-4
+        ));
+        // B = 0.6572 sqrt(S_B T_B) = 2.219 ug
+        assert!(close(GM_PEAK_ADEV / FLICKER_FLOOR_ADEV, 0.6572, 1e-4));
+        assert!(close(
+            ug_from_mps2(flicker_b_from_gm(2.4360e-11, 45.0)),
+            2.219,
+            5e-4
+        ));
+    }
+
+    #[test]
+    fn conversions_invert() {
+        for x in [0.1, 8.085, 50.0] {
+            assert!(close(
+                accel_ug_per_sqrt_hz_from_psd(accel_psd_from_ug_per_sqrt_hz(x)),
+                x,
+                1e-12
+            ));
+            assert!(close(
+                gyro_deg_per_sqrt_h_from_psd(gyro_psd_from_deg_per_sqrt_h(x)),
+                x,
+                1e-12
+            ));
+            assert!(close(
+                accel_mps_per_sqrt_h_from_psd(accel_psd_from_mps_per_sqrt_h(x)),
+                x,
+                1e-12
+            ));
+            assert!(close(
+                accel_ug_per_sqrt_h_from_rw_psd(accel_rw_psd_from_ug_per_sqrt_h(x)),
+                x,
+                1e-12
+            ));
+            assert!(close(
+                deg_per_h_from_radps(radps_from_deg_per_h(x)),
+                x,
+                1e-12
+            ));
+            assert!(close(ug_from_mps2(mps2_from_ug(x)), x, 1e-12));
+            let s = gm_psd_from_flicker_b(x, 45.0);
+            assert!(close(flicker_b_from_gm(s, 45.0), x, 1e-12));
+            assert!(close(
+                gm_sigma_from_psd(gm_psd_from_sigma(x, 30.0), 30.0),
+                x,
+                1e-12
+            ));
+        }
+        // 1 mGal = 1e-5 m/s^2 = 1.0197 ug; 1 deg/h = 4.8481e-6 rad/s; 1 m/s/sqrt(h) = 1/60 m/s^1.5
+        assert!(close(mps2_from_mgal(1.0), 1e-5, 1e-15));
+        assert!(close(ug_from_mps2(mps2_from_mgal(1.0)), 1.019_716, 1e-6));
+        assert!(close(radps_from_deg_per_h(1.0), 4.848_136_8e-6, 1e-7));
+        assert!(close(
+            accel_psd_from_mps_per_sqrt_h(1.0),
+            1.0 / 3600.0,
+            1e-12
+        ));
+        assert!(close(from_ppm(1000.0), 1e-3, 1e-15));
+    }
+
+    #[test]
+    fn gm_peak_constant_is_the_maximum_of_the_allan_curve() {
+        // Brute-force search of the Gauss-Markov Allan variance shape (DESIGN.md's corrected
+        // bracket, coefficient 1 on e^-2x).
+        let f = |x: f64| {
+            (1.0 / x) * (1.0 - (3.0 - 4.0 * libm::exp(-x) + libm::exp(-2.0 * x)) / (2.0 * x))
+        };
+        let mut best = (0.0, 0.0);
+        let mut x = 0.01;
+        while x < 20.0 {
+            let v = f(x);
+            if v > best.0 {
+                best = (v, x);
+            }
+            x += 1e-4;
+        }
+        assert!(close(libm::sqrt(best.0), GM_PEAK_ADEV, 1e-7));
+        assert!((best.1 - 1.89).abs() < 0.01);
+        assert!(close(
+            FLICKER_FLOOR_ADEV,
+            libm::sqrt(2.0 * core::f64::consts::LN_2 / core::f64::consts::PI),
+            1e-8
+        ));
+    }
+
+    #[test]
+    fn chi2_quantiles_match_closed_form_cdfs() {
+        let cdf3 = |x: f64| {
+            libm::erf(libm::sqrt(x / 2.0))
+                - libm::sqrt(2.0 * x / core::f64::consts::PI) * libm::exp(-x / 2.0)
+        };
+        let cdf6 = |x: f64| 1.0 - libm::exp(-x / 2.0) * (1.0 + x / 2.0 + x * x / 8.0);
+        for (q, p) in [
+            (chi2::DIM3_P95, 0.95),
+            (chi2::DIM3_P99, 0.99),
+            (chi2::DIM3_P999, 0.999),
+            (chi2::DIM3_P9999, 0.9999),
+        ] {
+            assert!((cdf3(q) - p).abs() < 1e-9, "{q} {p}");
+        }
+        for (q, p) in [
+            (chi2::DIM6_P95, 0.95),
+            (chi2::DIM6_P99, 0.99),
+            (chi2::DIM6_P999, 0.999),
+            (chi2::DIM6_P9999, 0.9999),
+        ] {
+            assert!((cdf6(q) - p).abs() < 1e-9, "{q} {p}");
+        }
+    }
+
+    #[test]
+    fn source_models_have_the_papers_numbers() {
+        let n = FilterConfig::source_n_model();
+        assert!(close(
+            accel_ug_per_sqrt_hz_from_psd(n.accel.s_n[0]),
+            50.0,
+            1e-12
+        ));
+        assert!(close(
+            gyro_deg_per_sqrt_h_from_psd(n.gyro.s_n[2]),
+            0.15,
+            1e-12
+        ));
+        assert_eq!(n.accel.s_b, [0.0; 3]);
+        assert_eq!(n.accel.s_k, [0.0; 3]);
+        assert!(n.validate().is_ok());
+        let m = FilterConfig::source_nbk_model();
+        assert_eq!(m.accel.s_n, [6.2865e-9; 3]);
+        assert_eq!(m.accel.s_b, [2.4360e-11; 3]);
+        assert_eq!(m.accel.t_b_s, 45.0);
+        assert_eq!(m.accel.s_k, [2.6731e-12; 3]);
+        assert_eq!(m.gyro.s_n, [5.3079e-10; 3]);
+        assert!(m.validate().is_ok());
+        let mut bad = m;
+        bad.accel.t_b_s = 0.0;
+        assert_eq!(bad.validate(), Err(ConfigError::AccelNoise));
+        bad = m;
+        bad.gyro.s_n[1] = f64::NAN;
+        assert_eq!(bad.validate(), Err(ConfigError::GyroNoise));
+    }
+
+    #[test]
+    fn kf_gins_noise_maps_to_psds() {
+        let k = KfGinsImuNoise {
+            arw_deg_per_sqrt_h: [0.003; 3],
+            vrw_mps_per_sqrt_h: [0.03; 3],
+            gbstd_deg_per_h: [0.027; 3],
+            abstd_mgal: [15.0; 3],
+            gsstd_ppm: [300.0; 3],
+            asstd_ppm: [300.0; 3],
+            corrtime_h: 4.0,
+        };
+        let c = FilterConfig::from_kf_gins(&k);
+        assert!(c.validate().is_ok());
+        assert_eq!(c.gyro.t_b_s, 14_400.0);
+        // stationary sigma recovers gbstd and abstd
+        assert!(close(
+            deg_per_h_from_radps(gm_sigma_from_psd(c.gyro.s_b[0], c.gyro.t_b_s)),
+            0.027,
+            1e-12
+        ));
+        assert!(close(
+            gm_sigma_from_psd(c.accel.s_b[1], c.accel.t_b_s),
+            15e-5,
+            1e-12
+        ));
+        assert!(close(c.accel.s_n[2], (0.03f64 / 60.0).powi(2), 1e-12));
+        assert!(close(c.gyro_scale.sigma[0], 3e-4, 1e-12));
+    }
+}

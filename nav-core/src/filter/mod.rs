@@ -1,0 +1,757 @@
+//! The loosely coupled error-state INS/GNSS Kalman filter.
+//!
+//! `Filter<T, N>`: nominal state in f64 (a [`Strapdown`]), covariance and gains in `T`
+//! (`f32` on the MCU, `f64` on the host), N error states laid out by a [`Layout`]. Per IMU
+//! sample [`Filter::propagate`] corrects the raw increments with the estimated sensor errors,
+//! runs the mechanisation and accumulates the error dynamics; the covariance is predicted every
+//! [`FilterConfig::cov_predict_interval_s`] (see [`crate::model::discrete`]). Per GNSS fix
+//! [`Filter::update_gnss`] gates the innovation (chi-square on the NIS), updates in Joseph form,
+//! feeds the error estimate back into the nominal state and the sensor-error estimates and
+//! resets it to zero (closed loop).
+//!
+//! Nothing allocates or panics. Bad inputs (NaN/Inf, time going backwards, invalid fixes) are
+//! rejected with a [`FilterError`] and leave the filter unchanged and usable; a numerical
+//! failure (non-finite covariance, innovation covariance not positive definite) is reported and
+//! the previous covariance kept.
+
+pub mod linalg;
+
+use crate::config::{ConfigError, FilterConfig};
+use crate::earth::{self, Llh};
+use crate::model::discrete::{self, Accumulator, Cov};
+use crate::model::{
+    BlockKind, ImuCorrection, Layout, LayoutError, MeasContext, Regressors, CORE_DIM, IDX_ATT,
+    IDX_POS, IDX_VEL,
+};
+use crate::nav::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
+use crate::scalar::Scalar;
+use crate::types::{GnssFix, ImuSample, NavSolution};
+use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+
+/// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
+pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
+/// Status bit: a numerical failure occurred since the filter started.
+pub const STATUS_NUMERICAL_FAILURE: u32 = 2;
+/// Status bit: no GNSS fix has been accepted yet.
+pub const STATUS_NO_FIX_YET: u32 = 4;
+
+/// Errors of the filter. The filter is unchanged by the call that returned one (except for the
+/// counters) and stays usable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FilterError {
+    /// The state layout does not fit the filter.
+    Layout(LayoutError),
+    /// The configuration is invalid.
+    Config(ConfigError),
+    /// The initial state or uncertainty is not finite (or a sigma negative).
+    InitialState,
+    /// IMU sample with a NaN/Inf time or increment.
+    NonFiniteImu,
+    /// IMU sample time not after the filter time, or a gap over `nav::MAX_DT_S`.
+    ImuTimeStep {
+        /// Sample time minus filter time, s.
+        dt_s: f64,
+    },
+    /// GNSS fix with NaN/Inf values, non-positive sigmas or no fix.
+    InvalidGnss,
+    /// GNSS fix too far in time from the filter's epoch (`max_gnss_time_offset_s`).
+    GnssTime {
+        /// Fix time minus filter time, s.
+        offset_s: f64,
+    },
+    /// The covariance became non-finite, or the innovation covariance is not positive definite.
+    Numerical,
+}
+
+impl core::fmt::Display for FilterError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Layout(e) => write!(f, "filter: {e}"),
+            Self::Config(e) => write!(f, "filter: {e}"),
+            Self::InitialState => f.write_str("filter: initial state or uncertainty not finite"),
+            Self::NonFiniteImu => f.write_str("filter: IMU sample has a NaN/Inf time or increment"),
+            Self::ImuTimeStep { dt_s } => write!(
+                f,
+                "filter: IMU sample time step {dt_s} s is not in (0, {MAX_DT_S}] s"
+            ),
+            Self::InvalidGnss => f.write_str("filter: GNSS fix invalid (NaN/Inf, sigma <= 0 or no fix)"),
+            Self::GnssTime { offset_s } => write!(
+                f,
+                "filter: GNSS fix is {offset_s} s away from the filter epoch"
+            ),
+            Self::Numerical => f.write_str("filter: numerical failure (covariance not finite or innovation covariance not positive definite)"),
+        }
+    }
+}
+
+/// Initial 1-sigma uncertainty of the core states (the sensor-error blocks take theirs from
+/// the [`FilterConfig`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InitialUncertainty {
+    /// Attitude error phi (north, east, down axes), rad.
+    pub att_sigma_rad: [f64; 3],
+    /// NED velocity, m/s.
+    pub vel_sigma_mps: [f64; 3],
+    /// NED position, m.
+    pub pos_sigma_m: [f64; 3],
+}
+
+/// Event counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Counters {
+    /// IMU samples integrated.
+    pub imu_epochs: u64,
+    /// IMU samples rejected (non-finite or bad time step).
+    pub imu_rejected: u32,
+    /// Covariance predictions.
+    pub cov_predictions: u32,
+    /// GNSS fixes used (including forced ones).
+    pub gnss_accepted: u32,
+    /// GNSS fixes rejected by the innovation gate.
+    pub gnss_rejected: u32,
+    /// GNSS fixes accepted without the gate after too many consecutive rejections.
+    pub gnss_forced: u32,
+    /// GNSS fixes refused as invalid or mistimed.
+    pub gnss_invalid: u32,
+    /// Numerical failures (prediction or update skipped).
+    pub numerical_failures: u32,
+}
+
+/// What a GNSS update did. Vectors hold `dim` valid entries: north, east, down position (m),
+/// then (for `dim` = 6) north, east, down velocity (m/s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct UpdateOutcome {
+    /// Fix time, s.
+    pub t_s: f64,
+    /// Measurement dimension (3 position, 6 position + velocity).
+    pub dim: usize,
+    /// Innovation, measured minus predicted (antenna), m and m/s.
+    pub innovation: [f64; 6],
+    /// Diagonal of the innovation covariance S = H P H^T + R, m^2 and m^2/s^2.
+    pub innovation_var: [f64; 6],
+    /// Normalised innovation squared `nu^T S^-1 nu`.
+    pub nis: f64,
+    /// The gate threshold that applied.
+    pub nis_threshold: f64,
+    /// Whether the fix was used.
+    pub accepted: bool,
+    /// Whether it was used without the gate (after too many consecutive rejections).
+    pub forced: bool,
+}
+
+/// The error-state filter with N states and covariance scalar T.
+#[derive(Debug, Clone)]
+pub struct Filter<T: Scalar, const N: usize> {
+    layout: Layout,
+    cfg: FilterConfig,
+    mech: Strapdown,
+    p: Cov<T, N>,
+    est: [f64; N],
+    acc: Accumulator<T, N>,
+    last_step: StepInfo,
+    counters: Counters,
+    consecutive_rejections: u32,
+    status: u32,
+}
+
+impl<T: Scalar, const N: usize> Filter<T, N> {
+    /// A filter with the given layout (whose dimension must be N), configuration, initial
+    /// nominal state and core uncertainty.
+    pub fn new(
+        layout: Layout,
+        cfg: &FilterConfig,
+        init: NavState,
+        unc: &InitialUncertainty,
+    ) -> Result<Self, FilterError> {
+        layout.validate(N).map_err(FilterError::Layout)?;
+        cfg.validate().map_err(FilterError::Config)?;
+        let q = init.q_nb.quaternion();
+        let state_ok = init.t_s.is_finite()
+            && init.pos.lat_rad.is_finite()
+            && init.pos.lon_rad.is_finite()
+            && init.pos.h_m.is_finite()
+            && init.vel_ned_mps.iter().all(|v| v.is_finite())
+            && q.coords.iter().all(|v| v.is_finite());
+        let unc_ok = [unc.att_sigma_rad, unc.vel_sigma_mps, unc.pos_sigma_m]
+            .iter()
+            .all(|a| a.iter().all(|v| v.is_finite() && *v >= 0.0));
+        if !(state_ok && unc_ok) {
+            return Err(FilterError::InitialState);
+        }
+        let mut var = [0.0f64; N];
+        for (dst, src) in [
+            (IDX_ATT, unc.att_sigma_rad),
+            (IDX_VEL, unc.vel_sigma_mps),
+            (IDX_POS, unc.pos_sigma_m),
+        ] {
+            for (v, s) in var.iter_mut().skip(dst).zip(src) {
+                *v = s * s;
+            }
+        }
+        for (off, b) in layout.iter() {
+            if let Some(slot) = var.get_mut(off..) {
+                b.initial_variance(cfg, slot);
+            }
+        }
+        let mut p = [[T::ZERO; N]; N];
+        for (i, (row, v)) in p.iter_mut().zip(var).enumerate() {
+            if let Some(x) = row.get_mut(i) {
+                *x = T::of_f64(v);
+            }
+        }
+        Ok(Self {
+            layout,
+            cfg: *cfg,
+            mech: Strapdown::new(init),
+            p,
+            est: [0.0; N],
+            acc: Accumulator::default(),
+            last_step: StepInfo::default(),
+            counters: Counters::default(),
+            consecutive_rejections: 0,
+            status: STATUS_NO_FIX_YET,
+        })
+    }
+
+    /// Integrates one raw IMU sample: corrects it with the estimated sensor errors,
+    /// mechanises, and accumulates the error dynamics; predicts the covariance when the
+    /// configured interval is full.
+    pub fn propagate(&mut self, imu: &ImuSample) -> Result<(), FilterError> {
+        if !imu.is_finite() {
+            self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
+            return Err(FilterError::NonFiniteImu);
+        }
+        let dt = imu.t_s - self.mech.state().t_s;
+        if !(dt > 0.0 && dt <= MAX_DT_S) {
+            self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
+            return Err(FilterError::ImuTimeStep { dt_s: dt });
+        }
+        let corr = self.imu_correction();
+        let mut s = *imu;
+        corr.apply(&mut s.dtheta_rad, &mut s.dv_mps, dt);
+        if !s.is_finite() {
+            self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
+            return Err(FilterError::NonFiniteImu);
+        }
+        let step = match self.mech.update(&s) {
+            Ok(st) => st,
+            Err(e) => {
+                self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
+                return Err(match e {
+                    MechError::NonFinite => FilterError::NonFiniteImu,
+                    MechError::BadTimeStep => FilterError::ImuTimeStep { dt_s: dt },
+                });
+            }
+        };
+        self.last_step = step;
+        let reg = Regressors {
+            dt: T::of_f64(step.dt_s),
+            c_nb: dcm_t(&self.mech.state().q_nb),
+            f_b: vec_t(&step.f_body_mps2),
+            omega_b: vec_t(&step.omega_ib_body_radps),
+            temperature_c: T::of_f64(imu.temperature_c),
+        };
+        let f_n = vec_t(&step.f_ned_mps2);
+        self.acc.add(&self.layout, &reg, step.dt_s, &f_n);
+        self.counters.imu_epochs = self.counters.imu_epochs.saturating_add(1);
+        if self.acc.dt_s + 0.5 * step.dt_s >= self.cfg.cov_predict_interval_s {
+            self.predict_covariance()?;
+        }
+        Ok(())
+    }
+
+    /// Predicts the covariance over the IMU epochs accumulated since the last prediction (a
+    /// no-op when there are none). Called by [`Self::propagate`] and before every update.
+    pub fn predict_covariance(&mut self) -> Result<(), FilterError> {
+        if self.acc.epochs == 0 {
+            return Ok(());
+        }
+        let d = discrete::discretize(&self.layout, &self.cfg, self.mech.state(), &self.acc);
+        self.acc = Accumulator::default();
+        let mut p = self.p;
+        discrete::predict_covariance(&mut p, &d);
+        if !all_finite(&p) || !diag_nonneg(&p) {
+            return Err(self.numerical_failure());
+        }
+        self.p = p;
+        self.counters.cov_predictions = self.counters.cov_predictions.saturating_add(1);
+        Ok(())
+    }
+
+    /// Uses one GNSS fix (antenna position, and velocity when configured and present). Call it
+    /// at the IMU epoch nearest the fix time (within `max_gnss_time_offset_s`; the offset is
+    /// bridged with the velocity). Returns the innovation and whether the gate accepted it.
+    pub fn update_gnss(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
+        if !fix.is_valid() {
+            self.counters.gnss_invalid = self.counters.gnss_invalid.saturating_add(1);
+            return Err(FilterError::InvalidGnss);
+        }
+        let nav = *self.mech.state();
+        let dt_fix = fix.t_s - nav.t_s;
+        if dt_fix.is_nan() || dt_fix.abs() > self.cfg.max_gnss_time_offset_s {
+            self.counters.gnss_invalid = self.counters.gnss_invalid.saturating_add(1);
+            return Err(FilterError::GnssTime { offset_s: dt_fix });
+        }
+        self.predict_covariance()?;
+
+        let c = dcm_f64(&nav.q_nb);
+        let l = Vector3::from(self.cfg.lever_arm_body_m);
+        let w = self.last_step.omega_ib_body_radps;
+        let c_l = c * l;
+        let c_w_x_l = c * w.cross(&l);
+        let c_lx = c * l.cross_matrix();
+        let ctx = MeasContext {
+            c_l: c_l.into(),
+            c_w_x_l: c_w_x_l.into(),
+            c_lx: c_lx.transpose().into(),
+            omega_b_radps: w.into(),
+        };
+        let mut h_pos = [[T::ZERO; N]; 3];
+        let mut h_vel = [[T::ZERO; N]; 3];
+        for (off, b) in self.layout.iter() {
+            b.gnss_jacobian(off, &ctx, &mut h_pos, &mut h_vel);
+        }
+        // predicted antenna position at the fix time; z = predicted - measured (NED, m)
+        let ant = earth::displace(&nav.pos, &(c_l + nav.vel_ned_mps * dt_fix));
+        let meas = Llh {
+            lat_rad: fix.lat_rad,
+            lon_rad: fix.lon_rad,
+            h_m: fix.h_m,
+        };
+        let zp = earth::ned_offset_m(&meas, &ant);
+        let rp = fix.pos_std_ned_m.map(|s| s * s);
+        let force = self.cfg.gating.max_consecutive_rejections > 0
+            && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
+        if self.cfg.use_gnss_velocity && fix.has_velocity {
+            let w_in = earth::earth_rate_ned_radps(nav.pos.lat_rad)
+                + earth::transport_rate_ned_radps(nav.pos.lat_rad, nav.pos.h_m, &nav.vel_ned_mps);
+            let v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
+            let zv = v_ant - Vector3::from(fix.vel_ned_mps);
+            let [rv0, rv1, rv2] = fix.vel_std_ned_mps.map(|s| s * s);
+            let [rp0, rp1, rp2] = rp;
+            let [a, b, cc] = h_pos;
+            let [d, e, f] = h_vel;
+            self.kalman_update::<6>(
+                &[zp.x, zp.y, zp.z, zv.x, zv.y, zv.z],
+                &[a, b, cc, d, e, f],
+                &[rp0, rp1, rp2, rv0, rv1, rv2],
+                self.cfg.gating.nis_threshold_pos_vel,
+                force,
+                fix.t_s,
+            )
+        } else {
+            self.kalman_update::<3>(
+                &[zp.x, zp.y, zp.z],
+                &h_pos,
+                &rp,
+                self.cfg.gating.nis_threshold_pos,
+                force,
+                fix.t_s,
+            )
+        }
+    }
+
+    /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
+    /// diagonal R, then closed-loop feedback and reset.
+    fn kalman_update<const M: usize>(
+        &mut self,
+        z64: &[f64; M],
+        h: &[[T; N]; M],
+        r64: &[f64; M],
+        threshold: f64,
+        force: bool,
+        t_s: f64,
+    ) -> Result<UpdateOutcome, FilterError> {
+        let z = z64.map(T::of_f64);
+        let r = r64.map(T::of_f64);
+        // P H^T (N x M)
+        let mut pht = [[T::ZERO; M]; N];
+        for (prow, out) in self.p.iter().zip(pht.iter_mut()) {
+            for (o, hrow) in out.iter_mut().zip(h) {
+                *o = dot(prow, hrow);
+            }
+        }
+        // S = H P H^T + R
+        let mut s = [[T::ZERO; M]; M];
+        for (a, (srow, hrow)) in s.iter_mut().zip(h).enumerate() {
+            for (b, sab) in srow.iter_mut().enumerate() {
+                let mut acc = T::ZERO;
+                for (hai, phti) in hrow.iter().zip(pht.iter()) {
+                    acc += *hai * phti.get(b).copied().unwrap_or(T::ZERO);
+                }
+                if a == b {
+                    acc += r.get(a).copied().unwrap_or(T::ZERO);
+                }
+                *sab = acc;
+            }
+        }
+        // symmetrise S
+        for a in 0..M {
+            for b in 0..a {
+                let v = (get2(&s, a, b) + get2(&s, b, a)) * T::HALF;
+                set2(&mut s, a, b, v);
+                set2(&mut s, b, a, v);
+            }
+        }
+        let mut out = UpdateOutcome {
+            t_s,
+            dim: M,
+            innovation: [0.0; 6],
+            innovation_var: [0.0; 6],
+            nis: f64::NAN,
+            nis_threshold: threshold,
+            accepted: false,
+            forced: false,
+        };
+        for (i, zi) in z64.iter().enumerate() {
+            if let Some(o) = out.innovation.get_mut(i) {
+                *o = -*zi;
+            }
+            if let Some(o) = out.innovation_var.get_mut(i) {
+                *o = get2(&s, i, i).to_f64();
+            }
+        }
+        let mut l = s;
+        if !cholesky_in_place(&mut l) {
+            return Err(self.numerical_failure());
+        }
+        let y = forward_solve(&l, &z);
+        let nis = dot(&y, &y).to_f64();
+        out.nis = nis;
+        if !nis.is_finite() {
+            return Err(self.numerical_failure());
+        }
+        let passes_gate = nis <= threshold;
+        if !passes_gate && !force {
+            self.counters.gnss_rejected = self.counters.gnss_rejected.saturating_add(1);
+            self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
+            self.status |= STATUS_LAST_FIX_REJECTED;
+            return Ok(out);
+        }
+        // K = P H^T S^-1 (row i solves S k_i = (P H^T)_i)
+        let mut k = [[T::ZERO; M]; N];
+        for (krow, phtrow) in k.iter_mut().zip(pht.iter()) {
+            *krow = cholesky_solve(&l, phtrow);
+        }
+        let mut dx = [T::ZERO; N];
+        for (d, krow) in dx.iter_mut().zip(k.iter()) {
+            *d = dot(krow, &z);
+        }
+        if !all_finite(&k) || !dx.iter().all(|v| v.finite()) {
+            return Err(self.numerical_failure());
+        }
+        // Joseph form P = (I - K H) P (I - K H)^T + K R K^T, in place:
+        // AP = P - K (P H^T)^T;  P = AP - (AP H^T - K R) K^T  (upper triangle, mirrored)
+        let mut p = self.p;
+        for (prow, krow) in p.iter_mut().zip(k.iter()) {
+            for (pij, phtj) in prow.iter_mut().zip(pht.iter()) {
+                *pij -= dot(krow, phtj);
+            }
+        }
+        let mut y_mat = [[T::ZERO; M]; N];
+        for ((yrow, prow), krow) in y_mat.iter_mut().zip(p.iter()).zip(k.iter()) {
+            for (((yv, hrow), kv), rv) in yrow.iter_mut().zip(h).zip(krow).zip(r.iter()) {
+                *yv = dot(prow, hrow) - *kv * *rv;
+            }
+        }
+        for (i, (prow, yrow)) in p.iter_mut().zip(y_mat.iter()).enumerate() {
+            for (pij, kj) in prow.iter_mut().zip(k.iter()).skip(i) {
+                *pij -= dot(yrow, kj);
+            }
+        }
+        discrete::mirror_upper(&mut p);
+        if !all_finite(&p) || !diag_nonneg(&p) {
+            return Err(self.numerical_failure());
+        }
+        self.p = p;
+        self.feedback(&dx);
+        self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
+        if force {
+            self.counters.gnss_forced = self.counters.gnss_forced.saturating_add(1);
+        }
+        self.consecutive_rejections = 0;
+        self.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_NO_FIX_YET);
+        out.accepted = true;
+        out.forced = force;
+        Ok(out)
+    }
+
+    /// Closed-loop feedback of the estimated error `dx` (estimate - truth) into the nominal
+    /// state and the sensor-error estimates; the error state is then zero again.
+    fn feedback(&mut self, dx: &[T; N]) {
+        let dx64: [f64; N] = dx.map(|v| v.to_f64());
+        let phi = vec3_at(&dx64, IDX_ATT);
+        let dv = vec3_at(&dx64, IDX_VEL);
+        let dr = vec3_at(&dx64, IDX_POS);
+        let s = self.mech.state_mut();
+        // C = (I + [phi x]) C_hat  =>  q = q(phi) q_hat
+        s.q_nb = quat_from_rotvec(&phi) * s.q_nb;
+        s.vel_ned_mps -= Vector3::from(dv);
+        s.pos = earth::displace(&s.pos, &(-Vector3::from(dr)));
+        for (off, b) in self.layout.iter() {
+            let end = off + b.dim();
+            if let (Some(e), Some(d)) = (self.est.get_mut(off..end), dx64.get(off..end)) {
+                b.feedback(e, d);
+            }
+        }
+    }
+
+    fn numerical_failure(&mut self) -> FilterError {
+        self.counters.numerical_failures = self.counters.numerical_failures.saturating_add(1);
+        self.status |= STATUS_NUMERICAL_FAILURE;
+        FilterError::Numerical
+    }
+
+    /// The IMU error correction from the current sensor-error estimates.
+    pub fn imu_correction(&self) -> ImuCorrection {
+        let mut c = ImuCorrection::default();
+        for (off, b) in self.layout.iter() {
+            if let Some(e) = self.est.get(off..off + b.dim()) {
+                b.add_correction(e, &mut c);
+            }
+        }
+        c
+    }
+
+    /// The nominal navigation state (IMU reference point).
+    pub fn nav_state(&self) -> &NavState {
+        self.mech.state()
+    }
+
+    /// The last mechanisation step (corrected specific force and rate).
+    pub fn last_step(&self) -> &StepInfo {
+        &self.last_step
+    }
+
+    /// The error covariance (row-major; units of the states: rad, m/s, m, sensor units).
+    pub fn covariance(&self) -> &Cov<T, N> {
+        &self.p
+    }
+
+    /// 1-sigma of every error state (sqrt of the covariance diagonal).
+    pub fn state_std(&self) -> [f64; N] {
+        let mut out = [0.0; N];
+        for (i, (o, row)) in out.iter_mut().zip(self.p.iter()).enumerate() {
+            *o = libm::sqrt(row.get(i).copied().unwrap_or(T::ZERO).to_f64());
+        }
+        out
+    }
+
+    /// The current estimate of a block's states (sensor errors in SI units; the core's entries
+    /// are always zero: its errors are fed back), or None when the layout has no such block.
+    pub fn block_estimate(&self, kind: BlockKind) -> Option<&[f64]> {
+        let (off, b) = self.layout.find(kind)?;
+        self.est.get(off..off + b.dim())
+    }
+
+    /// Total estimate and 1-sigma per axis of an IMU error quantity (the sum over the block's
+    /// 3-state groups, e.g. b_GM + b_RW, with their cross-covariance), or None when absent.
+    pub fn imu_error(&self, kind: BlockKind) -> Option<([f64; 3], [f64; 3])> {
+        let (off, b) = self.layout.find(kind)?;
+        b.quantity()?;
+        let groups = b.dim() / 3;
+        let mut val = [0.0; 3];
+        let mut std = [0.0; 3];
+        for axis in 0..3 {
+            let mut v = 0.0;
+            let mut var = 0.0;
+            for g in 0..groups {
+                let i = off + 3 * g + axis;
+                v += self.est.get(i).copied().unwrap_or(0.0);
+                for h in 0..groups {
+                    var += get2(&self.p, i, off + 3 * h + axis).to_f64();
+                }
+            }
+            if let Some(x) = val.get_mut(axis) {
+                *x = v;
+            }
+            if let Some(x) = std.get_mut(axis) {
+                *x = libm::sqrt(var);
+            }
+        }
+        Some((val, std))
+    }
+
+    /// The navigation solution with standard deviations (GPS week unknown to the filter: 0).
+    pub fn solution(&self) -> NavSolution {
+        let s = self.mech.state();
+        let sd = self.state_std();
+        let rpy = rpy_rad(&s.q_nb);
+        let att_std = euler_std(&rpy, &self.p);
+        NavSolution {
+            week: 0,
+            t_s: s.t_s,
+            lat_rad: s.pos.lat_rad,
+            lon_rad: s.pos.lon_rad,
+            h_m: s.pos.h_m,
+            vel_ned_mps: s.vel_ned_mps.into(),
+            rpy_rad: rpy,
+            pos_std_ned_m: vec3_at(&sd, IDX_POS),
+            vel_std_ned_mps: vec3_at(&sd, IDX_VEL),
+            att_std_rad: att_std,
+            status: self.status,
+        }
+    }
+
+    /// Event counters.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// Status bits (`STATUS_*`).
+    pub fn status(&self) -> u32 {
+        self.status
+    }
+
+    /// The state layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FilterConfig {
+        &self.cfg
+    }
+
+    /// IMU time accumulated since the last covariance prediction, s.
+    pub fn pending_prediction_s(&self) -> f64 {
+        self.acc.dt_s
+    }
+
+    /// Whether the covariance is symmetric positive definite, checked by a Cholesky
+    /// factorisation in the filter's own scalar type (N^3/6 multiply-adds).
+    pub fn covariance_is_positive_definite(&self) -> bool {
+        let sym = self.p.iter().enumerate().all(|(i, row)| {
+            row.iter()
+                .enumerate()
+                .all(|(j, v)| *v == get2(&self.p, j, i))
+        });
+        let mut a = self.p;
+        sym && cholesky_in_place(&mut a)
+    }
+}
+
+/// The error-state dimension of the core (re-exported for users indexing `state_std`).
+pub const CORE_STATES: usize = CORE_DIM;
+
+fn get2<T: Scalar, const R: usize, const C: usize>(a: &[[T; C]; R], i: usize, j: usize) -> T {
+    a.get(i).and_then(|r| r.get(j)).copied().unwrap_or(T::ZERO)
+}
+
+fn set2<T: Scalar, const R: usize, const C: usize>(a: &mut [[T; C]; R], i: usize, j: usize, v: T) {
+    if let Some(x) = a.get_mut(i).and_then(|r| r.get_mut(j)) {
+        *x = v;
+    }
+}
+
+fn diag_nonneg<T: Scalar, const N: usize>(p: &Cov<T, N>) -> bool {
+    p.iter()
+        .enumerate()
+        .all(|(i, r)| r.get(i).is_some_and(|v| *v >= T::ZERO))
+}
+
+fn vec3_at(a: &[f64], i: usize) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    if let Some(s) = a.get(i..i + 3) {
+        out.copy_from_slice(s);
+    }
+    out
+}
+
+fn vec_t<T: Scalar>(v: &Vector3<f64>) -> [T; 3] {
+    [T::of_f64(v.x), T::of_f64(v.y), T::of_f64(v.z)]
+}
+
+/// C_b^n (row-major) from the attitude quaternion, in f64.
+pub fn dcm_f64(q: &UnitQuaternion<f64>) -> Matrix3<f64> {
+    let q = q.quaternion();
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    Matrix3::new(
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    )
+}
+
+/// C_b^n (row-major) in the scalar type (quaternion rounded first: cheap on the MCU).
+fn dcm_t<T: Scalar>(q: &UnitQuaternion<f64>) -> [[T; 3]; 3] {
+    let q = q.quaternion();
+    let (w, x, y, z) = (
+        T::of_f64(q.w),
+        T::of_f64(q.i),
+        T::of_f64(q.j),
+        T::of_f64(q.k),
+    );
+    let one = T::ONE;
+    let two = one + one;
+    [
+        [
+            one - two * (y * y + z * z),
+            two * (x * y - w * z),
+            two * (x * z + w * y),
+        ],
+        [
+            two * (x * y + w * z),
+            one - two * (x * x + z * z),
+            two * (y * z - w * x),
+        ],
+        [
+            two * (x * z - w * y),
+            two * (y * z + w * x),
+            one - two * (x * x + y * y),
+        ],
+    ]
+}
+
+/// The unit quaternion of a rotation vector (rad), computed with libm.
+pub fn quat_from_rotvec(v: &[f64; 3]) -> UnitQuaternion<f64> {
+    let [x, y, z] = *v;
+    let a2 = x * x + y * y + z * z;
+    let a = libm::sqrt(a2);
+    let (s, c) = if a < 1e-6 {
+        (0.5 - a2 / 48.0, 1.0 - a2 / 8.0)
+    } else {
+        (libm::sin(0.5 * a) / a, libm::cos(0.5 * a))
+    };
+    UnitQuaternion::new_normalize(Quaternion::new(c, s * x, s * y, s * z))
+}
+
+/// Roll, pitch, yaw (ZYX) in rad from the attitude quaternion, with libm.
+pub fn rpy_rad(q: &UnitQuaternion<f64>) -> [f64; 3] {
+    let c = dcm_f64(q);
+    let s = (-c.m31).clamp(-1.0, 1.0);
+    [
+        libm::atan2(c.m32, c.m33),
+        libm::asin(s),
+        libm::atan2(c.m21, c.m11),
+    ]
+}
+
+/// Roll/pitch/yaw 1-sigma from the phi covariance: `rho = A d(rpy)` with A's columns the
+/// NED rotation axes of roll (R_z R_y e1), pitch (R_z e2) and yaw (e3).
+fn euler_std<T: Scalar, const N: usize>(rpy: &[f64; 3], p: &Cov<T, N>) -> [f64; 3] {
+    let [_, th, ps] = *rpy;
+    let (st, ct) = (libm::sin(th), libm::cos(th));
+    let (sp, cp) = (libm::sin(ps), libm::cos(ps));
+    let a = Matrix3::new(cp * ct, -sp, 0.0, sp * ct, cp, 0.0, -st, 0.0, 1.0);
+    let Some(ai) = a.try_inverse() else {
+        return [f64::NAN; 3];
+    };
+    let sigma = Matrix3::from_fn(|i, j| get2(p, IDX_ATT + i, IDX_ATT + j).to_f64());
+    let e = ai * sigma * ai.transpose();
+    [
+        libm::sqrt(e.m11.max(0.0)),
+        libm::sqrt(e.m22.max(0.0)),
+        libm::sqrt(e.m33.max(0.0)),
+    ]
+}
