@@ -85,14 +85,15 @@ pub struct StepInfo {
 ///
 /// # Algorithm (one [`update`](Strapdown::update), interval (t_{k-1}, t_k], length dt)
 ///
-/// The formulation is Savage's / Groves' two-speed-free "increment" form as used by KF-GINS:
+/// The formulation is Savage's / Groves' single-speed increment form, as in KF-GINS:
 ///
 /// 1. **Body frame.** Rotation vector of the body over the interval with the two-sample coning
 ///    correction from the previous increment, `phi = dtheta + dtheta_prev x dtheta / 12`, and
-///    the velocity increment in the body frame at t_{k-1} with rotation compensation and
-///    two-sample sculling: `dv_b = dv + dtheta x dv / 2 + (dtheta_prev x dv + dv_prev x
-///    dtheta) / 12`. Both are exact for rates and specific forces varying linearly in time;
-///    the residual coning drift for a coning motion of half-angle `alpha` and frequency `W` is
+///    the velocity increment in the body frame at t_{k-1} with rotation compensation (to
+///    second order) and two-sample sculling: `dv_b = dv + dtheta x dv / 2 +
+///    dtheta x (dtheta x dv) / 6 + (dtheta_prev x dv + dv_prev x dtheta) / 12` (see
+///    [`attitude::sculled_dv`]). The two-sample terms are exact for rates and specific forces
+///    varying linearly over the two intervals; the residual coning drift for a coning motion of half-angle `alpha` and frequency `W` is
 ///    `alpha^2 W (W dt)^4 / 60` (rad/s). The previous increments are used only when the
 ///    previous interval was between half and twice the current one (otherwise, and on the
 ///    first sample after [`new`](Strapdown::new), the two-sample terms are zero).
@@ -252,7 +253,10 @@ impl Strapdown {
                 attitude::sculled_dv(&self.prev_dtheta_rad, &self.prev_dv_mps, &dth, &dv),
             )
         } else {
-            (dth, dv + dth.cross(&dv) * 0.5)
+            (
+                dth,
+                attitude::sculled_dv(&Vector3::zeros(), &Vector3::zeros(), &dth, &dv),
+            )
         };
 
         let s = self.state;
