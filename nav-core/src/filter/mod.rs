@@ -16,6 +16,7 @@
 
 pub mod linalg;
 
+use crate::attitude;
 use crate::config::{ConfigError, FilterConfig};
 use crate::earth::{self, Llh};
 use crate::model::discrete::{self, Accumulator, Cov};
@@ -27,7 +28,7 @@ use crate::nav::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::scalar::Scalar;
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
 pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
@@ -489,7 +490,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let dr = vec3_at(&dx64, IDX_POS);
         let s = self.mech.state_mut();
         // C = (I + [phi x]) C_hat  =>  q = q(phi) q_hat
-        s.q_nb = quat_from_rotvec(&phi) * s.q_nb;
+        s.q_nb = attitude::quat_from_rotvec(&Vector3::from(phi)) * s.q_nb;
         s.vel_ned_mps -= Vector3::from(dv);
         s.pos = earth::displace(&s.pos, &(-Vector3::from(dr)));
         for (off, b) in self.layout.iter() {
@@ -580,7 +581,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     pub fn solution(&self) -> NavSolution {
         let s = self.mech.state();
         let sd = self.state_std();
-        let rpy = rpy_rad(&s.q_nb);
+        let rpy = attitude::euler_zyx_from_quat(&s.q_nb);
         let att_std = euler_std(&rpy, &self.p);
         NavSolution {
             week: 0,
@@ -710,30 +711,6 @@ fn dcm_t<T: Scalar>(q: &UnitQuaternion<f64>) -> [[T; 3]; 3] {
             two * (y * z + w * x),
             one - two * (x * x + y * y),
         ],
-    ]
-}
-
-/// The unit quaternion of a rotation vector (rad), computed with libm.
-pub fn quat_from_rotvec(v: &[f64; 3]) -> UnitQuaternion<f64> {
-    let [x, y, z] = *v;
-    let a2 = x * x + y * y + z * z;
-    let a = libm::sqrt(a2);
-    let (s, c) = if a < 1e-6 {
-        (0.5 - a2 / 48.0, 1.0 - a2 / 8.0)
-    } else {
-        (libm::sin(0.5 * a) / a, libm::cos(0.5 * a))
-    };
-    UnitQuaternion::new_normalize(Quaternion::new(c, s * x, s * y, s * z))
-}
-
-/// Roll, pitch, yaw (ZYX) in rad from the attitude quaternion, with libm.
-pub fn rpy_rad(q: &UnitQuaternion<f64>) -> [f64; 3] {
-    let c = dcm_f64(q);
-    let s = (-c.m31).clamp(-1.0, 1.0);
-    [
-        libm::atan2(c.m32, c.m33),
-        libm::asin(s),
-        libm::atan2(c.m21, c.m11),
     ]
 }
 
