@@ -22,6 +22,7 @@
     )
 )]
 
+pub mod align;
 pub mod attitude;
 pub mod config;
 pub mod earth;

@@ -1,0 +1,393 @@
+//! Static coarse alignment: the initial attitude from a window of IMU samples taken at rest.
+//!
+//! * **Levelling**: roll and pitch from the mean specific force. At rest the accelerometers
+//!   measure f^b = -C_n^b g^n = (g sin(pitch), -g sin(roll) cos(pitch), -g cos(roll) cos(pitch)),
+//!   so roll = atan2(-f_y, -f_z), pitch = atan2(f_x, sqrt(f_y^2 + f_z^2)). An accelerometer bias
+//!   b_a tilts the result by about b_a / g (1 mg -> 0.057 deg).
+//! * **Heading**: given by the caller, or by **gyrocompassing**: the mean angular rate at rest is
+//!   the earth rate, omega^b = C_n^b (W cos(lat), 0, -W sin(lat)); rotated into the levelled
+//!   (heading-free) frame it is (W cos(lat) cos(yaw), -W cos(lat) sin(yaw), -W sin(lat)), so
+//!   yaw = atan2(-omega_y, omega_x). A horizontal gyro bias b_g gives a heading error of about
+//!   b_g / (W cos(lat)); W cos(lat) is only 15.04 deg/h * cos(lat) (10.06 deg/h at 48 deg).
+//!   Gyrocompassing therefore needs a **navigation-grade gyro**: b_g << W cos(lat) times the
+//!   wanted accuracy, i.e. below about 0.017 deg/h for 0.1 deg and 0.17 deg/h for 1 deg at
+//!   48 deg latitude, and a window long enough to average the angle random walk
+//!   (ARW / sqrt(T) below the same limit: 0.002 deg/sqrt(h) needs about 2 min for 0.1 deg).
+//!   Tactical (1 deg/h) and MEMS gyros cannot gyrocompass: give the heading (magnetometer,
+//!   GNSS course, a previous run) instead. The estimated heading uncertainty is checked
+//!   against [`AlignConfig::max_gyrocompass_std_rad`] and a typed error returned above it.
+//!
+//! **Static detection.** The window (intervals between consecutive samples) is cut into
+//! [`SEGMENTS`] consecutive segments; the mean specific force and angular rate of each segment
+//! must stay within [`AlignConfig::max_segment_f_dev_mps2`] and
+//! [`AlignConfig::max_segment_omega_dev_radps`] of the window means (averaging over a segment
+//! removes white noise and vibration, so the test sees changes in acceleration or rotation
+//! over seconds), the norm of the mean specific force must match normal gravity within
+//! [`AlignConfig::max_gravity_mismatch_mps2`] (a sustained acceleration), and the mean rate
+//! must stay below [`AlignConfig::max_mean_rate_radps`] (a steady turn). A motion at constant
+//! velocity in a straight line is indistinguishable from rest for an IMU and is not detected.
+
+use crate::earth::{self, Llh};
+use crate::nav::{NavState, MAX_DT_S};
+use crate::types::ImuSample;
+use libm::{atan2, cos, sin, sqrt};
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Number of segments the window is cut into for the static test.
+pub const SEGMENTS: usize = 8;
+
+/// Where the heading comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HeadingSource {
+    /// Heading given by the caller: yaw (rad) and its standard deviation (rad).
+    Given {
+        /// Yaw (heading of the body x axis from north, ZYX convention), rad.
+        yaw_rad: f64,
+        /// One-sigma uncertainty of `yaw_rad`, rad.
+        std_rad: f64,
+    },
+    /// Heading from the earth rate sensed by the gyros (navigation-grade gyros only, see the
+    /// module documentation).
+    Gyrocompass,
+}
+
+/// Thresholds of the static test and assumed sensor quality for the uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AlignConfig {
+    /// Shortest accepted window, s.
+    pub min_duration_s: f64,
+    /// Largest accepted | |mean f| - normal gravity |, m/s^2 (covers accelerometer bias and
+    /// scale-factor error).
+    pub max_gravity_mismatch_mps2: f64,
+    /// Largest accepted deviation of a segment's mean specific force from the window mean,
+    /// m/s^2.
+    pub max_segment_f_dev_mps2: f64,
+    /// Largest accepted deviation of a segment's mean angular rate from the window mean, rad/s.
+    pub max_segment_omega_dev_radps: f64,
+    /// Largest accepted norm of the mean angular rate, rad/s (earth rate plus gyro bias).
+    pub max_mean_rate_radps: f64,
+    /// Assumed one-sigma residual accelerometer bias, m/s^2 (for the attitude uncertainty).
+    pub accel_bias_mps2: f64,
+    /// Assumed one-sigma residual gyro bias, rad/s (for the heading uncertainty).
+    pub gyro_bias_radps: f64,
+    /// Largest accepted one-sigma gyrocompassing heading uncertainty, rad.
+    pub max_gyrocompass_std_rad: f64,
+}
+
+impl Default for AlignConfig {
+    /// Detection thresholds loose enough for MEMS noise and biases; uncertainty for a tactical
+    /// IMU (100 ug accelerometer bias, 1 deg/h gyro bias). With these, gyrocompassing is
+    /// refused (its uncertainty would be several degrees) unless `gyro_bias_radps` is set to a
+    /// navigation-grade value.
+    fn default() -> Self {
+        Self {
+            min_duration_s: 10.0,
+            max_gravity_mismatch_mps2: 0.1,
+            max_segment_f_dev_mps2: 0.05,
+            max_segment_omega_dev_radps: 0.2 * DEG,
+            max_mean_rate_radps: 1.0 * DEG,
+            accel_bias_mps2: 1.0e-4 * earth::G0_MPS2,
+            gyro_bias_radps: 1.0 * DEG / 3600.0,
+            max_gyrocompass_std_rad: 5.0 * DEG,
+        }
+    }
+}
+
+const DEG: f64 = core::f64::consts::PI / 180.0;
+
+/// Which static-test cue failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MotionCue {
+    /// A segment's mean specific force deviates from the window mean (m/s^2).
+    SpecificForceVariation,
+    /// A segment's mean angular rate deviates from the window mean (rad/s).
+    RateVariation,
+    /// The norm of the mean angular rate is too large (rad/s).
+    MeanRate,
+    /// The norm of the mean specific force differs from normal gravity (m/s^2).
+    GravityMismatch,
+}
+
+/// Why an alignment failed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AlignError {
+    /// The window is shorter than `min_s` seconds or has fewer than [`SEGMENTS`] + 1 samples.
+    TooShort {
+        /// Duration of the window (last minus first sample time), s.
+        duration_s: f64,
+        /// Number of samples in the window.
+        samples: usize,
+        /// Required duration, s.
+        min_s: f64,
+    },
+    /// Sample `index` of the window has a non-finite time or increment.
+    NonFinite {
+        /// Index of the sample in the window.
+        index: usize,
+    },
+    /// Sample `index` is not after the previous one, or the gap is longer than
+    /// [`MAX_DT_S`].
+    BadTimeStep {
+        /// Index of the sample in the window.
+        index: usize,
+    },
+    /// The window is not static: `cue` measured `value` over the limit `limit` (units of the
+    /// cue).
+    NotStatic {
+        /// Which test failed.
+        cue: MotionCue,
+        /// Measured value (m/s^2 or rad/s).
+        value: f64,
+        /// Limit from the configuration (m/s^2 or rad/s).
+        limit: f64,
+    },
+    /// Gyrocompassing would be worse than [`AlignConfig::max_gyrocompass_std_rad`] (gyro too
+    /// poor for the latitude, or window too short).
+    GyrocompassInaccurate {
+        /// Estimated one-sigma heading uncertainty, rad.
+        std_rad: f64,
+        /// Configured limit, rad.
+        limit_rad: f64,
+    },
+}
+
+impl core::fmt::Display for MotionCue {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::SpecificForceVariation => "segment mean specific force variation (m/s^2)",
+            Self::RateVariation => "segment mean angular rate variation (rad/s)",
+            Self::MeanRate => "mean angular rate (rad/s)",
+            Self::GravityMismatch => "mean specific force minus normal gravity (m/s^2)",
+        })
+    }
+}
+
+impl core::fmt::Display for AlignError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::TooShort {
+                duration_s,
+                samples,
+                min_s,
+            } => write!(
+                f,
+                "alignment window too short: {duration_s} s, {samples} samples \
+                 (need {min_s} s and {} samples)",
+                SEGMENTS + 1
+            ),
+            Self::NonFinite { index } => {
+                write!(f, "alignment window sample {index} is not finite")
+            }
+            Self::BadTimeStep { index } => write!(
+                f,
+                "alignment window sample {index}: time not increasing or gap too long"
+            ),
+            Self::NotStatic { cue, value, limit } => write!(
+                f,
+                "alignment window is not static: {cue} = {value:e} exceeds {limit:e}"
+            ),
+            Self::GyrocompassInaccurate { std_rad, limit_rad } => write!(
+                f,
+                "gyrocompassing heading uncertainty {:.3} deg exceeds {:.3} deg: \
+                 give the heading instead",
+                std_rad / DEG,
+                limit_rad / DEG
+            ),
+        }
+    }
+}
+
+/// Result of a coarse alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Alignment {
+    /// Roll, pitch, yaw (ZYX Euler angles of the body relative to NED), rad.
+    pub rpy_rad: [f64; 3],
+    /// Rough one-sigma uncertainty of roll, pitch, yaw, rad (from the configured biases and the
+    /// scatter of the segment means).
+    pub att_std_rad: [f64; 3],
+    /// Mean specific force over the window in body axes, m/s^2.
+    pub mean_f_body_mps2: [f64; 3],
+    /// Mean angular rate over the window in body axes, rad/s.
+    pub mean_omega_body_radps: [f64; 3],
+    /// Duration of the window, s.
+    pub duration_s: f64,
+    /// GPS seconds of week of the last sample of the window, s.
+    pub t_end_s: f64,
+}
+
+impl Alignment {
+    /// The attitude C_b^n.
+    pub fn q_nb(&self) -> UnitQuaternion<f64> {
+        crate::attitude::quat_from_euler_zyx(self.rpy_rad)
+    }
+
+    /// A navigation state at rest at `pos` at the end of the window, to start
+    /// [`crate::nav::Strapdown`] from.
+    pub fn nav_state(&self, pos: Llh) -> NavState {
+        NavState::from_rpy(self.t_end_s, pos, Vector3::zeros(), self.rpy_rad)
+    }
+}
+
+/// Per-segment sums.
+#[derive(Clone, Copy)]
+struct Seg {
+    dt_s: f64,
+    dv: Vector3<f64>,
+    dth: Vector3<f64>,
+}
+
+/// Static coarse alignment of `window` (consecutive IMU samples at rest, oldest first) at
+/// position `pos`. The increments of samples 1..n are used (sample 0 only marks the start
+/// time). See the module documentation for the method, the static test and the gyro grade
+/// needed for gyrocompassing.
+pub fn coarse_align(
+    window: &[ImuSample],
+    pos: &Llh,
+    heading: HeadingSource,
+    cfg: &AlignConfig,
+) -> Result<Alignment, AlignError> {
+    let n = window.len();
+    let (t_first, t_last) = match (window.first(), window.last()) {
+        (Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => {
+            return Err(AlignError::TooShort {
+                duration_s: 0.0,
+                samples: 0,
+                min_s: cfg.min_duration_s,
+            })
+        }
+    };
+    for (i, s) in window.iter().enumerate() {
+        if !s.is_finite() {
+            return Err(AlignError::NonFinite { index: i });
+        }
+    }
+    let duration_s = t_last - t_first;
+    if n < SEGMENTS + 1 || duration_s.is_nan() || duration_s < cfg.min_duration_s {
+        return Err(AlignError::TooShort {
+            duration_s,
+            samples: n,
+            min_s: cfg.min_duration_s,
+        });
+    }
+
+    // Segment sums over the n - 1 intervals.
+    let m = n - 1;
+    let mut segs = [Seg {
+        dt_s: 0.0,
+        dv: Vector3::zeros(),
+        dth: Vector3::zeros(),
+    }; SEGMENTS];
+    let mut t_prev = t_first;
+    for (i, s) in window.iter().enumerate().skip(1) {
+        let dt = s.t_s - t_prev;
+        if !(dt > 0.0 && dt <= MAX_DT_S) {
+            return Err(AlignError::BadTimeStep { index: i });
+        }
+        t_prev = s.t_s;
+        let j = (i - 1) * SEGMENTS / m;
+        if let Some(seg) = segs.get_mut(j) {
+            seg.dt_s += dt;
+            seg.dv += Vector3::from(s.dv_mps);
+            seg.dth += Vector3::from(s.dtheta_rad);
+        }
+    }
+    let (mut dv, mut dth) = (Vector3::zeros(), Vector3::zeros());
+    for seg in &segs {
+        dv += seg.dv;
+        dth += seg.dth;
+    }
+    let f = dv / duration_s;
+    let w = dth / duration_s;
+
+    // Static test.
+    let (mut f_dev, mut w_dev) = (0.0f64, 0.0f64);
+    let (mut f_ss, mut w_ss) = (0.0, 0.0);
+    for seg in &segs {
+        // Every segment holds at least one interval (m >= SEGMENTS), so dt_s > 0.
+        let df = seg.dv / seg.dt_s - f;
+        let dw = seg.dth / seg.dt_s - w;
+        f_dev = f_dev.max(df.norm());
+        w_dev = w_dev.max(dw.norm());
+        f_ss += df.norm_squared();
+        w_ss += dw.norm_squared();
+    }
+    let g = earth::gravity_mps2(pos.lat_rad, pos.h_m);
+    let checks = [
+        (
+            MotionCue::GravityMismatch,
+            (f.norm() - g).abs(),
+            cfg.max_gravity_mismatch_mps2,
+        ),
+        (
+            MotionCue::SpecificForceVariation,
+            f_dev,
+            cfg.max_segment_f_dev_mps2,
+        ),
+        (
+            MotionCue::RateVariation,
+            w_dev,
+            cfg.max_segment_omega_dev_radps,
+        ),
+        (MotionCue::MeanRate, w.norm(), cfg.max_mean_rate_radps),
+    ];
+    for (cue, value, limit) in checks {
+        if value.is_nan() || value > limit {
+            return Err(AlignError::NotStatic { cue, value, limit });
+        }
+    }
+
+    // Levelling.
+    let roll = atan2(-f.y, -f.z);
+    let pitch = atan2(f.x, sqrt(f.y * f.y + f.z * f.z));
+
+    // Standard errors of the window means per axis from the scatter of the segment means
+    // (white noise: variance of the mean = variance of a segment mean / SEGMENTS).
+    let k = 1.0 / (3.0 * (SEGMENTS * (SEGMENTS - 1)) as f64);
+    let f_se = sqrt(f_ss * k);
+    let w_se = sqrt(w_ss * k);
+    let tilt_std = sqrt(cfg.accel_bias_mps2 * cfg.accel_bias_mps2 + f_se * f_se) / g;
+    let cos_pitch = cos(pitch).max(1e-6);
+    let roll_std = tilt_std / cos_pitch;
+
+    let (yaw, yaw_std) = match heading {
+        HeadingSource::Given { yaw_rad, std_rad } => (yaw_rad, std_rad),
+        HeadingSource::Gyrocompass => {
+            // Rate in the levelled frame: C_b^l = Ry(pitch) Rx(roll).
+            let (sr, cr) = (sin(roll), cos(roll));
+            let (sp, cp) = (sin(pitch), cos(pitch));
+            let wy_r = cr * w.y - sr * w.z;
+            let wz_r = sr * w.y + cr * w.z;
+            let wx_l = cp * w.x + sp * wz_r;
+            let wy_l = wy_r;
+            let yaw = atan2(-wy_l, wx_l);
+            let w_h = earth::OMEGA_IE_RADPS * cos(pos.lat_rad).abs();
+            let tan_lat = sin(pos.lat_rad) / cos(pos.lat_rad).abs().max(1e-12);
+            let gyro = sqrt(cfg.gyro_bias_radps * cfg.gyro_bias_radps + w_se * w_se);
+            let from_gyro = if w_h > 0.0 { gyro / w_h } else { f64::INFINITY };
+            let from_tilt = tan_lat * tilt_std;
+            let std = sqrt(from_gyro * from_gyro + from_tilt * from_tilt);
+            if std.is_nan() || std > cfg.max_gyrocompass_std_rad {
+                return Err(AlignError::GyrocompassInaccurate {
+                    std_rad: std,
+                    limit_rad: cfg.max_gyrocompass_std_rad,
+                });
+            }
+            (yaw, std)
+        }
+    };
+
+    Ok(Alignment {
+        rpy_rad: [roll, pitch, yaw],
+        att_std_rad: [roll_std, tilt_std, yaw_std],
+        mean_f_body_mps2: f.into(),
+        mean_omega_body_radps: w.into(),
+        duration_s,
+        t_end_s: t_last,
+    })
+}
