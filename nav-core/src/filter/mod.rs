@@ -64,6 +64,9 @@ pub enum FilterError {
     },
     /// The covariance became non-finite, or the innovation covariance is not positive definite.
     Numerical,
+    /// `set_block_estimate`: the layout has no such sensor-error block, or the values do not
+    /// fit it (length, NaN/Inf).
+    NoSuchBlock,
 }
 
 impl core::fmt::Display for FilterError {
@@ -82,6 +85,7 @@ impl core::fmt::Display for FilterError {
                 f,
                 "filter: GNSS fix is {offset_s} s away from the filter epoch"
             ),
+            Self::NoSuchBlock => f.write_str("filter: no such sensor-error block in the layout, or the values do not fit it"),
             Self::Numerical => f.write_str("filter: numerical failure (covariance not finite or innovation covariance not positive definite)"),
         }
     }
@@ -273,6 +277,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         let d = discrete::discretize(&self.layout, &self.cfg, self.mech.state(), &self.acc);
         self.acc = Accumulator::default();
+        // the estimates follow their deterministic dynamics (Gauss-Markov means decay)
+        for (e, k) in self.est.iter_mut().zip(d.est_decay.iter()).skip(CORE_DIM) {
+            *e *= *k;
+        }
         let mut p = self.p;
         discrete::predict_covariance(&mut p, &d);
         if !all_finite(&p) || !diag_nonneg(&p) {
@@ -547,6 +555,29 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     pub fn block_estimate(&self, kind: BlockKind) -> Option<&[f64]> {
         let (off, b) = self.layout.find(kind)?;
         self.est.get(off..off + b.dim())
+    }
+
+    /// Sets a block's sensor-error estimate (e.g. biases saved from a previous run or a
+    /// calibration), SI units, `values.len()` must equal the block's dimension. The covariance
+    /// is unchanged. Errors: no such block, wrong length, or non-finite values.
+    pub fn set_block_estimate(
+        &mut self,
+        kind: BlockKind,
+        values: &[f64],
+    ) -> Result<(), FilterError> {
+        let (off, b) = self.layout.find(kind).ok_or(FilterError::NoSuchBlock)?;
+        if kind == BlockKind::Core
+            || values.len() != b.dim()
+            || !values.iter().all(|v| v.is_finite())
+        {
+            return Err(FilterError::NoSuchBlock);
+        }
+        let dst = self
+            .est
+            .get_mut(off..off + b.dim())
+            .ok_or(FilterError::NoSuchBlock)?;
+        dst.copy_from_slice(values);
+        Ok(())
     }
 
     /// Total estimate and 1-sigma per axis of an IMU error quantity (the sum over the block's

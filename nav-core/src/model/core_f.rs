@@ -87,7 +87,9 @@ pub fn core_f(pos: &Llh, v_ned_mps: &Vector3<f64>, f_ned_mps2: &Vector3<f64>) ->
     let f_vp = f_ned_mps2.cross_matrix();
     let f_vv = -(2.0 * w_ie + w_en).cross_matrix() + v_x * w_en_v;
     let mut f_vr = v_x * (2.0 * w_ie_r + w_en_r);
+    // gravity error: height (dh = -dr_D, dg/dh = -2 g / R) and latitude (Somigliana slope)
     f_vr.m33 += 2.0 * g / r_geo;
+    f_vr.m31 += somigliana_dg_dlat(sl, cl) / rm;
 
     let f_rp = Matrix3::zeros();
     let f_rv = Matrix3::identity();
@@ -107,6 +109,18 @@ pub fn core_f(pos: &Llh, v_ned_mps: &Vector3<f64>, f_ned_mps2: &Vector3<f64>) ->
     }
 }
 
+/// d(normal gravity)/d(latitude) of the Somigliana formula at sea level, m/s^2/rad
+/// (about 0.052 at 45 deg; the height correction's latitude dependence is neglected).
+fn somigliana_dg_dlat(sin_lat: f64, cos_lat: f64) -> f64 {
+    let s2 = sin_lat * sin_lat;
+    let d = 1.0 - earth::E2 * s2;
+    let sd = libm::sqrt(d);
+    let sc = sin_lat * cos_lat;
+    earth::GAMMA_E_MPS2
+        * (2.0 * earth::SOMIGLIANA_K * sc / sd
+            + (1.0 + earth::SOMIGLIANA_K * s2) * earth::E2 * sc / (d * sd))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -116,6 +130,18 @@ mod tests {
         let m = Matrix3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0);
         let rows: [[f64; 3]; 3] = m.transpose().into();
         assert_eq!(rows, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0]]);
+    }
+
+    #[test]
+    fn somigliana_slope_matches_a_numerical_derivative() {
+        for lat_deg in [-70.0f64, -10.0, 0.0, 30.0, 47.1, 80.0] {
+            let lat = lat_deg.to_radians();
+            let d = 1e-6;
+            let num =
+                (earth::gravity_mps2(lat + d, 0.0) - earth::gravity_mps2(lat - d, 0.0)) / (2.0 * d);
+            let ana = somigliana_dg_dlat(libm::sin(lat), libm::cos(lat));
+            assert!((num - ana).abs() < 1e-7, "{lat_deg}: {num} vs {ana}");
+        }
     }
 
     #[test]

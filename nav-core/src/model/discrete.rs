@@ -120,6 +120,10 @@ pub struct Discrete<T, const N: usize> {
     pub q_vel: [[T; 3]; 3],
     /// Exact discrete noise variance of each sensor-error state (entries 0..9 unused).
     pub q_diag: [T; N],
+    /// The f64 self-transition of every state over the interval (1 for the core): the
+    /// deterministic prediction of the sensor-error estimates (a Gauss-Markov estimate decays
+    /// like its mean, `b_hat <- e^(-T/T_B) b_hat`).
+    pub est_decay: [f64; N],
 }
 
 /// Builds Phi and Q for the interval accumulated in `acc`, with the core's earth and transport
@@ -195,6 +199,7 @@ pub fn discretize<T: Scalar, const N: usize>(
         q_att,
         q_vel,
         q_diag: q_d.map(T::of_f64),
+        est_decay: phi_d,
     }
 }
 
