@@ -1,2 +1,22 @@
 //! Readers and writers for the data formats users have (IMU/GNSS/nav text, RTKLIB .pos, generic
 //! IMU CSV, KF-GINS YAML), with errors that name file, line and column.
+//!
+//! Common rules for every text reader here:
+//! - gzip-compressed input is detected by its magic bytes (`1f 8b`), whatever the file name;
+//! - blank lines and lines whose first non-blank character is `#` or `%` are skipped;
+//! - fields are separated by commas when the line contains a comma, otherwise by white space;
+//! - lines and columns in errors are 1-based (column = field index on the line);
+//! - no input makes a reader panic: every problem is an [`IoError`].
+//!
+//! Writers write gzip when the path ends in `.gz`.
+
+mod error;
+mod lines;
+pub mod text;
+
+pub use error::IoError;
+pub use lines::{open_text, DataLine, LineReader};
+pub use text::{
+    read_gnss_text, read_imu_text, read_nav_text, write_gnss_text, write_imu_text, write_nav_text,
+    ImuGap, ImuRecord, TimeGapReport,
+};

@@ -1,0 +1,462 @@
+//! The project's text formats (KF-GINS layouts, see DESIGN.md):
+//!
+//! - IMU: `t dtheta_x dtheta_y dtheta_z dv_x dv_y dv_z [temperature_C]`, t = GPS seconds of
+//!   week at the END of the increment interval (t_prev, t], increments in rad and m/s, FRD.
+//!   The temperature column may hold `nan` (no reading) when other lines have one.
+//! - GNSS: `t lat_deg lon_deg h_m std_n_m std_e_m std_d_m [vn ve vd std_vn std_ve std_vd]`,
+//!   7 or 13 fields per line (a line either has all six velocity fields or none).
+//!   The format carries no quality flag: fixes read from it have [`FixQuality::Single`] and
+//!   `num_sats = 0` (the standard deviations are what the filter uses).
+//! - Navigation/truth: `week sow lat_deg lon_deg h_m vn ve vd roll_deg pitch_deg yaw_deg`.
+//!
+//! Time must increase strictly from line to line (nav files: week*604800 + sow). IMU time gaps
+//! (an interval longer than 1.5x the median interval) are not errors: they are counted and
+//! located in [`TimeGapReport`], and no data are invented.
+//!
+//! Writers print values that are stored in file units with Rust's shortest round-trip
+//! representation (bit-exact on re-reading); converted values (rad -> deg) are written as the
+//! shortest round-trip form of the degree value, so re-reading gives the radians within 1-2 ulp
+//! (~1e-16 rad ~ 1e-9 m on the earth's surface). Fields are separated by one space, without a
+//! header line, so KF-GINS reads the files too.
+
+use super::lines::{open_text, DataLine, MonotonicTime};
+use super::IoError;
+use flate2::write::GzEncoder;
+use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+/// Seconds in a GPS week.
+pub const SECONDS_PER_WEEK: f64 = 604_800.0;
+
+/// An IMU time gap: the interval ending at `index` is longer than the gap threshold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuGap {
+    /// Index in the sample vector of the first sample after the gap.
+    pub index: usize,
+    /// 1-based line of that sample in the file (0 when not from a file).
+    pub line: usize,
+    /// Time of the last sample before the gap, s.
+    pub t_before_s: f64,
+    /// Time of the first sample after the gap, s.
+    pub t_after_s: f64,
+    /// Missing time: interval minus the median interval, s.
+    pub missing_s: f64,
+}
+
+impl ImuGap {
+    /// Length of the interval that spans the gap, s.
+    pub fn interval_s(&self) -> f64 {
+        self.t_after_s - self.t_before_s
+    }
+}
+
+/// The documented repair report of an IMU record: time gaps are detected and counted, not
+/// filled. A gap is an interval longer than `threshold_s` = 1.5 x `median_dt_s`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TimeGapReport {
+    /// Median sample interval, s (0 with fewer than two samples).
+    pub median_dt_s: f64,
+    /// Gap threshold, s (1.5 x median).
+    pub threshold_s: f64,
+    /// Every gap, in time order.
+    pub gaps: Vec<ImuGap>,
+    /// Sum of the gaps' missing time, s.
+    pub total_missing_s: f64,
+}
+
+impl TimeGapReport {
+    /// Ratio of an interval to the median above which the interval is a gap.
+    pub const GAP_FACTOR: f64 = 1.5;
+
+    /// Finds the gaps in strictly increasing times `t_s`; `lines[i]` is the file line of
+    /// sample i (may be empty: lines reported as 0).
+    pub fn detect(t_s: &[f64], lines: &[usize]) -> Self {
+        if t_s.len() < 2 {
+            return Self::default();
+        }
+        let mut dts: Vec<f64> = t_s.windows(2).map(|w| w[1] - w[0]).collect();
+        dts.sort_by(f64::total_cmp);
+        let mid = dts.len() / 2;
+        let median = if dts.len() % 2 == 1 {
+            dts[mid]
+        } else {
+            0.5 * (dts[mid - 1] + dts[mid])
+        };
+        let threshold = Self::GAP_FACTOR * median;
+        let mut gaps = Vec::new();
+        let mut total = 0.0;
+        for (i, w) in t_s.windows(2).enumerate() {
+            let dt = w[1] - w[0];
+            if dt > threshold {
+                let missing = dt - median;
+                total += missing;
+                gaps.push(ImuGap {
+                    index: i + 1,
+                    line: lines.get(i + 1).copied().unwrap_or(0),
+                    t_before_s: w[0],
+                    t_after_s: w[1],
+                    missing_s: missing,
+                });
+            }
+        }
+        Self {
+            median_dt_s: median,
+            threshold_s: threshold,
+            gaps,
+            total_missing_s: total,
+        }
+    }
+
+    /// Number of gaps.
+    pub fn count(&self) -> usize {
+        self.gaps.len()
+    }
+}
+
+impl std::fmt::Display for TimeGapReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} time gap(s) (interval > {:.6} s = 1.5 x median {:.6} s), {:.6} s missing in total",
+            self.count(),
+            self.threshold_s,
+            self.median_dt_s,
+            self.total_missing_s
+        )?;
+        for g in self.gaps.iter().take(10) {
+            write!(
+                f,
+                "; line {}: {:.6} -> {:.6} s ({:.6} s missing)",
+                g.line, g.t_before_s, g.t_after_s, g.missing_s
+            )?;
+        }
+        if self.gaps.len() > 10 {
+            write!(f, "; ...")?;
+        }
+        Ok(())
+    }
+}
+
+/// An IMU record as read: the samples (unchanged, nothing invented) and the gap report.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ImuRecord {
+    /// The samples in time order.
+    pub samples: Vec<ImuSample>,
+    /// Detected time gaps (a counted repair, not an error).
+    pub gaps: TimeGapReport,
+}
+
+impl ImuRecord {
+    /// Builds a record from samples, detecting gaps (lines unknown: 0).
+    pub fn from_samples(samples: Vec<ImuSample>) -> Self {
+        let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+        let gaps = TimeGapReport::detect(&t, &[]);
+        Self { samples, gaps }
+    }
+
+    /// Mean sample rate, Hz (0 with fewer than two samples).
+    pub fn mean_rate_hz(&self) -> f64 {
+        match (self.samples.first(), self.samples.last()) {
+            (Some(a), Some(b)) if self.samples.len() > 1 && b.t_s > a.t_s => {
+                (self.samples.len() - 1) as f64 / (b.t_s - a.t_s)
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+const IMU_NAMES: [&str; 8] = [
+    "t_s",
+    "dtheta_x_rad",
+    "dtheta_y_rad",
+    "dtheta_z_rad",
+    "dv_x_mps",
+    "dv_y_mps",
+    "dv_z_mps",
+    "temperature_c",
+];
+
+fn parse_imu_line(dl: &DataLine<'_>) -> Result<ImuSample, IoError> {
+    dl.require(7, 8, &IMU_NAMES)?;
+    let mut v = [0.0; 7];
+    for (i, x) in v.iter_mut().enumerate() {
+        *x = dl.num(i, IMU_NAMES[i])?;
+    }
+    let temperature_c = if dl.len() == 8 {
+        dl.num_allow_nan(7, IMU_NAMES[7])?
+    } else {
+        f64::NAN
+    };
+    Ok(ImuSample {
+        t_s: v[0],
+        dtheta_rad: [v[1], v[2], v[3]],
+        dv_mps: [v[4], v[5], v[6]],
+        temperature_c,
+    })
+}
+
+/// Reads an IMU text file (plain or gzip). Errors name file, line and column; time gaps are
+/// reported in the record, not filled.
+pub fn read_imu_text(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
+    let path = path.as_ref();
+    let mut rd = open_text(path)?;
+    let mut samples = Vec::new();
+    let mut lines = Vec::new();
+    let mut mono = MonotonicTime::new();
+    while let Some(dl) = rd.next_data()? {
+        let s = parse_imu_line(&dl)?;
+        mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
+        lines.push(dl.line);
+        samples.push(s);
+    }
+    let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    let gaps = TimeGapReport::detect(&t, &lines);
+    Ok(ImuRecord { samples, gaps })
+}
+
+/// Opens `path` for writing (gzip when it ends in `.gz`) and runs `body` on a buffered writer.
+pub(crate) fn write_with(
+    path: &Path,
+    body: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), IoError> {
+    let f = File::create(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let werr = |source| IoError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let gz = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    if gz {
+        let mut w = GzEncoder::new(BufWriter::new(f), flate2::Compression::default());
+        body(&mut w).map_err(werr)?;
+        let mut inner = w.finish().map_err(werr)?;
+        inner.flush().map_err(werr)?;
+    } else {
+        let mut w = BufWriter::new(f);
+        body(&mut w).map_err(werr)?;
+        w.flush().map_err(werr)?;
+    }
+    Ok(())
+}
+
+/// Writes IMU samples in the IMU text format (gzip when the path ends in `.gz`). The
+/// temperature column is written when any sample has a finite temperature (`NaN` for the
+/// others). Values are written in shortest round-trip form: re-reading is bit-exact.
+pub fn write_imu_text(path: impl AsRef<Path>, samples: &[ImuSample]) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let with_temp = samples.iter().any(|s| s.temperature_c.is_finite());
+    write_with(path, |w| {
+        for s in samples {
+            write!(
+                w,
+                "{} {:e} {:e} {:e} {:e} {:e} {:e}",
+                s.t_s,
+                s.dtheta_rad[0],
+                s.dtheta_rad[1],
+                s.dtheta_rad[2],
+                s.dv_mps[0],
+                s.dv_mps[1],
+                s.dv_mps[2]
+            )?;
+            if with_temp {
+                write!(w, " {}", s.temperature_c)?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    })
+}
+
+const GNSS_NAMES: [&str; 13] = [
+    "t_s",
+    "lat_deg",
+    "lon_deg",
+    "h_m",
+    "std_n_m",
+    "std_e_m",
+    "std_d_m",
+    "vn_mps",
+    "ve_mps",
+    "vd_mps",
+    "std_vn_mps",
+    "std_ve_mps",
+    "std_vd_mps",
+];
+
+fn parse_gnss_line(dl: &DataLine<'_>) -> Result<GnssFix, IoError> {
+    dl.require(7, 13, &GNSS_NAMES)?;
+    if dl.len() != 7 && dl.len() != 13 {
+        return Err(IoError::TooFewFields {
+            path: dl.path.to_path_buf(),
+            line: dl.line,
+            column: dl.len() + 1,
+            name: GNSS_NAMES.get(dl.len()).copied().unwrap_or("?").to_string(),
+            found: dl.len(),
+            expected: "7 or 13".into(),
+        });
+    }
+    let t_s = dl.num(0, GNSS_NAMES[0])?;
+    let lat = dl.lat_deg(1, GNSS_NAMES[1])?;
+    let lon = dl.lon_deg(2, GNSS_NAMES[2])?;
+    let h = dl.num(3, GNSS_NAMES[3])?;
+    let mut std = [0.0; 3];
+    for (k, s) in std.iter_mut().enumerate() {
+        *s = dl.sigma(4 + k, GNSS_NAMES[4 + k])?;
+    }
+    let mut fix = GnssFix {
+        t_s,
+        lat_rad: lat.to_radians(),
+        lon_rad: lon.to_radians(),
+        h_m: h,
+        pos_std_ned_m: std,
+        quality: FixQuality::Single,
+        ..GnssFix::default()
+    };
+    if dl.len() == 13 {
+        for k in 0..3 {
+            fix.vel_ned_mps[k] = dl.num(7 + k, GNSS_NAMES[7 + k])?;
+            fix.vel_std_ned_mps[k] = dl.sigma(10 + k, GNSS_NAMES[10 + k])?;
+        }
+        fix.has_velocity = true;
+    }
+    Ok(fix)
+}
+
+/// Reads a GNSS text file (plain or gzip): 7 or 13 fields per line.
+pub fn read_gnss_text(path: impl AsRef<Path>) -> Result<Vec<GnssFix>, IoError> {
+    let path = path.as_ref();
+    let mut rd = open_text(path)?;
+    let mut out = Vec::new();
+    let mut mono = MonotonicTime::new();
+    while let Some(dl) = rd.next_data()? {
+        let f = parse_gnss_line(&dl)?;
+        mono.check(&dl, 0, GNSS_NAMES[0], f.t_s)?;
+        out.push(f);
+    }
+    Ok(out)
+}
+
+/// Writes GNSS fixes in the GNSS text format; a fix with `has_velocity` gets the six velocity
+/// fields. Quality and satellite count are not part of the format and are not written.
+pub fn write_gnss_text(path: impl AsRef<Path>, fixes: &[GnssFix]) -> Result<(), IoError> {
+    write_with(path.as_ref(), |w| {
+        for f in fixes {
+            write!(
+                w,
+                "{} {} {} {} {} {} {}",
+                f.t_s,
+                f.lat_rad.to_degrees(),
+                f.lon_rad.to_degrees(),
+                f.h_m,
+                f.pos_std_ned_m[0],
+                f.pos_std_ned_m[1],
+                f.pos_std_ned_m[2]
+            )?;
+            if f.has_velocity {
+                write!(
+                    w,
+                    " {} {} {} {} {} {}",
+                    f.vel_ned_mps[0],
+                    f.vel_ned_mps[1],
+                    f.vel_ned_mps[2],
+                    f.vel_std_ned_mps[0],
+                    f.vel_std_ned_mps[1],
+                    f.vel_std_ned_mps[2]
+                )?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    })
+}
+
+const NAV_NAMES: [&str; 11] = [
+    "week",
+    "sow_s",
+    "lat_deg",
+    "lon_deg",
+    "h_m",
+    "vn_mps",
+    "ve_mps",
+    "vd_mps",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+];
+
+fn parse_nav_line(dl: &DataLine<'_>) -> Result<NavSolution, IoError> {
+    dl.require(11, 11, &NAV_NAMES)?;
+    let week = dl.integer(0, NAV_NAMES[0], 0, u16::MAX as i64)? as u16;
+    let sow = dl.num(1, NAV_NAMES[1])?;
+    let lat = dl.lat_deg(2, NAV_NAMES[2])?;
+    let lon = dl.lon_deg(3, NAV_NAMES[3])?;
+    let mut v = [0.0; 7];
+    for (k, x) in v.iter_mut().enumerate() {
+        *x = dl.num(4 + k, NAV_NAMES[4 + k])?;
+    }
+    Ok(NavSolution {
+        week,
+        t_s: sow,
+        lat_rad: lat.to_radians(),
+        lon_rad: lon.to_radians(),
+        h_m: v[0],
+        vel_ned_mps: [v[1], v[2], v[3]],
+        rpy_rad: [v[4].to_radians(), v[5].to_radians(), v[6].to_radians()],
+        pos_std_ned_m: [f64::NAN; 3],
+        vel_std_ned_mps: [f64::NAN; 3],
+        att_std_rad: [f64::NAN; 3],
+        status: 0,
+    })
+}
+
+/// Reads a navigation/truth text file (KF-GINS nav format). The standard deviations of the
+/// returned solutions are NaN (not in the format). Time (week*604800 + sow) must increase.
+pub fn read_nav_text(path: impl AsRef<Path>) -> Result<Vec<NavSolution>, IoError> {
+    let path = path.as_ref();
+    let mut rd = open_text(path)?;
+    let mut out = Vec::new();
+    let mut mono = MonotonicTime::new();
+    while let Some(dl) = rd.next_data()? {
+        let n = parse_nav_line(&dl)?;
+        mono.check(
+            &dl,
+            1,
+            NAV_NAMES[1],
+            n.week as f64 * SECONDS_PER_WEEK + n.t_s,
+        )?;
+        out.push(n);
+    }
+    Ok(out)
+}
+
+/// Writes navigation solutions in the KF-GINS nav format (standard deviations and status are
+/// not part of it). Angles and lat/lon are written as the shortest
+/// round-trip form of their degree values.
+pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<(), IoError> {
+    write_with(path.as_ref(), |w| {
+        for n in sols {
+            writeln!(
+                w,
+                "{} {} {} {} {} {} {} {} {} {} {}",
+                n.week,
+                n.t_s,
+                n.lat_rad.to_degrees(),
+                n.lon_rad.to_degrees(),
+                n.h_m,
+                n.vel_ned_mps[0],
+                n.vel_ned_mps[1],
+                n.vel_ned_mps[2],
+                n.rpy_rad[0].to_degrees(),
+                n.rpy_rad[1].to_degrees(),
+                n.rpy_rad[2].to_degrees()
+            )?;
+        }
+        Ok(())
+    })
+}
