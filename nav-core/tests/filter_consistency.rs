@@ -27,8 +27,7 @@ struct McResult {
     nis_sum: f64,
 }
 
-fn run_mc(layout_is_nbk: bool) -> McResult {
-    let _ = layout_is_nbk;
+fn run_mc() -> McResult {
     let mut res = McResult {
         nees_sum: vec![[0.0; 3]; DURATION_S],
         bias_in: 0,
@@ -84,7 +83,7 @@ fn run_mc(layout_is_nbk: bool) -> McResult {
 #[test]
 fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
     let t0 = std::time::Instant::now();
-    let r = run_mc(true);
+    let r = run_mc();
     let m = RUNS as f64;
     let lo = chi2_quantile(0.025, 3.0 * m) / m;
     let hi = chi2_quantile(0.975, 3.0 * m) / m;
@@ -111,7 +110,13 @@ fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
         );
     }
     let nis = r.nis_sum / (m * n_ep);
-    println!("average NIS {nis:.3} (3 dof: expected 3)");
+    let n_upd = m * n_ep;
+    let (nlo, nhi) = (
+        chi2_quantile(0.005, 3.0 * n_upd) / n_upd,
+        chi2_quantile(0.995, 3.0 * n_upd) / n_upd,
+    );
+    println!("average NIS {nis:.3} over {n_upd} updates (99% band [{nlo:.3}, {nhi:.3}])");
+    assert!(nis > nlo && nis < nhi, "average NIS {nis}");
     let frac = r.bias_in as f64 / r.bias_total as f64;
     let gfrac = r.gbias_in as f64 / r.gbias_total as f64;
     println!(

@@ -348,6 +348,14 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 &[zp.x, zp.y, zp.z, zv.x, zv.y, zv.z],
                 &[a, b, cc, d, e, f],
                 &[rp0, rp1, rp2, rv0, rv1, rv2],
+                &[
+                    IDX_POS,
+                    IDX_POS + 1,
+                    IDX_POS + 2,
+                    IDX_VEL,
+                    IDX_VEL + 1,
+                    IDX_VEL + 2,
+                ],
                 self.cfg.gating.nis_threshold_pos_vel,
                 force,
                 fix.t_s,
@@ -357,6 +365,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 &[zp.x, zp.y, zp.z],
                 &h_pos,
                 &rp,
+                &[IDX_POS, IDX_POS + 1, IDX_POS + 2],
                 self.cfg.gating.nis_threshold_pos,
                 force,
                 fix.t_s,
@@ -364,27 +373,19 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
     }
 
-    /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
-    /// diagonal R, then closed-loop feedback and reset.
-    fn kalman_update<const M: usize>(
-        &mut self,
-        z64: &[f64; M],
+    /// P H^T, S = H P H^T + R (symmetrised) and its Cholesky factor, for the current P.
+    #[allow(clippy::type_complexity)]
+    fn innovation_cov<const M: usize>(
+        &self,
         h: &[[T; N]; M],
-        r64: &[f64; M],
-        threshold: f64,
-        force: bool,
-        t_s: f64,
-    ) -> Result<UpdateOutcome, FilterError> {
-        let z = z64.map(T::of_f64);
-        let r = r64.map(T::of_f64);
-        // P H^T (N x M)
+        r: &[T; M],
+    ) -> ([[T; M]; N], [[T; M]; M], Option<[[T; M]; M]>) {
         let mut pht = [[T::ZERO; M]; N];
         for (prow, out) in self.p.iter().zip(pht.iter_mut()) {
             for (o, hrow) in out.iter_mut().zip(h) {
                 *o = dot(prow, hrow);
             }
         }
-        // S = H P H^T + R
         let mut s = [[T::ZERO; M]; M];
         for (a, (srow, hrow)) in s.iter_mut().zip(h).enumerate() {
             for (b, sab) in srow.iter_mut().enumerate() {
@@ -398,7 +399,6 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 *sab = acc;
             }
         }
-        // symmetrise S
         for a in 0..M {
             for b in 0..a {
                 let v = (get2(&s, a, b) + get2(&s, b, a)) * T::HALF;
@@ -406,6 +406,29 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 set2(&mut s, b, a, v);
             }
         }
+        let mut l = s;
+        let ok = cholesky_in_place(&mut l);
+        (pht, s, ok.then_some(l))
+    }
+
+    /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
+    /// diagonal R, then closed-loop feedback and reset. `direct[m]` is the state measurement m
+    /// observes directly: a forced update (too many consecutive rejections) first adds the
+    /// squared innovation to those variances so the jump can be absorbed.
+    #[allow(clippy::too_many_arguments)]
+    fn kalman_update<const M: usize>(
+        &mut self,
+        z64: &[f64; M],
+        h: &[[T; N]; M],
+        r64: &[f64; M],
+        direct: &[usize; M],
+        threshold: f64,
+        force: bool,
+        t_s: f64,
+    ) -> Result<UpdateOutcome, FilterError> {
+        let z = z64.map(T::of_f64);
+        let r = r64.map(T::of_f64);
+        let (mut pht, s, l) = self.innovation_cov(h, &r);
         let mut out = UpdateOutcome {
             t_s,
             dim: M,
@@ -424,10 +447,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 *o = get2(&s, i, i).to_f64();
             }
         }
-        let mut l = s;
-        if !cholesky_in_place(&mut l) {
+        let Some(mut l) = l else {
             return Err(self.numerical_failure());
-        }
+        };
         let y = forward_solve(&l, &z);
         let nis = dot(&y, &y).to_f64();
         out.nis = nis;
@@ -440,6 +462,20 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
             self.status |= STATUS_LAST_FIX_REJECTED;
             return Ok(out);
+        }
+        let forced = !passes_gate;
+        if forced {
+            for (d, zi) in direct.iter().zip(z.iter()) {
+                if let Some(x) = self.p.get_mut(*d).and_then(|row| row.get_mut(*d)) {
+                    *x += *zi * *zi;
+                }
+            }
+            let (pht2, _, l2) = self.innovation_cov(h, &r);
+            let Some(l2) = l2 else {
+                return Err(self.numerical_failure());
+            };
+            pht = pht2;
+            l = l2;
         }
         // K = P H^T S^-1 (row i solves S k_i = (P H^T)_i)
         let mut k = [[T::ZERO; M]; N];
@@ -479,13 +515,13 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         self.p = p;
         self.feedback(&dx);
         self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
-        if force {
+        if forced {
             self.counters.gnss_forced = self.counters.gnss_forced.saturating_add(1);
         }
         self.consecutive_rejections = 0;
         self.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_NO_FIX_YET);
         out.accepted = true;
-        out.forced = force;
+        out.forced = forced;
         Ok(out)
     }
 

@@ -115,6 +115,8 @@ pub struct Sim {
     accel_sf: [f64; 3],
     gyro_sf: [f64; 3],
     heading_rad: f64,
+    /// Inertial body rate of the last generated interval, rad/s.
+    last_w_ib: Vector3<f64>,
 }
 
 /// Standard normal draw.
@@ -173,6 +175,7 @@ impl Sim {
             accel_sf,
             gyro_sf,
             heading_rad: 30f64.to_radians(),
+            last_w_ib: Vector3::zeros(),
         }
     }
 
@@ -222,6 +225,7 @@ impl Sim {
         let c = s.q_nb.to_rotation_matrix().into_inner();
         let w_ib = Vector3::new(0.0, 0.0, yaw_rate) + c.transpose() * (w_ie + w_en);
         let dtheta = w_ib * dt;
+        self.last_w_ib = w_ib;
         let g = earth::gravity_ned_mps2(lat, s.pos.h_m);
         let f_n = a_n - g + (2.0 * w_ie + w_en).cross(&s.vel_ned_mps);
         let c_mid = c * attitude::dcm_from_rotvec(&(dtheta * 0.5));
@@ -335,16 +339,11 @@ impl Sim {
         }
     }
 
-    /// Body angular rate (inertial) of the truth at the current step, rad/s.
+    /// Body angular rate (inertial) of the truth: the mean over the last interval (the
+    /// rate is piecewise constant, so this is also the rate at the fix time except at a
+    /// segment switch, where the filter sees the same mean), rad/s.
     fn truth_omega_b(&self) -> Vector3<f64> {
-        let s = self.truth.state();
-        let tau = self.k as f64 * self.dt_s;
-        let (_, yaw_rate) = self.profile(tau, &s.vel_ned_mps);
-        let lat = s.pos.lat_rad;
-        let c = s.q_nb.to_rotation_matrix().into_inner();
-        let w_in = earth::earth_rate_ned_radps(lat)
-            + earth::transport_rate_ned_radps(lat, s.pos.h_m, &s.vel_ned_mps);
-        Vector3::new(0.0, 0.0, yaw_rate) + c.transpose() * w_in
+        self.last_w_ib
     }
 
     /// A filter initial state: the truth perturbed by draws from `unc` (seeded by `rng`).
