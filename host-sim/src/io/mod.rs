@@ -11,11 +11,14 @@
 //! Writers write gzip when the path ends in `.gz`.
 
 mod error;
+pub mod gpstime;
 mod lines;
+pub mod pos;
 pub mod text;
 
 pub use error::IoError;
 pub use lines::{open_text, DataLine, LineReader};
+pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use text::{
     read_gnss_text, read_imu_text, read_nav_text, write_gnss_text, write_imu_text, write_nav_text,
     ImuGap, ImuRecord, TimeGapReport,
