@@ -1,0 +1,379 @@
+//! The board-independent application: wire frames in, the navigation filter, solutions and
+//! health out. Generic over `embedded_io` (the frame link) and [`TimeBase`]; it knows nothing
+//! of registers, so the same code runs on every board (and could run on the host).
+//!
+//! Frames in (`nav_core::wire`): IMU samples (one filter epoch each), GNSS fixes, a
+//! configuration (answered with a health frame). Frames out: a navigation solution every
+//! `nav_divider` IMU epochs once the filter runs, and a health frame every `health_every`
+//! epochs and on request.
+//!
+//! Initialisation (until a shared rule lands in nav-core, see the README): the first valid GNSS
+//! fix starts the filter at the fix's position and velocity (zero without one); roll and pitch
+//! come from levelling the mean specific force of the IMU samples received before it, yaw from
+//! the GNSS course when the fix has a velocity above [`COURSE_MIN_SPEED_MPS`], else 0 with a
+//! 180 deg sigma.
+
+use crate::time::TimeBase;
+use embedded_io::{Read, Write};
+use nalgebra::Vector3;
+use nav_core::config::FilterConfig;
+use nav_core::earth::Llh;
+use nav_core::filter::{Filter, InitialUncertainty};
+use nav_core::model::Layout;
+use nav_core::nav::NavState;
+use nav_core::types::{GnssFix, ImuSample};
+use nav_core::wire::{self, Encoder, FrameDecoder, Health, Payload, MAX_FRAME_LEN};
+
+/// Smallest GNSS speed whose course initialises the yaw, m/s.
+pub const COURSE_MIN_SPEED_MPS: f64 = 2.0;
+
+/// The compile-time filter model: layout, configuration and dimension (cargo features
+/// `model-n` 15 states, `model-nbk` 18, `model-kf-gins` 21).
+pub mod model {
+    use nav_core::config::FilterConfig;
+    use nav_core::model::Layout;
+
+    #[cfg(any(
+        all(feature = "model-n", feature = "model-nbk"),
+        all(feature = "model-n", feature = "model-kf-gins"),
+        all(feature = "model-nbk", feature = "model-kf-gins"),
+    ))]
+    compile_error!("choose exactly one of the features model-n, model-nbk, model-kf-gins");
+
+    /// The state layout.
+    #[cfg(feature = "model-n")]
+    pub const LAYOUT: Layout = nav_core::model::LAYOUT_N;
+    /// The state layout.
+    #[cfg(feature = "model-nbk")]
+    pub const LAYOUT: Layout = nav_core::model::LAYOUT_NBK;
+    /// The state layout.
+    #[cfg(feature = "model-kf-gins")]
+    pub const LAYOUT: Layout = nav_core::model::LAYOUT_KF_GINS;
+    #[cfg(not(any(feature = "model-n", feature = "model-nbk", feature = "model-kf-gins")))]
+    compile_error!("choose one of the features model-n, model-nbk, model-kf-gins");
+
+    /// Number of error states.
+    pub const N: usize = LAYOUT.dim();
+
+    /// The noise configuration of the model.
+    pub fn config() -> FilterConfig {
+        #[cfg(feature = "model-n")]
+        return FilterConfig::source_n_model();
+        #[cfg(not(feature = "model-n"))]
+        return FilterConfig::source_nbk_model();
+    }
+}
+
+/// Running mean of the specific force before the filter starts (levelling).
+#[derive(Debug, Clone, Copy, Default)]
+struct Leveller {
+    sum_dv_mps: [f64; 3],
+    sum_dt_s: f64,
+    last_t_s: Option<f64>,
+}
+
+impl Leveller {
+    fn add(&mut self, s: &ImuSample) {
+        if let Some(t0) = self.last_t_s {
+            let dt = s.t_s - t0;
+            if dt > 0.0 && dt <= nav_core::nav::MAX_DT_S {
+                for (a, d) in self.sum_dv_mps.iter_mut().zip(s.dv_mps) {
+                    *a += d;
+                }
+                self.sum_dt_s += dt;
+            }
+        }
+        self.last_t_s = Some(s.t_s);
+    }
+    /// Roll and pitch, rad, from the mean specific force (at rest f = -C_n^b g).
+    fn roll_pitch_rad(&self) -> [f64; 2] {
+        if self.sum_dt_s <= 0.0 {
+            return [0.0, 0.0];
+        }
+        let [fx, fy, fz] = self.sum_dv_mps.map(|v| v / self.sum_dt_s);
+        let roll = libm::atan2(-fy, -fz);
+        let pitch = libm::atan2(fx, libm::sqrt(fy * fy + fz * fz));
+        [roll, pitch]
+    }
+}
+
+/// Counters of the application (the content of health frames).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct AppCounters {
+    /// IMU epochs run through the filter.
+    pub imu_epochs: u32,
+    /// IMU samples the filter refused.
+    pub imu_rejected: u32,
+    /// GNSS fixes used.
+    pub gnss_updates: u32,
+    /// GNSS fixes refused (invalid, mistimed or gated).
+    pub gnss_rejected: u32,
+    /// Longest IMU epoch (filter propagate, plus a GNSS update when one came), ticks.
+    pub epoch_ticks_max: u32,
+    /// Frames sent.
+    pub tx_frames: u32,
+}
+
+/// The application state: filter, decoder, encoder, counters.
+pub struct NavApp<const N: usize> {
+    layout: Layout,
+    cfg: FilterConfig,
+    filter: Option<Filter<f32, N>>,
+    leveller: Leveller,
+    last_imu: Option<ImuSample>,
+    dec: FrameDecoder,
+    enc: Encoder,
+    nav_divider: u16,
+    since_nav: u16,
+    health_every: u32,
+    since_health: u32,
+    counters: AppCounters,
+    stack_probe: Option<fn() -> usize>,
+    time_from_gnss: bool,
+    time_offset_s: f64,
+}
+
+impl<const N: usize> NavApp<N> {
+    /// An application running the filter with `layout` (N states) and `cfg`; one solution per
+    /// `nav_divider` IMU epochs (0 = none), one health frame per `health_every` epochs (0 = only
+    /// on request).
+    pub fn new(layout: Layout, cfg: FilterConfig, nav_divider: u16, health_every: u32) -> Self {
+        Self {
+            layout,
+            cfg,
+            filter: None,
+            leveller: Leveller::default(),
+            last_imu: None,
+            dec: FrameDecoder::new(),
+            enc: Encoder::new(),
+            nav_divider,
+            since_nav: 0,
+            health_every,
+            since_health: 0,
+            counters: AppCounters::default(),
+            stack_probe: None,
+            time_from_gnss: false,
+            time_offset_s: 0.0,
+        }
+    }
+
+    /// The counters so far.
+    pub fn counters(&self) -> &AppCounters {
+        &self.counters
+    }
+
+    /// The filter, once started.
+    pub fn filter(&self) -> Option<&Filter<f32, N>> {
+        self.filter.as_ref()
+    }
+
+    /// Sets the function that measures the peak stack use (bytes) for health frames (the
+    /// board's stack painting; without one the field is 0).
+    pub fn set_stack_probe(&mut self, probe: fn() -> usize) {
+        self.stack_probe = Some(probe);
+    }
+
+    /// For a board that stamps IMU samples with its own clock: the first GNSS fix sets the
+    /// offset from board time to GPS time (fix time minus the latest IMU stamp; transport
+    /// latency is not corrected: a PPS input would be needed for that). The board adds
+    /// [`Self::time_offset_s`] to its stamps.
+    pub fn set_time_from_gnss(&mut self, on: bool) {
+        self.time_from_gnss = on;
+    }
+
+    /// GPS time minus board time, s (0 until set by the first fix, or when the frames carry
+    /// GPS time already).
+    pub fn time_offset_s(&self) -> f64 {
+        self.time_offset_s
+    }
+
+    /// The health frame content now.
+    pub fn health<C: TimeBase>(&self, clock: &mut C) -> Health {
+        let st = self.dec.stats();
+        Health {
+            uptime_ms: clock.now_ms(),
+            rx_frames_ok: st.frames_ok,
+            rx_rejected: st.rejected(),
+            rx_crc_errors: st.crc_errors,
+            rx_lost: st.lost(),
+            imu_epochs: self.counters.imu_epochs,
+            gnss_updates: self.counters.gnss_updates,
+            gnss_rejected: self.counters.gnss_rejected,
+            epoch_ticks_max: self.counters.epoch_ticks_max,
+            stack_peak_bytes: self.stack_probe.map_or(0, |p| p() as u32),
+            filter_status: self.filter.as_ref().map_or(u32::MAX, |f| f.status()),
+        }
+    }
+
+    /// Feeds received bytes; handles every completed frame, writing replies to `out`.
+    pub fn feed<W: Write, C: TimeBase>(
+        &mut self,
+        bytes: &[u8],
+        out: &mut W,
+        clock: &mut C,
+    ) -> Result<(), W::Error> {
+        for &b in bytes {
+            if let Some(Ok(frame)) = self.dec.push_byte(b) {
+                self.handle(&frame.payload, out, clock)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Handles one decoded payload.
+    pub fn handle<W: Write, C: TimeBase>(
+        &mut self,
+        payload: &Payload,
+        out: &mut W,
+        clock: &mut C,
+    ) -> Result<(), W::Error> {
+        match payload {
+            Payload::Imu(f) => self.on_imu(&f.sample, out, clock),
+            Payload::Gnss(fix) => {
+                self.on_gnss(fix, clock);
+                Ok(())
+            }
+            Payload::Config(c) => {
+                self.nav_divider = c.nav_divider;
+                self.cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
+                self.cfg.lever_arm_body_m = c.lever_arm_frd_m;
+                self.send_health(out, clock)
+            }
+            Payload::Nav(_) | Payload::Health(_) => self.send_health(out, clock),
+        }
+    }
+
+    /// One IMU epoch: levelling before the first fix, the filter after it; sends the solution
+    /// and health frames that are due.
+    pub fn on_imu<W: Write, C: TimeBase>(
+        &mut self,
+        s: &ImuSample,
+        out: &mut W,
+        clock: &mut C,
+    ) -> Result<(), W::Error> {
+        self.last_imu = Some(*s);
+        let Some(filter) = self.filter.as_mut() else {
+            self.leveller.add(s);
+            return Ok(());
+        };
+        let t0 = clock.now_ticks();
+        let r = filter.propagate(s);
+        let dt = clock.now_ticks().wrapping_sub(t0);
+        self.counters.epoch_ticks_max = self.counters.epoch_ticks_max.max(dt as u32);
+        match r {
+            Ok(()) => self.counters.imu_epochs = self.counters.imu_epochs.wrapping_add(1),
+            Err(_) => self.counters.imu_rejected = self.counters.imu_rejected.wrapping_add(1),
+        }
+        self.since_nav = self.since_nav.saturating_add(1);
+        if self.nav_divider > 0 && self.since_nav >= self.nav_divider {
+            self.since_nav = 0;
+            let sol = filter.solution();
+            self.send(&Payload::Nav(sol), out)?;
+        }
+        self.since_health = self.since_health.saturating_add(1);
+        if self.health_every > 0 && self.since_health >= self.health_every {
+            self.send_health(out, clock)?;
+        }
+        Ok(())
+    }
+
+    /// One GNSS fix: starts the filter (first valid fix) or updates it.
+    pub fn on_gnss<C: TimeBase>(&mut self, fix: &GnssFix, clock: &mut C) {
+        let Some(filter) = self.filter.as_mut() else {
+            self.start(fix);
+            return;
+        };
+        let t0 = clock.now_ticks();
+        let r = filter.update_gnss(fix);
+        let dt = clock.now_ticks().wrapping_sub(t0);
+        self.counters.epoch_ticks_max = self.counters.epoch_ticks_max.max(dt as u32);
+        match r {
+            Ok(o) if o.accepted => {
+                self.counters.gnss_updates = self.counters.gnss_updates.wrapping_add(1)
+            }
+            _ => self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1),
+        }
+    }
+
+    fn start(&mut self, fix: &GnssFix) {
+        let Some(last) = self.last_imu else {
+            self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1);
+            return;
+        };
+        if !fix.is_valid() {
+            self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1);
+            return;
+        }
+        let mut t0_s = last.t_s;
+        if self.time_from_gnss {
+            self.time_offset_s = fix.t_s - last.t_s;
+            t0_s = fix.t_s;
+        }
+        let [roll, pitch] = self.leveller.roll_pitch_rad();
+        let (vel, vel_sigma) = if fix.has_velocity {
+            (fix.vel_ned_mps, fix.vel_std_ned_mps)
+        } else {
+            ([0.0; 3], [1.0; 3])
+        };
+        let speed = libm::sqrt(vel[0] * vel[0] + vel[1] * vel[1]);
+        let (yaw, yaw_sigma) = if fix.has_velocity && speed >= COURSE_MIN_SPEED_MPS {
+            (libm::atan2(vel[1], vel[0]), 5.0f64.to_radians())
+        } else {
+            (0.0, core::f64::consts::PI)
+        };
+        let init = NavState::from_rpy(
+            t0_s,
+            Llh {
+                lat_rad: fix.lat_rad,
+                lon_rad: fix.lon_rad,
+                h_m: fix.h_m,
+            },
+            Vector3::from(vel),
+            [roll, pitch, yaw],
+        );
+        let tilt = 1.0f64.to_radians();
+        let unc = InitialUncertainty {
+            att_sigma_rad: [tilt, tilt, yaw_sigma],
+            vel_sigma_mps: vel_sigma,
+            pos_sigma_m: fix.pos_std_ned_m,
+        };
+        match Filter::new(self.layout, &self.cfg, init, &unc) {
+            Ok(f) => self.filter = Some(f),
+            Err(_) => self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1),
+        }
+    }
+
+    /// Sends a health frame now.
+    pub fn send_health<W: Write, C: TimeBase>(
+        &mut self,
+        out: &mut W,
+        clock: &mut C,
+    ) -> Result<(), W::Error> {
+        self.since_health = 0;
+        let h = self.health(clock);
+        self.send(&Payload::Health(h), out)
+    }
+
+    fn send<W: Write>(&mut self, p: &Payload, out: &mut W) -> Result<(), W::Error> {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        if let Ok(n) = self.enc.encode(p, &mut buf) {
+            out.write_all(buf.get(..n).unwrap_or(&[]))?;
+            self.counters.tx_frames = self.counters.tx_frames.wrapping_add(1);
+        }
+        Ok(())
+    }
+}
+
+/// Serves the frame link forever: reads what the link has, feeds it to the app. The
+/// emulated board's HIL loop; a board with its own IMU polls instead (see the board's `run`).
+pub fn serve<const N: usize, U: Read + Write, C: TimeBase>(
+    app: &mut NavApp<N>,
+    link: &mut U,
+    clock: &mut C,
+) -> Result<core::convert::Infallible, U::Error> {
+    let mut buf = [0u8; 64];
+    loop {
+        let n = link.read(&mut buf)?;
+        app.feed(buf.get(..n).unwrap_or(&[]), link, clock)?;
+    }
+}

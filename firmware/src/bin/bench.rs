@@ -1,0 +1,300 @@
+//! Budgets measured on the emulated Cortex-M4F: instructions per call (SysTick ticks under
+//! `qemu -icount shift=5`; `cargo xtask fw bench` converts ticks to instructions), the filter
+//! structs' sizes and the peak stack of each case (painted before it, high-water mark after).
+//!
+//! Output lines for `cargo xtask fw bench` (ticks are raw SysTick ticks, overhead removed):
+//!
+//! - `BENCH calib loop_instructions=<n> ticks=<t>`: a loop of exactly n instructions;
+//! - `BENCH row case=<case> what=<what> calls=<k> ticks_total=<t> ticks_max=<m>`;
+//! - `BENCH size what=<what> bytes=<b>`;
+//! - `BENCH stack case=<case> bytes=<b>`;
+//! - `BENCH done`.
+//!
+//! Adding a case is one line in [`CASES`].
+#![no_std]
+#![no_main]
+
+use cortex_m_rt::entry;
+use firmware::{board, error, info, stack, time::TimeBase};
+use nalgebra::Vector3;
+use nav_core::config::FilterConfig;
+use nav_core::earth::{self, Llh};
+use nav_core::filter::{Filter, InitialUncertainty};
+use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK};
+use nav_core::nav::{NavState, Strapdown};
+use nav_core::types::{FixQuality, GnssFix, ImuSample};
+
+/// IMU rate of the scenario, Hz.
+const IMU_HZ: f64 = 200.0;
+/// IMU epochs per case (10 s at 200 Hz, 10 GNSS updates at 1 Hz).
+const EPOCHS: u32 = 2000;
+/// IMU epochs per GNSS fix (1 Hz).
+const GNSS_EVERY: u32 = 200;
+
+type Clock = board::SysTickClock;
+
+/// Times calls and accumulates per-metric totals.
+struct Meter<'a> {
+    clock: &'a mut Clock,
+    overhead: u64,
+}
+
+impl Meter<'_> {
+    /// Runs `f`, returns its result and its duration in ticks (measurement overhead removed).
+    fn time<R>(&mut self, f: impl FnOnce() -> R) -> (R, u64) {
+        let t0 = self.clock.now_ticks();
+        let r = f();
+        let t1 = self.clock.now_ticks();
+        (r, (t1 - t0).saturating_sub(self.overhead))
+    }
+}
+
+/// Accumulated timing of one metric.
+#[derive(Default, Clone, Copy)]
+struct Acc {
+    calls: u32,
+    total: u64,
+    max: u64,
+}
+
+impl Acc {
+    fn add(&mut self, ticks: u64) {
+        self.calls += 1;
+        self.total += ticks;
+        self.max = self.max.max(ticks);
+    }
+    fn print(&self, case: &str, what: &str) {
+        info!(
+            "BENCH row case={} what={} calls={} ticks_total={} ticks_max={}",
+            case, what, self.calls, self.total, self.max
+        );
+    }
+}
+
+/// A benchmark case: a name (no spaces) and the function that runs and reports it.
+struct Case {
+    name: &'static str,
+    run: fn(&mut Meter, &'static str) -> bool,
+}
+
+/// The cases, in order. One line each.
+const CASES: &[Case] = &[
+    Case {
+        name: "strapdown",
+        run: |m, n| strapdown(m, n),
+    },
+    Case {
+        name: "filter15_N_f32",
+        run: |m, n| filter::<{ LAYOUT_N.dim() }>(m, n, LAYOUT_N, FilterConfig::source_n_model()),
+    },
+    Case {
+        name: "filter18_NBK_f32",
+        run: |m, n| {
+            filter::<{ LAYOUT_NBK.dim() }>(m, n, LAYOUT_NBK, FilterConfig::source_nbk_model())
+        },
+    },
+    Case {
+        name: "filter21_KFGINS_f32",
+        run: |m, n| {
+            filter::<{ LAYOUT_KF_GINS.dim() }>(
+                m,
+                n,
+                LAYOUT_KF_GINS,
+                FilterConfig::source_nbk_model(),
+            )
+        },
+    },
+];
+
+/// Deterministic noise in [-1, 1) (64-bit LCG, top bits).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+const LAT_DEG: f64 = 48.0;
+const T0_S: f64 = 1000.0;
+
+fn start_pos() -> Llh {
+    Llh::from_deg(LAT_DEG, 11.0, 500.0)
+}
+
+/// The scenario: level, heading north, at rest; the IMU measures gravity and earth rate plus
+/// white noise (1e-3 m/s^2, 1e-5 rad/s uniform).
+fn imu_sample(k: u32, rng: &mut Lcg) -> ImuSample {
+    let p = start_pos();
+    let dt = 1.0 / IMU_HZ;
+    let g = earth::gravity_mps2(p.lat_rad, p.h_m);
+    let w = earth::OMEGA_IE_RADPS;
+    let rate = [
+        w * libm::cos(p.lat_rad) + 1e-5 * rng.next(),
+        1e-5 * rng.next(),
+        -w * libm::sin(p.lat_rad) + 1e-5 * rng.next(),
+    ];
+    let f = [1e-3 * rng.next(), 1e-3 * rng.next(), -g + 1e-3 * rng.next()];
+    ImuSample {
+        t_s: T0_S + f64::from(k) * dt,
+        dtheta_rad: rate.map(|r| r * dt),
+        dv_mps: f.map(|a| a * dt),
+        temperature_c: 25.0,
+    }
+}
+
+fn init_state() -> NavState {
+    NavState::from_rpy(T0_S, start_pos(), Vector3::zeros(), [0.0, 0.0, 0.0])
+}
+
+fn strapdown(m: &mut Meter, case: &'static str) -> bool {
+    let mut mech = Strapdown::new(init_state());
+    let mut rng = Lcg(1);
+    let mut acc = Acc::default();
+    for k in 1..=EPOCHS {
+        let s = imu_sample(k, &mut rng);
+        let (r, t) = m.time(|| mech.update(&s));
+        if r.is_err() {
+            error!("bench {}: mechanization failed at epoch {}", case, k);
+            return false;
+        }
+        acc.add(t);
+    }
+    acc.print(case, "update_per_epoch");
+    info!(
+        "BENCH size what=Strapdown bytes={}",
+        core::mem::size_of::<Strapdown>()
+    );
+    true
+}
+
+fn filter<const N: usize>(
+    m: &mut Meter,
+    case: &'static str,
+    layout: Layout,
+    cfg: FilterConfig,
+) -> bool {
+    let unc = InitialUncertainty {
+        att_sigma_rad: [0.01, 0.01, 0.05],
+        vel_sigma_mps: [0.1; 3],
+        pos_sigma_m: [1.0; 3],
+    };
+    let mut f = match Filter::<f32, N>::new(layout, &cfg, init_state(), &unc) {
+        Ok(f) => f,
+        Err(_) => {
+            error!("bench {}: filter construction failed", case);
+            return false;
+        }
+    };
+    let mut rng = Lcg(2);
+    let (mut prop, mut prop_plain, mut prop_pred, mut gnss, mut epoch) = (
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+    );
+    let p0 = start_pos();
+    let mut accepted = 0u32;
+    for k in 1..=EPOCHS {
+        let s = imu_sample(k, &mut rng);
+        let preds = f.counters().cov_predictions;
+        let (r, t) = m.time(|| f.propagate(&s));
+        if r.is_err() {
+            error!("bench {}: propagate failed at epoch {}", case, k);
+            return false;
+        }
+        prop.add(t);
+        if f.counters().cov_predictions != preds {
+            prop_pred.add(t);
+        } else {
+            prop_plain.add(t);
+        }
+        let mut t_epoch = t;
+        if k % GNSS_EVERY == 0 {
+            let fix = GnssFix {
+                t_s: s.t_s,
+                lat_rad: p0.lat_rad + 1e-8 * rng.next(),
+                lon_rad: p0.lon_rad + 1e-8 * rng.next(),
+                h_m: p0.h_m + 0.1 * rng.next(),
+                pos_std_ned_m: [0.5, 0.5, 1.0],
+                vel_ned_mps: [0.0; 3],
+                vel_std_ned_mps: [0.1; 3],
+                has_velocity: false,
+                quality: FixQuality::Single,
+                num_sats: 12,
+            };
+            let (r, t) = m.time(|| f.update_gnss(&fix));
+            match r {
+                Ok(o) if o.accepted => accepted += 1,
+                _ => {
+                    error!(
+                        "bench {}: GNSS update {} not accepted",
+                        case,
+                        k / GNSS_EVERY
+                    );
+                    return false;
+                }
+            }
+            gnss.add(t);
+            t_epoch += t;
+        }
+        epoch.add(t_epoch);
+    }
+    prop.print(case, "propagate_per_epoch");
+    prop_plain.print(case, "propagate_without_cov_prediction");
+    prop_pred.print(case, "propagate_with_cov_prediction");
+    gnss.print(case, "gnss_update");
+    epoch.print(case, "epoch_incl_1Hz_gnss");
+    info!(
+        "BENCH size what=Filter<f32,{}> bytes={}",
+        N,
+        core::mem::size_of::<Filter<f32, N>>()
+    );
+    if !f.covariance_is_positive_definite() || accepted != EPOCHS / GNSS_EVERY {
+        error!("bench {}: covariance not SPD or fixes rejected", case);
+        return false;
+    }
+    true
+}
+
+/// A loop of exactly `2 * n` instructions (`subs` + `bne` per iteration).
+#[inline(always)]
+fn known_loop(n: u32) {
+    // SAFETY: register-only arithmetic loop.
+    unsafe {
+        core::arch::asm!("1:", "subs {0}, {0}, #1", "bne 1b", inout(reg) n => _, options(nomem, nostack));
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    stack::paint();
+    let mut b = board::init();
+    let clock = &mut b.clock;
+    // measurement overhead: two back-to-back reads
+    let mut overhead = u64::MAX;
+    for _ in 0..8 {
+        let t0 = clock.now_ticks();
+        let t1 = clock.now_ticks();
+        overhead = overhead.min(t1 - t0);
+    }
+    let mut m = Meter { clock, overhead };
+    info!("BENCH overhead ticks={}", overhead);
+    for n in [10_000u32, 1_000_000] {
+        let ((), t) = m.time(|| known_loop(n));
+        info!("BENCH calib loop_instructions={} ticks={}", 2 * n, t);
+    }
+    let mut ok = true;
+    for c in CASES {
+        stack::paint();
+        let pass = (c.run)(&mut m, c.name);
+        info!("BENCH stack case={} bytes={}", c.name, stack::peak_bytes());
+        ok &= pass;
+    }
+    info!("BENCH done");
+    board::exit(ok)
+}
