@@ -74,6 +74,14 @@ pub fn gpst_minus_utc_s(y: i64, m: u32, d: u32) -> i32 {
         .map_or(0, |e| e.3)
 }
 
+/// GPS week and seconds of week of a GPST time given as seconds since 1970-01-01 00:00:00 in
+/// the GPST time scale (RTKLIB's `gtime_t` convention: `time` + `sec`).
+pub fn gpst_week_sow_from_epoch_s(secs: f64) -> (i64, f64) {
+    let from_gps_epoch = secs - GPS_EPOCH_DAYS as f64 * 86_400.0;
+    let week = (from_gps_epoch / SECONDS_PER_WEEK).floor();
+    (week as i64, from_gps_epoch - week * SECONDS_PER_WEEK)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -99,12 +107,4 @@ mod tests {
         assert_eq!(w, 2374);
         assert!((s - 243_261.854).abs() < 1e-6);
     }
-}
-
-/// GPS week and seconds of week of a GPST time given as seconds since 1970-01-01 00:00:00 in
-/// the GPST time scale (RTKLIB's `gtime_t` convention: `time` + `sec`).
-pub fn gpst_week_sow_from_epoch_s(secs: f64) -> (i64, f64) {
-    let from_gps_epoch = secs - GPS_EPOCH_DAYS as f64 * 86_400.0;
-    let week = (from_gps_epoch / SECONDS_PER_WEEK).floor();
-    (week as i64, from_gps_epoch - week * SECONDS_PER_WEEK)
 }
