@@ -23,6 +23,7 @@
 )]
 
 pub mod align;
+pub mod allan;
 pub mod attitude;
 pub mod config;
 pub mod earth;
