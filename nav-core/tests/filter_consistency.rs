@@ -9,7 +9,9 @@ mod common_filter;
 use common_filter::*;
 use nav_core::config::{FilterConfig, Gating};
 use nav_core::filter::Filter;
-use nav_core::model::{BlockKind, IDX_ATT, IDX_POS, IDX_VEL, LAYOUT_NBK};
+use nav_core::model::{
+    BlockKind, Layout, IDX_ATT, IDX_POS, IDX_VEL, LAYOUT_NBK, LAYOUT_NBK_SINGLE,
+};
 
 const RUNS: usize = 30;
 const DURATION_S: usize = 600;
@@ -27,7 +29,7 @@ struct McResult {
     nis_sum: f64,
 }
 
-fn run_mc() -> McResult {
+fn run_mc<const N: usize>(layout: Layout) -> McResult {
     let mut res = McResult {
         nees_sum: vec![[0.0; 3]; DURATION_S],
         bias_in: 0,
@@ -45,8 +47,7 @@ fn run_mc() -> McResult {
     for run in 0..RUNS {
         let mut sim = Sim::new(SimConfig::nbk(100.0), 1000 + run as u64);
         let unc = test_uncertainty();
-        let mut f: Filter<f64, { LAYOUT_NBK.dim() }> =
-            start_filter(&mut sim, LAYOUT_NBK, &cfg, &unc);
+        let mut f: Filter<f64, N> = start_filter(&mut sim, layout, &cfg, &unc);
         let mut g = 0;
         while g < DURATION_S {
             let e = sim.step();
@@ -83,7 +84,7 @@ fn run_mc() -> McResult {
 #[test]
 fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
     let t0 = std::time::Instant::now();
-    let r = run_mc();
+    let r = run_mc::<{ LAYOUT_NBK.dim() }>(LAYOUT_NBK);
     let m = RUNS as f64;
     let lo = chi2_quantile(0.025, 3.0 * m) / m;
     let hi = chi2_quantile(0.975, 3.0 * m) / m;
@@ -131,4 +132,30 @@ fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
         "accelerometer bias inside 3 sigma only {:.2}%",
         100.0 * frac
     );
+}
+
+/// The source's single-state variant (Gauss-Markov and random-walk noise in one state that
+/// decays with 1/T_B) on the same NBK data: the decaying state cannot hold the 100 ug turn-on
+/// (random-constant/random-walk) part of the bias, so the filter is measurably inconsistent.
+/// This is the difference DESIGN.md asks the study to show; the exact two-state model above is
+/// consistent on the same runs.
+#[test]
+fn single_state_nbk_variant_is_inconsistent_on_data_with_a_turn_on_bias() {
+    let r = run_mc::<{ LAYOUT_NBK_SINGLE.dim() }>(LAYOUT_NBK_SINGLE);
+    let m = RUNS as f64;
+    let hi = chi2_quantile(0.975, 3.0 * m) / m;
+    let n_ep = r.nees_sum.len() as f64;
+    let mut grand = [0.0; 3];
+    for (k, name) in ["attitude", "velocity", "position"].iter().enumerate() {
+        grand[k] = r.nees_sum.iter().map(|s| s[k] / m).sum::<f64>() / n_ep;
+        println!("single-state: {name} average NEES {:.3}", grand[k]);
+    }
+    let frac = r.bias_in as f64 / r.bias_total as f64;
+    println!(
+        "single-state: accel bias within 3 sigma {:.2}%, average NIS {:.3}",
+        100.0 * frac,
+        r.nis_sum / (m * n_ep)
+    );
+    assert!(grand[1] > hi && grand[2] > hi, "{grand:?}");
+    assert!(frac < 0.5, "{frac}");
 }
