@@ -12,13 +12,22 @@
 
 mod error;
 pub mod gpstime;
+pub mod imucsv;
 mod lines;
+pub mod mount;
 pub mod pos;
+pub mod tag;
 pub mod text;
 
 pub use error::IoError;
+pub use imucsv::{
+    rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
+    ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,
+};
 pub use lines::{open_text, DataLine, LineReader};
+pub use mount::Mounting;
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
+pub use tag::{read_time_tag, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_text, read_nav_text, write_gnss_text, write_imu_text, write_nav_text,
     ImuGap, ImuRecord, TimeGapReport,

@@ -1,0 +1,592 @@
+//! Generic IMU CSV logs (rates and specific forces, not increments) with a column/unit mapping,
+//! and their conversion to the increments the navigation core integrates.
+//!
+//! # Mapping ([`ImuCsvFormat`], serde/TOML)
+//! - `skip_lines`: physical lines skipped at the start (headers, or data rows to drop);
+//!   afterwards blank and `#`/`%` lines are skipped as everywhere; `skip_last_rows`: data rows
+//!   dropped at the end;
+//! - columns by 1-based index or by name (`names_line`, default the last skipped line: the
+//!   names are its comma- or space-separated fields, leading `#`/`%` removed, each reduced to
+//!   its first word, matched case-insensitively);
+//! - gyro unit `deg/s` or `rad/s`; accelerometer unit `g` (9.80665 m/s^2) or `m/s^2`;
+//! - time ([`CsvTime`]): a column in seconds (GPS seconds of week), a tick column in ms
+//!   (optionally placed in GPS time with an RTKLIB time-tag file, see below), or a fixed rate
+//!   without a time column (row k at `start_s + k / rate_hz`);
+//! - `time_offset_s` added to every time stamp last (e.g. a logging delay correction).
+//!
+//! # Time tags
+//! With `ticks_ms` and a tag file, the first USED row is placed at the tag's start time and
+//! the last used row at the tag's last tick (start + last tag tick), the rows in between
+//! linearly in tick: `t = start + (tick - tick_first) * (tag_last_ms / (tick_last - tick_first))
+//! / 1000`. This is what rtklibexplorer's `convert_imu_file.py` does (it also drops the first
+//! and last rows: `skip_lines = 1`, `skip_last_rows = 1` reproduce its time stamps exactly).
+//! It assumes the first sample arrived when the log file was opened and the last one at the
+//! last tag; the stretch factor must be within 1 % of 1 or the tag file is rejected as not
+//! belonging to the log.
+//!
+//! # Sample convention ([`SampleConvention`])
+//! - `trapezoid` (default): each row is the instantaneous rate / specific force AT its time
+//!   stamp. The increment over (t_{k-1}, t_k] is `(y_{k-1} + y_k) / 2 * (t_k - t_{k-1})`: exact
+//!   for signals linear over the interval, error `dt^3 / 12 * y''` per step (second order).
+//! - `interval_mean`: each row is the MEAN rate over the interval ending at its time stamp
+//!   (sensors with integrating/decimating filters); the increment is `y_k * (t_k - t_{k-1})`,
+//!   exact for such data.
+//!
+//! Either way the first row only opens the first interval and yields no increment, so `n`
+//! rows give `n - 1` increments stamped at the rows' times 2..n. Across a time gap the
+//! increment spans the whole gap (nothing is invented); gaps are reported in the record.
+//! The temperature of an increment is that of its end row.
+
+use super::lines::{open_text, split_fields, MonotonicTime};
+use super::tag::{read_time_tag, TimeTag};
+use super::text::{ImuRecord, TimeGapReport};
+use super::IoError;
+use nav_core::types::ImuSample;
+use std::path::{Path, PathBuf};
+
+/// Standard gravity used to convert g to m/s^2.
+pub const G0_MPS2: f64 = 9.806_65;
+
+/// A column, by 1-based index or by name.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+pub enum Column {
+    /// 1-based field index.
+    Index(usize),
+    /// Name in the names line.
+    Name(String),
+}
+
+/// Unit of the gyro columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum RateUnit {
+    /// Degrees per second.
+    #[serde(rename = "deg/s")]
+    DegPerS,
+    /// Radians per second.
+    #[serde(rename = "rad/s")]
+    RadPerS,
+}
+
+impl RateUnit {
+    /// Factor to rad/s.
+    pub fn to_radps(self) -> f64 {
+        match self {
+            RateUnit::DegPerS => std::f64::consts::PI / 180.0,
+            RateUnit::RadPerS => 1.0,
+        }
+    }
+}
+
+/// Unit of the accelerometer columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum AccelUnit {
+    /// Standard gravities (9.80665 m/s^2).
+    #[serde(rename = "g")]
+    G,
+    /// Metres per second squared.
+    #[serde(rename = "m/s^2")]
+    Mps2,
+}
+
+impl AccelUnit {
+    /// Factor to m/s^2.
+    pub fn to_mps2(self) -> f64 {
+        match self {
+            AccelUnit::G => G0_MPS2,
+            AccelUnit::Mps2 => 1.0,
+        }
+    }
+}
+
+/// Where time stamps come from.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CsvTime {
+    /// The time column holds seconds (GPS seconds of week).
+    Seconds,
+    /// The time column holds ticks in milliseconds. Without a tag file t = tick / 1000 s.
+    TicksMs {
+        /// RTKLIB time-tag file placing the ticks in GPS time (relative paths: relative to the
+        /// CSV file's folder).
+        #[serde(default)]
+        tag_file: Option<PathBuf>,
+        /// Stretch the tick span to the tag span (see the module notes); default true.
+        #[serde(default = "yes")]
+        stretch_to_tag_end: bool,
+    },
+    /// No time column: row k (0-based, after skipping) is at `start_s + k / rate_hz`.
+    FixedRate {
+        /// Sample rate, Hz.
+        rate_hz: f64,
+        /// Time of the first row, s.
+        #[serde(default)]
+        start_s: f64,
+    },
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// The sample convention for converting rates to increments (see the module notes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SampleConvention {
+    /// Rows are instantaneous values at their time stamps; trapezoidal integration.
+    #[default]
+    Trapezoid,
+    /// Rows are means over the interval ending at their time stamps.
+    IntervalMean,
+}
+
+/// Column assignment.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuCsvColumns {
+    /// Time column (required unless time is `fixed_rate`).
+    #[serde(default)]
+    pub time: Option<Column>,
+    /// Gyro x, y, z columns (sensor axes).
+    pub gyro: [Column; 3],
+    /// Accelerometer x, y, z columns (sensor axes).
+    pub accel: [Column; 3],
+    /// Temperature column, deg C (optional; may hold NaN).
+    #[serde(default)]
+    pub temperature: Option<Column>,
+}
+
+/// How to read an IMU CSV log (see the module notes).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuCsvFormat {
+    /// Physical lines skipped at the start.
+    #[serde(default)]
+    pub skip_lines: usize,
+    /// Data rows dropped at the end.
+    #[serde(default)]
+    pub skip_last_rows: usize,
+    /// 1-based line holding the column names (default: the last skipped line).
+    #[serde(default)]
+    pub names_line: Option<usize>,
+    /// Column assignment.
+    pub columns: ImuCsvColumns,
+    /// Gyro unit.
+    pub gyro_unit: RateUnit,
+    /// Accelerometer unit.
+    pub accel_unit: AccelUnit,
+    /// Time source.
+    pub time: CsvTime,
+    /// Constant added to every time stamp, s.
+    #[serde(default)]
+    pub time_offset_s: f64,
+    /// Sample convention for the conversion to increments.
+    #[serde(default)]
+    pub convention: SampleConvention,
+}
+
+impl ImuCsvFormat {
+    /// The layout of the ADIS16405 static files in `../shared/data/adis16405`: two header
+    /// lines, `gx gy gz [deg/s] ax ay az [g]`, no time column, 100 Hz.
+    pub fn adis16405() -> Self {
+        Self {
+            skip_lines: 2,
+            skip_last_rows: 0,
+            names_line: None,
+            columns: ImuCsvColumns {
+                time: None,
+                gyro: [Column::Index(1), Column::Index(2), Column::Index(3)],
+                accel: [Column::Index(4), Column::Index(5), Column::Index(6)],
+                temperature: None,
+            },
+            gyro_unit: RateUnit::DegPerS,
+            accel_unit: AccelUnit::G,
+            time: CsvTime::FixedRate {
+                rate_hz: 100.0,
+                start_s: 0.0,
+            },
+            time_offset_s: 0.0,
+            convention: SampleConvention::Trapezoid,
+        }
+    }
+
+    /// The raw log of the rtklibexplorer drive (`imu_1934.csv`): `ax ay az [g] gx gy gz
+    /// [deg/s] tick [ms]`, no header, timed with `imu_1934.csv.tag`, first and last rows
+    /// dropped as the source's converter does.
+    pub fn rtklib_demo5_icm(tag_file: impl Into<PathBuf>) -> Self {
+        Self {
+            skip_lines: 1,
+            skip_last_rows: 1,
+            names_line: None,
+            columns: ImuCsvColumns {
+                time: Some(Column::Index(7)),
+                gyro: [Column::Index(4), Column::Index(5), Column::Index(6)],
+                accel: [Column::Index(1), Column::Index(2), Column::Index(3)],
+                temperature: None,
+            },
+            gyro_unit: RateUnit::DegPerS,
+            accel_unit: AccelUnit::G,
+            time: CsvTime::TicksMs {
+                tag_file: Some(tag_file.into()),
+                stretch_to_tag_end: true,
+            },
+            time_offset_s: 0.0,
+            convention: SampleConvention::Trapezoid,
+        }
+    }
+}
+
+/// One IMU row in SI units, sensor axes: angular rate and specific force at `t_s`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RawImuSample {
+    /// Time stamp (GPS seconds of week, or as the mapping defines), s.
+    pub t_s: f64,
+    /// Angular rate, rad/s.
+    pub gyro_radps: [f64; 3],
+    /// Specific force, m/s^2.
+    pub accel_mps2: [f64; 3],
+    /// Temperature, deg C (NaN when absent).
+    pub temperature_c: f64,
+}
+
+/// Rows of an IMU CSV log in SI units, with where they came from.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RawImuRecord {
+    /// The rows in time order.
+    pub samples: Vec<RawImuSample>,
+    /// 1-based file line of each row.
+    pub lines: Vec<usize>,
+    /// Time gaps between rows (a counted repair, not an error).
+    pub gaps: TimeGapReport,
+    /// The time tag used, when there was one.
+    pub tag: Option<TimeTag>,
+    /// Tick-to-time stretch factor applied (1 without a tag).
+    pub stretch: f64,
+}
+
+impl RawImuRecord {
+    /// Mean sample rate, Hz (0 with fewer than two rows).
+    pub fn mean_rate_hz(&self) -> f64 {
+        match (self.samples.first(), self.samples.last()) {
+            (Some(a), Some(b)) if self.samples.len() > 1 && b.t_s > a.t_s => {
+                (self.samples.len() - 1) as f64 / (b.t_s - a.t_s)
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Converts to increments with `conv` (see the module notes); the gap report is that of
+    /// the increments (intervals between rows 2..n).
+    pub fn to_increments(&self, conv: SampleConvention) -> ImuRecord {
+        let samples = rates_to_increments(&self.samples, conv);
+        let mut gaps = TimeGapReport::detect(
+            &self.samples.iter().map(|s| s.t_s).collect::<Vec<_>>(),
+            &self.lines,
+        );
+        // Re-index: increment i ends at row i + 1.
+        for g in &mut gaps.gaps {
+            g.index = g.index.saturating_sub(1);
+        }
+        ImuRecord { samples, gaps }
+    }
+}
+
+/// Rates/specific forces to increments (see the module notes for the conventions). `n` rows
+/// give `n - 1` increments.
+pub fn rates_to_increments(raw: &[RawImuSample], conv: SampleConvention) -> Vec<ImuSample> {
+    raw.windows(2)
+        .map(|w| {
+            let (a, b) = (&w[0], &w[1]);
+            let dt = b.t_s - a.t_s;
+            let inc = |ya: f64, yb: f64| match conv {
+                SampleConvention::Trapezoid => 0.5 * (ya + yb) * dt,
+                SampleConvention::IntervalMean => yb * dt,
+            };
+            ImuSample {
+                t_s: b.t_s,
+                dtheta_rad: [
+                    inc(a.gyro_radps[0], b.gyro_radps[0]),
+                    inc(a.gyro_radps[1], b.gyro_radps[1]),
+                    inc(a.gyro_radps[2], b.gyro_radps[2]),
+                ],
+                dv_mps: [
+                    inc(a.accel_mps2[0], b.accel_mps2[0]),
+                    inc(a.accel_mps2[1], b.accel_mps2[1]),
+                    inc(a.accel_mps2[2], b.accel_mps2[2]),
+                ],
+                temperature_c: b.temperature_c,
+            }
+        })
+        .collect()
+}
+
+fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
+    IoError::Config {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// Names from a header line: fields (comma or space separated) reduced to their first word,
+/// leading `#`/`%` removed.
+fn header_names(line: &str) -> Vec<String> {
+    let body = line.trim_start().trim_start_matches(['#', '%']);
+    split_fields(body)
+        .into_iter()
+        .map(|f| f.split_whitespace().next().unwrap_or("").to_string())
+        .collect()
+}
+
+fn resolve(
+    path: &Path,
+    c: &Column,
+    names: Option<&[String]>,
+    what: &str,
+) -> Result<usize, IoError> {
+    match c {
+        Column::Index(0) => Err(cfg_err(
+            path,
+            format!("{what}: column indices are 1-based, got 0"),
+        )),
+        Column::Index(i) => Ok(i - 1),
+        Column::Name(n) => {
+            let names = names.ok_or_else(|| {
+                cfg_err(
+                    path,
+                    format!("{what}: column {n:?} given by name but there is no names line (set skip_lines/names_line)"),
+                )
+            })?;
+            names
+                .iter()
+                .position(|x| x.eq_ignore_ascii_case(n))
+                .ok_or_else(|| {
+                    cfg_err(
+                        path,
+                        format!("{what}: no column named {n:?}; the names line has {names:?}"),
+                    )
+                })
+        }
+    }
+}
+
+/// Reads an IMU CSV log into SI rates and specific forces (sensor axes, no mounting rotation,
+/// no conversion to increments). This is what the Allan-variance tool wants.
+pub fn read_imu_csv_raw(
+    path: impl AsRef<Path>,
+    fmt: &ImuCsvFormat,
+) -> Result<RawImuRecord, IoError> {
+    let path = path.as_ref();
+    if !fmt.time_offset_s.is_finite() {
+        return Err(cfg_err(path, "time_offset_s must be finite"));
+    }
+    if let CsvTime::FixedRate { rate_hz, start_s } = fmt.time {
+        if !(rate_hz.is_finite() && rate_hz > 0.0 && start_s.is_finite()) {
+            return Err(cfg_err(
+                path,
+                format!(
+                    "fixed_rate: rate_hz must be finite and > 0 (got {rate_hz}), start_s finite"
+                ),
+            ));
+        }
+    } else if fmt.columns.time.is_none() {
+        return Err(cfg_err(
+            path,
+            "a time column is required unless time.kind = \"fixed_rate\"",
+        ));
+    }
+    let mut rd = open_text(path)?;
+    // Skipped lines, keeping the names line.
+    let names_line = fmt.names_line.unwrap_or(fmt.skip_lines);
+    let mut names: Option<Vec<String>> = None;
+    for _ in 0..fmt.skip_lines {
+        match rd.next_raw()? {
+            Some((n, text)) => {
+                if n == names_line {
+                    names = Some(header_names(text));
+                }
+            }
+            None => break,
+        }
+    }
+    if fmt.names_line.is_some() && names.is_none() {
+        return Err(cfg_err(
+            path,
+            format!(
+                "names_line {names_line} is not among the {} skipped lines",
+                fmt.skip_lines
+            ),
+        ));
+    }
+    let nm = names.as_deref();
+    let c = &fmt.columns;
+    let gyro = [
+        resolve(path, &c.gyro[0], nm, "gyro x")?,
+        resolve(path, &c.gyro[1], nm, "gyro y")?,
+        resolve(path, &c.gyro[2], nm, "gyro z")?,
+    ];
+    let accel = [
+        resolve(path, &c.accel[0], nm, "accel x")?,
+        resolve(path, &c.accel[1], nm, "accel y")?,
+        resolve(path, &c.accel[2], nm, "accel z")?,
+    ];
+    let time_col = match (&fmt.time, &c.time) {
+        (CsvTime::FixedRate { .. }, _) => None,
+        (_, Some(tc)) => Some(resolve(path, tc, nm, "time")?),
+        (_, None) => None,
+    };
+    let temp_col = match &c.temperature {
+        Some(tc) => Some(resolve(path, tc, nm, "temperature")?),
+        None => None,
+    };
+    // Names for error messages, by 0-based field index.
+    let max_idx = gyro
+        .iter()
+        .chain(accel.iter())
+        .chain(time_col.iter())
+        .chain(temp_col.iter())
+        .copied()
+        .max()
+        .unwrap_or(0);
+    let mut col_names = vec!["(unused)".to_string(); max_idx + 1];
+    let label = |i: usize, unit: &str, what: &str| -> String {
+        match nm.and_then(|n| n.get(i)) {
+            Some(h) if !h.is_empty() => format!("{what} [{unit}] \"{h}\""),
+            _ => format!("{what} [{unit}]"),
+        }
+    };
+    let gu = match fmt.gyro_unit {
+        RateUnit::DegPerS => "deg/s",
+        RateUnit::RadPerS => "rad/s",
+    };
+    let au = match fmt.accel_unit {
+        AccelUnit::G => "g",
+        AccelUnit::Mps2 => "m/s^2",
+    };
+    for (k, &i) in gyro.iter().enumerate() {
+        col_names[i] = label(i, gu, ["gyro_x", "gyro_y", "gyro_z"][k]);
+    }
+    for (k, &i) in accel.iter().enumerate() {
+        col_names[i] = label(i, au, ["accel_x", "accel_y", "accel_z"][k]);
+    }
+    let tunit = match fmt.time {
+        CsvTime::TicksMs { .. } => "ms",
+        _ => "s",
+    };
+    if let Some(i) = time_col {
+        col_names[i] = label(i, tunit, "time");
+    }
+    if let Some(i) = temp_col {
+        col_names[i] = label(i, "deg C", "temperature");
+    }
+    let names_ref: Vec<&str> = col_names.iter().map(String::as_str).collect();
+
+    let (kg, ka) = (fmt.gyro_unit.to_radps(), fmt.accel_unit.to_mps2());
+    let mut samples = Vec::new();
+    let mut lines = Vec::new();
+    let mut mono = MonotonicTime::new();
+    while let Some(dl) = rd.next_data()? {
+        dl.require(max_idx + 1, usize::MAX, &names_ref)?;
+        let mut s = RawImuSample {
+            temperature_c: f64::NAN,
+            ..RawImuSample::default()
+        };
+        for k in 0..3 {
+            s.gyro_radps[k] = dl.num(gyro[k], names_ref[gyro[k]])? * kg;
+            s.accel_mps2[k] = dl.num(accel[k], names_ref[accel[k]])? * ka;
+        }
+        if let Some(i) = temp_col {
+            s.temperature_c = dl.num_allow_nan(i, names_ref[i])?;
+        }
+        if let Some(i) = time_col {
+            s.t_s = dl.num(i, names_ref[i])?;
+            mono.check(&dl, i, names_ref[i], s.t_s)?;
+        }
+        lines.push(dl.line);
+        samples.push(s);
+    }
+    let keep = samples.len().saturating_sub(fmt.skip_last_rows);
+    samples.truncate(keep);
+    lines.truncate(keep);
+
+    // Time stamps.
+    let mut tag = None;
+    let mut stretch = 1.0;
+    match &fmt.time {
+        CsvTime::Seconds => {}
+        CsvTime::FixedRate { rate_hz, start_s } => {
+            for (k, s) in samples.iter_mut().enumerate() {
+                s.t_s = start_s + k as f64 / rate_hz;
+            }
+        }
+        CsvTime::TicksMs {
+            tag_file,
+            stretch_to_tag_end,
+        } => match tag_file {
+            None => {
+                for s in &mut samples {
+                    s.t_s *= 1e-3;
+                }
+            }
+            Some(tf) => {
+                let tf = if tf.is_relative() {
+                    path.parent().unwrap_or(Path::new(".")).join(tf)
+                } else {
+                    tf.clone()
+                };
+                let tg = read_time_tag(&tf)?;
+                if let (Some(first), Some(last)) = (samples.first(), samples.last()) {
+                    let (tick0, tick1) = (first.t_s, last.t_s);
+                    if *stretch_to_tag_end {
+                        let span_ms = tick1 - tick0;
+                        let tag_ms = f64::from(tg.last_tick_ms());
+                        if samples.len() < 2 || span_ms <= 0.0 || tag_ms <= 0.0 {
+                            return Err(IoError::Format {
+                                path: tf.clone(),
+                                line: 0,
+                                message: "cannot stretch ticks to the tag end: fewer than two rows or no tag pairs".into(),
+                            });
+                        }
+                        stretch = tag_ms / span_ms;
+                        if (stretch - 1.0).abs() > 0.01 {
+                            return Err(IoError::Format {
+                                path: tf.clone(),
+                                line: 0,
+                                message: format!(
+                                    "tag span {:.3} s and tick span {:.3} s of {} differ by more than 1 %: wrong tag file?",
+                                    tag_ms * 1e-3,
+                                    span_ms * 1e-3,
+                                    path.display()
+                                ),
+                            });
+                        }
+                    }
+                    let t0 = tg.start_sow_s;
+                    for s in &mut samples {
+                        s.t_s = t0 + (s.t_s - tick0) * stretch * 1e-3;
+                    }
+                }
+                tag = Some(tg);
+            }
+        },
+    }
+    if fmt.time_offset_s != 0.0 {
+        for s in &mut samples {
+            s.t_s += fmt.time_offset_s;
+        }
+    }
+    let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    let gaps = TimeGapReport::detect(&t, &lines);
+    Ok(RawImuRecord {
+        samples,
+        lines,
+        gaps,
+        tag,
+        stretch,
+    })
+}
+
+/// Reads an IMU CSV log and converts it to increments with the format's sample convention
+/// (sensor axes; apply a [`super::Mounting`] for body axes).
+pub fn read_imu_csv(path: impl AsRef<Path>, fmt: &ImuCsvFormat) -> Result<ImuRecord, IoError> {
+    Ok(read_imu_csv_raw(path, fmt)?.to_increments(fmt.convention))
+}
