@@ -14,6 +14,7 @@ pub mod fmt;
 pub mod app;
 pub mod boards;
 pub mod icm42688;
+pub mod model;
 pub mod stack;
 pub mod time;
 

@@ -187,8 +187,68 @@ pub fn nav_core_thumb_build() -> Result<()> {
     run(&mut cmd)
 }
 
-/// Cross-builds the firmware (release) and returns the ELF path.
-pub fn fw_build() -> Result<PathBuf> {
+/// A board the firmware builds for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Board {
+    /// The emulated Arm MPS2-AN386 (qemu-system-arm -machine mps2-an386), the default.
+    Mps2An386,
+    /// A real board: STM32F407 with an ICM-42688-P on SPI1 and the frame link on USART2.
+    Stm32f407,
+}
+
+impl Board {
+    /// Name as on the command line and in `firmware/boards/<name>/`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Mps2An386 => "mps2-an386",
+            Self::Stm32f407 => "stm32f407",
+        }
+    }
+    /// Cargo feature arguments selecting the board (and the default model).
+    fn feature_args(self) -> &'static [&'static str] {
+        match self {
+            Self::Mps2An386 => &[],
+            Self::Stm32f407 => &[
+                "--no-default-features",
+                "--features",
+                "board-stm32f407,model-nbk",
+            ],
+        }
+    }
+    /// The binaries built for the board.
+    pub fn bins(self) -> &'static [&'static str] {
+        match self {
+            Self::Mps2An386 => &["firmware", "bench", "nav", "uart-echo"],
+            Self::Stm32f407 => &["nav"],
+        }
+    }
+}
+
+/// The ELFs of one board's build, copied to `target/embedded/<board>/` so that building
+/// another board (same cargo target directory, other features) does not overwrite them.
+pub struct FwBuild {
+    /// The board.
+    pub board: Board,
+    dir: PathBuf,
+}
+
+impl FwBuild {
+    /// Path of binary `bin`'s ELF.
+    pub fn elf(&self, bin: &str) -> PathBuf {
+        self.dir.join(bin)
+    }
+    /// All ELFs of the build with their binary names.
+    pub fn elfs(&self) -> Vec<(&'static str, PathBuf)> {
+        self.board
+            .bins()
+            .iter()
+            .map(|b| (*b, self.elf(b)))
+            .collect()
+    }
+}
+
+/// Cross-builds the firmware (release) for `board`: every binary of the board.
+pub fn fw_build(board: Board) -> Result<FwBuild> {
     let mut cmd = embedded_cargo(None)?;
     cmd.args([
         "build",
@@ -198,25 +258,27 @@ pub fn fw_build() -> Result<PathBuf> {
         TARGET,
         "-Zbuild-std=core",
         "--release",
-    ]);
+    ])
+    .args(board.feature_args());
     run(&mut cmd)?;
-    let elf = root()
-        .join("target/embedded")
-        .join(TARGET)
-        .join("release/firmware");
-    if !elf.is_file() {
-        bail!("firmware ELF not found at {}", elf.display());
+    let out = root().join("target/embedded").join(TARGET).join("release");
+    let dir = root().join("target/embedded").join(board.name());
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    for bin in board.bins() {
+        let src = out.join(bin);
+        if !src.is_file() {
+            bail!("firmware ELF not found at {}", src.display());
+        }
+        std::fs::copy(&src, dir.join(bin))
+            .with_context(|| format!("copying {} to {}", src.display(), dir.display()))?;
     }
-    Ok(elf)
+    Ok(FwBuild { board, dir })
 }
 
-/// Runs the firmware ELF on qemu (mps2-an386) with semihosting; its exit code is the
-/// firmware's verdict. Killed after 300 s.
-pub fn fw_run(elf: &Path) -> Result<()> {
-    let mut cmd = Command::new("timeout");
+/// The qemu command line for the emulated board, without `-kernel` and serial options.
+pub fn qemu_base() -> Command {
+    let mut cmd = Command::new("qemu-system-arm");
     cmd.args([
-        "300",
-        "qemu-system-arm",
         "-cpu",
         "cortex-m4",
         "-machine",
@@ -224,37 +286,61 @@ pub fn fw_run(elf: &Path) -> Result<()> {
         "-nographic",
         "-monitor",
         "none",
-        "-serial",
-        "none",
         "-semihosting-config",
         "enable=on,target=native",
-        "-kernel",
-    ])
-    .arg(elf)
-    .stdin(Stdio::null());
+    ]);
+    cmd
+}
+
+/// Runs the firmware ELF on qemu (mps2-an386) with semihosting; its exit code is the
+/// firmware's verdict. Killed after 300 s.
+pub fn fw_run(elf: &Path) -> Result<()> {
+    let q = qemu_base();
+    let mut cmd = Command::new("timeout");
+    cmd.arg("300")
+        .arg(q.get_program())
+        .args(q.get_args())
+        .args(["-serial", "none", "-kernel"])
+        .arg(elf)
+        .stdin(Stdio::null());
     run(&mut cmd).context("firmware on qemu reported failure (see its output above)")
 }
 
-/// Prints flash and static RAM use of the firmware ELF.
-pub fn fw_size(elf: &Path) -> Result<()> {
-    let s = elf_size(elf)?;
+/// Prints flash and static RAM use of every ELF of a build; returns the sizes.
+pub fn fw_size(build: &FwBuild) -> Result<Vec<(&'static str, ElfSize)>> {
+    let mut out = Vec::new();
     eprintln!(
-        "  firmware {}: flash {} B ({:.1} KiB: text {} + rodata {} + data {}), static RAM {} B ({:.1} KiB: data {} + bss {})",
-        elf.display(),
-        s.flash(),
-        s.flash() as f64 / 1024.0,
-        s.text,
-        s.rodata,
-        s.data,
-        s.ram(),
-        s.ram() as f64 / 1024.0,
-        s.data,
-        s.bss
+        "  board {}: {:<10} {:>9} {:>9} {:>9} {:>9} {:>11} {:>9}",
+        build.board.name(),
+        "binary",
+        "text",
+        "rodata",
+        "data",
+        "bss",
+        "flash",
+        "RAM"
     );
-    Ok(())
+    for (bin, elf) in build.elfs() {
+        let s = elf_size(&elf)?;
+        eprintln!(
+            "  board {}: {:<10} {:>9} {:>9} {:>9} {:>9} {:>6.1} KiB {:>5.1} KiB",
+            build.board.name(),
+            bin,
+            s.text,
+            s.rodata,
+            s.data,
+            s.bss,
+            s.flash() as f64 / 1024.0,
+            s.ram() as f64 / 1024.0
+        );
+        out.push((bin, s));
+    }
+    eprintln!("  (flash = text + rodata + data; RAM = static data + bss, stack not included)");
+    Ok(out)
 }
 
 /// Section sizes of an ELF, bytes, grouped as a linker map would.
+#[derive(Debug, Clone, Copy)]
 pub struct ElfSize {
     /// Executable code.
     pub text: u64,

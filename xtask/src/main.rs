@@ -3,11 +3,28 @@
 //! - `setup`: installs what the embedded half needs (Debian `rustc-web`, `rust-web-src`,
 //!   `rust-web-clippy`, `qemu-system-arm`, `socat`) when it is missing;
 //! - `gen-vectors [--check]`: the firmware self-test's expected values from the host build;
-//! - `fw build | run | size`: cross-build the firmware, run it on qemu (mps2-an386), report size;
+//! - `fw build | run | size [--board B]`: cross-build the firmware, run its self-test on qemu
+//!   (mps2-an386), report sizes;
+//! - `fw bench`: instruction counts, sizes, stack and budgets on qemu `-icount shift=5`;
+//! - `fw hil`: UART loopback and the navigation application's frame link through qemu's
+//!   UART on a socket and a socat pty, compared with the host;
 //! - `ci`: everything CI checks, each step named and timed.
 
+mod budget;
 mod embedded;
+mod hil;
 mod vectors;
+
+/// The firmware's board-independent application, compiled for the host too (HIL comparison).
+#[path = "../../firmware/src/app.rs"]
+#[allow(dead_code)]
+mod fwapp;
+/// The firmware's time-base trait (used by `fwapp`).
+#[path = "../../firmware/src/time.rs"]
+#[allow(dead_code)]
+mod time;
+
+use embedded::Board;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
@@ -47,11 +64,23 @@ enum Cmd {
 #[derive(Subcommand)]
 enum FwCmd {
     /// Cross-build the firmware for thumbv7em-none-eabihf (release).
-    Build,
-    /// Build, then run the firmware on qemu-system-arm -machine mps2-an386.
+    Build {
+        /// Board to build for.
+        #[arg(long, value_enum, default_value = "mps2-an386")]
+        board: Board,
+    },
+    /// Build, then run the self-test on qemu-system-arm -machine mps2-an386.
     Run,
-    /// Flash (text + rodata + data) and static RAM (data + bss) of the firmware ELF.
-    Size,
+    /// Flash (text + rodata + data) and static RAM (data + bss) of the firmware ELFs.
+    Size {
+        /// Board to build for.
+        #[arg(long, value_enum, default_value = "mps2-an386")]
+        board: Board,
+    },
+    /// Instructions per call, sizes, peak stack and budget check (qemu -icount shift=5).
+    Bench,
+    /// UART loopback and the nav application's frame link through a socket + socat pty.
+    Hil,
 }
 
 fn main() -> std::process::ExitCode {
@@ -60,9 +89,21 @@ fn main() -> std::process::ExitCode {
         Cmd::Setup => embedded::setup(),
         Cmd::GenVectors { check } => vectors::generate(check),
         Cmd::Fw { cmd } => match cmd {
-            FwCmd::Build => embedded::fw_build().map(|_| ()),
-            FwCmd::Run => embedded::fw_build().and_then(|elf| embedded::fw_run(&elf)),
-            FwCmd::Size => embedded::fw_build().and_then(|elf| embedded::fw_size(&elf)),
+            FwCmd::Build { board } => embedded::fw_build(board).map(|_| ()),
+            FwCmd::Run => embedded::fw_build(Board::Mps2An386)
+                .and_then(|b| embedded::fw_run(&b.elf("firmware"))),
+            FwCmd::Size { board } => {
+                embedded::fw_build(board).and_then(|b| embedded::fw_size(&b).map(|_| ()))
+            }
+            FwCmd::Bench => embedded::fw_build(Board::Mps2An386).and_then(|b| {
+                let sizes = embedded::fw_size(&b)?;
+                let bench = budget::run_bench(&b.elf("bench"))?;
+                budget::report(&bench, &sizes, &[])
+            }),
+            FwCmd::Hil => embedded::fw_build(Board::Mps2An386).and_then(|b| {
+                hil::uart_echo(&b.elf("uart-echo"))?;
+                hil::frame_link(&b.elf("nav")).map(|_| ())
+            }),
         },
         Cmd::Ci => ci(),
     };
@@ -96,7 +137,8 @@ pub fn run(cmd: &mut Command) -> Result<()> {
     Ok(())
 }
 
-fn show(cmd: &Command) -> String {
+/// The command line of `cmd` as one string.
+pub fn show(cmd: &Command) -> String {
     let mut s = cmd.get_program().to_string_lossy().into_owned();
     for a in cmd.get_args() {
         s.push(' ');
@@ -164,19 +206,67 @@ fn ci() -> Result<()> {
         "nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)",
         &mut || embedded::nav_core_thumb_build(),
     )?;
-    let mut elf = PathBuf::new();
+    let mut fw: Option<embedded::FwBuild> = None;
     step(
-        "firmware build (thumbv7em-none-eabihf, release)",
+        "firmware build (thumbv7em-none-eabihf, release, board mps2-an386)",
         &mut || {
-            elf = embedded::fw_build()?;
+            fw = Some(embedded::fw_build(Board::Mps2An386)?);
+            Ok(())
+        },
+    )?;
+    let fw = fw.context("firmware build produced nothing")?;
+    step(
+        "firmware self-test on qemu mps2-an386 (Cortex-M4F)",
+        &mut || embedded::fw_run(&fw.elf("firmware")),
+    )?;
+    let mut sizes = Vec::new();
+    step("firmware size report", &mut || {
+        sizes = embedded::fw_size(&fw)?;
+        Ok(())
+    })?;
+    step(
+        "HIL: UART loopback through qemu UART0 socket + socat pty",
+        &mut || hil::uart_echo(&fw.elf("uart-echo")),
+    )?;
+    let mut nav_stack = 0u64;
+    step(
+        "HIL: nav application frame link (IMU/GNSS/config in, solutions/health out) vs host",
+        &mut || {
+            nav_stack = hil::frame_link(&fw.elf("nav"))?;
+            Ok(())
+        },
+    )?;
+    let mut real_sizes = Vec::new();
+    step(
+        "real board firmware build (stm32f407) and size",
+        &mut || {
+            let b = embedded::fw_build(Board::Stm32f407)?;
+            for (bin, s) in embedded::fw_size(&b)? {
+                real_sizes.push((format!("{}:{bin}", b.board.name()), s));
+            }
             Ok(())
         },
     )?;
     step(
-        "firmware self-test on qemu mps2-an386 (Cortex-M4F)",
-        &mut || embedded::fw_run(&elf),
+        "firmware budgets: bench on qemu -icount shift=5 (instructions, flash, RAM + stack)",
+        &mut || {
+            let bench = budget::run_bench(&fw.elf("bench"))?;
+            if let Some((_, s)) = sizes.iter().find(|(n, _)| *n == "nav") {
+                let total = s.ram() + nav_stack;
+                eprintln!(
+                    "  nav app (HIL run): static RAM {} B + peak stack {} B = {} B (budget {} B)",
+                    s.ram(),
+                    nav_stack,
+                    total,
+                    budget::RAM_STACK_BUDGET
+                );
+                if total >= budget::RAM_STACK_BUDGET {
+                    bail!("nav app static RAM + peak stack {total} B over budget");
+                }
+            }
+            budget::report(&bench, &sizes, &real_sizes)
+        },
     )?;
-    step("firmware size report", &mut || embedded::fw_size(&elf))?;
     eprintln!("\n[ci] summary");
     for (name, dt) in &steps {
         eprintln!("  {dt:7.1} s  {name}");

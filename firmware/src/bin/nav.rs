@@ -4,7 +4,8 @@
 #![no_main]
 
 use cortex_m_rt::entry;
-use firmware::app::{model, NavApp};
+use firmware::app::NavApp;
+use firmware::model;
 use firmware::{board, stack};
 
 /// One navigation solution per this many IMU epochs (10 Hz at 200 Hz).
