@@ -22,6 +22,7 @@
 //! ([`edf::chi2_inv`]).
 pub mod cli;
 pub mod edf;
+pub mod fit;
 
 use serde::{Deserialize, Serialize};
 

@@ -1,0 +1,581 @@
+//! Fit of the source document's noise model to an Allan variance curve, and the simple
+//! slope/minimum method for comparison.
+//!
+//! Model (corrected formula of `docs/DESIGN.md`, two-sided PSDs, IEEE 952):
+//!
+//! ```text
+//! AVAR(tau) = 3 Q^2 / tau^2 + S_N / tau
+//!           + (S_B T_B^2 / tau) [1 - (T_B / (2 tau)) (3 - 4 e^(-tau/T_B) + e^(-2 tau/T_B))]
+//!           + S_K tau / 3  [+ (2 ln 2 / pi) B^2 for an optional flicker floor]
+//! ```
+//!
+//! `Q^2` plays the role of the source's `S_A` (quantization; `Q = step / sqrt(12)` in
+//! increment units, m/s or rad).
+//!
+//! Method: weighted least squares on the Allan variance with weights `EDF / (2 AVAR^2)` (the
+//! variance of a chi-square AVAR estimate is `2 AVAR^2 / EDF`), where AVAR in the weight is the
+//! current *model* value (iteratively reweighted, so points that happen to fall low are not
+//! favoured). For a fixed `T_B` the model is linear and non-negative in `[Q^2, S_N, S_B, S_K,
+//! B^2]`: solved exactly by non-negative least squares (all active sets enumerated, at most 32
+//! small solves). `T_B` is found by a 1-D search: a log-spaced grid over the fitted tau range
+//! followed by golden-section refinement in log T_B. No initial guess is needed.
+//!
+//! Uncertainties: the Gauss-Newton covariance `(J^T W J)^-1` of the free (non-zero) parameters
+//! including `T_B`, at the solution (first-order, from the weighted LS; the AVAR estimates at
+//! neighbouring octave taus are treated as independent). Datasheet coefficients and their
+//! uncertainties follow by the delta method.
+use super::DevPoint;
+use crate::noise::gauss_markov_avar;
+use nalgebra::{DMatrix, DVector};
+use nav_core::config::units;
+use serde::{Deserialize, Serialize};
+
+/// Which terms the model has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Terms {
+    /// Quantization `3 Q^2 / tau^2`.
+    pub quant: bool,
+    /// White noise `S_N / tau`.
+    pub white: bool,
+    /// First-order Gauss-Markov `S_B`, `T_B`.
+    pub gm: bool,
+    /// Random walk `S_K tau / 3`.
+    pub rw: bool,
+    /// Flicker floor `(2 ln 2 / pi) B^2`.
+    pub flicker: bool,
+}
+
+impl Terms {
+    /// The source's accelerometer model: quantization + white + Gauss-Markov + random walk.
+    pub const NBK_Q: Terms = Terms {
+        quant: true,
+        white: true,
+        gm: true,
+        rw: true,
+        flicker: false,
+    };
+    /// The source's accelerometer model without quantization (white + GM + RW).
+    pub const NBK: Terms = Terms {
+        quant: false,
+        white: true,
+        gm: true,
+        rw: true,
+        flicker: false,
+    };
+}
+
+/// Index of the linear coefficients.
+const IQ: usize = 0;
+const IN: usize = 1;
+const IB: usize = 2;
+const IK: usize = 3;
+const IF: usize = 4;
+const FLICKER_K: f64 = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+
+/// A value with its 1-sigma uncertainty.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Est {
+    /// Value.
+    pub value: f64,
+    /// 1-sigma uncertainty (NaN if unknown).
+    pub sigma: f64,
+}
+
+/// Which physical sensor, for the datasheet units.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum SensorKind {
+    /// Accelerometer: rate unit m/s^2.
+    Accel,
+    /// Gyro: rate unit rad/s.
+    Gyro,
+    /// Unknown: datasheet units equal SI.
+    Other,
+}
+
+/// Result of the weighted least-squares fit, SI units (rate unit `U`: m/s^2 or rad/s).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct FitResult {
+    /// Quantization `Q^2` (U^2 s^2, i.e. m^2/s^2 for accelerometers; the source's S_A).
+    pub q2: Est,
+    /// White-noise PSD S_N (U^2 s).
+    pub s_n: Est,
+    /// Gauss-Markov driving PSD S_B (U^2 / s).
+    pub s_b: Est,
+    /// Gauss-Markov correlation time T_B (s); NaN when S_B = 0.
+    pub t_b_s: Est,
+    /// Random-walk PSD S_K (U^2 / s).
+    pub s_k: Est,
+    /// Flicker coefficient squared B^2 (U^2), 0 unless the flicker term is fitted.
+    pub flicker_b2: Est,
+    /// Weighted sum of squared residuals (chi-square).
+    pub chi2: f64,
+    /// Number of points used.
+    pub n_points: usize,
+    /// Number of free parameters at the solution.
+    pub n_free: usize,
+    /// Correlation of the S_B and T_B estimates (for the uncertainty of B).
+    pub corr_sb_tb: f64,
+    /// Per fitted tau: (tau_s, measured AVAR, model AVAR, normalized residual
+    /// (meas - model) / (model sqrt(2 / EDF))).
+    pub residuals: Vec<(f64, f64, f64, f64)>,
+}
+
+/// Datasheet coefficients derived from a [`FitResult`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Datasheet {
+    /// Unit of `n`.
+    pub n_unit: String,
+    /// White noise N = sqrt(S_N): ug/sqrt(Hz) (accel) or deg/sqrt(h) (gyro).
+    pub n: Est,
+    /// Unit of `b` and `b_flicker`.
+    pub b_unit: String,
+    /// Bias instability B = 0.6572 sqrt(S_B T_B) (flicker floor matched to the Gauss-Markov
+    /// peak): ug (accel) or deg/h (gyro).
+    pub b: Est,
+    /// Unit of `k`.
+    pub k_unit: String,
+    /// Random walk K = sqrt(S_K): ug/sqrt(h) (accel) or deg/h/sqrt(h) (gyro).
+    pub k: Est,
+    /// K in SI (U / sqrt(s)): m/s^2.5 for accelerometers.
+    pub k_si: Est,
+    /// Quantization Q in increment units (m/s or rad).
+    pub q: Est,
+}
+
+impl FitResult {
+    /// Model Allan variance at `tau_s`.
+    pub fn avar(&self, tau_s: f64) -> f64 {
+        let c = self.components(tau_s);
+        c.iter().sum()
+    }
+    /// Model components at `tau_s`: [quantization, white, Gauss-Markov, random walk, flicker].
+    pub fn components(&self, tau_s: f64) -> [f64; 5] {
+        let gm = if self.s_b.value > 0.0 && self.t_b_s.value.is_finite() {
+            gauss_markov_avar(self.s_b.value, self.t_b_s.value, tau_s)
+        } else {
+            0.0
+        };
+        [
+            3.0 * self.q2.value / (tau_s * tau_s),
+            self.s_n.value / tau_s,
+            gm,
+            self.s_k.value * tau_s / 3.0,
+            FLICKER_K * self.flicker_b2.value,
+        ]
+    }
+
+    /// Datasheet coefficients (with delta-method uncertainties).
+    pub fn datasheet(&self, kind: SensorKind) -> Datasheet {
+        let sqrt_est = |e: Est| {
+            let v = e.value.max(0.0).sqrt();
+            Est {
+                value: v,
+                sigma: if v > 0.0 {
+                    e.sigma / (2.0 * v)
+                } else {
+                    e.sigma.sqrt()
+                },
+            }
+        };
+        let scale = |e: Est, f: f64| Est {
+            value: e.value * f,
+            sigma: e.sigma * f,
+        };
+        let n = sqrt_est(self.s_n);
+        let k = sqrt_est(self.s_k);
+        let ratio = units::GM_PEAK_ADEV / units::FLICKER_FLOOR_ADEV;
+        // B = ratio sqrt(S_B T_B); its sigma uses the S_B-T_B correlation of the fit.
+        let sbt = self.s_b.value * self.t_b_s.value;
+        let b_val = if sbt > 0.0 { ratio * sbt.sqrt() } else { 0.0 };
+        let b_sig = b_val * self.b_rel_sigma();
+        let b = Est {
+            value: b_val,
+            sigma: b_sig,
+        };
+        let q = sqrt_est(self.q2);
+        match kind {
+            SensorKind::Accel => Datasheet {
+                n_unit: "ug/sqrt(Hz)".into(),
+                n: scale(n, 1.0 / units::UG_MPS2),
+                b_unit: "ug".into(),
+                b: scale(b, 1.0 / units::UG_MPS2),
+                k_unit: "ug/sqrt(h)".into(),
+                k: scale(k, units::SQRT_HOUR_S / units::UG_MPS2),
+                k_si: k,
+                q,
+            },
+            SensorKind::Gyro => Datasheet {
+                n_unit: "deg/sqrt(h)".into(),
+                n: scale(n, units::SQRT_HOUR_S / units::DEG),
+                b_unit: "deg/h".into(),
+                b: scale(b, units::HOUR_S / units::DEG),
+                k_unit: "deg/h/sqrt(h)".into(),
+                k: scale(k, units::HOUR_S * units::SQRT_HOUR_S / units::DEG),
+                k_si: k,
+                q,
+            },
+            SensorKind::Other => Datasheet {
+                n_unit: "U*sqrt(s)".into(),
+                n,
+                b_unit: "U".into(),
+                b,
+                k_unit: "U/sqrt(s)".into(),
+                k,
+                k_si: k,
+                q,
+            },
+        }
+    }
+
+    /// Relative 1-sigma of sqrt(S_B T_B) (uses the S_B-T_B correlation stored by the fit).
+    pub fn b_rel_sigma(&self) -> f64 {
+        if self.s_b.value.is_nan() || self.s_b.value <= 0.0 {
+            return f64::NAN;
+        }
+        let rb = self.s_b.sigma / self.s_b.value;
+        let rt = self.t_b_s.sigma / self.t_b_s.value;
+        let var = 0.25 * (rb * rb + rt * rt + 2.0 * self.corr_sb_tb * rb * rt);
+        var.max(0.0).sqrt()
+    }
+}
+
+/// Options of the fit.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    /// Model terms.
+    pub terms: Terms,
+    /// Number of IRLS iterations (weights from the model).
+    pub irls_iterations: usize,
+    /// Only points with tau in this range (s) are used.
+    pub tau_range_s: (f64, f64),
+    /// Only points with at least this EDF are used.
+    pub min_edf: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            terms: Terms::NBK_Q,
+            irls_iterations: 4,
+            tau_range_s: (0.0, f64::INFINITY),
+            min_edf: 1.0,
+        }
+    }
+}
+
+/// Errors of the fit.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// Too few usable points.
+    #[error("allan fit: {0} usable points (tau in range, EDF >= min, AVAR > 0); need >= 3")]
+    TooFewPoints(usize),
+}
+
+struct Pt {
+    tau: f64,
+    avar: f64,
+    edf: f64,
+}
+
+fn basis(terms: &Terms, tau: f64, t_b: f64) -> [f64; 5] {
+    [
+        if terms.quant { 3.0 / (tau * tau) } else { 0.0 },
+        if terms.white { 1.0 / tau } else { 0.0 },
+        if terms.gm {
+            gauss_markov_avar(1.0, t_b, tau)
+        } else {
+            0.0
+        },
+        if terms.rw { tau / 3.0 } else { 0.0 },
+        if terms.flicker { FLICKER_K } else { 0.0 },
+    ]
+}
+
+/// Exact NNLS of `min || A c - b ||^2, c >= 0` for <= 5 columns by enumerating active sets.
+/// Columns that are all zero stay 0. Returns (c, cost).
+fn nnls_small(a: &DMatrix<f64>, b: &DVector<f64>) -> ([f64; 5], f64) {
+    let ncol = a.ncols();
+    let norms: Vec<f64> = (0..ncol).map(|j| a.column(j).norm()).collect();
+    let usable: Vec<usize> = (0..ncol).filter(|&j| norms[j] > 0.0).collect();
+    let mut best = ([0.0; 5], b.norm_squared());
+    for mask in 1u32..(1 << usable.len()) {
+        let cols: Vec<usize> = usable
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| mask & (1 << i) != 0)
+            .map(|(_, &j)| j)
+            .collect();
+        let sub = DMatrix::from_fn(a.nrows(), cols.len(), |r, c| {
+            a[(r, cols[c])] / norms[cols[c]]
+        });
+        let svd = sub.clone().svd(true, true);
+        let Ok(sol) = svd.solve(b, 1e-13) else {
+            continue;
+        };
+        if sol.iter().any(|&v| v < 0.0) {
+            continue;
+        }
+        let cost = (&sub * &sol - b).norm_squared();
+        if cost < best.1 {
+            let mut c = [0.0; 5];
+            for (k, &j) in cols.iter().enumerate() {
+                c[j] = sol[k] / norms[j];
+            }
+            best = (c, cost);
+        }
+    }
+    best
+}
+
+/// Solves the linear NNLS for a fixed T_B with weights from `wmodel` (model AVAR per point).
+fn solve_fixed_tb(pts: &[Pt], terms: &Terms, t_b: f64, wmodel: &[f64]) -> ([f64; 5], f64) {
+    let n = pts.len();
+    let mut a = DMatrix::zeros(n, 5);
+    let mut b = DVector::zeros(n);
+    for (i, p) in pts.iter().enumerate() {
+        let sw = (p.edf / 2.0).sqrt() / wmodel[i];
+        let row = basis(terms, p.tau, t_b);
+        for j in 0..5 {
+            a[(i, j)] = row[j] * sw;
+        }
+        b[i] = p.avar * sw;
+    }
+    nnls_small(&a, &b)
+}
+
+fn model_at(c: &[f64; 5], terms: &Terms, tau: f64, t_b: f64) -> f64 {
+    basis(terms, tau, t_b)
+        .iter()
+        .zip(c.iter())
+        .map(|(x, y)| x * y)
+        .sum()
+}
+
+/// Best T_B (log grid + golden section) for the given weights; returns (t_b, c, cost).
+fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &[f64]) -> (f64, [f64; 5], f64) {
+    if !terms.gm {
+        let (c, cost) = solve_fixed_tb(pts, terms, 1.0, wmodel);
+        return (f64::NAN, c, cost);
+    }
+    let tmin = pts.iter().map(|p| p.tau).fold(f64::INFINITY, f64::min) / 4.0;
+    let tmax = pts.iter().map(|p| p.tau).fold(0.0, f64::max) * 2.0;
+    let (lmin, lmax) = (tmin.ln(), tmax.ln());
+    let ngrid = 60;
+    let eval = |lt: f64| {
+        let (c, cost) = solve_fixed_tb(pts, terms, lt.exp(), wmodel);
+        (cost, c)
+    };
+    let mut best = (f64::INFINITY, 0usize);
+    let grid: Vec<f64> = (0..ngrid)
+        .map(|i| lmin + (lmax - lmin) * i as f64 / (ngrid - 1) as f64)
+        .collect();
+    let costs: Vec<f64> = grid.iter().map(|&l| eval(l).0).collect();
+    for (i, &c) in costs.iter().enumerate() {
+        if c < best.0 {
+            best = (c, i);
+        }
+    }
+    let i = best.1;
+    let mut lo = grid[i.saturating_sub(1)];
+    let mut hi = grid[(i + 1).min(ngrid - 1)];
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let mut x1 = hi - g * (hi - lo);
+    let mut x2 = lo + g * (hi - lo);
+    let mut f1 = eval(x1).0;
+    let mut f2 = eval(x2).0;
+    for _ in 0..60 {
+        if f1 < f2 {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - g * (hi - lo);
+            f1 = eval(x1).0;
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + g * (hi - lo);
+            f2 = eval(x2).0;
+        }
+        if hi - lo < 1e-7 {
+            break;
+        }
+    }
+    let lt = 0.5 * (lo + hi);
+    let (cost, c) = eval(lt);
+    if cost <= best.0 {
+        (lt.exp(), c, cost)
+    } else {
+        let (c0, c) = eval(grid[i]);
+        (grid[i].exp(), c, c0)
+    }
+}
+
+/// Fits the model to a deviation curve (normally OADEV with EDF from [`super::deviation_curve`]).
+pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError> {
+    let pts: Vec<Pt> = points
+        .iter()
+        .filter(|p| {
+            p.tau_s >= opt.tau_range_s.0
+                && p.tau_s <= opt.tau_range_s.1
+                && p.edf.is_finite()
+                && p.edf >= opt.min_edf
+                && p.dev > 0.0
+        })
+        .map(|p| Pt {
+            tau: p.tau_s,
+            avar: p.dev * p.dev,
+            edf: p.edf,
+        })
+        .collect();
+    if pts.len() < 3 {
+        return Err(FitError::TooFewPoints(pts.len()));
+    }
+    let terms = opt.terms;
+    let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
+    let mut sol = search_tb(&pts, &terms, &wmodel);
+    for _ in 0..opt.irls_iterations {
+        let (t_b, c, _) = sol;
+        let new: Vec<f64> = pts
+            .iter()
+            .zip(wmodel.iter())
+            .map(|(p, &old)| {
+                let m = model_at(&c, &terms, p.tau, t_b);
+                if m > 0.0 {
+                    m
+                } else {
+                    old
+                }
+            })
+            .collect();
+        wmodel = new;
+        sol = search_tb(&pts, &terms, &wmodel);
+    }
+    let (t_b, c, chi2) = sol;
+
+    // Covariance of the free parameters by Gauss-Newton at the solution.
+    // Parameters: the non-zero linear coefficients, and log T_B when S_B > 0.
+    let free: Vec<usize> = (0..5).filter(|&j| c[j] > 0.0).collect();
+    let has_tb = terms.gm && c[IB] > 0.0 && t_b.is_finite();
+    let np = free.len() + usize::from(has_tb);
+    let mut jac = DMatrix::zeros(pts.len(), np);
+    for (i, p) in pts.iter().enumerate() {
+        let sw = (p.edf / 2.0).sqrt() / wmodel[i];
+        let row = basis(&terms, p.tau, t_b);
+        for (k, &j) in free.iter().enumerate() {
+            jac[(i, k)] = row[j] * sw;
+        }
+        if has_tb {
+            let h = 1e-5;
+            let up = gauss_markov_avar(c[IB], t_b * (1.0 + h), p.tau);
+            let dn = gauss_markov_avar(c[IB], t_b * (1.0 - h), p.tau);
+            // derivative with respect to T_B itself
+            jac[(i, np - 1)] = (up - dn) / (2.0 * h * t_b) * sw;
+        }
+    }
+    let jtj = jac.transpose() * &jac;
+    let cov = jtj
+        .clone()
+        .try_inverse()
+        .unwrap_or_else(|| jtj.pseudo_inverse(1e-300).unwrap_or(DMatrix::zeros(np, np)));
+    let mut sig = [0.0f64; 5];
+    for (k, &j) in free.iter().enumerate() {
+        sig[j] = cov[(k, k)].max(0.0).sqrt();
+    }
+    let (tb_sig, corr) = if has_tb {
+        let st = cov[(np - 1, np - 1)].max(0.0).sqrt();
+        let kb = free.iter().position(|&j| j == IB);
+        let corr = kb
+            .map(|kb| cov[(kb, np - 1)] / (sig[IB] * st))
+            .filter(|v| v.is_finite())
+            .unwrap_or(0.0);
+        (st, corr)
+    } else {
+        (f64::NAN, 0.0)
+    };
+    // Zero (bound) parameters: report the sigma they would have if free, as an upper scale.
+    let est = |j: usize| Est {
+        value: c[j],
+        sigma: sig[j],
+    };
+    let residuals = pts
+        .iter()
+        .map(|p| {
+            let m = model_at(&c, &terms, p.tau, t_b);
+            (p.tau, p.avar, m, (p.avar - m) / (m * (2.0 / p.edf).sqrt()))
+        })
+        .collect();
+    Ok(FitResult {
+        q2: est(IQ),
+        s_n: est(IN),
+        s_b: est(IB),
+        t_b_s: Est {
+            value: if has_tb { t_b } else { f64::NAN },
+            sigma: tb_sig,
+        },
+        s_k: est(IK),
+        flicker_b2: est(IF),
+        chi2,
+        n_points: pts.len(),
+        n_free: np,
+        residuals,
+        corr_sb_tb: corr,
+    })
+}
+
+/// Result of the slope/minimum method (datasheet-style reading of the ADEV curve).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct SlopeResult {
+    /// N = sigma(1 s) on the -1/2 line through the point whose local slope is closest to -1/2
+    /// (U sqrt(s)); `S_N = N^2`.
+    pub n: f64,
+    /// tau of that point (s).
+    pub n_tau_s: f64,
+    /// B = sigma_min / 0.664 (U).
+    pub b: f64,
+    /// tau of the minimum (s).
+    pub b_tau_s: f64,
+    /// K = sigma(3 s) on the +1/2 line through the point whose slope is closest to +1/2
+    /// (U / sqrt(s)), NaN if no rising part.
+    pub k: f64,
+    /// tau of that point (s).
+    pub k_tau_s: f64,
+}
+
+/// The slope/minimum method on an ADEV curve.
+pub fn slope_method(points: &[DevPoint]) -> Option<SlopeResult> {
+    let p: Vec<&DevPoint> = points.iter().filter(|p| p.dev > 0.0).collect();
+    if p.len() < 3 {
+        return None;
+    }
+    let (imin, pmin) = p
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.dev.total_cmp(&b.1.dev))?;
+    // Local log-log slope at interior points (central difference).
+    let slope = |i: usize| {
+        let a = p[i.saturating_sub(1)];
+        let b = p[(i + 1).min(p.len() - 1)];
+        (b.dev.ln() - a.dev.ln()) / (b.tau_s.ln() - a.tau_s.ln())
+    };
+    let pick = |range: std::ops::Range<usize>, target: f64| {
+        range
+            .map(|i| (i, (slope(i) - target).abs()))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    };
+    let in_ = pick(0..imin.max(1), -0.5)?;
+    let n = p[in_].dev * p[in_].tau_s.sqrt();
+    let (k, k_tau) = match pick(imin + 1..p.len(), 0.5) {
+        Some(ik) => (p[ik].dev * (3.0 / p[ik].tau_s).sqrt(), p[ik].tau_s),
+        None => (f64::NAN, f64::NAN),
+    };
+    Some(SlopeResult {
+        n,
+        n_tau_s: p[in_].tau_s,
+        b: pmin.dev / units::FLICKER_FLOOR_ADEV,
+        b_tau_s: pmin.tau_s,
+        k,
+        k_tau_s: k_tau,
+    })
+}
