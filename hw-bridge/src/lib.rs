@@ -1,5 +1,11 @@
 //! `hw-bridge`: moves IMU/GNSS frames between a serial port and `nav-core`; records captures
-//! and replays them bit-exactly. The wire codec itself lives in `nav-core::wire`.
+//! and replays them bit-exactly. The wire codec itself lives in `nav-core::wire`; the text
+//! formats in `host_sim::io`.
 #![deny(missing_docs)]
 
+pub mod capture;
+pub mod cmd;
+pub mod frames;
 pub mod gnss;
+pub mod serial;
+pub mod status;

@@ -1,5 +1,6 @@
 //! The `hw-bridge` command line.
 use clap::{Parser, Subcommand};
+use hw_bridge::cmd;
 
 /// Serial bridge between a navigation board or GNSS receiver and nav-core.
 #[derive(Parser, Debug)]
@@ -13,15 +14,59 @@ struct Cli {
 enum Cmd {
     /// List serial ports (pseudo-terminals can always be opened by path).
     Ports,
+    /// Record raw bytes with receive timestamps into a capture file.
+    Record(cmd::RecordArgs),
+    /// Decode a capture (its chunking and, with --speed, its timing) into text files, or
+    /// stream it back out to a port.
+    Replay(cmd::ReplayArgs),
+    /// Stream a simulated case (imu.txt, gnss.txt) into a port as frames.
+    Send(cmd::SendArgs),
+    /// Live decode of a board's frames and a GNSS receiver, with health.
+    Stream(cmd::StreamArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().cmd {
         Cmd::Ports => {
-            for p in serialport::available_ports()? {
-                println!("{}", p.port_name);
+            let ports = hw_bridge::serial::list()?;
+            if ports.is_empty() {
+                println!("(no serial ports reported; pseudo-terminals open by path)");
             }
-            Ok(())
+            for p in ports {
+                println!("{p}");
+            }
+        }
+        Cmd::Record(a) => {
+            let s = cmd::record(&a)?;
+            println!("{}", hw_bridge::status::decoder_report(&s));
+        }
+        Cmd::Replay(a) => {
+            let o = cmd::replay(&a)?;
+            let mb = o.bytes as f64 / 1e6;
+            println!(
+                "replayed {} records, {} bytes ({:.3} s recorded) in {:.3} s wall ({:.1} MB/s)",
+                o.records,
+                o.bytes,
+                o.recorded_s,
+                o.wall_s,
+                mb / o.wall_s.max(1e-9)
+            );
+            match a.input {
+                cmd::InputKind::Frames => print!("{}", hw_bridge::status::decoder_report(&o.stats)),
+                cmd::InputKind::Gnss => println!("{} GNSS fixes", o.gnss_fixes.len()),
+            }
+        }
+        Cmd::Send(a) => {
+            let o = cmd::send(&a)?;
+            println!(
+                "sent {} frames, {} bytes in {:.3} s",
+                o.frames, o.bytes, o.wall_s
+            );
+        }
+        Cmd::Stream(a) => {
+            let s = cmd::stream(&a)?;
+            print!("{}", hw_bridge::status::decoder_report(&s));
         }
     }
+    Ok(())
 }

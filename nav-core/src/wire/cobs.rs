@@ -36,6 +36,8 @@ impl core::fmt::Display for CobsError {
     }
 }
 
+impl core::error::Error for CobsError {}
+
 /// Largest encoded size (without delimiter) of a packet of `n` bytes.
 pub const fn max_encoded_len(n: usize) -> usize {
     n + n / 254 + 1

@@ -709,3 +709,6 @@ impl Encoder {
         Ok(n)
     }
 }
+
+impl core::error::Error for EncodeError {}
+impl core::error::Error for DecodeError {}
