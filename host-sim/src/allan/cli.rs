@@ -1,13 +1,654 @@
-//! `host-sim allan`.
+//! `host-sim allan`: Allan statistics per axis of an IMU record, the noise-model fit, a
+//! parameter table like the source's Appendix V, `allan_params.toml`, plots and JSON.
+use super::fit::{self, Datasheet, FitOptions, FitResult, SensorKind, SlopeResult, Terms};
+use super::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit};
+use super::{deviation_curve_phase, edf, CurveOptions, DevPoint, Deviation, Phase, Taus};
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Input format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// `--columns` given: generic column file; otherwise the project's IMU text format.
+    Auto,
+    /// The project's IMU text format (`t dtheta_xyz dv_xyz [temp]`, increments).
+    ImuText,
+    /// Generic CSV / white-space columns (needs `--columns`).
+    Csv,
+}
+
+/// Tau selection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TauArg {
+    /// m = 1, 2, 4, 8, ...
+    Octave,
+    /// m = 1, 2, 4, 10, 20, 40, ...
+    Decade,
+    /// Every m (slow for long records).
+    All,
+}
+
+/// Model terms for the fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TermArg {
+    /// Quantization 3 Q^2 / tau^2.
+    Quant,
+    /// White noise S_N / tau.
+    White,
+    /// First-order Gauss-Markov (S_B, T_B).
+    Gm,
+    /// Random walk S_K tau / 3.
+    Rw,
+    /// Flicker floor.
+    Flicker,
+}
 
 /// Arguments of `host-sim allan`.
 #[derive(clap::Args, Debug)]
 pub struct AllanArgs {
-    /// IMU file to analyse.
-    pub input: std::path::PathBuf,
+    /// IMU file to analyse (gzip accepted).
+    pub input: PathBuf,
+    /// Input format.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub format: Format,
+    /// Column mapping of a generic file, comma separated: gx gy gz ax ay az, x (one generic
+    /// channel), t (time in s), _ (ignored). Example: gx,gy,gz,ax,ay,az
+    #[arg(long, value_delimiter = ',')]
+    pub columns: Vec<String>,
+    /// Unit of gyro columns.
+    #[arg(long, value_enum, default_value = "radps")]
+    pub gyro_unit: GyroUnit,
+    /// Unit of accelerometer columns.
+    #[arg(long, value_enum, default_value = "mps2")]
+    pub accel_unit: AccelUnitArg,
+    /// Sample rate of a file without a time column (Hz).
+    #[arg(long)]
+    pub rate_hz: Option<f64>,
+    /// Lines skipped at the start of a generic file.
+    #[arg(long, default_value_t = 0)]
+    pub skip_lines: usize,
+    /// Scale of an `x` column to its SI unit.
+    #[arg(long, default_value_t = 1.0)]
+    pub x_scale: f64,
+    /// Deviation to compute and plot (the fit always uses the overlapping Allan variance).
+    #[arg(long, value_enum, default_value = "oadev")]
+    pub dev: Deviation,
+    /// Tau selection.
+    #[arg(long, value_enum, default_value = "octave")]
+    pub taus: TauArg,
+    /// Model terms of the fit, comma separated.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "quant,white,gm,rw"
+    )]
+    pub terms: Vec<TermArg>,
+    /// Smallest tau used by the fit (s).
+    #[arg(long, default_value_t = 0.0)]
+    pub fit_min_tau: f64,
+    /// Largest tau used by the fit (s).
+    #[arg(long, default_value_t = f64::INFINITY)]
+    pub fit_max_tau: f64,
+    /// Output folder for allan_params.toml and the plots.
+    #[arg(long, short = 'o', default_value = ".")]
+    pub out_dir: PathBuf,
+    /// Also write the curves and fits as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Do not draw plots.
+    #[arg(long)]
+    pub no_plot: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The analysis of one channel.
+#[derive(Clone, Debug)]
+pub struct AxisResult {
+    /// Key (gx ... az, or x).
+    pub name: String,
+    /// Sensor kind.
+    pub kind: SensorKind,
+    /// The requested deviation curve.
+    pub curve: Vec<DevPoint>,
+    /// The OADEV curve the fit used (same as `curve` for OADEV).
+    pub fit_curve: Vec<DevPoint>,
+    /// The fit, or the reason it failed.
+    pub fit: Result<FitResult, String>,
+    /// The slope/minimum method.
+    pub slope: Option<SlopeResult>,
+}
+
+/// The whole analysis.
+#[derive(Clone, Debug)]
+pub struct Analysis {
+    /// Per channel.
+    pub axes: Vec<AxisResult>,
+    /// Sample time (s).
+    pub tau0_s: f64,
+    /// Number of samples.
+    pub n_samples: usize,
+    /// Deviation type of `curve`.
+    pub dev: Deviation,
+}
+
+/// Analyses channels (no I/O); `progress` gets (done, total) tau evaluations.
+pub fn analyse(
+    ch: &Channels,
+    dev: Deviation,
+    taus: &Taus,
+    fit_opt: &FitOptions,
+    progress: Option<&ProgressBar>,
+) -> Analysis {
+    let axes: Vec<AxisResult> = ch
+        .data
+        .par_iter()
+        .zip(ch.names.par_iter())
+        .zip(ch.kinds.par_iter())
+        .map(|((y, name), kind)| {
+            let phase = Phase::from_rate(y);
+            let opt = CurveOptions {
+                dev,
+                taus: taus.clone(),
+                confidence: Some(edf::ONE_SIGMA),
+                fixed_alpha: None,
+            };
+            let tick = |_: usize, _: usize| {
+                if let Some(pb) = progress {
+                    pb.inc(1);
+                }
+            };
+            let curve = deviation_curve_phase(&phase, ch.tau0_s, &opt, tick);
+            let fit_curve = if dev == Deviation::Oadev && *taus == Taus::Octave {
+                curve.clone()
+            } else {
+                let o = CurveOptions {
+                    dev: Deviation::Oadev,
+                    taus: Taus::Octave,
+                    ..opt.clone()
+                };
+                deviation_curve_phase(&phase, ch.tau0_s, &o, tick)
+            };
+            let f = fit::fit(&fit_curve, fit_opt).map_err(|e| e.to_string());
+            let slope = fit::slope_method(&fit_curve);
+            AxisResult {
+                name: name.clone(),
+                kind: *kind,
+                curve,
+                fit_curve,
+                fit: f,
+                slope,
+            }
+        })
+        .collect();
+    Analysis {
+        axes,
+        tau0_s: ch.tau0_s,
+        n_samples: ch.data.first().map_or(0, Vec::len),
+        dev,
+    }
+}
+
+fn pm(e: fit::Est, prec: usize) -> String {
+    if e.value == 0.0 && (e.sigma.is_nan() || e.sigma <= 0.0) {
+        return "0".into();
+    }
+    if e.sigma.is_finite() {
+        format!("{:.*e} ± {:.1e}", prec, e.value, e.sigma)
+    } else {
+        format!("{:.*e}", prec, e.value)
+    }
+}
+
+fn pmf(e: fit::Est) -> String {
+    if !e.value.is_finite() {
+        return "-".into();
+    }
+    if e.sigma.is_finite() {
+        format!("{:.3} ± {:.3}", e.value, e.sigma)
+    } else {
+        format!("{:.3}", e.value)
+    }
+}
+
+/// The parameter table (like the source's Appendix V, one column per axis).
+pub fn table(an: &Analysis) -> String {
+    let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+    let ds: Vec<Option<(Datasheet, &FitResult)>> = an
+        .axes
+        .iter()
+        .map(|a| a.fit.as_ref().ok().map(|f| (f.datasheet(a.kind), f)))
+        .collect();
+    let row = |label: &str, f: &dyn Fn(&Datasheet, &FitResult) -> String| {
+        (
+            label.to_string(),
+            ds.iter()
+                .map(|d| d.as_ref().map_or("fit failed".into(), |(d, r)| f(d, r)))
+                .collect::<Vec<_>>(),
+        )
+    };
+    rows.push(row("Quantization  S_A = Q^2 [m^2/s^2],[rad^2]", &|_, r| {
+        pm(r.q2, 3)
+    }));
+    rows.push(row("              Q [m/s],[rad]", &|d, _| pm(d.q, 3)));
+    rows.push(row("White noise   S_N [m^2/s^3],[rad^2/s]", &|_, r| {
+        pm(r.s_n, 4)
+    }));
+    rows.push(row(
+        "              N [ug/sqrt(Hz)],[deg/sqrt(h)]",
+        &|d, _| pmf(d.n),
+    ));
+    rows.push(row("Gauss-Markov  S_B [m^2/s^5],[rad^2/s^3]", &|_, r| {
+        pm(r.s_b, 4)
+    }));
+    rows.push(row(
+        "              B = 0.6572 sqrt(S_B T_B) [ug],[deg/h]",
+        &|d, _| pmf(d.b),
+    ));
+    rows.push(row("              T_B [s]", &|_, r| pmf(r.t_b_s)));
+    rows.push(row("Random walk   S_K [m^2/s^5],[rad^2/s^3]", &|_, r| {
+        pm(r.s_k, 4)
+    }));
+    rows.push(row("              K [m/s^2.5],[rad/s^1.5]", &|d, _| {
+        pm(d.k_si, 4)
+    }));
+    rows.push(row(
+        "              K [ug/sqrt(h)],[deg/h/sqrt(h)]",
+        &|d, _| pmf(d.k),
+    ));
+    rows.push(row("Fit           chi2 / points", &|_, r| {
+        format!("{:.1} / {}", r.chi2, r.n_points)
+    }));
+    rows.push((
+        "Slope method  N [ug/sqrt(Hz)],[deg/sqrt(h)]".into(),
+        an.axes.iter().map(|a| slope_fmt(a, 'N')).collect(),
+    ));
+    rows.push((
+        "              B = min/0.664 [ug],[deg/h]".into(),
+        an.axes.iter().map(|a| slope_fmt(a, 'B')).collect(),
+    ));
+    rows.push((
+        "              K [ug/sqrt(h)],[deg/h/sqrt(h)]".into(),
+        an.axes.iter().map(|a| slope_fmt(a, 'K')).collect(),
+    ));
+    let w0 = rows.iter().map(|r| r.0.chars().count()).max().unwrap_or(0);
+    let wc: Vec<usize> = (0..an.axes.len())
+        .map(|j| {
+            rows.iter()
+                .map(|r| r.1[j].chars().count())
+                .max()
+                .unwrap_or(0)
+                .max(an.axes[j].name.len())
+        })
+        .collect();
+    let mut s = String::new();
+    let _ = write!(s, "{:w0$}", "Noise term / parameter");
+    for (a, w) in an.axes.iter().zip(&wc) {
+        let _ = write!(s, " | {:>w$}", a.name);
+    }
+    s.push('\n');
+    s.push_str(&"-".repeat(w0 + wc.iter().map(|w| w + 3).sum::<usize>()));
+    s.push('\n');
+    for (label, cells) in rows {
+        let _ = write!(s, "{label:w0$}");
+        for (c, w) in cells.iter().zip(&wc) {
+            let _ = write!(s, " | {c:>w$}");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+fn slope_fmt(a: &AxisResult, which: char) -> String {
+    let Some(sl) = &a.slope else {
+        return "-".into();
+    };
+    use nav_core::config::units;
+    let (n_f, b_f, k_f) = match a.kind {
+        SensorKind::Accel => (
+            1.0 / units::UG_MPS2,
+            1.0 / units::UG_MPS2,
+            units::SQRT_HOUR_S / units::UG_MPS2,
+        ),
+        SensorKind::Gyro => (
+            units::SQRT_HOUR_S / units::DEG,
+            units::HOUR_S / units::DEG,
+            units::HOUR_S * units::SQRT_HOUR_S / units::DEG,
+        ),
+        SensorKind::Other => (1.0, 1.0, 1.0),
+    };
+    match which {
+        'N' => format!("{:.3}", sl.n * n_f),
+        'B' => format!("{:.3}", sl.b * b_f),
+        _ if sl.k.is_finite() => format!("{:.3}", sl.k * k_f),
+        _ => "-".into(),
+    }
+}
+
+/// `allan_params.toml`: `[accel]` / `[gyro]` in the layout of the simulator's sensor error
+/// model (`white_psd`, `gm_psd`, `gm_tau_s`, `rw_psd`, `quantization_step`, per axis x y z,
+/// SI, two-sided PSDs), `[x]` for a single generic channel, and `[uncertainty.*]` with the
+/// 1-sigma of every value.
+pub fn params_toml(an: &Analysis, source: &Path) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# Noise parameters identified by `host-sim allan` from {} ({} samples, tau0 = {} s).\n\
+         # Fit of the overlapping Allan variance (corrected model of docs/DESIGN.md), SI units,\n\
+         # two-sided PSDs (IEEE 952): white_psd S_N [m^2/s^3 | rad^2/s], gm_psd S_B [m^2/s^5 |\n\
+         # rad^2/s^3], gm_tau_s T_B [s], rw_psd S_K [m^2/s^5 | rad^2/s^3], quantization_step =\n\
+         # sqrt(12) Q [m/s | rad]. [accel] and [gyro] have the layout of the simulator's sensor\n\
+         # error model; a term the fit set to zero is 0 (gm_tau_s then 1 as a placeholder).",
+        source.display(),
+        an.n_samples,
+        an.tau0_s
+    );
+    let groups: [(&str, [&str; 3]); 2] =
+        [("accel", ["ax", "ay", "az"]), ("gyro", ["gx", "gy", "gz"])];
+    let get = |name: &str| {
+        an.axes
+            .iter()
+            .find(|a| a.name == name)
+            .and_then(|a| a.fit.as_ref().ok())
+    };
+    let fmt_arr = |v: [f64; 3]| {
+        format!(
+            "[{}]",
+            v.iter()
+                .map(|x| if x.is_finite() {
+                    format!("{x:e}")
+                } else {
+                    "nan".into()
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    type Field = (&'static str, fn(&FitResult) -> fit::Est);
+    let fields: [Field; 5] = [
+        ("white_psd", |f| f.s_n),
+        ("gm_psd", |f| f.s_b),
+        ("gm_tau_s", |f| f.t_b_s),
+        ("rw_psd", |f| f.s_k),
+        ("quantization_step", |f| {
+            let q = f.q2.value.max(0.0).sqrt();
+            fit::Est {
+                value: 12f64.sqrt() * q,
+                sigma: if q > 0.0 {
+                    12f64.sqrt() * f.q2.sigma / (2.0 * q)
+                } else {
+                    f64::NAN
+                },
+            }
+        }),
+    ];
+    let value = |name: &str, f: &FitResult, e: fit::Est| {
+        if name == "gm_tau_s" && (f.s_b.value.is_nan() || f.s_b.value <= 0.0) {
+            1.0
+        } else {
+            e.value
+        }
+    };
+    let mut unc = String::new();
+    for (group, keys) in groups {
+        if !keys.iter().any(|k| get(k).is_some()) {
+            continue;
+        }
+        let _ = writeln!(s, "\n[{group}]");
+        let _ = writeln!(unc, "\n[uncertainty.{group}]");
+        for (fname, fget) in fields {
+            let mut v = [f64::NAN; 3];
+            let mut u = [f64::NAN; 3];
+            for (i, k) in keys.iter().enumerate() {
+                if let Some(f) = get(k) {
+                    v[i] = value(fname, f, fget(f));
+                    u[i] = fget(f).sigma;
+                }
+            }
+            let _ = writeln!(s, "{fname} = {}", fmt_arr(v));
+            let _ = writeln!(unc, "{fname} = {}", fmt_arr(u));
+        }
+    }
+    if let Some(f) = get("x") {
+        let _ = writeln!(s, "\n[x]");
+        let _ = writeln!(unc, "\n[uncertainty.x]");
+        for (fname, fget) in fields {
+            let e = fget(f);
+            let fmt1 = |x: f64| {
+                if x.is_finite() {
+                    format!("{x:e}")
+                } else {
+                    "nan".into()
+                }
+            };
+            let _ = writeln!(s, "{fname} = {}", fmt1(value(fname, f, e)));
+            let _ = writeln!(unc, "{fname} = {}", fmt1(e.sigma));
+        }
+    }
+    s.push_str(&unc);
+    s
+}
+
+#[derive(Serialize)]
+struct JsonAxis<'a> {
+    deviation: &'a str,
+    tau_s: Vec<f64>,
+    adev: Vec<f64>,
+    adev_lo: Vec<f64>,
+    adev_hi: Vec<f64>,
+    n_terms: Vec<usize>,
+    alpha: Vec<i32>,
+    edf: Vec<f64>,
+    fit: Option<JsonFit>,
+    slope_method: Option<&'a SlopeResult>,
+}
+
+#[derive(Serialize)]
+struct JsonFit {
+    q2: fit::Est,
+    s_n: fit::Est,
+    s_b: fit::Est,
+    t_b_s: fit::Est,
+    s_k: fit::Est,
+    flicker_b2: fit::Est,
+    datasheet: Datasheet,
+    chi2: f64,
+    n_points: usize,
+    /// (tau_s, measured AVAR, model AVAR, normalized residual)
+    residuals: Vec<(f64, f64, f64, f64)>,
+}
+
+/// JSON of the analysis (keys per axis, SI).
+pub fn to_json(an: &Analysis) -> anyhow::Result<String> {
+    let mut map = BTreeMap::new();
+    for a in &an.axes {
+        let c = &a.curve;
+        let ja = JsonAxis {
+            deviation: an.dev.name(),
+            tau_s: c.iter().map(|p| p.tau_s).collect(),
+            adev: c.iter().map(|p| p.dev).collect(),
+            adev_lo: c.iter().map(|p| p.lo).collect(),
+            adev_hi: c.iter().map(|p| p.hi).collect(),
+            n_terms: c.iter().map(|p| p.n_terms).collect(),
+            alpha: c.iter().map(|p| p.alpha).collect(),
+            edf: c.iter().map(|p| p.edf).collect(),
+            fit: a.fit.as_ref().ok().map(|f| JsonFit {
+                q2: f.q2,
+                s_n: f.s_n,
+                s_b: f.s_b,
+                t_b_s: f.t_b_s,
+                s_k: f.s_k,
+                flicker_b2: f.flicker_b2,
+                datasheet: f.datasheet(a.kind),
+                chi2: f.chi2,
+                n_points: f.n_points,
+                residuals: f.residuals.clone(),
+            }),
+            slope_method: a.slope.as_ref(),
+        };
+        map.insert(a.name.clone(), serde_json::to_value(ja)?);
+    }
+    Ok(serde_json::to_string_pretty(&map)?)
+}
+
+fn terms_from(args: &[TermArg]) -> Terms {
+    Terms {
+        quant: args.contains(&TermArg::Quant),
+        white: args.contains(&TermArg::White),
+        gm: args.contains(&TermArg::Gm),
+        rw: args.contains(&TermArg::Rw),
+        flicker: args.contains(&TermArg::Flicker),
+    }
+}
+
+/// Reads the input described by `args`.
+pub fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
+    let fmt = match args.format {
+        Format::Auto if !args.columns.is_empty() => Format::Csv,
+        Format::Auto => Format::ImuText,
+        f => f,
+    };
+    let ch = match fmt {
+        Format::Csv => {
+            if args.columns.is_empty() {
+                anyhow::bail!("--format csv needs --columns (e.g. gx,gy,gz,ax,ay,az)");
+            }
+            reader::read_columns(
+                &args.input,
+                &ColumnSpec {
+                    columns: args.columns.clone(),
+                    gyro_unit: args.gyro_unit,
+                    accel_unit: args.accel_unit,
+                    rate_hz: args.rate_hz,
+                    skip_lines: args.skip_lines,
+                    x_scale: args.x_scale,
+                },
+            )?
+        }
+        _ => reader::read_imu_text_rates(&args.input)?,
+    };
+    Ok(ch)
 }
 
 /// Runs `host-sim allan`.
 pub fn run(args: AllanArgs) -> anyhow::Result<()> {
-    anyhow::bail!("allan: not built yet ({})", args.input.display())
+    let spinner = (!args.quiet).then(|| {
+        let pb = ProgressBar::new_spinner();
+        pb.set_message(format!("reading {}", args.input.display()));
+        pb.enable_steady_tick(std::time::Duration::from_millis(120));
+        pb
+    });
+    let ch = read_input(&args)?;
+    if let Some(pb) = spinner {
+        pb.finish_and_clear();
+    }
+    let n = ch.data.first().map_or(0, Vec::len);
+    if n < 16 {
+        anyhow::bail!("{}: only {n} samples", args.input.display());
+    }
+    for note in &ch.notes {
+        eprintln!("{note}");
+    }
+    let taus = match args.taus {
+        TauArg::Octave => Taus::Octave,
+        TauArg::Decade => Taus::Decade,
+        TauArg::All => Taus::All,
+    };
+    let fit_opt = FitOptions {
+        terms: terms_from(&args.terms),
+        tau_range_s: (args.fit_min_tau, args.fit_max_tau),
+        ..FitOptions::default()
+    };
+    let per_axis = taus.factors(n, args.dev).len()
+        + if args.dev == Deviation::Oadev && taus == Taus::Octave {
+            0
+        } else {
+            Taus::Octave.factors(n, Deviation::Oadev).len()
+        };
+    let pb = (!args.quiet && n >= 100_000).then(|| {
+        let pb = ProgressBar::new((per_axis * ch.data.len()) as u64);
+        pb.set_style(
+            ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} taus ({eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        pb.set_message(format!("{} on {} channels", args.dev.name(), ch.data.len()));
+        pb
+    });
+    let an = analyse(&ch, args.dev, &taus, &fit_opt, pb.as_ref());
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    println!(
+        "{}: {} samples, tau0 = {} s, {} ({}), fit on OADEV octave taus",
+        args.input.display(),
+        n,
+        ch.tau0_s,
+        args.dev.name(),
+        match args.taus {
+            TauArg::Octave => "octave",
+            TauArg::Decade => "decade",
+            TauArg::All => "all taus",
+        }
+    );
+    println!("{}", table(&an));
+    for a in &an.axes {
+        if let Err(e) = &a.fit {
+            eprintln!("{}: {e}", a.name);
+        }
+    }
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("creating {}", args.out_dir.display()))?;
+    let toml_path = args.out_dir.join("allan_params.toml");
+    std::fs::write(&toml_path, params_toml(&an, &args.input))
+        .with_context(|| format!("writing {}", toml_path.display()))?;
+    println!("wrote {}", toml_path.display());
+    if let Some(j) = &args.json {
+        std::fs::write(j, to_json(&an)?).with_context(|| format!("writing {}", j.display()))?;
+        println!("wrote {}", j.display());
+    }
+    if !args.no_plot {
+        for a in &an.axes {
+            let (unit, scale) = match a.kind {
+                SensorKind::Gyro => ("deg/s", 180.0 / std::f64::consts::PI),
+                SensorKind::Accel => ("m/s^2", 1.0),
+                SensorKind::Other => ("input unit", 1.0),
+            };
+            let stem = args.out_dir.join(format!("allan_{}", a.name));
+            let input = super::plot::PlotInput {
+                title: format!(
+                    "{}: {} ({})",
+                    a.name,
+                    a.curve_title(an.dev),
+                    args.input.display()
+                ),
+                unit: unit.into(),
+                scale,
+                points: &a.curve,
+                fit: a.fit.as_ref().ok(),
+            };
+            super::plot::plot_allan(&input, &stem)
+                .with_context(|| format!("plotting {}", stem.display()))?;
+            println!("wrote {}.png and .svg", stem.display());
+        }
+    }
+    Ok(())
+}
+
+impl AxisResult {
+    fn curve_title(&self, dev: Deviation) -> &'static str {
+        match dev {
+            Deviation::Adev => "Allan deviation",
+            Deviation::Oadev => "overlapping Allan deviation",
+            Deviation::Mdev => "modified Allan deviation",
+            Deviation::Hdev => "Hadamard deviation",
+            Deviation::Ohdev => "overlapping Hadamard deviation",
+        }
+    }
 }

@@ -357,8 +357,11 @@ fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &[f64]) -> (f64, [f64; 5], f64) 
         let (c, cost) = solve_fixed_tb(pts, terms, 1.0, wmodel);
         return (f64::NAN, c, cost);
     }
-    let tmin = pts.iter().map(|p| p.tau).fold(f64::INFINITY, f64::min) / 4.0;
-    let tmax = pts.iter().map(|p| p.tau).fold(0.0, f64::max) * 2.0;
+    // T_B is searched within the fitted tau range: a Gauss-Markov process with T_B well below
+    // the smallest tau is indistinguishable from white noise (AVAR -> S_B T_B^2 / tau), and
+    // one with T_B far above the largest tau from a random walk (AVAR -> S_B tau / 3).
+    let tmin = pts.iter().map(|p| p.tau).fold(f64::INFINITY, f64::min);
+    let tmax = pts.iter().map(|p| p.tau).fold(0.0, f64::max);
     let (lmin, lmax) = (tmin.ln(), tmax.ln());
     let ngrid = 60;
     let eval = |lt: f64| {

@@ -23,6 +23,8 @@
 pub mod cli;
 pub mod edf;
 pub mod fit;
+pub mod plot;
+pub mod reader;
 
 use serde::{Deserialize, Serialize};
 
