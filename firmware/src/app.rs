@@ -94,6 +94,7 @@ pub struct NavApp<const N: usize> {
     stack_probe: Option<fn() -> usize>,
     time_from_gnss: bool,
     time_offset_s: f64,
+    link_imu: bool,
 }
 
 impl<const N: usize> NavApp<N> {
@@ -117,6 +118,7 @@ impl<const N: usize> NavApp<N> {
             stack_probe: None,
             time_from_gnss: false,
             time_offset_s: 0.0,
+            link_imu: true,
         }
     }
 
@@ -142,6 +144,12 @@ impl<const N: usize> NavApp<N> {
     /// [`Self::time_offset_s`] to its stamps.
     pub fn set_time_from_gnss(&mut self, on: bool) {
         self.time_from_gnss = on;
+    }
+
+    /// Whether IMU frames from the link are used (true by default; a board with its own IMU
+    /// turns it off, so a replayed case's IMU frames are ignored and only its fixes used).
+    pub fn set_link_imu(&mut self, on: bool) {
+        self.link_imu = on;
     }
 
     /// GPS time minus board time, s (0 until set by the first fix, or when the frames carry
@@ -191,7 +199,8 @@ impl<const N: usize> NavApp<N> {
         clock: &mut C,
     ) -> Result<(), W::Error> {
         match payload {
-            Payload::Imu(f) => self.on_imu(&f.sample, out, clock),
+            Payload::Imu(f) if self.link_imu => self.on_imu(&f.sample, out, clock),
+            Payload::Imu(_) => Ok(()),
             Payload::Gnss(fix) => {
                 self.on_gnss(fix, clock);
                 Ok(())

@@ -121,6 +121,7 @@ pub fn run_nav<const N: usize>(app: &mut NavApp<N>) -> ! {
 
     app.set_stack_probe(crate::stack::peak_bytes);
     app.set_time_from_gnss(true);
+    app.set_link_imu(false);
     let dt_s = 1.0 / cfg.odr.hz();
     let hz = f64::from(DwtClock::HZ);
     loop {
