@@ -30,6 +30,14 @@ pub trait Scalar: nalgebra::RealField + Copy + Default + Debug + Display + 'stat
     fn finite(self) -> bool;
     /// Absolute value.
     fn abs_val(self) -> Self;
+    /// Sine (`libm`), rad.
+    fn sin_libm(self) -> Self;
+    /// Cosine (`libm`), rad.
+    fn cos_libm(self) -> Self;
+    /// `e^x` (`libm`).
+    fn exp_libm(self) -> Self;
+    /// `e^x - 1` without cancellation (`libm`).
+    fn expm1_libm(self) -> Self;
 }
 
 impl Scalar for f32 {
@@ -56,6 +64,22 @@ impl Scalar for f32 {
     fn abs_val(self) -> Self {
         libm::fabsf(self)
     }
+    #[inline]
+    fn sin_libm(self) -> Self {
+        libm::sinf(self)
+    }
+    #[inline]
+    fn cos_libm(self) -> Self {
+        libm::cosf(self)
+    }
+    #[inline]
+    fn exp_libm(self) -> Self {
+        libm::expf(self)
+    }
+    #[inline]
+    fn expm1_libm(self) -> Self {
+        libm::expm1f(self)
+    }
 }
 
 impl Scalar for f64 {
@@ -81,6 +105,22 @@ impl Scalar for f64 {
     #[inline]
     fn abs_val(self) -> Self {
         libm::fabs(self)
+    }
+    #[inline]
+    fn sin_libm(self) -> Self {
+        libm::sin(self)
+    }
+    #[inline]
+    fn cos_libm(self) -> Self {
+        libm::cos(self)
+    }
+    #[inline]
+    fn exp_libm(self) -> Self {
+        libm::exp(self)
+    }
+    #[inline]
+    fn expm1_libm(self) -> Self {
+        libm::expm1(self)
     }
 }
 

@@ -218,7 +218,17 @@ fn joseph_update_matches_an_independent_computation_and_is_exactly_symmetric() {
         f.predict_covariance().unwrap();
         let p0 = SMatrix::<f64, N18, N18>::from_fn(|i, j| f.covariance()[i][j]);
         let nav0 = *f.nav_state();
-        let z = earth::ned_offset_m(
+        // z = predicted - measured through the local curvilinear map (radii at the estimate)
+        let r = earth::radii(nav0.pos.lat_rad);
+        let z = Vector3::new(
+            (nav0.pos.lat_rad - fix.lat_rad) * (r.meridian_m + nav0.pos.h_m),
+            (nav0.pos.lon_rad - fix.lon_rad)
+                * (r.transverse_m + nav0.pos.h_m)
+                * nav0.pos.lat_rad.cos(),
+            fix.h_m - nav0.pos.h_m,
+        );
+        // which agrees with the exact ECEF offset to far below the GNSS noise
+        let exact = earth::ned_offset_m(
             &earth::Llh {
                 lat_rad: fix.lat_rad,
                 lon_rad: fix.lon_rad,
@@ -226,6 +236,7 @@ fn joseph_update_matches_an_independent_computation_and_is_exactly_symmetric() {
             },
             &nav0.pos,
         );
+        assert!((z - exact).norm() < 1e-6, "{z:?} vs {exact:?}");
         let out = f.update_gnss(&fix).unwrap();
         assert!(out.accepted);
         // independent textbook computation

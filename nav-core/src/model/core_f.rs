@@ -7,151 +7,140 @@
 //! dr'  =  dv + F_rr dr
 //! ```
 //!
-//! where `dw_ie = W_ie_r dr`, `dw_en = W_en_v dv + W_en_r dr`, `dg = (0, 0, 2 g / (R + h)) dr_D`.
-//! The derivation of every entry is in `docs/derivations/error_state.md`. All f64.
+//! where `dw_ie = W_ie_r dr`, `dw_en = W_en_v dv + W_en_r dr`, `dg` the height and latitude
+//! slopes of normal gravity. The derivation of every entry is in
+//! `docs/derivations/error_state.md`.
+//!
+//! Computed in the covariance scalar type `T` (the entries only need a few significant
+//! digits; on the MCU this keeps the earth model's trigonometry in hardware `f32`). The
+//! `[f_n x]` coupling is left out (zero): the filter adds the interval's integral of it.
 
-use crate::earth::{self, Llh};
-use nalgebra::{Matrix3, Vector3};
+use crate::earth;
+use crate::scalar::Scalar;
 
-/// The nine 3x3 blocks of the core F, row-major as [[phi,v,r] rows][phi,v,r cols].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CoreF {
-    /// `F[row block][col block]`, blocks ordered (phi, v, r).
-    pub blocks: [[Matrix3<f64>; 3]; 3],
+type M3<T> = [[T; 3]; 3];
+
+fn c<T: Scalar>(x: f64) -> T {
+    T::of_f64(x)
 }
 
-impl CoreF {
-    /// The 9x9 matrix, row-major.
-    pub fn to_rows(&self) -> [[f64; 9]; 9] {
-        let mut out = [[0.0; 9]; 9];
-        for (bi, brow) in self.blocks.iter().enumerate() {
-            for (bj, m) in brow.iter().enumerate() {
-                let rows: [[f64; 3]; 3] = m.transpose().into();
-                super::set3(&mut out, 3 * bi, 3 * bj, &rows);
+fn mul3<T: Scalar>(a: &M3<T>, b: &M3<T>) -> M3<T> {
+    let mut out = [[T::ZERO; 3]; 3];
+    for (orow, arow) in out.iter_mut().zip(a) {
+        for (j, o) in orow.iter_mut().enumerate() {
+            let mut acc = T::ZERO;
+            for (aik, brow) in arow.iter().zip(b) {
+                acc += *aik * brow.get(j).copied().unwrap_or(T::ZERO);
             }
+            *o = acc;
         }
-        out
     }
+    out
 }
 
-/// F's core block at position `pos`, NED velocity `v_ned_mps` and NED specific force
-/// `f_ned_mps2` (the phi-v coupling `[f_n x]`; pass zero to add it separately).
-pub fn core_f(pos: &Llh, v_ned_mps: &Vector3<f64>, f_ned_mps2: &Vector3<f64>) -> CoreF {
-    let lat = pos.lat_rad;
-    let h = pos.h_m;
-    let r = earth::radii(lat);
-    let rm = r.meridian_m + h;
-    let rn = r.transverse_m + h;
-    let (sl, cl) = (libm::sin(lat), libm::cos(lat));
+fn add3m<T: Scalar>(a: &M3<T>, b: &M3<T>) -> M3<T> {
+    let mut out = *a;
+    for (orow, brow) in out.iter_mut().zip(b) {
+        for (o, x) in orow.iter_mut().zip(brow) {
+            *o += *x;
+        }
+    }
+    out
+}
+
+fn skew_t<T: Scalar>(v: &[T; 3]) -> M3<T> {
+    let [x, y, z] = *v;
+    let o = T::ZERO;
+    [[o, -z, y], [z, o, -x], [-y, x, o]]
+}
+
+/// The core block of F (row-major 9x9, states phi, dv, dr) at geodetic latitude `lat_rad`,
+/// height `h_m` and NED velocity `v_ned_mps`, without the `[f_n x]` phi-v coupling.
+pub fn core_f<T: Scalar>(lat_rad: f64, h_m: f64, v_ned_mps: &[f64; 3]) -> [[T; 9]; 9] {
+    let lat: T = c(lat_rad);
+    let h: T = c(h_m);
+    let [vn, ve, vd] = v_ned_mps.map(c::<T>);
+    let one = T::ONE;
+    let two = one + one;
+    let (sl, cl) = (lat.sin_libm(), lat.cos_libm());
     let tl = sl / cl;
-    let (vn, ve, vd) = (v_ned_mps.x, v_ned_mps.y, v_ned_mps.z);
-    let w = earth::OMEGA_IE_RADPS;
-    let w_ie = earth::earth_rate_ned_radps(lat);
-    let w_en = earth::transport_rate_ned_radps(lat, h, v_ned_mps);
-    let w_in = w_ie + w_en;
+    let e2: T = c(earth::E2);
+    let a: T = c(earth::A_M);
+    let s2 = sl * sl;
+    let d = one - e2 * s2;
+    let sd = d.sqrt_libm();
+    let rn0 = a / sd;
+    let rm0 = a * (one - e2) / (d * sd);
+    let rm = rm0 + h;
+    let rn = rn0 + h;
+    let w: T = c(earth::OMEGA_IE_RADPS);
+    let k: T = c(earth::SOMIGLIANA_K);
+    let gamma_e: T = c(earth::GAMMA_E_MPS2);
+    let g0 = gamma_e * (one + k * s2) / sd;
+    let hc: T = c(2.0 / earth::A_M * (1.0 + earth::F + earth::M_RATIO));
+    let hs: T = c(2.0 / earth::A_M * 2.0 * earth::F);
+    let h2: T = c(3.0 / (earth::A_M * earth::A_M));
+    let g = g0 * (one - (hc - hs * s2) * h + h2 * h * h);
+    // Somigliana slope dg/dL (sea level), m/s^2/rad
+    let sc = sl * cl;
+    let dg_dlat = gamma_e * (two * k * sc / sd + (one + k * s2) * e2 * sc / (d * sd));
+
+    let w_ie = [w * cl, T::ZERO, -w * sl];
+    let w_en = [ve / rn, -vn / rm, -ve * tl / rn];
+    let w_in = [w_ie[0] + w_en[0], w_en[1], w_ie[2] + w_en[2]];
+    let w_cor = [two * w_ie[0] + w_en[0], w_en[1], two * w_ie[2] + w_en[2]];
+    let o = T::ZERO;
 
     // d(w_ie)/d(dr): only through latitude, dL = dr_N / (R_M + h)
-    let w_ie_r = Matrix3::new(
-        -w * sl / rm,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        -w * cl / rm,
-        0.0,
-        0.0,
-    );
+    let w_ie_r = [[-w * sl / rm, o, o], [o, o, o], [-w * cl / rm, o, o]];
     // d(w_en)/d(dv)
-    let w_en_v = Matrix3::new(0.0, 1.0 / rn, 0.0, -1.0 / rm, 0.0, 0.0, 0.0, -tl / rn, 0.0);
+    let w_en_v = [[o, one / rn, o], [-one / rm, o, o], [o, -tl / rn, o]];
     // d(w_en)/d(dr): latitude (dr_N / R_M) and height (dh = -dr_D), curvature radii held
-    let w_en_r = Matrix3::new(
-        0.0,
-        0.0,
-        ve / (rn * rn),
-        0.0,
-        0.0,
-        -vn / (rm * rm),
-        -ve / (rm * rn * cl * cl),
-        0.0,
-        -ve * tl / (rn * rn),
-    );
-    let v_x = v_ned_mps.cross_matrix();
-    let g = earth::gravity_mps2(lat, h);
-    let r_geo = libm::sqrt(r.meridian_m * r.transverse_m) + h;
+    let w_en_r = [
+        [o, o, ve / (rn * rn)],
+        [o, o, -vn / (rm * rm)],
+        [-ve / (rm * rn * cl * cl), o, -ve * tl / (rn * rn)],
+    ];
+    let v_x = skew_t(&[vn, ve, vd]);
+    let r_geo = (rm0 * rn0).sqrt_libm() + h;
 
-    let f_pp = -w_in.cross_matrix();
+    let neg = |m: M3<T>| m.map(|r| r.map(|x| -x));
+    let f_pp = neg(skew_t(&w_in));
     let f_pv = w_en_v;
-    let f_pr = w_ie_r + w_en_r;
-
-    let f_vp = f_ned_mps2.cross_matrix();
-    let f_vv = -(2.0 * w_ie + w_en).cross_matrix() + v_x * w_en_v;
-    let mut f_vr = v_x * (2.0 * w_ie_r + w_en_r);
+    let f_pr = add3m(&w_ie_r, &w_en_r);
+    let f_vv = add3m(&neg(skew_t(&w_cor)), &mul3(&v_x, &w_en_v));
+    let two_w_ie_r = w_ie_r.map(|r| r.map(|x| two * x));
+    let mut f_vr = mul3(&v_x, &add3m(&two_w_ie_r, &w_en_r));
     // gravity error: height (dh = -dr_D, dg/dh = -2 g / R) and latitude (Somigliana slope)
-    f_vr.m33 += 2.0 * g / r_geo;
-    f_vr.m31 += somigliana_dg_dlat(sl, cl) / rm;
-
-    let f_rp = Matrix3::zeros();
-    let f_rv = Matrix3::identity();
-    let f_rr = Matrix3::new(
-        -vd / rm,
-        0.0,
-        vn / rm,
-        ve * tl / rm,
-        -(vd / rn + vn * tl / rm),
-        ve / rn,
-        0.0,
-        0.0,
-        0.0,
-    );
-    CoreF {
-        blocks: [[f_pp, f_pv, f_pr], [f_vp, f_vv, f_vr], [f_rp, f_rv, f_rr]],
-    }
-}
-
-/// d(normal gravity)/d(latitude) of the Somigliana formula at sea level, m/s^2/rad
-/// (about 0.052 at 45 deg; the height correction's latitude dependence is neglected).
-fn somigliana_dg_dlat(sin_lat: f64, cos_lat: f64) -> f64 {
-    let s2 = sin_lat * sin_lat;
-    let d = 1.0 - earth::E2 * s2;
-    let sd = libm::sqrt(d);
-    let sc = sin_lat * cos_lat;
-    earth::GAMMA_E_MPS2
-        * (2.0 * earth::SOMIGLIANA_K * sc / sd
-            + (1.0 + earth::SOMIGLIANA_K * s2) * earth::E2 * sc / (d * sd))
+    f_vr[2][2] += two * g / r_geo;
+    f_vr[2][0] += dg_dlat / rm;
+    let f_rv = [[one, o, o], [o, one, o], [o, o, one]];
+    let f_rr = [
+        [-vd / rm, o, vn / rm],
+        [ve * tl / rm, -(vd / rn + vn * tl / rm), ve / rn],
+        [o, o, o],
+    ];
+    let mut out = [[T::ZERO; 9]; 9];
+    super::set3(&mut out, 0, 0, &f_pp);
+    super::set3(&mut out, 0, 3, &f_pv);
+    super::set3(&mut out, 0, 6, &f_pr);
+    super::set3(&mut out, 3, 3, &f_vv);
+    super::set3(&mut out, 3, 6, &f_vr);
+    super::set3(&mut out, 6, 3, &f_rv);
+    super::set3(&mut out, 6, 6, &f_rr);
+    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn nalgebra_array_conversion_is_column_major_and_transpose_gives_rows() {
-        let m = Matrix3::new(1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0);
-        let rows: [[f64; 3]; 3] = m.transpose().into();
-        assert_eq!(rows, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0]]);
-    }
-
-    #[test]
-    fn somigliana_slope_matches_a_numerical_derivative() {
-        for lat_deg in [-70.0f64, -10.0, 0.0, 30.0, 47.1, 80.0] {
-            let lat = lat_deg.to_radians();
-            let d = 1e-6;
-            let num =
-                (earth::gravity_mps2(lat + d, 0.0) - earth::gravity_mps2(lat - d, 0.0)) / (2.0 * d);
-            let ana = somigliana_dg_dlat(libm::sin(lat), libm::cos(lat));
-            assert!((num - ana).abs() < 1e-7, "{lat_deg}: {num} vs {ana}");
-        }
-    }
+    use crate::earth::Llh;
 
     #[test]
     fn static_core_f_has_the_schuler_and_gravity_terms() {
         let pos = Llh::from_deg(45.0, 10.0, 100.0);
         let g = earth::gravity_mps2(pos.lat_rad, pos.h_m);
-        let f = core_f(&pos, &Vector3::zeros(), &Vector3::new(0.0, 0.0, -g)).to_rows();
-        // dv_N' = f_n x phi: (f x phi)_N = f_E phi_D - f_D phi_E = g phi_E
-        assert!((f[3][1] - g).abs() < 1e-12);
-        assert!((f[4][0] + g).abs() < 1e-12);
+        let f = core_f::<f64>(pos.lat_rad, pos.h_m, &[0.0; 3]);
         // phi_N' = dv_E / R_N, phi_E' = -dv_N / R_M
         let r = earth::radii(pos.lat_rad);
         assert!((f[0][4] - 1.0 / (r.transverse_m + 100.0)).abs() < 1e-18);
@@ -161,5 +150,32 @@ mod tests {
         assert_eq!(f[8][5], 1.0);
         // vertical instability 2 g / R
         assert!((f[5][8] - 2.0 * g / 6.37e6).abs() < 2e-8);
+        // latitude slope of gravity against a numerical derivative
+        let d = 1e-6;
+        let num = (earth::gravity_mps2(pos.lat_rad + d, 0.0)
+            - earth::gravity_mps2(pos.lat_rad - d, 0.0))
+            / (2.0 * d);
+        assert!((f[5][6] * (r.meridian_m + 100.0) - num).abs() < 1e-7);
+        // earth-rate terms
+        let w = earth::OMEGA_IE_RADPS;
+        assert!((f[0][1] - (-w * pos.lat_rad.sin())).abs() < 1e-18);
+    }
+
+    #[test]
+    fn f32_core_f_agrees_with_f64_to_single_precision() {
+        let v = [12.0, -7.0, 0.3];
+        let a = core_f::<f64>(0.82, 350.0, &v);
+        let b = core_f::<f32>(0.82, 350.0, &v);
+        for i in 0..9 {
+            for j in 0..9 {
+                let tol = 2e-6 * a[i][j].abs() + 1e-12;
+                assert!(
+                    (a[i][j] - b[i][j] as f64).abs() <= tol,
+                    "{i},{j}: {} {}",
+                    a[i][j],
+                    b[i][j]
+                );
+            }
+        }
     }
 }

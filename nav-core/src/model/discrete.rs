@@ -31,7 +31,6 @@ use super::{core_f::core_f, Layout, Regressors, CORE_DIM, IDX_ATT, IDX_VEL};
 use crate::config::FilterConfig;
 use crate::nav::NavState;
 use crate::scalar::Scalar;
-use nalgebra::Vector3;
 
 /// A covariance matrix, row-major.
 pub type Cov<T, const N: usize> = [[T; N]; N];
@@ -120,10 +119,10 @@ pub struct Discrete<T, const N: usize> {
     pub q_vel: [[T; 3]; 3],
     /// Exact discrete noise variance of each sensor-error state (entries 0..9 unused).
     pub q_diag: [T; N],
-    /// The f64 self-transition of every state over the interval (1 for the core): the
+    /// The self-transition of every state over the interval (1 for the core): the
     /// deterministic prediction of the sensor-error estimates (a Gauss-Markov estimate decays
     /// like its mean, `b_hat <- e^(-T/T_B) b_hat`).
-    pub est_decay: [f64; N],
+    pub est_decay: [T; N],
 }
 
 /// Builds Phi and Q for the interval accumulated in `acc`, with the core's earth and transport
@@ -137,11 +136,11 @@ pub fn discretize<T: Scalar, const N: usize>(
     let dt = acc.dt_s;
     let t = T::of_f64(dt);
     // A = integral of F dt: core from the state (phi-v coupling from the accumulated f_n dt)
-    let cf = core_f(&nav.pos, &nav.vel_ned_mps, &Vector3::zeros()).to_rows();
+    let cf = core_f::<T>(nav.pos.lat_rad, nav.pos.h_m, &nav.vel_ned_mps.into());
     let mut a_top = acc.f_top;
     for (arow, crow) in a_top.iter_mut().zip(cf.iter()) {
         for (a, c) in arow.iter_mut().zip(crow) {
-            *a = T::of_f64(*c) * t;
+            *a = *c * t;
         }
     }
     let [fx, fy, fz] = acc.f_ned_dt;
@@ -150,9 +149,9 @@ pub fn discretize<T: Scalar, const N: usize>(
     super::add3(&mut a_top, IDX_VEL, IDX_ATT, &f_x);
 
     // self-dynamics of the blocks
-    let mut f_dt = [0.0f64; N];
-    let mut phi_d = [1.0f64; N];
-    let mut q_d = [0.0f64; N];
+    let mut f_dt = [T::ZERO; N];
+    let mut phi_d = [T::ONE; N];
+    let mut q_d = [T::ZERO; N];
     for (off, b) in layout.iter() {
         let (Some(fs), Some(ps), Some(qs)) = (
             f_dt.get_mut(off..),
@@ -161,9 +160,9 @@ pub fn discretize<T: Scalar, const N: usize>(
         ) else {
             continue;
         };
-        b.discretize(cfg, dt, fs, ps, qs);
+        b.discretize(cfg, t, fs, ps, qs);
     }
-    let a_diag: [T; N] = f_dt.map(T::of_f64);
+    let a_diag: [T; N] = f_dt;
 
     // Phi_top = I + A + A^2/2; (A^2)_top = A_top[:, core] A_top + A_top[:, j] a_diag[j] (j >= 9)
     let mut top = a_top;
@@ -187,7 +186,7 @@ pub fn discretize<T: Scalar, const N: usize>(
             *d += T::ONE;
         }
     }
-    let diag: [T; N] = phi_d.map(T::of_f64);
+    let diag: [T; N] = phi_d;
 
     // white sensor noise through the mean C_b^n: C diag(S) C^T T
     let inv_t = if dt > 0.0 { T::ONE / t } else { T::ZERO };
@@ -198,7 +197,7 @@ pub fn discretize<T: Scalar, const N: usize>(
         phi: Transition { top, diag },
         q_att,
         q_vel,
-        q_diag: q_d.map(T::of_f64),
+        q_diag: q_d,
         est_decay: phi_d,
     }
 }

@@ -180,15 +180,15 @@ impl Block {
     /// The block's self-dynamics over an interval of `dt_s` seconds, per state: the continuous
     /// decay rate times dt (`F_ii dt`, 0 or -dt/T), the exact transition `e^(F_ii dt)` and the
     /// exact discrete driving-noise variance (DESIGN.md: `Q_GM = (S_B T_B / 2)(1 - Phi^2)`,
-    /// `Q_RW = S_K dt`). Writes `dim()` entries into each slice (the core writes nothing: its
-    /// white noise is added in [`discrete`]).
-    pub fn discretize(
+    /// `Q_RW = S_K dt`), in the covariance scalar type. Writes `dim()` entries into each slice
+    /// (the core writes nothing: its white noise is added in [`discrete`]).
+    pub fn discretize<T: Scalar>(
         self,
         cfg: &FilterConfig,
-        dt_s: f64,
-        f_dt: &mut [f64],
-        phi: &mut [f64],
-        q: &mut [f64],
+        dt_s: T,
+        f_dt: &mut [T],
+        phi: &mut [T],
+        q: &mut [T],
     ) {
         let mut w = DiagWriter { f_dt, phi, q, n: 0 };
         match self {
@@ -196,13 +196,15 @@ impl Block {
             Self::GyroBias(m) => bias_discrete(m, &cfg.gyro, dt_s, &mut w),
             Self::AccelBias(m) => bias_discrete(m, &cfg.accel, dt_s, &mut w),
             Self::GyroScaleFactor => {
+                let d = gm_decay(dt_s, T::of_f64(cfg.gyro_scale.t_s));
                 for s in cfg.gyro_scale.sigma {
-                    w.gauss_markov(s * s, cfg.gyro_scale.t_s, dt_s);
+                    w.gauss_markov(T::of_f64(s * s), &d);
                 }
             }
             Self::AccelScaleFactor => {
+                let d = gm_decay(dt_s, T::of_f64(cfg.accel_scale.t_s));
                 for s in cfg.accel_scale.sigma {
-                    w.gauss_markov(s * s, cfg.accel_scale.t_s, dt_s);
+                    w.gauss_markov(T::of_f64(s * s), &d);
                 }
             }
         }
@@ -328,36 +330,97 @@ impl Block {
     }
 }
 
-fn bias_discrete(m: BiasModel, n: &SensorNoise, dt_s: f64, w: &mut DiagWriter<'_>) {
+fn bias_discrete<T: Scalar>(m: BiasModel, n: &SensorNoise, dt_s: T, w: &mut DiagWriter<'_, T>) {
+    let t_b = T::of_f64(n.t_b_s);
+    let half_t = 0.5 * n.t_b_s;
     match m {
-        BiasModel::Constant => n.s_k.iter().for_each(|s| w.random_walk(*s, dt_s)),
-        BiasModel::GaussMarkov => n
-            .s_b
+        BiasModel::Constant => n
+            .s_k
             .iter()
-            .for_each(|s| w.gauss_markov(0.5 * s * n.t_b_s, n.t_b_s, dt_s)),
-        BiasModel::GaussMarkovRandomWalk => {
+            .for_each(|s| w.random_walk(T::of_f64(*s), dt_s)),
+        BiasModel::GaussMarkov => {
+            let d = gm_decay(dt_s, t_b);
             n.s_b
                 .iter()
-                .for_each(|s| w.gauss_markov(0.5 * s * n.t_b_s, n.t_b_s, dt_s));
-            n.s_k.iter().for_each(|s| w.random_walk(*s, dt_s));
+                .for_each(|s| w.gauss_markov(T::of_f64(s * half_t), &d));
         }
-        BiasModel::SingleStateGmRw => n
-            .s_b
-            .iter()
-            .zip(n.s_k.iter())
-            .for_each(|(b, k)| w.gauss_markov(0.5 * (b + k) * n.t_b_s, n.t_b_s, dt_s)),
+        BiasModel::GaussMarkovRandomWalk => {
+            let d = gm_decay(dt_s, t_b);
+            n.s_b
+                .iter()
+                .for_each(|s| w.gauss_markov(T::of_f64(s * half_t), &d));
+            n.s_k
+                .iter()
+                .for_each(|s| w.random_walk(T::of_f64(*s), dt_s));
+        }
+        BiasModel::SingleStateGmRw => {
+            let d = gm_decay(dt_s, t_b);
+            n.s_b
+                .iter()
+                .zip(n.s_k.iter())
+                .for_each(|(b, k)| w.gauss_markov(T::of_f64((b + k) * half_t), &d));
+        }
     }
 }
 
-struct DiagWriter<'a> {
-    f_dt: &'a mut [f64],
-    phi: &'a mut [f64],
-    q: &'a mut [f64],
+/// The exact discretisation of a first-order Gauss-Markov decay over `dt`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GmDecay<T> {
+    /// `-dt / T`.
+    pub f_dt: T,
+    /// `e^(-dt/T)`.
+    pub phi: T,
+    /// `1 - e^(-2 dt/T)`, computed without cancellation.
+    pub one_minus_phi2: T,
+}
+
+/// `e^(-x)` and `1 - e^(-2x)` for `x = dt_s / t_s`: Taylor series to x^9 for x < 0.02 (exact to
+/// the rounding of T, and cheaper than `exp`), `libm` otherwise.
+pub fn gm_decay<T: Scalar>(dt_s: T, t_s: T) -> GmDecay<T> {
+    /// `1 - z/2 (1 - z/3 (1 - ... (1 - z/10)))`: e^-z = 1 - z * series(z) and
+    /// 1 - e^-z = z * series(z), truncated after z^9 (relative error below 1e-19 for z < 0.04).
+    fn series<T: Scalar>(z: T) -> T {
+        const INV: [f64; 9] = [
+            1.0 / 10.0,
+            1.0 / 9.0,
+            1.0 / 8.0,
+            1.0 / 7.0,
+            1.0 / 6.0,
+            1.0 / 5.0,
+            1.0 / 4.0,
+            1.0 / 3.0,
+            1.0 / 2.0,
+        ];
+        let mut acc = T::ONE;
+        for k in INV {
+            acc = T::ONE - z * T::of_f64(k) * acc;
+        }
+        acc
+    }
+    let x = dt_s / t_s;
+    let two = T::ONE + T::ONE;
+    let (phi, omp) = if x < T::of_f64(0.02) {
+        let y = two * x;
+        (T::ONE - x * series(x), y * series(y))
+    } else {
+        ((-x).exp_libm(), -(-two * x).expm1_libm())
+    };
+    GmDecay {
+        f_dt: -x,
+        phi,
+        one_minus_phi2: omp,
+    }
+}
+
+struct DiagWriter<'a, T> {
+    f_dt: &'a mut [T],
+    phi: &'a mut [T],
+    q: &'a mut [T],
     n: usize,
 }
 
-impl DiagWriter<'_> {
-    fn put(&mut self, f_dt: f64, phi: f64, q: f64) {
+impl<T: Scalar> DiagWriter<'_, T> {
+    fn put(&mut self, f_dt: T, phi: T, q: T) {
         if let Some(x) = self.f_dt.get_mut(self.n) {
             *x = f_dt;
         }
@@ -369,15 +432,13 @@ impl DiagWriter<'_> {
         }
         self.n += 1;
     }
-    /// First-order Gauss-Markov with stationary variance `var` and correlation time `t_s`.
-    fn gauss_markov(&mut self, var: f64, t_s: f64, dt_s: f64) {
-        let a = -dt_s / t_s;
-        let phi = libm::exp(a);
-        self.put(a, phi, var * (1.0 - phi * phi));
+    /// First-order Gauss-Markov with stationary variance `var`, decay from [`gm_decay`].
+    fn gauss_markov(&mut self, var: T, d: &GmDecay<T>) {
+        self.put(d.f_dt, d.phi, var * d.one_minus_phi2);
     }
     /// Random walk (random constant when `psd` = 0).
-    fn random_walk(&mut self, psd: f64, dt_s: f64) {
-        self.put(0.0, 1.0, psd * dt_s);
+    fn random_walk(&mut self, psd: T, dt_s: T) {
+        self.put(T::ZERO, T::ONE, psd * dt_s);
     }
 }
 
@@ -398,21 +459,46 @@ pub struct ImuCorrection {
 impl ImuCorrection {
     /// Corrects increments over `dt_s` seconds in place.
     pub fn apply(&self, dtheta_rad: &mut [f64; 3], dv_mps: &mut [f64; 3], dt_s: f64) {
-        for ((d, b), s) in dtheta_rad
-            .iter_mut()
-            .zip(self.gyro_bias_radps)
-            .zip(self.gyro_scale)
-        {
-            *d = (*d - b * dt_s) / (1.0 + s);
-        }
-        for ((d, b), s) in dv_mps
-            .iter_mut()
-            .zip(self.accel_bias_mps2)
-            .zip(self.accel_scale)
-        {
-            *d = (*d - b * dt_s) / (1.0 + s);
+        self.apply_with(&self.inverse_scales(), dtheta_rad, dv_mps, dt_s);
+    }
+
+    /// `1 / (1 + s)` for the gyro and accelerometer scale-factor errors (computed once per
+    /// change of the estimates, so the per-epoch correction needs no division).
+    pub fn inverse_scales(&self) -> InverseScales {
+        InverseScales {
+            gyro: self.gyro_scale.map(|s| 1.0 / (1.0 + s)),
+            accel: self.accel_scale.map(|s| 1.0 / (1.0 + s)),
         }
     }
+
+    /// [`Self::apply`] with precomputed [`Self::inverse_scales`].
+    pub fn apply_with(
+        &self,
+        inv: &InverseScales,
+        dtheta_rad: &mut [f64; 3],
+        dv_mps: &mut [f64; 3],
+        dt_s: f64,
+    ) {
+        for ((d, b), k) in dtheta_rad
+            .iter_mut()
+            .zip(self.gyro_bias_radps)
+            .zip(inv.gyro)
+        {
+            *d = (*d - b * dt_s) * k;
+        }
+        for ((d, b), k) in dv_mps.iter_mut().zip(self.accel_bias_mps2).zip(inv.accel) {
+            *d = (*d - b * dt_s) * k;
+        }
+    }
+}
+
+/// Reciprocal scale factors `1 / (1 + s)` of an [`ImuCorrection`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseScales {
+    /// Gyro x, y, z.
+    pub gyro: [f64; 3],
+    /// Accelerometer x, y, z.
+    pub accel: [f64; 3],
 }
 
 /// What one IMU epoch provides to the error model (in the covariance scalar type).
@@ -694,14 +780,32 @@ mod tests {
         Block::AccelBias(BiasModel::GaussMarkovRandomWalk)
             .discretize(&cfg, 0.1, &mut f, &mut p, &mut q);
         let e = libm::exp(-0.1 / 45.0);
-        assert_eq!(p[0], e);
-        assert!((q[0] - 0.5 * 2.4360e-11 * 45.0 * (1.0 - e * e)).abs() < 1e-30);
+        assert!((p[0] - e).abs() < 1e-16);
+        assert!((q[0] - 0.5 * 2.4360e-11 * 45.0 * (1.0 - e * e)).abs() < 1e-12 * q[0]);
         assert_eq!(p[3], 1.0);
         assert!((q[3] - 2.6731e-12 * 0.1).abs() < 1e-30);
         // single-state variant: both PSDs into one decaying state
         Block::AccelBias(BiasModel::SingleStateGmRw).discretize(&cfg, 0.1, &mut f, &mut p, &mut q);
-        assert!((q[0] - 0.5 * (2.4360e-11 + 2.6731e-12) * 45.0 * (1.0 - e * e)).abs() < 1e-30);
+        assert!(
+            (q[0] - 0.5 * (2.4360e-11 + 2.6731e-12) * 45.0 * (1.0 - e * e)).abs() < 1e-12 * q[0]
+        );
         assert!((f[1] + 0.1 / 45.0).abs() < 1e-18);
+    }
+
+    #[test]
+    fn gm_decay_series_matches_libm() {
+        for x in [1e-7, 1e-5, 2.2e-3, 9.99e-3, 0.0199, 0.0201, 0.5, 3.0] {
+            let d = gm_decay(x * 45.0, 45.0f64);
+            let e = libm::exp(-x);
+            let m = -libm::expm1(-2.0 * x);
+            assert!((d.phi - e).abs() <= 2e-16 * e, "{x}: {} {e}", d.phi);
+            assert!(
+                (d.one_minus_phi2 - m).abs() <= 4e-16 * m,
+                "{x}: {} {m}",
+                d.one_minus_phi2
+            );
+            assert!((d.f_dt + x).abs() <= 3e-16 * x);
+        }
     }
 
     #[test]
