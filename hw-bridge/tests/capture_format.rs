@@ -1,0 +1,117 @@
+//! Capture files: round trip, link-reset events, truncated and corrupt files.
+
+use hw_bridge::capture::{
+    CaptureError, CaptureHeader, CaptureReader, CaptureWriter, Record, LINK_RESET, MAGIC,
+};
+
+fn header() -> CaptureHeader {
+    CaptureHeader {
+        port: "/dev/ttyUSB0".into(),
+        baud: 921_600,
+        start_unix_ns: 1_763_700_000_123_456_789,
+        tool: "hw-bridge test".into(),
+    }
+}
+
+fn records() -> Vec<Record> {
+    vec![
+        Record::Data {
+            t_ns: 0,
+            bytes: vec![0, 1, 2, 3],
+        },
+        Record::Data {
+            t_ns: 5_000_000,
+            bytes: (0..=255).collect(),
+        },
+        Record::LinkReset { t_ns: 7_000_000 },
+        Record::Data {
+            t_ns: 9_000_001,
+            bytes: vec![0xFF; 3],
+        },
+    ]
+}
+
+fn write_all() -> Vec<u8> {
+    let mut w = CaptureWriter::new(Vec::new(), &header()).unwrap();
+    for r in records() {
+        w.write(&r).unwrap();
+    }
+    w.into_inner()
+}
+
+#[test]
+fn capture_round_trips_header_records_and_link_resets() {
+    let bytes = write_all();
+    let rd = CaptureReader::new(&bytes[..]).unwrap();
+    assert_eq!(rd.header(), &header());
+    let got: Vec<Record> = rd.map(|r| r.unwrap()).collect();
+    assert_eq!(got, records());
+}
+
+#[test]
+fn capture_layout_is_the_documented_one() {
+    let bytes = write_all();
+    assert_eq!(&bytes[..8], MAGIC);
+    let hlen = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    let text = std::str::from_utf8(&bytes[12..12 + hlen]).unwrap();
+    assert!(text.contains("baud=921600\n"), "{text}");
+    let r0 = &bytes[12 + hlen..];
+    assert_eq!(u64::from_le_bytes(r0[..8].try_into().unwrap()), 0);
+    assert_eq!(u32::from_le_bytes(r0[8..12].try_into().unwrap()), 4);
+    assert_eq!(&r0[12..16], &[0, 1, 2, 3]);
+    // The link-reset record: 12 bytes with bit 31 set.
+    let r2 = &r0[16 + 12 + 256..];
+    assert_eq!(u64::from_le_bytes(r2[..8].try_into().unwrap()), 7_000_000);
+    assert_eq!(
+        u32::from_le_bytes(r2[8..12].try_into().unwrap()),
+        LINK_RESET
+    );
+}
+
+#[test]
+fn truncated_capture_returns_every_complete_record_then_says_where() {
+    let bytes = write_all();
+    let cut = &bytes[..bytes.len() - 2];
+    let mut rd = CaptureReader::new(cut).unwrap();
+    for want in &records()[..3] {
+        assert_eq!(&rd.next_record().unwrap().unwrap(), want);
+    }
+    match rd.next_record() {
+        Err(e @ CaptureError::TruncatedRecord { record: 3, .. }) => {
+            assert!(e.to_string().contains("record 3"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn bad_magic_and_absurd_lengths_are_rejected() {
+    assert!(matches!(
+        CaptureReader::new(&b"NOTACAPTURE....."[..]),
+        Err(CaptureError::BadMagic(_))
+    ));
+    let mut bytes = write_all();
+    let hlen = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    let at = 12 + hlen + 8;
+    bytes[at..at + 4].copy_from_slice(&0x7FFF_FFFFu32.to_le_bytes());
+    let mut rd = CaptureReader::new(&bytes[..]).unwrap();
+    assert!(matches!(
+        rd.next_record(),
+        Err(CaptureError::BadRecord { record: 0, .. })
+    ));
+}
+
+#[test]
+fn crc32c_agrees_with_the_crc_crate_catalogue_implementation() {
+    use rand::{Rng, SeedableRng};
+    let reference = crc::Crc::<u32>::new(&crc::CRC_32_ISCSI);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for len in [0usize, 1, 2, 7, 75, 131, 1000] {
+        let data: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+        assert_eq!(
+            nav_core::wire::crc32c(&data),
+            reference.checksum(&data),
+            "len {len}"
+        );
+    }
+}
