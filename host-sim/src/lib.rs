@@ -9,3 +9,5 @@ pub mod allan;
 pub mod io;
 pub mod noise;
 pub mod sim;
+pub mod run;
+pub mod study;

@@ -1,0 +1,152 @@
+//! Free-inertial coasting from the filter's state at the start of each outage: the baseline the
+//! filter's outage errors are compared with.
+//!
+//! What "free inertial coasting from the same points" means here: at the first IMU epoch at or
+//! after an outage start, the filter's nominal state (position, velocity, attitude) is taken
+//! ([`super::OutageSnapshot`]) and the raw IMU samples are integrated by the same
+//! mechanisation with NO further corrections until the outage ends. [`CoastMode`] says which
+//! sensor-error correction the coasting applies:
+//!
+//! - [`CoastMode::Raw`]: none: the honest "INS without error estimation" baseline. The
+//!   filter's advantage over it is what the bias estimation buys.
+//! - [`CoastMode::Fixed`]: a given correction (e.g. the gyro bias from the static start-up
+//!   window only: what a calibration without a filter would give).
+//! - [`CoastMode::Held`]: the filter's estimates at the outage start, held. This is (up to the
+//!   Gauss-Markov decay of the estimates) exactly what the filter itself does inside an outage,
+//!   so it is a consistency check, not a baseline.
+
+use super::{position_innovation, CaseData, FixUse, InnovationRecord, RunOutput};
+use nalgebra::Vector3;
+use nav_core::attitude::quat_from_euler_zyx;
+use nav_core::earth::Llh;
+use nav_core::model::ImuCorrection;
+use nav_core::nav::{NavState, Strapdown};
+use nav_core::types::NavSolution;
+
+/// The sensor-error correction applied while coasting (see the module notes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CoastMode {
+    /// No correction of the raw IMU samples.
+    Raw,
+    /// The filter's estimates at the outage start, held.
+    Held,
+    /// A fixed correction.
+    Fixed(ImuCorrection),
+}
+
+/// A coasting solution through one outage.
+#[derive(Debug, Clone)]
+pub struct CoastTrack {
+    /// Index into [`RunOutput::outages`].
+    pub outage: usize,
+    /// Solution at every IMU epoch from the outage start to its end (standard deviations NaN).
+    pub nav: Vec<NavSolution>,
+    /// The withheld fixes of the outage against the coasting antenna position (same rules as
+    /// the run: nearest IMU epoch, bridged with the velocity).
+    pub fixes: Vec<InnovationRecord>,
+}
+
+/// A nav-format record as a mechanisation state (ZYX Euler angles).
+pub fn nav_state_of(s: &NavSolution) -> NavState {
+    NavState {
+        t_s: s.t_s,
+        pos: Llh {
+            lat_rad: s.lat_rad,
+            lon_rad: s.lon_rad,
+            h_m: s.h_m,
+        },
+        vel_ned_mps: Vector3::from(s.vel_ned_mps),
+        q_nb: quat_from_euler_zyx(s.rpy_rad),
+    }
+}
+
+/// A mechanisation state as a nav-format record (standard deviations NaN).
+pub fn solution_of(s: &NavState) -> NavSolution {
+    NavSolution {
+        week: 0,
+        t_s: s.t_s,
+        lat_rad: s.pos.lat_rad,
+        lon_rad: s.pos.lon_rad,
+        h_m: s.pos.h_m,
+        vel_ned_mps: s.vel_ned_mps.into(),
+        rpy_rad: s.rpy_rad(),
+        pos_std_ned_m: [f64::NAN; 3],
+        vel_std_ned_mps: [f64::NAN; 3],
+        att_std_rad: [f64::NAN; 3],
+        status: 0,
+    }
+}
+
+/// Coasts through every outage the run reached (one track per snapshot).
+pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<CoastTrack> {
+    let mut tracks = Vec::new();
+    for snap in &run.snapshots {
+        let Some(o) = run.outages.get(snap.outage) else {
+            continue;
+        };
+        let corr = match mode {
+            CoastMode::Raw => ImuCorrection::default(),
+            CoastMode::Held => snap.correction,
+            CoastMode::Fixed(c) => c,
+        };
+        let withheld: Vec<&InnovationRecord> = run
+            .innovations
+            .iter()
+            .filter(|r| r.used == FixUse::Withheld && r.outage == Some(snap.outage))
+            .collect();
+        let fixes_by_t: Vec<_> = withheld
+            .iter()
+            .filter_map(|r| {
+                case.gnss
+                    .binary_search_by(|g| g.t_s.total_cmp(&r.t_s))
+                    .ok()
+                    .and_then(|i| case.gnss.get(i))
+            })
+            .collect();
+        let mut mech = Strapdown::new(snap.state);
+        let mut nav = vec![solution_of(&snap.state)];
+        let mut fixes = Vec::new();
+        let mut fi = 0;
+        let mut k = snap.next_imu;
+        while let Some(s) = case.imu.get(k) {
+            let mut s = *s;
+            let dt = s.t_s - mech.state().t_s;
+            corr.apply(&mut s.dtheta_rad, &mut s.dv_mps, dt);
+            if mech.update(&s).is_err() {
+                k += 1;
+                continue;
+            }
+            let st = *mech.state();
+            nav.push(solution_of(&st));
+            let dt_next = case.imu.get(k + 1).map_or(dt, |n| n.t_s - st.t_s);
+            while let Some(f) = fixes_by_t.get(fi) {
+                if f.t_s >= st.t_s + 0.5 * dt_next {
+                    break;
+                }
+                fi += 1;
+                let inn = position_innovation(&st, &run.lever_arm_m, f);
+                fixes.push(InnovationRecord {
+                    t_s: f.t_s,
+                    used: FixUse::Withheld,
+                    outage: Some(snap.outage),
+                    dim: 3,
+                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
+                    innovation_var: [f64::NAN; 6],
+                    nis: f64::NAN,
+                    nis_threshold: f64::NAN,
+                    quality: f.quality.rtklib_q(),
+                });
+            }
+            k += 1;
+            if st.t_s >= o.end_s() && fi >= fixes_by_t.len() {
+                break;
+            }
+        }
+        tracks.push(CoastTrack {
+            outage: snap.outage,
+            nav,
+            fixes,
+        });
+    }
+    tracks
+}

@@ -1,0 +1,335 @@
+//! Initialisation of a run: from the truth (with injected errors), from a given state, or by
+//! static coarse alignment on the first seconds of data.
+//!
+//! # Static alignment ([`StaticAlign`])
+//!
+//! Roll and pitch come from levelling the mean specific force of the window
+//! (`nav_core::align::coarse_align`, which also checks that the window is static). Heading:
+//! given, or (MEMS gyros cannot gyrocompass) from the GNSS **course of the first metres of
+//! motion**: the direction from the mean static antenna position to the first later fix at
+//! least `course_distance_m` away. That looks ahead in the data (post-processing), assumes the
+//! vehicle drives off forward and roughly straight, and is given a generous uncertainty
+//! (`heading_std_rad`) that the filter then reduces. Position: the mean antenna position of the
+//! fixes inside the window, moved to the IMU point with the lever arm. Velocity zero. With
+//! `gyro_bias_from_static`, the gyro bias estimate starts at the window's mean angular rate
+//! minus the earth rate (resolved with the aligned attitude): the usual MEMS start-up
+//! calibration. The filter starts at the last sample of the window.
+
+use super::{CaseData, RunError, RunOptions};
+use nalgebra::Vector3;
+use nav_core::align::{coarse_align, AlignConfig, HeadingSource};
+use nav_core::attitude::quat_from_rotvec;
+use nav_core::config::FilterConfig;
+use nav_core::earth::{self, Llh};
+use nav_core::filter::{dcm_f64, InitialUncertainty};
+use nav_core::model::BlockKind;
+use nav_core::nav::NavState;
+use serde::Serialize;
+
+/// How the filter's initial state is obtained.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InitSpec {
+    /// The truth at the first truth epoch (at or after the start time) with injected errors,
+    /// each *estimate minus truth*: position NED offset (m), NED velocity (m/s) and phi angle
+    /// (rad; `C_hat = (I - [phi x]) C`). `unc` is the initial 1-sigma the filter is told.
+    FromTruth {
+        /// Position error, N/E/D, m.
+        pos_err_m: [f64; 3],
+        /// Velocity error, N/E/D, m/s.
+        vel_err_mps: [f64; 3],
+        /// Attitude error phi, N/E/D axes, rad.
+        att_err_rad: [f64; 3],
+        /// Initial uncertainty given to the filter.
+        unc: InitialUncertainty,
+    },
+    /// A given nominal state (its time is the initial epoch) and uncertainty.
+    Given(NavState, InitialUncertainty),
+    /// Static coarse alignment on the first seconds of data.
+    StaticAlignment(StaticAlign),
+}
+
+/// Static alignment settings (see the module notes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticAlign {
+    /// Length of the static window from the first IMU sample (or the start time), s.
+    pub seconds: f64,
+    /// Heading (yaw of the body x axis), rad; `None` = from the GNSS course.
+    pub heading_rad: Option<f64>,
+    /// 1-sigma of the heading, rad.
+    pub heading_std_rad: f64,
+    /// Distance the antenna must move for the GNSS course, m.
+    pub course_distance_m: f64,
+    /// Start the gyro-bias estimate at the static mean rate minus the earth rate.
+    pub gyro_bias_from_static: bool,
+    /// Static-detection thresholds (the assumed sensor biases for the attitude uncertainty
+    /// are taken from the filter configuration's initial bias sigmas when those are set).
+    pub align: AlignConfig,
+    /// Initial velocity 1-sigma, m/s.
+    pub vel_sigma_mps: f64,
+}
+
+impl StaticAlign {
+    /// `seconds` of static data, heading from the GNSS course (10 deg 1-sigma, 5 m), gyro bias
+    /// from the static mean, default detection thresholds, 0.02 m/s velocity sigma.
+    pub fn new(seconds: f64) -> Self {
+        Self {
+            seconds,
+            heading_rad: None,
+            heading_std_rad: 10f64.to_radians(),
+            course_distance_m: 5.0,
+            gyro_bias_from_static: true,
+            align: AlignConfig::default(),
+            vel_sigma_mps: 0.02,
+        }
+    }
+}
+
+/// How a run was initialised.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InitReport {
+    /// Initial epoch, GPS seconds of week.
+    pub t_s: f64,
+    /// `truth`, `given` or `static_alignment`.
+    pub method: String,
+    /// Initial roll, pitch, yaw, rad.
+    pub rpy_rad: [f64; 3],
+    /// Initial attitude 1-sigma (phi N/E/D), rad.
+    pub att_sigma_rad: [f64; 3],
+    /// Where the heading came from.
+    pub heading_source: String,
+    /// Static alignment: mean angular rate minus earth rate, body, rad/s.
+    pub static_gyro_bias_radps: Option<[f64; 3]>,
+    /// Static alignment: mean specific force, body, m/s^2.
+    pub static_mean_f_mps2: Option<[f64; 3]>,
+    /// Static alignment: window length, s.
+    pub static_window_s: Option<f64>,
+}
+
+pub(crate) struct Start {
+    pub state: NavState,
+    pub unc: InitialUncertainty,
+    pub estimates: Vec<(BlockKind, [f64; 3])>,
+    pub report: InitReport,
+}
+
+fn max3(a: &[f64; 3]) -> f64 {
+    a.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
+pub(crate) fn initialise(
+    case: &CaseData,
+    opts: &RunOptions,
+    cfg: &FilterConfig,
+) -> Result<Start, RunError> {
+    let start_s = opts.start_s.unwrap_or(f64::NEG_INFINITY);
+    match &opts.init {
+        InitSpec::Given(state, unc) => Ok(Start {
+            state: *state,
+            unc: *unc,
+            estimates: Vec::new(),
+            report: InitReport {
+                t_s: state.t_s,
+                method: "given".into(),
+                rpy_rad: state.rpy_rad(),
+                att_sigma_rad: unc.att_sigma_rad,
+                heading_source: "given".into(),
+                static_gyro_bias_radps: None,
+                static_mean_f_mps2: None,
+                static_window_s: None,
+            },
+        }),
+        InitSpec::FromTruth {
+            pos_err_m,
+            vel_err_mps,
+            att_err_rad,
+            unc,
+        } => {
+            let truth = case.truth.as_ref().ok_or_else(|| {
+                RunError::Init("initialisation from the truth needs a truth record".into())
+            })?;
+            let tr = truth
+                .iter()
+                .find(|s| s.t_s >= start_s && s.t_s.is_finite())
+                .ok_or_else(|| RunError::Init("no truth record at or after the start".into()))?;
+            let s = super::coast::nav_state_of(tr);
+            let pos = earth::displace(&s.pos, &Vector3::from(*pos_err_m));
+            let vel = s.vel_ned_mps + Vector3::from(*vel_err_mps);
+            // C_hat = (I - [phi x]) C  =>  q_hat = q(-phi) q
+            let q = quat_from_rotvec(&(-Vector3::from(*att_err_rad))) * s.q_nb;
+            let state = NavState {
+                t_s: s.t_s,
+                pos,
+                vel_ned_mps: vel,
+                q_nb: q,
+            };
+            Ok(Start {
+                state,
+                unc: *unc,
+                estimates: Vec::new(),
+                report: InitReport {
+                    t_s: s.t_s,
+                    method: "truth".into(),
+                    rpy_rad: state.rpy_rad(),
+                    att_sigma_rad: unc.att_sigma_rad,
+                    heading_source: "truth".into(),
+                    static_gyro_bias_radps: None,
+                    static_mean_f_mps2: None,
+                    static_window_s: None,
+                },
+            })
+        }
+        InitSpec::StaticAlignment(sa) => static_alignment(case, opts, cfg, sa, start_s),
+    }
+}
+
+fn static_alignment(
+    case: &CaseData,
+    opts: &RunOptions,
+    cfg: &FilterConfig,
+    sa: &StaticAlign,
+    start_s: f64,
+) -> Result<Start, RunError> {
+    if !(sa.seconds.is_finite() && sa.seconds > 0.0) {
+        return Err(RunError::Init(format!(
+            "static window of {} s: must be positive",
+            sa.seconds
+        )));
+    }
+    let i0 = case.imu.partition_point(|s| s.t_s < start_s);
+    let t_a = case
+        .imu
+        .get(i0)
+        .map(|s| s.t_s)
+        .ok_or_else(|| RunError::Init("no IMU samples at or after the start".into()))?;
+    let i1 = case.imu.partition_point(|s| s.t_s <= t_a + sa.seconds);
+    let window = case.imu.get(i0..i1).unwrap_or(&[]);
+    let t_b = window.last().map_or(t_a, |s| s.t_s);
+
+    // static antenna position: mean of the fixes in the window
+    let fixes: Vec<_> = case
+        .gnss
+        .iter()
+        .filter(|g| g.t_s >= t_a - 0.5 && g.t_s <= t_b + 0.5 && g.is_valid())
+        .collect();
+    if fixes.is_empty() {
+        return Err(RunError::Init(format!(
+            "no valid GNSS fix during the static window {t_a:.3} .. {t_b:.3} s"
+        )));
+    }
+    let n = fixes.len() as f64;
+    let ref0 = Llh {
+        lat_rad: fixes[0].lat_rad,
+        lon_rad: fixes[0].lon_rad,
+        h_m: fixes[0].h_m,
+    };
+    let mut mean_off = Vector3::zeros();
+    let mut mean_std = [0.0; 3];
+    for g in &fixes {
+        let p = Llh {
+            lat_rad: g.lat_rad,
+            lon_rad: g.lon_rad,
+            h_m: g.h_m,
+        };
+        mean_off += earth::ned_offset_m(&ref0, &p) / n;
+        for (m, s) in mean_std.iter_mut().zip(g.pos_std_ned_m) {
+            *m += s / n;
+        }
+    }
+    let ant = earth::displace(&ref0, &mean_off);
+
+    let heading = match sa.heading_rad {
+        Some(y) => (
+            HeadingSource::Given {
+                yaw_rad: y,
+                std_rad: sa.heading_std_rad,
+            },
+            "given".to_string(),
+        ),
+        None => {
+            let (yaw, t, d) = gnss_course(case, &ant, t_b, sa.course_distance_m)?;
+            (
+                HeadingSource::Given {
+                    yaw_rad: yaw,
+                    std_rad: sa.heading_std_rad,
+                },
+                format!(
+                    "GNSS course over the first {d:.1} m of motion (fix at {t:.2} s): {:.2} deg",
+                    yaw.to_degrees()
+                ),
+            )
+        }
+    };
+    let mut acfg = sa.align;
+    let ab = max3(&cfg.accel.bias_init_sigma);
+    if ab > 0.0 {
+        acfg.accel_bias_mps2 = ab;
+    }
+    let gb = max3(&cfg.gyro.bias_init_sigma);
+    if gb > 0.0 {
+        acfg.gyro_bias_radps = gb;
+    }
+    let al = coarse_align(window, &ant, heading.0, &acfg)
+        .map_err(|e| RunError::Init(format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}")))?;
+    let q = al.q_nb();
+    let c = dcm_f64(&q);
+    let pos = earth::displace(&ant, &(-(c * Vector3::from(opts.lever_arm_m))));
+    let state = NavState {
+        t_s: al.t_end_s,
+        pos,
+        vel_ned_mps: Vector3::zeros(),
+        q_nb: q,
+    };
+    let w_ie_b = c.transpose() * earth::earth_rate_ned_radps(pos.lat_rad);
+    let bias: [f64; 3] = (Vector3::from(al.mean_omega_body_radps) - w_ie_b).into();
+    let mut estimates = Vec::new();
+    if sa.gyro_bias_from_static {
+        estimates.push((BlockKind::GyroBias, bias));
+    }
+    let pos_sigma = mean_std.map(|s| s.max(0.005) + 0.01);
+    let unc = InitialUncertainty {
+        att_sigma_rad: al.att_std_rad,
+        vel_sigma_mps: [sa.vel_sigma_mps; 3],
+        pos_sigma_m: pos_sigma,
+    };
+    Ok(Start {
+        state,
+        unc,
+        estimates,
+        report: InitReport {
+            t_s: al.t_end_s,
+            method: "static_alignment".into(),
+            rpy_rad: al.rpy_rad,
+            att_sigma_rad: al.att_std_rad,
+            heading_source: heading.1,
+            static_gyro_bias_radps: Some(bias),
+            static_mean_f_mps2: Some(al.mean_f_body_mps2),
+            static_window_s: Some(al.duration_s),
+        },
+    })
+}
+
+/// The course from `from` to the first fix after `t_after` at least `dist_m` away
+/// horizontally: (yaw rad, fix time, distance).
+fn gnss_course(
+    case: &CaseData,
+    from: &Llh,
+    t_after: f64,
+    dist_m: f64,
+) -> Result<(f64, f64, f64), RunError> {
+    for g in case.gnss.iter().filter(|g| g.t_s > t_after && g.is_valid()) {
+        let p = Llh {
+            lat_rad: g.lat_rad,
+            lon_rad: g.lon_rad,
+            h_m: g.h_m,
+        };
+        let d = earth::ned_offset_m(from, &p);
+        let hd = d.x.hypot(d.y);
+        if hd >= dist_m {
+            return Ok((d.y.atan2(d.x), g.t_s, hd));
+        }
+    }
+    Err(RunError::Init(format!(
+        "no heading given and the antenna never moves {dist_m} m after the static window \
+         (GNSS course unavailable)"
+    )))
+}

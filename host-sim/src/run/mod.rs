@@ -1,0 +1,793 @@
+//! `host-sim run`: the `nav-core` filter on any case (simulated or real), in memory
+//! ([`run_filter`]) and from files ([`cli`]).
+//!
+//! # The run loop
+//!
+//! IMU samples and GNSS fixes are processed in time order. The filter starts at the initial
+//! epoch ([`InitSpec`]) and integrates every later IMU sample. A GNSS fix tagged `t_f` is used
+//! at the IMU epoch NEAREST to it: after integrating the sample ending at `t_k`, every pending
+//! fix with `t_f < t_k + dt_next / 2` is processed (so |t_f - t_k| <= half an IMU interval).
+//! The filter bridges the remaining offset by predicting the antenna position to the fix time
+//! with the current velocity (`nav_core::filter::Filter::update_gnss`), i.e. it predicts to the
+//! fix time to first order; the neglected `a dt^2 / 2` is 12 um for 1 m/s^2 at 100 Hz.
+//!
+//! Fixes inside an imposed [`Outage`] are *withheld*: not given to the filter, but compared
+//! with the predicted antenna position at their time (an [`InnovationRecord`] with
+//! [`FixUse::Withheld`]). On real data those are the honest reference for the outage errors.
+//!
+//! # Models
+//!
+//! [`Model`] selects the state layout at compile time (`Filter<T, { LAYOUT.dim() }>`), the
+//! covariance scalar ([`Precision`]) is f64 by default, f32 allowed. Adding a model is one line
+//! in [`run_filter_with_progress`]'s dispatch macro.
+
+// pub mod cli;
+pub mod coast;
+pub mod init;
+pub mod outage;
+// pub mod output;
+
+pub use coast::{coast_outages, CoastMode, CoastTrack};
+pub use init::{InitReport, InitSpec, StaticAlign};
+pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
+
+use nalgebra::Vector3;
+use nav_core::config::FilterConfig;
+use nav_core::earth::{self, Llh};
+use nav_core::filter::{dcm_f64, Counters, Filter, FilterError, UpdateOutcome};
+use nav_core::model::{
+    BiasModel, Block, BlockKind, ImuCorrection, Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK,
+    LAYOUT_NBK_SINGLE,
+};
+use nav_core::nav::{NavState, MAX_DT_S};
+use nav_core::scalar::Scalar;
+use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use serde::{Deserialize, Serialize};
+
+/// The measurements of a case, in memory (and the truth when there is one).
+#[derive(Debug, Clone, Default)]
+pub struct CaseData {
+    /// IMU increments in time order (body FRD axes, after any mounting rotation).
+    pub imu: Vec<ImuSample>,
+    /// GNSS fixes in time order (antenna positions).
+    pub gnss: Vec<GnssFix>,
+    /// Truth at the IMU reference point (nav format), when known.
+    pub truth: Option<Vec<NavSolution>>,
+}
+
+impl CaseData {
+    /// The measurements and truth of a simulated case.
+    pub fn from_sim(case: &crate::sim::Case) -> Self {
+        Self {
+            imu: case.meas.imu.clone(),
+            gnss: case.meas.gnss.clone(),
+            truth: Some(case.trajectory.truth.clone()),
+        }
+    }
+}
+
+/// The error-state model (state layout) of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Model {
+    /// The source's classical N model: constant biases, white noise (15 states).
+    N,
+    /// The source's NBK model with separate Gauss-Markov and random-walk accelerometer bias
+    /// states (18 states).
+    Nbk,
+    /// The source's NBK model as printed: one decaying accelerometer bias state (15 states).
+    NbkSingle,
+    /// KF-GINS's 21 states: Gauss-Markov biases and scale factors.
+    #[value(name = "kf-gins")]
+    #[serde(rename = "kf-gins")]
+    KfGins21,
+}
+
+impl Model {
+    /// The state layout.
+    pub fn layout(self) -> Layout {
+        match self {
+            Self::N => LAYOUT_N,
+            Self::Nbk => LAYOUT_NBK,
+            Self::NbkSingle => LAYOUT_NBK_SINGLE,
+            Self::KfGins21 => LAYOUT_KF_GINS,
+        }
+    }
+
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::N => "n",
+            Self::Nbk => "nbk",
+            Self::NbkSingle => "nbk-single",
+            Self::KfGins21 => "kf-gins",
+        }
+    }
+}
+
+/// The covariance scalar type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Precision {
+    /// f64 (host default).
+    #[default]
+    F64,
+    /// f32 (what the MCU runs).
+    F32,
+}
+
+/// What is recorded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordOptions {
+    /// Rate of [`RunOutput::nav`], Hz; `None` = every IMU epoch. Decimation keeps the first
+    /// IMU epoch at or after each multiple of `1 / rate` from the initial epoch.
+    pub nav_rate_hz: Option<f64>,
+    /// Rate of [`RunOutput::epochs`] (standard deviations and block estimates), Hz; `None` =
+    /// every IMU epoch; `Some(0.0)` = none.
+    pub epoch_rate_hz: Option<f64>,
+}
+
+impl Default for RecordOptions {
+    /// Navigation at every IMU epoch, standard deviations and estimates at 10 Hz.
+    fn default() -> Self {
+        Self {
+            nav_rate_hz: None,
+            epoch_rate_hz: Some(10.0),
+        }
+    }
+}
+
+/// Everything a run needs besides the data.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// State layout.
+    pub model: Model,
+    /// Covariance scalar.
+    pub precision: Precision,
+    /// Noise and GNSS settings (its `lever_arm_body_m` is replaced by [`Self::lever_arm_m`]).
+    pub filter: FilterConfig,
+    /// Initial state.
+    pub init: InitSpec,
+    /// Imposed GNSS outages (absolute GPS seconds of week), any order.
+    pub outages: Vec<Outage>,
+    /// GNSS antenna position relative to the IMU, body FRD, m.
+    pub lever_arm_m: [f64; 3],
+    /// Initial sensor-error estimates (SI units, per block kind; e.g. KF-GINS `initgyrbias`).
+    /// A value of length 3 fills the first three states of a larger block.
+    pub initial_estimates: Vec<(BlockKind, [f64; 3])>,
+    /// What to record.
+    pub record: RecordOptions,
+    /// Ignore data before this time (GPS seconds of week).
+    pub start_s: Option<f64>,
+    /// Stop after this time (GPS seconds of week).
+    pub end_s: Option<f64>,
+}
+
+impl RunOptions {
+    /// Options with defaults: f64, no outages, no lever arm, default recording.
+    pub fn new(model: Model, filter: FilterConfig, init: InitSpec) -> Self {
+        Self {
+            model,
+            precision: Precision::F64,
+            lever_arm_m: filter.lever_arm_body_m,
+            filter,
+            init,
+            outages: Vec::new(),
+            initial_estimates: Vec::new(),
+            record: RecordOptions::default(),
+            start_s: None,
+            end_s: None,
+        }
+    }
+}
+
+/// The estimate and 1-sigma of one IMU error quantity (sum over the block's processes).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlockEstimate {
+    /// Block name (`gyro_bias`, `accel_bias`, `gyro_scale_factor`, ...).
+    pub name: String,
+    /// Estimate per axis (x, y, z body), SI units (rad/s, m/s^2, dimensionless).
+    pub value: [f64; 3],
+    /// 1-sigma per axis, same units.
+    pub std: [f64; 3],
+}
+
+/// State at one recorded epoch.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpochRecord {
+    /// Time, GPS seconds of week.
+    pub t_s: f64,
+    /// Navigation solution.
+    pub nav: NavSolution,
+    /// 1-sigma of every error state (order of [`RunOutput::state_names`]).
+    pub state_std: Vec<f64>,
+    /// Every error-state's accumulated estimate (core entries are 0: fed back).
+    pub estimates: Vec<f64>,
+    /// IMU error quantities with their 1-sigma.
+    pub blocks: Vec<BlockEstimate>,
+}
+
+/// What happened to a GNSS fix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FixUse {
+    /// Used by the filter.
+    Accepted,
+    /// Used without the gate after too many consecutive rejections.
+    Forced,
+    /// Rejected by the innovation gate.
+    Rejected,
+    /// Withheld (inside an imposed outage); innovation computed, no update.
+    Withheld,
+    /// Refused by the filter (invalid, or too far from an IMU epoch), or numerical failure.
+    Invalid,
+}
+
+/// One GNSS fix against the solution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InnovationRecord {
+    /// Fix time, GPS seconds of week.
+    pub t_s: f64,
+    /// Outcome.
+    pub used: FixUse,
+    /// Index into [`RunOutput::outages`] when withheld.
+    pub outage: Option<usize>,
+    /// Measurement dimension (3 or 6).
+    pub dim: usize,
+    /// Measured minus predicted antenna position (N, E, D, m) and velocity (m/s; `dim` = 6).
+    pub innovation: [f64; 6],
+    /// Diagonal of the innovation covariance (NaN for withheld or invalid fixes).
+    pub innovation_var: [f64; 6],
+    /// Normalised innovation squared (NaN when not computed).
+    pub nis: f64,
+    /// Gate threshold that applied (NaN when none).
+    pub nis_threshold: f64,
+    /// Fix quality.
+    pub quality: u8,
+}
+
+impl InnovationRecord {
+    /// Solution error against the fix (predicted minus measured), N, E, D, m.
+    pub fn pos_error_ned_m(&self) -> [f64; 3] {
+        [
+            -self.innovation[0],
+            -self.innovation[1],
+            -self.innovation[2],
+        ]
+    }
+}
+
+/// Counters of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct RunCounters {
+    /// IMU samples integrated.
+    pub imu_epochs: u64,
+    /// IMU samples rejected by the filter (non-finite).
+    pub imu_rejected: u64,
+    /// IMU samples before the initial epoch (not used).
+    pub imu_before_start: u64,
+    /// Covariance predictions.
+    pub cov_predictions: u64,
+    /// GNSS fixes in the data.
+    pub gnss_total: u64,
+    /// Fixes before the initial epoch or after the end.
+    pub gnss_outside_run: u64,
+    /// Fixes used.
+    pub gnss_accepted: u64,
+    /// Fixes used without the gate.
+    pub gnss_forced: u64,
+    /// Fixes rejected by the gate.
+    pub gnss_rejected: u64,
+    /// Fixes withheld by an imposed outage.
+    pub gnss_withheld: u64,
+    /// Fixes refused as invalid / mistimed.
+    pub gnss_invalid: u64,
+    /// Numerical failures of the filter.
+    pub numerical_failures: u64,
+}
+
+impl RunCounters {
+    fn absorb(&mut self, c: &Counters) {
+        self.imu_epochs = c.imu_epochs;
+        self.cov_predictions = u64::from(c.cov_predictions);
+        self.numerical_failures = u64::from(c.numerical_failures);
+    }
+}
+
+/// The filter's state when an outage begins (for free-inertial coasting from the same point).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutageSnapshot {
+    /// Index into [`RunOutput::outages`].
+    pub outage: usize,
+    /// Index into the case's IMU samples of the next sample to integrate.
+    pub next_imu: usize,
+    /// Nominal state (IMU point) at the first IMU epoch at or after the outage start.
+    pub state: NavState,
+    /// The filter's sensor-error correction at that time.
+    pub correction: ImuCorrection,
+}
+
+/// The result of a run.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    /// Model run.
+    pub model: Model,
+    /// Names of the error states (with units).
+    pub state_names: Vec<String>,
+    /// Navigation solution at the nav rate (IMU point).
+    pub nav: Vec<NavSolution>,
+    /// Standard deviations and estimates at the epoch rate.
+    pub epochs: Vec<EpochRecord>,
+    /// Every GNSS fix processed, in time order.
+    pub innovations: Vec<InnovationRecord>,
+    /// Counters.
+    pub counters: RunCounters,
+    /// The outages applied (sorted).
+    pub outages: Vec<Outage>,
+    /// The filter state at the start of each outage that the run reached.
+    pub snapshots: Vec<OutageSnapshot>,
+    /// How the filter was initialised.
+    pub init: InitReport,
+    /// Final IMU error estimates.
+    pub final_blocks: Vec<BlockEstimate>,
+    /// Antenna lever arm used, body FRD, m.
+    pub lever_arm_m: [f64; 3],
+}
+
+/// Errors of a run.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// No IMU data (after the start time).
+    #[error("run: no IMU samples to process")]
+    NoImu,
+    /// IMU time not increasing.
+    #[error("run: IMU sample {index} (t = {t_s:.6} s) is not after the previous one")]
+    ImuNotMonotonic {
+        /// Index in the IMU data.
+        index: usize,
+        /// Its time, s.
+        t_s: f64,
+    },
+    /// IMU gap longer than the mechanisation accepts.
+    #[error(
+        "run: IMU gap of {dt_s:.3} s before sample {index} (t = {t_s:.6} s) exceeds {MAX_DT_S} s"
+    )]
+    ImuGap {
+        /// Index in the IMU data.
+        index: usize,
+        /// Its time, s.
+        t_s: f64,
+        /// Gap, s.
+        dt_s: f64,
+    },
+    /// Initialisation failed.
+    #[error("run: initialisation: {0}")]
+    Init(String),
+    /// Invalid options.
+    #[error("run: {0}")]
+    Options(String),
+    /// The filter refused its construction or failed.
+    #[error("run: filter at t = {t_s:.3} s: {msg}")]
+    Filter {
+        /// Time, s.
+        t_s: f64,
+        /// The filter's message.
+        msg: String,
+    },
+}
+
+fn filter_err(t_s: f64, e: FilterError) -> RunError {
+    RunError::Filter {
+        t_s,
+        msg: e.to_string(),
+    }
+}
+
+/// Runs the filter on a case (see the module notes).
+pub fn run_filter(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, RunError> {
+    run_filter_with_progress(case, opts, &mut |_, _| {})
+}
+
+/// [`run_filter`] calling `progress(done, total)` (IMU samples) about every 1 % of the data.
+pub fn run_filter_with_progress(
+    case: &CaseData,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
+    macro_rules! go {
+        ($layout:expr) => {
+            match opts.precision {
+                Precision::F64 => {
+                    run_layout::<f64, { $layout.dim() }>($layout, case, opts, progress)
+                }
+                Precision::F32 => {
+                    run_layout::<f32, { $layout.dim() }>($layout, case, opts, progress)
+                }
+            }
+        };
+    }
+    match opts.model {
+        Model::N => go!(LAYOUT_N),
+        Model::Nbk => go!(LAYOUT_NBK),
+        Model::NbkSingle => go!(LAYOUT_NBK_SINGLE),
+        Model::KfGins21 => go!(LAYOUT_KF_GINS),
+    }
+}
+
+/// Names (with units) of the error states of a layout.
+pub fn state_names(layout: &Layout) -> Vec<String> {
+    let mut v = Vec::new();
+    let ax = ["x", "y", "z"];
+    for (_, b) in layout.iter() {
+        match b {
+            Block::Core => {
+                for n in [
+                    "att_n_rad",
+                    "att_e_rad",
+                    "att_d_rad",
+                    "vel_n_mps",
+                    "vel_e_mps",
+                    "vel_d_mps",
+                    "pos_n_m",
+                    "pos_e_m",
+                    "pos_d_m",
+                ] {
+                    v.push(n.to_string());
+                }
+            }
+            Block::GyroBias(m) | Block::AccelBias(m) => {
+                let (base, unit) = if matches!(b, Block::GyroBias(_)) {
+                    ("gyro_bias", "radps")
+                } else {
+                    ("accel_bias", "mps2")
+                };
+                let parts: &[&str] = match m {
+                    BiasModel::GaussMarkovRandomWalk => &["_gm", "_rw"],
+                    _ => &[""],
+                };
+                for p in parts {
+                    for a in ax {
+                        v.push(format!("{base}{p}_{a}_{unit}"));
+                    }
+                }
+            }
+            other => {
+                for i in 0..other.dim() {
+                    let a = ax.get(i % 3).copied().unwrap_or("?");
+                    let g = i / 3;
+                    if other.dim() > 3 {
+                        v.push(format!("{}{}_{a}", other.name(), g));
+                    } else {
+                        v.push(format!("{}_{a}", other.name()));
+                    }
+                }
+            }
+        }
+    }
+    v
+}
+
+/// Decimation of records: keep the first epoch at or after each multiple of the period.
+struct Decimator {
+    period_s: Option<f64>,
+    next_s: f64,
+    every: bool,
+}
+
+impl Decimator {
+    fn new(rate_hz: Option<f64>, t0_s: f64) -> Self {
+        match rate_hz {
+            None => Self {
+                period_s: None,
+                next_s: t0_s,
+                every: true,
+            },
+            Some(r) if r > 0.0 && r.is_finite() => Self {
+                period_s: Some(1.0 / r),
+                next_s: t0_s,
+                every: false,
+            },
+            Some(_) => Self {
+                period_s: None,
+                next_s: f64::INFINITY,
+                every: false,
+            },
+        }
+    }
+
+    fn take(&mut self, t_s: f64) -> bool {
+        if self.every {
+            return true;
+        }
+        let Some(p) = self.period_s else {
+            return false;
+        };
+        // tolerance for floating time stamps: 1e-6 of the period
+        if t_s + 1e-6 * p >= self.next_s {
+            while self.next_s <= t_s + 1e-6 * p {
+                self.next_s += p;
+            }
+            true
+        } else {
+            false
+        }
+    }
+}
+
+fn block_estimates<T: Scalar, const N: usize>(f: &Filter<T, N>) -> Vec<BlockEstimate> {
+    f.layout()
+        .iter()
+        .filter_map(|(_, b)| {
+            let (value, std) = f.imu_error(b.kind())?;
+            Some(BlockEstimate {
+                name: b.name().to_string(),
+                value,
+                std,
+            })
+        })
+        .collect()
+}
+
+fn all_estimates<T: Scalar, const N: usize>(f: &Filter<T, N>) -> Vec<f64> {
+    let mut v = vec![0.0; N];
+    for (off, b) in f.layout().iter() {
+        if let Some(e) = f.block_estimate(b.kind()) {
+            if let Some(dst) = v.get_mut(off..off + e.len()) {
+                dst.copy_from_slice(e);
+            }
+        }
+    }
+    v
+}
+
+/// Predicted antenna position at `t_s` from a nominal state: `r + C l + v (t - t_state)`.
+pub fn antenna_position(state: &NavState, lever_arm_m: &[f64; 3], t_s: f64) -> Llh {
+    let c = dcm_f64(&state.q_nb);
+    let l = c * Vector3::from(*lever_arm_m);
+    earth::displace(&state.pos, &(l + state.vel_ned_mps * (t_s - state.t_s)))
+}
+
+/// Measured minus predicted antenna position (NED at the fix, m).
+pub fn position_innovation(state: &NavState, lever_arm_m: &[f64; 3], fix: &GnssFix) -> [f64; 3] {
+    let ant = antenna_position(state, lever_arm_m, fix.t_s);
+    let meas = Llh {
+        lat_rad: fix.lat_rad,
+        lon_rad: fix.lon_rad,
+        h_m: fix.h_m,
+    };
+    let d = earth::ned_offset_m(&meas, &ant);
+    [-d.x, -d.y, -d.z]
+}
+
+fn record_of(out: &UpdateOutcome, fix: &GnssFix) -> InnovationRecord {
+    InnovationRecord {
+        t_s: fix.t_s,
+        used: if out.forced {
+            FixUse::Forced
+        } else if out.accepted {
+            FixUse::Accepted
+        } else {
+            FixUse::Rejected
+        },
+        outage: None,
+        dim: out.dim,
+        innovation: out.innovation,
+        innovation_var: out.innovation_var,
+        nis: out.nis,
+        nis_threshold: out.nis_threshold,
+        quality: fix.quality.rtklib_q(),
+    }
+}
+
+fn run_layout<T: Scalar, const N: usize>(
+    layout: Layout,
+    case: &CaseData,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
+    let mut cfg = opts.filter;
+    cfg.lever_arm_body_m = opts.lever_arm_m;
+    cfg.validate()
+        .map_err(|e| RunError::Options(format!("filter configuration: {e}")))?;
+    let mut outages = opts.outages.clone();
+    outage::normalise(&mut outages).map_err(RunError::Options)?;
+
+    // time order of the IMU
+    for (i, w) in case.imu.windows(2).enumerate() {
+        if let [a, b] = w {
+            if b.t_s <= a.t_s {
+                return Err(RunError::ImuNotMonotonic {
+                    index: i + 1,
+                    t_s: b.t_s,
+                });
+            }
+        }
+    }
+    let start = init::initialise(case, opts, &cfg)?;
+    let InitReport { t_s: t0, .. } = start.report;
+    let mut filter = Filter::<T, N>::new(layout, &cfg, start.state, &start.unc)
+        .map_err(|e| filter_err(t0, e))?;
+    for (kind, v) in start.estimates.iter().chain(opts.initial_estimates.iter()) {
+        if let Some((_, b)) = layout.find(*kind) {
+            let mut full = vec![0.0; b.dim()];
+            for (d, s) in full.iter_mut().zip(v.iter()) {
+                *d = *s;
+            }
+            filter
+                .set_block_estimate(*kind, &full)
+                .map_err(|e| filter_err(t0, e))?;
+        }
+    }
+
+    let end_s = opts.end_s.unwrap_or(f64::INFINITY);
+    let first = case.imu.partition_point(|s| s.t_s <= t0);
+    let last = case.imu.partition_point(|s| s.t_s <= end_s);
+    if first >= last {
+        return Err(RunError::NoImu);
+    }
+    let mut counters = RunCounters {
+        imu_before_start: first as u64,
+        gnss_total: case.gnss.len() as u64,
+        ..Default::default()
+    };
+    let mut nav = Vec::new();
+    let mut epochs = Vec::new();
+    let mut innovations = Vec::with_capacity(case.gnss.len());
+    let mut snapshots = Vec::new();
+    let mut nav_dec = Decimator::new(opts.record.nav_rate_hz, t0);
+    let mut ep_dec = Decimator::new(opts.record.epoch_rate_hz, t0);
+    let record = |f: &Filter<T, N>,
+                  nav: &mut Vec<NavSolution>,
+                  epochs: &mut Vec<EpochRecord>,
+                  nav_dec: &mut Decimator,
+                  ep_dec: &mut Decimator| {
+        let t = f.nav_state().t_s;
+        let take_nav = nav_dec.take(t);
+        let take_ep = ep_dec.take(t);
+        if take_nav || take_ep {
+            let s = f.solution();
+            if take_nav {
+                nav.push(s);
+            }
+            if take_ep {
+                epochs.push(EpochRecord {
+                    t_s: t,
+                    nav: s,
+                    state_std: f.state_std().to_vec(),
+                    estimates: all_estimates(f),
+                    blocks: block_estimates(f),
+                });
+            }
+        }
+    };
+    record(&filter, &mut nav, &mut epochs, &mut nav_dec, &mut ep_dec);
+
+    // fixes before the initial epoch are not used
+    let mut gi = case.gnss.partition_point(|g| g.t_s < t0 - 1e-9);
+    counters.gnss_outside_run = gi as u64;
+    let mut next_outage = outages.partition_point(|o| o.start_s < t0);
+    let total = last - first;
+    let step = (total / 100).max(1);
+    for k in first..last {
+        let s = case.imu.get(k).copied().unwrap_or_default();
+        let t_prev = filter.nav_state().t_s;
+        let dt = s.t_s - t_prev;
+        if dt > MAX_DT_S {
+            return Err(RunError::ImuGap {
+                index: k,
+                t_s: s.t_s,
+                dt_s: dt,
+            });
+        }
+        match filter.propagate(&s) {
+            Ok(()) => {}
+            Err(FilterError::NonFiniteImu) => {
+                counters.imu_rejected += 1;
+                continue;
+            }
+            Err(e) => return Err(filter_err(s.t_s, e)),
+        }
+        let t_k = s.t_s;
+        let dt_next = case
+            .imu
+            .get(k + 1)
+            .filter(|_| k + 1 < last)
+            .map_or(dt, |n| n.t_s - t_k);
+        let horizon = t_k + 0.5 * dt_next;
+        while let Some(fix) = case.gnss.get(gi) {
+            if fix.t_s >= horizon {
+                break;
+            }
+            gi += 1;
+            if let Some(oi) = outage::find(&outages, fix.t_s) {
+                counters.gnss_withheld += 1;
+                let st = filter.nav_state();
+                let inn = position_innovation(st, &opts.lever_arm_m, fix);
+                innovations.push(InnovationRecord {
+                    t_s: fix.t_s,
+                    used: FixUse::Withheld,
+                    outage: Some(oi),
+                    dim: 3,
+                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
+                    innovation_var: [f64::NAN; 6],
+                    nis: f64::NAN,
+                    nis_threshold: f64::NAN,
+                    quality: fix.quality.rtklib_q(),
+                });
+                continue;
+            }
+            match filter.update_gnss(fix) {
+                Ok(o) => {
+                    let r = record_of(&o, fix);
+                    match r.used {
+                        FixUse::Accepted => counters.gnss_accepted += 1,
+                        FixUse::Forced => {
+                            counters.gnss_accepted += 1;
+                            counters.gnss_forced += 1
+                        }
+                        _ => counters.gnss_rejected += 1,
+                    }
+                    innovations.push(r);
+                }
+                Err(FilterError::InvalidGnss)
+                | Err(FilterError::GnssTime { .. })
+                | Err(FilterError::Numerical) => {
+                    counters.gnss_invalid += 1;
+                    innovations.push(InnovationRecord {
+                        t_s: fix.t_s,
+                        used: FixUse::Invalid,
+                        outage: None,
+                        dim: 0,
+                        innovation: [f64::NAN; 6],
+                        innovation_var: [f64::NAN; 6],
+                        nis: f64::NAN,
+                        nis_threshold: f64::NAN,
+                        quality: if fix.quality == FixQuality::NoFix {
+                            0
+                        } else {
+                            fix.quality.rtklib_q()
+                        },
+                    });
+                }
+                Err(e) => return Err(filter_err(fix.t_s, e)),
+            }
+        }
+        // snapshot at the first IMU epoch at or after an outage start
+        while let Some(o) = outages.get(next_outage) {
+            if t_k < o.start_s {
+                break;
+            }
+            if t_k < o.end_s() {
+                snapshots.push(OutageSnapshot {
+                    outage: next_outage,
+                    next_imu: k + 1,
+                    state: *filter.nav_state(),
+                    correction: filter.imu_correction(),
+                });
+            }
+            next_outage += 1;
+        }
+        record(&filter, &mut nav, &mut epochs, &mut nav_dec, &mut ep_dec);
+        if (k - first) % step == 0 {
+            progress(k - first, total);
+        }
+    }
+    progress(total, total);
+    counters.gnss_outside_run += (case.gnss.len() - gi.min(case.gnss.len())) as u64;
+    counters.absorb(filter.counters());
+    counters.imu_rejected = counters
+        .imu_rejected
+        .max(u64::from(filter.counters().imu_rejected));
+    Ok(RunOutput {
+        model: opts.model,
+        state_names: state_names(&layout),
+        nav,
+        epochs,
+        innovations,
+        counters,
+        outages,
+        snapshots,
+        init: start.report,
+        final_blocks: block_estimates(&filter),
+        lever_arm_m: opts.lever_arm_m,
+    })
+}
