@@ -52,9 +52,8 @@ impl QemuLink {
     /// Starts `elf` on qemu mps2-an386 (`-icount shift=5`: deterministic tick counts) with
     /// UART0 on a socket, connects socat, opens the pty.
     pub fn start(elf: &Path, name: &str) -> Result<Self> {
-        let dir = crate::root()
-            .join("target/embedded/hil")
-            .join(format!("{name}-{}", std::process::id()));
+        // unix socket paths are limited to 107 bytes: keep them short, under the temp dir
+        let dir = std::env::temp_dir().join(format!("navcore-hil-{name}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
         let sock = dir.join("uart0.sock");
         let tty = dir.join("uart0.tty");
@@ -74,7 +73,9 @@ impl QemuLink {
         let mut qemu = q.spawn().context("starting qemu-system-arm")?;
         wait_for(&sock, "qemu", &mut qemu)?;
         let mut s = Command::new("socat");
-        s.arg(format!("pty,raw,echo=0,link={}", tty.display()))
+        // wait-slave: socat connects (and qemu starts the guest) only once the pty is open
+        // here, so nothing the firmware sends at boot can hit a pty nobody holds
+        s.arg(format!("pty,raw,echo=0,wait-slave,link={}", tty.display()))
             .arg(format!("unix-connect:{}", sock.display()))
             .stdin(Stdio::null());
         eprintln!("  $ {}", crate::show(&s));
