@@ -81,6 +81,8 @@ enum FwCmd {
     Bench,
     /// UART loopback and the nav application's frame link through a socket + socat pty.
     Hil,
+    /// The firmware steps of `ci` only (build, self-test, sizes, HIL, real board, budgets).
+    Ci,
 }
 
 fn main() -> std::process::ExitCode {
@@ -100,6 +102,7 @@ fn main() -> std::process::ExitCode {
                 let bench = budget::run_bench(&b.elf("bench"))?;
                 budget::report(&bench, &sizes, &[])
             }),
+            FwCmd::Ci => fw_ci(),
             FwCmd::Hil => embedded::fw_build(Board::Mps2An386).and_then(|b| {
                 hil::uart_echo(&b.elf("uart-echo"))?;
                 hil::frame_link(&b.elf("nav")).map(|_| ())
@@ -206,6 +209,25 @@ fn ci() -> Result<()> {
         "nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)",
         &mut || embedded::nav_core_thumb_build(),
     )?;
+    firmware_steps(&mut step)?;
+    eprintln!("\n[ci] summary");
+    for (name, dt) in &steps {
+        eprintln!("  {dt:7.1} s  {name}");
+    }
+    eprintln!(
+        "[ci] all {} steps passed in {:.1} s",
+        steps.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The firmware half of CI, in order: build (emulated board), self-test, sizes, the two HIL
+/// tests, the real board's build and size, and the budget check (last, so everything else has
+/// been checked when a budget fails). `step` names, times and runs each.
+fn firmware_steps(
+    step: &mut dyn FnMut(&'static str, &mut dyn FnMut() -> Result<()>) -> Result<()>,
+) -> Result<()> {
     let mut fw: Option<embedded::FwBuild> = None;
     step(
         "firmware build (thumbv7em-none-eabihf, release, board mps2-an386)",
@@ -267,13 +289,31 @@ fn ci() -> Result<()> {
             budget::report(&bench, &sizes, &real_sizes)
         },
     )?;
-    eprintln!("\n[ci] summary");
-    for (name, dt) in &steps {
-        eprintln!("  {dt:7.1} s  {name}");
-    }
+    Ok(())
+}
+
+/// `cargo xtask fw ci`: set-up and the firmware steps of `ci` only.
+fn fw_ci() -> Result<()> {
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    let mut step = |name: &'static str, f: &mut dyn FnMut() -> Result<()>| -> Result<()> {
+        eprintln!("\n==> [fw ci] {name}");
+        let t = Instant::now();
+        let r = f();
+        let dt = t.elapsed().as_secs_f64();
+        match &r {
+            Ok(()) => eprintln!("<== [fw ci] {name}: ok in {dt:.1} s"),
+            Err(e) => eprintln!("<== [fw ci] {name}: FAILED after {dt:.1} s: {e:#}"),
+        }
+        n += 1;
+        r
+    };
+    step("setup: embedded toolchain and emulator", &mut || {
+        embedded::setup()
+    })?;
+    firmware_steps(&mut step)?;
     eprintln!(
-        "[ci] all {} steps passed in {:.1} s",
-        steps.len(),
+        "[fw ci] all {n} steps passed in {:.1} s",
         t0.elapsed().as_secs_f64()
     );
     Ok(())
