@@ -222,12 +222,13 @@ fn ci() -> Result<()> {
     Ok(())
 }
 
+/// A step runner: runs the closure under the step's name, timing it.
+type StepFn<'a> = dyn FnMut(&'static str, &mut dyn FnMut() -> Result<()>) -> Result<()> + 'a;
+
 /// The firmware half of CI, in order: build (emulated board), self-test, sizes, the two HIL
 /// tests, the real board's build and size, and the budget check (last, so everything else has
 /// been checked when a budget fails). `step` names, times and runs each.
-fn firmware_steps(
-    step: &mut dyn FnMut(&'static str, &mut dyn FnMut() -> Result<()>) -> Result<()>,
-) -> Result<()> {
+fn firmware_steps(step: &mut StepFn) -> Result<()> {
     let mut fw: Option<embedded::FwBuild> = None;
     step(
         "firmware build (thumbv7em-none-eabihf, release, board mps2-an386)",
