@@ -13,9 +13,11 @@
 mod error;
 pub mod gpstime;
 pub mod imucsv;
+pub mod kfgins;
 mod lines;
 pub mod mount;
 pub mod pos;
+pub mod runcfg;
 pub mod tag;
 pub mod text;
 
@@ -24,9 +26,17 @@ pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,
 };
+pub use kfgins::{
+    parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml,
+};
 pub use lines::{open_text, DataLine, LineReader};
 pub use mount::Mounting;
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
+pub use runcfg::{
+    parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,
+    GivenState, GnssFileKind, GnssSource, GyroNoiseConfig, ImuFileKind, ImuSource, InitConfig,
+    InitMode, NoiseConfig, RunConfig, ScaleNoiseConfig, TruthFileKind, TruthSource,
+};
 pub use tag::{read_time_tag, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_text, read_nav_text, write_gnss_text, write_imu_text, write_nav_text,

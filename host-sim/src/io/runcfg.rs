@@ -1,0 +1,622 @@
+//! The project's own run configuration (TOML), [`RunConfig`]: which files to read and how,
+//! the IMU mounting and antenna lever arm, the initial state or alignment, and the IMU noise
+//! model in the source document's terms (S_N, S_B, T_B, S_K, initial sigmas).
+//!
+//! Paths: relative paths are relative to the folder of the configuration file
+//! ([`RunConfig::resolve`]); `configs/drive0708.toml` therefore names the shared data as
+//! `../../shared/data/...` (configs/ -> repository -> its parent, where `shared/` lives).
+//!
+//! Noise values are given either in SI (the `s_n`, `s_b`, `s_k`, `bias_init_sigma` keys, units
+//! below) or in datasheet units (keys named after their unit), never both for one quantity:
+//!
+//! | quantity | SI key (accel / gyro unit) | datasheet alternatives |
+//! |---|---|---|
+//! | white noise | `s_n` (m^2/s^3 / rad^2/s) | accel `n_ug_per_sqrt_hz`, `vrw_mps_per_sqrt_h`; gyro `arw_deg_per_sqrt_h`, `n_deg_per_s_per_sqrt_hz` |
+//! | Gauss-Markov bias | `s_b` (m^2/s^5 / rad^2/s^3) with `t_b_s` | accel `gm_sigma_ug`; gyro `gm_sigma_deg_per_h` (stationary sigma; S_B = 2 sigma^2 / T_B) |
+//! | bias random walk | `s_k` (m^2/s^5 / rad^2/s^3) | accel `k_ug_per_sqrt_h`, `k_ug_per_sqrt_hz`; gyro `k_deg_per_h_per_sqrt_h`, `k_deg_per_s_per_sqrt_hz` |
+//! | initial bias sigma | `bias_init_sigma` (m/s^2 / rad/s) | accel `bias_init_ug`; gyro `bias_init_deg_per_h`, `bias_init_deg_per_s` |
+//!
+//! (`k_..._per_sqrt_hz` is the bias random walk written as a rate PSD per sqrt(Hz), the way
+//! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
+
+use super::imucsv::ImuCsvFormat;
+use super::mount::Mounting;
+use super::IoError;
+use nav_core::config::units;
+use nav_core::config::SensorNoise;
+use std::path::{Path, PathBuf};
+
+/// IMU file kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImuFileKind {
+    /// The project's IMU text format (increments, KF-GINS layout).
+    Text,
+    /// A generic CSV log of rates and specific forces, mapped by `[imu.csv]`.
+    Csv,
+}
+
+/// Where the IMU data come from and how to read them.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuSource {
+    /// IMU file (relative to the configuration file's folder).
+    pub path: PathBuf,
+    /// File kind.
+    pub format: ImuFileKind,
+    /// Column/unit mapping, required for `format = "csv"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub csv: Option<ImuCsvFormat>,
+    /// Mounting rotation from IMU to body axes (default identity).
+    #[serde(default)]
+    pub mounting: Mounting,
+    /// Constant added to the IMU time stamps after reading, s (for CSV logs in addition to
+    /// the mapping's own `time_offset_s`).
+    #[serde(default)]
+    pub time_offset_s: f64,
+}
+
+/// GNSS file kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GnssFileKind {
+    /// The project's GNSS text format.
+    Text,
+    /// An RTKLIB `.pos` solution file.
+    RtklibPos,
+}
+
+fn default_max_q() -> u8 {
+    6
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Where the GNSS fixes come from and how to use them.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GnssSource {
+    /// GNSS file (relative to the configuration file's folder).
+    pub path: PathBuf,
+    /// File kind.
+    pub format: GnssFileKind,
+    /// Keep RTKLIB records with quality 1 <= Q <= max_q (1 fixed .. 6 PPP); default 6.
+    #[serde(default = "default_max_q")]
+    pub max_q: u8,
+    /// GNSS antenna phase centre relative to the IMU, body FRD axes, m (KF-GINS `antlever`).
+    #[serde(default)]
+    pub lever_arm_m: [f64; 3],
+    /// Constant added to the GNSS time stamps, s.
+    #[serde(default)]
+    pub time_offset_s: f64,
+    /// Use the GNSS velocities when the file has them.
+    #[serde(default)]
+    pub use_velocity: bool,
+    /// Factor applied to the file's standard deviations (1 = as given).
+    #[serde(default = "one")]
+    pub sigma_scale: f64,
+}
+
+/// Reference trajectory file kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TruthFileKind {
+    /// The navigation text format (`week sow lat lon h vn ve vd roll pitch yaw`).
+    NavText,
+    /// An RTKLIB `.pos` file (positions only).
+    RtklibPos,
+}
+
+/// An optional reference trajectory.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TruthSource {
+    /// Truth file (relative to the configuration file's folder).
+    pub path: PathBuf,
+    /// File kind.
+    pub format: TruthFileKind,
+}
+
+/// A given initial state (as in KF-GINS): `[init.given]`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GivenState {
+    /// Latitude deg, longitude deg, ellipsoidal height m (of the IMU).
+    pub pos_deg_deg_m: [f64; 3],
+    /// NED velocity, m/s.
+    pub vel_ned_mps: [f64; 3],
+    /// Roll, pitch, yaw (ZYX, body FRD relative to NED), deg.
+    pub rpy_deg: [f64; 3],
+}
+
+/// Alignment from the data: `[init.align]`. Position and velocity from the first usable GNSS
+/// fix; roll and pitch by accelerometer levelling over the first `static_s` seconds (the
+/// vehicle must be at rest); yaw given, or from the GNSS velocity once the speed exceeds
+/// `yaw_from_gnss_min_speed_mps`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AlignSpec {
+    /// Length of the static window at the start, s.
+    pub static_s: f64,
+    /// Known initial yaw, deg (None: from the GNSS course over ground).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw_deg: Option<f64>,
+    /// Speed above which the GNSS course gives the yaw, m/s.
+    #[serde(default = "half")]
+    pub yaw_from_gnss_min_speed_mps: f64,
+    /// Largest accepted | |mean f| - normal gravity | during the static window, m/s^2
+    /// (accelerometer bias and scale-factor error; consumer MEMS need ~0.2).
+    #[serde(default = "default_gravity_mismatch")]
+    pub max_gravity_mismatch_mps2: f64,
+}
+
+fn default_gravity_mismatch() -> f64 {
+    0.1
+}
+
+/// How the initial state is obtained.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InitMode<'a> {
+    /// A given state.
+    Given(&'a GivenState),
+    /// Alignment from the data.
+    Align(&'a AlignSpec),
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+/// Initial state and its uncertainty.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitConfig {
+    /// Initial position 1-sigma north, east, down, m.
+    pub pos_std_m: [f64; 3],
+    /// Initial velocity 1-sigma north, east, down, m/s.
+    pub vel_std_mps: [f64; 3],
+    /// Initial attitude 1-sigma roll, pitch, yaw, deg.
+    pub att_std_deg: [f64; 3],
+    /// A given initial state (exactly one of `given` and `align`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub given: Option<GivenState>,
+    /// Alignment from the data (exactly one of `given` and `align`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub align: Option<AlignSpec>,
+}
+
+impl InitConfig {
+    /// Which initialisation is configured (an error unless exactly one is).
+    pub fn mode(&self) -> Result<InitMode<'_>, String> {
+        match (&self.given, &self.align) {
+            (Some(g), None) => Ok(InitMode::Given(g)),
+            (None, Some(a)) => Ok(InitMode::Align(a)),
+            _ => Err("init: give exactly one of [init.given] and [init.align]".into()),
+        }
+    }
+}
+
+/// Accelerometer noise (see the module table; exactly one key per quantity, absent = 0).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AccelNoiseConfig {
+    /// White-noise PSD, m^2/s^3.
+    pub s_n: Option<f64>,
+    /// White noise as a density, ug/sqrt(Hz).
+    pub n_ug_per_sqrt_hz: Option<f64>,
+    /// White noise as a velocity random walk, m/s/sqrt(h).
+    pub vrw_mps_per_sqrt_h: Option<f64>,
+    /// Gauss-Markov driving PSD, m^2/s^5.
+    pub s_b: Option<f64>,
+    /// Gauss-Markov stationary sigma, ug.
+    pub gm_sigma_ug: Option<f64>,
+    /// Gauss-Markov correlation time, s (required with a Gauss-Markov term).
+    pub t_b_s: Option<f64>,
+    /// Bias random-walk PSD, m^2/s^5.
+    pub s_k: Option<f64>,
+    /// Bias random walk, ug/sqrt(h).
+    pub k_ug_per_sqrt_h: Option<f64>,
+    /// Bias random walk as a rate PSD, ug/sqrt(Hz) (= ug/s/sqrt(1/s)).
+    pub k_ug_per_sqrt_hz: Option<f64>,
+    /// Initial bias sigma, m/s^2.
+    pub bias_init_sigma: Option<f64>,
+    /// Initial bias sigma, ug.
+    pub bias_init_ug: Option<f64>,
+}
+
+/// Gyro noise (see the module table; exactly one key per quantity, absent = 0).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GyroNoiseConfig {
+    /// White-noise PSD, rad^2/s.
+    pub s_n: Option<f64>,
+    /// White noise as an angle random walk, deg/sqrt(h).
+    pub arw_deg_per_sqrt_h: Option<f64>,
+    /// White noise as a density, deg/s/sqrt(Hz).
+    pub n_deg_per_s_per_sqrt_hz: Option<f64>,
+    /// Gauss-Markov driving PSD, rad^2/s^3.
+    pub s_b: Option<f64>,
+    /// Gauss-Markov stationary sigma, deg/h.
+    pub gm_sigma_deg_per_h: Option<f64>,
+    /// Gauss-Markov correlation time, s (required with a Gauss-Markov term).
+    pub t_b_s: Option<f64>,
+    /// Bias random-walk PSD, rad^2/s^3.
+    pub s_k: Option<f64>,
+    /// Bias random walk, deg/h/sqrt(h).
+    pub k_deg_per_h_per_sqrt_h: Option<f64>,
+    /// Bias random walk as a rate PSD, deg/s/sqrt(Hz).
+    pub k_deg_per_s_per_sqrt_hz: Option<f64>,
+    /// Initial bias sigma, rad/s.
+    pub bias_init_sigma: Option<f64>,
+    /// Initial bias sigma, deg/h.
+    pub bias_init_deg_per_h: Option<f64>,
+    /// Initial bias sigma, deg/s.
+    pub bias_init_deg_per_s: Option<f64>,
+}
+
+/// A scale-factor error as a first-order Gauss-Markov process.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScaleNoiseConfig {
+    /// Stationary (and initial) sigma, ppm.
+    pub sigma_ppm: f64,
+    /// Correlation time, s.
+    pub t_s: f64,
+}
+
+/// Which bias model the filter uses (the source document's two, plus its single-state
+/// approximation of the detailed one; DESIGN.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BiasModel {
+    /// N: white noise + constant (random-constant) biases.
+    N,
+    /// NBK: white noise + Gauss-Markov + random walk, separate states.
+    #[default]
+    Nbk,
+    /// NBK with the seed's single bias state (GM and RW noise in one decaying state).
+    NbkSingleState,
+}
+
+/// The IMU noise model.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseConfig {
+    /// Bias model.
+    #[serde(default)]
+    pub model: BiasModel,
+    /// Accelerometer noise.
+    #[serde(default)]
+    pub accel: AccelNoiseConfig,
+    /// Gyro noise.
+    #[serde(default)]
+    pub gyro: GyroNoiseConfig,
+    /// Accelerometer scale-factor states (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_scale: Option<ScaleNoiseConfig>,
+    /// Gyro scale-factor states (absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro_scale: Option<ScaleNoiseConfig>,
+}
+
+/// Picks the one given alternative (each already converted to SI); 0 when none.
+fn one_of(what: &str, alts: &[(&str, Option<f64>)]) -> Result<f64, String> {
+    let given: Vec<&(&str, Option<f64>)> = alts.iter().filter(|(_, v)| v.is_some()).collect();
+    match given.as_slice() {
+        [] => Ok(0.0),
+        [(k, Some(v))] => {
+            if v.is_finite() && *v >= 0.0 {
+                Ok(*v)
+            } else {
+                Err(format!("{what}: {k} must be finite and >= 0, got {v}"))
+            }
+        }
+        many => Err(format!(
+            "{what}: give only one of {:?}",
+            many.iter().map(|(k, _)| *k).collect::<Vec<_>>()
+        )),
+    }
+}
+
+fn t_b(what: &str, s_b: f64, t_b_s: Option<f64>) -> Result<f64, String> {
+    match t_b_s {
+        Some(t) if t.is_finite() && t > 0.0 => Ok(t),
+        Some(t) => Err(format!("{what}.t_b_s must be > 0 s, got {t}")),
+        None if s_b > 0.0 => Err(format!("{what}: a Gauss-Markov term needs t_b_s")),
+        // no Gauss-Markov term: any positive placeholder (unused)
+        None => Ok(3600.0),
+    }
+}
+
+impl AccelNoiseConfig {
+    /// The SI parameters (nav-core's [`SensorNoise`], isotropic).
+    pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
+        let w = "noise.accel";
+        let s_n = one_of(
+            w,
+            &[
+                ("s_n", self.s_n),
+                (
+                    "n_ug_per_sqrt_hz",
+                    self.n_ug_per_sqrt_hz
+                        .map(units::accel_psd_from_ug_per_sqrt_hz),
+                ),
+                (
+                    "vrw_mps_per_sqrt_h",
+                    self.vrw_mps_per_sqrt_h
+                        .map(units::accel_psd_from_mps_per_sqrt_h),
+                ),
+            ],
+        )?;
+        let t_raw = self.t_b_s;
+        let sig = self.gm_sigma_ug.map(units::mps2_from_ug);
+        let s_b = match (self.s_b, sig) {
+            (Some(_), Some(_)) => return Err(format!("{w}: give only one of s_b, gm_sigma_ug")),
+            (Some(v), None) => one_of(w, &[("s_b", Some(v))])?,
+            (None, Some(sg)) => {
+                let t = t_b(w, 1.0, t_raw)?;
+                one_of(w, &[("gm_sigma_ug", Some(units::gm_psd_from_sigma(sg, t)))])?
+            }
+            (None, None) => 0.0,
+        };
+        let t_b_s = t_b(w, s_b, t_raw)?;
+        let s_k = one_of(
+            w,
+            &[
+                ("s_k", self.s_k),
+                (
+                    "k_ug_per_sqrt_h",
+                    self.k_ug_per_sqrt_h
+                        .map(units::accel_rw_psd_from_ug_per_sqrt_h),
+                ),
+                (
+                    "k_ug_per_sqrt_hz",
+                    self.k_ug_per_sqrt_hz
+                        .map(|k| units::mps2_from_ug(k).powi(2)),
+                ),
+            ],
+        )?;
+        let b0 = one_of(
+            w,
+            &[
+                ("bias_init_sigma", self.bias_init_sigma),
+                ("bias_init_ug", self.bias_init_ug.map(units::mps2_from_ug)),
+            ],
+        )?;
+        Ok(SensorNoise::isotropic(s_n, s_b, t_b_s, s_k, b0))
+    }
+}
+
+impl GyroNoiseConfig {
+    /// The SI parameters (nav-core's [`SensorNoise`], isotropic).
+    pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
+        let w = "noise.gyro";
+        let deg = units::DEG;
+        let s_n = one_of(
+            w,
+            &[
+                ("s_n", self.s_n),
+                (
+                    "arw_deg_per_sqrt_h",
+                    self.arw_deg_per_sqrt_h
+                        .map(units::gyro_psd_from_deg_per_sqrt_h),
+                ),
+                (
+                    "n_deg_per_s_per_sqrt_hz",
+                    self.n_deg_per_s_per_sqrt_hz.map(|n| (n * deg).powi(2)),
+                ),
+            ],
+        )?;
+        let t_raw = self.t_b_s;
+        let sig = self.gm_sigma_deg_per_h.map(units::radps_from_deg_per_h);
+        let s_b = match (self.s_b, sig) {
+            (Some(_), Some(_)) => {
+                return Err(format!("{w}: give only one of s_b, gm_sigma_deg_per_h"))
+            }
+            (Some(v), None) => one_of(w, &[("s_b", Some(v))])?,
+            (None, Some(sg)) => {
+                let t = t_b(w, 1.0, t_raw)?;
+                one_of(
+                    w,
+                    &[("gm_sigma_deg_per_h", Some(units::gm_psd_from_sigma(sg, t)))],
+                )?
+            }
+            (None, None) => 0.0,
+        };
+        let t_b_s = t_b(w, s_b, t_raw)?;
+        let s_k = one_of(
+            w,
+            &[
+                ("s_k", self.s_k),
+                (
+                    "k_deg_per_h_per_sqrt_h",
+                    self.k_deg_per_h_per_sqrt_h
+                        .map(units::gyro_rw_psd_from_deg_per_h_per_sqrt_h),
+                ),
+                (
+                    "k_deg_per_s_per_sqrt_hz",
+                    self.k_deg_per_s_per_sqrt_hz.map(|k| (k * deg).powi(2)),
+                ),
+            ],
+        )?;
+        let b0 = one_of(
+            w,
+            &[
+                ("bias_init_sigma", self.bias_init_sigma),
+                (
+                    "bias_init_deg_per_h",
+                    self.bias_init_deg_per_h.map(units::radps_from_deg_per_h),
+                ),
+                (
+                    "bias_init_deg_per_s",
+                    self.bias_init_deg_per_s.map(|v| v * deg),
+                ),
+            ],
+        )?;
+        Ok(SensorNoise::isotropic(s_n, s_b, t_b_s, s_k, b0))
+    }
+}
+
+/// A run of the navigation filter on recorded (or simulated) files.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// Short name of the case (used in reports).
+    #[serde(default)]
+    pub name: String,
+    /// Free text: where the data come from, what is known about them.
+    #[serde(default)]
+    pub description: String,
+    /// Processing start, s (same time scale as the files; None: first IMU sample).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_s: Option<f64>,
+    /// Processing end, s (None: last IMU sample).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_s: Option<f64>,
+    /// IMU input.
+    pub imu: ImuSource,
+    /// GNSS input.
+    pub gnss: GnssSource,
+    /// Optional reference trajectory.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth: Option<TruthSource>,
+    /// Initial state.
+    pub init: InitConfig,
+    /// IMU noise model.
+    pub noise: NoiseConfig,
+}
+
+impl RunConfig {
+    /// A path of the configuration resolved against the configuration file's folder.
+    pub fn resolve(config_dir: &Path, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            config_dir.join(p)
+        }
+    }
+
+    /// Checks what serde cannot: CSV mapping present for CSV input, finite angles and
+    /// offsets, non-negative sigmas, consistent noise keys, `1 <= max_q <= 6`.
+    pub fn validate(&self) -> Result<(), String> {
+        let mut bad: Vec<String> = Vec::new();
+        if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
+            bad.push("imu.format = \"csv\" needs an [imu.csv] mapping".into());
+        }
+        if !self.imu.mounting.is_finite() {
+            bad.push("imu.mounting angles must be finite".into());
+        }
+        if !self.imu.time_offset_s.is_finite() || !self.gnss.time_offset_s.is_finite() {
+            bad.push("time offsets must be finite".into());
+        }
+        if !(1..=6).contains(&self.gnss.max_q) {
+            bad.push(format!(
+                "gnss.max_q must be in 1..=6, got {}",
+                self.gnss.max_q
+            ));
+        }
+        if !self.gnss.lever_arm_m.iter().all(|v| v.is_finite()) {
+            bad.push("gnss.lever_arm_m must be finite".into());
+        }
+        if !(self.gnss.sigma_scale.is_finite() && self.gnss.sigma_scale > 0.0) {
+            bad.push("gnss.sigma_scale must be > 0".into());
+        }
+        let sig_ok = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
+        if !(sig_ok(&self.init.pos_std_m)
+            && sig_ok(&self.init.vel_std_mps)
+            && sig_ok(&self.init.att_std_deg))
+        {
+            bad.push("init sigmas must be finite and >= 0".into());
+        }
+        match self.init.mode() {
+            Err(e) => bad.push(e),
+            Ok(InitMode::Given(g)) => {
+                let mut all = g
+                    .pos_deg_deg_m
+                    .iter()
+                    .chain(&g.vel_ned_mps)
+                    .chain(&g.rpy_deg);
+                if !all.all(|v| v.is_finite()) || g.pos_deg_deg_m[0].abs() > 90.0 {
+                    bad.push("init.given: state must be finite with |lat| <= 90 deg".into());
+                }
+            }
+            Ok(InitMode::Align(a)) => {
+                if !(a.static_s.is_finite() && a.static_s > 0.0) {
+                    bad.push("init.align.static_s must be > 0".into());
+                }
+                if a.yaw_deg.is_some_and(|y| !y.is_finite())
+                    || !a.yaw_from_gnss_min_speed_mps.is_finite()
+                    || !(a.max_gravity_mismatch_mps2.is_finite()
+                        && a.max_gravity_mismatch_mps2 > 0.0)
+                {
+                    bad.push("init.align: yaw_deg, yaw_from_gnss_min_speed_mps must be finite, max_gravity_mismatch_mps2 > 0".into());
+                }
+            }
+        }
+        if let (Some(a), Some(b)) = (self.start_s, self.end_s) {
+            if b.partial_cmp(&a) != Some(std::cmp::Ordering::Greater) {
+                bad.push(format!("end_s {b} must be after start_s {a}"));
+            }
+        }
+        if let Err(e) = self.noise.accel.to_sensor_noise() {
+            bad.push(e);
+        }
+        if let Err(e) = self.noise.gyro.to_sensor_noise() {
+            bad.push(e);
+        }
+        for (n, s) in [
+            ("accel_scale", &self.noise.accel_scale),
+            ("gyro_scale", &self.noise.gyro_scale),
+        ] {
+            if let Some(s) = s {
+                if !(s.sigma_ppm.is_finite()
+                    && s.sigma_ppm >= 0.0
+                    && s.t_s.is_finite()
+                    && s.t_s > 0.0)
+                {
+                    bad.push(format!("noise.{n}: sigma_ppm >= 0 and t_s > 0 required"));
+                }
+            }
+        }
+        if bad.is_empty() {
+            Ok(())
+        } else {
+            Err(bad.join("; "))
+        }
+    }
+}
+
+/// Parses and validates a run configuration from TOML text (`name` is used in errors).
+pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
+    let cfg: RunConfig = toml::from_str(text).map_err(|e| IoError::Config {
+        path: name.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    cfg.validate().map_err(|message| IoError::Config {
+        path: name.to_path_buf(),
+        message,
+    })?;
+    Ok(cfg)
+}
+
+/// Reads and validates a run configuration file.
+pub fn read_run_config(path: impl AsRef<Path>) -> Result<RunConfig, IoError> {
+    let path = path.as_ref();
+    let text = std::fs::read_to_string(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_run_config(path, &text)
+}
+
+/// Writes a run configuration as TOML.
+pub fn write_run_config(path: impl AsRef<Path>, cfg: &RunConfig) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let text = toml::to_string_pretty(cfg).map_err(|e| IoError::Config {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    super::text::write_with(path, |w| w.write_all(text.as_bytes()))
+}
