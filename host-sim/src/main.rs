@@ -15,6 +15,12 @@ enum Cmd {
     Allan(host_sim::allan::cli::AllanArgs),
     /// Simulate a case (trajectory, IMU with errors, GNSS, truth) into the project's formats.
     Simulate(host_sim::sim::cli::SimulateArgs),
+    /// The source's simulation study: N vs NBK models, continuous GNSS vs a 5-minute outage,
+    /// Monte Carlo true errors, NEES and an error budget; writes a report.
+    Study(host_sim::study::StudyArgs),
+    /// Run the filter on a case (simulated or real): nav.txt, std.txt, bias.txt,
+    /// innovations.txt and metrics.json, with imposed GNSS outages.
+    Run(host_sim::run::cli::RunArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -22,6 +28,8 @@ fn main() -> std::process::ExitCode {
     let res = match cli.cmd {
         Cmd::Allan(a) => host_sim::allan::cli::run(a),
         Cmd::Simulate(a) => host_sim::sim::cli::run(a),
+        Cmd::Study(a) => host_sim::study::run(a),
+        Cmd::Run(a) => host_sim::run::cli::run(a),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,
