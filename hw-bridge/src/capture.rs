@@ -256,8 +256,13 @@ impl<R: Read> CaptureReader<R> {
                 len: len_flags,
             });
         }
-        let mut bytes = vec![0u8; len_flags as usize];
-        if !bytes.is_empty() && !read_full(&mut self.r, &mut bytes).map_err(truncated)? {
+        // Read through `take` so a corrupt length cannot make us allocate before data arrives.
+        let mut bytes = Vec::new();
+        (&mut self.r)
+            .take(u64::from(len_flags))
+            .read_to_end(&mut bytes)
+            .map_err(truncated)?;
+        if bytes.len() != len_flags as usize {
             return Err(CaptureError::TruncatedRecord { record, offset });
         }
         self.offset += 12 + u64::from(len_flags);

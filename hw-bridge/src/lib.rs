@@ -6,6 +6,7 @@
 pub mod capture;
 pub mod cmd;
 pub mod frames;
+pub mod fuzz_checks;
 pub mod gnss;
 pub mod serial;
 pub mod status;

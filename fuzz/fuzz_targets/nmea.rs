@@ -1,0 +1,4 @@
+//! Fuzz target: see `hw_bridge::fuzz_checks::nmea` for the properties checked.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| hw_bridge::fuzz_checks::nmea(data));
