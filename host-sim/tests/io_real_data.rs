@@ -44,8 +44,8 @@ fn gpst_csv_format() -> ImuCsvFormat {
 fn mean_f(s: &[RawImuSample]) -> [f64; 3] {
     let mut m = [0.0; 3];
     for x in s {
-        for k in 0..3 {
-            m[k] += x.accel_mps2[k] / s.len() as f64;
+        for (mk, a) in m.iter_mut().zip(x.accel_mps2) {
+            *mk += a / s.len() as f64;
         }
     }
     m

@@ -19,11 +19,14 @@
 //! (`k_..._per_sqrt_hz` is the bias random walk written as a rate PSD per sqrt(Hz), the way
 //! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
 
-use super::imucsv::ImuCsvFormat;
+use super::imucsv::{read_imu_csv, ImuCsvFormat};
 use super::mount::Mounting;
+use super::pos::{read_rtklib_pos, PosOptions};
+use super::text::{read_gnss_text, read_imu_text, read_nav_text, ImuRecord};
 use super::IoError;
 use nav_core::config::units;
 use nav_core::config::SensorNoise;
+use nav_core::types::{GnssFix, NavSolution};
 use std::path::{Path, PathBuf};
 
 /// IMU file kinds.
@@ -619,4 +622,93 @@ pub fn write_run_config(path: impl AsRef<Path>, cfg: &RunConfig) -> Result<(), I
         message: e.to_string(),
     })?;
     super::text::write_with(path, |w| w.write_all(text.as_bytes()))
+}
+
+/// Reference trajectory as read.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TruthData {
+    /// Full navigation solutions (nav text).
+    Nav(Vec<NavSolution>),
+    /// Positions only (RTKLIB .pos, all qualities kept).
+    Positions(Vec<GnssFix>),
+}
+
+/// The data a run needs, read as a [`RunConfig`] says.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunInputs {
+    /// IMU increments in BODY axes (mounting applied), time offsets applied; the gap report
+    /// of the file.
+    pub imu: ImuRecord,
+    /// GNSS fixes after the quality filter, time offset applied (standard deviations and
+    /// velocities as in the file: `sigma_scale` and `use_velocity` are for the filter).
+    pub gnss: Vec<GnssFix>,
+    /// GPS week of the GNSS times when the file states it (RTKLIB .pos).
+    pub gnss_week: Option<i64>,
+    /// GNSS records dropped by the quality filter.
+    pub gnss_dropped_by_quality: usize,
+    /// Reference trajectory, when configured.
+    pub truth: Option<TruthData>,
+}
+
+impl RunConfig {
+    /// Reads the IMU (converted to increments in body axes), GNSS and truth files named by the
+    /// configuration; relative paths are resolved against `config_dir`.
+    pub fn load_inputs(&self, config_dir: &Path) -> Result<RunInputs, IoError> {
+        let imu_path = Self::resolve(config_dir, &self.imu.path);
+        let mut imu = match self.imu.format {
+            ImuFileKind::Text => read_imu_text(&imu_path)?,
+            ImuFileKind::Csv => {
+                let fmt = self.imu.csv.as_ref().ok_or_else(|| IoError::Config {
+                    path: imu_path.clone(),
+                    message: "imu.format = \"csv\" needs an [imu.csv] mapping".into(),
+                })?;
+                read_imu_csv(&imu_path, fmt)?
+            }
+        };
+        self.imu.mounting.rotate_increments(&mut imu.samples);
+        if self.imu.time_offset_s != 0.0 {
+            for s in &mut imu.samples {
+                s.t_s += self.imu.time_offset_s;
+            }
+            for g in &mut imu.gaps.gaps {
+                g.t_before_s += self.imu.time_offset_s;
+                g.t_after_s += self.imu.time_offset_s;
+            }
+        }
+        let gnss_path = Self::resolve(config_dir, &self.gnss.path);
+        let (mut gnss, gnss_week, dropped) = match self.gnss.format {
+            GnssFileKind::Text => (read_gnss_text(&gnss_path)?, None, 0),
+            GnssFileKind::RtklibPos => {
+                let r = read_rtklib_pos(
+                    &gnss_path,
+                    &PosOptions {
+                        max_q: self.gnss.max_q,
+                    },
+                )?;
+                (r.fixes, r.week, r.dropped_by_quality)
+            }
+        };
+        for f in &mut gnss {
+            f.t_s += self.gnss.time_offset_s;
+        }
+        let truth = match &self.truth {
+            None => None,
+            Some(t) => {
+                let p = Self::resolve(config_dir, &t.path);
+                Some(match t.format {
+                    TruthFileKind::NavText => TruthData::Nav(read_nav_text(&p)?),
+                    TruthFileKind::RtklibPos => {
+                        TruthData::Positions(read_rtklib_pos(&p, &PosOptions { max_q: 6 })?.fixes)
+                    }
+                })
+            }
+        };
+        Ok(RunInputs {
+            imu,
+            gnss,
+            gnss_week,
+            gnss_dropped_by_quality: dropped,
+            truth,
+        })
+    }
 }

@@ -1,0 +1,284 @@
+//! The TOML run configuration: configs/drive0708.toml parses to the README's figures in SI,
+//! loads the real drive through it, errors name the file and the problem, round trip.
+
+use host_sim::io::{
+    read_run_config, write_gnss_text, write_imu_text, write_run_config, BiasModel, CsvTime,
+    GnssFileKind, ImuFileKind, InitMode, IoError, RunConfig,
+};
+use nav_core::types::{GnssFix, ImuSample};
+use std::path::{Path, PathBuf};
+
+fn drive_cfg_path() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../configs/drive0708.toml"
+    ))
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    ((a - b) / b).abs()
+}
+
+#[test]
+fn drive0708_config_parses_to_the_readme_figures_in_si() {
+    let c = read_run_config(drive_cfg_path()).unwrap();
+    assert_eq!(c.name, "drive0708");
+    assert_eq!(c.imu.format, ImuFileKind::Csv);
+    let csv = c.imu.csv.as_ref().unwrap();
+    assert_eq!((csv.skip_lines, csv.skip_last_rows), (1, 1));
+    assert!(
+        matches!(&csv.time, CsvTime::TicksMs { tag_file: Some(t), stretch_to_tag_end: true } if t == Path::new("imu_1934.csv.tag"))
+    );
+    assert_eq!(c.imu.mounting.rpy_deg, [180.0, -6.79, 185.35]);
+    assert_eq!(c.gnss.format, GnssFileKind::RtklibPos);
+    assert_eq!(c.gnss.max_q, 1);
+    assert_eq!(c.gnss.lever_arm_m, [0.0, -0.05, 0.0]);
+    assert!(c.gnss.use_velocity);
+    let InitMode::Align(a) = c.init.mode().unwrap() else {
+        panic!("drive0708 aligns from the data")
+    };
+    assert_eq!(a.static_s, 15.0);
+    assert_eq!(c.init.att_std_deg, [2.0, 2.0, 10.0]);
+    assert_eq!(c.noise.model, BiasModel::Nbk);
+    let acc = c.noise.accel.to_sensor_noise().unwrap();
+    let gyr = c.noise.gyro.to_sensor_noise().unwrap();
+    // 70 ug/sqrt(Hz): S_N = (70e-6 * 9.80665)^2 = 4.7125e-7 m^2/s^3
+    assert!(rel(acc.s_n[0], (70e-6 * 9.80665f64).powi(2)) < 1e-12);
+    // 7 ug/sqrt(Hz) as a rate PSD: S_K = (7e-6 * 9.80665)^2 m^2/s^5
+    assert!(rel(acc.s_k[2], (7e-6 * 9.80665f64).powi(2)) < 1e-12);
+    assert_eq!(acc.s_b, [0.0; 3]);
+    assert_eq!(acc.bias_init_sigma, [0.1; 3]);
+    // 0.0038 deg/s/sqrt(Hz) = 0.228 deg/sqrt(h): S_N = (0.0038 pi/180)^2 rad^2/s
+    assert!(rel(gyr.s_n[1], (0.0038f64.to_radians()).powi(2)) < 1e-12);
+    assert!(
+        rel(
+            nav_core::config::units::gyro_deg_per_sqrt_h_from_psd(gyr.s_n[0]),
+            0.228
+        ) < 1e-12
+    );
+    assert!(rel(gyr.s_k[0], (3.8e-5f64.to_radians()).powi(2)) < 1e-12);
+    assert!(rel(gyr.bias_init_sigma[0], 0.1f64.to_radians()) < 1e-12);
+    // paths resolve relative to configs/ onto the shared data folder
+    let dir = drive_cfg_path().parent().unwrap().to_path_buf();
+    let imu = RunConfig::resolve(&dir, &c.imu.path);
+    assert!(
+        imu.ends_with("shared/data/rtklibexplorer-drive0708/imu_1934.csv"),
+        "{imu:?}"
+    );
+}
+
+#[test]
+fn drive0708_loads_through_its_config_in_body_axes() {
+    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
+    if !d.is_dir() {
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("../shared/data not found and CI=true");
+        }
+        println!(
+            "SKIPPED drive0708_loads_through_its_config_in_body_axes: ../shared/data not found"
+        );
+        return;
+    }
+    let path = drive_cfg_path();
+    let c = read_run_config(&path).unwrap();
+    let inp = c.load_inputs(path.parent().unwrap()).unwrap();
+    assert_eq!(
+        inp.imu.samples.len(),
+        54_857,
+        "54,858 rows -> 54,857 increments"
+    );
+    assert_eq!(inp.imu.gaps.count(), 0);
+    assert!(
+        (inp.imu.mean_rate_hz() - 99.97).abs() < 0.01,
+        "{}",
+        inp.imu.mean_rate_hz()
+    );
+    assert_eq!(inp.gnss.len(), 2189, "RTK fixed only");
+    assert_eq!(inp.gnss_dropped_by_quality, 8);
+    assert_eq!(inp.gnss_week, Some(2374));
+    assert!(inp.truth.is_none());
+    // the first increment ends one sample after the tag start
+    let t0 = inp.imu.samples[0].t_s;
+    assert!(t0 > 243_261.854 && t0 < 243_261.854 + 0.012, "{t0}");
+    // static start in body axes: dv along -z ~ -9.93 m/s^2 * dt, little along x
+    let (mut dv, mut dt) = ([0.0; 3], 0.0);
+    let mut prev = 243_261.854;
+    for s in inp.imu.samples.iter().take_while(|s| s.t_s < t0 + 15.0) {
+        for (a, b) in dv.iter_mut().zip(s.dv_mps) {
+            *a += b;
+        }
+        dt += s.t_s - prev;
+        prev = s.t_s;
+    }
+    let f = dv.map(|v| v / dt);
+    println!("static mean f (body) = {f:?} m/s^2 over {dt:.2} s");
+    assert!(f[2] < -9.8 && f[2] > -10.1, "{f:?}");
+    assert!(f[0].abs() < 0.05, "{f:?}");
+    assert!(f[1].abs() < 0.3, "{f:?}");
+}
+
+fn base_toml(dir: &Path) -> String {
+    let imu: Vec<ImuSample> = (1..=10)
+        .map(|k| ImuSample {
+            t_s: k as f64 * 0.01,
+            dtheta_rad: [0.0, 0.0, 1e-4],
+            dv_mps: [0.0, 0.0, -0.098],
+            temperature_c: f64::NAN,
+        })
+        .collect();
+    write_imu_text(dir.join("imu.txt"), &imu).unwrap();
+    let g = GnssFix {
+        t_s: 0.05,
+        lat_rad: 0.5,
+        lon_rad: 1.0,
+        h_m: 10.0,
+        pos_std_ned_m: [0.1, 0.1, 0.2],
+        ..GnssFix::default()
+    };
+    write_gnss_text(dir.join("gnss.txt"), &[g]).unwrap();
+    r#"
+name = "small"
+[imu]
+path = "imu.txt"
+format = "text"
+time_offset_s = 0.5
+[imu.mounting]
+rpy_deg = [0.0, 0.0, 90.0]
+[gnss]
+path = "gnss.txt"
+format = "text"
+lever_arm_m = [0.1, 0.2, -0.3]
+time_offset_s = -0.01
+[init]
+pos_std_m = [1.0, 1.0, 2.0]
+vel_std_mps = [0.1, 0.1, 0.1]
+att_std_deg = [1.0, 1.0, 5.0]
+[init.given]
+pos_deg_deg_m = [30.0, 114.0, 20.0]
+vel_ned_mps = [0.0, 0.0, 0.0]
+rpy_deg = [0.0, 0.0, 45.0]
+[noise]
+model = "n"
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+bias_init_ug = 100.0
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.003
+bias_init_deg_per_h = 1.0
+gm_sigma_deg_per_h = 0.5
+t_b_s = 3600.0
+[noise.gyro_scale]
+sigma_ppm = 300.0
+t_s = 14400.0
+"#
+    .to_string()
+}
+
+#[test]
+fn small_text_case_loads_with_offsets_mounting_and_datasheet_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = base_toml(dir.path());
+    let p = dir.path().join("run.toml");
+    std::fs::write(&p, &text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    let InitMode::Given(g) = c.init.mode().unwrap() else {
+        panic!()
+    };
+    assert_eq!(g.rpy_deg, [0.0, 0.0, 45.0]);
+    assert_eq!(c.noise.model, BiasModel::N);
+    assert_eq!(c.gnss.max_q, 6);
+    assert_eq!(c.gnss.sigma_scale, 1.0);
+    let acc = c.noise.accel.to_sensor_noise().unwrap();
+    assert!(rel(acc.s_n[0], (0.03f64 / 60.0).powi(2)) < 1e-12);
+    assert!(rel(acc.bias_init_sigma[0], 100e-6 * 9.80665) < 1e-12);
+    let gyr = c.noise.gyro.to_sensor_noise().unwrap();
+    let sig = 0.5f64.to_radians() / 3600.0;
+    assert!(rel(gyr.s_b[0], 2.0 * sig * sig / 3600.0) < 1e-12);
+    assert_eq!(gyr.t_b_s, 3600.0);
+    assert_eq!(c.noise.gyro_scale.as_ref().unwrap().sigma_ppm, 300.0);
+    let inp = c.load_inputs(dir.path()).unwrap();
+    assert_eq!(inp.imu.samples.len(), 10);
+    assert!((inp.imu.samples[0].t_s - 0.51).abs() < 1e-12);
+    // yaw 90 mounting: IMU z stays z; an IMU x increment would go to body -y
+    assert!((inp.imu.samples[0].dv_mps[2] + 0.098).abs() < 1e-15);
+    assert!((inp.imu.samples[0].dtheta_rad[2] - 1e-4).abs() < 1e-18);
+    assert!((inp.gnss[0].t_s - 0.04).abs() < 1e-12);
+    // round trip through the writer
+    let p2 = dir.path().join("again.toml");
+    write_run_config(&p2, &c).unwrap();
+    assert_eq!(read_run_config(&p2).unwrap(), c);
+}
+
+fn err_of(dir: &Path, text: &str) -> String {
+    let p = dir.join("bad_run.toml");
+    std::fs::write(&p, text).unwrap();
+    let e = read_run_config(&p).unwrap_err();
+    assert!(matches!(e, IoError::Config { .. }), "{e:?}");
+    let m = e.to_string();
+    assert!(m.contains("bad_run.toml"), "{m}");
+    m
+}
+
+#[test]
+fn run_config_errors_name_the_file_and_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = base_toml(dir.path());
+    // misspelt key: rejected with its line
+    let m = err_of(
+        dir.path(),
+        &base.replace("time_offset_s = 0.5", "time_ofset_s = 0.5"),
+    );
+    assert!(m.contains("time_ofset_s") && m.contains("line"), "{m}");
+    // wrong type
+    let m = err_of(
+        dir.path(),
+        &base
+            .replace("max_q", "x")
+            .replace("lever_arm_m = [0.1, 0.2, -0.3]", "lever_arm_m = \"up\""),
+    );
+    assert!(m.contains("lever_arm_m") || m.contains("line"), "{m}");
+    // two alternatives for one quantity
+    let m = err_of(
+        dir.path(),
+        &base.replace(
+            "vrw_mps_per_sqrt_h = 0.03",
+            "vrw_mps_per_sqrt_h = 0.03\nn_ug_per_sqrt_hz = 50.0",
+        ),
+    );
+    assert!(
+        m.contains("only one of") && m.contains("vrw_mps_per_sqrt_h"),
+        "{m}"
+    );
+    // Gauss-Markov sigma without a correlation time
+    let m = err_of(dir.path(), &base.replace("t_b_s = 3600.0\n", ""));
+    assert!(m.contains("t_b_s"), "{m}");
+    // both init modes
+    let m = err_of(
+        dir.path(),
+        &base.replace("[noise]\n", "[init.align]\nstatic_s = 10.0\n[noise]\n"),
+    );
+    assert!(m.contains("exactly one"), "{m}");
+    // csv without mapping
+    let m = err_of(
+        dir.path(),
+        &base.replace(
+            "format = \"text\"\ntime_offset_s",
+            "format = \"csv\"\ntime_offset_s",
+        ),
+    );
+    assert!(m.contains("[imu.csv]"), "{m}");
+    // negative sigma, bad quality bound
+    let m = err_of(
+        dir.path(),
+        &base.replace(
+            "pos_std_m = [1.0, 1.0, 2.0]",
+            "pos_std_m = [1.0, -1.0, 2.0]",
+        ),
+    );
+    assert!(m.contains("init sigmas"), "{m}");
+    let m = err_of(
+        dir.path(),
+        &base.replace("lever_arm_m", "max_q = 9\nlever_arm_m"),
+    );
+    assert!(m.contains("max_q"), "{m}");
+}
