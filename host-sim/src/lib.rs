@@ -11,3 +11,4 @@ pub mod noise;
 pub mod sim;
 pub mod run;
 pub mod study;
+pub mod metrics;

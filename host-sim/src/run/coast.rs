@@ -24,14 +24,14 @@ use nav_core::nav::{NavState, Strapdown};
 use nav_core::types::NavSolution;
 
 /// The sensor-error correction applied while coasting (see the module notes).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum CoastMode {
     /// No correction of the raw IMU samples.
     Raw,
     /// The filter's estimates at the outage start, held.
     Held,
     /// A fixed correction.
-    Fixed(ImuCorrection),
+    Fixed(Box<ImuCorrection>),
 }
 
 /// A coasting solution through one outage.
@@ -84,10 +84,10 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
         let Some(o) = run.outages.get(snap.outage) else {
             continue;
         };
-        let corr = match mode {
+        let corr = match &mode {
             CoastMode::Raw => ImuCorrection::default(),
             CoastMode::Held => snap.correction,
-            CoastMode::Fixed(c) => c,
+            CoastMode::Fixed(c) => **c,
         };
         let withheld: Vec<&InnovationRecord> = run
             .innovations

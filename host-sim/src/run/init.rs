@@ -59,6 +59,11 @@ pub struct StaticAlign {
     pub heading_std_rad: f64,
     /// Distance the antenna must move for the GNSS course, m.
     pub course_distance_m: f64,
+    /// When set and the fixes carry velocities: the course is that of the first fix after the
+    /// window whose horizontal speed reaches this, m/s (instead of the displacement rule).
+    pub course_min_speed_mps: Option<f64>,
+    /// Overrides the levelling's roll/pitch 1-sigma, rad (e.g. a configured floor).
+    pub tilt_std_rad: Option<f64>,
     /// Start the gyro-bias estimate at the static mean rate minus the earth rate.
     pub gyro_bias_from_static: bool,
     /// Static-detection thresholds (the assumed sensor biases for the attitude uncertainty
@@ -77,6 +82,8 @@ impl StaticAlign {
             heading_rad: None,
             heading_std_rad: 10f64.to_radians(),
             course_distance_m: 5.0,
+            course_min_speed_mps: None,
+            tilt_std_rad: None,
             gyro_bias_from_static: true,
             align: AlignConfig::default(),
             vel_sigma_mps: 0.02,
@@ -106,6 +113,8 @@ pub struct InitReport {
 }
 
 pub(crate) struct Start {
+    /// Lower bound of the initial gyro-bias sigma (the static calibration's own noise).
+    pub gyro_bias_sigma_floor: Option<[f64; 3]>,
     pub state: NavState,
     pub unc: InitialUncertainty,
     pub estimates: Vec<(BlockKind, [f64; 3])>,
@@ -124,6 +133,7 @@ pub(crate) fn initialise(
     let start_s = opts.start_s.unwrap_or(f64::NEG_INFINITY);
     match &opts.init {
         InitSpec::Given(state, unc) => Ok(Start {
+            gyro_bias_sigma_floor: None,
             state: *state,
             unc: *unc,
             estimates: Vec::new(),
@@ -163,6 +173,7 @@ pub(crate) fn initialise(
                 q_nb: q,
             };
             Ok(Start {
+                gyro_bias_sigma_floor: None,
                 state,
                 unc: *unc,
                 estimates: Vec::new(),
@@ -246,16 +257,28 @@ fn static_alignment(
             "given".to_string(),
         ),
         None => {
-            let (yaw, t, d) = gnss_course(case, &ant, t_b, sa.course_distance_m)?;
+            let by_speed = sa
+                .course_min_speed_mps
+                .and_then(|v| gnss_velocity_course(case, t_b, v));
+            let (yaw, what) = match by_speed {
+                Some((yaw, t, v)) => (
+                    yaw,
+                    format!("GNSS velocity course at {v:.2} m/s (fix at {t:.2} s)"),
+                ),
+                None => {
+                    let (yaw, t, d) = gnss_course(case, &ant, t_b, sa.course_distance_m)?;
+                    (
+                        yaw,
+                        format!("GNSS course over the first {d:.1} m of motion (fix at {t:.2} s)"),
+                    )
+                }
+            };
             (
                 HeadingSource::Given {
                     yaw_rad: yaw,
                     std_rad: sa.heading_std_rad,
                 },
-                format!(
-                    "GNSS course over the first {d:.1} m of motion (fix at {t:.2} s): {:.2} deg",
-                    yaw.to_degrees()
-                ),
+                format!("{what}: {:.2} deg", yaw.to_degrees()),
             )
         }
     };
@@ -282,16 +305,26 @@ fn static_alignment(
     let w_ie_b = c.transpose() * earth::earth_rate_ned_radps(pos.lat_rad);
     let bias: [f64; 3] = (Vector3::from(al.mean_omega_body_radps) - w_ie_b).into();
     let mut estimates = Vec::new();
+    let mut floor = None;
     if sa.gyro_bias_from_static {
         estimates.push((BlockKind::GyroBias, bias));
+        // the static mean carries the angle random walk averaged over the window:
+        // sigma = sqrt(S_N / T); the filter must not believe the estimate better than that
+        floor = Some(cfg.gyro.s_n.map(|s| (s / al.duration_s.max(1e-9)).sqrt()));
     }
     let pos_sigma = mean_std.map(|s| s.max(0.005) + 0.01);
+    let mut att_sigma = al.att_std_rad;
+    if let Some(t) = sa.tilt_std_rad {
+        att_sigma[0] = t;
+        att_sigma[1] = t;
+    }
     let unc = InitialUncertainty {
-        att_sigma_rad: al.att_std_rad,
+        att_sigma_rad: att_sigma,
         vel_sigma_mps: [sa.vel_sigma_mps; 3],
         pos_sigma_m: pos_sigma,
     };
     Ok(Start {
+        gyro_bias_sigma_floor: floor,
         state,
         unc,
         estimates,
@@ -299,7 +332,7 @@ fn static_alignment(
             t_s: al.t_end_s,
             method: "static_alignment".into(),
             rpy_rad: al.rpy_rad,
-            att_sigma_rad: al.att_std_rad,
+            att_sigma_rad: att_sigma,
             heading_source: heading.1,
             static_gyro_bias_radps: Some(bias),
             static_mean_f_mps2: Some(al.mean_f_body_mps2),
@@ -332,4 +365,21 @@ fn gnss_course(
         "no heading given and the antenna never moves {dist_m} m after the static window \
          (GNSS course unavailable)"
     )))
+}
+
+/// The course of the first fix after `t_after` with a velocity of at least `min_speed_mps`
+/// horizontally: (yaw rad, fix time, speed).
+fn gnss_velocity_course(
+    case: &CaseData,
+    t_after: f64,
+    min_speed_mps: f64,
+) -> Option<(f64, f64, f64)> {
+    case.gnss
+        .iter()
+        .filter(|g| g.t_s > t_after && g.is_valid() && g.has_velocity)
+        .find_map(|g| {
+            let [vn, ve, _] = g.vel_ned_mps;
+            let v = vn.hypot(ve);
+            (v >= min_speed_mps).then(|| (ve.atan2(vn), g.t_s, v))
+        })
 }

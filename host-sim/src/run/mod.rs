@@ -21,11 +21,11 @@
 //! covariance scalar ([`Precision`]) is f64 by default, f32 allowed. Adding a model is one line
 //! in [`run_filter_with_progress`]'s dispatch macro.
 
-// pub mod cli;
+pub mod cli;
 pub mod coast;
 pub mod init;
 pub mod outage;
-// pub mod output;
+pub mod output;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};
 pub use init::{InitReport, InitSpec, StaticAlign};
@@ -603,6 +603,11 @@ fn run_layout<T: Scalar, const N: usize>(
         }
     }
     let start = init::initialise(case, opts, &cfg)?;
+    if let Some(fl) = start.gyro_bias_sigma_floor {
+        for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
+            *s = s.max(f);
+        }
+    }
     let InitReport { t_s: t0, .. } = start.report;
     let mut filter = Filter::<T, N>::new(layout, &cfg, start.state, &start.unc)
         .map_err(|e| filter_err(t0, e))?;

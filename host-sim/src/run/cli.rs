@@ -1,0 +1,584 @@
+//! `host-sim run --config FILE [--case DIR] ...`: the filter on files.
+//!
+//! The configuration is the project's run configuration (TOML, [`crate::io::RunConfig`]) or a
+//! KF-GINS YAML file (detected by the extension `.yaml`/`.yml`, or by content: a TOML parse
+//! failure followed by a successful KF-GINS parse). A KF-GINS file runs the 21-state KF-GINS
+//! model with `FilterConfig::from_kf_gins`, its initial state (`initpos` is the IMU position at
+//! `starttime`), initial sensor errors and lever arm.
+//!
+//! `--case DIR` reads a case written by `host-sim simulate` (`case.toml` names the files;
+//! its outages are added to the outage list so the metrics cover them). A KF-GINS file inside
+//! such a case directory also picks up the case's `truth.nav`, outages and GPS week.
+//!
+//! Outputs in `--out` (default `run-out`): `nav.txt`, `std.txt`, `bias.txt`,
+//! `innovations.txt`, `metrics.json` (against the truth when there is one, else against the
+//! withheld fixes; with outages also free-inertial coasting baselines, see
+//! [`super::coast`]).
+
+use super::coast::{coast_outages, CoastMode};
+use super::init::{InitSpec, StaticAlign};
+use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
+use super::output;
+use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
+use crate::io::{
+    read_gnss_text, read_imu_csv, read_imu_text, read_kf_gins_yaml, read_nav_text, read_rtklib_pos,
+    read_run_config, BiasModel, GnssFileKind, ImuFileKind, InitMode, KfGinsConfig, PosOptions,
+    RunConfig, TruthFileKind,
+};
+use crate::metrics::{self, Metrics};
+use crate::sim::CaseFile;
+use anyhow::{bail, Context};
+use nalgebra::Vector3;
+use nav_core::config::{FilterConfig, ScaleFactorNoise};
+use nav_core::earth::Llh;
+use nav_core::filter::InitialUncertainty;
+use nav_core::model::{BlockKind, ImuCorrection};
+use nav_core::nav::NavState;
+use nav_core::types::NavSolution;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `host-sim run`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RunArgs {
+    /// Run configuration: the project's TOML, or a KF-GINS YAML file.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// A case directory written by `host-sim simulate` (its files replace the configuration's).
+    #[arg(long)]
+    pub case: Option<PathBuf>,
+    /// Reference trajectory in the nav format (overrides the configuration's).
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins).
+    #[arg(long, value_enum)]
+    pub model: Option<Model>,
+    /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable).
+    #[arg(long = "outage", value_parser = parse_outage)]
+    pub outages: Vec<Outage>,
+    /// Repeating outages FIRST:DURATION:PERIOD, seconds, FIRST after the first IMU epoch
+    /// (repeatable), e.g. 120:30:60.
+    #[arg(long = "periodic-outage", value_parser = parse_periodic)]
+    pub periodic_outages: Vec<PeriodicOutages>,
+    /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
+    #[arg(long)]
+    pub kf_gins_outages: bool,
+    /// Rate of nav.txt, Hz (default: every IMU epoch).
+    #[arg(long)]
+    pub nav_rate: Option<f64>,
+    /// Rate of std.txt and bias.txt, Hz.
+    #[arg(long, default_value_t = 10.0)]
+    pub std_rate: f64,
+    /// Output directory.
+    #[arg(long, default_value = "run-out")]
+    pub out: PathBuf,
+    /// f32 covariance (as on the MCU) instead of f64.
+    #[arg(long)]
+    pub f32: bool,
+    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
+    #[arg(long, allow_hyphen_values = true)]
+    pub imu_time_offset: Option<f64>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl RunArgs {
+    /// Arguments with defaults for a configuration file (for programmatic use).
+    pub fn new(config: impl Into<PathBuf>) -> Self {
+        Self {
+            config: config.into(),
+            case: None,
+            truth: None,
+            model: None,
+            outages: Vec::new(),
+            periodic_outages: Vec::new(),
+            kf_gins_outages: false,
+            nav_rate: None,
+            std_rate: 10.0,
+            out: PathBuf::from("run-out"),
+            f32: false,
+            imu_time_offset: None,
+            quiet: true,
+        }
+    }
+}
+
+/// A case loaded from files, ready to run.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The data.
+    pub case: CaseData,
+    /// The options.
+    pub opts: RunOptions,
+    /// GPS week of the data (0 when unknown).
+    pub week: u16,
+    /// What was loaded (for the report).
+    pub description: String,
+}
+
+/// Which kind of configuration a file is.
+pub enum ConfigKind {
+    /// The project's TOML.
+    Run(Box<RunConfig>),
+    /// A KF-GINS YAML file.
+    KfGins(Box<KfGinsConfig>),
+}
+
+/// Reads a configuration: `.yaml`/`.yml` as KF-GINS, otherwise the project's TOML (and a TOML
+/// that does not parse is tried as KF-GINS YAML before its error is reported).
+pub fn read_config(path: &Path) -> anyhow::Result<ConfigKind> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ext == "yaml" || ext == "yml" {
+        return Ok(ConfigKind::KfGins(Box::new(read_kf_gins_yaml(path)?)));
+    }
+    match read_run_config(path) {
+        Ok(c) => Ok(ConfigKind::Run(Box::new(c))),
+        Err(e) => match read_kf_gins_yaml(path) {
+            Ok(k) => Ok(ConfigKind::KfGins(Box::new(k))),
+            Err(_) => Err(e.into()),
+        },
+    }
+}
+
+struct CaseDir {
+    imu: PathBuf,
+    gnss: PathBuf,
+    truth: PathBuf,
+    outages: Vec<Outage>,
+    week: u16,
+}
+
+fn read_case_dir(dir: &Path) -> anyhow::Result<CaseDir> {
+    let cf = CaseFile::from_file(&dir.join("case.toml"))?;
+    Ok(CaseDir {
+        imu: dir.join(&cf.files.imu),
+        gnss: dir.join(&cf.files.gnss),
+        truth: dir.join(&cf.files.truth),
+        outages: cf
+            .outages
+            .iter()
+            .map(|o| Outage {
+                start_s: o.start_sow,
+                duration_s: o.duration_s,
+            })
+            .collect(),
+        week: cf.summary.gps_week,
+    })
+}
+
+fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
+    // small angles: roll/pitch/yaw sigmas as phi N/E/D sigmas (exact at zero roll/pitch)
+    att_std_rad
+}
+
+/// Loads everything a run needs from the arguments.
+pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
+    let kind = read_config(&args.config)
+        .with_context(|| format!("reading the configuration {}", args.config.display()))?;
+    let cfg_dir = args
+        .config
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    // a case directory: given, or the configuration's own folder when it holds a case.toml
+    let case_dir = match &args.case {
+        Some(d) => Some(read_case_dir(d)?),
+        None if cfg_dir.join("case.toml").exists() && matches!(kind, ConfigKind::KfGins(_)) => {
+            Some(read_case_dir(&cfg_dir)?)
+        }
+        None => None,
+    };
+    let (mut case, mut opts, mut week, mut description) = match kind {
+        ConfigKind::KfGins(k) => prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref())?,
+        ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref())?,
+    };
+    if let Some(cd) = &case_dir {
+        week = cd.week;
+        if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
+            case.truth = Some(read_nav_text(&cd.truth)?);
+            description.push_str(&format!("; truth {}", cd.truth.display()));
+        }
+        opts.outages.extend(cd.outages.iter().copied());
+    }
+    if let Some(t) = &args.truth {
+        case.truth = Some(read_nav_text(t)?);
+        description.push_str(&format!("; truth {}", t.display()));
+    }
+    if let Some(dt) = args.imu_time_offset {
+        for s in &mut case.imu {
+            s.t_s += dt;
+        }
+        description.push_str(&format!("; IMU time offset {dt:+} s"));
+    }
+    if let Some(m) = args.model {
+        opts.model = m;
+    }
+    if args.f32 {
+        opts.precision = Precision::F32;
+    }
+    let (t0, t_end) = match (case.imu.first(), case.imu.last()) {
+        (Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => bail!("no IMU samples in the data"),
+    };
+    let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
+    let t_end = opts.end_s.map_or(t_end, |e| e.min(t_end));
+    opts.outages
+        .extend(args.outages.iter().map(|o| o.shifted(t0)));
+    let mut periodic = args.periodic_outages.clone();
+    if args.kf_gins_outages {
+        periodic.push(PeriodicOutages::KF_GINS);
+    }
+    for p in &periodic {
+        opts.outages.extend(p.expand(t0, t_end));
+    }
+    opts.record.nav_rate_hz = None;
+    opts.record.epoch_rate_hz = Some(args.std_rate);
+    Ok(Prepared {
+        case,
+        opts,
+        week,
+        description,
+    })
+}
+
+fn prepare_kf_gins(
+    k: &KfGinsConfig,
+    dir: &Path,
+    case_dir: Option<&CaseDir>,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    k.validate()
+        .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
+    let (imu_p, gnss_p) = match case_dir {
+        Some(c) => (c.imu.clone(), c.gnss.clone()),
+        None => (
+            k.resolve_path(&k.imupath, dir),
+            k.resolve_path(&k.gnsspath, dir),
+        ),
+    };
+    let imu = read_imu_text(&imu_p)?.samples;
+    let gnss = read_gnss_text(&gnss_p)?;
+    let noise = k.imu_noise();
+    let mut filter = FilterConfig::from_kf_gins(&noise);
+    // KF-GINS's initial bias std: variance = stationary GM variance + bias_init_sigma^2
+    let extra = |init: [f64; 3], stat: [f64; 3]| {
+        [0, 1, 2].map(|i| (init[i] * init[i] - stat[i] * stat[i]).max(0.0).sqrt())
+    };
+    filter.gyro.bias_init_sigma = extra(k.init_bg_std_radps(), k.imunoise.gbstd_radps());
+    filter.accel.bias_init_sigma = extra(k.init_ba_std_mps2(), k.imunoise.abstd_mps2());
+    filter.gyro_scale = ScaleFactorNoise {
+        sigma: k.init_sg_std(),
+        t_s: filter.gyro_scale.t_s,
+    };
+    filter.accel_scale = ScaleFactorNoise {
+        sigma: k.init_sa_std(),
+        t_s: filter.accel_scale.t_s,
+    };
+    let [lat, lon, h] = k.initpos;
+    let state = NavState::from_rpy(
+        k.starttime,
+        Llh::from_deg(lat, lon, h),
+        Vector3::from(k.initvel),
+        k.init_rpy_rad(),
+    );
+    let unc = InitialUncertainty {
+        att_sigma_rad: rpy_sigma_to_phi(k.init_att_std_rad()),
+        vel_sigma_mps: k.initvelstd,
+        pos_sigma_m: k.initposstd,
+    };
+    let mut opts = RunOptions::new(Model::KfGins21, filter, InitSpec::Given(state, unc));
+    opts.lever_arm_m = k.antlever;
+    opts.start_s = Some(k.starttime);
+    opts.end_s = k.end_time_s();
+    opts.initial_estimates = vec![
+        (BlockKind::GyroBias, k.init_gyr_bias_radps()),
+        (BlockKind::AccelBias, k.init_acc_bias_mps2()),
+        (BlockKind::GyroScaleFactor, k.init_gyr_scale()),
+        (BlockKind::AccelScaleFactor, k.init_acc_scale()),
+    ];
+    let week = case_dir.map_or(0, |c| c.week);
+    let d = format!(
+        "KF-GINS configuration: IMU {}, GNSS {}",
+        imu_p.display(),
+        gnss_p.display()
+    );
+    Ok((
+        CaseData {
+            imu,
+            gnss,
+            truth: None,
+        },
+        opts,
+        week,
+        d,
+    ))
+}
+
+fn prepare_run_config(
+    r: &RunConfig,
+    dir: &Path,
+    case_dir: Option<&CaseDir>,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    let mut week = 0u16;
+    let (imu, imu_p) = match case_dir {
+        Some(c) => (read_imu_text(&c.imu)?.samples, c.imu.clone()),
+        None => {
+            let p = RunConfig::resolve(dir, &r.imu.path);
+            let mut rec = match r.imu.format {
+                ImuFileKind::Text => read_imu_text(&p)?,
+                ImuFileKind::Csv => {
+                    let fmt = r
+                        .imu
+                        .csv
+                        .as_ref()
+                        .context("imu.format = \"csv\" needs an [imu.csv] mapping")?;
+                    read_imu_csv(&p, fmt)?
+                }
+            };
+            r.imu.mounting.rotate_increments(&mut rec.samples);
+            for s in &mut rec.samples {
+                s.t_s += r.imu.time_offset_s;
+            }
+            (rec.samples, p)
+        }
+    };
+    let (mut gnss, gnss_p) = match case_dir {
+        Some(c) => (read_gnss_text(&c.gnss)?, c.gnss.clone()),
+        None => {
+            let p = RunConfig::resolve(dir, &r.gnss.path);
+            let fixes = match r.gnss.format {
+                GnssFileKind::Text => read_gnss_text(&p)?,
+                GnssFileKind::RtklibPos => {
+                    let rec = read_rtklib_pos(
+                        &p,
+                        &PosOptions {
+                            max_q: r.gnss.max_q,
+                        },
+                    )?;
+                    if let Some(w) = rec.week {
+                        week = u16::try_from(w).unwrap_or(0);
+                    }
+                    rec.fixes
+                }
+            };
+            (fixes, p)
+        }
+    };
+    for g in &mut gnss {
+        g.t_s += r.gnss.time_offset_s;
+        for s in &mut g.pos_std_ned_m {
+            *s *= r.gnss.sigma_scale;
+        }
+        for s in &mut g.vel_std_ned_mps {
+            *s *= r.gnss.sigma_scale;
+        }
+    }
+    let truth = match (&r.truth, case_dir) {
+        (_, Some(c)) if c.truth.exists() => Some(read_nav_text(&c.truth)?),
+        (Some(t), _) => {
+            let p = RunConfig::resolve(dir, &t.path);
+            Some(match t.format {
+                TruthFileKind::NavText => read_nav_text(&p)?,
+                TruthFileKind::RtklibPos => read_rtklib_pos(&p, &PosOptions::default())?
+                    .fixes
+                    .iter()
+                    .map(|f| NavSolution {
+                        t_s: f.t_s,
+                        lat_rad: f.lat_rad,
+                        lon_rad: f.lon_rad,
+                        h_m: f.h_m,
+                        vel_ned_mps: if f.has_velocity {
+                            f.vel_ned_mps
+                        } else {
+                            [f64::NAN; 3]
+                        },
+                        rpy_rad: [f64::NAN; 3],
+                        ..NavSolution::default()
+                    })
+                    .collect(),
+            })
+        }
+        _ => None,
+    };
+    let accel = r
+        .noise
+        .accel
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let gyro = r
+        .noise
+        .gyro
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let mut filter = FilterConfig::with_noise(accel, gyro);
+    if let Some(s) = &r.noise.accel_scale {
+        filter.accel_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    if let Some(s) = &r.noise.gyro_scale {
+        filter.gyro_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    filter.use_gnss_velocity = r.gnss.use_velocity;
+    let model = match r.noise.model {
+        BiasModel::N => Model::N,
+        BiasModel::Nbk => Model::Nbk,
+        BiasModel::NbkSingleState => Model::NbkSingle,
+    };
+    let ic = &r.init;
+    let att_std = ic.att_std_deg.map(f64::to_radians);
+    let unc = InitialUncertainty {
+        att_sigma_rad: rpy_sigma_to_phi(att_std),
+        vel_sigma_mps: ic.vel_std_mps,
+        pos_sigma_m: ic.pos_std_m,
+    };
+    let init = match ic.mode().map_err(|e| anyhow::anyhow!(e))? {
+        InitMode::Given(g) => {
+            let [lat, lon, h] = g.pos_deg_deg_m;
+            let t = r
+                .start_s
+                .or_else(|| imu.first().map(|s| s.t_s))
+                .unwrap_or(0.0);
+            InitSpec::Given(
+                NavState::from_rpy(
+                    t,
+                    Llh::from_deg(lat, lon, h),
+                    Vector3::from(g.vel_ned_mps),
+                    g.rpy_deg.map(f64::to_radians),
+                ),
+                unc,
+            )
+        }
+        InitMode::Align(a) => {
+            let mut sa = StaticAlign::new(a.static_s);
+            sa.heading_rad = a.yaw_deg.map(f64::to_radians);
+            sa.heading_std_rad = att_std[2];
+            sa.course_min_speed_mps = Some(a.yaw_from_gnss_min_speed_mps);
+            sa.align.max_gravity_mismatch_mps2 = a.max_gravity_mismatch_mps2;
+            sa.vel_sigma_mps = ic.vel_std_mps.iter().fold(0.0, |m, v| m.max(*v));
+            sa.tilt_std_rad = Some(att_std[0].max(att_std[1]));
+            InitSpec::StaticAlignment(sa)
+        }
+    };
+    let mut opts = RunOptions::new(model, filter, init);
+    opts.lever_arm_m = r.gnss.lever_arm_m;
+    opts.start_s = r.start_s;
+    opts.end_s = r.end_s;
+    let d = format!(
+        "run configuration `{}`: IMU {}, GNSS {}",
+        r.name,
+        imu_p.display(),
+        gnss_p.display()
+    );
+    Ok((CaseData { imu, gnss, truth }, opts, week, d))
+}
+
+/// Runs the filter and computes the metrics (with coasting baselines when there are outages).
+pub fn execute(
+    p: &Prepared,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let out = run_filter_with_progress(&p.case, &p.opts, progress)?;
+    let truth = p.case.truth.as_deref();
+    let mut m = metrics::compute(&out, truth);
+    if !out.snapshots.is_empty() {
+        let raw = coast_outages(&p.case, &out, CoastMode::Raw);
+        m.coasting.push(metrics::coasting_metrics(
+            "raw: no sensor-error correction",
+            &raw,
+            &out.outages,
+            truth,
+        ));
+        if let Some(b) = out.init.static_gyro_bias_radps {
+            let c = ImuCorrection {
+                gyro_bias_radps: b,
+                ..ImuCorrection::default()
+            };
+            let st = coast_outages(&p.case, &out, CoastMode::Fixed(Box::new(c)));
+            m.coasting.push(metrics::coasting_metrics(
+                "static gyro bias only",
+                &st,
+                &out.outages,
+                truth,
+            ));
+        }
+    }
+    Ok((out, m))
+}
+
+/// Runs `host-sim run`.
+pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    let t = std::time::Instant::now();
+    let p = prepare(&args)?;
+    println!("{}", p.description);
+    let pb = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(p.case.imu.len() as u64)
+    };
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} IMU samples {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let (out, m) = execute(&p, &mut |done, _| pb.set_position(done as u64))?;
+    pb.finish_and_clear();
+    let t_run = t.elapsed().as_secs_f64();
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let nav: Vec<NavSolution> = match args.nav_rate {
+        Some(r) if r > 0.0 => decimate(&out.nav, r),
+        _ => out.nav.clone(),
+    };
+    output::write_nav(&dir.join("nav.txt"), &nav, p.week)?;
+    output::write_std(&dir.join("std.txt"), &out)?;
+    output::write_bias(&dir.join("bias.txt"), &out)?;
+    output::write_innovations(&dir.join("innovations.txt"), &out.innovations)?;
+    let mp = dir.join("metrics.json");
+    std::fs::write(&mp, serde_json::to_string_pretty(&m)?)
+        .with_context(|| format!("writing {}", mp.display()))?;
+    let c = &out.counters;
+    println!(
+        "model {} ({} states), init: {} ({})",
+        out.model.name(),
+        out.state_names.len(),
+        out.init.method,
+        out.init.heading_source
+    );
+    println!(
+        "{} IMU epochs, GNSS: {} used ({} forced), {} rejected, {} withheld in {} outage(s), {} invalid; {:.2} s",
+        c.imu_epochs,
+        c.gnss_accepted,
+        c.gnss_forced,
+        c.gnss_rejected,
+        c.gnss_withheld,
+        out.outages.len(),
+        c.gnss_invalid,
+        t_run
+    );
+    print!("{}", metrics::summary_table(&m));
+    println!(
+        "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.
+pub fn decimate(nav: &[NavSolution], rate_hz: f64) -> Vec<NavSolution> {
+    let Some(first) = nav.first() else {
+        return Vec::new();
+    };
+    let p = 1.0 / rate_hz;
+    let mut next = first.t_s;
+    let mut out = Vec::new();
+    for s in nav {
+        if s.t_s + 1e-6 * p >= next {
+            out.push(*s);
+            while next <= s.t_s + 1e-6 * p {
+                next += p;
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,142 @@
+//! Output files of `host-sim run`: `nav.txt` (nav format), `std.txt` (state standard
+//! deviations), `bias.txt` (IMU error estimates) and `innovations.txt`.
+
+use super::{EpochRecord, FixUse, InnovationRecord, RunOutput};
+use crate::io::{write_nav_text, IoError};
+use nav_core::types::NavSolution;
+use std::io::Write;
+use std::path::Path;
+
+fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, IoError> {
+    let f = std::fs::File::create(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(std::io::BufWriter::new(f))
+}
+
+fn werr(path: &Path) -> impl Fn(std::io::Error) -> IoError + '_ {
+    move |source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes the navigation solution with the GPS week filled in.
+pub fn write_nav(path: &Path, nav: &[NavSolution], week: u16) -> Result<(), IoError> {
+    let v: Vec<NavSolution> = nav.iter().map(|s| NavSolution { week, ..*s }).collect();
+    write_nav_text(path, &v)
+}
+
+/// `std.txt`: `t_s` then the 1-sigma of every error state (SI units named in the header).
+pub fn write_std(path: &Path, run: &RunOutput) -> Result<(), IoError> {
+    let mut w = create(path)?;
+    let e = werr(path);
+    writeln!(
+        w,
+        "# host-sim run: 1-sigma of the error states (sqrt of the covariance diagonal), model {}",
+        run.model.name()
+    )
+    .map_err(&e)?;
+    writeln!(w, "# t_s {}", run.state_names.join(" ")).map_err(&e)?;
+    for r in &run.epochs {
+        write!(w, "{:.4}", r.t_s).map_err(&e)?;
+        for s in &r.state_std {
+            write!(w, " {s:.6e}").map_err(&e)?;
+        }
+        writeln!(w).map_err(&e)?;
+    }
+    w.flush().map_err(&e)
+}
+
+fn unit_of(name: &str) -> (&'static str, f64) {
+    match name {
+        "gyro_bias" => ("deg_per_h", 180.0 / std::f64::consts::PI * 3600.0),
+        "accel_bias" => ("mg", 1.0 / (9.806_65e-3)),
+        n if n.contains("scale") => ("ppm", 1e6),
+        _ => ("si", 1.0),
+    }
+}
+
+/// `bias.txt`: `t_s` then per IMU error quantity the estimate (x, y, z) and its 1-sigma, in
+/// deg/h (gyro bias), mg (accelerometer bias, 1 mg = 9.80665e-3 m/s^2) and ppm (scale factors).
+pub fn write_bias(path: &Path, run: &RunOutput) -> Result<(), IoError> {
+    let mut w = create(path)?;
+    let e = werr(path);
+    writeln!(
+        w,
+        "# host-sim run: IMU error estimates (total over the block's processes) and 1-sigma"
+    )
+    .map_err(&e)?;
+    let first: Option<&EpochRecord> = run.epochs.first();
+    let mut head = String::from("# t_s");
+    if let Some(r) = first {
+        for b in &r.blocks {
+            let (u, _) = unit_of(&b.name);
+            for a in ["x", "y", "z"] {
+                head.push_str(&format!(" {}_{a}_{u}", b.name));
+            }
+            for a in ["x", "y", "z"] {
+                head.push_str(&format!(" {}_std_{a}_{u}", b.name));
+            }
+        }
+    }
+    writeln!(w, "{head}").map_err(&e)?;
+    for r in &run.epochs {
+        write!(w, "{:.4}", r.t_s).map_err(&e)?;
+        for b in &r.blocks {
+            let (_, k) = unit_of(&b.name);
+            for v in b.value.iter().chain(b.std.iter()) {
+                write!(w, " {:.6}", v * k).map_err(&e)?;
+            }
+        }
+        writeln!(w).map_err(&e)?;
+    }
+    w.flush().map_err(&e)
+}
+
+fn use_name(u: FixUse) -> &'static str {
+    match u {
+        FixUse::Accepted => "accepted",
+        FixUse::Forced => "forced",
+        FixUse::Rejected => "rejected",
+        FixUse::Withheld => "withheld",
+        FixUse::Invalid => "invalid",
+    }
+}
+
+/// `innovations.txt`: one line per GNSS fix.
+pub fn write_innovations(path: &Path, recs: &[InnovationRecord]) -> Result<(), IoError> {
+    let mut w = create(path)?;
+    let e = werr(path);
+    writeln!(
+        w,
+        "# host-sim run: GNSS fixes against the solution. innovation = measured - predicted \
+         antenna position (NED, m) [and velocity, m/s]; var = diagonal of S = H P H^T + R; \
+         withheld = inside an imposed outage (no update, var/NIS not computed)"
+    )
+    .map_err(&e)?;
+    writeln!(
+        w,
+        "# t_s use outage dim q inn_n_m inn_e_m inn_d_m inn_vn_mps inn_ve_mps inn_vd_mps \
+         var_n var_e var_d var_vn var_ve var_vd nis nis_threshold"
+    )
+    .map_err(&e)?;
+    for r in recs {
+        write!(
+            w,
+            "{:.4} {} {} {} {}",
+            r.t_s,
+            use_name(r.used),
+            r.outage.map_or(-1, |o| o as i64),
+            r.dim,
+            r.quality
+        )
+        .map_err(&e)?;
+        for v in r.innovation.iter().chain(r.innovation_var.iter()) {
+            write!(w, " {v:.6e}").map_err(&e)?;
+        }
+        writeln!(w, " {:.4} {:.4}", r.nis, r.nis_threshold).map_err(&e)?;
+    }
+    w.flush().map_err(&e)
+}
