@@ -420,14 +420,22 @@ fn parse_record(
                 dl.num(p0 + 1, lay.name(p0 + 1))?,
                 dl.num(p0 + 2, lay.name(p0 + 2))?,
             );
-            if r.norm() < 1.0e6 {
+            let rn = r.norm();
+            if !(1.0e6..1.0e8).contains(&rn) {
                 return Err(dl.invalid(
                     p0,
                     lay.name(p0),
-                    "ECEF position closer than 1000 km to the earth's centre",
+                    "ECEF position not between 1000 km and 100000 km from the earth's centre",
                 ));
             }
             let llh = ecef_to_geodetic(&r);
+            if !(llh.lat_rad.is_finite() && llh.lon_rad.is_finite() && llh.h_m.is_finite()) {
+                return Err(dl.invalid(
+                    p0,
+                    lay.name(p0),
+                    "ECEF position does not convert to latitude/longitude/height",
+                ));
+            }
             let c = ecef_to_ned_dcm(&llh);
             fix.lat_rad = llh.lat_rad;
             fix.lon_rad = llh.lon_rad;

@@ -7,6 +7,10 @@
 //!   7 or 13 fields per line (a line either has all six velocity fields or none).
 //!   The format carries no quality flag: fixes read from it have [`FixQuality::Single`] and
 //!   `num_sats = 0` (the standard deviations are what the filter uses).
+//!   Caution: KF-GINS's own loader (`gnssfileloader.h`) reads the position standard
+//!   deviations of a 13-column file from columns 8-10, not 5-7; a 13-column file in this
+//!   (DESIGN.md) layout is therefore misread by KF-GINS. Files meant for KF-GINS should be
+//!   written without velocities (7 columns), which both read identically.
 //! - Navigation/truth: `week sow lat_deg lon_deg h_m vn ve vd roll_deg pitch_deg yaw_deg`.
 //!
 //! Time must increase strictly from line to line (nav files: week*604800 + sow). IMU time gaps
