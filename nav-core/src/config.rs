@@ -197,6 +197,101 @@ impl ScaleFactorNoise {
     }
 }
 
+/// Prior and process noise of an effect block (issue 7's effects: misalignment, lever arm,
+/// time offset, temperature coefficients, g-sensitivity): every state of the block is a random
+/// constant (`rw_psd` = 0) or a very slow random walk `x' = w`, `E[w w] = rw_psd delta(t)`,
+/// starting at `N(0, init_sigma^2)`. Units are those of the block's states (documented on each
+/// [`crate::model::Block`] variant): `init_sigma` in the state's unit, `rw_psd` in unit^2/s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectNoise {
+    /// Initial 1-sigma of every state of the block, in the state's unit.
+    pub init_sigma: f64,
+    /// Random-walk PSD, state unit^2/s (0 = random constant).
+    pub rw_psd: f64,
+}
+
+impl EffectNoise {
+    /// A random constant with initial sigma `init_sigma` (state unit).
+    pub const fn constant(init_sigma: f64) -> Self {
+        Self {
+            init_sigma,
+            rw_psd: 0.0,
+        }
+    }
+
+    /// A random walk starting at sigma `init_sigma` (state unit) with PSD `rw_psd`
+    /// (state unit^2/s).
+    pub const fn random_walk(init_sigma: f64, rw_psd: f64) -> Self {
+        Self { init_sigma, rw_psd }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.init_sigma.is_finite()
+            && self.init_sigma >= 0.0
+            && self.rw_psd.is_finite()
+            && self.rw_psd >= 0.0
+    }
+}
+
+/// The effect blocks' priors and process noise (used only by the blocks in the layout).
+/// Defaults ([`EffectsConfig::default`]) are wide tactical-grade priors, all random constants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EffectsConfig {
+    /// `accel_misalignment`: the 6 off-diagonal elements of the accelerometer triad's sensor
+    /// matrix, rad (dimensionless small angles).
+    pub accel_misalignment: EffectNoise,
+    /// `gyro_misalignment`: the 6 off-diagonal elements of the gyro triad's sensor matrix, rad.
+    pub gyro_misalignment: EffectNoise,
+    /// `lever_arm`: correction to the configured GNSS antenna lever arm, body FRD, m.
+    pub lever_arm: EffectNoise,
+    /// `time_offset`: IMU-GNSS time offset, s.
+    pub time_offset: EffectNoise,
+    /// `accel_temperature_bias`: accelerometer bias temperature coefficient, m/s^2/degC.
+    pub accel_temperature: EffectNoise,
+    /// `gyro_temperature_bias`: gyro bias temperature coefficient, rad/s/degC.
+    pub gyro_temperature: EffectNoise,
+    /// `gyro_g_sensitivity`: diagonal g-dependent gyro bias, rad/s per m/s^2.
+    pub gyro_g_sensitivity: EffectNoise,
+    /// Reference temperature T_ref of the temperature coefficients, degC; `None` = the first
+    /// IMU sample that carries a temperature.
+    pub temperature_ref_c: Option<f64>,
+}
+
+impl Default for EffectsConfig {
+    /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, accelerometer temperature
+    /// coefficient 100 ug/degC, gyro temperature coefficient 0.1 deg/h/degC, g-sensitivity
+    /// 1 deg/h/g; all random constants; T_ref = the first temperature.
+    fn default() -> Self {
+        Self {
+            accel_misalignment: EffectNoise::constant(1e-3),
+            gyro_misalignment: EffectNoise::constant(1e-3),
+            lever_arm: EffectNoise::constant(1.0),
+            time_offset: EffectNoise::constant(0.1),
+            accel_temperature: EffectNoise::constant(100.0 * units::UG_MPS2),
+            gyro_temperature: EffectNoise::constant(units::radps_from_deg_per_h(0.1)),
+            gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(1.0) / G0_MPS2),
+            temperature_ref_c: None,
+        }
+    }
+}
+
+impl EffectsConfig {
+    fn is_valid(&self) -> bool {
+        [
+            self.accel_misalignment,
+            self.gyro_misalignment,
+            self.lever_arm,
+            self.time_offset,
+            self.accel_temperature,
+            self.gyro_temperature,
+            self.gyro_g_sensitivity,
+        ]
+        .iter()
+        .all(EffectNoise::is_valid)
+            && self.temperature_ref_c.is_none_or(f64::is_finite)
+    }
+}
+
 /// Chi-square quantiles for the innovation gate, by measurement dimension and probability.
 pub mod chi2 {
     /// 3 degrees of freedom, P = 0.95.
@@ -296,6 +391,9 @@ pub enum ConfigError {
     PredictInterval,
     /// Gating thresholds NaN or not positive, or the GNSS time tolerance invalid.
     Gnss,
+    /// An effect block's prior or process noise is negative or non-finite, or the reference
+    /// temperature is not finite.
+    Effects,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -314,6 +412,9 @@ impl core::fmt::Display for ConfigError {
                 "config: covariance prediction interval not finite or negative"
             }
             Self::Gnss => "config: GNSS gating thresholds or time tolerance invalid",
+            Self::Effects => {
+                "config: effect-block prior/process noise invalid (negative or non-finite) or reference temperature not finite"
+            }
         })
     }
 }
@@ -341,6 +442,8 @@ pub struct FilterConfig {
     /// Largest accepted |fix time - filter time|, s; the difference is bridged with the
     /// velocity (call `update_gnss` at the IMU epoch nearest the fix).
     pub max_gnss_time_offset_s: f64,
+    /// Priors and process noise of the effect blocks (used when the layout has them).
+    pub effects: EffectsConfig,
 }
 
 /// Default covariance prediction interval, s (10 Hz; see `docs/derivations/error_state.md`
@@ -367,8 +470,9 @@ pub const NBK_GYRO_S_N: f64 = 5.3079e-10;
 
 impl FilterConfig {
     /// Defaults for everything that is not a noise parameter: no lever arm, position-only
-    /// updates, default gating, 10 Hz covariance prediction, 50 ms GNSS time tolerance, and
-    /// scale factors of 1000 ppm with a 1 h correlation time.
+    /// updates, default gating, 10 Hz covariance prediction, 50 ms GNSS time tolerance,
+    /// scale factors of 1000 ppm with a 1 h correlation time, and the default effect priors
+    /// ([`EffectsConfig::default`]).
     pub fn with_noise(accel: SensorNoise, gyro: SensorNoise) -> Self {
         Self {
             accel,
@@ -380,6 +484,7 @@ impl FilterConfig {
             gating: Gating::default(),
             cov_predict_interval_s: DEFAULT_COV_PREDICT_INTERVAL_S,
             max_gnss_time_offset_s: 0.05,
+            effects: EffectsConfig::default(),
         }
     }
 
@@ -457,6 +562,9 @@ impl FilterConfig {
             && self.max_gnss_time_offset_s >= 0.0)
         {
             return Err(ConfigError::Gnss);
+        }
+        if !self.effects.is_valid() {
+            return Err(ConfigError::Effects);
         }
         Ok(())
     }

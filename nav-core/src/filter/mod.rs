@@ -22,7 +22,7 @@ use crate::earth;
 use crate::model::discrete::{self, Accumulator, Cov};
 use crate::model::{
     BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, MeasContext, Regressors,
-    CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL,
+    CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
 };
 use crate::nav::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::scalar::Scalar;
@@ -163,6 +163,25 @@ pub struct Filter<T: Scalar, const N: usize> {
     counters: Counters,
     consecutive_rejections: u32,
     status: u32,
+    /// Reference temperature of the temperature blocks, degC (NaN until known).
+    temperature_ref_c: f64,
+    /// Temperature of the last IMU sample, degC (NaN: none).
+    last_temperature_c: f64,
+}
+
+/// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
+/// the block's states ([`crate::model::Block::unit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BlockValue {
+    /// The block.
+    pub block: crate::model::Block,
+    /// Number of valid entries.
+    pub dim: usize,
+    /// Estimate of every state (for the sensor and effect blocks the estimated error itself,
+    /// e.g. the lever-arm correction in m; zero for the core).
+    pub estimate: [f64; MAX_BLOCK_DIM],
+    /// 1-sigma of every state.
+    pub sigma: [f64; MAX_BLOCK_DIM],
 }
 
 impl<T: Scalar, const N: usize> Filter<T, N> {
@@ -216,13 +235,18 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             mech: Strapdown::new(init),
             p,
             est: [0.0; N],
-            corr: ImuCorrection::default(),
+            corr: ImuCorrection {
+                temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
+                ..ImuCorrection::default()
+            },
             inv_scales: ImuCorrection::default().inverse_scales(),
             acc: Accumulator::default(),
             last_step: StepInfo::default(),
             counters: Counters::default(),
             consecutive_rejections: 0,
             status: STATUS_NO_FIX_YET,
+            temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
+            last_temperature_c: f64::NAN,
         })
     }
 
@@ -240,8 +264,18 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(FilterError::ImuTimeStep { dt_s: dt });
         }
         let mut s = *imu;
-        self.corr
-            .apply_with(&self.inv_scales, &mut s.dtheta_rad, &mut s.dv_mps, dt);
+        if self.temperature_ref_c.is_nan() && imu.temperature_c.is_finite() {
+            // T_ref = the first temperature (EffectsConfig::temperature_ref_c = None)
+            self.temperature_ref_c = imu.temperature_c;
+            self.corr.temperature_ref_c = imu.temperature_c;
+        }
+        self.corr.apply_with(
+            &self.inv_scales,
+            &mut s.dtheta_rad,
+            &mut s.dv_mps,
+            dt,
+            imu.temperature_c,
+        );
         if !s.is_finite() {
             self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
             return Err(FilterError::NonFiniteImu);
@@ -257,12 +291,13 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             }
         };
         self.last_step = step;
+        self.last_temperature_c = imu.temperature_c;
         let reg = Regressors {
             dt: T::of_f64(step.dt_s),
             c_nb: dcm_t(&self.mech.state().q_nb),
             f_b: vec_t(&step.f_body_mps2),
             omega_b: vec_t(&step.omega_ib_body_radps),
-            temperature_c: T::of_f64(imu.temperature_c),
+            temperature_c: T::of_f64(imu.temperature_c - self.temperature_ref_c),
         };
         let f_n = vec_t(&step.f_ned_mps2);
         self.acc.add(&self.layout, &reg, step.dt_s, &f_n);
@@ -319,31 +354,54 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         self.predict_covariance()?;
 
         let c = dcm_f64(&nav.q_nb);
-        let l = Vector3::from(self.cfg.lever_arm_body_m);
+        let l = Vector3::from(self.lever_arm_body_m());
         let w = self.last_step.omega_ib_body_radps;
         let c_l = c * l;
         let c_w_x_l = c * w.cross(&l);
         let c_lx = c * l.cross_matrix();
+        // time offset: the fix is the antenna at IMU time t_fix + dt_hat, tau after this epoch
+        let time_offset = self.layout.contains(BlockKind::TimeOffset);
+        let tau = dt_fix + self.time_offset_s();
+        let lat = nav.pos.lat_rad;
+        let v_ant0 = nav.vel_ned_mps + c_w_x_l;
+        let acc_n = if time_offset {
+            self.last_step.f_ned_mps2 + earth::gravity_ned_mps2(lat, nav.pos.h_m)
+        } else {
+            Vector3::zeros()
+        };
+        // local curvilinear map (that of `earth::displace` and of the position error; it
+        // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
+        let (sl, cl) = (libm::sin(lat), libm::cos(lat));
+        let d = 1.0 - earth::E2 * sl * sl;
+        let sd = libm::sqrt(d);
+        let rn = earth::A_M / sd + nav.pos.h_m;
+        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
+        let w_in = {
+            let v = &nav.vel_ned_mps;
+            let w = earth::OMEGA_IE_RADPS;
+            Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn))
+        };
         let ctx = MeasContext {
             c_l: c_l.into(),
             c_w_x_l: c_w_x_l.into(),
             c_lx: c_lx.transpose().into(),
             omega_b_radps: w.into(),
+            c_nb: c.transpose().into(),
+            f_b_mps2: self.last_step.f_body_mps2.into(),
+            temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
+            // d/d(dt) of the predicted antenna position v_ant tau + a tau^2 / 2
+            v_ant_ned_mps: (v_ant0 + acc_n * tau).into(),
+            acc_ned_mps2: acc_n.into(),
+            bridge_s: tau,
+            lever_bridge_s: if time_offset { tau } else { 0.0 },
+            w_in_ned_radps: w_in.into(),
         };
         let mut h_pos = [[T::ZERO; N]; 3];
         let mut h_vel = [[T::ZERO; N]; 3];
         for (off, b) in self.layout.iter() {
             b.gnss_jacobian(off, &ctx, &mut h_pos, &mut h_vel);
         }
-        // predicted antenna position at the fix time minus the measured one, NED m, through the
-        // local curvilinear map (that of `earth::displace` and of the position error; it
-        // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
-        let lat = nav.pos.lat_rad;
-        let (sl, cl) = (libm::sin(lat), libm::cos(lat));
-        let d = 1.0 - earth::E2 * sl * sl;
-        let sd = libm::sqrt(d);
-        let rn = earth::A_M / sd + nav.pos.h_m;
-        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
+        // predicted antenna position at the fix time minus the measured one, NED m
         let mut dlon = fix.lon_rad - nav.pos.lon_rad;
         if dlon > core::f64::consts::PI {
             dlon -= 2.0 * core::f64::consts::PI;
@@ -355,15 +413,20 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             dlon * rn * cl,
             nav.pos.h_m - fix.h_m,
         );
-        let zp = c_l + nav.vel_ned_mps * dt_fix - meas_off;
+        let zp = if time_offset {
+            // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
+            c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
+        } else {
+            c_l + nav.vel_ned_mps * dt_fix - meas_off
+        };
         let rp = fix.pos_std_ned_m.map(|s| s * s);
         let force = self.cfg.gating.max_consecutive_rejections > 0
             && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
         if self.cfg.use_gnss_velocity && fix.has_velocity {
-            let v = &nav.vel_ned_mps;
-            let w = earth::OMEGA_IE_RADPS;
-            let w_in = Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn));
-            let v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
+            let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
+            if time_offset {
+                v_ant += acc_n * tau;
+            }
             let zv = v_ant - Vector3::from(fix.vel_ned_mps);
             let [rv0, rv1, rv2] = fix.vel_std_ned_mps.map(|s| s * s);
             let [rp0, rp1, rp2] = rp;
@@ -585,13 +648,62 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
 
     /// The IMU error correction from the current sensor-error estimates.
     pub fn imu_correction(&self) -> ImuCorrection {
-        let mut c = ImuCorrection::default();
+        let mut c = ImuCorrection {
+            temperature_ref_c: self.temperature_ref_c,
+            ..ImuCorrection::default()
+        };
         for (off, b) in self.layout.iter() {
             if let Some(e) = self.est.get(off..off + b.dim()) {
                 b.add_correction(e, &mut c);
             }
         }
         c
+    }
+
+    /// The GNSS antenna lever arm in use, body FRD, m: the configured one plus the
+    /// [`crate::model::Block::LeverArm`] estimate when the layout has it.
+    pub fn lever_arm_body_m(&self) -> [f64; 3] {
+        let mut l = self.cfg.lever_arm_body_m;
+        if let Some(e) = self.block_estimate(BlockKind::LeverArm) {
+            for (a, b) in l.iter_mut().zip(e) {
+                *a += *b;
+            }
+        }
+        l
+    }
+
+    /// The estimated IMU-GNSS time offset, s ([`crate::model::Block::TimeOffset`]; 0 without
+    /// the block).
+    pub fn time_offset_s(&self) -> f64 {
+        self.block_estimate(BlockKind::TimeOffset)
+            .and_then(|e| e.first().copied())
+            .unwrap_or(0.0)
+    }
+
+    /// The reference temperature of the temperature blocks, degC (NaN until the first sample
+    /// with a temperature when none is configured).
+    pub fn temperature_ref_c(&self) -> f64 {
+        self.temperature_ref_c
+    }
+
+    /// Estimate and 1-sigma of every state of a block (SI units of the block, see
+    /// [`crate::model::Block`]), or None when the layout has no such block.
+    pub fn block_value(&self, kind: BlockKind) -> Option<BlockValue> {
+        let (off, b) = self.layout.find(kind)?;
+        let mut v = BlockValue {
+            block: b,
+            dim: b.dim(),
+            estimate: [0.0; MAX_BLOCK_DIM],
+            sigma: [0.0; MAX_BLOCK_DIM],
+        };
+        for (k, (e, sg)) in v.estimate.iter_mut().zip(v.sigma.iter_mut()).enumerate() {
+            if k >= b.dim() {
+                break;
+            }
+            *e = self.est.get(off + k).copied().unwrap_or(0.0);
+            *sg = libm::sqrt(get2(&self.p, off + k, off + k).to_f64().max(0.0));
+        }
+        Some(v)
     }
 
     /// The nominal navigation state (IMU reference point).

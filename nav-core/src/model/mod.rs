@@ -27,11 +27,35 @@
 //! initial variance ([`Block::initial_variance`]), IMU correction before mechanisation
 //! ([`Block::add_correction`]), GNSS measurement Jacobian columns ([`Block::gnss_jacobian`]) and
 //! feedback ([`Block::feedback`]). Nothing else in the filter changes.
+//!
+//! # Effect blocks
+//!
+//! Besides the biases and scale factors, the optional *effect* blocks model what a residual
+//! analysis may find missing (their [`Block::name`]s are the vocabulary of `host-sim
+//! diagnose`): [`Block::AccelMisalignment`], [`Block::GyroMisalignment`], [`Block::LeverArm`],
+//! [`Block::TimeOffset`], [`Block::AccelTemperatureBias`], [`Block::GyroTemperatureBias`] and
+//! [`Block::GyroGSensitivity`]. Add any subset to a base layout at compile time:
+//!
+//! ```
+//! use nav_core::model::{Block, LAYOUT_NBK};
+//! const L: nav_core::model::Layout = LAYOUT_NBK.with(Block::LeverArm).with(Block::TimeOffset);
+//! assert_eq!(L.dim(), 18 + 3 + 1);
+//! ```
+//!
+//! The full IMU sensor model the correction inverts (per sample, body FRD):
+//!
+//! ```text
+//! w_meas = (I + diag(s_g) + M_g) w + b_g + diag(g_s) f + k_g (T - T_ref) + n_g
+//! f_meas = (I + diag(s_a) + M_a) f + b_a              + k_a (T - T_ref) + n_a
+//! ```
+//!
+//! with `M = [[0, m_xy, m_xz], [m_yx, 0, m_yz], [m_zx, m_zy, 0]]` (6 small angles per triad).
 
 pub mod core_f;
 pub mod discrete;
+pub mod effects;
 
-use crate::config::{FilterConfig, SensorNoise};
+use crate::config::{EffectNoise, FilterConfig, SensorNoise};
 use crate::scalar::Scalar;
 
 /// Dimension of the core error state (attitude, velocity, position).
@@ -42,8 +66,11 @@ pub const IDX_ATT: usize = 0;
 pub const IDX_VEL: usize = 3;
 /// Index of the NED position error, m.
 pub const IDX_POS: usize = 6;
-/// Largest number of blocks in a layout.
+/// Largest number of blocks in a layout (the 5 blocks of the KF-GINS layout plus all 7
+/// effect blocks fit with room to spare).
 pub const MAX_BLOCKS: usize = 16;
+/// Largest dimension of one block (the core's 9).
+pub const MAX_BLOCK_DIM: usize = CORE_DIM;
 
 /// How a sensor bias triad evolves. Parameters come from the [`SensorNoise`] of the sensor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,6 +116,42 @@ pub enum Block {
     GyroScaleFactor,
     /// Accelerometer scale-factor error (dimensionless, Gauss-Markov).
     AccelScaleFactor,
+    /// `accel_misalignment`: 6 states, the off-diagonal elements of the accelerometer triad's
+    /// sensor matrix `I + diag(s) + M`, rad (dimensionless small angles), in the order
+    /// `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`: `m_ij` is the fraction of the specific force
+    /// along body axis j that accelerometer i senses (axis non-orthogonality *and* a rotation
+    /// of the triad relative to the body frame; the body frame is the gyro triad's). A pure
+    /// common rotation of both triads is an attitude offset and unobservable when both
+    /// misalignment blocks are present. Random constant / slow random walk.
+    AccelMisalignment,
+    /// `gyro_misalignment`: 6 states, the off-diagonal elements of the gyro triad's sensor
+    /// matrix, rad, same order and meaning as [`Block::AccelMisalignment`] (`m_ij`: fraction of
+    /// the body rate about axis j that gyro i senses).
+    GyroMisalignment,
+    /// `lever_arm`: 3 states, the correction to the configured GNSS antenna lever arm
+    /// (`FilterConfig::lever_arm_body_m`), body FRD, m: the antenna is at
+    /// `configured + estimate` from the IMU reference point. Enters the GNSS position and
+    /// velocity measurement columns only.
+    LeverArm,
+    /// `time_offset`: 1 state, the IMU-GNSS time offset `dt`, s: the GNSS fix time-tagged
+    /// `t_fix` is the antenna position (and velocity) at IMU time `t_fix + dt` (positive: the
+    /// fix is `dt` newer than its tag says). Measurement columns: antenna velocity (position
+    /// update) and acceleration (velocity update). Keep `max_gnss_time_offset_s` above the
+    /// offsets to be bridged.
+    TimeOffset,
+    /// `accel_temperature_bias`: 3 states, the accelerometer bias temperature coefficient
+    /// `k_a`, m/s^2/degC: bias = `k_a (T - T_ref)` with T the IMU sample's temperature
+    /// (`ImuSample::temperature_c`) and T_ref from `EffectsConfig::temperature_ref_c` or the
+    /// first temperature; zero regressor when the sample has no temperature.
+    AccelTemperatureBias,
+    /// `gyro_temperature_bias`: 3 states, the gyro bias temperature coefficient `k_g`,
+    /// rad/s/degC (as [`Block::AccelTemperatureBias`]).
+    GyroTemperatureBias,
+    /// `gyro_g_sensitivity`: 3 states, the diagonal g-dependent gyro bias `g_s`, rad/s per
+    /// m/s^2: gyro i senses `g_s[i] f_i` (f the specific force). The off-diagonal terms are not
+    /// modelled: on a land vehicle they are driven almost only by gravity (f ~ (0, 0, -g)),
+    /// i.e. they act as a constant gyro bias and are absorbed by the gyro-bias states.
+    GyroGSensitivity,
 }
 
 /// What a block estimates, independent of its model (for accessors).
@@ -105,7 +168,36 @@ pub enum BlockKind {
     GyroScaleFactor,
     /// [`Block::AccelScaleFactor`].
     AccelScaleFactor,
+    /// [`Block::AccelMisalignment`].
+    AccelMisalignment,
+    /// [`Block::GyroMisalignment`].
+    GyroMisalignment,
+    /// [`Block::LeverArm`].
+    LeverArm,
+    /// [`Block::TimeOffset`].
+    TimeOffset,
+    /// [`Block::AccelTemperatureBias`].
+    AccelTemperatureBias,
+    /// [`Block::GyroTemperatureBias`].
+    GyroTemperatureBias,
+    /// [`Block::GyroGSensitivity`].
+    GyroGSensitivity,
 }
+
+/// Every effect block (issue 7's vocabulary), in the order of their names in the
+/// documentation: scale factors, misalignments, lever arm, time offset, temperature
+/// coefficients, g-sensitivity.
+pub const EFFECT_BLOCKS: [Block; 9] = [
+    Block::AccelScaleFactor,
+    Block::GyroScaleFactor,
+    Block::AccelMisalignment,
+    Block::GyroMisalignment,
+    Block::LeverArm,
+    Block::TimeOffset,
+    Block::AccelTemperatureBias,
+    Block::GyroTemperatureBias,
+    Block::GyroGSensitivity,
+];
 
 impl Block {
     /// Number of error states of the block.
@@ -113,7 +205,14 @@ impl Block {
         match self {
             Self::Core => CORE_DIM,
             Self::GyroBias(m) | Self::AccelBias(m) => m.dim(),
-            Self::GyroScaleFactor | Self::AccelScaleFactor => 3,
+            Self::GyroScaleFactor
+            | Self::AccelScaleFactor
+            | Self::LeverArm
+            | Self::AccelTemperatureBias
+            | Self::GyroTemperatureBias
+            | Self::GyroGSensitivity => 3,
+            Self::AccelMisalignment | Self::GyroMisalignment => 6,
+            Self::TimeOffset => 1,
         }
     }
 
@@ -125,6 +224,13 @@ impl Block {
             Self::AccelBias(_) => BlockKind::AccelBias,
             Self::GyroScaleFactor => BlockKind::GyroScaleFactor,
             Self::AccelScaleFactor => BlockKind::AccelScaleFactor,
+            Self::AccelMisalignment => BlockKind::AccelMisalignment,
+            Self::GyroMisalignment => BlockKind::GyroMisalignment,
+            Self::LeverArm => BlockKind::LeverArm,
+            Self::TimeOffset => BlockKind::TimeOffset,
+            Self::AccelTemperatureBias => BlockKind::AccelTemperatureBias,
+            Self::GyroTemperatureBias => BlockKind::GyroTemperatureBias,
+            Self::GyroGSensitivity => BlockKind::GyroGSensitivity,
         }
     }
 
@@ -136,6 +242,55 @@ impl Block {
             Self::AccelBias(_) => "accel_bias",
             Self::GyroScaleFactor => "gyro_scale_factor",
             Self::AccelScaleFactor => "accel_scale_factor",
+            Self::AccelMisalignment => "accel_misalignment",
+            Self::GyroMisalignment => "gyro_misalignment",
+            Self::LeverArm => "lever_arm",
+            Self::TimeOffset => "time_offset",
+            Self::AccelTemperatureBias => "accel_temperature_bias",
+            Self::GyroTemperatureBias => "gyro_temperature_bias",
+            Self::GyroGSensitivity => "gyro_g_sensitivity",
+        }
+    }
+
+    /// The block whose [`Block::name`] is `name` among the effect blocks ([`EFFECT_BLOCKS`]),
+    /// if any.
+    pub fn effect_from_name(name: &str) -> Option<Self> {
+        EFFECT_BLOCKS.iter().copied().find(|b| b.name() == name)
+    }
+
+    /// The SI unit of the block's states (for reports).
+    pub const fn unit(self) -> &'static str {
+        match self {
+            Self::Core => "rad, m/s, m",
+            Self::GyroBias(_) => "rad/s",
+            Self::AccelBias(_) => "m/s^2",
+            Self::GyroScaleFactor | Self::AccelScaleFactor => "1",
+            Self::AccelMisalignment | Self::GyroMisalignment => "rad",
+            Self::LeverArm => "m",
+            Self::TimeOffset => "s",
+            Self::AccelTemperatureBias => "m/s^2/degC",
+            Self::GyroTemperatureBias => "rad/s/degC",
+            Self::GyroGSensitivity => "rad/s/(m/s^2)",
+        }
+    }
+
+    /// The effect block's prior/process noise in `cfg`, if the block is an effect block with
+    /// an [`EffectNoise`] (the scale factors have their own Gauss-Markov parameters).
+    pub fn effect_noise(self, cfg: &FilterConfig) -> Option<EffectNoise> {
+        let e = &cfg.effects;
+        match self {
+            Self::AccelMisalignment => Some(e.accel_misalignment),
+            Self::GyroMisalignment => Some(e.gyro_misalignment),
+            Self::LeverArm => Some(e.lever_arm),
+            Self::TimeOffset => Some(e.time_offset),
+            Self::AccelTemperatureBias => Some(e.accel_temperature),
+            Self::GyroTemperatureBias => Some(e.gyro_temperature),
+            Self::GyroGSensitivity => Some(e.gyro_g_sensitivity),
+            Self::Core
+            | Self::GyroBias(_)
+            | Self::AccelBias(_)
+            | Self::GyroScaleFactor
+            | Self::AccelScaleFactor => None,
         }
     }
 
@@ -174,6 +329,35 @@ impl Block {
                 let m = mul_diag3(&c_dt, &reg.f_b);
                 add3(f_top, IDX_VEL, off, &scale3(&m, -T::ONE));
             }
+            // gyro misalignment dm: w_hat = w - J(w) dm  =>  phi' += C J(w) dm
+            Self::GyroMisalignment => {
+                effects::add_block(f_top, IDX_ATT, off, &effects::c_mis(&c_dt, &reg.omega_b));
+            }
+            // accel misalignment dm: f_hat = f - J(f) dm  =>  dv' -= C J(f) dm
+            Self::AccelMisalignment => {
+                let neg = scale3(&c_dt, -T::ONE);
+                effects::add_block(f_top, IDX_VEL, off, &effects::c_mis(&neg, &reg.f_b));
+            }
+            // gyro temperature coefficient dk: w_hat = w - dT dk  =>  phi' += C dT dk
+            Self::GyroTemperatureBias => {
+                let d_t = effects::temperature_regressor(reg.temperature_c);
+                if d_t != T::ZERO {
+                    add3(f_top, IDX_ATT, off, &scale3(&c_dt, d_t));
+                }
+            }
+            // accel temperature coefficient dk: f_hat = f - dT dk  =>  dv' -= C dT dk
+            Self::AccelTemperatureBias => {
+                let d_t = effects::temperature_regressor(reg.temperature_c);
+                if d_t != T::ZERO {
+                    add3(f_top, IDX_VEL, off, &scale3(&c_dt, -d_t));
+                }
+            }
+            // gyro g-sensitivity dg: w_hat = w - diag(f) dg  =>  phi' += C diag(f) dg
+            Self::GyroGSensitivity => {
+                add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.f_b));
+            }
+            // measurement-only blocks
+            Self::LeverArm | Self::TimeOffset => {}
         }
     }
 
@@ -205,6 +389,14 @@ impl Block {
                 let d = gm_decay(dt_s, T::of_f64(cfg.accel_scale.t_s));
                 for s in cfg.accel_scale.sigma {
                     w.gauss_markov(T::of_f64(s * s), &d);
+                }
+            }
+            other => {
+                if let Some(e) = other.effect_noise(cfg) {
+                    let psd = T::of_f64(e.rw_psd);
+                    for _ in 0..other.dim() {
+                        w.random_walk(psd, dt_s);
+                    }
                 }
             }
         }
@@ -244,6 +436,11 @@ impl Block {
             Self::AccelBias(m) => bias(m, &cfg.accel, &mut put),
             Self::GyroScaleFactor => cfg.gyro_scale.sigma.iter().for_each(|s| put(s * s)),
             Self::AccelScaleFactor => cfg.accel_scale.sigma.iter().for_each(|s| put(s * s)),
+            other => {
+                if let Some(e) = other.effect_noise(cfg) {
+                    (0..other.dim()).for_each(|_| put(e.init_sigma * e.init_sigma));
+                }
+            }
         }
     }
 
@@ -263,13 +460,34 @@ impl Block {
             Self::AccelBias(_) => add(&mut corr.accel_bias_mps2, est),
             Self::GyroScaleFactor => add(&mut corr.gyro_scale, est),
             Self::AccelScaleFactor => add(&mut corr.accel_scale, est),
+            Self::AccelTemperatureBias => add(&mut corr.accel_temp_coeff_mps2_per_c, est),
+            Self::GyroTemperatureBias => add(&mut corr.gyro_temp_coeff_radps_per_c, est),
+            Self::GyroGSensitivity => add(&mut corr.gyro_g_sensitivity_radps_per_mps2, est),
+            Self::AccelMisalignment => {
+                for (a, e) in corr.accel_misalignment_rad.iter_mut().zip(est) {
+                    *a += *e;
+                }
+            }
+            Self::GyroMisalignment => {
+                for (a, e) in corr.gyro_misalignment_rad.iter_mut().zip(est) {
+                    *a += *e;
+                }
+            }
+            Self::LeverArm | Self::TimeOffset => {}
         }
     }
 
-    /// Which IMU quantity (sum over the block's 3-state groups) the block estimates, if any.
+    /// Which per-axis IMU quantity (x, y, z; the sum over the block's 3-state groups) the
+    /// block estimates, if any: biases, scale factors, temperature coefficients and
+    /// g-sensitivity. None for the core, the 6-state misalignments and the measurement blocks
+    /// (read those with `Filter::block_value`).
     pub const fn quantity(self) -> Option<BlockKind> {
         match self {
-            Self::Core => None,
+            Self::Core
+            | Self::AccelMisalignment
+            | Self::GyroMisalignment
+            | Self::LeverArm
+            | Self::TimeOffset => None,
             other => Some(other.kind()),
         }
     }
@@ -309,7 +527,61 @@ impl Block {
                     &to_t(&mul_diag3(&ctx.c_lx, &ctx.omega_b_radps)),
                 );
             }
-            Self::AccelBias(_) | Self::AccelScaleFactor => {}
+            // dw = -J(w) dm  =>  dz_vel = C [l x] J(w) dm
+            Self::GyroMisalignment => {
+                let m = effects::c_mis(&ctx.c_lx, &ctx.omega_b_radps);
+                effects::set_block(h_vel, 0, off, &m.map(|r| r.map(T::of_f64)));
+            }
+            // dw = -dT dk  =>  dz_vel = C [l x] dT dk
+            Self::GyroTemperatureBias => {
+                let d_t = effects::temperature_regressor(ctx.temperature_offset_c);
+                set3(h_vel, 0, off, &to_t(&scale3(&ctx.c_lx, d_t)));
+            }
+            // dw = -diag(f) dg  =>  dz_vel = C [l x] diag(f) dg
+            Self::GyroGSensitivity => {
+                set3(h_vel, 0, off, &to_t(&mul_diag3(&ctx.c_lx, &ctx.f_b_mps2)));
+            }
+            // p_ant = r + C (l + dl) (+ v_ant bridge): dz_pos = (C + bridge C [w x]) dl;
+            // v_ant = v + C (w x (l + dl)) - w_in x (C (l + dl)): dz_vel = (C [w x] - [w_in x] C) dl
+            Self::LeverArm => {
+                let c_wx = effects::mul3(&ctx.c_nb, &skew(&ctx.omega_b_radps));
+                let mut hp = ctx.c_nb;
+                for (r, w) in hp.iter_mut().zip(&c_wx) {
+                    for (a, b) in r.iter_mut().zip(w) {
+                        *a += ctx.lever_bridge_s * *b;
+                    }
+                }
+                set3(h_pos, 0, off, &to_t(&hp));
+                let win_c = effects::mul3(&skew(&ctx.w_in_ned_radps), &ctx.c_nb);
+                let mut hv = c_wx;
+                for (r, w) in hv.iter_mut().zip(&win_c) {
+                    for (a, b) in r.iter_mut().zip(w) {
+                        *a -= *b;
+                    }
+                }
+                set3(h_vel, 0, off, &to_t(&hv));
+            }
+            // predicted antenna at t_fix + dt_hat: dz_pos = v_ant d(dt), dz_vel = a d(dt); the
+            // bridge tau = t_fix + dt_hat - t also multiplies the velocity error
+            Self::TimeOffset => {
+                for (k, row) in h_pos.iter_mut().enumerate() {
+                    if let Some(x) = row.get_mut(off) {
+                        *x = T::of_f64(ctx.v_ant_ned_mps.get(k).copied().unwrap_or(0.0));
+                    }
+                    if let Some(x) = row.get_mut(IDX_VEL + k) {
+                        *x = T::of_f64(ctx.bridge_s);
+                    }
+                }
+                for (k, row) in h_vel.iter_mut().enumerate() {
+                    if let Some(x) = row.get_mut(off) {
+                        *x = T::of_f64(ctx.acc_ned_mps2.get(k).copied().unwrap_or(0.0));
+                    }
+                }
+            }
+            Self::AccelBias(_)
+            | Self::AccelScaleFactor
+            | Self::AccelMisalignment
+            | Self::AccelTemperatureBias => {}
         }
     }
 
@@ -318,10 +590,18 @@ impl Block {
     pub fn feedback(self, est: &mut [f64], dx: &[f64]) {
         match self {
             Self::Core => {}
+            // every sensor-error and effect state is additive: x_hat <- x_hat - dx
             Self::GyroBias(_)
             | Self::AccelBias(_)
             | Self::GyroScaleFactor
-            | Self::AccelScaleFactor => {
+            | Self::AccelScaleFactor
+            | Self::AccelMisalignment
+            | Self::GyroMisalignment
+            | Self::LeverArm
+            | Self::TimeOffset
+            | Self::AccelTemperatureBias
+            | Self::GyroTemperatureBias
+            | Self::GyroGSensitivity => {
                 for (e, d) in est.iter_mut().zip(dx) {
                     *e -= *d;
                 }
@@ -442,8 +722,18 @@ impl<T: Scalar> DiagWriter<'_, T> {
     }
 }
 
-/// The IMU error estimates applied to a raw sample before mechanisation:
-/// `w = (w_meas - b_g) / (1 + s_g)`, `f = (f_meas - b_a) / (1 + s_a)` per axis.
+/// The IMU error estimates applied to a raw sample before mechanisation (the inverse of the
+/// sensor model in the module docs), per sample with `dT = T - T_ref` (0 without a
+/// temperature):
+///
+/// ```text
+/// f = (I + diag(s_a) + M_a)^-1 (f_meas - b_a - k_a dT)
+/// w = (I + diag(s_g) + M_g)^-1 (w_meas - b_g - k_g dT - diag(g_s) f)
+/// ```
+///
+/// applied to the increments (`f dt = dv`, `w dt = dtheta`). With no misalignment,
+/// temperature coefficient or g-sensitivity (all zero) it reduces to the per-axis
+/// `(x_meas - b)/(1 + s)`, computed exactly as before these were added.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ImuCorrection {
     /// Accelerometer bias, m/s^2.
@@ -454,51 +744,151 @@ pub struct ImuCorrection {
     pub accel_scale: [f64; 3],
     /// Gyro scale-factor error (dimensionless).
     pub gyro_scale: [f64; 3],
+    /// Accelerometer misalignment `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`, rad.
+    pub accel_misalignment_rad: [f64; 6],
+    /// Gyro misalignment `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`, rad.
+    pub gyro_misalignment_rad: [f64; 6],
+    /// Accelerometer bias temperature coefficient, m/s^2/degC.
+    pub accel_temp_coeff_mps2_per_c: [f64; 3],
+    /// Gyro bias temperature coefficient, rad/s/degC.
+    pub gyro_temp_coeff_radps_per_c: [f64; 3],
+    /// Reference temperature of the coefficients, degC (NaN: none yet, zero regressor).
+    pub temperature_ref_c: f64,
+    /// Diagonal gyro g-sensitivity, rad/s per m/s^2.
+    pub gyro_g_sensitivity_radps_per_mps2: [f64; 3],
 }
 
 impl ImuCorrection {
-    /// Corrects increments over `dt_s` seconds in place.
+    /// Corrects increments over `dt_s` seconds in place, without a temperature (the
+    /// temperature terms are zero; use [`Self::apply_with_temperature`] for samples that carry
+    /// one).
     pub fn apply(&self, dtheta_rad: &mut [f64; 3], dv_mps: &mut [f64; 3], dt_s: f64) {
-        self.apply_with(&self.inverse_scales(), dtheta_rad, dv_mps, dt_s);
+        self.apply_with(&self.inverse_scales(), dtheta_rad, dv_mps, dt_s, f64::NAN);
     }
 
-    /// `1 / (1 + s)` for the gyro and accelerometer scale-factor errors (computed once per
-    /// change of the estimates, so the per-epoch correction needs no division).
+    /// Corrects increments over `dt_s` seconds of a sample taken at `temperature_c` degC (NaN:
+    /// none) in place.
+    pub fn apply_with_temperature(
+        &self,
+        dtheta_rad: &mut [f64; 3],
+        dv_mps: &mut [f64; 3],
+        dt_s: f64,
+        temperature_c: f64,
+    ) {
+        self.apply_with(
+            &self.inverse_scales(),
+            dtheta_rad,
+            dv_mps,
+            dt_s,
+            temperature_c,
+        );
+    }
+
+    /// Whether any misalignment, temperature coefficient or g-sensitivity is non-zero (then
+    /// the general correction is needed).
+    pub fn is_general(&self) -> bool {
+        let nz = |a: &[f64]| a.iter().any(|v| *v != 0.0);
+        nz(&self.accel_misalignment_rad)
+            || nz(&self.gyro_misalignment_rad)
+            || nz(&self.accel_temp_coeff_mps2_per_c)
+            || nz(&self.gyro_temp_coeff_radps_per_c)
+            || nz(&self.gyro_g_sensitivity_radps_per_mps2)
+    }
+
+    /// `1 / (1 + s)` for the gyro and accelerometer scale-factor errors and, when
+    /// [`Self::is_general`], the inverse sensor matrices `(I + diag(s) + M)^-1` (computed once
+    /// per change of the estimates, so the per-epoch correction needs no division).
     pub fn inverse_scales(&self) -> InverseScales {
+        let general = self.is_general();
+        let inv = |s: &[f64; 3], m: &[f64; 6]| {
+            let a = effects::sensor_matrix(s, m);
+            // the matrix is I + O(1e-3): invertible; identity only if the estimates are absurd
+            effects::inv3(&a).unwrap_or(IDENTITY3)
+        };
         InverseScales {
             gyro: self.gyro_scale.map(|s| 1.0 / (1.0 + s)),
             accel: self.accel_scale.map(|s| 1.0 / (1.0 + s)),
+            general,
+            gyro_matrix: if general {
+                inv(&self.gyro_scale, &self.gyro_misalignment_rad)
+            } else {
+                IDENTITY3
+            },
+            accel_matrix: if general {
+                inv(&self.accel_scale, &self.accel_misalignment_rad)
+            } else {
+                IDENTITY3
+            },
         }
     }
 
-    /// [`Self::apply`] with precomputed [`Self::inverse_scales`].
+    /// [`Self::apply`] with precomputed [`Self::inverse_scales`] and the sample's temperature,
+    /// degC (NaN: none).
     pub fn apply_with(
         &self,
         inv: &InverseScales,
         dtheta_rad: &mut [f64; 3],
         dv_mps: &mut [f64; 3],
         dt_s: f64,
+        temperature_c: f64,
     ) {
-        for ((d, b), k) in dtheta_rad
+        if !inv.general {
+            for ((d, b), k) in dtheta_rad
+                .iter_mut()
+                .zip(self.gyro_bias_radps)
+                .zip(inv.gyro)
+            {
+                *d = (*d - b * dt_s) * k;
+            }
+            for ((d, b), k) in dv_mps.iter_mut().zip(self.accel_bias_mps2).zip(inv.accel) {
+                *d = (*d - b * dt_s) * k;
+            }
+            return;
+        }
+        let d_t = temperature_c - self.temperature_ref_c;
+        let d_t = if d_t.is_finite() { d_t } else { 0.0 };
+        let mut ua = [0.0; 3];
+        for (((u, d), b), k) in ua
             .iter_mut()
-            .zip(self.gyro_bias_radps)
-            .zip(inv.gyro)
+            .zip(dv_mps.iter())
+            .zip(self.accel_bias_mps2)
+            .zip(self.accel_temp_coeff_mps2_per_c)
         {
-            *d = (*d - b * dt_s) * k;
+            *u = *d - (b + k * d_t) * dt_s;
         }
-        for ((d, b), k) in dv_mps.iter_mut().zip(self.accel_bias_mps2).zip(inv.accel) {
-            *d = (*d - b * dt_s) * k;
+        *dv_mps = effects::mat_vec(&inv.accel_matrix, &ua);
+        let mut ug = [0.0; 3];
+        for ((((u, d), b), k), (g, dv)) in ug
+            .iter_mut()
+            .zip(dtheta_rad.iter())
+            .zip(self.gyro_bias_radps)
+            .zip(self.gyro_temp_coeff_radps_per_c)
+            .zip(
+                self.gyro_g_sensitivity_radps_per_mps2
+                    .iter()
+                    .zip(dv_mps.iter()),
+            )
+        {
+            *u = *d - (b + k * d_t) * dt_s - g * dv;
         }
+        *dtheta_rad = effects::mat_vec(&inv.gyro_matrix, &ug);
     }
 }
 
-/// Reciprocal scale factors `1 / (1 + s)` of an [`ImuCorrection`].
+/// Reciprocal scale factors `1 / (1 + s)` of an [`ImuCorrection`], and the inverse sensor
+/// matrices when the correction is general.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InverseScales {
     /// Gyro x, y, z.
     pub gyro: [f64; 3],
     /// Accelerometer x, y, z.
     pub accel: [f64; 3],
+    /// Whether the general (matrix, temperature, g-sensitivity) correction applies.
+    pub general: bool,
+    /// `(I + diag(s_g) + M_g)^-1` (row-major; identity when not `general`).
+    pub gyro_matrix: [[f64; 3]; 3],
+    /// `(I + diag(s_a) + M_a)^-1` (row-major; identity when not `general`).
+    pub accel_matrix: [[f64; 3]; 3],
 }
 
 /// What one IMU epoch provides to the error model (in the covariance scalar type).
@@ -512,7 +902,9 @@ pub struct Regressors<T> {
     pub f_b: [T; 3],
     /// Corrected mean angular rate, body, rad/s.
     pub omega_b: [T; 3],
-    /// Sensor temperature, deg C (NaN when absent).
+    /// Sensor temperature relative to the reference, `T - T_ref`, degC (NaN when the sample
+    /// has no temperature or no reference is known yet: the temperature blocks then have zero
+    /// regressor).
     pub temperature_c: T,
 }
 
@@ -527,6 +919,26 @@ pub struct MeasContext {
     pub c_lx: [[f64; 3]; 3],
     /// Last corrected angular rate, body, rad/s.
     pub omega_b_radps: [f64; 3],
+    /// C_b^n (row-major).
+    pub c_nb: [[f64; 3]; 3],
+    /// Last corrected specific force, body, m/s^2.
+    pub f_b_mps2: [f64; 3],
+    /// Last sample's temperature minus T_ref, degC (NaN: none).
+    pub temperature_offset_c: f64,
+    /// Antenna velocity at the fix's IMU time, `v + C (w x l) + a tau`, NED, m/s (the
+    /// time-offset column of a position update).
+    pub v_ant_ned_mps: [f64; 3],
+    /// Acceleration `C f + g`, NED, m/s^2 (the time-offset column of a velocity update).
+    pub acc_ned_mps2: [f64; 3],
+    /// Time from the filter epoch to the IMU time the fix refers to, `t_fix + dt_hat - t`, s
+    /// (the velocity error's coefficient in the position measurement).
+    pub bridge_s: f64,
+    /// The time over which the predicted antenna position is bridged with the antenna
+    /// velocity `v + C (w x l)`, s (`bridge_s` with the time-offset block, else 0: the
+    /// bridge then uses v alone), so the lever-arm column gets `C + bridge [C w x]`.
+    pub lever_bridge_s: f64,
+    /// `w_in = w_ie + w_en`, NED, rad/s (the lever arm's `- w_in x (C l)` velocity term).
+    pub w_in_ned_radps: [f64; 3],
 }
 
 /// Errors of a layout.
@@ -601,6 +1013,36 @@ impl Layout {
             i += 1;
         }
         n
+    }
+
+    /// This layout with `block` appended (compile-time composition: base model + effects,
+    /// e.g. `LAYOUT_NBK.with(Block::LeverArm)`). Appending beyond [`MAX_BLOCKS`] is reported
+    /// by [`Layout::validate`]; duplicates too.
+    #[allow(clippy::indexing_slicing)] // index checked against MAX_BLOCKS
+    pub const fn with(self, block: Block) -> Self {
+        let mut out = self;
+        if out.len < MAX_BLOCKS {
+            out.blocks[out.len] = block;
+            out.len += 1;
+        } else {
+            out.overflow = true;
+        }
+        out
+    }
+
+    /// Whether the layout has a block of `kind`.
+    pub fn contains(&self, kind: BlockKind) -> bool {
+        self.blocks().iter().any(|b| b.kind() == kind)
+    }
+
+    /// Number of blocks.
+    pub const fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the layout has no block at all.
+    pub const fn is_empty(&self) -> bool {
+        self.len == 0
     }
 
     /// The blocks in order.
@@ -816,6 +1258,7 @@ mod tests {
             gyro_bias_radps: [1e-5, 2e-5, -3e-5],
             accel_scale: [1e-3, -2e-3, 5e-4],
             gyro_scale: [-1e-3, 2e-4, 3e-3],
+            ..Default::default()
         };
         let dt = 0.005;
         let (w, f) = ([0.1, -0.2, 0.3], [1.0, 2.0, -9.8]);
@@ -830,6 +1273,116 @@ mod tests {
             assert!((dth[i] - w[i] * dt).abs() < 1e-15);
             assert!((dv[i] - f[i] * dt).abs() < 1e-15);
         }
+    }
+
+    #[test]
+    fn general_imu_correction_inverts_the_full_sensor_model() {
+        // w_meas = (I + S_g + M_g) w + b_g + diag(g_s) f + k_g dT
+        // f_meas = (I + S_a + M_a) f + b_a + k_a dT
+        let c = ImuCorrection {
+            accel_bias_mps2: [0.01, -0.02, 0.03],
+            gyro_bias_radps: [1e-5, 2e-5, -3e-5],
+            accel_scale: [1e-3, -2e-3, 5e-4],
+            gyro_scale: [-1e-3, 2e-4, 3e-3],
+            accel_misalignment_rad: [3e-4, -2e-4, 1e-4, 5e-4, -4e-4, 2e-4],
+            gyro_misalignment_rad: [-3e-4, 2e-4, 4e-4, -1e-4, 3e-4, -5e-4],
+            accel_temp_coeff_mps2_per_c: [4e-4, -3e-4, 2e-4],
+            gyro_temp_coeff_radps_per_c: [5e-7, -4e-7, 3e-7],
+            temperature_ref_c: 20.0,
+            gyro_g_sensitivity_radps_per_mps2: [3e-6, -2e-6, 1e-6],
+        };
+        assert!(c.is_general());
+        let (dt, temp) = (0.005, 43.5);
+        let d_t = temp - c.temperature_ref_c;
+        let (w, f) = ([0.1, -0.2, 0.3], [1.0, 2.0, -9.8]);
+        let ga = effects::sensor_matrix(&c.accel_scale, &c.accel_misalignment_rad);
+        let gg = effects::sensor_matrix(&c.gyro_scale, &c.gyro_misalignment_rad);
+        let fa = effects::mat_vec(&ga, &f);
+        let wg = effects::mat_vec(&gg, &w);
+        let mut dth = [0.0; 3];
+        let mut dv = [0.0; 3];
+        for i in 0..3 {
+            dv[i] = (fa[i] + c.accel_bias_mps2[i] + c.accel_temp_coeff_mps2_per_c[i] * d_t) * dt;
+            dth[i] = (wg[i]
+                + c.gyro_bias_radps[i]
+                + c.gyro_temp_coeff_radps_per_c[i] * d_t
+                + c.gyro_g_sensitivity_radps_per_mps2[i] * f[i])
+                * dt;
+        }
+        c.apply_with_temperature(&mut dth, &mut dv, dt, temp);
+        for i in 0..3 {
+            assert!(
+                (dth[i] - w[i] * dt).abs() < 1e-16,
+                "{i}: {}",
+                dth[i] - w[i] * dt
+            );
+            assert!(
+                (dv[i] - f[i] * dt).abs() < 1e-15,
+                "{i}: {}",
+                dv[i] - f[i] * dt
+            );
+        }
+        // without a temperature the temperature terms are zero
+        let mut dth2 = [0.0; 3];
+        let mut dv2 = [0.0; 3];
+        let only_t = ImuCorrection {
+            accel_temp_coeff_mps2_per_c: [1e-3; 3],
+            temperature_ref_c: 20.0,
+            ..Default::default()
+        };
+        dv2[0] = 0.05;
+        dth2[1] = 1e-3;
+        only_t.apply_with_temperature(&mut dth2, &mut dv2, dt, f64::NAN);
+        assert_eq!((dth2, dv2), ([0.0, 1e-3, 0.0], [0.05, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn layouts_compose_with_effect_blocks_at_compile_time() {
+        const ALL: Layout = LAYOUT_NBK
+            .with(Block::AccelScaleFactor)
+            .with(Block::GyroScaleFactor)
+            .with(Block::AccelMisalignment)
+            .with(Block::GyroMisalignment)
+            .with(Block::LeverArm)
+            .with(Block::TimeOffset)
+            .with(Block::AccelTemperatureBias)
+            .with(Block::GyroTemperatureBias)
+            .with(Block::GyroGSensitivity);
+        assert_eq!(ALL.dim(), 18 + 3 + 3 + 6 + 6 + 3 + 1 + 3 + 3 + 3);
+        assert!(ALL.validate(ALL.dim()).is_ok());
+        assert_eq!(ALL.len(), 12);
+        assert!(ALL.contains(BlockKind::TimeOffset));
+        assert_eq!(
+            ALL.find(BlockKind::TimeOffset).map(|(o, _)| o),
+            Some(18 + 3 + 3 + 6 + 6 + 3)
+        );
+        let names: heapless::Vec<&str, 9> = EFFECT_BLOCKS.iter().map(|b| b.name()).collect();
+        assert_eq!(
+            names.as_slice(),
+            &[
+                "accel_scale_factor",
+                "gyro_scale_factor",
+                "accel_misalignment",
+                "gyro_misalignment",
+                "lever_arm",
+                "time_offset",
+                "accel_temperature_bias",
+                "gyro_temperature_bias",
+                "gyro_g_sensitivity",
+            ]
+        );
+        for b in EFFECT_BLOCKS {
+            assert_eq!(Block::effect_from_name(b.name()), Some(b));
+        }
+        assert_eq!(
+            LAYOUT_KF_GINS.with(Block::GyroScaleFactor).validate(24),
+            Err(LayoutError::DuplicateKind)
+        );
+        let mut big = LAYOUT_KF_GINS;
+        for b in EFFECT_BLOCKS.iter().chain(EFFECT_BLOCKS.iter()) {
+            big = big.with(*b);
+        }
+        assert_eq!(big.validate(big.dim()), Err(LayoutError::TooManyBlocks));
     }
 
     #[test]

@@ -12,7 +12,18 @@
 //!
 //! The trajectory is a repeating 100 s drive: accelerations, decelerations, left and right
 //! turns (heading and horizontal accelerometer biases become observable) and gentle vertical
-//! undulation.
+//! undulation; optionally ([`SimConfig::wobble`]) with roll and pitch oscillations of the
+//! body (+-2 deg at 7 s, +-1.5 deg at 11 s) so the x and y gyros see rates too.
+//!
+//! Effects ([`TruthEffects`], all zero by default, the issue-7 vocabulary): fixed scale
+//! factors, axis misalignments, temperature-driven biases along a warm-up temperature profile
+//! (the samples then carry the temperature), diagonal gyro g-sensitivity, and a GNSS time
+//! offset (a fix tagged `t` is the antenna at `t + offset`). The sensor model is
+//!
+//! ```text
+//! dtheta_meas = (I + diag(s_g) + M_g) dtheta + (b_g + k_g dT) dt + diag(g_s) dv + noise
+//! dv_meas     = (I + diag(s_a) + M_a) dv     + (b_a + k_a dT) dt               + noise
+//! ```
 #![allow(dead_code, clippy::needless_range_loop)]
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -34,6 +45,10 @@ pub enum Motion {
     Static,
     /// The repeating 100 s drive.
     Drive,
+    /// Laps of an oval track, always turning left: 20 s straights (accelerating at
+    /// 0.5 m/s^2, then braking) and half circles at 0.12 rad/s (26.2 s); heading errors
+    /// proportional to the turned angle (gyro scale factor) accumulate instead of cancelling.
+    Track,
 }
 
 /// Generator settings.
@@ -57,6 +72,75 @@ pub struct SimConfig {
     pub motion: Motion,
     /// Initial speed, m/s (drive).
     pub speed0_mps: f64,
+    /// Roll/pitch oscillation of the body during the drive.
+    pub wobble: bool,
+    /// Undeclared effects in the data.
+    pub effects: TruthEffects,
+}
+
+/// A warm-up temperature profile `T(t) = start + rise (1 - e^(-t/tau))`, degC.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TempProfile {
+    /// Temperature at the start, degC.
+    pub start_c: f64,
+    /// Total rise, degC.
+    pub rise_c: f64,
+    /// Time constant, s.
+    pub tau_s: f64,
+}
+
+impl TempProfile {
+    /// Temperature `tau` seconds into the run, degC.
+    pub fn at(&self, tau: f64) -> f64 {
+        self.start_c + self.rise_c * (1.0 - (-tau / self.tau_s).exp())
+    }
+}
+
+/// The issue-7 effects in the simulated data (SI units; misalignment order
+/// `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TruthEffects {
+    /// Fixed accelerometer scale-factor errors (added to any Gauss-Markov ones).
+    pub accel_sf: [f64; 3],
+    /// Fixed gyro scale-factor errors.
+    pub gyro_sf: [f64; 3],
+    /// Accelerometer misalignment, rad.
+    pub accel_mis_rad: [f64; 6],
+    /// Gyro misalignment, rad.
+    pub gyro_mis_rad: [f64; 6],
+    /// Accelerometer bias temperature coefficient, m/s^2/degC.
+    pub accel_temp_coeff: [f64; 3],
+    /// Gyro bias temperature coefficient, rad/s/degC.
+    pub gyro_temp_coeff: [f64; 3],
+    /// Temperature of the IMU (None: samples carry no temperature); the reference of the
+    /// coefficients is the start temperature.
+    pub temperature: Option<TempProfile>,
+    /// Diagonal gyro g-sensitivity, rad/s per m/s^2.
+    pub gyro_g_sens: [f64; 3],
+    /// GNSS time offset, s: a fix tagged t is the antenna at t + offset.
+    pub gnss_time_offset_s: f64,
+}
+
+impl TruthEffects {
+    fn imu_active(&self) -> bool {
+        let nz = |a: &[f64]| a.iter().any(|v| *v != 0.0);
+        nz(&self.accel_sf)
+            || nz(&self.gyro_sf)
+            || nz(&self.accel_mis_rad)
+            || nz(&self.gyro_mis_rad)
+            || nz(&self.accel_temp_coeff)
+            || nz(&self.gyro_temp_coeff)
+            || nz(&self.gyro_g_sens)
+    }
+}
+
+/// `M v` for a misalignment vector `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`.
+pub fn mis_times(m: &[f64; 6], v: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(
+        m[0] * v.y + m[1] * v.z,
+        m[2] * v.x + m[3] * v.z,
+        m[4] * v.x + m[5] * v.y,
+    )
 }
 
 impl SimConfig {
@@ -72,6 +156,8 @@ impl SimConfig {
             lever_arm_body_m: [0.5, -0.3, -1.2],
             motion: Motion::Drive,
             speed0_mps: 10.0,
+            wobble: false,
+            effects: TruthEffects::default(),
         }
     }
 }
@@ -189,8 +275,15 @@ impl Sim {
         if self.cfg.motion == Motion::Static {
             return (Vector3::zeros(), 0.0);
         }
+        let half_circle_s = std::f64::consts::PI / 0.12;
+        let lap_s = 40.0 + 2.0 * half_circle_s;
         let ph = tau % 100.0;
         let (along, yaw_rate) = match ph {
+            _ if self.cfg.motion == Motion::Track => match (tau % lap_s) % (lap_s / 2.0) {
+                p if p < 10.0 => (0.5, 0.0),
+                p if p < 20.0 => (-0.5, 0.0),
+                _ => (0.0, 0.12),
+            },
             p if p < 10.0 => (1.0, 0.0),
             p if p < 20.0 => (0.0, 0.0),
             p if p < 35.0 => (0.0, 0.12),
@@ -223,7 +316,15 @@ impl Sim {
         let w_ie = earth::earth_rate_ned_radps(lat);
         let w_en = earth::transport_rate_ned_radps(lat, s.pos.h_m, &s.vel_ned_mps);
         let c = s.q_nb.to_rotation_matrix().into_inner();
-        let w_ib = Vector3::new(0.0, 0.0, yaw_rate) + c.transpose() * (w_ie + w_en);
+        let mut w_nb = Vector3::new(0.0, 0.0, yaw_rate);
+        if self.cfg.wobble && self.cfg.motion != Motion::Static {
+            let t = tau + 0.5 * dt;
+            let (a_r, w_r) = (2f64.to_radians(), 2.0 * std::f64::consts::PI / 7.0);
+            let (a_p, w_p) = (1.5f64.to_radians(), 2.0 * std::f64::consts::PI / 11.0);
+            w_nb.x += a_r * w_r * (w_r * t).cos();
+            w_nb.y += a_p * w_p * (w_p * t).cos();
+        }
+        let w_ib = w_nb + c.transpose() * (w_ie + w_en);
         let dtheta = w_ib * dt;
         self.last_w_ib = w_ib;
         let g = earth::gravity_ned_mps2(lat, s.pos.h_m);
@@ -254,6 +355,25 @@ impl Sim {
             imu.dv_mps[i] = (1.0 + self.accel_sf[i]) * dv[i]
                 + ab[i] * dt
                 + (tr.accel.s_n[i] * dt).sqrt() * randn(&mut self.rng);
+        }
+        let fx = self.cfg.effects;
+        if let Some(tp) = fx.temperature {
+            imu.temperature_c = tp.at(self.k as f64 * dt);
+        }
+        if fx.imu_active() {
+            let d_t = fx
+                .temperature
+                .map(|tp| imu.temperature_c - tp.start_c)
+                .unwrap_or(0.0);
+            let mg = mis_times(&fx.gyro_mis_rad, &dtheta);
+            let ma = mis_times(&fx.accel_mis_rad, &dv);
+            for i in 0..3 {
+                imu.dtheta_rad[i] += fx.gyro_sf[i] * dtheta[i]
+                    + mg[i]
+                    + fx.gyro_temp_coeff[i] * d_t * dt
+                    + fx.gyro_g_sens[i] * dv[i];
+                imu.dv_mps[i] += fx.accel_sf[i] * dv[i] + ma[i] + fx.accel_temp_coeff[i] * d_t * dt;
+            }
         }
         let epoch_accel_sf = self.accel_sf;
         let epoch_gyro_sf = self.gyro_sf;
@@ -326,7 +446,7 @@ impl Sim {
             }
         }
         GnssFix {
-            t_s: truth.t_s,
+            t_s: truth.t_s - self.cfg.effects.gnss_time_offset_s,
             lat_rad: p.lat_rad,
             lon_rad: p.lon_rad,
             h_m: p.h_m,
@@ -464,4 +584,277 @@ pub fn chi2_quantile(p: f64, dof: f64) -> f64 {
         }
     }
     0.5 * (lo + hi)
+}
+
+/// A filter of any dimension, for running several layouts on the same data.
+pub trait AnyFilter {
+    /// Integrates one IMU sample.
+    fn propagate_imu(&mut self, imu: &ImuSample);
+    /// Uses one GNSS fix (returns whether it was accepted).
+    fn use_fix(&mut self, fix: &GnssFix) -> bool;
+    /// The nominal state.
+    fn nav(&self) -> NavState;
+}
+
+impl<T: Scalar, const N: usize> AnyFilter for Filter<T, N> {
+    fn propagate_imu(&mut self, imu: &ImuSample) {
+        self.propagate(imu).expect("propagate");
+    }
+    fn use_fix(&mut self, fix: &GnssFix) -> bool {
+        self.update_gnss(fix).map(|o| o.accepted).unwrap_or(false)
+    }
+    fn nav(&self) -> NavState {
+        *self.nav_state()
+    }
+}
+
+/// GNSS outages `[start, end)` in seconds from the run start: `count` outages of `len_s`
+/// starting at `first_s`, every `every_s`.
+pub fn outage_plan(first_s: f64, every_s: f64, len_s: f64, count: usize) -> Vec<(f64, f64)> {
+    (0..count)
+        .map(|k| {
+            let a = first_s + k as f64 * every_s;
+            (a, a + len_s)
+        })
+        .collect()
+}
+
+/// What one filter did during a run: the largest horizontal position error (IMU point vs
+/// truth, m) inside each outage, and the GNSS fixes it accepted / was offered.
+#[derive(Debug, Clone, Default)]
+pub struct RunStats {
+    /// Largest horizontal error during each outage, m.
+    pub outage_max_horiz_m: Vec<f64>,
+    /// Horizontal error at the last epoch before each outage started, m.
+    pub outage_start_horiz_m: Vec<f64>,
+    /// Fixes accepted.
+    pub accepted: usize,
+    /// Fixes offered.
+    pub offered: usize,
+}
+
+impl RunStats {
+    /// Mean over the outages of the largest horizontal error, m.
+    pub fn mean_outage_max_m(&self) -> f64 {
+        self.outage_max_horiz_m.iter().sum::<f64>() / self.outage_max_horiz_m.len().max(1) as f64
+    }
+}
+
+/// Runs every filter on `duration_s` seconds of the simulator's data with the GNSS fixes
+/// withheld inside `outages` (seconds from the start); `on_epoch` sees each epoch after the
+/// filters used it.
+pub fn run_filters(
+    sim: &mut Sim,
+    filters: &mut [&mut dyn AnyFilter],
+    duration_s: f64,
+    outages: &[(f64, f64)],
+    mut on_epoch: impl FnMut(&Epoch),
+) -> Vec<RunStats> {
+    let t0 = sim.truth().t_s;
+    let n_ep = (duration_s * sim.cfg.imu_hz).round() as u64;
+    let mut stats = vec![RunStats::default(); filters.len()];
+    for st in stats.iter_mut() {
+        st.outage_max_horiz_m = vec![0.0; outages.len()];
+        st.outage_start_horiz_m = vec![f64::NAN; outages.len()];
+    }
+    for _ in 0..n_ep {
+        let e = sim.step();
+        let tau = e.truth.t_s - t0;
+        let in_outage = outages.iter().position(|(a, b)| tau >= *a && tau < *b);
+        for (f, st) in filters.iter_mut().zip(stats.iter_mut()) {
+            f.propagate_imu(&e.imu);
+            if let Some(fix) = e.gnss {
+                if in_outage.is_none() {
+                    st.offered += 1;
+                    if f.use_fix(&fix) {
+                        st.accepted += 1;
+                    }
+                }
+            }
+            let (_, _, dr) = nav_errors(&f.nav(), &e.truth);
+            let h = (dr[0] * dr[0] + dr[1] * dr[1]).sqrt();
+            if let Some(k) = in_outage {
+                if st.outage_start_horiz_m[k].is_nan() {
+                    st.outage_start_horiz_m[k] = h;
+                }
+                st.outage_max_horiz_m[k] = st.outage_max_horiz_m[k].max(h);
+            }
+        }
+        on_epoch(&e);
+    }
+    stats
+}
+
+/// The result of running a base filter and the same filter with effect blocks on one drive.
+pub struct EffectRun<const NB: usize> {
+    /// The filter with the effect blocks, at the end of the run.
+    pub with: Filter<f64, NB>,
+    /// Its outage statistics.
+    pub with_stats: RunStats,
+    /// Outage statistics of the base filter (NBK-18 without the blocks).
+    pub without_stats: RunStats,
+}
+
+/// Runs the NBK-18 base filter and `layout` (NBK-18 + effect blocks, dimension NB) with the
+/// same configuration `cfg` from the same perturbed initial state on `duration_s` seconds of
+/// `sc`'s drive (seed `seed`) with the GNSS fixes withheld inside `outages`.
+pub fn effect_run<const NB: usize>(
+    sc: SimConfig,
+    seed: u64,
+    cfg: &FilterConfig,
+    layout: nav_core::model::Layout,
+    duration_s: f64,
+    outages: &[(f64, f64)],
+) -> EffectRun<NB> {
+    const N18: usize = nav_core::model::LAYOUT_NBK.dim();
+    let mut sim = Sim::new(sc, seed);
+    let unc = test_uncertainty();
+    let init = sim.perturbed_initial(&unc);
+    let mut with: Filter<f64, NB> = Filter::new(layout, cfg, init, &unc).expect("with blocks");
+    let mut without: Filter<f64, N18> =
+        Filter::new(nav_core::model::LAYOUT_NBK, cfg, init, &unc).expect("base");
+    let stats = run_filters(
+        &mut sim,
+        &mut [&mut with, &mut without],
+        duration_s,
+        outages,
+        |_| {},
+    );
+    let mut it = stats.into_iter();
+    let with_stats = it.next().unwrap_or_default();
+    let without_stats = it.next().unwrap_or_default();
+    EffectRun {
+        with,
+        with_stats,
+        without_stats,
+    }
+}
+
+/// Checks a block's estimate against the truth and prints the comparison: every component
+/// within 3 sigma (the sigma is honest); the components in `accurate` within 20 % of the
+/// truth with a sigma below 20 % of it; the components in `detected` with a sigma below half
+/// the truth (the effect is seen at 2 sigma or more, not just left at its prior).
+pub fn check_block_estimate<const N: usize>(
+    f: &Filter<f64, N>,
+    kind: nav_core::model::BlockKind,
+    truth: &[f64],
+    scale: f64,
+    unit: &str,
+    accurate: &[usize],
+    detected: &[usize],
+) {
+    let v = f.block_value(kind).expect("block in layout");
+    let name = v.block.name();
+    for i in 0..v.dim {
+        let (e, s, t) = (v.estimate[i], v.sigma[i], truth[i]);
+        println!(
+            "{name}[{i}]: estimate {:10.4} truth {:10.4} sigma {:8.4} {unit}  (error {:6.2} sigma, {:6.1} % of truth){}",
+            e / scale,
+            t / scale,
+            s / scale,
+            (e - t) / s,
+            100.0 * (e - t) / t,
+            if accurate.contains(&i) {
+                " [accurate]"
+            } else if detected.contains(&i) {
+                " [detected]"
+            } else {
+                ""
+            }
+        );
+    }
+    for i in 0..v.dim {
+        let (e, s, t) = (v.estimate[i], v.sigma[i], truth[i]);
+        assert!(
+            (e - t).abs() < 3.0 * s,
+            "{name}[{i}]: estimate {e:e} truth {t:e} is {:.1} sigma off (sigma {s:e})",
+            (e - t).abs() / s
+        );
+        if accurate.contains(&i) {
+            assert!(
+                (e - t).abs() < 0.2 * t.abs(),
+                "{name}[{i}]: estimate {e:e} not within 20 % of the truth {t:e}"
+            );
+            assert!(
+                s < 0.2 * t.abs(),
+                "{name}[{i}]: sigma {s:e} not below 20 % of the truth {t:e}"
+            );
+        }
+        if detected.contains(&i) {
+            assert!(
+                s < 0.5 * t.abs(),
+                "{name}[{i}]: sigma {s:e} not below half the truth {t:e}"
+            );
+        }
+    }
+}
+
+/// Estimate and 1-sigma of the linear combination `coeffs . x` of a block's states (from the
+/// filter's covariance).
+pub fn block_combination<const N: usize>(
+    f: &Filter<f64, N>,
+    kind: nav_core::model::BlockKind,
+    coeffs: &[f64],
+) -> (f64, f64) {
+    let (off, _) = f.layout().find(kind).expect("block in layout");
+    let est = f.block_estimate(kind).expect("block in layout");
+    let p = f.covariance();
+    let mut e = 0.0;
+    let mut var = 0.0;
+    for (i, ci) in coeffs.iter().enumerate() {
+        e += ci * est[i];
+        for (j, cj) in coeffs.iter().enumerate() {
+            var += ci * cj * p[off + i][off + j];
+        }
+    }
+    (e, var.sqrt())
+}
+
+/// Checks a linear combination of a block's states like an `accurate` component of
+/// [`check_block_estimate`]: within 3 sigma and 20 % of the truth, sigma below 20 %.
+pub fn check_combination<const N: usize>(
+    f: &Filter<f64, N>,
+    kind: nav_core::model::BlockKind,
+    label: &str,
+    coeffs: &[f64],
+    truth: f64,
+    scale: f64,
+    unit: &str,
+) {
+    let (e, s) = block_combination(f, kind, coeffs);
+    println!(
+        "{label}: estimate {:10.4} truth {:10.4} sigma {:8.4} {unit}  (error {:6.2} sigma, {:6.1} % of truth) [accurate]",
+        e / scale,
+        truth / scale,
+        s / scale,
+        (e - truth) / s,
+        100.0 * (e - truth) / truth
+    );
+    assert!(
+        (e - truth).abs() < 3.0 * s,
+        "{label}: {e:e} vs {truth:e}, sigma {s:e}"
+    );
+    assert!(
+        (e - truth).abs() < 0.2 * truth.abs(),
+        "{label}: {e:e} vs {truth:e}"
+    );
+    assert!(s < 0.2 * truth.abs(), "{label}: sigma {s:e} vs {truth:e}");
+}
+
+/// Prints and checks that the block lowers the mean (over the outages) of the largest
+/// horizontal position error during an outage; returns (with, without) in m.
+pub fn check_outage_improvement(name: &str, with: &RunStats, without: &RunStats) -> (f64, f64) {
+    let (a, b) = (with.mean_outage_max_m(), without.mean_outage_max_m());
+    println!(
+        "{name}: mean max horizontal error in {} outages: with the block {a:.3} m, without {b:.3} m ({:.0} % lower); per outage with {:?} without {:?}; fixes accepted {}/{} vs {}/{}",
+        with.outage_max_horiz_m.len(),
+        100.0 * (1.0 - a / b),
+        with.outage_max_horiz_m.iter().map(|v| format!("{v:.2}")).collect::<Vec<_>>(),
+        without.outage_max_horiz_m.iter().map(|v| format!("{v:.2}")).collect::<Vec<_>>(),
+        with.accepted,
+        with.offered,
+        without.accepted,
+        without.offered,
+    );
+    (a, b)
 }

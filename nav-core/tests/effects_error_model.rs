@@ -1,0 +1,329 @@
+//! The effect blocks' linearised models against the nonlinear filter:
+//!
+//! * F coupling of the IMU-correction blocks (misalignments, temperature coefficients,
+//!   g-sensitivity, scale factors): over 20 s of a turning, accelerating, rolling and pitching
+//!   200 Hz drive with a temperature ramp, the product of the filter's transition matrices
+//!   must match finite differences of two filters' nominal trajectories, one started with a
+//!   small estimate in one effect state (the same check `filter_error_model` does for the base
+//!   layouts). This checks the sign of every coupling, the IMU correction and the regressors.
+//! * GNSS measurement columns of the lever-arm and time-offset blocks (and the gyro blocks'
+//!   lever-arm velocity terms): the change of the innovation when one state's estimate is
+//!   perturbed must equal `-H` times the perturbation, for position and velocity updates.
+
+mod common_filter;
+
+use common_filter::*;
+use nalgebra::{SMatrix, Vector3};
+use nav_core::config::{FilterConfig, ScaleFactorNoise, SensorNoise};
+use nav_core::filter::{dcm_f64, Filter, InitialUncertainty};
+use nav_core::model::discrete::{discretize, Accumulator};
+use nav_core::model::{Block, BlockKind, Layout, Regressors, LAYOUT_N};
+use nav_core::nav::NavState;
+use nav_core::types::ImuSample;
+
+const T_REF_C: f64 = 25.0;
+
+fn config() -> FilterConfig {
+    let accel = SensorNoise::isotropic(6e-9, 0.0, 45.0, 3e-12, 1e-3);
+    let gyro = SensorNoise::isotropic(5e-10, 0.0, 60.0, 0.0, 1e-5);
+    let mut c = FilterConfig::with_noise(accel, gyro);
+    c.accel_scale = ScaleFactorNoise::from_ppm(500.0, 1e6);
+    c.gyro_scale = ScaleFactorNoise::from_ppm(500.0, 1e6);
+    c.effects.temperature_ref_c = Some(T_REF_C);
+    c
+}
+
+fn unc() -> InitialUncertainty {
+    InitialUncertainty {
+        att_sigma_rad: [1e-3; 3],
+        vel_sigma_mps: [0.1; 3],
+        pos_sigma_m: [1.0; 3],
+    }
+}
+
+fn err9(est: &NavState, reference: &NavState) -> [f64; 9] {
+    let (phi, dv, dr) = nav_errors(est, reference);
+    [
+        phi[0], phi[1], phi[2], dv[0], dv[1], dv[2], dr[0], dr[1], dr[2],
+    ]
+}
+
+/// 20 s of error-free increments of a wobbling drive (starting 20 s into the profile), with a
+/// temperature ramp of 0.4 degC/s from 22 degC (so the regressor changes sign).
+fn samples() -> (NavState, Vec<ImuSample>) {
+    let mut sc = SimConfig::nbk(200.0);
+    sc.truth = FilterConfig::with_noise(
+        SensorNoise::isotropic(0.0, 0.0, 1.0, 0.0, 0.0),
+        SensorNoise::isotropic(0.0, 0.0, 1.0, 0.0, 0.0),
+    );
+    sc.speed0_mps = 15.0;
+    sc.wobble = true;
+    let mut sim = Sim::new(sc, 1);
+    for _ in 0..(5 * 200) {
+        sim.step();
+    }
+    let start = *sim.truth();
+    let v = (0..(20 * 200))
+        .map(|k| {
+            let mut s = sim.step().imu;
+            s.temperature_c = 22.0 + 0.4 * (k as f64 + 1.0) / 200.0;
+            s
+        })
+        .collect();
+    (start, v)
+}
+
+fn eps_of(b: Block) -> f64 {
+    match b {
+        Block::AccelMisalignment | Block::GyroMisalignment => 1e-4,
+        Block::AccelScaleFactor | Block::GyroScaleFactor => 1e-4,
+        Block::AccelTemperatureBias => 1e-5,
+        Block::GyroTemperatureBias => 1e-7,
+        Block::GyroGSensitivity => 1e-6,
+        _ => 1e-4,
+    }
+}
+
+/// Worst normalised column mismatch over the effect states of `layout`.
+fn check_layout<const N: usize>(layout: Layout, name: &str) -> f64 {
+    let cfg = config();
+    let (start, samples) = samples();
+    let mut reference: Filter<f64, N> = Filter::new(layout, &cfg, start, &unc()).unwrap();
+    let mut acc: Accumulator<f64, N> = Accumulator::default();
+    let mut phi_total = SMatrix::<f64, N, N>::identity();
+    for s in &samples {
+        reference.propagate(s).unwrap();
+        let st = *reference.last_step();
+        let nav = *reference.nav_state();
+        let c = dcm_f64(&nav.q_nb);
+        let reg = Regressors {
+            dt: st.dt_s,
+            c_nb: c.transpose().into(),
+            f_b: st.f_body_mps2.into(),
+            omega_b: st.omega_ib_body_radps.into(),
+            temperature_c: s.temperature_c - T_REF_C,
+        };
+        acc.add(&layout, &reg, st.dt_s, &st.f_ned_mps2.into());
+        if reference.pending_prediction_s() == 0.0 {
+            let d = discretize(&layout, &cfg, &nav, &acc);
+            acc = Accumulator::default();
+            let p = d.phi.to_dense();
+            let m = SMatrix::<f64, N, N>::from_fn(|i, j| p[i][j]);
+            phi_total = m * phi_total;
+        }
+    }
+    assert_eq!(acc.epochs, 0);
+
+    let mut worst = 0.0f64;
+    let first_effect = LAYOUT_N.dim();
+    for j in first_effect..N {
+        let (off, b) = layout
+            .iter()
+            .find(|(o, b)| j >= *o && j < o + b.dim())
+            .unwrap();
+        let eps = eps_of(b);
+        let mut f: Filter<f64, N> = Filter::new(layout, &cfg, start, &unc()).unwrap();
+        let mut v = vec![0.0; b.dim()];
+        v[j - off] = eps;
+        f.set_block_estimate(b.kind(), &v).unwrap();
+        for s in &samples {
+            f.propagate(s).unwrap();
+        }
+        let e = err9(f.nav_state(), reference.nav_state());
+        let mut col_fd = [0.0; 9];
+        let mut col_m = [0.0; 9];
+        for i in 0..9 {
+            col_fd[i] = e[i] / eps;
+            col_m[i] = phi_total[(i, j)];
+        }
+        let est = f.block_estimate(b.kind()).unwrap()[j - off];
+        assert!(
+            (est / eps - phi_total[(j, j)]).abs() < 1e-9,
+            "{name}: state {j} estimate decay"
+        );
+        let mut col_worst = 0.0f64;
+        let mut any = false;
+        for g in 0..3 {
+            let r = 3 * g..3 * g + 3;
+            let scale = r.clone().map(|i| col_fd[i].abs()).fold(0.0, f64::max);
+            let diff = r.map(|i| (col_fd[i] - col_m[i]).abs()).fold(0.0, f64::max);
+            let tiny = [1e-9, 1e-7, 1e-6][g];
+            let rel = if scale > tiny {
+                any = true;
+                diff / scale
+            } else {
+                diff / tiny
+            };
+            col_worst = col_worst.max(rel);
+        }
+        // every effect state must actually move the solution on this drive
+        assert!(any, "{name}: state {j} ({}) has no effect", b.name());
+        println!(
+            "{name} state {j:2} {}[{}]: fd [{}]\n              model [{}]  worst rel {col_worst:.2e}",
+            b.name(),
+            j - off,
+            col_fd
+                .iter()
+                .map(|v| format!("{v:10.3e}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            col_m
+                .iter()
+                .map(|v| format!("{v:10.3e}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+        worst = worst.max(col_worst);
+    }
+    worst
+}
+
+const L_GYRO: Layout = LAYOUT_N
+    .with(Block::GyroMisalignment)
+    .with(Block::GyroTemperatureBias)
+    .with(Block::GyroGSensitivity)
+    .with(Block::GyroScaleFactor);
+const L_ACCEL: Layout = LAYOUT_N
+    .with(Block::AccelMisalignment)
+    .with(Block::AccelTemperatureBias)
+    .with(Block::AccelScaleFactor);
+
+#[test]
+fn transition_product_matches_finite_differences_for_the_gyro_effect_blocks() {
+    let w = check_layout::<{ L_GYRO.dim() }>(L_GYRO, "gyro-effects");
+    assert!(w < 0.01, "worst column mismatch {w}");
+}
+
+#[test]
+fn transition_product_matches_finite_differences_for_the_accel_effect_blocks() {
+    let w = check_layout::<{ L_ACCEL.dim() }>(L_ACCEL, "accel-effects");
+    assert!(w < 0.01, "worst column mismatch {w}");
+}
+
+const L_MEAS: Layout = LAYOUT_N.with(Block::LeverArm).with(Block::TimeOffset);
+const NM: usize = L_MEAS.dim();
+
+fn meas_config(velocity: bool) -> FilterConfig {
+    let mut cfg = config();
+    cfg.lever_arm_body_m = [0.7, -0.4, -1.1];
+    cfg.use_gnss_velocity = velocity;
+    cfg.gating = nav_core::config::Gating::disabled();
+    cfg.max_gnss_time_offset_s = 0.5;
+    cfg
+}
+
+/// A filter after `samples` at a non-zero operating point (lever-arm correction
+/// [0.2, 0.1, -0.3] m, time offset 60 ms), with one estimate perturbed by `eps`.
+fn filter_at(
+    start: NavState,
+    samples: &[ImuSample],
+    velocity: bool,
+    perturb: Option<(Block, usize, f64)>,
+) -> Filter<f64, NM> {
+    let mut f: Filter<f64, NM> =
+        Filter::new(L_MEAS, &meas_config(velocity), start, &unc()).unwrap();
+    f.set_block_estimate(BlockKind::LeverArm, &[0.2, 0.1, -0.3])
+        .unwrap();
+    f.set_block_estimate(BlockKind::TimeOffset, &[0.06])
+        .unwrap();
+    if let Some((b, k, eps)) = perturb {
+        let mut v = f.block_estimate(b.kind()).unwrap().to_vec();
+        v[k] += eps;
+        f.set_block_estimate(b.kind(), &v).unwrap();
+    }
+    for s in samples {
+        f.propagate(s).unwrap();
+    }
+    f
+}
+
+#[test]
+fn gnss_measurement_columns_of_lever_arm_and_time_offset_match_finite_differences() {
+    let (start, samples) = samples();
+    // 12 s into the window: turning, rolling and pitching
+    let samples = &samples[..12 * 200];
+    let probe = filter_at(start, samples, false, None);
+    let nav = *probe.nav_state();
+    // a fix 30 ms after the filter epoch, at the solution
+    let fix = nav_core::types::GnssFix {
+        t_s: nav.t_s + 0.03,
+        lat_rad: nav.pos.lat_rad,
+        lon_rad: nav.pos.lon_rad,
+        h_m: nav.pos.h_m,
+        pos_std_ned_m: [0.02, 0.02, 0.04],
+        vel_ned_mps: nav.vel_ned_mps.into(),
+        vel_std_ned_mps: [0.02, 0.02, 0.04],
+        has_velocity: true,
+        quality: nav_core::types::FixQuality::RtkFixed,
+        num_sats: 20,
+    };
+    // analytic columns at the operating point: lever arm dz_pos = C e_k + tau C (w x e_k) (the
+    // antenna velocity bridges tau), dz_vel = C (w x e_k) - w_in x (C e_k);
+    // time offset dz_pos = d/d(dt) [v_ant tau + a tau^2 / 2] = v_ant + a tau, dz_vel = a
+    let c = dcm_f64(&nav.q_nb);
+    let st = *probe.last_step();
+    let w = st.omega_ib_body_radps;
+    let l = Vector3::new(0.9, -0.3, -1.4);
+    let tau = 0.03 + 0.06;
+    let w_in = nav_core::earth::earth_rate_ned_radps(nav.pos.lat_rad)
+        + nav_core::earth::transport_rate_ned_radps(nav.pos.lat_rad, nav.pos.h_m, &nav.vel_ned_mps);
+    let acc = st.f_ned_mps2 + nav_core::earth::gravity_ned_mps2(nav.pos.lat_rad, nav.pos.h_m);
+    for velocity in [false, true] {
+        let base = filter_at(start, samples, velocity, None)
+            .update_gnss(&fix)
+            .unwrap()
+            .innovation;
+        for (b, k, eps) in [
+            (Block::LeverArm, 0, 1e-3),
+            (Block::LeverArm, 1, 1e-3),
+            (Block::LeverArm, 2, 1e-3),
+            (Block::TimeOffset, 0, 1e-4),
+        ] {
+            let pert = filter_at(start, samples, velocity, Some((b, k, eps)))
+                .update_gnss(&fix)
+                .unwrap()
+                .innovation;
+            // innovation = measured - predicted = -(z): d(innovation) = -H d(x)
+            let fd: Vec<f64> = (0..6).map(|i| -(pert[i] - base[i]) / eps).collect();
+            let (hp, hv): (Vector3<f64>, Vector3<f64>) = match b {
+                Block::LeverArm => {
+                    let mut e = Vector3::zeros();
+                    e[k] = 1.0;
+                    let ce = c * e;
+                    (
+                        ce + c * w.cross(&e) * tau,
+                        c * w.cross(&e) - w_in.cross(&ce),
+                    )
+                }
+                _ => (nav.vel_ned_mps + c * w.cross(&l) + acc * tau, acc),
+            };
+            println!(
+                "{} [{k}] velocity update {velocity}: fd {:?}\n   analytic pos {:?} vel {:?}",
+                b.name(),
+                fd.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>(),
+                hp.as_slice(),
+                hv.as_slice()
+            );
+            for i in 0..3 {
+                let tol = 1e-3 * hp.norm() + 1e-6;
+                assert!(
+                    (fd[i] - hp[i]).abs() < tol,
+                    "{} pos {i}: {} vs {}",
+                    b.name(),
+                    fd[i],
+                    hp[i]
+                );
+                if velocity {
+                    let tol = 1e-3 * hv.norm() + 1e-6;
+                    assert!(
+                        (fd[3 + i] - hv[i]).abs() < tol,
+                        "{} vel {i}: {} vs {}",
+                        b.name(),
+                        fd[3 + i],
+                        hv[i]
+                    );
+                }
+            }
+        }
+    }
+}
