@@ -94,7 +94,7 @@ impl Axes3 {
 
 /// Error model of one sensor triad (accelerometers or gyros). Rate units: m/s^2 for
 /// accelerometers, rad/s for gyros; PSDs two-sided (IEEE 952, see `docs/DESIGN.md`).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SensorErrors {
     /// White noise PSD S_N: m^2/s^3 (accelerometer), rad^2/s (gyro).
@@ -126,6 +126,27 @@ pub struct SensorErrors {
     /// Gyros only: g-sensitivity matrix, rad/s per m/s^2 of specific force (row = gyro axis,
     /// column = specific-force axis).
     pub g_sensitivity_radps_per_mps2: [[f64; 3]; 3],
+}
+
+impl Default for SensorErrors {
+    /// No errors (flicker blocks of 600 s when flicker is switched on).
+    fn default() -> Self {
+        Self {
+            white_psd: Axes3::default(),
+            gm_psd: Axes3::default(),
+            gm_tau_s: Axes3::default(),
+            rw_psd: Axes3::default(),
+            flicker_b: Axes3::default(),
+            flicker_block_s: 600.0,
+            turn_on_bias_sigma: Axes3::default(),
+            bias: Axes3::default(),
+            quantization_step: Axes3::default(),
+            scale_factor_ppm: Axes3::default(),
+            misalignment_rad: [[0.0; 3]; 3],
+            temp_coeff_per_c: Axes3::default(),
+            g_sensitivity_radps_per_mps2: [[0.0; 3]; 3],
+        }
+    }
 }
 
 /// Simulated sensor temperature: `T(t) = start_c + rise_c (1 - exp(-(t - t0) / tau_s))`.
@@ -297,6 +318,24 @@ pub struct ErrorModel {
     pub gnss: GnssErrors,
 }
 
+/// An error-model file: the model plus an optional `base` preset it overrides.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ErrorModelFile {
+    #[serde(default)]
+    base: Option<String>,
+    #[serde(default)]
+    name: String,
+    #[serde(default)]
+    accel: SensorErrors,
+    #[serde(default)]
+    gyro: SensorErrors,
+    #[serde(default)]
+    temperature: Option<Temperature>,
+    #[serde(default)]
+    gnss: GnssErrors,
+}
+
 /// Micro-g in m/s^2.
 pub const UG_MPS2: f64 = 1e-6 * nav_core::earth::G0_MPS2;
 /// One degree per hour in rad/s.
@@ -338,8 +377,6 @@ impl ErrorModel {
             temperature: None,
             gnss: rtk_gnss(),
         };
-        m.accel.flicker_block_s = 600.0;
-        m.gyro.flicker_block_s = 600.0;
         match name {
             "none" => {
                 m.gnss = GnssErrors {
@@ -395,14 +432,24 @@ impl ErrorModel {
             path: origin.to_string(),
             msg,
         };
-        let mut user: toml::Table = toml::from_str(text).map_err(|e| perr(e.to_string()))?;
-        let base = match user.remove("base") {
-            None => None,
-            Some(toml::Value::String(s)) => Some(s),
-            Some(v) => return Err(perr(format!("`base` must be a preset name, not {v}"))),
-        };
-        let merged = match base {
+        // Typed parse first: unknown keys and wrong types are reported with line and column.
+        let direct: ErrorModelFile = toml::from_str(text).map_err(|e| perr(e.to_string()))?;
+        let merged = match direct.base {
+            None => {
+                let m = ErrorModel {
+                    name: direct.name,
+                    accel: direct.accel,
+                    gyro: direct.gyro,
+                    temperature: direct.temperature,
+                    gnss: direct.gnss,
+                };
+                m.validate()?;
+                return Ok(m);
+            }
             Some(name) => {
+                let mut user: toml::Table =
+                    toml::from_str(text).map_err(|e| perr(e.to_string()))?;
+                user.remove("base");
                 let preset = Self::preset(&name)?;
                 let mut t = toml::Table::try_from(&preset).map_err(|e| perr(e.to_string()))?;
                 merge(&mut t, user);
@@ -416,7 +463,6 @@ impl ErrorModel {
                 }
                 t
             }
-            None => user,
         };
         let m: ErrorModel = merged
             .try_into()
