@@ -46,8 +46,6 @@ fn time_offset_block_estimates_an_imu_gnss_delay_and_lowers_outage_errors() {
         let mut cfg = FilterConfig::source_nbk_model();
         cfg.lever_arm_body_m = sc.lever_arm_body_m;
         cfg.use_gnss_velocity = velocity;
-        // the fixes arrive offset_s after their tag: let the filter bridge that
-        cfg.max_gnss_time_offset_s = 0.2;
         let outages = outage_plan(500.0, 170.0, 60.0, 4);
         let r = effect_run::<{ L_TIME.dim() }>(sc, seed, &cfg, L_TIME, 1200.0, &outages);
         println!("offset {offset_s} s, velocity updates {velocity}:");
