@@ -7,8 +7,8 @@
 
 pub mod allan;
 pub mod io;
-pub mod noise;
-pub mod sim;
-pub mod run;
-pub mod study;
 pub mod metrics;
+pub mod noise;
+pub mod run;
+pub mod sim;
+pub mod study;
