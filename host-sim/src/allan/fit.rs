@@ -250,6 +250,8 @@ pub struct FitOptions {
     pub tau_range_s: (f64, f64),
     /// Only points with at least this EDF are used.
     pub min_edf: f64,
+    /// Weighting of the Allan variance estimates.
+    pub weighting: Weighting,
 }
 
 impl Default for FitOptions {
@@ -258,7 +260,8 @@ impl Default for FitOptions {
             terms: Terms::NBK_Q,
             irls_iterations: 4,
             tau_range_s: (0.0, f64::INFINITY),
-            min_edf: 1.0,
+            min_edf: 3.0,
+            weighting: Weighting::EdfSandwich,
         }
     }
 }
@@ -275,6 +278,128 @@ struct Pt {
     tau: f64,
     avar: f64,
     edf: f64,
+    m: usize,
+    n_terms: usize,
+}
+
+/// How the Allan variance estimates are weighted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Weighting {
+    /// Diagonal weights `EDF / (2 AVAR_model^2)`; uncertainties `(J^T W J)^-1` as if the
+    /// estimates at different taus were independent.
+    Edf,
+    /// Diagonal EDF weights for the estimate (as `Edf`), uncertainties from the sandwich
+    /// `(J^T W J)^-1 J^T W V W J (J^T W J)^-1` with `V` the full model covariance of the
+    /// overlapping AVAR estimates ([`oavar_covariance`]), which accounts for the strong
+    /// correlation of neighbouring octave estimates (0.5 - 0.85). The default.
+    EdfSandwich,
+    /// Generalized least squares with the full covariance matrix of the overlapping AVAR
+    /// estimates predicted by the current model ([`oavar_covariance`]); the first iteration
+    /// uses the EDF weights. Needs OADEV points (`m`, `n_terms`).
+    Gls,
+}
+
+/// Generalized covariance `K(t)` of the integrated rate ("phase" `x(t) = int y`) of the model:
+/// `Cov(sum w_p x(t_p), sum v_q x(s_q)) = sum w_p v_q K(t_p - s_q)` for weights that cancel
+/// constants and lines (second differences). White: `-S_N |t| / 2`; random walk:
+/// `S_K |t|^3 / 12`; Gauss-Markov: `-sigma^2 T^2 (|t|/T - 1 + e^(-|t|/T))` with `sigma^2 =
+/// S_B T / 2`; quantization: `Q^2` at `t = 0`; flicker: `(B^2 / 2 pi) t^2 ln|t|`. Each gives
+/// its Allan variance term through `(6K(0) - 8K(tau) + 2K(2tau)) / (2 tau^2)`.
+fn gen_cov(c: &[f64; 5], t_b: f64, t: f64) -> f64 {
+    let a = t.abs();
+    let mut k = -0.5 * c[IN] * a + c[IK] * a * a * a / 12.0;
+    if c[IB] > 0.0 && t_b > 0.0 {
+        let sig2 = 0.5 * c[IB] * t_b;
+        let r = a / t_b;
+        // r - 1 + e^-r, with a series for small r (cancellation).
+        let g = if r < 1e-4 {
+            r * r / 2.0 - r * r * r / 6.0
+        } else {
+            r - 1.0 + (-r).exp()
+        };
+        k -= sig2 * t_b * t_b * g;
+    }
+    if a == 0.0 {
+        k += c[IQ];
+    } else if c[IF] > 0.0 {
+        k += c[IF] / (2.0 * std::f64::consts::PI) * a * a * a.ln();
+    }
+    k
+}
+
+/// Covariance matrix of overlapping Allan variance estimates at averaging factors `m_i` with
+/// `n_i` terms each (sample time `dt_s`), for Gaussian noise with the model `c` (linear
+/// coefficients `[Q^2, S_N, S_B, S_K, B^2]`) and `T_B`:
+/// `Cov(A_a, A_b) = 2 sum_k C_ab(k)^2 #(k) / (4 m_a^2 m_b^2 n_a n_b dt^4)` with `C_ab(k)` the
+/// covariance of the second differences `d_a(i)` and `d_b(i + k)` (from [`gen_cov`]) and `#(k)`
+/// the number of term pairs at lag k. The lag sum is exact for short supports and sampled
+/// (step h, weight h) when the support exceeds 4096 lags. Its diagonal is the exact variance of
+/// each estimate (what the EDF approximates).
+pub fn oavar_covariance(ms: &[(usize, usize)], dt_s: f64, c: &[f64; 5], t_b: f64) -> DMatrix<f64> {
+    let n = ms.len();
+    let mut v = DMatrix::zeros(n, n);
+    for a in 0..n {
+        for b in a..n {
+            let (ma, na) = ms[a];
+            let (mb, nb) = ms[b];
+            let wa = [(1.0, 0i64), (-2.0, ma as i64), (1.0, 2 * ma as i64)];
+            let wb = [(1.0, 0i64), (-2.0, mb as i64), (1.0, 2 * mb as i64)];
+            let cab = |k: i64| {
+                let mut s = 0.0;
+                for (wp, op) in wa {
+                    for (wq, oq) in wb {
+                        s += wp * wq * gen_cov(c, t_b, (k + oq - op) as f64 * dt_s);
+                    }
+                }
+                s
+            };
+            let mut ext = 0i64;
+            if c[IB] > 0.0 && t_b.is_finite() {
+                ext += (12.0 * t_b / dt_s).ceil() as i64;
+            }
+            if c[IF] > 0.0 {
+                ext += 2 * (ma + mb) as i64;
+            }
+            let pairs = |k: i64| {
+                let i0 = 0i64.max(-k);
+                let i1 = (na as i64).min(nb as i64 - k);
+                (i1 - i0).max(0) as f64
+            };
+            // Sum of C(k)^2 #(k) over [lo, hi] with at most ~4096 samples (step h, weight h).
+            let range_sum = |lo: i64, hi: i64, max_pts: f64| {
+                if hi < lo {
+                    return 0.0;
+                }
+                let span = (hi - lo + 1) as f64;
+                let step = ((span / max_pts).ceil() as i64).max(1);
+                let mut sum = 0.0;
+                let mut k = lo;
+                while k <= hi {
+                    let ck = cab(k);
+                    sum += ck * ck * pairs(k) * step as f64;
+                    k += step;
+                }
+                sum
+            };
+            // Core support of the difference filters (where white / random walk /
+            // quantization live), then the tails where only the smooth Gauss-Markov and
+            // flicker parts remain.
+            let (lo_c, hi_c) = (-(2 * mb as i64), 2 * ma as i64);
+            let sum = range_sum(lo_c, hi_c, 2048.0)
+                + range_sum(lo_c - ext, lo_c - 1, 512.0)
+                + range_sum(hi_c + 1, hi_c + ext, 512.0);
+            let den = 4.0
+                * (ma as f64).powi(2)
+                * (mb as f64).powi(2)
+                * na as f64
+                * nb as f64
+                * dt_s.powi(4);
+            let val = 2.0 * sum / den;
+            v[(a, b)] = val;
+            v[(b, a)] = val;
+        }
+    }
+    v
 }
 
 fn basis(terms: &Terms, tau: f64, t_b: f64) -> [f64; 5] {
@@ -328,19 +453,45 @@ fn nnls_small(a: &DMatrix<f64>, b: &DVector<f64>) -> ([f64; 5], f64) {
 }
 
 /// Solves the linear NNLS for a fixed T_B with weights from `wmodel` (model AVAR per point).
-fn solve_fixed_tb(pts: &[Pt], terms: &Terms, t_b: f64, wmodel: &[f64]) -> ([f64; 5], f64) {
+fn solve_fixed_tb(pts: &[Pt], terms: &Terms, t_b: f64, w: &DMatrix<f64>) -> ([f64; 5], f64) {
     let n = pts.len();
     let mut a = DMatrix::zeros(n, 5);
     let mut b = DVector::zeros(n);
     for (i, p) in pts.iter().enumerate() {
-        let sw = (p.edf / 2.0).sqrt() / wmodel[i];
         let row = basis(terms, p.tau, t_b);
         for j in 0..5 {
-            a[(i, j)] = row[j] * sw;
+            a[(i, j)] = row[j];
         }
-        b[i] = p.avar * sw;
+        b[i] = p.avar;
     }
-    nnls_small(&a, &b)
+    nnls_small(&(w * a), &(w * b))
+}
+
+/// Whitening matrix for diagonal EDF weights with model values `wmodel`.
+fn diag_whitening(pts: &[Pt], wmodel: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_fn(pts.len(), pts.len(), |i, j| {
+        if i == j {
+            (pts[i].edf / 2.0).sqrt() / wmodel[i]
+        } else {
+            0.0
+        }
+    })
+}
+
+/// Whitening matrix `L^-1` for the covariance `V = L L^T`; `None` if V is not positive
+/// definite.
+fn full_whitening(v: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    // Scale to unit diagonal for conditioning.
+    let d: Vec<f64> = (0..v.nrows()).map(|i| v[(i, i)].sqrt()).collect();
+    if d.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return None;
+    }
+    let r = DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[(i, j)] / (d[i] * d[j]));
+    let ch = r.cholesky()?;
+    let linv = ch.l().try_inverse()?;
+    Some(DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| {
+        linv[(i, j)] / d[j]
+    }))
 }
 
 fn model_at(c: &[f64; 5], terms: &Terms, tau: f64, t_b: f64) -> f64 {
@@ -352,7 +503,7 @@ fn model_at(c: &[f64; 5], terms: &Terms, tau: f64, t_b: f64) -> f64 {
 }
 
 /// Best T_B (log grid + golden section) for the given weights; returns (t_b, c, cost).
-fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &[f64]) -> (f64, [f64; 5], f64) {
+fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &DMatrix<f64>) -> (f64, [f64; 5], f64) {
     if !terms.gm {
         let (c, cost) = solve_fixed_tb(pts, terms, 1.0, wmodel);
         return (f64::NAN, c, cost);
@@ -360,8 +511,20 @@ fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &[f64]) -> (f64, [f64; 5], f64) 
     // T_B is searched within the fitted tau range: a Gauss-Markov process with T_B well below
     // the smallest tau is indistinguishable from white noise (AVAR -> S_B T_B^2 / tau), and
     // one with T_B far above the largest tau from a random walk (AVAR -> S_B tau / 3).
+    // It is also kept below a tenth of the record length: over the record, a slower
+    // Gauss-Markov process is a random walk plus a constant, and letting it absorb the random
+    // walk biases S_K low.
     let tmin = pts.iter().map(|p| p.tau).fold(f64::INFINITY, f64::min);
-    let tmax = pts.iter().map(|p| p.tau).fold(0.0, f64::max);
+    let record_s = pts
+        .iter()
+        .map(|p| (p.n_terms + 2 * p.m) as f64 * p.tau / p.m.max(1) as f64)
+        .fold(0.0, f64::max);
+    let tmax = pts
+        .iter()
+        .map(|p| p.tau)
+        .fold(0.0, f64::max)
+        .min(record_s / 10.0)
+        .max(tmin * 2.0);
     let (lmin, lmax) = (tmin.ln(), tmax.ln());
     let ngrid = 60;
     let eval = |lt: f64| {
@@ -429,6 +592,8 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
             tau: p.tau_s,
             avar: p.dev * p.dev,
             edf: p.edf,
+            m: p.m,
+            n_terms: p.n_terms,
         })
         .collect();
     if pts.len() < 3 {
@@ -436,7 +601,10 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
     }
     let terms = opt.terms;
     let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
-    let mut sol = search_tb(&pts, &terms, &wmodel);
+    let mut w = diag_whitening(&pts, &wmodel);
+    let mut sol = search_tb(&pts, &terms, &w);
+    let dt = pts[0].tau / pts[0].m.max(1) as f64;
+    let ms: Vec<(usize, usize)> = pts.iter().map(|p| (p.m, p.n_terms)).collect();
     for _ in 0..opt.irls_iterations {
         let (t_b, c, _) = sol;
         let new: Vec<f64> = pts
@@ -452,7 +620,12 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
             })
             .collect();
         wmodel = new;
-        sol = search_tb(&pts, &terms, &wmodel);
+        w = match opt.weighting {
+            Weighting::Edf | Weighting::EdfSandwich => diag_whitening(&pts, &wmodel),
+            Weighting::Gls => full_whitening(&oavar_covariance(&ms, dt, &c, t_b))
+                .unwrap_or_else(|| diag_whitening(&pts, &wmodel)),
+        };
+        sol = search_tb(&pts, &terms, &w);
     }
     let (t_b, c, chi2) = sol;
 
@@ -463,24 +636,35 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
     let np = free.len() + usize::from(has_tb);
     let mut jac = DMatrix::zeros(pts.len(), np);
     for (i, p) in pts.iter().enumerate() {
-        let sw = (p.edf / 2.0).sqrt() / wmodel[i];
         let row = basis(&terms, p.tau, t_b);
         for (k, &j) in free.iter().enumerate() {
-            jac[(i, k)] = row[j] * sw;
+            jac[(i, k)] = row[j];
         }
         if has_tb {
             let h = 1e-5;
             let up = gauss_markov_avar(c[IB], t_b * (1.0 + h), p.tau);
             let dn = gauss_markov_avar(c[IB], t_b * (1.0 - h), p.tau);
             // derivative with respect to T_B itself
-            jac[(i, np - 1)] = (up - dn) / (2.0 * h * t_b) * sw;
+            jac[(i, np - 1)] = (up - dn) / (2.0 * h * t_b);
         }
     }
+    let jac0 = jac;
+    let jac = &w * &jac0;
     let jtj = jac.transpose() * &jac;
-    let cov = jtj
+    let bread = jtj
         .clone()
         .try_inverse()
         .unwrap_or_else(|| jtj.pseudo_inverse(1e-300).unwrap_or(DMatrix::zeros(np, np)));
+    let cov = match opt.weighting {
+        Weighting::EdfSandwich => {
+            // Cov = B J0^T Om V Om J0 B, Om = W^T W, V the model covariance of the estimates.
+            let v = oavar_covariance(&ms, dt, &c, t_b);
+            let om_j = w.transpose() * &jac;
+            let meat = om_j.transpose() * v * om_j;
+            &bread * meat * &bread
+        }
+        _ => bread,
+    };
     let mut sig = [0.0f64; 5];
     for (k, &j) in free.iter().enumerate() {
         sig[j] = cov[(k, k)].max(0.0).sqrt();
