@@ -54,6 +54,10 @@ fn check_all(p: &Path, bytes: &[u8]) {
         assert!(r.samples.windows(2).all(|w| w[1].t_s > w[0].t_s));
         assert!(r.gaps.total_missing_s >= 0.0);
     }
+    if let Ok(r) = host_sim::io::read_imu_bin(p) {
+        assert!(r.samples.iter().all(|s| s.is_finite()));
+        assert!(r.samples.windows(2).all(|w| w[1].t_s > w[0].t_s));
+    }
     if let Ok(g) = read_gnss_text(p) {
         assert!(g
             .iter()

@@ -2,8 +2,8 @@
 //! (truncated line, text in a number column, NaN, non-monotonic time, IMU time gaps).
 
 use host_sim::io::{
-    read_gnss_text, read_imu_text, read_nav_text, write_gnss_text, write_imu_text, write_nav_text,
-    IoError,
+    read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_text, write_imu_bin,
+    write_imu_text, write_nav_text, IoError,
 };
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::io::Write;
@@ -583,4 +583,60 @@ fn binary_and_non_utf8_input_is_an_error_not_a_panic() {
     std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
     let e = read_imu_text(&p).unwrap_err();
     assert!(matches!(e, IoError::Read { .. }), "{e:?}");
+}
+
+#[test]
+fn imu_binary_format_round_trips_and_reports_truncation_nan_and_time_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = imu_samples(300, false);
+    for name in ["imu.bin", "imu.bin.gz"] {
+        let p = dir.path().join(name);
+        write_imu_bin(&p, &s).unwrap();
+        let r = read_imu_bin(&p).unwrap();
+        assert_eq!(r.samples.len(), 300);
+        for (a, b) in s.iter().zip(&r.samples) {
+            assert_eq!(
+                (a.t_s, a.dtheta_rad, a.dv_mps),
+                (b.t_s, b.dtheta_rad, b.dv_mps)
+            );
+        }
+        assert_eq!(r.gaps.count(), 0);
+    }
+    let p = dir.path().join("bad.bin");
+    write_imu_bin(&p, &s[..3]).unwrap();
+    let mut bytes = std::fs::read(&p).unwrap();
+    // truncated third record
+    std::fs::write(&p, &bytes[..2 * 56 + 20]).unwrap();
+    let e = read_imu_bin(&p).unwrap_err();
+    assert!(matches!(e, IoError::Format { line: 3, .. }), "{e:?}");
+    assert!(e.to_string().contains("truncated"), "{e}");
+    // NaN in record 2, field 5
+    bytes[56 + 4 * 8..56 + 5 * 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(&p, &bytes).unwrap();
+    let e = read_imu_bin(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            IoError::NonFinite {
+                line: 2,
+                column: 5,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    // time going backwards in record 3
+    write_imu_bin(&p, &[s[0], s[2], s[1]]).unwrap();
+    let e = read_imu_bin(&p).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            IoError::NonMonotonicTime {
+                line: 3,
+                prev_line: 2,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
 }

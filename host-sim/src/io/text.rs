@@ -464,3 +464,110 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
         Ok(())
     })
 }
+
+/// Bytes of one record of the binary IMU format (7 little-endian f64).
+pub const IMU_BIN_RECORD_BYTES: usize = 56;
+
+/// Reads the binary IMU format of awesome-gins-datasets (`*.bin`): records of 7 little-endian
+/// f64 `t dtheta_x dtheta_y dtheta_z dv_x dv_y dv_z` (same meaning and units as the text
+/// format), gzip accepted. In errors, "line" is the 1-based RECORD number and "column" the
+/// 1-based field. A trailing partial record is an error.
+pub fn read_imu_bin(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let f = File::open(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut raw = Vec::new();
+    std::io::BufReader::new(f)
+        .read_to_end(&mut raw)
+        .map_err(|source| IoError::Read {
+            path: path.to_path_buf(),
+            line: 0,
+            source,
+        })?;
+    if raw.len() >= 2 && raw[0] == 0x1f && raw[1] == 0x8b {
+        let mut out = Vec::new();
+        flate2::read::MultiGzDecoder::new(raw.as_slice())
+            .read_to_end(&mut out)
+            .map_err(|source| IoError::Read {
+                path: path.to_path_buf(),
+                line: 0,
+                source,
+            })?;
+        raw = out;
+    }
+    if raw.len() % IMU_BIN_RECORD_BYTES != 0 {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            line: raw.len() / IMU_BIN_RECORD_BYTES + 1,
+            message: format!(
+                "truncated record: {} bytes is not a whole number of {IMU_BIN_RECORD_BYTES}-byte records",
+                raw.len()
+            ),
+        });
+    }
+    let mut samples = Vec::with_capacity(raw.len() / IMU_BIN_RECORD_BYTES);
+    let mut lines = Vec::with_capacity(samples.capacity());
+    for (k, rec) in raw.chunks_exact(IMU_BIN_RECORD_BYTES).enumerate() {
+        let mut v = [0.0; 7];
+        for (i, (x, b)) in v.iter_mut().zip(rec.chunks_exact(8)).enumerate() {
+            let bytes: [u8; 8] = b.try_into().unwrap_or([0; 8]);
+            *x = f64::from_le_bytes(bytes);
+            if !x.is_finite() {
+                return Err(IoError::NonFinite {
+                    path: path.to_path_buf(),
+                    line: k + 1,
+                    column: i + 1,
+                    name: IMU_NAMES[i].to_string(),
+                    text: format!("{x}"),
+                });
+            }
+        }
+        if let Some(prev) = samples.last().map(|s: &ImuSample| s.t_s) {
+            if v[0] <= prev {
+                return Err(IoError::NonMonotonicTime {
+                    path: path.to_path_buf(),
+                    line: k + 1,
+                    column: 1,
+                    name: IMU_NAMES[0].to_string(),
+                    t_s: v[0],
+                    prev_t_s: prev,
+                    prev_line: k,
+                });
+            }
+        }
+        lines.push(k + 1);
+        samples.push(ImuSample {
+            t_s: v[0],
+            dtheta_rad: [v[1], v[2], v[3]],
+            dv_mps: [v[4], v[5], v[6]],
+            temperature_c: f64::NAN,
+        });
+    }
+    let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+    let gaps = TimeGapReport::detect(&t, &lines);
+    Ok(ImuRecord { samples, gaps })
+}
+
+/// Writes IMU samples in the binary format of [`read_imu_bin`] (temperature not written;
+/// gzip when the path ends in `.gz`). Bit-exact round trip.
+pub fn write_imu_bin(path: impl AsRef<Path>, samples: &[ImuSample]) -> Result<(), IoError> {
+    write_with(path.as_ref(), |w| {
+        for s in samples {
+            for v in [
+                s.t_s,
+                s.dtheta_rad[0],
+                s.dtheta_rad[1],
+                s.dtheta_rad[2],
+                s.dv_mps[0],
+                s.dv_mps[1],
+                s.dv_mps[2],
+            ] {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
+        Ok(())
+    })
+}
