@@ -4,6 +4,7 @@
 #![deny(missing_docs)]
 
 pub mod capture;
+#[cfg(feature = "cli")]
 pub mod cmd;
 pub mod frames;
 pub mod fuzz_checks;

@@ -38,6 +38,27 @@ impl core::fmt::Display for CobsError {
 
 impl core::error::Error for CobsError {}
 
+/// Index of the first 0x00 in `b`, scanning eight bytes at a time (SWAR: a word has a zero
+/// byte when `(x - 0x01..01) & !x & 0x80..80 != 0`).
+pub fn find_zero(b: &[u8]) -> Option<usize> {
+    const LO: u64 = 0x0101_0101_0101_0101;
+    const HI: u64 = 0x8080_8080_8080_8080;
+    let mut words = b.chunks_exact(8);
+    let mut base = 0usize;
+    for w in &mut words {
+        let x = u64::from_le_bytes(w.try_into().unwrap_or([1; 8]));
+        if x.wrapping_sub(LO) & !x & HI != 0 {
+            return w.iter().position(|&v| v == 0).map(|i| base + i);
+        }
+        base += 8;
+    }
+    words
+        .remainder()
+        .iter()
+        .position(|&v| v == 0)
+        .map(|i| base + i)
+}
+
 /// Largest encoded size (without delimiter) of a packet of `n` bytes.
 pub const fn max_encoded_len(n: usize) -> usize {
     n + n / 254 + 1
@@ -79,22 +100,20 @@ pub fn encode(src: &[u8], dst: &mut [u8]) -> Option<usize> {
 /// packet is `buf[..len]`). The decoded packet is never longer than the encoded one.
 pub fn decode_in_place(buf: &mut [u8]) -> Result<usize, CobsError> {
     let len = buf.len();
+    if let Some(at) = find_zero(buf) {
+        return Err(CobsError::ZeroByte { at });
+    }
     let mut read = 0usize;
     let mut write = 0usize;
     while read < len {
         let code_at = read;
-        let code = buf.get(read).copied().unwrap_or(0);
-        if code == 0 {
-            return Err(CobsError::ZeroByte { at: read });
-        }
+        // No zero anywhere (checked above), so the code is 1..=255.
+        let code = buf.get(read).copied().unwrap_or(1);
         read += 1;
-        let n = usize::from(code) - 1;
+        let n = usize::from(code).saturating_sub(1);
         let end = read + n;
-        let block = buf
-            .get(read..end)
-            .ok_or(CobsError::Truncated { at: code_at })?;
-        if let Some(z) = block.iter().position(|&b| b == 0) {
-            return Err(CobsError::ZeroByte { at: read + z });
+        if end > len {
+            return Err(CobsError::Truncated { at: code_at });
         }
         buf.copy_within(read..end, write);
         write += n;
@@ -150,6 +169,26 @@ mod tests {
         }
         v[254] = 0;
         roundtrip(&v);
+    }
+
+    #[test]
+    fn find_zero_agrees_with_a_plain_scan() {
+        let mut v = [7u8; 40];
+        assert_eq!(find_zero(&v), None);
+        for z in 0..40 {
+            v = [7u8; 40];
+            v[z] = 0;
+            v[(z + 13) % 40] = 0;
+            for start in 0..8 {
+                let want = v[start..].iter().position(|&b| b == 0);
+                assert_eq!(find_zero(&v[start..]), want, "zero at {z}, start {start}");
+            }
+        }
+        // Bytes >= 0x80 and 0x01 must not look like zeros.
+        assert_eq!(
+            find_zero(&[0x80, 0x01, 0xFF, 0x81, 0x01, 0x01, 0x80, 0x7F, 0x01]),
+            None
+        );
     }
 
     #[test]

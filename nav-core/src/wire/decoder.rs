@@ -256,7 +256,7 @@ impl<const CAP: usize> Iterator for Frames<'_, CAP> {
     fn next(&mut self) -> Option<Self::Item> {
         while !self.rest.is_empty() {
             let rest = self.rest;
-            match rest.iter().position(|&b| b == 0) {
+            match cobs::find_zero(rest) {
                 Some(i) => {
                     let (head, tail) = rest.split_at_checked(i).unwrap_or((rest, &[]));
                     self.dec.append(head);
