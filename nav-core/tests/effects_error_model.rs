@@ -327,3 +327,93 @@ fn gnss_measurement_columns_of_lever_arm_and_time_offset_match_finite_difference
         }
     }
 }
+
+#[test]
+fn time_offset_bridge_core_columns_match_finite_differences_of_the_innovation() {
+    // with a time offset the fix is predicted tau = t_fix + dt_hat - t ahead with the antenna
+    // velocity and the acceleration: the attitude, velocity and position columns change too
+    let (start, samples) = samples();
+    let samples = &samples[..12 * 200];
+    let reference = filter_at(start, samples, false, None);
+    let nav = *reference.nav_state();
+    let fix = nav_core::types::GnssFix {
+        t_s: nav.t_s + 0.03,
+        lat_rad: nav.pos.lat_rad,
+        lon_rad: nav.pos.lon_rad,
+        h_m: nav.pos.h_m,
+        pos_std_ned_m: [0.02, 0.02, 0.04],
+        vel_ned_mps: nav.vel_ned_mps.into(),
+        vel_std_ned_mps: [0.02, 0.02, 0.04],
+        has_velocity: true,
+        quality: nav_core::types::FixQuality::RtkFixed,
+        num_sats: 20,
+    };
+    let c = dcm_f64(&nav.q_nb);
+    let st = *reference.last_step();
+    let l = Vector3::new(0.9, -0.3, -1.4);
+    let tau = 0.03 + 0.06;
+    let skew = |v: Vector3<f64>| v.cross_matrix();
+    let cwl = c * st.omega_ib_body_radps.cross(&l);
+    let h_pos_phi = skew(c * l) + skew(cwl) * tau + skew(st.f_ned_mps2) * (0.5 * tau * tau);
+    let h_vel_phi = skew(cwl) + skew(st.f_ned_mps2) * tau;
+    for velocity in [false, true] {
+        let base = filter_at(start, samples, velocity, None)
+            .update_gnss(&fix)
+            .unwrap()
+            .innovation;
+        for j in 0..9 {
+            let mut init = start;
+            match j {
+                0..=2 => {
+                    let mut phi = Vector3::zeros();
+                    phi[j] = 1e-4;
+                    init.q_nb = nav_core::attitude::quat_from_rotvec(&(-phi)) * init.q_nb;
+                }
+                3..=5 => init.vel_ned_mps[j - 3] += 1e-2,
+                _ => {
+                    let mut d = Vector3::zeros();
+                    d[j - 6] = 0.1;
+                    init.pos = nav_core::earth::displace(&init.pos, &d);
+                }
+            }
+            let mut f = filter_at(init, samples, velocity, None);
+            let e = err9(f.nav_state(), &nav);
+            let (phi, dv, dr) = (
+                Vector3::new(e[0], e[1], e[2]),
+                Vector3::new(e[3], e[4], e[5]),
+                Vector3::new(e[6], e[7], e[8]),
+            );
+            let pert = f.update_gnss(&fix).unwrap().innovation;
+            let want_p = -(h_pos_phi * phi + dv * tau + dr);
+            let want_v = -(h_vel_phi * phi + dv);
+            let scale_p = want_p.norm();
+            let scale_v = want_v.norm();
+            println!(
+                "state {j} velocity update {velocity}: d(innovation) pos [{:.3e} {:.3e} {:.3e}] vs H dx [{:.3e} {:.3e} {:.3e}]",
+                pert[0] - base[0],
+                pert[1] - base[1],
+                pert[2] - base[2],
+                want_p[0],
+                want_p[1],
+                want_p[2]
+            );
+            for i in 0..3 {
+                let dp = pert[i] - base[i];
+                assert!(
+                    (dp - want_p[i]).abs() < 2e-3 * scale_p + 1e-9,
+                    "state {j} pos {i}: {dp:e} vs {:e}",
+                    want_p[i]
+                );
+                if velocity {
+                    let dvel = pert[3 + i] - base[3 + i];
+                    assert!(
+                        // + the neglected height slope of gravity in a tau (3e-8 m/s here)
+                        (dvel - want_v[i]).abs() < 2e-3 * scale_v + 1e-7,
+                        "state {j} vel {i}: {dvel:e} vs {:e}",
+                        want_v[i]
+                    );
+                }
+            }
+        }
+    }
+}

@@ -395,6 +395,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             bridge_s: tau,
             lever_bridge_s: if time_offset { tau } else { 0.0 },
             w_in_ned_radps: w_in.into(),
+            f_ned_mps2: self.last_step.f_ned_mps2.into(),
         };
         let mut h_pos = [[T::ZERO; N]; 3];
         let mut h_vel = [[T::ZERO; N]; 3];

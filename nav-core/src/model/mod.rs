@@ -562,8 +562,22 @@ impl Block {
                 set3(h_vel, 0, off, &to_t(&hv));
             }
             // predicted antenna at t_fix + dt_hat: dz_pos = v_ant d(dt), dz_vel = a d(dt); the
-            // bridge tau = t_fix + dt_hat - t also multiplies the velocity error
+            // bridge tau = t_fix + dt_hat - t also multiplies the velocity error, and the
+            // bridge's attitude dependence adds tau [(C (w x l)) x] + tau^2/2 [f_n x] (position)
+            // and tau [f_n x] (velocity) to the phi columns
             Self::TimeOffset => {
+                let t = ctx.bridge_s;
+                let f_x = skew(&ctx.f_ned_mps2);
+                let mut hp = skew(&ctx.c_w_x_l);
+                let mut hv = f_x;
+                for ((p_row, v_row), f_row) in hp.iter_mut().zip(hv.iter_mut()).zip(&f_x) {
+                    for ((p, v), f) in p_row.iter_mut().zip(v_row.iter_mut()).zip(f_row) {
+                        *p = t * *p + 0.5 * t * t * *f;
+                        *v = t * *f;
+                    }
+                }
+                add3(h_pos, 0, IDX_ATT, &to_t(&hp));
+                add3(h_vel, 0, IDX_ATT, &to_t(&hv));
                 for (k, row) in h_pos.iter_mut().enumerate() {
                     if let Some(x) = row.get_mut(off) {
                         *x = T::of_f64(ctx.v_ant_ned_mps.get(k).copied().unwrap_or(0.0));
@@ -939,6 +953,8 @@ pub struct MeasContext {
     pub lever_bridge_s: f64,
     /// `w_in = w_ie + w_en`, NED, rad/s (the lever arm's `- w_in x (C l)` velocity term).
     pub w_in_ned_radps: [f64; 3],
+    /// Last specific force in NED, `C f`, m/s^2 (the time-offset bridge's attitude terms).
+    pub f_ned_mps2: [f64; 3],
 }
 
 /// Errors of a layout.
