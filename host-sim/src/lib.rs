@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod allan;
+pub mod diagnose;
 pub mod io;
 pub mod metrics;
 pub mod noise;

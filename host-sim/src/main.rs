@@ -21,6 +21,9 @@ enum Cmd {
     /// Run the filter on a case (simulated or real): nav.txt, std.txt, bias.txt,
     /// innovations.txt and metrics.json, with imposed GNSS outages.
     Run(host_sim::run::cli::RunArgs),
+    /// Find the effect the model lacks from the innovations, add it if the data pay for it
+    /// (BIC), and write diagnosis.json, nav_before.txt and nav_after.txt.
+    Diagnose(host_sim::diagnose::DiagnoseArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -30,6 +33,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Simulate(a) => host_sim::sim::cli::run(a),
         Cmd::Study(a) => host_sim::study::run(a),
         Cmd::Run(a) => host_sim::run::cli::run(a),
+        Cmd::Diagnose(a) => host_sim::diagnose::run(a),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -160,7 +160,19 @@ pub struct RunOptions {
     pub start_s: Option<f64>,
     /// Stop after this time (GPS seconds of week).
     pub end_s: Option<f64>,
+    /// One effect block appended to the model's layout (for `diagnose`): one of
+    /// [`DIAGNOSE_CANDIDATES`], f64 only; `None` runs the model as it is.
+    pub extra_block: Option<Block>,
 }
+
+/// The effect blocks `run_filter` can append to any [`Model`] ([`RunOptions::extra_block`]):
+/// each (model, block) pair is a compile-time layout, so the set is fixed.
+pub const DIAGNOSE_CANDIDATES: [Block; 4] = [
+    Block::AccelScaleFactor,
+    Block::GyroScaleFactor,
+    Block::LeverArm,
+    Block::TimeOffset,
+];
 
 impl RunOptions {
     /// Options with defaults: f64, no outages, no lever arm, default recording.
@@ -176,6 +188,7 @@ impl RunOptions {
             record: RecordOptions::default(),
             start_s: None,
             end_s: None,
+            extra_block: None,
         }
     }
 }
@@ -403,6 +416,46 @@ pub fn run_filter_with_progress(
                     run_layout::<f32, { $layout.dim() }>($layout, case, opts, progress)
                 }
             }
+        };
+    }
+    if let Some(extra) = opts.extra_block {
+        macro_rules! ext {
+            ($base:expr) => {
+                match extra {
+                    Block::AccelScaleFactor => {
+                        const L: Layout = $base.with(Block::AccelScaleFactor);
+                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
+                    }
+                    Block::GyroScaleFactor => {
+                        const L: Layout = $base.with(Block::GyroScaleFactor);
+                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
+                    }
+                    Block::LeverArm => {
+                        const L: Layout = $base.with(Block::LeverArm);
+                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
+                    }
+                    Block::TimeOffset => {
+                        const L: Layout = $base.with(Block::TimeOffset);
+                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
+                    }
+                    other => Err(RunError::Options(format!(
+                        "effect block {} cannot be appended (supported: accel_scale_factor, \
+                         gyro_scale_factor, lever_arm, time_offset)",
+                        other.name()
+                    ))),
+                }
+            };
+        }
+        if opts.precision != Precision::F64 {
+            return Err(RunError::Options(
+                "an extra effect block needs f64 precision".into(),
+            ));
+        }
+        return match opts.model {
+            Model::N => ext!(LAYOUT_N),
+            Model::Nbk => ext!(LAYOUT_NBK),
+            Model::NbkSingle => ext!(LAYOUT_NBK_SINGLE),
+            Model::KfGins21 => ext!(LAYOUT_KF_GINS),
         };
     }
     match opts.model {
