@@ -8,7 +8,7 @@
 //! terms (zero in expectation) plus any nonlinearity; both are reported.
 
 use super::setup::Source;
-use crate::run::Model;
+use super::setup::Variant;
 use serde::Serialize;
 
 /// One source's contribution.
@@ -30,7 +30,7 @@ pub struct BudgetEntry {
 #[derive(Debug, Clone, Serialize)]
 pub struct Budget {
     /// The filter model.
-    pub model: Model,
+    pub model: Variant,
     /// Evaluation epoch, s after the first IMU epoch.
     pub t_eval_rel_s: f64,
     /// Runs per source.
@@ -58,6 +58,11 @@ pub struct Budget {
     pub accel_share: f64,
     /// The largest contributor.
     pub largest: Source,
+    /// Average position NEES of the all-sources runs at the evaluation epoch (from the
+    /// filter's position standard deviation there), when that std is known.
+    pub total_pos_nees: Option<f64>,
+    /// Two-sided 95 % band of that average (runs x 3 degrees of freedom).
+    pub total_pos_nees_band: (f64, f64),
 }
 
 fn h2(e: &[f64; 3]) -> f64 {
@@ -72,10 +77,11 @@ impl Budget {
     /// The budget from the all-sources errors `total` (one per run, N/E/D m) and each source's
     /// errors alone (runs in the same seed order).
     pub fn compute(
-        model: Model,
+        model: Variant,
         t_eval_rel_s: f64,
         total: &[[f64; 3]],
         per_source: &[(Source, Vec<[f64; 3]>)],
+        pos_std_at_eval: Option<[f64; 3]>,
     ) -> Self {
         let r = total.len();
         let rf = r.max(1) as f64;
@@ -141,9 +147,18 @@ impl Budget {
             .iter()
             .max_by(|a, b| a.share_horizontal.total_cmp(&b.share_horizontal))
             .map_or(Source::GyroWhite, |e| e.source);
+        let total_pos_nees = pos_std_at_eval.map(|s| {
+            total
+                .iter()
+                .map(|e| (0..3).map(|i| (e[i] / s[i]).powi(2)).sum::<f64>())
+                .sum::<f64>()
+                / rf
+        });
         Self {
             model,
             t_eval_rel_s,
+            total_pos_nees,
+            total_pos_nees_band: super::chi2::nees_band_95(r, 3),
             runs: r,
             gyro_share: share(Source::is_gyro),
             accel_share: share(Source::is_accel),
@@ -175,11 +190,14 @@ mod tests {
             .map(|(x, y)| [x[0] + y[0], x[1] + y[1], x[2] + y[2]])
             .collect();
         let bud = Budget::compute(
-            Model::Nbk,
+            Variant::Nbk,
             10.0,
             &total,
             &[(Source::GyroWhite, a), (Source::AccelRw, b)],
+            Some([1.0, 2.0, 1.0]),
         );
+        // run 1 e = (1, 2, 1): 1 + 1 + 1 = 3; run 2 e = (-1, 2, -1): 3  =>  3
+        assert!((bud.total_pos_nees.unwrap_or(0.0) - 3.0).abs() < 1e-12);
         assert!((bud.ratio_sum_to_total_horizontal - 1.0).abs() < 1e-12);
         assert!(bud.superposition_residual < 1e-15);
         assert!((bud.entries[1].share_horizontal - 0.8).abs() < 1e-12);

@@ -30,12 +30,13 @@ pub mod report;
 pub mod setup;
 pub mod stats;
 
-use crate::run::{self, CaseData, Model, RecordOptions, RunOptions};
+use crate::run::{self, CaseData, RecordOptions, RunOptions};
 use crate::sim::{Scenario, Trajectory};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
+use setup::Variant;
 use setup::{Source, Sources};
 use stats::{CellStats, Trace};
 use std::path::PathBuf;
@@ -61,7 +62,16 @@ pub struct StudyArgs {
     /// Duration of the outage, s.
     #[arg(long, default_value_t = 300.0)]
     pub outage_duration: f64,
-    /// A quick look: 6 runs, the budget for NBK only, and the runs end 60 s after the outage.
+    /// Runs per error source in the error budget (the sampling noise of the variance
+    /// decomposition falls as 1/sqrt(runs): about 0.3/sqrt(runs) here).
+    #[arg(long, default_value_t = 60)]
+    pub budget_runs: usize,
+    /// Models whose error budget is computed (comma-separated: n, nbk, nbk-single; empty =
+    /// none).
+    #[arg(long, value_delimiter = ',', default_value = "nbk,n")]
+    pub budget_models: Vec<Variant>,
+    /// A quick look: 6 runs per cell, 12 per budget source, the budget for NBK only, and the
+    /// runs end 60 s after the outage.
     #[arg(long)]
     pub quick: bool,
     /// No progress bar.
@@ -69,10 +79,10 @@ pub struct StudyArgs {
     pub no_progress: bool,
 }
 
-/// Default start of the outage, s after the first IMU epoch: 12.5 minutes of GNSS (3 min static,
-/// 9.5 min driving) before it; the outage then holds a 180 degree turn, a hard acceleration
-/// to 25 m/s and a long cruise (see `scenarios/default.toml`).
-pub const DEFAULT_OUTAGE_START_S: f64 = 750.0;
+/// Default start of the outage, s after the first IMU epoch: 9.5 minutes of GNSS (3 min static,
+/// 6.5 min driving) before it; in the default scenario the outage then holds a braking, a
+/// 180 degree turn, an acceleration from 12 to 25 m/s, a 45 degree turn and cruising.
+pub const DEFAULT_OUTAGE_START_S: f64 = 570.0;
 
 /// Everything the study needs.
 #[derive(Debug, Clone)]
@@ -88,9 +98,11 @@ pub struct StudyConfig {
     /// Outage duration, s.
     pub outage_duration_s: f64,
     /// Models compared (each on both cases).
-    pub models: Vec<Model>,
+    pub models: Vec<Variant>,
     /// Models whose error budget is computed.
-    pub budget_models: Vec<Model>,
+    pub budget_models: Vec<Variant>,
+    /// Runs per source in the budget (seeds `seed .. seed + budget_runs`).
+    pub budget_runs: usize,
     /// End the runs this long after the first IMU epoch (`None` = the whole scenario).
     pub end_rel_s: Option<f64>,
     /// Show a progress bar.
@@ -99,7 +111,7 @@ pub struct StudyConfig {
 
 impl StudyConfig {
     /// The default study on a scenario: `runs` runs from `seed`, N, NBK and NBK-single, the
-    /// budget for NBK and N, the whole scenario.
+    /// budget for NBK and N with 60 runs per source, the whole scenario.
     pub fn new(scenario: Scenario, runs: usize, seed: u64) -> Self {
         Self {
             scenario,
@@ -107,8 +119,9 @@ impl StudyConfig {
             seed,
             outage_start_rel_s: DEFAULT_OUTAGE_START_S,
             outage_duration_s: 300.0,
-            models: setup::MODELS.to_vec(),
-            budget_models: vec![Model::Nbk, Model::N],
+            models: Variant::ALL.to_vec(),
+            budget_models: vec![Variant::Nbk, Variant::N],
+            budget_runs: 60,
             end_rel_s: None,
             progress: false,
         }
@@ -162,8 +175,8 @@ impl Case {
 /// evaluation epoch (the end of the outage).
 #[derive(Debug, Clone)]
 pub struct Cell {
-    /// Model.
-    pub model: Model,
+    /// Variant.
+    pub model: Variant,
     /// Case.
     pub case: Case,
     /// Per-epoch statistics.
@@ -181,7 +194,7 @@ pub struct StudyResult {
     pub config: StudyConfig,
     /// Duration of the runs, s.
     pub duration_s: f64,
-    /// Model x case cells.
+    /// Variant x case cells.
     pub cells: Vec<Cell>,
     /// Error budgets (one per budget model).
     pub budgets: Vec<budget::Budget>,
@@ -193,7 +206,7 @@ pub struct StudyResult {
 
 impl StudyResult {
     /// The cell of a model and case.
-    pub fn cell(&self, model: Model, case: Case) -> Option<&Cell> {
+    pub fn cell(&self, model: Variant, case: Case) -> Option<&Cell> {
         self.cells
             .iter()
             .find(|c| c.model == model && c.case == case)
@@ -213,7 +226,7 @@ fn record_options() -> RecordOptions {
 /// What one filter run is: model, case, seed, sources switched on, optional end.
 #[derive(Debug, Clone, Copy)]
 struct RunSpec {
-    model: Model,
+    model: Variant,
     case: Case,
     seed: u64,
     on: Sources,
@@ -228,8 +241,8 @@ fn run_one(
     r: RunSpec,
 ) -> anyhow::Result<Trace> {
     let mut opts = RunOptions::new(
-        r.model,
-        setup::filter_config(r.model),
+        r.model.model(),
+        r.model.config(),
         setup::init_spec(r.seed, r.on),
     );
     opts.record = record_options();
@@ -243,7 +256,7 @@ fn run_one(
     let out = run::run_filter(data, &opts).with_context(|| {
         format!(
             "{} on {} (seed {})",
-            setup::model_label(r.model),
+            r.model.label(),
             r.case.short(),
             r.seed
         )
@@ -300,15 +313,22 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         cfg.outage_duration_s
     );
     let n_main = cfg.runs * cfg.models.len() * Case::ALL.len();
-    let n_budget = cfg.runs * cfg.budget_models.len() * Source::ALL.len();
+    let n_budget: usize = cfg
+        .budget_models
+        .iter()
+        .map(|m| {
+            let have = if cfg.models.contains(m) { cfg.runs } else { 0 };
+            cfg.budget_runs * Source::ALL.len() + cfg.budget_runs.saturating_sub(have)
+        })
+        .sum();
     let pb = progress_bar(cfg, n_main + n_budget);
     let seeds: Vec<u64> = (0..cfg.runs as u64).map(|i| cfg.seed + i).collect();
 
     // main grid: per seed one measurement set, every model on both cases
     pb.set_message("models x cases");
-    let per_seed: Vec<Vec<(Model, Case, Trace)>> = seeds
+    let per_seed: Vec<Vec<(Variant, Case, Trace)>> = seeds
         .par_iter()
-        .map(|&seed| -> anyhow::Result<Vec<(Model, Case, Trace)>> {
+        .map(|&seed| -> anyhow::Result<Vec<(Variant, Case, Trace)>> {
             let data = case_data(&traj, seed, Sources::All);
             let mut v = Vec::new();
             for &model in &cfg.models {
@@ -357,21 +377,26 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     }
     drop(per_seed);
 
-    // error budget: each source alone, case 2, up to the outage evaluation epoch
+    // error budget: each source alone, case 2, up to the outage evaluation epoch; the
+    // all-sources errors of seeds beyond the main runs are computed the same way
     pb.set_message("error budget");
-    let mut jobs: Vec<(Model, Source, u64)> = Vec::new();
+    let budget_seeds: Vec<u64> = (0..cfg.budget_runs as u64).map(|i| cfg.seed + i).collect();
+    let mut jobs: Vec<(Variant, Sources, u64)> = Vec::new();
     for &m in &cfg.budget_models {
         for s in Source::ALL {
-            for &seed in &seeds {
-                jobs.push((m, s, seed));
+            for &seed in &budget_seeds {
+                jobs.push((m, Sources::Only(s), seed));
             }
+        }
+        let have = if cfg.models.contains(&m) { cfg.runs } else { 0 };
+        for &seed in budget_seeds.iter().skip(have) {
+            jobs.push((m, Sources::All, seed));
         }
     }
     let stop = Some(eval + 0.5);
-    let alone: Vec<(Model, Source, u64, [f64; 3])> = jobs
+    let results: Vec<(Variant, Sources, u64, [f64; 3])> = jobs
         .par_iter()
-        .map(|&(model, src, seed)| -> anyhow::Result<_> {
-            let on = Sources::Only(src);
+        .map(|&(model, on, seed)| -> anyhow::Result<_> {
             let data = case_data(&traj, seed, on);
             let spec = RunSpec {
                 model,
@@ -387,29 +412,48 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
                 .iter()
                 .position(|t| (t - eval).abs() < 0.25)
                 .context("budget run has no epoch at the outage end")?;
-            Ok((model, src, seed, [tr.err[k][6], tr.err[k][7], tr.err[k][8]]))
+            Ok((model, on, seed, [tr.err[k][6], tr.err[k][7], tr.err[k][8]]))
         })
         .collect::<anyhow::Result<_>>()?;
+    let collect = |model: Variant, on: Sources| -> Vec<[f64; 3]> {
+        let mut v: Vec<(u64, [f64; 3])> = results
+            .iter()
+            .filter(|a| a.0 == model && a.1 == on)
+            .map(|a| (a.2, a.3))
+            .collect();
+        v.sort_by_key(|x| x.0);
+        v.into_iter().map(|x| x.1).collect()
+    };
     let mut budgets = Vec::new();
     for &model in &cfg.budget_models {
-        let total = cells
+        let mut total: Vec<[f64; 3]> = cells
             .iter()
             .find(|c| c.model == model && c.case == Case::Outage)
             .map(|c| c.pos_err_at_eval.clone())
             .unwrap_or_default();
+        total.truncate(cfg.budget_runs);
+        total.extend(collect(model, Sources::All));
         let per_source: Vec<(Source, Vec<[f64; 3]>)> = Source::ALL
             .iter()
-            .map(|&s| {
-                let mut v: Vec<(u64, [f64; 3])> = alone
-                    .iter()
-                    .filter(|a| a.0 == model && a.1 == s)
-                    .map(|a| (a.2, a.3))
-                    .collect();
-                v.sort_by_key(|x| x.0);
-                (s, v.into_iter().map(|x| x.1).collect())
-            })
+            .map(|&s| (s, collect(model, Sources::Only(s))))
             .collect();
-        budgets.push(budget::Budget::compute(model, eval, &total, &per_source));
+        anyhow::ensure!(
+            per_source.iter().all(|p| p.1.len() == total.len()),
+            "budget of {}: run counts differ",
+            model.label()
+        );
+        let pos_std = cells
+            .iter()
+            .find(|c| c.model == model && c.case == Case::Outage)
+            .and_then(|c| c.stats.index_at(eval).map(|k| c.stats.std[k]))
+            .map(|s| [s[6], s[7], s[8]]);
+        budgets.push(budget::Budget::compute(
+            model,
+            eval,
+            &total,
+            &per_source,
+            pos_std,
+        ));
     }
     pb.finish_and_clear();
     Ok(StudyResult {
@@ -430,9 +474,12 @@ pub fn run(args: StudyArgs) -> anyhow::Result<()> {
     cfg.outage_start_rel_s = args.outage_start;
     cfg.outage_duration_s = args.outage_duration;
     cfg.progress = !args.no_progress;
+    cfg.budget_runs = args.budget_runs;
+    cfg.budget_models = args.budget_models.clone();
     if args.quick {
         cfg.runs = cfg.runs.min(6);
-        cfg.budget_models = vec![Model::Nbk];
+        cfg.budget_runs = cfg.budget_runs.min(12);
+        cfg.budget_models.retain(|m| *m == Variant::Nbk);
         cfg.end_rel_s = Some(cfg.outage_end_rel_s() + 60.0);
     }
     println!(

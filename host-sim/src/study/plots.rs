@@ -4,9 +4,8 @@
 
 use super::budget::Budget;
 use super::chi2;
-use super::setup::model_label;
+use super::setup::Variant;
 use super::{Case, Cell, StudyResult};
-use crate::run::Model;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -18,12 +17,12 @@ fn perr<E: std::fmt::Display>(e: E) -> anyhow::Error {
 }
 
 /// Colour of a model in every plot.
-pub fn model_color(m: Model) -> RGBColor {
+pub fn model_color(m: Variant) -> RGBColor {
     match m {
-        Model::N => RGBColor(214, 39, 40),
-        Model::Nbk => RGBColor(31, 119, 180),
-        Model::NbkSingle => RGBColor(44, 160, 44),
-        Model::KfGins21 => RGBColor(148, 103, 189),
+        Variant::N => RGBColor(214, 39, 40),
+        Variant::Nbk => RGBColor(31, 119, 180),
+        Variant::NbkSingle => RGBColor(44, 160, 44),
+        Variant::NIdGyro => RGBColor(148, 103, 189),
     }
 }
 
@@ -38,11 +37,39 @@ fn display_scale(i: usize) -> f64 {
     }
 }
 
+/// Draws `pts` as a dashed line: runs of 16 points on, 9 off (1 Hz data: 16 s dashes).
+fn dashed<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate<From = (f64, f64)>>(
+    ch: &mut ChartContext<'a, DB, CT>,
+    pts: &[(f64, f64)],
+    style: ShapeStyle,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    for chunk in pts.chunks(25) {
+        let on: Vec<(f64, f64)> = chunk.iter().take(17).copied().collect();
+        ch.draw_series(LineSeries::new(on, style)).map_err(perr)?;
+    }
+    Ok(())
+}
+
 fn component_title(i: usize) -> String {
     let q = ["attitude error phi", "velocity error", "position error"][i / 3];
     let ax = ["north", "east", "down"][i % 3];
     let unit = ["deg", "m/s", "m"][i / 3];
     format!("{q} {ax} [{unit}]")
+}
+
+/// Tick label of a log10 axis drawn linearly: the value 10^v with two significant digits.
+fn pow10_label(v: &f64) -> String {
+    let x = 10f64.powf(*v);
+    if (v - v.round()).abs() < 1e-9 {
+        format!("1e{}", v.round())
+    } else if (0.01..1000.0).contains(&x) {
+        format!("{x:.2}")
+    } else {
+        format!("{x:.1e}")
+    }
 }
 
 fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
@@ -97,17 +124,19 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
                 .filter(|(t, _)| skip(**t))
                 .flat_map(move |(_, (e, s))| [e[i] * sc, s[i] * sc])
         }));
+        let (y0, y1) = (y0.log10(), y1.log10());
         let x1 = res.duration_s / 60.0;
         let mut ch = ChartBuilder::on(a)
             .caption(component_title(i), ("sans-serif", 20))
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(70)
-            .build_cartesian_2d(0.0..x1, (y0..y1).log_scale())
+            .build_cartesian_2d(0.0..x1, y0..y1)
             .map_err(perr)?;
         ch.configure_mesh()
             .x_desc("time [min]")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .y_desc("log scale")
+            .y_label_formatter(&pow10_label)
             .draw()
             .map_err(perr)?;
         if let Some((s0, s1)) = outage_span(res, case) {
@@ -125,18 +154,12 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
                     .iter()
                     .zip(v)
                     .filter(|(t, x)| skip(**t) && x[i] > 0.0)
-                    .map(|(t, x)| (t / 60.0, x[i] * sc))
+                    .map(|(t, x)| (t / 60.0, (x[i] * sc).log10().clamp(y0, y1)))
                     .collect()
             };
             ch.draw_series(LineSeries::new(pts(&c.stats.rms_err), col.stroke_width(2)))
                 .map_err(perr)?;
-            ch.draw_series(DashedLineSeries::new(
-                pts(&c.stats.std),
-                8,
-                5,
-                col.stroke_width(2),
-            ))
-            .map_err(perr)?;
+            dashed(&mut ch, &pts(&c.stats.std), col.stroke_width(2))?;
         }
     }
     root.present().map_err(perr)?;
@@ -169,8 +192,8 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
         )
         .map_err(perr)?;
     let areas = body.split_evenly((3, 1));
-    let n = res.cell(Model::N, case);
-    let k = res.cell(Model::Nbk, case);
+    let n = res.cell(Variant::N, case);
+    let k = res.cell(Variant::Nbk, case);
     let unit = if case == Case::Continuous { 100.0 } else { 1.0 };
     let uname = if case == Case::Continuous { "cm" } else { "m" };
     for (a, i) in areas.iter().zip(6..9) {
@@ -216,7 +239,7 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
             .map_err(perr)?;
         }
         if let Some(c) = k {
-            let col = model_color(Model::Nbk);
+            let col = model_color(Variant::Nbk);
             let up: Vec<(f64, f64)> = c
                 .stats
                 .t_rel_s
@@ -230,7 +253,7 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
             ch.draw_series(std::iter::once(Polygon::new(poly, col.mix(0.2).filled())))
                 .map_err(perr)?;
         }
-        for (c, m) in [(n, Model::N), (k, Model::Nbk)] {
+        for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
             let Some(c) = c else { continue };
             let col = model_color(m);
             for tr in &c.sample_traces {
@@ -245,7 +268,7 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
                     .map_err(perr)?;
             }
         }
-        for (c, m) in [(n, Model::N), (k, Model::Nbk)] {
+        for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
             let Some(c) = c else { continue };
             let col = model_color(m);
             for sign in [1.0, -1.0] {
@@ -257,18 +280,23 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
                     .filter(|(t, _)| within(**t))
                     .map(|(t, s)| (t / 60.0, sign * s[i] * unit))
                     .collect();
-                ch.draw_series(LineSeries::new(pts, col.stroke_width(3)))
-                    .map_err(perr)?
-                    .label(if sign > 0.0 {
-                        format!("{} +-1 sigma", model_label(m))
-                    } else {
-                        String::new()
-                    })
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
-                    });
+                let a = ch
+                    .draw_series(LineSeries::new(pts, col.stroke_width(3)))
+                    .map_err(perr)?;
+                if sign > 0.0 {
+                    a.label(format!("{} +-1 sigma", m.label()))
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
+                        });
+                }
             }
         }
+        ch.configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(perr)?;
     }
     root.present().map_err(perr)?;
     Ok(())
@@ -300,8 +328,8 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
                 .iter()
                 .flat_map(|c| c.stats.nees.iter().map(move |n| n[g])),
         );
-        y0 = y0.min(lo / 2.0).max(1e-3);
-        y1 = y1.max(hi * 2.0);
+        y0 = y0.min(lo / 2.0).max(1e-3).log10();
+        y1 = y1.max(hi * 2.0).log10();
         let x1 = res.duration_s / 60.0;
         let mut ch = ChartBuilder::on(a)
             .caption(
@@ -311,11 +339,12 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
             .margin(8)
             .x_label_area_size(34)
             .y_label_area_size(70)
-            .build_cartesian_2d(0.0..x1, (y0..y1).log_scale())
+            .build_cartesian_2d(0.0..x1, y0..y1)
             .map_err(perr)?;
         ch.configure_mesh()
             .x_desc("time [min]")
-            .y_label_formatter(&|v| format!("{v:.2}"))
+            .y_desc("log scale")
+            .y_label_formatter(&pow10_label)
             .draw()
             .map_err(perr)?;
         if let Some((s0, s1)) = outage_span(res, case) {
@@ -331,6 +360,7 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
             } else {
                 BLACK.stroke_width(2)
             };
+            let b = b.log10();
             ch.draw_series(DashedLineSeries::new(vec![(0.0, b), (x1, b)], 10, 6, style))
                 .map_err(perr)?;
         }
@@ -342,11 +372,11 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
                 .iter()
                 .zip(&c.stats.nees)
                 .filter(|(_, n)| n[g] > 0.0)
-                .map(|(t, n)| (t / 60.0, n[g].clamp(y0, y1)))
+                .map(|(t, n)| (t / 60.0, n[g].log10().clamp(y0, y1)))
                 .collect();
             ch.draw_series(LineSeries::new(pts, col.stroke_width(2)))
                 .map_err(perr)?
-                .label(model_label(c.model))
+                .label(c.model.label())
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
                 });
@@ -360,6 +390,18 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
     }
     root.present().map_err(perr)?;
     Ok(())
+}
+
+/// A share (0..1) as a percentage with two significant digits for small values.
+pub fn percent(x: f64) -> String {
+    let p = 100.0 * x;
+    if p >= 10.0 {
+        format!("{p:.1} %")
+    } else if p >= 0.1 {
+        format!("{p:.2} %")
+    } else {
+        format!("{p:.1e} %")
+    }
 }
 
 fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
@@ -376,7 +418,7 @@ fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
                 RGBColor(127, 127, 127)
             };
             (
-                format!("{} ({:.1} %)", e.label, 100.0 * e.share_horizontal),
+                format!("{} ({})", e.label, percent(e.share_horizontal)),
                 e.rms_horizontal_m,
                 col,
             )
@@ -398,7 +440,7 @@ fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
         .caption(
             format!(
                 "{} model: RMS horizontal position error at the end of the outage, each source alone ({} runs); sum/total in variance {:.3}",
-                model_label(b.model),
+                b.model.label(),
                 b.runs,
                 b.ratio_sum_to_total_horizontal
             ),
@@ -407,7 +449,7 @@ fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
         .margin(10)
         .x_label_area_size(36)
         .y_label_area_size(330)
-        .build_cartesian_2d((x0..x1).log_scale(), (0..n).into_segmented())
+        .build_cartesian_2d((x0..x1).log_scale(), (0..n - 1).into_segmented())
         .map_err(perr)?;
     let labels: Vec<String> = rows.iter().map(|r| r.0.clone()).collect();
     ch.configure_mesh()
