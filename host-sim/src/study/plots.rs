@@ -102,7 +102,7 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
     title
         .draw_text(
             &format!(
-                "{}: filter std (dashed) and RMS true error over {} runs (solid); N red, NBK blue, NBK-single green",
+                "{}: filter std (dashed) and RMS true error over {} runs (solid); N red, NBK blue, NBK-single green, N+id.gyro purple",
                 case.label(),
                 res.config.runs
             ),
@@ -312,7 +312,7 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
     title
         .draw_text(
             &format!(
-                "{}: average NEES of {} runs (3 dof each); 95 % band [{lo:.2}, {hi:.2}] dashed; N red, NBK blue, NBK-single green",
+                "{}: average NEES of {} runs (3 dof each); 95 % band [{lo:.2}, {hi:.2}] dashed; N red, NBK blue, NBK-single green, N+id.gyro purple",
                 case.label(),
                 res.config.runs
             ),
