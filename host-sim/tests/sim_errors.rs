@@ -748,3 +748,39 @@ fn error_model_files_override_presets_and_reject_unknown_keys() {
     }
     assert!(ErrorModel::load("no-such-preset").is_err());
 }
+
+#[test]
+fn gnss_velocity_is_the_antenna_velocity_with_lever_arm_and_offset() {
+    let tr = turns();
+    let mut e = none();
+    let lever = Vector3::new(1.0, -0.5, -1.5);
+    e.gnss.lever_arm_b_m = Axes3([lever.x, lever.y, lever.z]);
+    e.gnss.time_offset_s = 0.05;
+    e.gnss.velocity = true;
+    e.gnss.rate_hz = 5.0;
+    let fixes = e.apply_gnss(tr, 3);
+    // Reference: central difference (+-1 ms) of the antenna position from the truth.
+    let antenna = |t: f64| {
+        let s = tr.truth_at(t).unwrap();
+        let (r, p, y) = s.q_nb.euler_angles();
+        nav_core::earth::displace(&s.pos, &(dcm_from_euler(r, p, y) * lever))
+    };
+    let mut max_err = 0f64;
+    let mut max_lever_term = 0f64;
+    for f in &fixes[1..fixes.len() - 1] {
+        let t = f.t_s - 0.05;
+        let h = 1e-3;
+        let v_ref = ned_offset_m(&antenna(t - h), &antenna(t + h)) / (2.0 * h);
+        let v = Vector3::from(f.vel_ned_mps);
+        max_err = max_err.max((v - v_ref).norm());
+        max_lever_term = max_lever_term.max((v - tr.truth_at(t).unwrap().vel_ned_mps).norm());
+    }
+    println!(
+        "GNSS velocity: lever-arm term up to {max_lever_term:.3} m/s, error {max_err:.2e} m/s"
+    );
+    assert!(
+        max_lever_term > 0.1,
+        "the test needs rotation: {max_lever_term}"
+    );
+    assert!(max_err < 1e-4, "antenna velocity error {max_err} m/s");
+}

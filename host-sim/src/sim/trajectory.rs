@@ -298,16 +298,41 @@ impl Trajectory {
                 lon_rad: p.y,
                 h_m: p.z,
             },
-            vel_ned_mps: a.vel_ned_mps * (1.0 - s) + b.vel_ned_mps * s,
+            vel_ned_mps: self.velocity_hermite(k, s),
             q_nb: a.q_nb.slerp(&b.q_nb, s),
         })
     }
 
-    /// Mean angular rate of the body w.r.t. the navigation frame, body axes, rad/s, over the
-    /// IMU interval containing `t_s` (from the ideal increments).
-    pub fn omega_nb_b_at(&self, t_s: f64) -> Vector3<f64> {
-        let x = ((t_s - self.t0_s) / self.dt_s).floor().max(0.0) as usize;
-        let k = x.min(self.imu.len().saturating_sub(1));
+    /// Velocity between epochs `k` and `k + 1` at fraction `s`: cubic Hermite with
+    /// central-difference tangents (Catmull-Rom; one-sided at the ends), error O(dt^3).
+    fn velocity_hermite(&self, k: usize, s: f64) -> Vector3<f64> {
+        let v = |i: usize| -> Vector3<f64> {
+            let i = i.min(self.truth.len().saturating_sub(1));
+            self.truth
+                .get(i)
+                .map_or(Vector3::zeros(), |t| Vector3::from(t.vel_ned_mps))
+        };
+        let (va, vb) = (v(k), v(k + 1));
+        let ma = if k == 0 {
+            vb - va
+        } else {
+            (vb - v(k - 1)) * 0.5
+        };
+        let mb = if k + 2 >= self.truth.len() {
+            vb - va
+        } else {
+            (v(k + 2) - va) * 0.5
+        };
+        let (s2, s3) = (s * s, s * s * s);
+        va * (2.0 * s3 - 3.0 * s2 + 1.0)
+            + ma * (s3 - 2.0 * s2 + s)
+            + vb * (-2.0 * s3 + 3.0 * s2)
+            + mb * (s3 - s2)
+    }
+
+    /// Mean angular rate of the body w.r.t. the navigation frame over IMU interval `k`, body
+    /// axes, rad/s (from the ideal increments).
+    fn omega_nb_b_interval(&self, k: usize) -> Vector3<f64> {
         let (Some(s), Some(tr)) = (self.imu.get(k), self.truth.get(k)) else {
             return Vector3::zeros();
         };
@@ -315,6 +340,20 @@ impl Trajectory {
         let w_in = earth::earth_rate_ned_radps(st.pos.lat_rad)
             + earth::transport_rate_ned_radps(st.pos.lat_rad, st.pos.h_m, &st.vel_ned_mps);
         Vector3::from(s.dtheta_rad) / self.dt_s - st.q_nb.inverse() * w_in
+    }
+
+    /// Angular rate of the body w.r.t. the navigation frame at GPS time `t_s`, body axes,
+    /// rad/s: the interval means of the ideal increments, linearly interpolated between the
+    /// interval midpoints (error O(dt^2)).
+    pub fn omega_nb_b_at(&self, t_s: f64) -> Vector3<f64> {
+        let n = self.imu.len();
+        if n < 2 {
+            return self.omega_nb_b_interval(0);
+        }
+        let x = (t_s - self.t0_s) / self.dt_s - 0.5;
+        let k = (x.floor().max(0.0) as usize).min(n - 2);
+        let s = (x - k as f64).clamp(0.0, 1.0);
+        self.omega_nb_b_interval(k) * (1.0 - s) + self.omega_nb_b_interval(k + 1) * s
     }
 }
 
