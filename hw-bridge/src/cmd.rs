@@ -32,8 +32,8 @@ pub struct RecordArgs {
     /// Stop after this many seconds.
     #[arg(long)]
     pub duration: Option<f64>,
-    /// Stop when no byte arrived for this many seconds (counted from the start until the
-    /// first byte).
+    /// Stop when no byte arrived for this many seconds after the first byte (before it, only
+    /// `--duration` stops the recording).
     #[arg(long)]
     pub idle_exit: Option<f64>,
     /// Do not decode frames for the status line (e.g. when recording a GNSS receiver).
@@ -65,8 +65,10 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
     let mut w = CaptureWriter::new(BufWriter::new(file), &header)?;
     let timeout = Duration::from_millis(50);
     let mut port = Some(serial::open(&a.port, a.baud, timeout)?);
+    // One line, even with --quiet: scripts (and the pty test) wait for it before sending.
+    eprintln!("recording {} -> {}", a.port, a.out.display());
     let start = Instant::now();
-    let mut last_data = start;
+    let mut last_data: Option<Instant> = None;
     let mut dec = FrameDecoder::new();
     let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
     let mut buf = vec![0u8; 8192];
@@ -77,10 +79,10 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
         {
             break;
         }
-        if a.idle_exit
-            .is_some_and(|d| now.duration_since(last_data).as_secs_f64() >= d)
-        {
-            break;
+        if let (Some(d), Some(last)) = (a.idle_exit, last_data) {
+            if now.duration_since(last).as_secs_f64() >= d {
+                break;
+            }
         }
         let Some(p) = port.as_mut() else {
             std::thread::sleep(Duration::from_millis(100));
@@ -91,7 +93,7 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
             Ok(0) => std::thread::sleep(Duration::from_millis(5)),
             Ok(n) => {
                 let t_ns = start.elapsed().as_nanos() as u64;
-                last_data = Instant::now();
+                last_data = Some(Instant::now());
                 w.write(&Record::Data {
                     t_ns,
                     bytes: buf[..n].to_vec(),

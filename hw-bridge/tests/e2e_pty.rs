@@ -127,9 +127,17 @@ fn send_record_over_a_pty_pair_then_capture_decodes_to_exactly_the_frames_sent()
         .arg("--out")
         .arg(&cap)
         .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
         .spawn()
         .expect("spawn record");
-    std::thread::sleep(Duration::from_millis(300));
+    // Wait until the recorder has the port open, then keep draining its stderr.
+    let mut rec = rec;
+    let mut err = std::io::BufReader::new(rec.stderr.take().unwrap());
+    let mut line = String::new();
+    use std::io::BufRead;
+    err.read_line(&mut line).unwrap();
+    assert!(line.starts_with("recording"), "record said {line:?}");
+    let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
     let t = Instant::now();
     let send = Command::new(BIN)
         .args(["send", "--quiet", "--rate-x", "4", "--case"])
@@ -143,7 +151,11 @@ fn send_record_over_a_pty_pair_then_capture_decodes_to_exactly_the_frames_sent()
     // 6 s of data at 4x: at least 1.5 s; pacing must not be ignored.
     assert!(send_wall >= 1.45, "send took {send_wall} s");
     let rec_out = rec.wait_with_output().unwrap();
-    assert!(rec_out.status.success(), "record failed: {rec_out:?}");
+    let rec_err = drain.join().unwrap();
+    assert!(
+        rec_out.status.success(),
+        "record failed: {rec_out:?} {rec_err}"
+    );
 
     // What was sent: the same reader and merge as `send` uses, numbered like its encoder.
     let expected = read_case(d).unwrap();
