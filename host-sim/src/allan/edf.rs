@@ -120,7 +120,7 @@ pub fn edf_greenhall(
     let f = if modified { 1.0 } else { mf };
     let s = if overlapping { mf } else { 1.0 };
     let l = mf / f + mf * df;
-    if nf < l + 1.0 {
+    if nf < l {
         return f64::NAN;
     }
     let m_big = 1.0 + (s * (nf - l) / mf).floor();

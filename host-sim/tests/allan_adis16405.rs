@@ -1,0 +1,141 @@
+//! `host-sim allan` on a real static recording (ADIS16405, 100 Hz, 2.8 h): sane values against
+//! the figures in `../shared/data/adis16405/README.md`, the outputs (table, TOML, JSON keys,
+//! PNG/SVG) written.
+use host_sim::allan::cli::{run, AllanArgs, Format, TauArg, TermArg};
+use host_sim::allan::reader::{read_columns, AccelUnitArg, ColumnSpec, GyroUnit};
+use host_sim::allan::{deviation_curve, CurveOptions, Deviation, Taus};
+use std::path::PathBuf;
+
+fn data_file() -> Option<PathBuf> {
+    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
+    if d.is_dir() {
+        Some(d.join("adis16405/adis16405_static_1.csv.gz"))
+    } else if std::env::var("CI").as_deref() == Ok("true") {
+        panic!("../shared/data not found (CI=true)");
+    } else {
+        None
+    }
+}
+
+fn spec() -> ColumnSpec {
+    ColumnSpec {
+        columns: ["gx", "gy", "gz", "ax", "ay", "az"].map(String::from).to_vec(),
+        gyro_unit: GyroUnit::Dps,
+        accel_unit: AccelUnitArg::G,
+        rate_hz: Some(100.0),
+        skip_lines: 2,
+        x_scale: 1.0,
+    }
+}
+
+#[test]
+fn adis16405_allan_deviation_matches_readme_figures() {
+    let Some(path) = data_file() else {
+        println!("SKIPPED adis16405_allan_deviation_matches_readme_figures: ../shared/data not found");
+        return;
+    };
+    let ch = read_columns(&path, &spec()).expect("read");
+    assert_eq!(ch.data[0].len(), 1_000_000);
+    assert!((ch.tau0_s - 0.01).abs() < 1e-15);
+    let rad2deg = 180.0 / std::f64::consts::PI;
+    let g0 = 9.80665;
+    let at = |i: usize, ms: Vec<usize>| {
+        deviation_curve(
+            &ch.data[i],
+            0.01,
+            &CurveOptions {
+                dev: Deviation::Oadev,
+                taus: Taus::List(ms),
+                confidence: None,
+                fixed_alpha: None,
+            },
+        )
+    };
+    // gx: 0.0406 deg/s at 1 s (15%), minimum about 0.0075 deg/s near 100 s (25%).
+    let gx1 = at(0, vec![100])[0].dev * rad2deg;
+    assert!((gx1 / 0.0406 - 1.0).abs() < 0.15, "gx ADEV(1 s) = {gx1} deg/s");
+    let oct = at(0, (0..17).map(|k| 1usize << k).collect());
+    let min = oct.iter().min_by(|a, b| a.dev.total_cmp(&b.dev)).expect("curve");
+    let gmin = min.dev * rad2deg;
+    assert!((gmin / 0.0075 - 1.0).abs() < 0.25, "gx min {gmin} deg/s at {} s", min.tau_s);
+    assert!(min.tau_s > 20.0 && min.tau_s < 2000.0, "gx min at {} s", min.tau_s);
+    // az: 6.2e-4 g at 1 s (15%), minimum about 2.3e-4 g in 10 - 100 s (25%).
+    let az1 = at(5, vec![100])[0].dev / g0;
+    assert!((az1 / 6.2e-4 - 1.0).abs() < 0.15, "az ADEV(1 s) = {az1} g");
+    let oct = at(5, (0..17).map(|k| 1usize << k).collect());
+    let min = oct.iter().min_by(|a, b| a.dev.total_cmp(&b.dev)).expect("curve");
+    let amin = min.dev / g0;
+    assert!((amin / 2.3e-4 - 1.0).abs() < 0.25, "az min {amin} g at {} s", min.tau_s);
+}
+
+#[test]
+fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
+    let Some(path) = data_file() else {
+        println!("SKIPPED allan_cli_writes_table_toml_json_and_plots_for_adis16405: ../shared/data not found");
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = dir.path().join("a.json");
+    run(AllanArgs {
+        input: path,
+        format: Format::Auto,
+        columns: spec().columns,
+        gyro_unit: GyroUnit::Dps,
+        accel_unit: AccelUnitArg::G,
+        rate_hz: Some(100.0),
+        skip_lines: 2,
+        x_scale: 1.0,
+        dev: Deviation::Oadev,
+        taus: TauArg::Octave,
+        terms: vec![TermArg::Quant, TermArg::White, TermArg::Gm, TermArg::Rw],
+        fit_min_tau: 0.0,
+        fit_max_tau: f64::INFINITY,
+        out_dir: dir.path().to_path_buf(),
+        json: Some(json.clone()),
+        no_plot: false,
+        quiet: true,
+    })
+    .expect("allan run");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    for k in ["gx", "gy", "gz", "ax", "ay", "az"] {
+        let a = &v[k];
+        let n = a["tau_s"].as_array().expect("tau_s").len();
+        assert!(n >= 15, "{k}: {n} taus");
+        for key in ["adev", "adev_lo", "adev_hi", "n_terms"] {
+            assert_eq!(a[key].as_array().expect(key).len(), n, "{k}.{key}");
+        }
+        let s_n = a["fit"]["s_n"]["value"].as_f64().expect("fit.s_n");
+        assert!(s_n > 0.0, "{k}: S_N {s_n}");
+        assert!(a["fit"]["s_n"]["sigma"].as_f64().is_some());
+        // lo <= adev <= hi
+        for i in 0..n {
+            let (lo, d, hi) = (
+                a["adev_lo"][i].as_f64().expect("lo"),
+                a["adev"][i].as_f64().expect("adev"),
+                a["adev_hi"][i].as_f64().expect("hi"),
+            );
+            assert!(lo <= d && d <= hi, "{k} {i}: {lo} {d} {hi}");
+        }
+        for ext in ["png", "svg"] {
+            let p = dir.path().join(format!("allan_{k}.{ext}"));
+            let len = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
+            assert!(len > 10_000, "{} ({len} bytes)", p.display());
+        }
+    }
+    // Gyro white noise from the fit near the README's ~2.4 deg/sqrt(h) first look (the fit
+    // separates quantization and correlated terms, so allow 40%).
+    let s_n = v["gx"]["fit"]["s_n"]["value"].as_f64().expect("s_n");
+    let arw = s_n.sqrt() * 60.0 * 180.0 / std::f64::consts::PI;
+    assert!((arw / 2.4 - 1.0).abs() < 0.4, "gx ARW {arw} deg/sqrt(h)");
+    // The parameter file parses as the simulator's sensor error model.
+    let text = std::fs::read_to_string(dir.path().join("allan_params.toml")).expect("toml");
+    let t: toml::Table = toml::from_str(&text).expect("toml parse");
+    for group in ["accel", "gyro"] {
+        let e: host_sim::sim::errors::SensorErrors = t[group]
+            .clone()
+            .try_into()
+            .unwrap_or_else(|e| panic!("[{group}] as SensorErrors: {e}"));
+        assert!(e.white_psd.0.iter().all(|v| *v > 0.0), "[{group}] {e:?}");
+    }
+}
