@@ -19,7 +19,9 @@ fn data_file() -> Option<PathBuf> {
 
 fn spec() -> ColumnSpec {
     ColumnSpec {
-        columns: ["gx", "gy", "gz", "ax", "ay", "az"].map(String::from).to_vec(),
+        columns: ["gx", "gy", "gz", "ax", "ay", "az"]
+            .map(String::from)
+            .to_vec(),
         gyro_unit: GyroUnit::Dps,
         accel_unit: AccelUnitArg::G,
         rate_hz: Some(100.0),
@@ -31,7 +33,9 @@ fn spec() -> ColumnSpec {
 #[test]
 fn adis16405_allan_deviation_matches_readme_figures() {
     let Some(path) = data_file() else {
-        println!("SKIPPED adis16405_allan_deviation_matches_readme_figures: ../shared/data not found");
+        println!(
+            "SKIPPED adis16405_allan_deviation_matches_readme_figures: ../shared/data not found"
+        );
         return;
     };
     let ch = read_columns(&path, &spec()).expect("read");
@@ -53,19 +57,40 @@ fn adis16405_allan_deviation_matches_readme_figures() {
     };
     // gx: 0.0406 deg/s at 1 s (15%), minimum about 0.0075 deg/s near 100 s (25%).
     let gx1 = at(0, vec![100])[0].dev * rad2deg;
-    assert!((gx1 / 0.0406 - 1.0).abs() < 0.15, "gx ADEV(1 s) = {gx1} deg/s");
+    assert!(
+        (gx1 / 0.0406 - 1.0).abs() < 0.15,
+        "gx ADEV(1 s) = {gx1} deg/s"
+    );
     let oct = at(0, (0..17).map(|k| 1usize << k).collect());
-    let min = oct.iter().min_by(|a, b| a.dev.total_cmp(&b.dev)).expect("curve");
+    let min = oct
+        .iter()
+        .min_by(|a, b| a.dev.total_cmp(&b.dev))
+        .expect("curve");
     let gmin = min.dev * rad2deg;
-    assert!((gmin / 0.0075 - 1.0).abs() < 0.25, "gx min {gmin} deg/s at {} s", min.tau_s);
-    assert!(min.tau_s > 20.0 && min.tau_s < 2000.0, "gx min at {} s", min.tau_s);
+    assert!(
+        (gmin / 0.0075 - 1.0).abs() < 0.25,
+        "gx min {gmin} deg/s at {} s",
+        min.tau_s
+    );
+    assert!(
+        min.tau_s > 20.0 && min.tau_s < 2000.0,
+        "gx min at {} s",
+        min.tau_s
+    );
     // az: 6.2e-4 g at 1 s (15%), minimum about 2.3e-4 g in 10 - 100 s (25%).
     let az1 = at(5, vec![100])[0].dev / g0;
     assert!((az1 / 6.2e-4 - 1.0).abs() < 0.15, "az ADEV(1 s) = {az1} g");
     let oct = at(5, (0..17).map(|k| 1usize << k).collect());
-    let min = oct.iter().min_by(|a, b| a.dev.total_cmp(&b.dev)).expect("curve");
+    let min = oct
+        .iter()
+        .min_by(|a, b| a.dev.total_cmp(&b.dev))
+        .expect("curve");
     let amin = min.dev / g0;
-    assert!((amin / 2.3e-4 - 1.0).abs() < 0.25, "az min {amin} g at {} s", min.tau_s);
+    assert!(
+        (amin / 2.3e-4 - 1.0).abs() < 0.25,
+        "az min {amin} g at {} s",
+        min.tau_s
+    );
 }
 
 #[test]
