@@ -30,7 +30,10 @@ fn streaming_allan_equals_host_non_overlapping_adev_to_1e9() {
             (Some((h, nt)), Some(st)) => {
                 assert_eq!(nt as u64, s.n_terms(level), "level {level}");
                 let rel = (st - h).abs() / h;
-                assert!(rel < 1e-9, "level {level}: streaming {st} host {h} rel {rel:e}");
+                assert!(
+                    rel < 1e-9,
+                    "level {level}: streaming {st} host {h} rel {rel:e}"
+                );
                 compared += 1;
             }
             (None, None) => {}
