@@ -69,7 +69,8 @@ impl core::fmt::Display for MechError {
 pub const MAX_DT_S: f64 = 1.0;
 
 /// What one mechanization step saw, for the error-state model (F and G matrices) and for
-/// regressors of effect blocks.
+/// regressors of effect blocks. The rates and specific forces are computed in single precision
+/// (relative rounding below 2e-7), which is what the error-state model needs.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepInfo {
     /// Length of the interval, s.
@@ -160,7 +161,7 @@ pub struct Strapdown {
     state: NavState,
     prev_dtheta_rad: [f32; 3],
     prev_dv_mps: [f32; 3],
-    prev_dt_s: f64,
+    prev_dt_s: f32,
     have_prev: bool,
     /// Gravity minus Coriolis/centripetal acceleration in NED of the last step, m/s^2 (only for
     /// the mid-interval extrapolation).
@@ -172,7 +173,7 @@ pub struct Strapdown {
 /// Largest latitude offset from the earth reference (times 1 + |tan lat|), rad.
 const EARTH_REF_LAT_TOL_RAD: f64 = 1.0e-5;
 /// Largest height offset from the earth reference, m.
-pub const EARTH_REF_H_TOL_M: f64 = 20.0;
+pub const EARTH_REF_H_TOL_M: f32 = 20.0;
 /// Squared body rotation angle per step (rad^2) below which the `tan(a/2)/a` series is used
 /// (truncation below 1e-17 with terms up to a^6).
 const SMALL_ROT2_RAD2: f32 = 1.0e-4;
@@ -186,7 +187,7 @@ struct EarthRef {
     lat_rad: f64,
     h_m: f64,
     /// Latitude offset beyond which the reference moves, rad.
-    lat_tol_rad: f64,
+    lat_tol_rad: f32,
     /// sin(lat).
     sin: f64,
     /// cos(lat).
@@ -279,7 +280,7 @@ impl EarthRef {
         Self {
             lat_rad,
             h_m,
-            lat_tol_rad: EARTH_REF_LAT_TOL_RAD / (1.0 + tan.abs()),
+            lat_tol_rad: (EARTH_REF_LAT_TOL_RAD / (1.0 + tan.abs())) as f32,
             sin: s,
             cos: c,
             g_mps2: g,
@@ -370,6 +371,11 @@ fn arr32(v: &[f64; 3]) -> V32 {
     [x as f32, y as f32, z as f32]
 }
 
+fn to64(v: V32) -> Vector3<f64> {
+    let [x, y, z] = v;
+    Vector3::new(f64::from(x), f64::from(y), f64::from(z))
+}
+
 /// `v + c` with an `f32` correction `c`.
 fn plus32(v: &[f64; 3], c: V32) -> Vector3<f64> {
     let [x, y, z] = *v;
@@ -419,6 +425,16 @@ fn mul_right_1t(q: &Quaternion<f64>, t: &[f64; 3]) -> Quaternion<f64> {
         y + (w * b + z * a - x * c),
         z + (w * c + x * b - y * a),
     )
+}
+
+/// `C v` for the quaternion `q = [w, x, y, z]` (unit norm) of `C`, single precision.
+fn rotate32(q: [f32; 4], v: V32) -> V32 {
+    let [w, x, y, z] = q;
+    // c = u x v; v' = v + 2 (w c + u x c)
+    let u = [x, y, z];
+    let c = cross32(u, v);
+    let t = add32(scale32(c, w), cross32(u, c));
+    add32(v, scale32(t, 2.0))
 }
 
 /// `q + (0, t) * q`: the unnormalised rotation quaternion `(1, t)` times `q`.
@@ -485,7 +501,8 @@ impl Strapdown {
         //    the two-sample terms are dropped.
         let dth32 = arr32(&imu.dtheta_rad);
         let dv32 = arr32(&imu.dv_mps);
-        let use_prev = self.have_prev && dt <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt;
+        let use_prev =
+            self.have_prev && dt32 <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt32;
         let (p_th, p_dv) = if use_prev {
             (self.prev_dtheta_rad, self.prev_dv_mps)
         } else {
@@ -497,28 +514,28 @@ impl Strapdown {
             add32(half_rot, scale32(cross32(dth32, half_rot), 1.0 / 3.0)),
             scale32(add32(cross32(p_th, dv32), cross32(p_dv, dth32)), 1.0 / 12.0),
         );
-        let phi = plus32(&imu.dtheta_rad, coning);
         let phi32 = add32(dth32, coning);
-        let dv_b = plus32(&imu.dv_mps, dv_corr);
 
         let s = self.state;
         let q = *s.q_nb.quaternion();
+        let q32 = [q.w as f32, q.i as f32, q.j as f32, q.k as f32];
         let v0 = s.vel_ned_mps;
 
-        // 2. Body increment in n(t_{k-1}) (f64); mid-interval extrapolation (f32) and the
-        //    earth quantities there.
-        let dv_n0 = rotate(&q, &dv_b);
-        let mut d0 = s.pos.lat_rad - self.earth.lat_rad;
-        let mut e0 = s.pos.h_m - self.earth.h_m;
+        // 2. Body increment in n(t_{k-1}): the raw dv rotated in f64, the corrections in f32
+        //    (added with the other small terms below); mid-interval extrapolation (f32) and
+        //    the earth quantities there.
+        let dv_n_raw = rotate(&q, &Vector3::from(imu.dv_mps));
+        let dv_corr_n = rotate32(q32, dv_corr);
+        let mut d0 = (s.pos.lat_rad - self.earth.lat_rad) as f32;
+        let mut e0 = (s.pos.h_m - self.earth.h_m) as f32;
         if !(d0.abs() <= self.earth.lat_tol_rad && e0.abs() <= EARTH_REF_H_TOL_M) {
             self.earth = EarthRef::new(s.pos.lat_rad, s.pos.h_m);
             d0 = 0.0;
             e0 = 0.0;
         }
         let er = self.earth;
-        let (d0, e0) = (d0 as f32, e0 as f32);
         let v0_32 = to32(&v0);
-        let dv_n0_32 = to32(&dv_n0);
+        let dv_n0_32 = add32(to32(&dv_n_raw), dv_corr_n);
         // v_mid - v0
         let half_dv = scale32(add32(dv_n0_32, scale32(self.accel_ng_mps2, dt32)), 0.5);
         let v_mid = add32(v0_32, half_dv);
@@ -545,10 +562,10 @@ impl Strapdown {
         );
         let small = {
             let [cx, cy, cz] = cross32(arr32(&o2), half_dv);
-            let [nx, ny, nz] = nav_rot;
+            let [nx, ny, nz] = add32(nav_rot, dv_corr_n);
             [nx - cx, ny - cy, nz - cz]
         };
-        let v1 = (v0 + dv_n0 - cor) + Vector3::new(0.0, 0.0, e.g_mps2 * dt);
+        let v1 = (v0 + dv_n_raw - cor) + Vector3::new(0.0, 0.0, e.g_mps2 * dt);
         let v1 = plus32(&v1.into(), small);
 
         // 4. Position: height, then latitude, then longitude (trapezoid velocity).
@@ -566,16 +583,17 @@ impl Strapdown {
         //    attitude follows small changes of velocity and height smoothly).
         let wh = earth::OMEGA_IE_RADPS * hdt + 0.5 * dlon;
         let t_n = [-(e.cos * wh), 0.5 * dlat, e.sin * wh];
+        let phi = plus32(&imu.dtheta_rad, coning);
         let [px, py, pz] = phi32;
         let a2 = px * px + py * py + pz * pz;
-        let q1 = if a2 < SMALL_ROT2_RAD2 {
+        let q2 = if a2 < SMALL_ROT2_RAD2 {
             // tan(a/2)/a = 1/2 + a^2/24 + a^4/240 + 17 a^6/40320
-            let k = 0.5 + f64::from(a2 * (1.0 / 24.0 + a2 * (1.0 / 240.0 + a2 * (17.0 / 40320.0))));
-            mul_right_1t(&q, &[phi.x * k, phi.y * k, phi.z * k])
+            let k32 = a2 * (1.0 / 24.0 + a2 * (1.0 / 240.0 + a2 * (17.0 / 40320.0)));
+            let k = 0.5 + f64::from(k32);
+            mul_left_1t(&t_n, &mul_right_1t(&q, &[phi.x * k, phi.y * k, phi.z * k]))
         } else {
-            q * attitude::quat_from_rotvec(&phi).into_inner()
+            mul_left_1t(&t_n, &(q * attitude::quat_from_rotvec(&phi).into_inner()))
         };
-        let q2 = mul_left_1t(&t_n, &q1);
         let n2 = q2.norm_squared();
         let x = n2 - 1.0;
         let f = if x.abs() < SMALL_NORM_ERR {
@@ -599,15 +617,15 @@ impl Strapdown {
         };
         self.prev_dtheta_rad = dth32;
         self.prev_dv_mps = dv32;
-        self.prev_dt_s = dt;
+        self.prev_dt_s = dt32;
         self.have_prev = true;
         self.accel_ng_mps2 = accel_ng32(&e, w_en, v_mid);
-        let inv_dt = 1.0 / dt;
+        let inv_dt = 1.0 / dt32;
         Ok(StepInfo {
             dt_s: dt,
-            f_body_mps2: Vector3::from(imu.dv_mps) * inv_dt,
-            omega_ib_body_radps: Vector3::from(imu.dtheta_rad) * inv_dt,
-            f_ned_mps2: plus32(&dv_n0.into(), nav_rot) * inv_dt,
+            f_body_mps2: to64(scale32(dv32, inv_dt)),
+            omega_ib_body_radps: to64(scale32(dth32, inv_dt)),
+            f_ned_mps2: to64(scale32(add32(dv_n0_32, nav_rot), inv_dt)),
         })
     }
 }
@@ -829,11 +847,11 @@ mod tests {
         let lat = lat_deg.to_radians();
         let r = EarthRef::new(lat, h_m);
         let mut worst = [0.0f64; 5];
-        for &fd in &[-1.0, -0.37, 0.0, 0.5, 1.0] {
-            for &fe in &[-1.0, 0.0, 0.3, 1.0] {
+        for &fd in &[-1.0f32, -0.37, 0.0, 0.5, 1.0] {
+            for &fe in &[-1.0f32, 0.0, 0.3, 1.0] {
                 // offsets exactly representable in f32, as the step uses them
-                let d32 = (fd * r.lat_tol_rad) as f32;
-                let e32 = (fe * EARTH_REF_H_TOL_M) as f32;
+                let d32 = fd * r.lat_tol_rad;
+                let e32 = fe * EARTH_REF_H_TOL_M;
                 let (la, h) = (lat + f64::from(d32), h_m + f64::from(e32));
                 let loc = r.at(d32, e32);
                 let w = earth::earth_rate_ned_radps(la);

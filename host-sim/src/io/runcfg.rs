@@ -100,6 +100,10 @@ pub struct GnssSource {
     /// Factor applied to the file's standard deviations (1 = as given).
     #[serde(default = "one")]
     pub sigma_scale: f64,
+    /// Innovation gate of the filter: "off", or the acceptance probability "0.95", "0.99",
+    /// "0.999", "0.9999" (default: the filter's, 0.9999).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gate: Option<String>,
 }
 
 /// Reference trajectory file kinds.

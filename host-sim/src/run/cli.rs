@@ -21,15 +21,14 @@ use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::output;
 use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
 use crate::io::{
-    read_gnss_text, read_imu_csv, read_imu_text, read_kf_gins_yaml, read_nav_text, read_rtklib_pos,
-    read_run_config, BiasModel, GnssFileKind, ImuFileKind, InitMode, KfGinsConfig, PosOptions,
-    RunConfig, TruthFileKind,
+    read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
+    InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use crate::metrics::{self, Metrics};
 use crate::sim::CaseFile;
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
-use nav_core::config::{FilterConfig, ScaleFactorNoise};
+use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
 use nav_core::model::{BlockKind, ImuCorrection};
@@ -77,9 +76,32 @@ pub struct RunArgs {
     /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
     #[arg(long, allow_hyphen_values = true)]
     pub imu_time_offset: Option<f64>,
+    /// Innovation gate: off, or the acceptance probability 0.95, 0.99, 0.999, 0.9999
+    /// (default: the filter's, 0.9999).
+    #[arg(long)]
+    pub gate: Option<String>,
+    /// Use the GNSS velocities: on/off (default: the configuration's).
+    #[arg(long)]
+    pub gnss_velocity: Option<bool>,
+    /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
+    #[arg(long)]
+    pub noise_scale: Option<f64>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Parses a `--gate` value.
+pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
+    let max_rej = Gating::default().max_consecutive_rejections;
+    Ok(match s.trim() {
+        "off" | "none" => Gating::disabled(),
+        "0.95" | "95" => Gating::with_probability(GateProbability::P95, max_rej),
+        "0.99" | "99" => Gating::with_probability(GateProbability::P99, max_rej),
+        "0.999" | "99.9" => Gating::with_probability(GateProbability::P999, max_rej),
+        "0.9999" | "99.99" => Gating::with_probability(GateProbability::P9999, max_rej),
+        other => bail!("--gate {other}: expected off, 0.95, 0.99, 0.999 or 0.9999"),
+    })
 }
 
 impl RunArgs {
@@ -98,6 +120,9 @@ impl RunArgs {
             out: PathBuf::from("run-out"),
             f32: false,
             imu_time_offset: None,
+            gate: None,
+            gnss_velocity: None,
+            noise_scale: None,
             quiet: true,
         }
     }
@@ -220,6 +245,27 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     if args.f32 {
         opts.precision = Precision::F32;
     }
+    if let Some(g) = &args.gate {
+        opts.filter.gating = parse_gate(g)?;
+    }
+    if let Some(v) = args.gnss_velocity {
+        opts.filter.use_gnss_velocity = v;
+    }
+    if let Some(k) = args.noise_scale {
+        if !(k.is_finite() && k > 0.0) {
+            bail!("--noise-scale {k}: must be positive");
+        }
+        for s in opts
+            .filter
+            .accel
+            .s_n
+            .iter_mut()
+            .chain(opts.filter.gyro.s_n.iter_mut())
+        {
+            *s *= k;
+        }
+        description.push_str(&format!("; white-noise PSDs x{k}"));
+    }
     let (t0, t_end) = match (case.imu.first(), case.imu.last()) {
         (Some(a), Some(b)) => (a.t_s, b.t_s),
         _ => bail!("no IMU samples in the data"),
@@ -323,67 +369,30 @@ fn prepare_run_config(
     case_dir: Option<&CaseDir>,
 ) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
     let mut week = 0u16;
-    let (imu, imu_p) = match case_dir {
-        Some(c) => (read_imu_text(&c.imu)?.samples, c.imu.clone()),
+    let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
+    let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
+    let mut gaps = String::new();
+    let (imu, mut gnss, truth) = match case_dir {
+        Some(c) => (
+            read_imu_text(&c.imu)?.samples,
+            read_gnss_text(&c.gnss)?,
+            if c.truth.exists() {
+                Some(read_nav_text(&c.truth)?)
+            } else {
+                None
+            },
+        ),
         None => {
-            let p = RunConfig::resolve(dir, &r.imu.path);
-            let mut rec = match r.imu.format {
-                ImuFileKind::Text => read_imu_text(&p)?,
-                ImuFileKind::Csv => {
-                    let fmt = r
-                        .imu
-                        .csv
-                        .as_ref()
-                        .context("imu.format = \"csv\" needs an [imu.csv] mapping")?;
-                    read_imu_csv(&p, fmt)?
-                }
-            };
-            r.imu.mounting.rotate_increments(&mut rec.samples);
-            for s in &mut rec.samples {
-                s.t_s += r.imu.time_offset_s;
+            let inp = r.load_inputs(dir)?;
+            if let Some(w) = inp.gnss_week {
+                week = u16::try_from(w).unwrap_or(0);
             }
-            (rec.samples, p)
-        }
-    };
-    let (mut gnss, gnss_p) = match case_dir {
-        Some(c) => (read_gnss_text(&c.gnss)?, c.gnss.clone()),
-        None => {
-            let p = RunConfig::resolve(dir, &r.gnss.path);
-            let fixes = match r.gnss.format {
-                GnssFileKind::Text => read_gnss_text(&p)?,
-                GnssFileKind::RtklibPos => {
-                    let rec = read_rtklib_pos(
-                        &p,
-                        &PosOptions {
-                            max_q: r.gnss.max_q,
-                        },
-                    )?;
-                    if let Some(w) = rec.week {
-                        week = u16::try_from(w).unwrap_or(0);
-                    }
-                    rec.fixes
-                }
-            };
-            (fixes, p)
-        }
-    };
-    for g in &mut gnss {
-        g.t_s += r.gnss.time_offset_s;
-        for s in &mut g.pos_std_ned_m {
-            *s *= r.gnss.sigma_scale;
-        }
-        for s in &mut g.vel_std_ned_mps {
-            *s *= r.gnss.sigma_scale;
-        }
-    }
-    let truth = match (&r.truth, case_dir) {
-        (_, Some(c)) if c.truth.exists() => Some(read_nav_text(&c.truth)?),
-        (Some(t), _) => {
-            let p = RunConfig::resolve(dir, &t.path);
-            Some(match t.format {
-                TruthFileKind::NavText => read_nav_text(&p)?,
-                TruthFileKind::RtklibPos => read_rtklib_pos(&p, &PosOptions::default())?
-                    .fixes
+            if inp.imu.gaps.count() > 0 {
+                gaps = format!("; IMU time gaps: {}", inp.imu.gaps);
+            }
+            let truth = inp.truth.map(|t| match t {
+                TruthData::Nav(v) => v,
+                TruthData::Positions(f) => f
                     .iter()
                     .map(|f| NavSolution {
                         t_s: f.t_s,
@@ -399,10 +408,18 @@ fn prepare_run_config(
                         ..NavSolution::default()
                     })
                     .collect(),
-            })
+            });
+            (inp.imu.samples, inp.gnss, truth)
         }
-        _ => None,
     };
+    for g in &mut gnss {
+        for s in &mut g.pos_std_ned_m {
+            *s *= r.gnss.sigma_scale;
+        }
+        for s in &mut g.vel_std_ned_mps {
+            *s *= r.gnss.sigma_scale;
+        }
+    }
     let accel = r
         .noise
         .accel
@@ -421,6 +438,9 @@ fn prepare_run_config(
         filter.gyro_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
     }
     filter.use_gnss_velocity = r.gnss.use_velocity;
+    if let Some(g) = &r.gnss.gate {
+        filter.gating = parse_gate(g).context("gnss.gate")?;
+    }
     let model = match r.noise.model {
         BiasModel::N => Model::N,
         BiasModel::Nbk => Model::Nbk,
@@ -466,7 +486,7 @@ fn prepare_run_config(
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
     let d = format!(
-        "run configuration `{}`: IMU {}, GNSS {}",
+        "run configuration `{}`: IMU {}, GNSS {}{gaps}",
         r.name,
         imu_p.display(),
         gnss_p.display()

@@ -1,0 +1,237 @@
+//! `host-sim run` end to end through the binary: a case written by `host-sim simulate
+//! --kf-gins` runs from its `kf-gins.yaml` alone, and the outputs are complete and right.
+use host_sim::io::read_nav_text;
+use host_sim::metrics::errors_vs_truth;
+use std::path::Path;
+use std::process::Command;
+
+const SCENARIO: &str = r#"
+name = "run-cli-test"
+description = "4 min test drive"
+[start]
+lat_deg = 30.5
+lon_deg = 114.3
+h_m = 20.0
+heading_deg = 120.0
+gps_week = 2300
+sow_s = 200000.0
+[imu]
+rate_hz = 100.0
+[[segment]]
+kind = "static"
+duration_s = 30.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 10.0
+duration_s = 10.0
+[[segment]]
+kind = "turn"
+angle_deg = 90.0
+radius_m = 30.0
+[[segment]]
+kind = "cruise"
+duration_s = 30.0
+[[segment]]
+kind = "turn"
+angle_deg = -180.0
+radius_m = 25.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 15.0
+duration_s = 10.0
+[[segment]]
+kind = "cruise"
+duration_s = 120.0
+[[segment]]
+kind = "turn"
+angle_deg = 45.0
+radius_m = 50.0
+[[segment]]
+kind = "brake"
+to_speed_mps = 0.0
+duration_s = 10.0
+[[segment]]
+kind = "static"
+duration_s = 10.0
+"#;
+
+fn host_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    let so = String::from_utf8_lossy(&out.stdout).to_string();
+    let se = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(
+        out.status.success(),
+        "{cmd:?}\nstdout:\n{so}\nstderr:\n{se}"
+    );
+    so
+}
+
+fn count_data_lines(p: &Path) -> usize {
+    std::fs::read_to_string(p)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .count()
+}
+
+#[test]
+fn simulated_kf_gins_case_runs_from_its_yaml_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("scenario.toml");
+    std::fs::write(&sc, SCENARIO).unwrap();
+    let case = dir.path().join("case");
+    run_ok(host_sim().args([
+        "simulate",
+        "--scenario",
+        sc.to_str().unwrap(),
+        "--errors",
+        "tactical",
+        "--seed",
+        "4",
+        "--kf-gins",
+        "--outage",
+        "120:30",
+        "--out",
+        case.to_str().unwrap(),
+    ]));
+    let yaml = case.join("kf-gins.yaml");
+    assert!(yaml.exists());
+    let out = dir.path().join("out");
+    let so = run_ok(host_sim().args([
+        "run",
+        "--config",
+        yaml.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]));
+    println!("{so}");
+    assert!(so.contains("model kf-gins (21 states)"), "{so}");
+    for f in [
+        "nav.txt",
+        "std.txt",
+        "bias.txt",
+        "innovations.txt",
+        "metrics.json",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    // nav.txt at the IMU rate: one record per IMU sample plus the initial epoch
+    let imu_n = count_data_lines(&case.join("imu.txt"));
+    let nav = read_nav_text(out.join("nav.txt")).unwrap();
+    assert_eq!(nav.len(), imu_n + 1);
+    assert_eq!(nav[0].week, 2300);
+    // std.txt header names the 21 states
+    let std_txt = std::fs::read_to_string(out.join("std.txt")).unwrap();
+    let head = std_txt.lines().nth(1).unwrap();
+    assert_eq!(head.split_whitespace().count(), 2 + 21, "{head}");
+    assert!(head.contains("gyro_scale_factor_x") && head.contains("accel_bias_z_mps2"));
+    // metrics against the case's truth, the case's outage covered, numbers consistent with
+    // an independent comparison of nav.txt with truth.nav
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["reference"], "truth");
+    assert_eq!(m["per_outage"].as_array().unwrap().len(), 1);
+    let truth = read_nav_text(case.join("truth.nav")).unwrap();
+    let e = errors_vs_truth(&nav, &truth);
+    let t_out = (200_120.0, 200_150.0);
+    let outside: Vec<_> = e
+        .iter()
+        .filter(|x| x.t_s < t_out.0 || x.t_s >= t_out.1)
+        .collect();
+    let rms_h = (outside
+        .iter()
+        .map(|x| x.horizontal_m().powi(2))
+        .sum::<f64>()
+        / outside.len() as f64)
+        .sqrt();
+    let json_h = m["outside_outages"]["pos_horizontal_m"]["rms"]
+        .as_f64()
+        .unwrap();
+    // nav.txt is written with shortest round-trip degrees: identical statistics
+    assert!((rms_h - json_h).abs() < 1e-6, "{rms_h} vs {json_h}");
+    assert!(rms_h < 0.05, "horizontal RMS outside the outage {rms_h}");
+    let end_h = m["per_outage"][0]["end"]["horizontal_m"].as_f64().unwrap();
+    assert!(end_h.is_finite() && end_h < 20.0, "{end_h}");
+    // innovations: one line per fix, none withheld (the simulator removed the outage's
+    // fixes), all used
+    let gnss_n = count_data_lines(&case.join("gnss.txt"));
+    let inn = std::fs::read_to_string(out.join("innovations.txt")).unwrap();
+    let lines: Vec<&str> = inn.lines().filter(|l| !l.starts_with('#')).collect();
+    assert!(lines.len() <= gnss_n && lines.len() + 2 >= gnss_n);
+    assert!(lines
+        .iter()
+        .all(|l| l.split_whitespace().nth(1) == Some("accepted")));
+}
+
+#[test]
+fn run_imposes_outages_and_decimates_nav() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("scenario.toml");
+    std::fs::write(&sc, SCENARIO).unwrap();
+    let case = dir.path().join("case");
+    run_ok(host_sim().args([
+        "simulate",
+        "--scenario",
+        sc.to_str().unwrap(),
+        "--errors",
+        "tactical",
+        "--kf-gins",
+        "--out",
+        case.to_str().unwrap(),
+    ]));
+    let out = dir.path().join("out");
+    run_ok(host_sim().args([
+        "run",
+        "--config",
+        case.join("kf-gins.yaml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--outage",
+        "60:20",
+        "--periodic-outage",
+        "100:10:40",
+        "--nav-rate",
+        "1",
+        "--quiet",
+    ]));
+    let nav = read_nav_text(out.join("nav.txt")).unwrap();
+    // 1 Hz from the initial epoch over a ~250 s case
+    for w in nav.windows(2) {
+        assert!(
+            (w[1].t_s - w[0].t_s - 1.0).abs() < 1e-6,
+            "{} {}",
+            w[0].t_s,
+            w[1].t_s
+        );
+    }
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    // outage times count from the first IMU epoch (`--outage` help): the first increment
+    // ends at 200000.01 s
+    let t0 = host_sim::io::read_imu_text(case.join("imu.txt")).unwrap().samples[0].t_s;
+    assert!((t0 - 200_000.01).abs() < 1e-6, "{t0}");
+    let starts: Vec<f64> = m["outages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["start_s"].as_f64().unwrap() - t0)
+        .collect();
+    // 60 s, then 100, 140, 180, 220 s (each ends before the data end)
+    assert_eq!(starts.len(), 5, "{starts:?}");
+    for (a, b) in starts.iter().zip([60.0, 100.0, 140.0, 180.0, 220.0]) {
+        assert!((a - b).abs() < 1e-6, "{starts:?}");
+    }
+    let inn = std::fs::read_to_string(out.join("innovations.txt")).unwrap();
+    let withheld = inn
+        .lines()
+        .filter(|l| l.split_whitespace().nth(1) == Some("withheld"))
+        .count();
+    assert_eq!(withheld, 20 + 4 * 10);
+    // coasting baselines are in the metrics
+    assert_eq!(m["coasting"].as_array().unwrap().len(), 1);
+}
