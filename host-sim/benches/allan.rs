@@ -33,7 +33,9 @@ fn bench(c: &mut Criterion) {
     let y = data();
     let mut g = c.benchmark_group("allan");
     g.sample_size(10);
-    g.bench_function("oadev_octave_21.6M", |b| b.iter(|| oadev_octave(black_box(&y))));
+    g.bench_function("oadev_octave_21.6M", |b| {
+        b.iter(|| oadev_octave(black_box(&y)))
+    });
     let small: Vec<f64> = y[..1_000_000].to_vec();
     g.bench_function("streaming_push_1M", |b| {
         b.iter(|| {

@@ -213,7 +213,10 @@ fn run_imposes_outages_and_decimates_nav() {
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     // outage times count from the first IMU epoch (`--outage` help): the first increment
     // ends at 200000.01 s
-    let t0 = host_sim::io::read_imu_text(case.join("imu.txt")).unwrap().samples[0].t_s;
+    let t0 = host_sim::io::read_imu_text(case.join("imu.txt"))
+        .unwrap()
+        .samples[0]
+        .t_s;
     assert!((t0 - 200_000.01).abs() < 1e-6, "{t0}");
     let starts: Vec<f64> = m["outages"]
         .as_array()
