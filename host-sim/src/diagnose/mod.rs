@@ -1,304 +1,168 @@
-//! `host-sim diagnose`: find the effect the error-state model lacks from a run's innovations.
+//! `host-sim diagnose`: find the effects the error-state model lacks from a run's innovations,
+//! add them, and report the errors before and after.
 //!
-//! 1. Residual statistics of the base run ([`ResidualStats`]): NIS mean against its
-//!    chi-square band, lag autocorrelation and Ljung-Box Q per innovation component, and the
-//!    correlation of the innovations with each candidate effect's regressor.
-//! 2. Every candidate of [`DIAGNOSE_CANDIDATES`] not already in the model is confirmed by a
-//!    re-run with its block appended (in parallel); the innovation log-likelihood gain is
-//!    compared with a BIC penalty `k/2 ln n` (k added states, n scalar measurements). The best
-//!    candidate is added only when its gain exceeds the penalty; otherwise "no missing effect".
+//! 1. Residual statistics of the base run ([`stats::ResidualStats`]): NIS mean against its
+//!    chi-square band, autocorrelation and Ljung-Box Q per innovation component, and the
+//!    correlation of the normalised innovations with each candidate effect's regressor.
+//! 2. Candidates: every effect block of the vocabulary ([`EFFECT_BLOCKS`]) not already in the
+//!    model; the temperature blocks only when the IMU data carry a temperature column.
+//! 3. Selection, repeated while an effect pays: every remaining candidate is re-run with its
+//!    block appended to the blocks added so far (in parallel, rayon); its innovation
+//!    log-likelihood gain over the current model is compared with the BIC penalty
+//!    `k/2 ln n` (k added states, n scalar measurements). The candidate with the largest
+//!    `gain - penalty` is added when that is positive; when no candidate pays, the search stops
+//!    ("no missing effect" when nothing was added at all).
 //!
-//! Limitation of this slice: [`crate::run::RunOptions::extra_block`] holds one block, so at
-//! most one effect is added (the search loop stops after the first).
+//! Units of the estimates ([`AddedEffect::estimate`], the blocks' states, SI):
+//! `accel_scale_factor`, `gyro_scale_factor`: dimensionless (x, y, z; 1e-6 = 1 ppm);
+//! `accel_misalignment`, `gyro_misalignment`: rad, `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`
+//! (m_ij: fraction of the body-axis-j input sensed by sensor i); `lever_arm`: m, body FRD,
+//! the correction to the configured antenna lever arm; `time_offset`: s, a fix tagged t is
+//! the antenna at IMU time t + estimate; `accel_temperature_bias`: m/s^2/degC;
+//! `gyro_temperature_bias`: rad/s/degC; `gyro_g_sensitivity`: rad/s per m/s^2 (diagonal).
+pub mod report;
+pub mod stats;
+
 use std::path::PathBuf;
 
 use anyhow::Context;
-use nav_core::model::Block;
-use nav_core::types::{ImuSample, NavSolution};
+use nav_core::model::{Block, EFFECT_BLOCKS};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::metrics::{self, Metrics};
 use crate::run::cli::{execute, prepare, Prepared, RunArgs};
-use crate::run::{output, run_filter, FixUse, InnovationRecord, RunOutput, DIAGNOSE_CANDIDATES};
+use crate::run::{output, run_filter, CaseData, RunOptions, RunOutput, MAX_EXTRA_DIM};
+pub use stats::{regressor_correlation, residual_stats, ResidualStats, Whiteness};
 
-/// Arguments of `host-sim diagnose`: the same as `run`.
+/// Arguments of `host-sim diagnose`: the same as `run`, plus the search limits.
 #[derive(clap::Args, Debug)]
 pub struct DiagnoseArgs {
-    /// Inputs as for `run`; `--out` receives diagnosis.json, nav_before.txt, nav_after.txt.
+    /// Inputs as for `run`; `--out` receives diagnosis.json, nav_before.txt, nav_after.txt,
+    /// report.md with its PNG plots, and the augmented configuration.
     #[command(flatten)]
     pub run: RunArgs,
+    /// Largest number of effects to add.
+    #[arg(long, default_value_t = 4)]
+    pub max_effects: usize,
 }
 
-/// Whiteness statistics of one innovation component.
-#[derive(Debug, Clone, Serialize)]
-pub struct Whiteness {
-    /// Component index (0-2 position N/E/D, 3-5 velocity N/E/D).
-    pub component: usize,
-    /// Number of normalized innovations.
-    pub n: usize,
-    /// Autocorrelation of the normalized innovations at lags 1..=LAGS.
-    pub autocorr: Vec<f64>,
-    /// Ljung-Box Q over lags 1..=LAGS (chi-square with LAGS degrees of freedom when white).
-    pub ljung_box_q: f64,
-    /// 95 % point of chi-square(LAGS).
-    pub ljung_box_q95: f64,
+/// Options of [`diagnose`].
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Largest number of effects to add.
+    pub max_effects: usize,
+    /// Candidates to consider (`None`: [`candidates`] of the case).
+    pub candidates: Option<Vec<Block>>,
 }
 
-/// Residual statistics of one run.
-#[derive(Debug, Clone, Serialize)]
-pub struct ResidualStats {
-    /// Updates used (accepted or forced).
-    pub updates: usize,
-    /// Mean NIS.
-    pub nis_mean: f64,
-    /// Mean measurement dimension (the NIS mean's expectation).
-    pub nis_expected: f64,
-    /// Two-sided 95 % band of the NIS mean (normal approximation of chi-square / n).
-    pub nis_band: [f64; 2],
-    /// Per-component whiteness.
-    pub whiteness: Vec<Whiteness>,
-    /// Innovation log-likelihood (diagonal innovation variances), nats.
-    pub log_likelihood: f64,
-    /// Number of scalar measurements in the log-likelihood.
-    pub scalar_measurements: usize,
+impl Default for DiagnoseOptions {
+    /// At most 4 effects, all applicable candidates.
+    fn default() -> Self {
+        Self {
+            max_effects: 4,
+            candidates: None,
+        }
+    }
 }
 
-/// The evidence for one candidate effect.
+/// The evidence for one candidate effect in one round of the search.
 #[derive(Debug, Clone, Serialize)]
 pub struct CandidateEvidence {
     /// Effect name (the vocabulary of issue 7).
     pub name: String,
-    /// Largest |correlation| of normalized innovations with one of its regressors.
+    /// Largest |correlation| of the current model's normalised position innovations with one
+    /// of the candidate's regressors (screening statistic).
     pub regressor_correlation: f64,
-    /// That correlation times sqrt(n) (about N(0,1) without the effect).
+    /// That correlation times sqrt(pairs) (about N(0,1) without the effect, for white
+    /// innovations).
     pub correlation_z: f64,
-    /// Log-likelihood gain of the re-run with the block added, nats (None: not re-run).
+    /// Log-likelihood gain of the re-run with the block added, nats (None: not run).
     pub delta_log_likelihood: Option<f64>,
     /// BIC penalty for its states, nats.
     pub bic_penalty: f64,
-    /// delta_log_likelihood - bic_penalty: the evidence used for selection.
+    /// delta_log_likelihood - bic_penalty: the evidence used for selection (> 0: pays).
     pub evidence: Option<f64>,
-    /// Why it was not re-run (already in the model, run error).
+    /// Estimate of the block's states in the re-run (SI, see the module notes).
+    pub estimate: Vec<f64>,
+    /// Their 1-sigma.
+    pub sigma: Vec<f64>,
+    /// Outage position error of the re-run (see [`outage_error_m`]), m.
+    pub outage_error_m: Option<f64>,
+    /// Why it was not run (run error).
     pub note: Option<String>,
+}
+
+/// One round of the search: every remaining candidate against the current model.
+#[derive(Debug, Clone, Serialize)]
+pub struct Round {
+    /// Effects in the model before this round (added by earlier rounds).
+    pub model_effects: Vec<String>,
+    /// Log-likelihood of the current model, nats.
+    pub log_likelihood: f64,
+    /// Every candidate's evidence, strongest first.
+    pub candidates: Vec<CandidateEvidence>,
+    /// The effect added in this round (None: no candidate paid, search stopped).
+    pub added: Option<String>,
 }
 
 /// An effect the diagnosis added.
 #[derive(Debug, Clone, Serialize)]
 pub struct AddedEffect {
-    /// Effect name.
+    /// Effect name (the vocabulary).
     pub name: String,
-    /// Final estimate of its states, SI (scale factor: dimensionless; lever arm: m, body FRD;
-    /// time offset: s).
+    /// Estimate of its states in the final model, SI (see the module notes).
     pub estimate: Vec<f64>,
     /// 1-sigma of the estimate, same units.
     pub sigma: Vec<f64>,
-    /// Log-likelihood gain minus BIC penalty, nats.
+    /// SI unit of the states.
+    pub unit: String,
+    /// Log-likelihood gain minus BIC penalty when it was added, nats.
     pub evidence: f64,
 }
 
-/// The diagnosis.
+/// Position errors of one run in the imposed outages (or overall without outages).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ErrorSummary {
+    /// `truth` or `withheld_gnss`.
+    pub reference: &'static str,
+    /// Number of outages compared.
+    pub outages: usize,
+    /// RMS over outages of each outage's largest 3D position error, m (the headline figure;
+    /// without outages the overall 3D RMS).
+    pub outage_max_3d_rms_m: f64,
+    /// RMS over outages of the horizontal error at the outage end, m.
+    pub outage_end_horizontal_rms_m: f64,
+    /// 3D position RMS over all comparison epochs, m.
+    pub overall_3d_rms_m: f64,
+    /// Horizontal RMS of the prior residuals of the used fixes, m.
+    pub gnss_residual_horizontal_rms_m: f64,
+}
+
+/// The diagnosis (diagnosis.json).
 #[derive(Debug, Clone, Serialize)]
 pub struct Diagnosis {
-    /// Effects added, in order (empty: no missing effect).
+    /// Effects added, in the order they were added (empty: no missing effect).
     pub added_effects: Vec<AddedEffect>,
+    /// "no missing effect" or the names added.
+    pub verdict: String,
+    /// Candidates considered.
+    pub candidates_considered: Vec<String>,
     /// Residual statistics of the base model.
     pub residuals_before: ResidualStats,
     /// Residual statistics with the added effects (same as before when none).
     pub residuals_after: ResidualStats,
-    /// Every candidate's evidence, strongest first.
-    pub candidates: Vec<CandidateEvidence>,
-    /// Errors of the base run (vs truth, else vs GNSS withheld in imposed outages).
+    /// The search, round by round.
+    pub rounds: Vec<Round>,
+    /// Position errors of the base model.
+    pub error_before: ErrorSummary,
+    /// Position errors with the added effects.
+    pub error_after: ErrorSummary,
+    /// Full error metrics of the base run (vs truth, else vs GNSS withheld in imposed
+    /// outages).
     pub errors_before: Metrics,
-    /// Errors with the added effects.
+    /// Full error metrics with the added effects.
     pub errors_after: Metrics,
-}
-
-/// Number of autocorrelation lags of the whiteness test.
-pub const LAGS: usize = 10;
-
-fn used(r: &InnovationRecord) -> bool {
-    matches!(r.used, FixUse::Accepted | FixUse::Forced)
-}
-
-/// Residual statistics of a run's innovations.
-pub fn residual_stats(innov: &[InnovationRecord]) -> ResidualStats {
-    let recs: Vec<&InnovationRecord> = innov.iter().filter(|r| used(r)).collect();
-    let n = recs.len();
-    let nis_mean = recs.iter().map(|r| r.nis).sum::<f64>() / n.max(1) as f64;
-    let dim_mean = recs.iter().map(|r| r.dim as f64).sum::<f64>() / n.max(1) as f64;
-    let half = 1.96 * (2.0 * dim_mean / n.max(1) as f64).sqrt();
-    let mut ll = 0.0;
-    let mut m = 0;
-    for r in &recs {
-        for (v, &s) in r.innovation.iter().zip(&r.innovation_var).take(r.dim) {
-            if s > 0.0 {
-                ll -= 0.5 * ((2.0 * std::f64::consts::PI * s).ln() + v * v / s);
-                m += 1;
-            }
-        }
-    }
-    let max_dim = recs.iter().map(|r| r.dim.min(6)).max().unwrap_or(0);
-    let whiteness = (0..max_dim)
-        .map(|c| {
-            let z: Vec<f64> = recs
-                .iter()
-                .filter(|r| r.dim > c && r.innovation_var[c] > 0.0)
-                .map(|r| r.innovation[c] / r.innovation_var[c].sqrt())
-                .collect();
-            whiteness(c, &z)
-        })
-        .collect();
-    ResidualStats {
-        updates: n,
-        nis_mean,
-        nis_expected: dim_mean,
-        nis_band: [dim_mean - half, dim_mean + half],
-        whiteness,
-        log_likelihood: ll,
-        scalar_measurements: m,
-    }
-}
-
-fn whiteness(component: usize, z: &[f64]) -> Whiteness {
-    let n = z.len();
-    let mean = z.iter().sum::<f64>() / n.max(1) as f64;
-    let c0: f64 = z.iter().map(|v| (v - mean).powi(2)).sum();
-    let mut autocorr = Vec::with_capacity(LAGS);
-    let mut q = 0.0;
-    for k in 1..=LAGS {
-        let ck: f64 = z
-            .iter()
-            .zip(z.iter().skip(k))
-            .map(|(a, b)| (a - mean) * (b - mean))
-            .sum();
-        let r = if c0 > 0.0 { ck / c0 } else { 0.0 };
-        autocorr.push(r);
-        if n > k {
-            q += r * r / (n - k) as f64;
-        }
-    }
-    Whiteness {
-        component,
-        n,
-        autocorr,
-        ljung_box_q: n as f64 * (n as f64 + 2.0) * q,
-        // chi-square(10) 95 % point
-        ljung_box_q95: 18.307,
-    }
-}
-
-/// Pearson correlation.
-fn corr(x: &[f64], y: &[f64]) -> f64 {
-    let n = x.len().min(y.len());
-    if n < 3 {
-        return 0.0;
-    }
-    let mx = x.iter().take(n).sum::<f64>() / n as f64;
-    let my = y.iter().take(n).sum::<f64>() / n as f64;
-    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
-    for (a, b) in x.iter().zip(y.iter()).take(n) {
-        sxy += (a - mx) * (b - my);
-        sxx += (a - mx).powi(2);
-        syy += (b - my).powi(2);
-    }
-    if sxx > 0.0 && syy > 0.0 {
-        sxy / (sxx * syy).sqrt()
-    } else {
-        0.0
-    }
-}
-
-fn c_bn(rpy: [f64; 3]) -> [[f64; 3]; 3] {
-    let (sr, cr) = rpy[0].sin_cos();
-    let (sp, cp) = rpy[1].sin_cos();
-    let (sy, cy) = rpy[2].sin_cos();
-    [
-        [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
-        [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
-        [-sp, sr * cp, cr * cp],
-    ]
-}
-
-fn nearest<T>(v: &[T], t: f64, key: impl Fn(&T) -> f64) -> Option<usize> {
-    if v.is_empty() {
-        return None;
-    }
-    let i = v.partition_point(|x| key(x) < t);
-    let i = i.min(v.len() - 1);
-    if i > 0 && (t - key(&v[i - 1])).abs() < (key(&v[i]) - t).abs() {
-        Some(i - 1)
-    } else {
-        Some(i)
-    }
-}
-
-/// NED regressor vectors (one per state of the block) of a candidate at one fix.
-fn regressors(b: Block, imu: &[ImuSample], i: usize, nav: &NavSolution) -> Vec<[f64; 3]> {
-    let c = c_bn(nav.rpy_rad);
-    let dt = if i > 0 {
-        imu[i].t_s - imu[i - 1].t_s
-    } else {
-        imu.get(1).map_or(0.0, |s| s.t_s - imu[0].t_s)
-    };
-    let rate = |v: [f64; 3]| {
-        if dt > 0.0 {
-            [v[0] / dt, v[1] / dt, v[2] / dt]
-        } else {
-            [0.0; 3]
-        }
-    };
-    let col = |j: usize, s: f64| [c[0][j] * s, c[1][j] * s, c[2][j] * s];
-    match b {
-        Block::AccelScaleFactor => {
-            let f = rate(imu[i].dv_mps);
-            (0..3).map(|j| col(j, f[j])).collect()
-        }
-        Block::GyroScaleFactor => {
-            let w = rate(imu[i].dtheta_rad);
-            (0..3).map(|j| col(j, w[j])).collect()
-        }
-        Block::LeverArm => (0..3).map(|j| col(j, 1.0)).collect(),
-        Block::TimeOffset => vec![nav.vel_ned_mps],
-        _ => Vec::new(),
-    }
-}
-
-/// Largest |correlation| of the normalized position innovations with the candidate's
-/// regressors (pooled over N/E/D), and the number of pairs.
-pub fn regressor_correlation(b: Block, imu: &[ImuSample], run: &RunOutput) -> (f64, usize) {
-    let mut best = (0.0f64, 0);
-    let recs: Vec<&InnovationRecord> = run.innovations.iter().filter(|r| used(r)).collect();
-    let nstates = match b {
-        Block::TimeOffset => 1,
-        _ => 3,
-    };
-    for j in 0..nstates {
-        let mut x = Vec::new();
-        let mut y = Vec::new();
-        for r in &recs {
-            let (Some(ii), Some(ni)) = (
-                nearest(imu, r.t_s, |s| s.t_s),
-                nearest(&run.nav, r.t_s, |s| s.t_s),
-            ) else {
-                continue;
-            };
-            let reg = regressors(b, imu, ii, &run.nav[ni]);
-            let Some(rv) = reg.get(j) else { continue };
-            let comps = r.innovation.iter().zip(&r.innovation_var).zip(rv);
-            for ((v, &s), reg) in comps.take(r.dim.min(3)) {
-                if s > 0.0 {
-                    x.push(v / s.sqrt());
-                    y.push(*reg);
-                }
-            }
-        }
-        let c = corr(&x, &y).abs();
-        if c > best.0 {
-            best = (c, x.len());
-        }
-    }
-    best
 }
 
 /// Result of [`diagnose`] with the two runs.
@@ -311,86 +175,223 @@ pub struct DiagnoseOutput {
     pub after: RunOutput,
 }
 
+/// The outage position error of a run: RMS over the outages of each outage's largest 3D
+/// error (vs truth, or vs the withheld fixes), m; without outages the overall 3D RMS.
+pub fn outage_error_m(m: &Metrics) -> f64 {
+    if m.outage_summary.count > 0 {
+        m.outage_summary.max_3d_m.rms
+    } else {
+        m.overall.pos_3d_m.rms
+    }
+}
+
+fn error_summary(m: &Metrics) -> ErrorSummary {
+    ErrorSummary {
+        reference: if m.reference == "truth" {
+            "truth"
+        } else {
+            "withheld_gnss"
+        },
+        outages: m.outage_summary.count,
+        outage_max_3d_rms_m: outage_error_m(m),
+        outage_end_horizontal_rms_m: m.outage_summary.end_horizontal_m.rms,
+        overall_3d_rms_m: m.overall.pos_3d_m.rms,
+        gnss_residual_horizontal_rms_m: m.gnss_residuals.horizontal_m.rms,
+    }
+}
+
+/// The candidates for a case and base model: every effect block not in the model, the
+/// temperature blocks only when some IMU sample carries a temperature.
+pub fn candidates(case: &CaseData, opts: &RunOptions) -> Vec<Block> {
+    let has_temp = case.imu.iter().any(|s| s.temperature_c.is_finite());
+    let layout = opts.model.layout();
+    EFFECT_BLOCKS
+        .iter()
+        .copied()
+        .filter(|b| !layout.contains(b.kind()) && !opts.extra_blocks.contains(b))
+        .filter(|b| {
+            has_temp || !matches!(b, Block::AccelTemperatureBias | Block::GyroTemperatureBias)
+        })
+        .collect()
+}
+
+/// Options of a run with `blocks` appended: the time-offset block needs the filter to accept
+/// fixes further from an IMU epoch (its 3-sigma prior).
+pub fn options_with(base: &RunOptions, blocks: &[Block]) -> RunOptions {
+    let mut o = base.clone();
+    o.extra_blocks.extend_from_slice(blocks);
+    if o.extra_blocks.contains(&Block::TimeOffset) {
+        let lim = 3.0 * o.filter.effects.time_offset.init_sigma + 0.05;
+        o.filter.max_gnss_time_offset_s = o.filter.max_gnss_time_offset_s.max(lim);
+    }
+    o
+}
+
+fn effect_values(out: &RunOutput, name: &str) -> (Vec<f64>, Vec<f64>) {
+    out.final_effects
+        .iter()
+        .find(|e| e.name == name)
+        .map_or((Vec::new(), Vec::new()), |e| (e.value.clone(), e.std.clone()))
+}
+
 /// Diagnoses a prepared case (see the module notes).
-pub fn diagnose(p: &Prepared) -> anyhow::Result<DiagnoseOutput> {
+pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
     let (before, errors_before) = execute(p, &mut |_, _| {})?;
     let residuals_before = residual_stats(&before.innovations);
-    let base_layout = p.opts.model.layout();
-    let n_meas = residuals_before.scalar_measurements.max(1) as f64;
-    let results: Vec<(CandidateEvidence, Option<(RunOutput, Metrics)>)> = DIAGNOSE_CANDIDATES
-        .par_iter()
-        .map(|&b| {
-            let (rc, n) = regressor_correlation(b, &p.case.imu, &before);
-            let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
-            let mut ev = CandidateEvidence {
+    let all = dopts
+        .candidates
+        .clone()
+        .unwrap_or_else(|| candidates(&p.case, &p.opts));
+    let base_dim = p.opts.model.layout().dim()
+        + p.opts.extra_blocks.iter().map(|b| b.dim()).sum::<usize>();
+    let truth = p.case.truth.as_deref();
+
+    let mut added: Vec<Block> = Vec::new();
+    let mut added_ev: Vec<f64> = Vec::new();
+    let mut current: (RunOutput, Metrics) = (before.clone(), errors_before.clone());
+    let mut current_ll = residuals_before.log_likelihood;
+    let mut rounds = Vec::new();
+    while added.len() < dopts.max_effects {
+        let dim_now = base_dim + added.iter().map(|b| b.dim()).sum::<usize>();
+        let remaining: Vec<Block> = all
+            .iter()
+            .copied()
+            .filter(|b| !added.contains(b) && dim_now + b.dim() <= MAX_EXTRA_DIM)
+            .collect();
+        if remaining.is_empty() {
+            break;
+        }
+        let cur_run = &current.0;
+        let n_meas = residual_stats(&cur_run.innovations)
+            .scalar_measurements
+            .max(2) as f64;
+        let results: Vec<(CandidateEvidence, Option<(RunOutput, Metrics)>)> = remaining
+            .par_iter()
+            .map(|&b| {
+                let (rc, n) = regressor_correlation(b, &p.case.imu, cur_run);
+                let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
+                let mut ev = CandidateEvidence {
+                    name: b.name().to_string(),
+                    regressor_correlation: rc,
+                    correlation_z: rc * (n as f64).sqrt(),
+                    delta_log_likelihood: None,
+                    bic_penalty: penalty,
+                    evidence: None,
+                    estimate: Vec::new(),
+                    sigma: Vec::new(),
+                    outage_error_m: None,
+                    note: None,
+                };
+                let mut blocks = added.clone();
+                blocks.push(b);
+                let opts = options_with(&p.opts, &blocks);
+                match run_filter(&p.case, &opts) {
+                    Ok(out) => {
+                        let rs = residual_stats(&out.innovations);
+                        let d = rs.log_likelihood - current_ll;
+                        ev.delta_log_likelihood = Some(d);
+                        ev.evidence = Some(d - penalty);
+                        (ev.estimate, ev.sigma) = effect_values(&out, b.name());
+                        let m = metrics::compute(&out, truth);
+                        ev.outage_error_m = Some(outage_error_m(&m));
+                        (ev, Some((out, m)))
+                    }
+                    Err(e) => {
+                        ev.note = Some(e.to_string());
+                        (ev, None)
+                    }
+                }
+            })
+            .collect();
+        let best = results
+            .iter()
+            .enumerate()
+            .filter(|(_, (ev, run))| run.is_some() && ev.evidence.is_some_and(|e| e > 0.0))
+            .max_by(|a, b| {
+                let ea = a.1 .0.evidence.unwrap_or(f64::NEG_INFINITY);
+                let eb = b.1 .0.evidence.unwrap_or(f64::NEG_INFINITY);
+                ea.total_cmp(&eb)
+            })
+            .map(|(i, _)| i);
+        let mut cands: Vec<CandidateEvidence> = results.iter().map(|r| r.0.clone()).collect();
+        cands.sort_by(|a, b| {
+            let ka = a.evidence.unwrap_or(f64::NEG_INFINITY);
+            let kb = b.evidence.unwrap_or(f64::NEG_INFINITY);
+            kb.total_cmp(&ka)
+        });
+        let mut round = Round {
+            model_effects: added.iter().map(|b| b.name().to_string()).collect(),
+            log_likelihood: current_ll,
+            candidates: cands,
+            added: None,
+        };
+        let Some(i) = best else {
+            rounds.push(round);
+            break;
+        };
+        let Some((ev, Some(run))) = results.into_iter().nth(i) else {
+            rounds.push(round);
+            break;
+        };
+        let Some(b) = Block::effect_from_name(&ev.name) else {
+            rounds.push(round);
+            break;
+        };
+        round.added = Some(ev.name.clone());
+        rounds.push(round);
+        added.push(b);
+        added_ev.push(ev.evidence.unwrap_or(0.0));
+        current_ll += ev.delta_log_likelihood.unwrap_or(0.0);
+        current = run;
+    }
+
+    let (after, errors_after) = current;
+    let added_effects: Vec<AddedEffect> = added
+        .iter()
+        .zip(&added_ev)
+        .map(|(b, e)| {
+            let (estimate, sigma) = effect_values(&after, b.name());
+            AddedEffect {
                 name: b.name().to_string(),
-                regressor_correlation: rc,
-                correlation_z: rc * (n as f64).sqrt(),
-                delta_log_likelihood: None,
-                bic_penalty: penalty,
-                evidence: None,
-                note: None,
-            };
-            if base_layout.find(b.kind()).is_some() {
-                ev.note = Some("already in the model".into());
-                return (ev, None);
-            }
-            let mut opts = p.opts.clone();
-            opts.extra_block = Some(b);
-            match run_filter(&p.case, &opts) {
-                Ok(out) => {
-                    let rs = residual_stats(&out.innovations);
-                    let d = rs.log_likelihood - residuals_before.log_likelihood;
-                    ev.delta_log_likelihood = Some(d);
-                    ev.evidence = Some(d - penalty);
-                    let m = metrics::compute(&out, p.case.truth.as_deref());
-                    (ev, Some((out, m)))
-                }
-                Err(e) => {
-                    ev.note = Some(e.to_string());
-                    (ev, None)
-                }
+                estimate,
+                sigma,
+                unit: b.unit().to_string(),
+                evidence: *e,
             }
         })
         .collect();
-    let mut best: Option<usize> = None;
-    for (i, (ev, run)) in results.iter().enumerate() {
-        if let (Some(e), Some(_)) = (ev.evidence, run) {
-            if e > 0.0 && best.is_none_or(|j| results[j].0.evidence.unwrap_or(f64::MIN) < e) {
-                best = Some(i);
-            }
-        }
-    }
-    let mut candidates: Vec<CandidateEvidence> = results.iter().map(|r| r.0.clone()).collect();
-    candidates.sort_by(|a, b| {
-        let ka = a.evidence.unwrap_or(f64::NEG_INFINITY);
-        let kb = b.evidence.unwrap_or(f64::NEG_INFINITY);
-        kb.total_cmp(&ka)
-    });
-    let mut added_effects = Vec::new();
-    let (after, errors_after) = match best.and_then(|i| results.into_iter().nth(i)) {
-        Some((ev, Some((out, m)))) => {
-            let dim = Block::effect_from_name(&ev.name)
-                .map_or(3, |b| b.dim())
-                .min(3);
-            let fb = out.final_blocks.iter().find(|f| f.name == ev.name);
-            added_effects.push(AddedEffect {
-                name: ev.name.clone(),
-                estimate: fb.map_or(Vec::new(), |f| f.value[..dim].to_vec()),
-                sigma: fb.map_or(Vec::new(), |f| f.std[..dim].to_vec()),
-                evidence: ev.evidence.unwrap_or(0.0),
-            });
-            (out, m)
-        }
-        _ => (before.clone(), errors_before.clone()),
+    // the after run with the same recording as the before run (coasting baselines, epochs)
+    let (after, errors_after) = if added.is_empty() {
+        (after, errors_after)
+    } else {
+        let pa = Prepared {
+            case: p.case.clone(),
+            opts: options_with(&p.opts, &added),
+            week: p.week,
+            description: p.description.clone(),
+        };
+        execute(&pa, &mut |_, _| {}).unwrap_or((after, errors_after))
     };
     let residuals_after = residual_stats(&after.innovations);
+    let verdict = if added_effects.is_empty() {
+        "no missing effect".to_string()
+    } else {
+        added_effects
+            .iter()
+            .map(|e| e.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     Ok(DiagnoseOutput {
         diagnosis: Diagnosis {
             added_effects,
+            verdict,
+            candidates_considered: all.iter().map(|b| b.name().to_string()).collect(),
             residuals_before,
             residuals_after,
-            candidates,
+            rounds,
+            error_before: error_summary(&errors_before),
+            error_after: error_summary(&errors_after),
             errors_before,
             errors_after,
         },
@@ -399,26 +400,52 @@ pub fn diagnose(p: &Prepared) -> anyhow::Result<DiagnoseOutput> {
     })
 }
 
-/// Runs `host-sim diagnose`.
-pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
-    let p = prepare(&args.run)?;
-    println!("{}", p.description);
-    let d = diagnose(&p)?;
-    let dir: &PathBuf = &args.run.out;
+/// Writes diagnosis.json, nav_before.txt, nav_after.txt, the report and the augmented
+/// configuration into `dir`.
+pub fn write_outputs(
+    dir: &std::path::Path,
+    p: &Prepared,
+    d: &DiagnoseOutput,
+    config: Option<&std::path::Path>,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     output::write_nav(&dir.join("nav_before.txt"), &d.before.nav, p.week)?;
     output::write_nav(&dir.join("nav_after.txt"), &d.after.nav, p.week)?;
     let jp = dir.join("diagnosis.json");
     std::fs::write(&jp, serde_json::to_string_pretty(&d.diagnosis)?)
         .with_context(|| format!("writing {}", jp.display()))?;
-    if d.diagnosis.added_effects.is_empty() {
-        println!("no missing effect");
+    if let Some(c) = config {
+        report::write_augmented_config(dir, c, &d.diagnosis)?;
     }
-    for e in &d.diagnosis.added_effects {
+    report::write_report(dir, p, d)?;
+    Ok(())
+}
+
+/// Runs `host-sim diagnose`.
+pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
+    let p = prepare(&args.run)?;
+    println!("{}", p.description);
+    let dopts = DiagnoseOptions {
+        max_effects: args.max_effects,
+        candidates: None,
+    };
+    let d = diagnose(&p, &dopts)?;
+    let dir: &PathBuf = &args.run.out;
+    write_outputs(dir, &p, &d, Some(&args.run.config))?;
+    let dg = &d.diagnosis;
+    println!("{}", dg.verdict);
+    for e in &dg.added_effects {
         println!(
-            "added {}: estimate {:?} sigma {:?} evidence {:.1}",
-            e.name, e.estimate, e.sigma, e.evidence
+            "added {}: estimate {:?} sigma {:?} [{}] evidence {:.1}",
+            e.name, e.estimate, e.sigma, e.unit, e.evidence
         );
     }
+    println!(
+        "outage position error ({}): before {:.3} m, after {:.3} m",
+        dg.error_before.reference,
+        dg.error_before.outage_max_3d_rms_m,
+        dg.error_after.outage_max_3d_rms_m
+    );
+    println!("wrote {}", dir.display());
     Ok(())
 }

@@ -36,7 +36,7 @@ use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{dcm_f64, Counters, Filter, FilterError, UpdateOutcome};
 use nav_core::model::{
-    BiasModel, Block, BlockKind, ImuCorrection, Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK,
+    BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK,
     LAYOUT_NBK_SINGLE,
 };
 use nav_core::nav::{NavState, MAX_DT_S};
@@ -160,19 +160,18 @@ pub struct RunOptions {
     pub start_s: Option<f64>,
     /// Stop after this time (GPS seconds of week).
     pub end_s: Option<f64>,
-    /// One effect block appended to the model's layout (for `diagnose`): one of
-    /// [`DIAGNOSE_CANDIDATES`], f64 only; `None` runs the model as it is.
-    pub extra_block: Option<Block>,
+    /// Effect blocks ([`EFFECT_BLOCKS`]) appended in order to the model's layout (for
+    /// `diagnose`), f64 only; the total must stay within [`MIN_EXTRA_DIM`]..=[`MAX_EXTRA_DIM`]
+    /// states. Empty runs the model as it is.
+    pub extra_blocks: Vec<Block>,
 }
 
-/// The effect blocks `run_filter` can append to any [`Model`] ([`RunOptions::extra_block`]):
-/// each (model, block) pair is a compile-time layout, so the set is fixed.
-pub const DIAGNOSE_CANDIDATES: [Block; 4] = [
-    Block::AccelScaleFactor,
-    Block::GyroScaleFactor,
-    Block::LeverArm,
-    Block::TimeOffset,
-];
+/// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
+pub const MIN_EXTRA_DIM: usize = 16;
+/// Largest state count of a layout with extra effect blocks: the filter's N is a compile-time
+/// constant, so `run_filter` instantiates one filter per count in
+/// [`MIN_EXTRA_DIM`]..=[`MAX_EXTRA_DIM`] and dispatches on the layout's dimension.
+pub const MAX_EXTRA_DIM: usize = 40;
 
 impl RunOptions {
     /// Options with defaults: f64, no outages, no lever arm, default recording.
@@ -188,7 +187,7 @@ impl RunOptions {
             record: RecordOptions::default(),
             start_s: None,
             end_s: None,
-            extra_block: None,
+            extra_blocks: Vec::new(),
         }
     }
 }
@@ -202,6 +201,32 @@ pub struct BlockEstimate {
     pub value: [f64; 3],
     /// 1-sigma per axis, same units.
     pub std: [f64; 3],
+}
+
+/// The estimate and 1-sigma of every state of one effect block.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectEstimate {
+    /// Block name (the effect vocabulary, e.g. `lever_arm`).
+    pub name: String,
+    /// Estimate of each state, SI units of the block ([`Block::unit`]).
+    pub value: Vec<f64>,
+    /// 1-sigma of each state, same units.
+    pub std: Vec<f64>,
+}
+
+fn effect_estimates<T: Scalar, const N: usize>(f: &Filter<T, N>) -> Vec<EffectEstimate> {
+    f.layout()
+        .iter()
+        .filter(|(_, b)| EFFECT_BLOCKS.contains(b))
+        .filter_map(|(_, b)| {
+            let v = f.block_value(b.kind())?;
+            Some(EffectEstimate {
+                name: b.name().to_string(),
+                value: v.estimate.get(..v.dim)?.to_vec(),
+                std: v.sigma.get(..v.dim)?.to_vec(),
+            })
+        })
+        .collect()
 }
 
 /// State at one recorded epoch.
@@ -342,6 +367,9 @@ pub struct RunOutput {
     pub init: InitReport,
     /// Final IMU error estimates.
     pub final_blocks: Vec<BlockEstimate>,
+    /// Final estimate and 1-sigma of every effect block in the layout ([`EFFECT_BLOCKS`]), all
+    /// its states, SI units ([`Block::unit`]).
+    pub final_effects: Vec<EffectEstimate>,
     /// Antenna lever arm used, body FRD, m.
     pub lever_arm_m: [f64; 3],
 }
@@ -418,45 +446,43 @@ pub fn run_filter_with_progress(
             }
         };
     }
-    if let Some(extra) = opts.extra_block {
-        macro_rules! ext {
-            ($base:expr) => {
-                match extra {
-                    Block::AccelScaleFactor => {
-                        const L: Layout = $base.with(Block::AccelScaleFactor);
-                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
-                    }
-                    Block::GyroScaleFactor => {
-                        const L: Layout = $base.with(Block::GyroScaleFactor);
-                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
-                    }
-                    Block::LeverArm => {
-                        const L: Layout = $base.with(Block::LeverArm);
-                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
-                    }
-                    Block::TimeOffset => {
-                        const L: Layout = $base.with(Block::TimeOffset);
-                        run_layout::<f64, { L.dim() }>(L, case, opts, progress)
-                    }
-                    other => Err(RunError::Options(format!(
-                        "effect block {} cannot be appended (supported: accel_scale_factor, \
-                         gyro_scale_factor, lever_arm, time_offset)",
-                        other.name()
+    if !opts.extra_blocks.is_empty() {
+        if opts.precision != Precision::F64 {
+            return Err(RunError::Options(
+                "extra effect blocks need f64 precision".into(),
+            ));
+        }
+        let mut layout = opts.model.layout();
+        for b in &opts.extra_blocks {
+            if !EFFECT_BLOCKS.contains(b) {
+                return Err(RunError::Options(format!(
+                    "{} is not an effect block",
+                    b.name()
+                )));
+            }
+            if layout.contains(b.kind()) {
+                return Err(RunError::Options(format!(
+                    "effect block {} is already in the layout",
+                    b.name()
+                )));
+            }
+            layout = layout.with(*b);
+        }
+        layout
+            .validate(layout.dim())
+            .map_err(|e| RunError::Options(e.to_string()))?;
+        macro_rules! dims {
+            ($($n:literal)*) => {
+                match layout.dim() {
+                    $($n => run_layout::<f64, $n>(layout, case, opts, progress),)*
+                    d => Err(RunError::Options(format!(
+                        "layout of {d} states: run supports {MIN_EXTRA_DIM} to {MAX_EXTRA_DIM} \
+                         states with extra effect blocks"
                     ))),
                 }
             };
         }
-        if opts.precision != Precision::F64 {
-            return Err(RunError::Options(
-                "an extra effect block needs f64 precision".into(),
-            ));
-        }
-        return match opts.model {
-            Model::N => ext!(LAYOUT_N),
-            Model::Nbk => ext!(LAYOUT_NBK),
-            Model::NbkSingle => ext!(LAYOUT_NBK_SINGLE),
-            Model::KfGins21 => ext!(LAYOUT_KF_GINS),
-        };
+        return dims!(16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40);
     }
     match opts.model {
         Model::N => go!(LAYOUT_N),
@@ -846,6 +872,7 @@ fn run_layout<T: Scalar, const N: usize>(
         snapshots,
         init: start.report,
         final_blocks: block_estimates(&filter),
+        final_effects: effect_estimates(&filter),
         lever_arm_m: opts.lever_arm_m,
     })
 }

@@ -1,0 +1,257 @@
+//! Residual statistics of a run: NIS against its chi-square band, whiteness (autocorrelation,
+//! Ljung-Box) per innovation component, the innovation log-likelihood, and the correlation of
+//! the normalised innovations with each candidate effect's regressor.
+use nav_core::model::Block;
+use nav_core::types::{ImuSample, NavSolution};
+use serde::Serialize;
+
+use crate::run::{FixUse, InnovationRecord, RunOutput};
+
+/// Number of autocorrelation lags of the whiteness test.
+pub const LAGS: usize = 10;
+/// 95 % point of chi-square with [`LAGS`] degrees of freedom.
+pub const LJUNG_BOX_Q95: f64 = 18.307;
+
+/// Whiteness statistics of one innovation component.
+#[derive(Debug, Clone, Serialize)]
+pub struct Whiteness {
+    /// Component index (0-2 position N/E/D, 3-5 velocity N/E/D).
+    pub component: usize,
+    /// Number of normalised innovations.
+    pub n: usize,
+    /// Mean of the normalised innovations (0 when unbiased).
+    pub mean: f64,
+    /// Autocorrelation of the normalised innovations at lags 1..=LAGS (fix epochs).
+    pub autocorr: Vec<f64>,
+    /// Ljung-Box Q over lags 1..=LAGS (chi-square with LAGS degrees of freedom when white).
+    pub ljung_box_q: f64,
+    /// 95 % point of chi-square(LAGS).
+    pub ljung_box_q95: f64,
+}
+
+/// Residual statistics of one run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ResidualStats {
+    /// Fixes in the statistics (used, forced or gate-rejected: every fix with an innovation
+    /// covariance; withheld fixes are not innovations of the filter).
+    pub updates: usize,
+    /// Mean NIS.
+    pub nis_mean: f64,
+    /// Mean measurement dimension (the NIS mean's expectation).
+    pub nis_expected: f64,
+    /// Two-sided 95 % band of the NIS mean (normal approximation of chi-square / n).
+    pub nis_band: [f64; 2],
+    /// Whether the NIS mean is inside its band.
+    pub nis_in_band: bool,
+    /// Per-component whiteness.
+    pub whiteness: Vec<Whiteness>,
+    /// Innovation log-likelihood, nats: `-1/2 sum (NIS + sum ln(2 pi S_ii))` (the diagonal's
+    /// log-determinant bounds the full one from above).
+    pub log_likelihood: f64,
+    /// Number of scalar measurements in the log-likelihood.
+    pub scalar_measurements: usize,
+}
+
+/// Whether a record enters the statistics.
+pub fn in_stats(r: &InnovationRecord) -> bool {
+    matches!(
+        r.used,
+        FixUse::Accepted | FixUse::Forced | FixUse::Rejected
+    ) && r.nis.is_finite()
+        && r.dim > 0
+        && r
+            .innovation_var
+            .iter()
+            .take(r.dim)
+            .all(|s| s.is_finite() && *s > 0.0)
+}
+
+/// Residual statistics of a run's innovations.
+pub fn residual_stats(innov: &[InnovationRecord]) -> ResidualStats {
+    let recs: Vec<&InnovationRecord> = innov.iter().filter(|r| in_stats(r)).collect();
+    let n = recs.len();
+    let nis_mean = recs.iter().map(|r| r.nis).sum::<f64>() / n.max(1) as f64;
+    let dim_mean = recs.iter().map(|r| r.dim as f64).sum::<f64>() / n.max(1) as f64;
+    let half = 1.96 * (2.0 * dim_mean / n.max(1) as f64).sqrt();
+    let mut ll = 0.0;
+    let mut m = 0;
+    for r in &recs {
+        ll -= 0.5 * r.nis;
+        for &s in r.innovation_var.iter().take(r.dim) {
+            ll -= 0.5 * (2.0 * std::f64::consts::PI * s).ln();
+            m += 1;
+        }
+    }
+    let max_dim = recs.iter().map(|r| r.dim.min(6)).max().unwrap_or(0);
+    let whiteness = (0..max_dim)
+        .map(|c| {
+            let z: Vec<f64> = recs
+                .iter()
+                .filter(|r| r.dim > c)
+                .map(|r| r.innovation[c] / r.innovation_var[c].sqrt())
+                .collect();
+            whiteness(c, &z)
+        })
+        .collect();
+    let band = [dim_mean - half, dim_mean + half];
+    ResidualStats {
+        updates: n,
+        nis_mean,
+        nis_expected: dim_mean,
+        nis_band: band,
+        nis_in_band: nis_mean >= band[0] && nis_mean <= band[1],
+        whiteness,
+        log_likelihood: ll,
+        scalar_measurements: m,
+    }
+}
+
+fn whiteness(component: usize, z: &[f64]) -> Whiteness {
+    let n = z.len();
+    let mean = z.iter().sum::<f64>() / n.max(1) as f64;
+    let c0: f64 = z.iter().map(|v| (v - mean).powi(2)).sum();
+    let mut autocorr = Vec::with_capacity(LAGS);
+    let mut q = 0.0;
+    for k in 1..=LAGS {
+        let ck: f64 = z
+            .iter()
+            .zip(z.iter().skip(k))
+            .map(|(a, b)| (a - mean) * (b - mean))
+            .sum();
+        let r = if c0 > 0.0 { ck / c0 } else { 0.0 };
+        autocorr.push(r);
+        if n > k {
+            q += r * r / (n - k) as f64;
+        }
+    }
+    Whiteness {
+        component,
+        n,
+        mean,
+        autocorr,
+        ljung_box_q: n as f64 * (n as f64 + 2.0) * q,
+        ljung_box_q95: LJUNG_BOX_Q95,
+    }
+}
+
+/// Pearson correlation.
+fn corr(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len());
+    if n < 3 {
+        return 0.0;
+    }
+    let mx = x.iter().take(n).sum::<f64>() / n as f64;
+    let my = y.iter().take(n).sum::<f64>() / n as f64;
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y.iter()).take(n) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx).powi(2);
+        syy += (b - my).powi(2);
+    }
+    if sxx > 0.0 && syy > 0.0 {
+        sxy / (sxx * syy).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// C_b^n of ZYX Euler angles (roll, pitch, yaw), rad.
+pub fn c_bn(rpy: [f64; 3]) -> [[f64; 3]; 3] {
+    let (sr, cr) = rpy[0].sin_cos();
+    let (sp, cp) = rpy[1].sin_cos();
+    let (sy, cy) = rpy[2].sin_cos();
+    [
+        [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+        [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+        [-sp, sr * cp, cr * cp],
+    ]
+}
+
+fn nearest<T>(v: &[T], t: f64, key: impl Fn(&T) -> f64) -> Option<usize> {
+    if v.is_empty() {
+        return None;
+    }
+    let i = v.partition_point(|x| key(x) < t);
+    let i = i.min(v.len() - 1);
+    if i > 0 && (t - key(&v[i - 1])).abs() < (key(&v[i]) - t).abs() {
+        Some(i - 1)
+    } else {
+        Some(i)
+    }
+}
+
+/// NED regressor vectors (one per state of the block) of a candidate at one fix: the
+/// direction in which one unit of the state moves the navigation error now (the innovation
+/// integrates it: a correlation with the instantaneous regressor is a screening statistic, the
+/// re-run decides).
+fn regressors(b: Block, imu: &[ImuSample], i: usize, nav: &NavSolution, t_ref: f64) -> Vec<[f64; 3]> {
+    let c = c_bn(nav.rpy_rad);
+    let dt = if i > 0 {
+        imu[i].t_s - imu[i - 1].t_s
+    } else {
+        imu.get(1).map_or(0.0, |s| s.t_s - imu[0].t_s)
+    };
+    let rate = |v: [f64; 3]| {
+        if dt > 0.0 {
+            [v[0] / dt, v[1] / dt, v[2] / dt]
+        } else {
+            [0.0; 3]
+        }
+    };
+    let col = |j: usize, s: f64| [c[0][j] * s, c[1][j] * s, c[2][j] * s];
+    // off-diagonal pairs (i, j) in the order [xy, xz, yx, yz, zx, zy]
+    const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
+    let f = rate(imu[i].dv_mps);
+    let w = rate(imu[i].dtheta_rad);
+    let d_t = imu[i].temperature_c - t_ref;
+    let d_t = if d_t.is_finite() { d_t } else { 0.0 };
+    match b {
+        Block::AccelScaleFactor => (0..3).map(|j| col(j, f[j])).collect(),
+        Block::GyroScaleFactor => (0..3).map(|j| col(j, w[j])).collect(),
+        Block::AccelMisalignment => PAIRS.iter().map(|&(r, k)| col(r, f[k])).collect(),
+        Block::GyroMisalignment => PAIRS.iter().map(|&(r, k)| col(r, w[k])).collect(),
+        Block::AccelTemperatureBias | Block::GyroTemperatureBias => {
+            (0..3).map(|j| col(j, d_t)).collect()
+        }
+        Block::GyroGSensitivity => (0..3).map(|j| col(j, f[j])).collect(),
+        Block::LeverArm => (0..3).map(|j| col(j, 1.0)).collect(),
+        Block::TimeOffset => vec![nav.vel_ned_mps],
+        _ => Vec::new(),
+    }
+}
+
+/// Largest |correlation| of the normalised position innovations with one of the candidate's
+/// regressors (pooled over N/E/D), and the number of pairs.
+pub fn regressor_correlation(b: Block, imu: &[ImuSample], run: &RunOutput) -> (f64, usize) {
+    let mut best = (0.0f64, 0);
+    let recs: Vec<&InnovationRecord> = run.innovations.iter().filter(|r| in_stats(r)).collect();
+    let t_ref = imu
+        .iter()
+        .map(|s| s.temperature_c)
+        .find(|t| t.is_finite())
+        .unwrap_or(f64::NAN);
+    for j in 0..b.dim() {
+        let mut x = Vec::new();
+        let mut y = Vec::new();
+        for r in &recs {
+            let (Some(ii), Some(ni)) = (
+                nearest(imu, r.t_s, |s| s.t_s),
+                nearest(&run.nav, r.t_s, |s| s.t_s),
+            ) else {
+                continue;
+            };
+            let reg = regressors(b, imu, ii, &run.nav[ni], t_ref);
+            let Some(rv) = reg.get(j) else { continue };
+            let comps = r.innovation.iter().zip(&r.innovation_var).zip(rv);
+            for ((v, &s), reg) in comps.take(r.dim.min(3)) {
+                x.push(v / s.sqrt());
+                y.push(*reg);
+            }
+        }
+        let c = corr(&x, &y).abs();
+        if c > best.0 {
+            best = (c, x.len());
+        }
+    }
+    best
+}
