@@ -672,8 +672,8 @@ pub fn markdown(res: &StudyResult, plots: &[String]) -> String {
             m.accel_t_b_s,
             m.accel_s_k,
             m.gyro_white_deg_per_sqrt_h,
-            m.accel_bias_init_ug,
-            m.gyro_bias_init_deg_per_h
+            tidy(m.accel_bias_init_ug),
+            tidy(m.gyro_bias_init_deg_per_h)
         );
     }
     let _ = writeln!(
@@ -1001,4 +1001,12 @@ mod tests {
             assert_eq!(base64(a.as_bytes()), b);
         }
     }
+}
+
+/// `x` with at most 6 significant decimals and no trailing zeros (unit conversions leave
+/// `0.10000000000000002`).
+fn tidy(x: f64) -> String {
+    let r = format!("{:.6}", x);
+    let r = r.trim_end_matches('0').trim_end_matches('.');
+    r.to_string()
 }
