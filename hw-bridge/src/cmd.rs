@@ -169,6 +169,44 @@ pub struct ReplayArgs {
     /// Print every rejected chunk with its byte offset.
     #[arg(long)]
     pub verbose: bool,
+    /// Run the host filter on the decoded IMU and GNSS frames as `host-sim run --config`
+    /// does on files (same model, noise, initialisation, outages), writing its `nav.txt`,
+    /// `std.txt`, `bias.txt`, `innovations.txt` and `metrics.json` into `--out`. The
+    /// configuration's own data files (or `--case`'s) are read for the truth, week and
+    /// outages; the IMU samples and GNSS fixes come from the capture.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// A case directory written by `host-sim simulate` (truth, outages, GPS week), as in
+    /// `host-sim run --case`.
+    #[arg(long, requires = "config")]
+    pub case: Option<PathBuf>,
+    /// Error-state model for `--config` (default: the configuration's).
+    #[arg(long, value_enum, requires = "config")]
+    pub model: Option<host_sim::run::Model>,
+    /// f32 covariance (as on the MCU) for `--config`.
+    #[arg(long, requires = "config")]
+    pub f32: bool,
+}
+
+impl ReplayArgs {
+    /// Arguments for decoding `capture` as fast as possible, without a port or outputs.
+    pub fn new(capture: impl Into<PathBuf>) -> Self {
+        Self {
+            capture: capture.into(),
+            speed: None,
+            as_fast_as_possible: true,
+            to_port: None,
+            baud: DEFAULT_BAUD,
+            out: None,
+            input: InputKind::Frames,
+            leap_seconds: 18,
+            verbose: false,
+            config: None,
+            case: None,
+            model: None,
+            f32: false,
+        }
+    }
 }
 
 /// The result of a replay.
@@ -188,23 +226,93 @@ pub struct ReplayOutcome {
     pub recorded_s: f64,
     /// A truncated last record, if any (every complete record was replayed).
     pub truncated: Option<String>,
-    /// Wall time of the replay, s.
+    /// Wall time of the replay (decoding, and the filter run with `--config`), s.
+    pub wall_s: f64,
+    /// The host filter's run on the decoded frames (`--config`).
+    pub filter: Option<FilterRun>,
+}
+
+/// The host filter run on a replay's frames (`replay --config`).
+#[derive(Debug)]
+pub struct FilterRun {
+    /// Inputs and options as `host-sim run` prepares them, with the capture's IMU samples and
+    /// GNSS fixes in place of the files'.
+    pub prepared: host_sim::run::cli::Prepared,
+    /// The filter's output.
+    pub output: host_sim::run::RunOutput,
+    /// Metrics (against the truth when there is one).
+    pub metrics: host_sim::metrics::Metrics,
+    /// Wall time of the filter run alone, s.
     pub wall_s: f64,
 }
 
 /// Decodes a capture as frames, feeding the recorded chunks in order (no timing, no port).
 pub fn decode_capture(path: &Path) -> anyhow::Result<ReplayOutcome> {
-    replay(&ReplayArgs {
-        capture: path.to_path_buf(),
-        speed: None,
-        as_fast_as_possible: true,
-        to_port: None,
-        baud: DEFAULT_BAUD,
-        out: None,
-        input: InputKind::Frames,
-        leap_seconds: 18,
-        verbose: false,
+    replay(&ReplayArgs::new(path))
+}
+
+/// Runs the host filter on decoded frames the way `host-sim run --config CONFIG [--case DIR]`
+/// runs it on files: the configuration is prepared by `host-sim` itself, then its IMU samples
+/// and GNSS fixes are replaced by the frames' (with the configuration's GNSS sigma scale
+/// applied, as `host-sim` applies it to its files). Same samples, same options: the same
+/// solution, bit for bit.
+pub fn run_filter_on_frames(
+    log: &FrameLog,
+    config: &Path,
+    case: Option<&Path>,
+    model: Option<host_sim::run::Model>,
+    f32: bool,
+) -> anyhow::Result<FilterRun> {
+    use host_sim::run::cli::{execute, prepare, read_config, ConfigKind, RunArgs};
+    let mut ra = RunArgs::new(config);
+    ra.case = case.map(Path::to_path_buf);
+    ra.model = model;
+    ra.f32 = f32;
+    let mut prepared =
+        prepare(&ra).with_context(|| format!("preparing the filter from {}", config.display()))?;
+    if log.imu.is_empty() {
+        bail!("the capture holds no IMU frame: nothing to run the filter on");
+    }
+    let sigma_scale = match read_config(config)? {
+        ConfigKind::Run(r) => r.gnss.sigma_scale,
+        ConfigKind::KfGins(_) => 1.0,
+    };
+    let mut gnss = log.gnss.clone();
+    if sigma_scale != 1.0 {
+        for g in &mut gnss {
+            for s in g
+                .pos_std_ned_m
+                .iter_mut()
+                .chain(g.vel_std_ned_mps.iter_mut())
+            {
+                *s *= sigma_scale;
+            }
+        }
+    }
+    prepared.case.imu = log.imu.clone();
+    prepared.case.gnss = gnss;
+    let t = Instant::now();
+    let (output, metrics) = execute(&prepared, &mut |_, _| {})?;
+    Ok(FilterRun {
+        prepared,
+        output,
+        metrics,
+        wall_s: t.elapsed().as_secs_f64(),
     })
+}
+
+/// Writes a filter run's outputs under the names `host-sim run` uses.
+pub fn write_filter_outputs(dir: &Path, f: &FilterRun) -> anyhow::Result<()> {
+    use host_sim::run::output;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    output::write_nav(&dir.join("nav.txt"), &f.output.nav, f.prepared.week)?;
+    output::write_std(&dir.join("std.txt"), &f.output)?;
+    output::write_bias(&dir.join("bias.txt"), &f.output)?;
+    output::write_innovations(&dir.join("innovations.txt"), &f.output.innovations)?;
+    let mp = dir.join("metrics.json");
+    std::fs::write(&mp, serde_json::to_string_pretty(&f.metrics)?)
+        .with_context(|| format!("writing {}", mp.display()))?;
+    Ok(())
 }
 
 /// `replay`: decode a capture (reproducing its chunking, and its timing with `--speed`), write
@@ -289,9 +397,24 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             }));
     }
     out.stats = *dec.stats();
+    if let Some(cfg) = &a.config {
+        if a.input != InputKind::Frames {
+            bail!("--config runs the filter on wire frames: not with --input gnss");
+        }
+        out.filter = Some(run_filter_on_frames(
+            &out.log,
+            cfg,
+            a.case.as_deref(),
+            a.model,
+            a.f32,
+        )?);
+    }
     out.wall_s = start.elapsed().as_secs_f64();
     if let Some(dir) = &a.out {
         write_outputs(dir, &out, a.input, &gnss)?;
+        if let Some(f) = &out.filter {
+            write_filter_outputs(dir, f)?;
+        }
     }
     Ok(out)
 }
@@ -321,7 +444,8 @@ fn write_outputs(
                 write_gnss_text(dir.join("gnss.txt"), &gnss_fixes)?;
             }
             if !o.log.nav.is_empty() {
-                write_nav_text(dir.join("nav.txt"), &o.log.nav)?;
+                // the board's own solutions (nav.txt is the host filter's, with --config)
+                write_nav_text(dir.join("board-nav.txt"), &o.log.nav)?;
             }
             if !o.log.health.is_empty() {
                 let mut h = String::from("# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status\n");

@@ -55,6 +55,21 @@ fn main() -> anyhow::Result<()> {
                 cmd::InputKind::Frames => print!("{}", hw_bridge::status::decoder_report(&o.stats)),
                 cmd::InputKind::Gnss => println!("{} GNSS fixes", o.gnss_fixes.len()),
             }
+            if let Some(f) = &o.filter {
+                let c = &f.output.counters;
+                println!(
+                    "filter: model {} ({} states), {} IMU epochs, GNSS {} used, {} rejected, {} withheld in {} outage(s); {:.3} s",
+                    f.output.model.name(),
+                    f.output.state_names.len(),
+                    c.imu_epochs,
+                    c.gnss_accepted,
+                    c.gnss_rejected,
+                    c.gnss_withheld,
+                    f.output.outages.len(),
+                    f.wall_s
+                );
+                print!("{}", host_sim::metrics::summary_table(&f.metrics));
+            }
         }
         Cmd::Send(a) => {
             let o = cmd::send(&a)?;

@@ -1,6 +1,8 @@
 //! End to end over a real pseudo-terminal pair (socat): `hw-bridge send` into one end,
 //! `hw-bridge record` on the other, then the capture decodes to exactly the frames sent
-//! (bit-exact payloads), and `replay` writes text files that read back bit-exactly.
+//! (bit-exact payloads), `replay` writes text files that read back bit-exactly, and
+//! `replay --config` on a simulated drive gives the solution of `host-sim run` on the same
+//! case, bit for bit.
 
 use hw_bridge::cmd::{decode_capture, read_case};
 use nav_core::wire::{encode_raw, Frame, MAX_RAW_LEN};
@@ -242,4 +244,208 @@ fn replay_with_speed_reproduces_the_recorded_timing() {
     let fast = time(&["--as-fast-as-possible"]);
     assert!(slow >= 0.4, "speed 2 replay took {slow} s");
     assert!(fast < slow, "fast {fast} s vs paced {slow} s");
+}
+
+/// Starts `hw-bridge record` on `port`, runs `hw-bridge send` with `send_args` on `peer`,
+/// waits for the recorder to stop (idle 2 s) and returns the capture path.
+fn send_and_record(d: &Path, port: &Path, peer: &Path, send_args: &[&str]) -> std::path::PathBuf {
+    use std::io::BufRead;
+    let cap = d.join("cap.bin");
+    let mut rec = Command::new(BIN)
+        .args([
+            "record",
+            "--quiet",
+            "--idle-exit",
+            "2",
+            "--duration",
+            "60",
+            "--port",
+        ])
+        .arg(port)
+        .arg("--out")
+        .arg(&cap)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn record");
+    let mut err = std::io::BufReader::new(rec.stderr.take().unwrap());
+    let mut line = String::new();
+    err.read_line(&mut line).unwrap();
+    assert!(line.starts_with("recording"), "record said {line:?}");
+    let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    let send = Command::new(BIN)
+        .arg("send")
+        .args(send_args)
+        .arg("--port")
+        .arg(peer)
+        .output()
+        .expect("run send");
+    assert!(send.status.success(), "send failed: {send:?}");
+    let rec_out = rec.wait_with_output().unwrap();
+    let rec_err = drain.join().unwrap();
+    assert!(
+        rec_out.status.success(),
+        "record failed: {rec_out:?} {rec_err}"
+    );
+    cap
+}
+
+const DRIVE: &str = r#"
+name = "e2e-replay"
+description = "100 s drive for the send/record/replay test"
+[start]
+lat_deg = 48.2
+lon_deg = 16.37
+h_m = 220.0
+heading_deg = 30.0
+gps_week = 2227
+sow_s = 118800.0
+[imu]
+rate_hz = 200.0
+[[segment]]
+kind = "static"
+duration_s = 20.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 12.0
+duration_s = 8.0
+[[segment]]
+kind = "turn"
+angle_deg = 90.0
+radius_m = 40.0
+[[segment]]
+kind = "cruise"
+duration_s = 40.0
+[[segment]]
+kind = "turn"
+angle_deg = -60.0
+radius_m = 50.0
+[[segment]]
+kind = "brake"
+to_speed_mps = 0.0
+duration_s = 8.0
+[[segment]]
+kind = "static"
+duration_s = 5.0
+"#;
+
+/// Every field of every solution as bits.
+fn nav_bits(nav: &[nav_core::types::NavSolution]) -> Vec<u64> {
+    nav.iter()
+        .flat_map(|n| {
+            let mut v = vec![n.t_s, n.lat_rad, n.lon_rad, n.h_m];
+            v.extend(n.vel_ned_mps);
+            v.extend(n.rpy_rad);
+            v.into_iter()
+                .map(f64::to_bits)
+                .chain([u64::from(n.status)])
+                .chain(
+                    n.pos_std_ned_m
+                        .iter()
+                        .chain(&n.vel_std_ned_mps)
+                        .chain(&n.att_std_rad)
+                        .map(|x| x.to_bits()),
+                )
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+#[test]
+fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_bit() {
+    let name = "send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_bit";
+    if !require_socat(name) {
+        return;
+    }
+    use host_sim::run::cli::{execute, prepare, RunArgs};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // a simulated drive with a GNSS outage, written by host-sim's simulate (KF-GINS config)
+    let sc = d.join("drive.toml");
+    std::fs::write(&sc, DRIVE).unwrap();
+    let case = d.join("case");
+    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
+        scenario: sc.display().to_string(),
+        errors: "tactical".into(),
+        seed: 11,
+        out: case.clone(),
+        outages: vec![host_sim::sim::errors::Outage {
+            start_s: 50.0,
+            duration_s: 20.0,
+        }],
+        gnss_rate_hz: None,
+        kf_gins: true,
+        plot: false,
+    })
+    .unwrap();
+    let config = case.join("kf-gins.yaml");
+
+    // hw-bridge send -> pty pair -> hw-bridge record
+    let _socat = pty_pair(d);
+    let case_s = case.display().to_string();
+    let cap = send_and_record(
+        d,
+        &d.join("B"),
+        &d.join("A"),
+        &["--quiet", "--as-fast-as-possible", "--case", &case_s],
+    );
+
+    // host-sim run on the case files (the CLI function: the files it writes) ...
+    let out_sim = d.join("out-sim");
+    let mut ra = RunArgs::new(&config);
+    ra.out = out_sim.clone();
+    host_sim::run::cli::run(ra.clone()).unwrap();
+    // ... and hw-bridge replay --config on the capture
+    let out_rep = d.join("out-replay");
+    let st = Command::new(BIN)
+        .args(["replay", "--as-fast-as-possible"])
+        .arg(&cap)
+        .arg("--config")
+        .arg(&config)
+        .arg("--out")
+        .arg(&out_rep)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{st:?}");
+    let so = String::from_utf8_lossy(&st.stdout);
+    assert!(so.contains("filter: model kf-gins (21 states)"), "{so}");
+    for f in [
+        "nav.txt",
+        "std.txt",
+        "bias.txt",
+        "innovations.txt",
+        "metrics.json",
+    ] {
+        let a = std::fs::read(out_sim.join(f)).unwrap();
+        let b = std::fs::read(out_rep.join(f)).unwrap();
+        assert!(!a.is_empty(), "{f} is empty");
+        assert!(a == b, "{f}: replay differs from host-sim run");
+    }
+
+    // in memory, every bit of every solution, f64 and f32 covariance
+    let decoded = decode_capture(&cap).unwrap();
+    assert_eq!(decoded.stats.rejected(), 0);
+    assert_eq!(decoded.stats.lost(), 0);
+    for f32 in [false, true] {
+        let mut ra = RunArgs::new(&config);
+        ra.f32 = f32;
+        let p = prepare(&ra).unwrap();
+        let (want, _) = execute(&p, &mut |_, _| {}).unwrap();
+        let got =
+            hw_bridge::cmd::run_filter_on_frames(&decoded.log, &config, None, None, f32).unwrap();
+        let c = &got.output.counters;
+        assert_eq!(got.output.nav.len(), p.case.imu.len() + 1, "f32 {f32}");
+        assert_eq!(got.output.outages.len(), 1);
+        // the simulator leaves the outage's fixes out of gnss.txt; every other fix is used
+        assert!(
+            c.gnss_accepted > 50 && c.gnss_accepted == c.gnss_total,
+            "{c:?}"
+        );
+        assert_eq!(c.imu_epochs, want.counters.imu_epochs);
+        assert_eq!(c.gnss_accepted, want.counters.gnss_accepted);
+        assert!(
+            nav_bits(&got.output.nav) == nav_bits(&want.nav),
+            "f32 {f32}: solutions differ"
+        );
+    }
 }
