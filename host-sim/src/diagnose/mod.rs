@@ -231,7 +231,9 @@ fn effect_values(out: &RunOutput, name: &str) -> (Vec<f64>, Vec<f64>) {
     out.final_effects
         .iter()
         .find(|e| e.name == name)
-        .map_or((Vec::new(), Vec::new()), |e| (e.value.clone(), e.std.clone()))
+        .map_or((Vec::new(), Vec::new()), |e| {
+            (e.value.clone(), e.std.clone())
+        })
 }
 
 /// Diagnoses a prepared case (see the module notes).
@@ -242,8 +244,8 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         .candidates
         .clone()
         .unwrap_or_else(|| candidates(&p.case, &p.opts));
-    let base_dim = p.opts.model.layout().dim()
-        + p.opts.extra_blocks.iter().map(|b| b.dim()).sum::<usize>();
+    let base_dim =
+        p.opts.model.layout().dim() + p.opts.extra_blocks.iter().map(|b| b.dim()).sum::<usize>();
     let truth = p.case.truth.as_deref();
 
     let mut added: Vec<Block> = Vec::new();

@@ -1,23 +1,495 @@
-//! The diagnosis report (Markdown with PNG plots) and the augmented configuration.
+//! The diagnosis report (`report.md` with PNG plots) and the augmented configuration.
+//!
+//! Plots: `innovations.png` (position innovations N/E/D of the used fixes, before and after),
+//! `nis.png` (NIS per fix divided by its dimension, 60-fix running mean, before/after, with the
+//! chi-square 95 % band of that mean), `evidence.png` (first round's evidence per candidate,
+//! signed log scale), `errors.png` (3D position error over time vs truth, or vs the withheld
+//! fixes, before/after, outages shaded).
 use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Context;
+use plotters::prelude::*;
 
 use super::{DiagnoseOutput, Diagnosis};
+use crate::metrics;
 use crate::run::cli::Prepared;
+use crate::run::{FixUse, RunOutput};
 
-/// Writes `report.md` into `dir`.
-pub fn write_report(dir: &Path, _p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<()> {
+fn perr<E: std::fmt::Display>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("plot: {e}")
+}
+
+const BEFORE: RGBColor = RGBColor(214, 39, 40);
+const AFTER: RGBColor = RGBColor(31, 119, 180);
+const OUTAGE_FILL: RGBColor = RGBColor(225, 225, 225);
+
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if hi <= lo {
+        return (lo - 1.0, hi + 1.0);
+    }
+    let pad = 0.05 * (hi - lo);
+    (lo - pad, hi + pad)
+}
+
+fn t0_of(run: &RunOutput) -> f64 {
+    run.nav.first().map_or(0.0, |s| s.t_s)
+}
+
+/// Position innovations (N, E, D) of the used fixes, before and after.
+fn plot_innovations(path: &Path, before: &RunOutput, after: &RunOutput) -> anyhow::Result<()> {
+    let root = BitMapBackend::new(path, (1500, 1000)).into_drawing_area();
+    root.fill(&WHITE).map_err(perr)?;
+    let areas = root.split_evenly((3, 1));
+    let t0 = t0_of(before);
+    let used =
+        |r: &&crate::run::InnovationRecord| matches!(r.used, FixUse::Accepted | FixUse::Forced);
+    for (c, a) in areas.iter().enumerate() {
+        let pts = |run: &RunOutput| -> Vec<(f64, f64)> {
+            run.innovations
+                .iter()
+                .filter(used)
+                .map(|r| ((r.t_s - t0) / 60.0, r.innovation[c]))
+                .collect()
+        };
+        let (pb, pa) = (pts(before), pts(after));
+        let (y0, y1) = range(pb.iter().chain(&pa).map(|p| p.1));
+        let x1 = pb.iter().chain(&pa).map(|p| p.0).fold(1e-3, f64::max);
+        let mut ch = ChartBuilder::on(a)
+            .caption(
+                format!(
+                    "GNSS position innovation {} [m]: before (red), after (blue)",
+                    ["north", "east", "down"][c]
+                ),
+                ("sans-serif", 20),
+            )
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..x1, y0..y1)
+            .map_err(perr)?;
+        ch.configure_mesh()
+            .x_desc("time [min]")
+            .draw()
+            .map_err(perr)?;
+        ch.draw_series(pb.iter().map(|p| Circle::new(*p, 2, BEFORE.filled())))
+            .map_err(perr)?;
+        ch.draw_series(pa.iter().map(|p| Circle::new(*p, 2, AFTER.filled())))
+            .map_err(perr)?;
+    }
+    root.present().map_err(perr)?;
+    Ok(())
+}
+
+/// NIS / dim of every used fix as a 60-fix running mean, before and after, with the 95 %
+/// band of that mean.
+fn plot_nis(path: &Path, before: &RunOutput, after: &RunOutput) -> anyhow::Result<()> {
+    const W: usize = 60;
+    let root = BitMapBackend::new(path, (1500, 600)).into_drawing_area();
+    root.fill(&WHITE).map_err(perr)?;
+    let t0 = t0_of(before);
+    let series = |run: &RunOutput| -> (Vec<(f64, f64)>, f64) {
+        let recs: Vec<(f64, f64, f64)> = run
+            .innovations
+            .iter()
+            .filter(|r| super::stats::in_stats(r))
+            .map(|r| ((r.t_s - t0) / 60.0, r.nis / r.dim as f64, r.dim as f64))
+            .collect();
+        let dim = recs.iter().map(|r| r.2).sum::<f64>() / recs.len().max(1) as f64;
+        let mut out = Vec::new();
+        for w in recs.windows(W) {
+            let m = w.iter().map(|r| r.1).sum::<f64>() / W as f64;
+            if let Some(last) = w.last() {
+                out.push((last.0, m.max(1e-3).log10()));
+            }
+        }
+        (out, dim)
+    };
+    let (sb, dim) = series(before);
+    let (sa, _) = series(after);
+    // mean of W NIS/dim values: variance 2 / (dim W)
+    let half = 1.96 * (2.0 / (dim.max(1.0) * W as f64)).sqrt();
+    let band = ((1.0 - half).max(1e-3).log10(), (1.0 + half).log10());
+    let (y0, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([band.0, band.1]));
+    let x1 = sb.iter().chain(&sa).map(|p| p.0).fold(1e-3, f64::max);
+    let mut ch = ChartBuilder::on(&root)
+        .caption(
+            "NIS / dim, 60-fix running mean (log10): before (red), after (blue); grey: 95 % band",
+            ("sans-serif", 22),
+        )
+        .margin(10)
+        .x_label_area_size(34)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..x1, y0..y1)
+        .map_err(perr)?;
+    ch.configure_mesh()
+        .x_desc("time [min]")
+        .y_desc("log10(NIS/dim)")
+        .draw()
+        .map_err(perr)?;
+    ch.draw_series(std::iter::once(Rectangle::new(
+        [(0.0, band.0), (x1, band.1)],
+        OUTAGE_FILL.filled(),
+    )))
+    .map_err(perr)?;
+    ch.draw_series(LineSeries::new(sb, BEFORE.stroke_width(2)))
+        .map_err(perr)?;
+    ch.draw_series(LineSeries::new(sa, AFTER.stroke_width(2)))
+        .map_err(perr)?;
+    root.present().map_err(perr)?;
+    Ok(())
+}
+
+/// Signed log: sign(x) log10(1 + |x|).
+fn slog(x: f64) -> f64 {
+    x.signum() * x.abs().ln_1p() / std::f64::consts::LN_10
+}
+
+/// Evidence (log-likelihood gain minus BIC penalty) of every candidate in the first round.
+fn plot_evidence(path: &Path, d: &Diagnosis) -> anyhow::Result<()> {
+    let root = BitMapBackend::new(path, (1300, 650)).into_drawing_area();
+    root.fill(&WHITE).map_err(perr)?;
+    let Some(r) = d.rounds.first() else {
+        root.present().map_err(perr)?;
+        return Ok(());
+    };
+    let vals: Vec<(String, f64)> = r
+        .candidates
+        .iter()
+        .map(|c| (c.name.clone(), slog(c.evidence.unwrap_or(0.0))))
+        .collect();
+    let n = vals.len().max(1);
+    let (y0, y1) = range(vals.iter().map(|v| v.1).chain([0.0, 1.0]));
+    let names: Vec<String> = vals.iter().map(|v| v.0.clone()).collect();
+    let mut ch = ChartBuilder::on(&root)
+        .caption(
+            "first round: evidence = log-likelihood gain - BIC penalty [nats], signed log10(1+|x|); > 0 pays",
+            ("sans-serif", 20),
+        )
+        .margin(10)
+        .x_label_area_size(60)
+        .y_label_area_size(70)
+        .build_cartesian_2d(-0.5..(n as f64 - 0.5), y0..y1)
+        .map_err(perr)?;
+    ch.configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n)
+        .x_label_formatter(&|x| {
+            let i = x.round();
+            if (x - i).abs() < 0.01 && i >= 0.0 {
+                names.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .x_label_style(("sans-serif", 13))
+        .y_desc("signed log10(1+|evidence|)")
+        .draw()
+        .map_err(perr)?;
+    ch.draw_series(vals.iter().enumerate().map(|(i, (_, v))| {
+        let col = if *v > 0.0 { AFTER } else { BEFORE };
+        Rectangle::new(
+            [(i as f64 - 0.35, 0.0), (i as f64 + 0.35, *v)],
+            col.filled(),
+        )
+    }))
+    .map_err(perr)?;
+    ch.draw_series(LineSeries::new([(-0.5, 0.0), (n as f64 - 0.5, 0.0)], BLACK))
+        .map_err(perr)?;
+    root.present().map_err(perr)?;
+    Ok(())
+}
+
+/// 3D position error over time: vs truth (IMU point) or vs the withheld fixes (antenna).
+fn error_series(
+    run: &RunOutput,
+    truth: Option<&[nav_core::types::NavSolution]>,
+) -> Vec<(f64, f64)> {
+    let t0 = t0_of(run);
+    match truth {
+        Some(tr) => {
+            let e = metrics::errors_vs_truth(&run.nav, tr);
+            let step = (e.len() / 4000).max(1);
+            e.iter()
+                .step_by(step)
+                .map(|s| ((s.t_s - t0) / 60.0, s.d3_m()))
+                .collect()
+        }
+        None => run
+            .innovations
+            .iter()
+            .filter(|r| r.used == FixUse::Withheld)
+            .map(|r| {
+                let e = r.pos_error_ned_m();
+                (
+                    (r.t_s - t0) / 60.0,
+                    (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt(),
+                )
+            })
+            .collect(),
+    }
+}
+
+fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<()> {
+    let root = BitMapBackend::new(path, (1500, 650)).into_drawing_area();
+    root.fill(&WHITE).map_err(perr)?;
+    let truth = p.case.truth.as_deref();
+    let sb = error_series(&d.before, truth);
+    let sa = error_series(&d.after, truth);
+    let t0 = t0_of(&d.before);
+    let (_, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([0.0]));
+    let x1 = sb.iter().chain(&sa).map(|p| p.0).fold(1e-3, f64::max);
+    let what = if truth.is_some() {
+        "3D position error vs truth [m]"
+    } else {
+        "3D position error vs the withheld GNSS fixes [m] (outages only)"
+    };
+    let mut ch = ChartBuilder::on(&root)
+        .caption(
+            format!("{what}: before (red), after (blue); outages shaded"),
+            ("sans-serif", 22),
+        )
+        .margin(10)
+        .x_label_area_size(34)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..x1, 0.0..y1)
+        .map_err(perr)?;
+    ch.configure_mesh()
+        .x_desc("time [min]")
+        .y_desc("m")
+        .draw()
+        .map_err(perr)?;
+    ch.draw_series(d.before.outages.iter().map(|o| {
+        Rectangle::new(
+            [
+                ((o.start_s - t0) / 60.0, 0.0),
+                ((o.end_s() - t0) / 60.0, y1),
+            ],
+            OUTAGE_FILL.filled(),
+        )
+    }))
+    .map_err(perr)?;
+    if truth.is_some() {
+        ch.draw_series(LineSeries::new(sb, BEFORE.stroke_width(2)))
+            .map_err(perr)?;
+        ch.draw_series(LineSeries::new(sa, AFTER.stroke_width(2)))
+            .map_err(perr)?;
+    } else {
+        ch.draw_series(sb.iter().map(|p| Circle::new(*p, 2, BEFORE.filled())))
+            .map_err(perr)?;
+        ch.draw_series(sa.iter().map(|p| Circle::new(*p, 2, AFTER.filled())))
+            .map_err(perr)?;
+    }
+    root.present().map_err(perr)?;
+    Ok(())
+}
+
+fn fmt_vec(v: &[f64]) -> String {
+    let s: Vec<String> = v.iter().map(|x| format!("{x:.4e}")).collect();
+    format!("[{}]", s.join(", "))
+}
+
+/// Writes `report.md` and its PNG plots into `dir`.
+pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<()> {
+    plot_innovations(&dir.join("innovations.png"), &d.before, &d.after)?;
+    plot_nis(&dir.join("nis.png"), &d.before, &d.after)?;
+    plot_evidence(&dir.join("evidence.png"), &d.diagnosis)?;
+    plot_errors(&dir.join("errors.png"), p, d)?;
     let dg = &d.diagnosis;
     let mut s = String::new();
-    let _ = writeln!(s, "# Diagnosis\n\nVerdict: **{}**\n", dg.verdict);
+    let _ = writeln!(s, "# Diagnosis\n\n{}\n", p.description);
+    let _ = writeln!(s, "Verdict: **{}**\n", dg.verdict);
+    let _ = writeln!(
+        s,
+        "Candidates considered: {}\n",
+        dg.candidates_considered.join(", ")
+    );
+    if !dg.added_effects.is_empty() {
+        let _ = writeln!(
+            s,
+            "| effect | estimate | 1-sigma | unit | evidence [nats] |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|");
+        for e in &dg.added_effects {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {:.1} |",
+                e.name,
+                fmt_vec(&e.estimate),
+                fmt_vec(&e.sigma),
+                e.unit,
+                e.evidence
+            );
+        }
+        s.push('\n');
+    }
+    let _ = writeln!(s, "## Errors ({})\n", dg.error_before.reference);
+    let _ = writeln!(s, "| | before | after |\n|---|---|---|");
+    let (b, a) = (&dg.error_before, &dg.error_after);
+    let _ = writeln!(
+        s,
+        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n",
+        b.outages,
+        a.outages,
+        b.outage_max_3d_rms_m,
+        a.outage_max_3d_rms_m,
+        b.outage_end_horizontal_rms_m,
+        a.outage_end_horizontal_rms_m,
+        b.overall_3d_rms_m,
+        a.overall_3d_rms_m,
+        b.gnss_residual_horizontal_rms_m,
+        a.gnss_residual_horizontal_rms_m
+    );
+    let _ = writeln!(s, "![errors](errors.png)\n");
+    let _ = writeln!(s, "## Residuals\n");
+    let _ = writeln!(s, "| | before | after |\n|---|---|---|");
+    let (rb, ra) = (&dg.residuals_before, &dg.residuals_after);
+    let _ = writeln!(
+        s,
+        "| fixes | {} | {} |\n| NIS mean (expected {:.2}, 95 % band {:.2}..{:.2}) | {:.2} | {:.2} |\n| log-likelihood [nats] | {:.1} | {:.1} |",
+        rb.updates,
+        ra.updates,
+        rb.nis_expected,
+        rb.nis_band[0],
+        rb.nis_band[1],
+        rb.nis_mean,
+        ra.nis_mean,
+        rb.log_likelihood,
+        ra.log_likelihood
+    );
+    for (wb, wa) in rb.whiteness.iter().zip(&ra.whiteness) {
+        let _ = writeln!(
+            s,
+            "| Ljung-Box Q, component {} (white: < {:.1}) | {:.1} | {:.1} |",
+            wb.component, wb.ljung_box_q95, wb.ljung_box_q, wa.ljung_box_q
+        );
+    }
+    let _ = writeln!(s, "\n![innovations](innovations.png)\n\n![nis](nis.png)\n");
+    let _ = writeln!(s, "## Evidence\n");
+    for (i, r) in dg.rounds.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "Round {} (model effects: [{}]; added: {}):\n",
+            i + 1,
+            r.model_effects.join(", "),
+            r.added.as_deref().unwrap_or("none")
+        );
+        let _ = writeln!(
+            s,
+            "| candidate | evidence [nats] | LL gain | BIC penalty | regressor corr z | outage error [m] |\n|---|---|---|---|---|---|"
+        );
+        for c in &r.candidates {
+            let _ = writeln!(
+                s,
+                "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} |",
+                c.name,
+                c.evidence.unwrap_or(f64::NAN),
+                c.delta_log_likelihood.unwrap_or(f64::NAN),
+                c.bic_penalty,
+                c.correlation_z,
+                c.outage_error_m.unwrap_or(f64::NAN)
+            );
+        }
+        s.push('\n');
+    }
+    let _ = writeln!(s, "![evidence](evidence.png)");
     let path = dir.join("report.md");
     std::fs::write(&path, s).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
-/// Writes the augmented configuration into `dir` (not yet).
-pub fn write_augmented_config(_dir: &Path, _config: &Path, _d: &Diagnosis) -> anyhow::Result<()> {
+/// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the
+/// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
+/// `gnss.time_offset_s` and its relative paths made absolute; a comment header lists every
+/// added effect with its estimate and the `host-sim run --effects ...` option that appends the
+/// IMU effect blocks (the run configuration has no keys for them). KF-GINS YAML inputs are not
+/// rewritten.
+pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyhow::Result<()> {
+    let text =
+        std::fs::read_to_string(config).with_context(|| format!("reading {}", config.display()))?;
+    let Ok(mut doc) = text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    let cfg_dir = config.parent().map(Path::to_path_buf).unwrap_or_default();
+    let cfg_dir = std::fs::canonicalize(&cfg_dir).unwrap_or(cfg_dir);
+    for sec in ["imu", "gnss", "truth"] {
+        if let Some(toml::Value::Table(t)) = doc.get_mut(sec) {
+            if let Some(toml::Value::String(p)) = t.get_mut("path") {
+                let abs = cfg_dir.join(&*p);
+                *p = abs.display().to_string();
+            }
+        }
+    }
+    let gnss = doc
+        .entry("gnss")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    if let toml::Value::Table(g) = gnss {
+        for e in &d.added_effects {
+            match e.name.as_str() {
+                "lever_arm" => {
+                    let old: Vec<f64> = g
+                        .get("lever_arm_m")
+                        .and_then(|v| v.as_array())
+                        .map(|a| a.iter().filter_map(|x| x.as_float()).collect())
+                        .unwrap_or_else(|| vec![0.0; 3]);
+                    let new: Vec<toml::Value> = (0..3)
+                        .map(|i| {
+                            let o = old.get(i).copied().unwrap_or(0.0);
+                            toml::Value::Float(o + e.estimate.get(i).copied().unwrap_or(0.0))
+                        })
+                        .collect();
+                    g.insert("lever_arm_m".into(), toml::Value::Array(new));
+                }
+                "time_offset" => {
+                    // a fix tagged t is the antenna at IMU time t + dt: its tag must move by
+                    // +dt; the run configuration's gnss.time_offset_s is added to the tags
+                    let old = g
+                        .get("time_offset_s")
+                        .and_then(|v| v.as_float())
+                        .unwrap_or(0.0);
+                    let dt = e.estimate.first().copied().unwrap_or(0.0);
+                    g.insert("time_offset_s".into(), toml::Value::Float(old + dt));
+                }
+                _ => {}
+            }
+        }
+    }
+    let imu_effects: Vec<&str> = d
+        .added_effects
+        .iter()
+        .map(|e| e.name.as_str())
+        .filter(|n| !matches!(*n, "lever_arm" | "time_offset"))
+        .collect();
+    let mut head = format!(
+        "# Written by host-sim diagnose from {} (paths made absolute).\n\
+         # Verdict: {}. lever_arm and time_offset estimates are folded into [gnss];\n",
+        config.display(),
+        d.verdict
+    );
+    for e in &d.added_effects {
+        head.push_str(&format!(
+            "# {}: estimate {:?} sigma {:?} [{}]\n",
+            e.name, e.estimate, e.sigma, e.unit
+        ));
+    }
+    if imu_effects.is_empty() {
+        head.push_str("# run with: host-sim run --config augmented.toml\n");
+    } else {
+        head.push_str(&format!(
+            "# the IMU effect blocks are run by: host-sim run --config augmented.toml --effects {}\n",
+            imu_effects.join(",")
+        ));
+    }
+    let out = format!("{head}{}", toml::to_string_pretty(&doc).unwrap_or_default());
+    let path = dir.join("augmented.toml");
+    std::fs::write(&path, out).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

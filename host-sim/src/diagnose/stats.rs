@@ -54,13 +54,10 @@ pub struct ResidualStats {
 
 /// Whether a record enters the statistics.
 pub fn in_stats(r: &InnovationRecord) -> bool {
-    matches!(
-        r.used,
-        FixUse::Accepted | FixUse::Forced | FixUse::Rejected
-    ) && r.nis.is_finite()
+    matches!(r.used, FixUse::Accepted | FixUse::Forced | FixUse::Rejected)
+        && r.nis.is_finite()
         && r.dim > 0
-        && r
-            .innovation_var
+        && r.innovation_var
             .iter()
             .take(r.dim)
             .all(|s| s.is_finite() && *s > 0.0)
@@ -184,7 +181,13 @@ fn nearest<T>(v: &[T], t: f64, key: impl Fn(&T) -> f64) -> Option<usize> {
 /// direction in which one unit of the state moves the navigation error now (the innovation
 /// integrates it: a correlation with the instantaneous regressor is a screening statistic, the
 /// re-run decides).
-fn regressors(b: Block, imu: &[ImuSample], i: usize, nav: &NavSolution, t_ref: f64) -> Vec<[f64; 3]> {
+fn regressors(
+    b: Block,
+    imu: &[ImuSample],
+    i: usize,
+    nav: &NavSolution,
+    t_ref: f64,
+) -> Vec<[f64; 3]> {
     let c = c_bn(nav.rpy_rad);
     let dt = if i > 0 {
         imu[i].t_s - imu[i - 1].t_s

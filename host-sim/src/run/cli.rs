@@ -31,7 +31,7 @@ use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
-use nav_core::model::{BlockKind, ImuCorrection};
+use nav_core::model::{Block, BlockKind, ImuCorrection};
 use nav_core::nav::NavState;
 use nav_core::types::NavSolution;
 use std::path::{Path, PathBuf};
@@ -89,6 +89,10 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Effect blocks to append to the model, comma-separated names of the vocabulary
+    /// (`accel_scale_factor,...,gyro_g_sensitivity`; e.g. what `host-sim diagnose` added).
+    #[arg(long, value_delimiter = ',')]
+    pub effects: Vec<String>,
 }
 
 /// Parses a `--gate` value.
@@ -124,6 +128,7 @@ impl RunArgs {
             gnss_velocity: None,
             noise_scale: None,
             quiet: true,
+            effects: Vec::new(),
         }
     }
 }
@@ -241,6 +246,19 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     }
     if let Some(m) = args.model {
         opts.model = m;
+    }
+    for name in &args.effects {
+        let b = Block::effect_from_name(name.trim()).with_context(|| {
+            format!("--effects {name}: not an effect name (see host-sim diagnose)")
+        })?;
+        opts.extra_blocks.push(b);
+        if b == Block::TimeOffset {
+            let lim = 3.0 * opts.filter.effects.time_offset.init_sigma + 0.05;
+            opts.filter.max_gnss_time_offset_s = opts.filter.max_gnss_time_offset_s.max(lim);
+        }
+    }
+    if !args.effects.is_empty() {
+        description.push_str(&format!("; effects {}", args.effects.join(",")));
     }
     if args.f32 {
         opts.precision = Precision::F32;

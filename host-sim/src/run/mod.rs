@@ -36,8 +36,8 @@ use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{dcm_f64, Counters, Filter, FilterError, UpdateOutcome};
 use nav_core::model::{
-    BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK,
-    LAYOUT_NBK_SINGLE,
+    BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N,
+    LAYOUT_NBK, LAYOUT_NBK_SINGLE,
 };
 use nav_core::nav::{NavState, MAX_DT_S};
 use nav_core::scalar::Scalar;
