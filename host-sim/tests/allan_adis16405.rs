@@ -115,6 +115,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         terms: vec![TermArg::Quant, TermArg::White, TermArg::Gm, TermArg::Rw],
         fit_min_tau: 0.0,
         fit_max_tau: f64::INFINITY,
+        no_select: false,
         out_dir: dir.path().to_path_buf(),
         json: Some(json.clone()),
         no_plot: false,

@@ -95,6 +95,10 @@ pub struct AllanArgs {
     /// Largest tau used by the fit (s).
     #[arg(long, default_value_t = f64::INFINITY)]
     pub fit_max_tau: f64,
+    /// Fit all `--terms` as given instead of selecting the subset the data support
+    /// (smallest BIC with a common model-error floor; see `allan::fit::fit_select`).
+    #[arg(long)]
+    pub no_select: bool,
     /// Output folder for allan_params.toml and the plots.
     #[arg(long, short = 'o', default_value = ".")]
     pub out_dir: PathBuf,
@@ -124,6 +128,8 @@ pub struct AxisResult {
     pub fit: Result<FitResult, String>,
     /// The slope/minimum method.
     pub slope: Option<SlopeResult>,
+    /// The candidate models of the term selection (empty without selection).
+    pub candidates: Vec<fit::Candidate>,
 }
 
 /// The whole analysis.
@@ -139,12 +145,15 @@ pub struct Analysis {
     pub dev: Deviation,
 }
 
-/// Analyses channels (no I/O); `progress` gets (done, total) tau evaluations.
+/// Analyses channels (no I/O): the curves, the fit (with term selection among
+/// `fit_opt.terms` when `select`), the slope method; `progress` gets (done, total) tau
+/// evaluations.
 pub fn analyse(
     ch: &Channels,
     dev: Deviation,
     taus: &Taus,
     fit_opt: &FitOptions,
+    select: bool,
     progress: Option<&ProgressBar>,
 ) -> Analysis {
     let axes: Vec<AxisResult> = ch
@@ -176,7 +185,17 @@ pub fn analyse(
                 };
                 deviation_curve_phase(&phase, ch.tau0_s, &o, tick)
             };
-            let f = fit::fit(&fit_curve, fit_opt).map_err(|e| e.to_string());
+            let (f, candidates) = if select {
+                match fit::fit_select(&fit_curve, fit_opt) {
+                    Ok(s) => (Ok(s.fit), s.candidates),
+                    Err(e) => (Err(e.to_string()), Vec::new()),
+                }
+            } else {
+                (
+                    fit::fit(&fit_curve, fit_opt).map_err(|e| e.to_string()),
+                    Vec::new(),
+                )
+            };
             let slope = fit::slope_method(&fit_curve);
             AxisResult {
                 name: name.clone(),
@@ -185,6 +204,7 @@ pub fn analyse(
                 fit_curve,
                 fit: f,
                 slope,
+                candidates,
             }
         })
         .collect();
@@ -234,6 +254,7 @@ pub fn table(an: &Analysis) -> String {
                 .collect::<Vec<_>>(),
         )
     };
+    rows.push(row("Model         terms", &|_, r| r.terms.label()));
     rows.push(row("Quantization  S_A = Q^2 [m^2/s^2],[rad^2]", &|_, r| {
         pm(r.q2, 3)
     }));
@@ -263,8 +284,18 @@ pub fn table(an: &Analysis) -> String {
         "              K [ug/sqrt(h)],[deg/h/sqrt(h)]",
         &|d, _| pmf(d.k),
     ));
+    rows.push(row("Flicker       B [ug],[deg/h]", &|d, r| {
+        if r.terms.flicker {
+            pmf(d.b_flicker)
+        } else {
+            "0".into()
+        }
+    }));
     rows.push(row("Fit           chi2 / points", &|_, r| {
         format!("{:.1} / {}", r.chi2, r.n_points)
+    }));
+    rows.push(row("              model error floor", &|_, r| {
+        format!("{:.1} %", 100.0 * r.model_error_rel)
     }));
     rows.push((
         "Slope method  N [ug/sqrt(Hz)],[deg/sqrt(h)]".into(),
@@ -448,6 +479,7 @@ struct JsonAxis<'a> {
     edf: Vec<f64>,
     fit: Option<JsonFit>,
     slope_method: Option<&'a SlopeResult>,
+    candidates: &'a [fit::Candidate],
 }
 
 #[derive(Serialize)]
@@ -461,6 +493,8 @@ struct JsonFit {
     datasheet: Datasheet,
     chi2: f64,
     n_points: usize,
+    terms: Terms,
+    model_error_rel: f64,
     /// (tau_s, measured AVAR, model AVAR, normalized residual)
     residuals: Vec<(f64, f64, f64, f64)>,
 }
@@ -489,9 +523,12 @@ pub fn to_json(an: &Analysis) -> anyhow::Result<String> {
                 datasheet: f.datasheet(a.kind),
                 chi2: f.chi2,
                 n_points: f.n_points,
+                terms: f.terms,
+                model_error_rel: f.model_error_rel,
                 residuals: f.residuals.clone(),
             }),
             slope_method: a.slope.as_ref(),
+            candidates: &a.candidates,
         };
         map.insert(a.name.clone(), serde_json::to_value(ja)?);
     }
@@ -581,7 +618,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         pb.set_message(format!("{} on {} channels", args.dev.name(), ch.data.len()));
         pb
     });
-    let an = analyse(&ch, args.dev, &taus, &fit_opt, pb.as_ref());
+    let an = analyse(&ch, args.dev, &taus, &fit_opt, !args.no_select, pb.as_ref());
     if let Some(pb) = pb {
         pb.finish_and_clear();
     }
@@ -601,6 +638,24 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
     for a in &an.axes {
         if let Err(e) = &a.fit {
             eprintln!("{}: {e}", a.name);
+        }
+    }
+    if !args.no_select {
+        println!("Term selection (BIC = chi2 + p ln n with the model-error floor; * = selected):");
+        for a in &an.axes {
+            let sel = a.fit.as_ref().ok().map(|f| f.terms);
+            for c in &a.candidates {
+                println!(
+                    "  {:3} {}{:24} chi2 {:10.1} p {} BIC {:10.1}  {}",
+                    a.name,
+                    if Some(c.terms) == sel { '*' } else { ' ' },
+                    c.terms.label(),
+                    c.chi2,
+                    c.n_params,
+                    c.bic,
+                    c.rejected.as_deref().unwrap_or("")
+                );
+            }
         }
     }
     std::fs::create_dir_all(&args.out_dir)

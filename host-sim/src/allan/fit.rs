@@ -116,8 +116,15 @@ pub struct FitResult {
     /// Correlation of the S_B and T_B estimates (for the uncertainty of B).
     pub corr_sb_tb: f64,
     /// Per fitted tau: (tau_s, measured AVAR, model AVAR, normalized residual
-    /// (meas - model) / (model sqrt(2 / EDF))).
+    /// (meas - model) / (model sqrt(2 / EDF + model_error_rel^2))).
     pub residuals: Vec<(f64, f64, f64, f64)>,
+    /// The terms the model had.
+    pub terms: Terms,
+    /// The range (s) T_B was searched in.
+    pub t_b_range_s: (f64, f64),
+    /// Relative model-error floor that was added to the statistical scatter of each AVAR
+    /// estimate (0: purely statistical weights; see [`FitOptions::model_error_rel`]).
+    pub model_error_rel: f64,
 }
 
 /// Datasheet coefficients derived from a [`FitResult`].
@@ -140,6 +147,9 @@ pub struct Datasheet {
     pub k_si: Est,
     /// Quantization Q in increment units (m/s or rad).
     pub q: Est,
+    /// Bias instability of the flicker-floor term, B = sqrt(B^2) (AVAR floor (2 ln 2 / pi)
+    /// B^2): ug (accel) or deg/h (gyro); 0 without a flicker term.
+    pub b_flicker: Est,
 }
 
 impl FitResult {
@@ -193,6 +203,7 @@ impl FitResult {
             sigma: b_sig,
         };
         let q = sqrt_est(self.q2);
+        let bf = sqrt_est(self.flicker_b2);
         match kind {
             SensorKind::Accel => Datasheet {
                 n_unit: "ug/sqrt(Hz)".into(),
@@ -203,6 +214,7 @@ impl FitResult {
                 k: scale(k, units::SQRT_HOUR_S / units::UG_MPS2),
                 k_si: k,
                 q,
+                b_flicker: scale(bf, 1.0 / units::UG_MPS2),
             },
             SensorKind::Gyro => Datasheet {
                 n_unit: "deg/sqrt(h)".into(),
@@ -213,6 +225,7 @@ impl FitResult {
                 k: scale(k, units::HOUR_S * units::SQRT_HOUR_S / units::DEG),
                 k_si: k,
                 q,
+                b_flicker: scale(bf, units::HOUR_S / units::DEG),
             },
             SensorKind::Other => Datasheet {
                 n_unit: "U*sqrt(s)".into(),
@@ -223,6 +236,7 @@ impl FitResult {
                 k,
                 k_si: k,
                 q,
+                b_flicker: bf,
             },
         }
     }
@@ -252,6 +266,12 @@ pub struct FitOptions {
     pub min_edf: f64,
     /// Weighting of the Allan variance estimates.
     pub weighting: Weighting,
+    /// Relative model error `eps`: each AVAR estimate is given the variance
+    /// `AVAR^2 (2 / EDF + eps^2)` instead of the statistical `2 AVAR^2 / EDF`. 0 for simulated
+    /// data that follow the model; [`fit_select`] estimates it for real data, where the
+    /// model's few power laws cannot follow every feature of a real sensor's curve to the
+    /// 0.1 % precision of the short-tau estimates (internal filters, vibration lines, drifts).
+    pub model_error_rel: f64,
 }
 
 impl Default for FitOptions {
@@ -262,6 +282,7 @@ impl Default for FitOptions {
             tau_range_s: (0.0, f64::INFINITY),
             min_edf: 3.0,
             weighting: Weighting::EdfSandwich,
+            model_error_rel: 0.0,
         }
     }
 }
@@ -467,15 +488,24 @@ fn solve_fixed_tb(pts: &[Pt], terms: &Terms, t_b: f64, w: &DMatrix<f64>) -> ([f6
     nnls_small(&(w * a), &(w * b))
 }
 
-/// Whitening matrix for diagonal EDF weights with model values `wmodel`.
-fn diag_whitening(pts: &[Pt], wmodel: &[f64]) -> DMatrix<f64> {
+/// Whitening matrix for diagonal EDF weights with model values `wmodel` and the relative
+/// model error `eps`.
+fn diag_whitening(pts: &[Pt], wmodel: &[f64], eps: f64) -> DMatrix<f64> {
     DMatrix::from_fn(pts.len(), pts.len(), |i, j| {
         if i == j {
-            (pts[i].edf / 2.0).sqrt() / wmodel[i]
+            1.0 / (wmodel[i] * (2.0 / pts[i].edf + eps * eps).sqrt())
         } else {
             0.0
         }
     })
+}
+
+/// Adds the model-error floor `(eps m_i)^2` to the diagonal of a covariance of the estimates.
+fn add_model_error(mut v: DMatrix<f64>, wmodel: &[f64], eps: f64) -> DMatrix<f64> {
+    for (i, m) in wmodel.iter().enumerate() {
+        v[(i, i)] += (eps * m).powi(2);
+    }
+    v
 }
 
 /// Whitening matrix `L^-1` for the covariance `V = L L^T`; `None` if V is not positive
@@ -502,18 +532,13 @@ fn model_at(c: &[f64; 5], terms: &Terms, tau: f64, t_b: f64) -> f64 {
         .sum()
 }
 
-/// Best T_B (log grid + golden section) for the given weights; returns (t_b, c, cost).
-fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &DMatrix<f64>) -> (f64, [f64; 5], f64) {
-    if !terms.gm {
-        let (c, cost) = solve_fixed_tb(pts, terms, 1.0, wmodel);
-        return (f64::NAN, c, cost);
-    }
-    // T_B is searched within the fitted tau range: a Gauss-Markov process with T_B well below
-    // the smallest tau is indistinguishable from white noise (AVAR -> S_B T_B^2 / tau), and
-    // one with T_B far above the largest tau from a random walk (AVAR -> S_B tau / 3).
-    // It is also kept below a tenth of the record length: over the record, a slower
-    // Gauss-Markov process is a random walk plus a constant, and letting it absorb the random
-    // walk biases S_K low.
+/// The T_B search range (s): within the fitted tau range, because a Gauss-Markov process with
+/// T_B well below the smallest tau is indistinguishable from white noise (AVAR -> S_B T_B^2 /
+/// tau), and one with T_B far above the largest tau from a random walk (AVAR -> S_B tau / 3).
+/// It is also kept below a tenth of the record length: over the record, a slower Gauss-Markov
+/// process is a random walk plus a constant, and letting it absorb the random walk biases S_K
+/// low.
+fn tb_range(pts: &[Pt]) -> (f64, f64) {
     let tmin = pts.iter().map(|p| p.tau).fold(f64::INFINITY, f64::min);
     let record_s = pts
         .iter()
@@ -525,6 +550,16 @@ fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &DMatrix<f64>) -> (f64, [f64; 5]
         .fold(0.0, f64::max)
         .min(record_s / 10.0)
         .max(tmin * 2.0);
+    (tmin, tmax)
+}
+
+/// Best T_B (log grid + golden section) for the given weights; returns (t_b, c, cost).
+fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &DMatrix<f64>) -> (f64, [f64; 5], f64) {
+    if !terms.gm {
+        let (c, cost) = solve_fixed_tb(pts, terms, 1.0, wmodel);
+        return (f64::NAN, c, cost);
+    }
+    let (tmin, tmax) = tb_range(pts);
     let (lmin, lmax) = (tmin.ln(), tmax.ln());
     let ngrid = 60;
     let eval = |lt: f64| {
@@ -601,7 +636,8 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
     }
     let terms = opt.terms;
     let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
-    let mut w = diag_whitening(&pts, &wmodel);
+    let eps = opt.model_error_rel;
+    let mut w = diag_whitening(&pts, &wmodel, eps);
     let mut sol = search_tb(&pts, &terms, &w);
     let dt = pts[0].tau / pts[0].m.max(1) as f64;
     let ms: Vec<(usize, usize)> = pts.iter().map(|p| (p.m, p.n_terms)).collect();
@@ -621,9 +657,13 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
             .collect();
         wmodel = new;
         w = match opt.weighting {
-            Weighting::Edf | Weighting::EdfSandwich => diag_whitening(&pts, &wmodel),
-            Weighting::Gls => full_whitening(&oavar_covariance(&ms, dt, &c, t_b))
-                .unwrap_or_else(|| diag_whitening(&pts, &wmodel)),
+            Weighting::Edf | Weighting::EdfSandwich => diag_whitening(&pts, &wmodel, eps),
+            Weighting::Gls => full_whitening(&add_model_error(
+                oavar_covariance(&ms, dt, &c, t_b),
+                &wmodel,
+                eps,
+            ))
+            .unwrap_or_else(|| diag_whitening(&pts, &wmodel, eps)),
         };
         sol = search_tb(&pts, &terms, &w);
     }
@@ -658,7 +698,7 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
     let cov = match opt.weighting {
         Weighting::EdfSandwich => {
             // Cov = B J0^T Om V Om J0 B, Om = W^T W, V the model covariance of the estimates.
-            let v = oavar_covariance(&ms, dt, &c, t_b);
+            let v = add_model_error(oavar_covariance(&ms, dt, &c, t_b), &wmodel, eps);
             let om_j = w.transpose() * &jac;
             let meat = om_j.transpose() * v * om_j;
             &bread * meat * &bread
@@ -689,7 +729,12 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
         .iter()
         .map(|p| {
             let m = model_at(&c, &terms, p.tau, t_b);
-            (p.tau, p.avar, m, (p.avar - m) / (m * (2.0 / p.edf).sqrt()))
+            (
+                p.tau,
+                p.avar,
+                m,
+                (p.avar - m) / (m * (2.0 / p.edf + eps * eps).sqrt()),
+            )
         })
         .collect();
     Ok(FitResult {
@@ -707,7 +752,200 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
         n_free: np,
         residuals,
         corr_sb_tb: corr,
+        terms,
+        model_error_rel: eps,
+        t_b_range_s: tb_range(&pts),
     })
+}
+
+/// One candidate model of [`fit_select`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Candidate {
+    /// Its terms.
+    pub terms: Terms,
+    /// Weighted sum of squared residuals (with the common model-error floor).
+    pub chi2: f64,
+    /// Number of parameters (linear coefficients, plus T_B).
+    pub n_params: usize,
+    /// Bayesian information criterion `chi2 + n_params ln(n_points)`.
+    pub bic: f64,
+    /// Why the candidate was not eligible (`None`: eligible).
+    pub rejected: Option<String>,
+}
+
+/// Result of [`fit_select`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Selection {
+    /// The fit of the selected model.
+    pub fit: FitResult,
+    /// Every candidate that was fitted.
+    pub candidates: Vec<Candidate>,
+}
+
+impl Terms {
+    /// Number of terms (the Gauss-Markov term counts once).
+    pub fn count(&self) -> usize {
+        [self.quant, self.white, self.gm, self.rw, self.flicker]
+            .iter()
+            .filter(|&&b| b)
+            .count()
+    }
+    /// Short name like `white+gm+rw`.
+    pub fn label(&self) -> String {
+        let mut v = Vec::new();
+        for (on, n) in [
+            (self.quant, "quant"),
+            (self.white, "white"),
+            (self.gm, "gm"),
+            (self.rw, "rw"),
+            (self.flicker, "flicker"),
+        ] {
+            if on {
+                v.push(n);
+            }
+        }
+        v.join("+")
+    }
+    /// Every non-empty subset of these terms (with the white term whenever this set has it).
+    pub fn subsets(&self) -> Vec<Terms> {
+        let on = [self.quant, self.white, self.gm, self.rw, self.flicker];
+        (1u32..32)
+            .map(|mask| {
+                let b = |k: usize| mask & (1 << k) != 0 && on[k];
+                Terms {
+                    quant: b(0),
+                    white: b(1),
+                    gm: b(2),
+                    rw: b(3),
+                    flicker: b(4),
+                }
+            })
+            .filter(|t| t.count() > 0 && (t.white || !self.white))
+            .fold(Vec::new(), |mut v, t| {
+                if !v.contains(&t) {
+                    v.push(t);
+                }
+                v
+            })
+    }
+}
+
+/// Relative model error `eps` that makes the weighted residuals of `f` consistent with their
+/// variances: `sum r_i^2 / (m_i^2 (2 / EDF_i + eps^2)) = n - p` (0 if the statistical scatter
+/// alone already explains them).
+fn model_error_for(f: &FitResult, edf: &[f64]) -> f64 {
+    let dof = f.n_points as f64 - f.n_free as f64;
+    if dof < 1.0 {
+        return 0.0;
+    }
+    let chi2 = |eps: f64| {
+        f.residuals
+            .iter()
+            .zip(edf)
+            .map(|(r, e)| (r.1 - r.2).powi(2) / (r.2 * r.2 * (2.0 / e + eps * eps)))
+            .sum::<f64>()
+    };
+    if chi2(0.0) <= dof {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    while chi2(hi) > dof && hi < 1e6 {
+        hi *= 4.0;
+    }
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if chi2(mid) > dof {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    hi
+}
+
+/// A value at least twice its uncertainty (false for NaN).
+fn significant(e: Est) -> bool {
+    e.value.partial_cmp(&(2.0 * e.sigma)) != Some(std::cmp::Ordering::Less) && e.sigma.is_finite()
+}
+
+/// Term selection: fits every subset of `opt.terms` (keeping the white-noise term if it is
+/// in the set) and returns the eligible one with the smallest Bayesian information criterion.
+///
+/// Real curves deviate from any few-term power-law model by more than the tiny statistical
+/// scatter of the short-tau estimates (EDF ~ 1e5), which would make every extra term look
+/// significant. So a common relative model error `eps` is first estimated from the fullest
+/// model (the floor that makes its reduced chi-square 1, iterated with the refit) and used
+/// in the weights of every candidate; with `eps = 0` (simulated data that follow the model)
+/// this is the ordinary weighted least squares. A candidate is not eligible when NNLS put
+/// one of its terms at zero (it is then a smaller candidate), when its T_B ends at the edge
+/// of the search range (then the Gauss-Markov term is only a second white-noise or
+/// random-walk term), or when a parameter is less than twice its uncertainty.
+pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, FitError> {
+    let edf_of = |f: &FitResult| -> Vec<f64> {
+        f.residuals
+            .iter()
+            .map(|r| {
+                points
+                    .iter()
+                    .find(|p| p.tau_s == r.0)
+                    .map_or(f64::INFINITY, |p| p.edf)
+            })
+            .collect()
+    };
+    let mut o = opt.clone();
+    o.model_error_rel = 0.0;
+    let mut full = fit(points, &o)?;
+    for _ in 0..4 {
+        let eps = model_error_for(&full, &edf_of(&full));
+        if (eps - o.model_error_rel).abs() <= 1e-3 * eps.max(1e-12) {
+            break;
+        }
+        o.model_error_rel = eps;
+        full = fit(points, &o)?;
+    }
+    let mut best: Option<(f64, FitResult)> = None;
+    let mut candidates = Vec::new();
+    for terms in opt.terms.subsets() {
+        let f = fit(points, &FitOptions { terms, ..o.clone() })?;
+        let n_params = terms.count() + usize::from(terms.gm);
+        let bic = f.chi2 + n_params as f64 * (f.n_points as f64).ln();
+        let ests = [
+            (terms.quant, f.q2),
+            (terms.white, f.s_n),
+            (terms.gm, f.s_b),
+            (terms.rw, f.s_k),
+            (terms.flicker, f.flicker_b2),
+        ];
+        let rejected = if ests.iter().any(|(on, e)| *on && e.value <= 0.0) {
+            Some("a term is at zero".to_string())
+        } else if terms.gm
+            && ((f.t_b_s.value / f.t_b_range_s.0).ln() < 0.05
+                || (f.t_b_range_s.1 / f.t_b_s.value).ln() < 0.05)
+        {
+            Some(format!(
+                "T_B = {:.3} s at the edge of the search range {:.3} - {:.1} s",
+                f.t_b_s.value, f.t_b_range_s.0, f.t_b_range_s.1
+            ))
+        } else if ests.iter().any(|(on, e)| *on && !significant(*e))
+            || (terms.gm && !significant(f.t_b_s))
+        {
+            Some("a parameter is below twice its uncertainty".to_string())
+        } else {
+            None
+        };
+        if rejected.is_none() && best.as_ref().is_none_or(|b| bic < b.0) {
+            best = Some((bic, f.clone()));
+        }
+        candidates.push(Candidate {
+            terms,
+            chi2: f.chi2,
+            n_params,
+            bic,
+            rejected,
+        });
+    }
+    let fit = best.map_or(full, |b| b.1);
+    Ok(Selection { fit, candidates })
 }
 
 /// Result of the slope/minimum method (datasheet-style reading of the ADEV curve).
