@@ -40,6 +40,18 @@ fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
+/// The 0.5 % to 99.5 % range (padded), so a few post-outage innovations do not flatten the
+/// rest; points outside are drawn at the edge.
+fn robust_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let mut v: Vec<f64> = vals.filter(|x| x.is_finite()).collect();
+    if v.len() < 20 {
+        return range(v.into_iter());
+    }
+    v.sort_by(f64::total_cmp);
+    let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+    range([q(0.005), q(0.995)].into_iter())
+}
+
 fn t0_of(run: &RunOutput) -> f64 {
     run.nav.first().map_or(0.0, |s| s.t_s)
 }
@@ -61,12 +73,16 @@ fn plot_innovations(path: &Path, before: &RunOutput, after: &RunOutput) -> anyho
                 .collect()
         };
         let (pb, pa) = (pts(before), pts(after));
-        let (y0, y1) = range(pb.iter().chain(&pa).map(|p| p.1));
+        let (y0, y1) = robust_range(pb.iter().chain(&pa).map(|p| p.1));
+        let clip = |v: Vec<(f64, f64)>| -> Vec<(f64, f64)> {
+            v.into_iter().map(|(t, x)| (t, x.clamp(y0, y1))).collect()
+        };
+        let (pb, pa) = (clip(pb), clip(pa));
         let x1 = pb.iter().chain(&pa).map(|p| p.0).fold(1e-3, f64::max);
         let mut ch = ChartBuilder::on(a)
             .caption(
                 format!(
-                    "GNSS position innovation {} [m]: before (red), after (blue)",
+                    "GNSS position innovation {} [m] (0.5-99.5 % range, outliers at the edge): before (red), after (blue)",
                     ["north", "east", "down"][c]
                 ),
                 ("sans-serif", 20),

@@ -784,8 +784,14 @@ fn run_layout<T: Scalar, const N: usize>(
             gi += 1;
             if let Some(oi) = outage::find(&outages, fix.t_s) {
                 counters.gnss_withheld += 1;
+                // the antenna as the filter models it: configured lever arm plus any
+                // lever-arm estimate, at IMU time t_fix + the estimated time offset
                 let st = filter.nav_state();
-                let inn = position_innovation(st, &opts.lever_arm_m, fix);
+                let shifted = GnssFix {
+                    t_s: fix.t_s + filter.time_offset_s(),
+                    ..*fix
+                };
+                let inn = position_innovation(st, &filter.lever_arm_body_m(), &shifted);
                 innovations.push(InnovationRecord {
                     t_s: fix.t_s,
                     used: FixUse::Withheld,
