@@ -39,6 +39,10 @@ pub struct RecordArgs {
     /// Do not decode frames for the status line (e.g. when recording a GNSS receiver).
     #[arg(long)]
     pub raw: bool,
+    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge send`
+    /// on the same emulated board's pty) can use it at the same time.
+    #[arg(long)]
+    pub shared: bool,
     /// No live status line.
     #[arg(long)]
     pub quiet: bool,
@@ -64,7 +68,7 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
     };
     let mut w = CaptureWriter::new(BufWriter::new(file), &header)?;
     let timeout = Duration::from_millis(50);
-    let mut port = Some(serial::open(&a.port, a.baud, timeout)?);
+    let mut port = Some(serial::open_with(&a.port, a.baud, timeout, a.shared)?);
     // One line, even with --quiet: scripts (and the pty test) wait for it before sending.
     eprintln!("recording {} -> {}", a.port, a.out.display());
     let start = Instant::now();
@@ -86,7 +90,7 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
         }
         let Some(p) = port.as_mut() else {
             std::thread::sleep(Duration::from_millis(100));
-            port = serial::open(&a.port, a.baud, timeout).ok();
+            port = serial::open_with(&a.port, a.baud, timeout, a.shared).ok();
             continue;
         };
         match p.read(&mut buf) {
@@ -502,6 +506,14 @@ pub struct SendArgs {
     /// No live status line.
     #[arg(long)]
     pub quiet: bool,
+    /// Also write every byte sent, exactly as written to the port, to this file (e.g. to run
+    /// the same bytes through a host model of the receiver).
+    #[arg(long)]
+    pub copy_to: Option<PathBuf>,
+    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge send`
+    /// on the same emulated board's pty) can use it at the same time.
+    #[arg(long)]
+    pub shared: bool,
 }
 
 /// What `send` sent.
@@ -533,7 +545,20 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
         bail!("--rate-x must be positive, got {}", a.rate_x);
     }
     let payloads = read_case(&a.case)?;
-    let mut port = serial::open(&a.port, a.baud, Duration::from_secs(10))?;
+    let mut port = serial::open_with(&a.port, a.baud, Duration::from_secs(10), a.shared)?;
+    let mut copy = match &a.copy_to {
+        Some(p) => Some(BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
+        )),
+        None => None,
+    };
+    let mut put = |bytes: &[u8]| -> anyhow::Result<()> {
+        port.write_all(bytes).context("writing frames")?;
+        if let Some(c) = copy.as_mut() {
+            c.write_all(bytes).context("writing --copy-to")?;
+        }
+        Ok(())
+    };
     let mut enc = Encoder::new();
     let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
     let start = Instant::now();
@@ -547,7 +572,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
             let due = Duration::from_secs_f64(((t - t0) / a.rate_x).max(0.0));
             if let Some(wait) = due.checked_sub(start.elapsed()) {
                 if wait > Duration::from_millis(2) {
-                    port.write_all(&pending).context("writing frames")?;
+                    put(&pending)?;
                     out.bytes += pending.len() as u64;
                     pending.clear();
                     std::thread::sleep(wait);
@@ -558,7 +583,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
         pending.extend_from_slice(&buf[..n]);
         out.frames += 1;
         if pending.len() >= 4096 {
-            port.write_all(&pending).context("writing frames")?;
+            put(&pending)?;
             out.bytes += pending.len() as u64;
             pending.clear();
         }
@@ -567,9 +592,12 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
             format!("sent {f} frames, {b} bytes, t = {t:.3} s")
         });
     }
-    port.write_all(&pending).context("writing frames")?;
+    put(&pending)?;
     out.bytes += pending.len() as u64;
     port.flush()?;
+    if let Some(mut c) = copy {
+        c.flush().context("writing --copy-to")?;
+    }
     let (f, b) = (out.frames, out.bytes);
     status.update(f, true, || format!("sent {f} frames, {b} bytes"));
     status.finish();

@@ -26,12 +26,10 @@ use std::time::{Duration, Instant};
 
 /// A running qemu whose UART0 is reachable as a pty.
 pub struct QemuLink {
-    qemu: Child,
-    socat: Child,
+    proc: QemuPty,
     tty: File,
     rx: Receiver<Vec<u8>>,
     pending: Vec<u8>,
-    dir: PathBuf,
 }
 
 fn wait_for(path: &Path, what: &str, child: &mut Child) -> Result<()> {
@@ -48,9 +46,18 @@ fn wait_for(path: &Path, what: &str, child: &mut Child) -> Result<()> {
     Ok(())
 }
 
-impl QemuLink {
-    /// Starts `elf` on qemu mps2-an386 (`-icount shift=5`: deterministic tick counts) with
-    /// UART0 on a socket, connects socat, opens the pty.
+/// qemu running `elf` with UART0 on a unix socket and socat exposing it as the pty
+/// [`QemuPty::tty`]; the guest starts once a program opens the pty (socat `wait-slave`).
+pub struct QemuPty {
+    qemu: Child,
+    socat: Child,
+    /// The pty's path.
+    pub tty: PathBuf,
+    dir: PathBuf,
+}
+
+impl QemuPty {
+    /// Starts qemu and socat (`-icount shift=5`: deterministic tick counts).
     pub fn start(elf: &Path, name: &str) -> Result<Self> {
         // unix socket paths are limited to 107 bytes: keep them short, under the temp dir
         let dir = std::env::temp_dir().join(format!("navcore-hil-{name}-{}", std::process::id()));
@@ -85,6 +92,45 @@ impl QemuLink {
             let _ = socat.kill();
             return Err(e);
         }
+        Ok(Self {
+            qemu,
+            socat,
+            tty,
+            dir,
+        })
+    }
+
+    /// Waits for qemu to exit (the firmware's semihosting exit code).
+    pub fn wait_exit(&mut self, timeout: Duration) -> Result<ExitStatus> {
+        let t0 = Instant::now();
+        loop {
+            if let Some(st) = self.qemu.try_wait()? {
+                return Ok(st);
+            }
+            if t0.elapsed() > timeout {
+                bail!("qemu did not exit within {:.0} s", timeout.as_secs_f64());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for QemuPty {
+    fn drop(&mut self) {
+        let _ = self.qemu.kill();
+        let _ = self.qemu.wait();
+        let _ = self.socat.kill();
+        let _ = self.socat.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+impl QemuLink {
+    /// Starts `elf` on qemu mps2-an386 (`-icount shift=5`: deterministic tick counts) with
+    /// UART0 on a socket, connects socat, opens the pty.
+    pub fn start(elf: &Path, name: &str) -> Result<Self> {
+        let proc = QemuPty::start(elf, name)?;
+        let tty = proc.tty.clone();
         let tty_file = OpenOptions::new()
             .read(true)
             .write(true)
@@ -101,12 +147,10 @@ impl QemuLink {
             }
         });
         Ok(Self {
-            qemu,
-            socat,
+            proc,
             tty: tty_file,
             rx,
             pending: Vec::new(),
-            dir,
         })
     }
 
@@ -144,26 +188,7 @@ impl QemuLink {
 
     /// Waits for qemu to exit (the firmware's semihosting exit code).
     pub fn wait_exit(mut self, timeout: Duration) -> Result<ExitStatus> {
-        let t0 = Instant::now();
-        loop {
-            if let Some(st) = self.qemu.try_wait()? {
-                return Ok(st);
-            }
-            if t0.elapsed() > timeout {
-                bail!("qemu did not exit within {:.0} s", timeout.as_secs_f64());
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-impl Drop for QemuLink {
-    fn drop(&mut self) {
-        let _ = self.qemu.kill();
-        let _ = self.qemu.wait();
-        let _ = self.socat.kill();
-        let _ = self.socat.wait();
-        let _ = std::fs::remove_dir_all(&self.dir);
+        self.proc.wait_exit(timeout)
     }
 }
 
@@ -367,39 +392,7 @@ pub fn frame_link(elf: &Path) -> Result<u64> {
             n_health
         );
     }
-    let mut nav_exact = 0usize;
-    let mut last_health = None;
-    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-        match (g, w) {
-            (Payload::Nav(a), Payload::Nav(b)) => {
-                // bit-exact: same code, same operation order, same libm on both sides
-                let fa = nav_bits(a);
-                let fb = nav_bits(b);
-                if fa != fb {
-                    bail!(
-                        "frame {i}: the firmware's solution differs from the host's (t = {} s): MCU {:?} host {:?}",
-                        b.t_s,
-                        a,
-                        b
-                    );
-                }
-                nav_exact += 1;
-            }
-            (Payload::Health(a), Payload::Health(b)) => {
-                let strip = |h: &Health| Health {
-                    uptime_ms: 0,
-                    epoch_ticks_max: 0,
-                    stack_peak_bytes: 0,
-                    ..*h
-                };
-                if strip(a) != strip(b) {
-                    bail!("frame {i}: health counters differ: MCU {a:?} host {b:?}");
-                }
-                last_health = Some(*a);
-            }
-            _ => bail!("frame {i}: the firmware sent {g:?} where the host sent {w:?}"),
-        }
-    }
+    let (nav_exact, last_health) = compare_with_host(&got, &want)?;
     let h = last_health.context("no health frame received")?;
     eprintln!(
         "  frame link: {} bytes in ({} frames), {} frames back in {:.1} s: {} navigation solutions bit-exact with the host run of the same app, {} health frames with equal counters",
@@ -426,6 +419,54 @@ pub fn frame_link(elf: &Path) -> Result<u64> {
     Ok(u64::from(h.stack_peak_bytes))
 }
 
+/// Compares the firmware's output frames with the host run's: navigation solutions bit for
+/// bit, health frames with equal counters (timing and stack fields are the board's own).
+/// Returns the number of solutions compared and the firmware's last health frame.
+fn compare_with_host(got: &[Payload], want: &[Payload]) -> Result<(usize, Option<Health>)> {
+    if got.len() != want.len() {
+        let nav = |v: &[Payload]| v.iter().filter(|p| matches!(p, Payload::Nav(_))).count();
+        bail!(
+            "the firmware sent {} frames ({} solutions), the host app {} ({} solutions)",
+            got.len(),
+            nav(got),
+            want.len(),
+            nav(want)
+        );
+    }
+    let mut nav_exact = 0usize;
+    let mut last_health = None;
+    for (i, (g, w)) in got.iter().zip(want).enumerate() {
+        match (g, w) {
+            (Payload::Nav(a), Payload::Nav(b)) => {
+                // bit-exact: same code, same operation order, same libm on both sides
+                if nav_bits(a) != nav_bits(b) {
+                    bail!(
+                        "frame {i}: the firmware's solution differs from the host's (t = {} s): MCU {:?} host {:?}",
+                        b.t_s,
+                        a,
+                        b
+                    );
+                }
+                nav_exact += 1;
+            }
+            (Payload::Health(a), Payload::Health(b)) => {
+                let strip = |h: &Health| Health {
+                    uptime_ms: 0,
+                    epoch_ticks_max: 0,
+                    stack_peak_bytes: 0,
+                    ..*h
+                };
+                if strip(a) != strip(b) {
+                    bail!("frame {i}: health counters differ: MCU {a:?} host {b:?}");
+                }
+                last_health = Some(*a);
+            }
+            _ => bail!("frame {i}: the firmware sent {g:?} where the host sent {w:?}"),
+        }
+    }
+    Ok((nav_exact, last_health))
+}
+
 /// Every field of a solution as bits (f64 to_bits; the f32 sigmas travel as f32 on the wire).
 fn nav_bits(n: &nav_core::types::NavSolution) -> Vec<u64> {
     let mut v = vec![
@@ -446,4 +487,287 @@ fn nav_bits(n: &nav_core::types::NavSolution) -> Vec<u64> {
         v.extend(a.iter().map(|x| x.to_bits()));
     }
     v
+}
+
+/// The drive of the bridge HIL test: 10 s static (levelling, first fix), then driving with
+/// turns and speed changes at 100 Hz; `host-sim simulate` adds two GNSS outages.
+const BRIDGE_SCENARIO: &str = r#"
+name = "hil-bridge"
+description = "70 s drive for the hw-bridge HIL test"
+[start]
+lat_deg = 48.1990
+lon_deg = 16.3700
+h_m = 220.0
+heading_deg = 30.0
+gps_week = 2227
+sow_s = 118800.0
+[imu]
+rate_hz = 100.0
+[[segment]]
+kind = "static"
+duration_s = 10.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 12.0
+duration_s = 8.0
+[[segment]]
+kind = "turn"
+angle_deg = 90.0
+radius_m = 40.0
+[[segment]]
+kind = "cruise"
+duration_s = 15.0
+[[segment]]
+kind = "turn"
+angle_deg = -120.0
+radius_m = 35.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 18.0
+duration_s = 6.0
+[[segment]]
+kind = "cruise"
+duration_s = 10.0
+[[segment]]
+kind = "brake"
+to_speed_mps = 0.0
+duration_s = 8.0
+[[segment]]
+kind = "static"
+duration_s = 3.0
+"#;
+/// The drive's GNSS outages, START:DURATION s after the first IMU epoch.
+const BRIDGE_OUTAGES: [&str; 2] = ["25:8", "48:10"];
+
+/// The host binaries the bridge HIL test runs (release builds of `host-sim` and `hw-bridge`).
+pub struct HostBins {
+    /// `host-sim`.
+    pub host_sim: PathBuf,
+    /// `hw-bridge`.
+    pub hw_bridge: PathBuf,
+}
+
+/// Builds `host-sim` and `hw-bridge` (release) and returns their paths (from cargo's JSON
+/// messages, so any `CARGO_TARGET_DIR` works).
+pub fn host_bins() -> Result<HostBins> {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.args([
+        "build",
+        "--release",
+        "-p",
+        "host-sim",
+        "-p",
+        "hw-bridge",
+        "--bins",
+        "--message-format=json-render-diagnostics",
+    ])
+    .current_dir(crate::root())
+    .stderr(Stdio::inherit());
+    eprintln!("  $ {}", crate::show(&c));
+    let out = c.output().context("running cargo build")?;
+    if !out.status.success() {
+        bail!("building host-sim and hw-bridge failed ({})", out.status);
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let exe = |name: &str| -> Result<PathBuf> {
+        text.lines()
+            .filter(|l| l.contains(&format!("\"name\":\"{name}\"")))
+            .find_map(|l| {
+                let i = l.find("\"executable\":\"")? + "\"executable\":\"".len();
+                let j = l[i..].find('"')?;
+                Some(PathBuf::from(&l[i..i + j]))
+            })
+            .with_context(|| format!("cargo reported no executable {name}"))
+    };
+    Ok(HostBins {
+        host_sim: exe("host-sim")?,
+        hw_bridge: exe("hw-bridge")?,
+    })
+}
+
+fn run_quiet(cmd: &mut Command) -> Result<String> {
+    eprintln!("  $ {}", crate::show(cmd));
+    let out = cmd
+        .output()
+        .with_context(|| format!("starting {}", crate::show(cmd)))?;
+    if !out.status.success() {
+        bail!(
+            "`{}` failed ({}): {}{}",
+            crate::show(cmd),
+            out.status,
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// Kills a child on drop (a recorder left behind by an early error).
+struct KillOnDrop(Option<Child>);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        if let Some(c) = self.0.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// The hw-bridge HIL test: `host-sim simulate` writes a drive with two GNSS outages,
+/// `hw-bridge send` streams it into the firmware's UART (qemu socket + socat pty) and
+/// `hw-bridge record` captures what the firmware sends back on the same pty. The capture's
+/// solutions must equal, bit for bit, those of the same application code run on the host on
+/// the very bytes `send` wrote (`send --copy-to`). Returns the firmware's peak stack, bytes.
+pub fn bridge_drive(elf: &Path, bins: &HostBins) -> Result<u64> {
+    let dir = std::env::temp_dir().join(format!("navcore-bridge-drive-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let r = bridge_drive_in(elf, bins, &dir);
+    let _ = std::fs::remove_dir_all(&dir);
+    r
+}
+
+fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
+    let sc = dir.join("drive.toml");
+    std::fs::write(&sc, BRIDGE_SCENARIO)?;
+    let case = dir.join("case");
+    let mut sim = Command::new(&bins.host_sim);
+    sim.arg("simulate")
+        .arg("--scenario")
+        .arg(&sc)
+        .args(["--errors", "tactical", "--seed", "5"]);
+    for o in BRIDGE_OUTAGES {
+        sim.args(["--outage", o]);
+    }
+    sim.arg("--out").arg(&case);
+    let said = run_quiet(&mut sim)?;
+    eprint!("  {said}");
+
+    let q = QemuPty::start(elf, "bridge")?;
+    let cap = dir.join("firmware-out.cap");
+    let sent = dir.join("sent.bin");
+    let t0 = Instant::now();
+    // the recorder opens the pty first (socat then connects and the guest starts)
+    let mut rec = Command::new(&bins.hw_bridge);
+    rec.args([
+        "record",
+        "--quiet",
+        "--shared",
+        "--idle-exit",
+        "4",
+        "--duration",
+        "400",
+    ])
+    .arg("--port")
+    .arg(&q.tty)
+    .arg("--out")
+    .arg(&cap)
+    .stdin(Stdio::null())
+    .stdout(Stdio::null())
+    .stderr(Stdio::piped());
+    eprintln!("  $ {}", crate::show(&rec));
+    let mut rec = KillOnDrop(Some(rec.spawn().context("starting hw-bridge record")?));
+    let mut err = std::io::BufReader::new(
+        rec.0
+            .as_mut()
+            .and_then(|c| c.stderr.take())
+            .context("no stderr of hw-bridge record")?,
+    );
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut err, &mut line)?;
+    if !line.starts_with("recording") {
+        bail!("hw-bridge record did not start: {line:?}");
+    }
+    let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    let mut send = Command::new(&bins.hw_bridge);
+    send.args([
+        "send",
+        "--quiet",
+        "--shared",
+        "--as-fast-as-possible",
+        "--linger-s",
+        "0",
+    ])
+    .arg("--case")
+    .arg(&case)
+    .arg("--port")
+    .arg(&q.tty)
+    .arg("--copy-to")
+    .arg(&sent);
+    let said = run_quiet(&mut send)?;
+    let t_send = t0.elapsed().as_secs_f64();
+    let child = rec.0.take().context("recorder gone")?;
+    let out = child.wait_with_output()?;
+    let rec_err = drain.join().unwrap_or_default();
+    if !out.status.success() {
+        bail!("hw-bridge record failed ({}): {rec_err}", out.status);
+    }
+    let t_all = t0.elapsed().as_secs_f64();
+    drop(q);
+
+    // the host: the same application code on the bytes `send` wrote
+    let input = std::fs::read(&sent).with_context(|| format!("reading {}", sent.display()))?;
+    let mut host = host_app();
+    let mut host_out: Vec<u8> = Vec::new();
+    let mut clk = HostClock(0);
+    host.feed(&input, &mut host_out, &mut clk)
+        .map_err(|e| anyhow::anyhow!("host app: {e:?}"))?;
+    let want = decode_all(&host_out)?;
+    // the firmware: what `record` captured, in its recorded chunks
+    let mut got_bytes = Vec::new();
+    let f = File::open(&cap).with_context(|| format!("opening {}", cap.display()))?;
+    let mut rd = crate::capture::CaptureReader::new(std::io::BufReader::new(f))?;
+    let mut records = 0usize;
+    while let Some(r) = rd.next_record()? {
+        if let crate::capture::Record::Data { bytes, .. } = r {
+            got_bytes.extend_from_slice(&bytes);
+            records += 1;
+        }
+    }
+    let got = decode_all(&got_bytes)?;
+    let (nav_exact, last) = compare_with_host(&got, &want)?;
+    let h = last.context("no health frame received")?;
+    let host_counters = *host.counters();
+    eprintln!(
+        "  hw-bridge send: {} ({} bytes) in {:.1} s; hw-bridge record: {} records, {} bytes, {} frames; total {:.1} s",
+        said.trim(),
+        input.len(),
+        t_send,
+        records,
+        got_bytes.len(),
+        got.len(),
+        t_all
+    );
+    eprintln!(
+        "  bridge drive: {} navigation solutions from the firmware bit-exact with the host run of the same app on the same bytes (f32 covariance, same libm), {} health frames with equal counters",
+        nav_exact,
+        got.len() - nav_exact
+    );
+    eprintln!(
+        "  host app: {} IMU epochs, {} GNSS updates, {} fixes rejected (gate or before the first IMU sample)",
+        host_counters.imu_epochs, host_counters.gnss_updates, host_counters.gnss_rejected
+    );
+    eprintln!(
+        "  firmware health (last): {} frames ok, {} rejected, {} lost; {} IMU epochs, {} GNSS updates, {} rejected; peak stack {} B",
+        h.rx_frames_ok,
+        h.rx_rejected,
+        h.rx_lost,
+        h.imu_epochs,
+        h.gnss_updates,
+        h.gnss_rejected,
+        h.stack_peak_bytes
+    );
+    if nav_exact < 100 {
+        bail!("only {nav_exact} solutions compared: the drive did not run through");
+    }
+    // (fixes the innovation gate rejects, e.g. while the heading converges after the start
+    // from an unknown yaw, are rejected identically on both sides: that is the app's filter,
+    // compared above, not the link)
+    if host_counters.gnss_updates < 40 {
+        bail!("the host app used too few fixes: {host_counters:?}");
+    }
+    if h.rx_rejected != 0 || h.rx_lost != 0 {
+        bail!("the firmware lost or rejected frames on the link: {h:?}");
+    }
+    Ok(u64::from(h.stack_peak_bytes))
 }

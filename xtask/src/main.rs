@@ -6,8 +6,9 @@
 //! - `fw build | run | size [--board B]`: cross-build the firmware, run its self-test on qemu
 //!   (mps2-an386), report sizes;
 //! - `fw bench`: instruction counts, sizes, stack and budgets on qemu `-icount shift=5`;
-//! - `fw hil`: UART loopback and the navigation application's frame link through qemu's
-//!   UART on a socket and a socat pty, compared with the host;
+//! - `fw hil`: UART loopback, the navigation application's frame link, and `hw-bridge send`
+//!   / `hw-bridge record` of a simulated drive through the `nav` firmware, over qemu's UART
+//!   on a socket and a socat pty, compared with the host;
 //! - `ci`: everything CI checks, each step named and timed.
 
 mod budget;
@@ -15,6 +16,10 @@ mod embedded;
 mod hil;
 mod vectors;
 
+/// hw-bridge's capture format (reading what `hw-bridge record` wrote in the HIL test).
+#[path = "../../hw-bridge/src/capture.rs"]
+#[allow(dead_code)]
+mod capture;
 /// The firmware's board-independent application, compiled for the host too (HIL comparison).
 #[path = "../../firmware/src/app.rs"]
 #[allow(dead_code)]
@@ -79,7 +84,8 @@ enum FwCmd {
     },
     /// Instructions per call, sizes, peak stack and budget check (qemu -icount shift=5).
     Bench,
-    /// UART loopback and the nav application's frame link through a socket + socat pty.
+    /// UART loopback, the nav application's frame link, and `hw-bridge send`/`record` of a
+    /// simulated drive through the nav firmware, via a socket + socat pty.
     Hil,
     /// The firmware steps of `ci` only (build, self-test, sizes, HIL, real board, budgets).
     Ci,
@@ -105,7 +111,9 @@ fn main() -> std::process::ExitCode {
             FwCmd::Ci => fw_ci(),
             FwCmd::Hil => embedded::fw_build(Board::Mps2An386).and_then(|b| {
                 hil::uart_echo(&b.elf("uart-echo"))?;
-                hil::frame_link(&b.elf("nav")).map(|_| ())
+                hil::frame_link(&b.elf("nav"))?;
+                let bins = hil::host_bins()?;
+                hil::bridge_drive(&b.elf("nav"), &bins).map(|_| ())
             }),
         },
         Cmd::Ci => ci(),
@@ -256,6 +264,14 @@ fn firmware_steps(step: &mut StepFn) -> Result<()> {
         "HIL: nav application frame link (IMU/GNSS/config in, solutions/health out) vs host",
         &mut || {
             nav_stack = hil::frame_link(&fw.elf("nav"))?;
+            Ok(())
+        },
+    )?;
+    step(
+        "HIL: hw-bridge send/record of a simulated drive with GNSS outages through the nav firmware vs host, bit-exact",
+        &mut || {
+            let bins = hil::host_bins()?;
+            nav_stack = nav_stack.max(hil::bridge_drive(&fw.elf("nav"), &bins)?);
             Ok(())
         },
     )?;
