@@ -84,6 +84,14 @@ const CASES: &[Case] = &[
         run: |m, n| strapdown(m, n),
     },
     Case {
+        name: "wire_decode",
+        run: |m, n| wire_decode(m, n),
+    },
+    Case {
+        name: "allan_stream",
+        run: |m, n| allan_stream(m, n),
+    },
+    Case {
         name: "filter15_N_f32",
         run: |m, n| filter::<{ LAYOUT_N.dim() }>(m, n, LAYOUT_N, FilterConfig::source_n_model()),
     },
@@ -168,6 +176,142 @@ fn strapdown(m: &mut Meter, case: &'static str) -> bool {
         "BENCH size what=Strapdown bytes={}",
         core::mem::size_of::<Strapdown>()
     );
+    true
+}
+
+/// Frames of the decoder case: IMU frames with a GNSS fix every 10th (a 200 Hz link carrying
+/// 20 Hz of fixes is busier than the real 1 Hz; the mix barely changes the per-byte cost).
+const DECODE_FRAMES: u32 = 40;
+/// Rounds of decoding the same bytes.
+const DECODE_ROUNDS: u32 = 10;
+
+fn wire_decode(m: &mut Meter, case: &'static str) -> bool {
+    use nav_core::wire::{Encoder, FrameDecoder, ImuFrame, Payload, MAX_FRAME_LEN};
+    let mut buf = [0u8; 4096];
+    let mut len = 0usize;
+    let mut enc = Encoder::new();
+    let mut rng = Lcg(3);
+    let mut frames = 0u32;
+    for k in 1..=DECODE_FRAMES {
+        let s = imu_sample(k, &mut rng);
+        let mut one = [0u8; MAX_FRAME_LEN];
+        let mut put = |p: &Payload, len: &mut usize| -> bool {
+            let Ok(n) = enc.encode(p, &mut one) else {
+                return false;
+            };
+            match (buf.get_mut(*len..*len + n), one.get(..n)) {
+                (Some(dst), Some(src)) => {
+                    dst.copy_from_slice(src);
+                    *len += n;
+                    true
+                }
+                _ => false,
+            }
+        };
+        if !put(
+            &Payload::Imu(ImuFrame {
+                sample: s,
+                status: 0,
+            }),
+            &mut len,
+        ) {
+            error!("bench {}: encode buffer full", case);
+            return false;
+        }
+        frames += 1;
+        if k % 10 == 0 {
+            let p0 = start_pos();
+            let fix = GnssFix {
+                t_s: s.t_s,
+                lat_rad: p0.lat_rad,
+                lon_rad: p0.lon_rad,
+                h_m: p0.h_m,
+                pos_std_ned_m: [0.5, 0.5, 1.0],
+                vel_ned_mps: [0.0; 3],
+                vel_std_ned_mps: [0.1; 3],
+                has_velocity: true,
+                quality: FixQuality::Single,
+                num_sats: 12,
+            };
+            if !put(&Payload::Gnss(fix), &mut len) {
+                error!("bench {}: encode buffer full", case);
+                return false;
+            }
+            frames += 1;
+        }
+    }
+    let bytes = buf.get(..len).unwrap_or(&[]);
+    let mut per_round = Acc::default();
+    let mut ok_total = 0u32;
+    for _ in 0..DECODE_ROUNDS {
+        let mut dec = FrameDecoder::new();
+        let (n_ok, t) = m.time(|| dec.feed(bytes).filter(|r| r.is_ok()).count() as u32);
+        per_round.add(t);
+        ok_total += n_ok;
+    }
+    if ok_total != frames * DECODE_ROUNDS {
+        error!(
+            "bench {}: decoded {} frames of {}",
+            case,
+            ok_total,
+            frames * DECODE_ROUNDS
+        );
+        return false;
+    }
+    // per byte: the rounds' total over all bytes decoded (max: a round's ticks per byte)
+    info!(
+        "BENCH row case={} what=decode_per_byte calls={} ticks_total={} ticks_max={}",
+        case,
+        len as u64 * u64::from(DECODE_ROUNDS),
+        per_round.total,
+        per_round.max / (len as u64).max(1)
+    );
+    info!(
+        "BENCH row case={} what=decode_per_frame calls={} ticks_total={} ticks_max={}",
+        case,
+        u64::from(frames) * u64::from(DECODE_ROUNDS),
+        per_round.total,
+        per_round.max / u64::from(frames.max(1))
+    );
+    info!(
+        "BENCH size what=FrameDecoder bytes={}",
+        core::mem::size_of::<FrameDecoder>()
+    );
+    true
+}
+
+/// Levels of the streaming Allan variance: octaves 2^0 .. 2^19 sample times (0.005 s to
+/// 44 min at 200 Hz).
+const ALLAN_LEVELS: usize = 20;
+/// Samples pushed (2^14: every level below 14 closes blocks).
+const ALLAN_SAMPLES: u32 = 1 << 14;
+
+fn allan_stream(m: &mut Meter, case: &'static str) -> bool {
+    use nav_core::allan::StreamingAllan;
+    let mut a = StreamingAllan::<ALLAN_LEVELS>::new();
+    let mut rng = Lcg(4);
+    let mut acc = Acc::default();
+    for _ in 0..ALLAN_SAMPLES {
+        let x = 1e-3 * rng.next();
+        let (ok, t) = m.time(|| a.push(x));
+        if !ok {
+            error!("bench {}: sample refused", case);
+            return false;
+        }
+        acc.add(t);
+    }
+    acc.print(case, "push_per_sample_one_channel");
+    info!(
+        "BENCH size what=StreamingAllan<{}> bytes={}",
+        ALLAN_LEVELS,
+        core::mem::size_of::<StreamingAllan<ALLAN_LEVELS>>()
+    );
+    // white noise uniform in [-1e-3, 1e-3]: AVAR at tau0 = variance = 1e-6 / 3
+    let v0 = a.avar(0).unwrap_or(0.0);
+    if !(v0 > 0.9e-6 / 3.0 && v0 < 1.1e-6 / 3.0) {
+        error!("bench {}: AVAR(tau0) implausible", case);
+        return false;
+    }
     true
 }
 
