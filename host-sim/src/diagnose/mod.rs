@@ -2,8 +2,11 @@
 //! add them, and report the errors before and after.
 //!
 //! 1. Residual statistics of the base run ([`stats::ResidualStats`]): NIS mean against its
-//!    chi-square band, autocorrelation and Ljung-Box Q per innovation component, and the
-//!    correlation of the normalised innovations with each candidate effect's regressor.
+//!    chi-square band; per innovation component the autocorrelation, Ljung-Box Q and the
+//!    Allan variance of the normalised innovations over clusters of fixes (white: m AVAR(m) =
+//!    1); and the correlation of the normalised innovations with each candidate effect's
+//!    regressor (specific force, rate, their cross-axis products, temperature, velocity for a
+//!    time offset, attitude columns for a lever arm).
 //! 2. Candidates: every effect block of the vocabulary ([`EFFECT_BLOCKS`]) not already in the
 //!    model; the temperature blocks only when the IMU data carry a temperature column.
 //! 3. Selection, repeated while an effect pays: every remaining candidate is re-run with its

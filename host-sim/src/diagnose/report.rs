@@ -388,6 +388,15 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             wb.component, wb.ljung_box_q95, wb.ljung_box_q, wa.ljung_box_q
         );
     }
+    for (wb, wa) in rb.whiteness.iter().zip(&ra.whiteness) {
+        let last = |w: &super::Whiteness| w.allan_ratio.last().copied().unwrap_or([0.0; 2]);
+        let (lb, la) = (last(wb), last(wa));
+        let _ = writeln!(
+            s,
+            "| m AVAR(m) of component {} at m = {:.0} fixes (white: about 1) | {:.1} | {:.1} |",
+            wb.component, lb[0], lb[1], la[1]
+        );
+    }
     let _ = writeln!(s, "\n![innovations](innovations.png)\n\n![nis](nis.png)\n");
     let _ = writeln!(s, "## Evidence\n");
     for (i, r) in dg.rounds.iter().enumerate() {

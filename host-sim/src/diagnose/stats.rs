@@ -27,6 +27,11 @@ pub struct Whiteness {
     pub ljung_box_q: f64,
     /// 95 % point of chi-square(LAGS).
     pub ljung_box_q95: f64,
+    /// Allan variance of the normalised innovations over clusters of m consecutive fixes,
+    /// times m, for m = 1, 2, 4, ... (at least 8 clusters): `[m, m AVAR(m)]`. White
+    /// innovations give about 1 at every m; a value growing with m is a slowly varying
+    /// (unmodelled, time-correlated) error.
+    pub allan_ratio: Vec<[f64; 2]>,
 }
 
 /// Residual statistics of one run.
@@ -128,7 +133,30 @@ fn whiteness(component: usize, z: &[f64]) -> Whiteness {
         autocorr,
         ljung_box_q: n as f64 * (n as f64 + 2.0) * q,
         ljung_box_q95: LJUNG_BOX_Q95,
+        allan_ratio: allan_ratio(z),
     }
+}
+
+/// `[m, m AVAR(m)]` of a sequence for m = 1, 2, 4, ... with at least 8 clusters
+/// (non-overlapping cluster means).
+pub fn allan_ratio(z: &[f64]) -> Vec<[f64; 2]> {
+    let mut out = Vec::new();
+    let mut m = 1;
+    while z.len() / m >= 8 {
+        let means: Vec<f64> = z
+            .chunks_exact(m)
+            .map(|c| c.iter().sum::<f64>() / m as f64)
+            .collect();
+        let k = means.len() - 1;
+        let avar = means
+            .windows(2)
+            .map(|w| 0.5 * (w[1] - w[0]).powi(2))
+            .sum::<f64>()
+            / k as f64;
+        out.push([m as f64, m as f64 * avar]);
+        m *= 2;
+    }
+    out
 }
 
 /// Pearson correlation.
@@ -257,4 +285,37 @@ pub fn regressor_correlation(b: Block, imu: &[ImuSample], run: &RunOutput) -> (f
         }
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    #[test]
+    fn allan_ratio_is_one_for_white_noise_and_grows_for_a_random_walk() {
+        let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let w: Vec<f64> = (0..4096).map(|_| StandardNormal.sample(&mut r)).collect();
+        // k clusters: relative standard deviation of the estimate about sqrt(2 / k)
+        for [m, a] in allan_ratio(&w) {
+            let k = 4096.0 / m - 1.0;
+            assert!((a - 1.0).abs() < 4.0 * (2.0 / k).sqrt(), "m {m}: {a}");
+        }
+        let wh = whiteness(0, &w);
+        assert!(wh.ljung_box_q < 2.0 * LJUNG_BOX_Q95, "{}", wh.ljung_box_q);
+        // white + a random walk of 0.1 per step: m AVAR(m) = 1 + 0.01 m^2 / 3 (approx.)
+        let mut acc = 0.0;
+        let rw: Vec<f64> = w
+            .iter()
+            .map(|x| {
+                acc += 0.1 * x;
+                acc + x
+            })
+            .collect();
+        let a = allan_ratio(&rw);
+        let at = |m: f64| a.iter().find(|p| p[0] == m).map_or(f64::NAN, |p| p[1]);
+        assert!(at(64.0) > 5.0 * at(1.0), "{a:?}");
+        assert!(whiteness(0, &rw).ljung_box_q > 10.0 * LJUNG_BOX_Q95);
+    }
 }
