@@ -9,11 +9,14 @@
 //! - `fw hil`: UART loopback, the navigation application's frame link, and `hw-bridge send`
 //!   / `hw-bridge record` of a simulated drive through the `nav` firmware, over qemu's UART
 //!   on a socket and a socat pty, compared with the host;
+//! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
+//!   `host-sim run` on the same case (wall times, ratio, identical output);
 //! - `ci`: everything CI checks, each step named and timed.
 
 mod budget;
 mod embedded;
 mod hil;
+mod replaybench;
 mod vectors;
 
 /// hw-bridge's capture format (reading what `hw-bridge record` wrote in the HIL test).
@@ -64,6 +67,16 @@ enum Cmd {
     },
     /// Everything CI checks, in order, each step named and timed.
     Ci,
+    /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
+    /// capture (sent and recorded over a pty pair) against `host-sim run` on the same case.
+    BenchReplay {
+        /// Scenario to simulate (a shipped name or a TOML file).
+        #[arg(long, default_value = "long")]
+        scenario: String,
+        /// Keep the case, capture and outputs (the directory is printed).
+        #[arg(long)]
+        keep: bool,
+    },
 }
 
 #[derive(Subcommand)]
@@ -117,6 +130,7 @@ fn main() -> std::process::ExitCode {
             }),
         },
         Cmd::Ci => ci(),
+        Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,
