@@ -81,12 +81,13 @@ pub struct AllanArgs {
     /// Tau selection.
     #[arg(long, value_enum, default_value = "octave")]
     pub taus: TauArg,
-    /// Model terms of the fit, comma separated.
+    /// Model terms of the fit, comma separated: with term selection (the default) the largest
+    /// model, of which the subset the data support is kept.
     #[arg(
         long,
         value_enum,
         value_delimiter = ',',
-        default_value = "quant,white,gm,rw"
+        default_value = "quant,white,gm,rw,flicker"
     )]
     pub terms: Vec<TermArg>,
     /// Smallest tau used by the fit (s).

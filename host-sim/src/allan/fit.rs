@@ -241,6 +241,27 @@ impl FitResult {
         }
     }
 
+    /// The first local minimum of the model's Allan deviation over the fitted tau range,
+    /// scanning from the shortest tau: `(tau_s, adev)` in rate units. This is the floor a
+    /// datasheet quotes as "in-run bias stability" (the flicker floor 0.664 B for white +
+    /// flicker; the dip before the Gauss-Markov bump when there is one; the bottom of the
+    /// white/random-walk bowl). Log grid of 400 points.
+    pub fn model_adev_minimum(&self) -> (f64, f64) {
+        let t0 = self.residuals.first().map_or(1.0, |r| r.0);
+        let t1 = self.residuals.last().map_or(1.0, |r| r.0);
+        let grid: Vec<(f64, f64)> = (0..400)
+            .map(|i| {
+                let t = (t0.ln() + (t1.ln() - t0.ln()) * i as f64 / 399.0).exp();
+                (t, self.avar(t).max(0.0).sqrt())
+            })
+            .collect();
+        grid.windows(2)
+            .find(|w| w[1].1 > w[0].1)
+            .map(|w| w[0])
+            .or_else(|| grid.last().copied())
+            .unwrap_or((f64::NAN, f64::NAN))
+    }
+
     /// Relative 1-sigma of sqrt(S_B T_B) (uses the S_B-T_B correlation stored by the fit).
     pub fn b_rel_sigma(&self) -> f64 {
         if self.s_b.value.is_nan() || self.s_b.value <= 0.0 {
@@ -875,7 +896,7 @@ fn significant(e: Est) -> bool {
 /// scatter of the short-tau estimates (EDF ~ 1e5), which would make every extra term look
 /// significant. So a common relative model error `eps` is first estimated from the fullest
 /// model (the floor that makes its reduced chi-square 1, iterated with the refit) and used
-/// in the weights of every candidate; with `eps = 0` (simulated data that follow the model)
+/// in the weights of every candidate (the fit with no eligible candidate is the fullest); with `eps = 0` (simulated data that follow the model)
 /// this is the ordinary weighted least squares. A candidate is not eligible when NNLS put
 /// one of its terms at zero (it is then a smaller candidate), when its T_B ends at the edge
 /// of the search range (then the Gauss-Markov term is only a second white-noise or
@@ -892,8 +913,14 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
             })
             .collect()
     };
+    // Estimates do not depend on the sandwich (it only changes the covariance), so the
+    // screening uses the cheaper diagonal-EDF covariance; the significance test below uses
+    // the requested one.
     let mut o = opt.clone();
     o.model_error_rel = 0.0;
+    if o.weighting == Weighting::EdfSandwich {
+        o.weighting = Weighting::Edf;
+    }
     let mut full = fit(points, &o)?;
     for _ in 0..4 {
         let eps = model_error_for(&full, &edf_of(&full));
@@ -903,20 +930,12 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
         o.model_error_rel = eps;
         full = fit(points, &o)?;
     }
-    let mut best: Option<(f64, FitResult)> = None;
     let mut candidates = Vec::new();
     for terms in opt.terms.subsets() {
         let f = fit(points, &FitOptions { terms, ..o.clone() })?;
         let n_params = terms.count() + usize::from(terms.gm);
         let bic = f.chi2 + n_params as f64 * (f.n_points as f64).ln();
-        let ests = [
-            (terms.quant, f.q2),
-            (terms.white, f.s_n),
-            (terms.gm, f.s_b),
-            (terms.rw, f.s_k),
-            (terms.flicker, f.flicker_b2),
-        ];
-        let rejected = if ests.iter().any(|(on, e)| *on && e.value <= 0.0) {
+        let rejected = if nonzero(&f).iter().any(|(on, e)| *on && e.value <= 0.0) {
             Some("a term is at zero".to_string())
         } else if terms.gm
             && ((f.t_b_s.value / f.t_b_range_s.0).ln() < 0.05
@@ -926,16 +945,9 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
                 "T_B = {:.3} s at the edge of the search range {:.3} - {:.1} s",
                 f.t_b_s.value, f.t_b_range_s.0, f.t_b_range_s.1
             ))
-        } else if ests.iter().any(|(on, e)| *on && !significant(*e))
-            || (terms.gm && !significant(f.t_b_s))
-        {
-            Some("a parameter is below twice its uncertainty".to_string())
         } else {
             None
         };
-        if rejected.is_none() && best.as_ref().is_none_or(|b| bic < b.0) {
-            best = Some((bic, f.clone()));
-        }
         candidates.push(Candidate {
             terms,
             chi2: f.chi2,
@@ -944,8 +956,49 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
             rejected,
         });
     }
-    let fit = best.map_or(full, |b| b.1);
+    // In BIC order, the first eligible candidate whose parameters are all significant with
+    // the requested covariance.
+    let mut order: Vec<usize> = (0..candidates.len())
+        .filter(|&k| candidates[k].rejected.is_none())
+        .collect();
+    order.sort_by(|&a, &b| candidates[a].bic.total_cmp(&candidates[b].bic));
+    let fin = FitOptions {
+        weighting: opt.weighting,
+        ..o.clone()
+    };
+    let mut chosen = None;
+    for k in order {
+        let f = fit(
+            points,
+            &FitOptions {
+                terms: candidates[k].terms,
+                ..fin.clone()
+            },
+        )?;
+        let sig = nonzero(&f).iter().all(|(on, e)| !*on || significant(*e))
+            && (!f.terms.gm || significant(f.t_b_s));
+        if sig {
+            chosen = Some(f);
+            break;
+        }
+        candidates[k].rejected = Some("a parameter is below twice its uncertainty".into());
+    }
+    let fit = match chosen {
+        Some(f) => f,
+        None => fit(points, &fin)?,
+    };
     Ok(Selection { fit, candidates })
+}
+
+/// (term on, estimate) of the linear coefficients of a fit.
+fn nonzero(f: &FitResult) -> [(bool, Est); 5] {
+    [
+        (f.terms.quant, f.q2),
+        (f.terms.white, f.s_n),
+        (f.terms.gm, f.s_b),
+        (f.terms.rw, f.s_k),
+        (f.terms.flicker, f.flicker_b2),
+    ]
 }
 
 /// Result of the slope/minimum method (datasheet-style reading of the ADEV curve).
