@@ -496,6 +496,8 @@ struct JsonFit {
     n_points: usize,
     terms: Terms,
     model_error_rel: f64,
+    /// First minimum of the model's Allan deviation (tau_s, adev in SI).
+    model_adev_minimum: (f64, f64),
     /// (tau_s, measured AVAR, model AVAR, normalized residual)
     residuals: Vec<(f64, f64, f64, f64)>,
 }
@@ -526,6 +528,7 @@ pub fn to_json(an: &Analysis) -> anyhow::Result<String> {
                 n_points: f.n_points,
                 terms: f.terms,
                 model_error_rel: f.model_error_rel,
+                model_adev_minimum: f.model_adev_minimum(),
                 residuals: f.residuals.clone(),
             }),
             slope_method: a.slope.as_ref(),
