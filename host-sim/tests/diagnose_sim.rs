@@ -417,6 +417,118 @@ fn two_undeclared_effects_are_both_found() {
     assert!(d.error_after.outage_max_3d_rms_m <= 0.7 * d.error_before.outage_max_3d_rms_m);
 }
 
+fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f64) {
+    let first = d.added_effects.first();
+    let named = first.is_some_and(|f| f.name == name);
+    let est_ok = first.is_some_and(|f| {
+        f.name == name
+            && f.estimate
+                .iter()
+                .zip(&f.sigma)
+                .zip(truth)
+                .all(|((e, s), t)| {
+                    let err = (e - t).abs();
+                    err <= 0.2 * t.abs() || err <= 3.0 * s
+                })
+    });
+    let (b, a) = (
+        d.error_before.outage_max_3d_rms_m,
+        d.error_after.outage_max_3d_rms_m,
+    );
+    (named, est_ok, a <= 0.7 * b, b, a)
+}
+
+/// 32 more drives (8 effects x 4 seeds, magnitudes x0.6 to x1.33 of the per-effect tests'
+/// sizes, other trajectories and seeds): the effect must be named first with its estimate
+/// within 20 % / 3 sigma in every one; the 30 % outage-error improvement is counted and
+/// printed (measured: 30 of 32; the two misses, 25 % and 20 %, are drives where the effect is a
+/// small part of the outage error). About 35 s in release: run with `--ignored`.
+#[test]
+#[ignore]
+fn robustness_sweep_over_seeds_and_magnitudes() {
+    let g = |x: f64| x * DEG_PER_H_RADPS;
+    type Mk = Box<dyn Fn(&mut ErrorModel, f64) -> (String, Vec<f64>) + Sync>;
+    let cases: Vec<Mk> = vec![
+        Box::new(|e, k| {
+            let p = [1200.0 * k, -700.0 * k, 900.0];
+            e.accel.scale_factor_ppm = Axes3(p);
+            ("accel_scale_factor".into(), p.map(|x| x * 1e-6).to_vec())
+        }),
+        Box::new(|e, k| {
+            let p = [600.0, -900.0 * k, 1500.0 * k];
+            e.gyro.scale_factor_ppm = Axes3(p);
+            ("gyro_scale_factor".into(), p.map(|x| x * 1e-6).to_vec())
+        }),
+        Box::new(|e, k| {
+            let m = [
+                [0.0, 0.25e-3 * k, 0.2e-3],
+                [-0.3e-3 * k, 0.0, 0.1e-3],
+                [0.2e-3, -0.35e-3, 0.0],
+            ];
+            e.accel.misalignment_rad = m;
+            ("accel_misalignment".into(), off_diag(m).to_vec())
+        }),
+        Box::new(|e, k| {
+            let m = [
+                [0.0, 0.3e-3 * k, -0.25e-3],
+                [0.2e-3, 0.0, 0.4e-3 * k],
+                [-0.3e-3, 0.15e-3, 0.0],
+            ];
+            e.gyro.misalignment_rad = m;
+            ("gyro_misalignment".into(), off_diag(m).to_vec())
+        }),
+        Box::new(|e, k| {
+            let l = [0.7 * k, 0.3, -0.5 * k];
+            e.gnss.lever_arm_b_m = Axes3(l);
+            ("lever_arm".into(), l.to_vec())
+        }),
+        Box::new(|e, k| {
+            e.gnss.time_offset_s = -0.04 * k;
+            ("time_offset".into(), vec![0.04 * k])
+        }),
+        Box::new(|e, k| {
+            let c = [25.0 * UG_MPS2 * k, 45.0 * UG_MPS2, -35.0 * UG_MPS2 * k];
+            e.accel.temp_coeff_per_c = Axes3(c);
+            ("accel_temperature_bias".into(), c.to_vec())
+        }),
+        Box::new(move |e, k| {
+            let c = [g(0.3) * k, g(0.4), -g(0.35) * k];
+            e.gyro.temp_coeff_per_c = Axes3(c);
+            ("gyro_temperature_bias".into(), c.to_vec())
+        }),
+    ];
+    let jobs: Vec<(usize, u64)> = (0..cases.len())
+        .flat_map(|c| (0..4u64).map(move |s| (c, s)))
+        .collect();
+    let res: Vec<(String, bool, bool, bool)> = jobs
+        .par_iter()
+        .map(|&(c, s)| {
+            let mut e = base_errors();
+            let k = 1.0 + 0.5 * (s as f64) / 3.0 * if s % 2 == 0 { 1.0 } else { -0.8 };
+            let (name, truth) = cases[c](&mut e, k);
+            let seed = 90000 + 101 * c as u64 + 7 * s;
+            let d = run((s + c as u64) as u32 % 4, &e, [0.0; 3], seed);
+            let (n, eo, imp, b, a) = grade(&d, &name, &truth);
+            let line = format!(
+                "{name} seed {seed} k {k:.2}: named {n} est {eo} improved30 {imp} \
+             before {b:.3} after {a:.3} verdict {}",
+                d.verdict
+            );
+            (line, n, eo, imp)
+        })
+        .collect();
+    for r in &res {
+        println!("{}", r.0);
+    }
+    let improved = res.iter().filter(|r| r.3).count();
+    println!(
+        "named first {} / 32, estimate {} / 32, improved 30 % {improved} / 32",
+        res.iter().filter(|r| r.1).count(),
+        res.iter().filter(|r| r.2).count()
+    );
+    assert!(res.iter().all(|r| r.1 && r.2));
+}
+
 #[test]
 fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
     let e = base_errors();
