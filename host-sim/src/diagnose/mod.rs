@@ -155,6 +155,10 @@ pub struct Diagnosis {
     pub added_effects: Vec<AddedEffect>,
     /// "no missing effect" or the names added.
     pub verdict: String,
+    /// Cautions about the diagnosis (e.g. a base model whose NIS is far from its
+    /// expectation: the likelihood comparison then also rewards states that absorb
+    /// noise-model error).
+    pub warnings: Vec<String>,
     /// Candidates considered.
     pub candidates_considered: Vec<String>,
     /// Residual statistics of the base model.
@@ -393,10 +397,26 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             .collect::<Vec<_>>()
             .join(", ")
     };
+    let mut warnings = Vec::new();
+    let (nis, dim) = (residuals_before.nis_mean, residuals_before.nis_expected);
+    if dim > 0.0 && !(0.5 * dim..=2.0 * dim).contains(&nis) {
+        warnings.push(format!(
+            "base model inconsistent with the data: NIS mean {nis:.1} for an expected {dim:.1}; \
+             the evidence values are inflated and an added effect may partly absorb \
+             noise-model error (check the noise model, e.g. run's --noise-scale)"
+        ));
+    }
+    if residuals_before.updates < 30 {
+        warnings.push(format!(
+            "only {} GNSS updates: little evidence either way",
+            residuals_before.updates
+        ));
+    }
     Ok(DiagnoseOutput {
         diagnosis: Diagnosis {
             added_effects,
             verdict,
+            warnings,
             candidates_considered: all.iter().map(|b| b.name().to_string()).collect(),
             residuals_before,
             residuals_after,
@@ -445,6 +465,9 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     write_outputs(dir, &p, &d, Some(&args.run.config))?;
     let dg = &d.diagnosis;
     println!("{}", dg.verdict);
+    for w in &dg.warnings {
+        println!("warning: {w}");
+    }
     for e in &dg.added_effects {
         println!(
             "added {}: estimate {:?} sigma {:?} [{}] evidence {:.1}",

@@ -323,6 +323,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     let mut s = String::new();
     let _ = writeln!(s, "# Diagnosis\n\n{}\n", p.description);
     let _ = writeln!(s, "Verdict: **{}**\n", dg.verdict);
+    for w in &dg.warnings {
+        let _ = writeln!(s, "Warning: {w}\n");
+    }
     let _ = writeln!(
         s,
         "Candidates considered: {}\n",
