@@ -11,10 +11,12 @@
 //!   on a socket and a socat pty, compared with the host;
 //! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
 //!   `host-sim run` on the same case (wall times, ratio, identical output);
+//! - `fuzz [--seconds S]`: every cargo-fuzz target for S seconds (CI: 15 s each);
 //! - `ci`: everything CI checks, each step named and timed.
 
 mod budget;
 mod embedded;
+mod fuzz;
 mod hil;
 mod replaybench;
 mod vectors;
@@ -67,6 +69,12 @@ enum Cmd {
     },
     /// Everything CI checks, in order, each step named and timed.
     Ci,
+    /// Run every cargo-fuzz target for a bounded time (as CI does).
+    Fuzz {
+        /// Seconds per target.
+        #[arg(long, default_value_t = 15)]
+        seconds: u32,
+    },
     /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
     /// capture (sent and recorded over a pty pair) against `host-sim run` on the same case.
     BenchReplay {
@@ -130,6 +138,7 @@ fn main() -> std::process::ExitCode {
             }),
         },
         Cmd::Ci => ci(),
+        Cmd::Fuzz { seconds } => fuzz::run(seconds).map(|_| ()),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
     };
     match res {
@@ -226,6 +235,10 @@ fn ci() -> Result<()> {
     step(
         "host test suite (cargo test --workspace --release)",
         &mut || run(cargo().args(["test", "--workspace", "--release"])),
+    )?;
+    step(
+        "fuzz: each cargo-fuzz target 15 s (4 targets, 1 min), no crash",
+        &mut || fuzz::run(15).map(|_| ()),
     )?;
     step(
         "nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)",
