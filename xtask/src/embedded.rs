@@ -218,7 +218,7 @@ impl Board {
     /// The binaries built for the board.
     pub fn bins(self) -> &'static [&'static str] {
         match self {
-            Self::Mps2An386 => &["firmware", "bench", "nav", "uart-echo"],
+            Self::Mps2An386 => &["firmware", "bench", "nav", "uart-echo", "ontarget"],
             Self::Stm32f407 => &["nav"],
         }
     }

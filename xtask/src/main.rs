@@ -5,6 +5,8 @@
 //! - `gen-vectors [--check]`: the firmware self-test's expected values from the host build;
 //! - `fw build | run | size [--board B]`: cross-build the firmware, run its self-test on qemu
 //!   (mps2-an386), report sizes;
+//! - `fw test`: the on-target unit tests (covariance SPD in f32 over a long run, gating,
+//!   reset) on qemu;
 //! - `fw bench`: instruction counts, sizes, stack and budgets on qemu `-icount shift=5`;
 //! - `fw hil`: UART loopback, the navigation application's frame link, and `hw-bridge send`
 //!   / `hw-bridge record` of a simulated drive through the `nav` firmware, over qemu's UART
@@ -97,6 +99,8 @@ enum FwCmd {
     },
     /// Build, then run the self-test on qemu-system-arm -machine mps2-an386.
     Run,
+    /// Build, then run the on-target unit tests (covariance SPD, gating, reset) on qemu.
+    Test,
     /// Flash (text + rodata + data) and static RAM (data + bss) of the firmware ELFs.
     Size {
         /// Board to build for.
@@ -121,6 +125,8 @@ fn main() -> std::process::ExitCode {
             FwCmd::Build { board } => embedded::fw_build(board).map(|_| ()),
             FwCmd::Run => embedded::fw_build(Board::Mps2An386)
                 .and_then(|b| embedded::fw_run(&b.elf("firmware"))),
+            FwCmd::Test => embedded::fw_build(Board::Mps2An386)
+                .and_then(|b| embedded::fw_run(&b.elf("ontarget"))),
             FwCmd::Size { board } => {
                 embedded::fw_build(board).and_then(|b| embedded::fw_size(&b).map(|_| ()))
             }
@@ -276,6 +282,10 @@ fn firmware_steps(step: &mut StepFn) -> Result<()> {
     step(
         "firmware self-test on qemu mps2-an386 (Cortex-M4F)",
         &mut || embedded::fw_run(&fw.elf("firmware")),
+    )?;
+    step(
+        "firmware on-target unit tests on qemu (covariance SPD over a long f32 run, gating, reset)",
+        &mut || embedded::fw_run(&fw.elf("ontarget")),
     )?;
     let mut sizes = Vec::new();
     step("firmware size report", &mut || {
