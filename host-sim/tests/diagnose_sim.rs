@@ -166,8 +166,8 @@ fn summary(d: &Diagnosis) -> String {
     );
     for e in &d.added_effects {
         s.push_str(&format!(
-            "  added {} est {:?} sigma {:?} evidence {:.1}\n",
-            e.name, e.estimate, e.sigma, e.evidence
+            "  added {} est {:?} sigma {:?} evidence {:.1} runner-up {:?}\n",
+            e.name, e.estimate, e.sigma, e.evidence, e.runner_up
         ));
     }
     for (i, r) in d.rounds.iter().enumerate() {

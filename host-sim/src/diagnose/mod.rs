@@ -128,6 +128,10 @@ pub struct AddedEffect {
     pub unit: String,
     /// Log-likelihood gain minus BIC penalty when it was added, nats.
     pub evidence: f64,
+    /// The strongest other candidate of that round and how many nats it trailed by (a small
+    /// margin means the two are hard to tell apart on this drive, e.g. accelerometer and gyro
+    /// misalignment, whose rotation parts are nearly equivalent).
+    pub runner_up: Option<(String, f64)>,
 }
 
 /// Position errors of one run in the imposed outages (or overall without outages).
@@ -262,7 +266,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let truth = p.case.truth.as_deref();
 
     let mut added: Vec<Block> = Vec::new();
-    let mut added_ev: Vec<f64> = Vec::new();
+    let mut added_ev: Vec<(f64, Option<(String, f64)>)> = Vec::new();
     let mut current: (RunOutput, Metrics) = (before.clone(), errors_before.clone());
     let mut current_ll = residuals_before.log_likelihood;
     let mut rounds = Vec::new();
@@ -352,10 +356,16 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             rounds.push(round);
             break;
         };
+        let best_ev = ev.evidence.unwrap_or(0.0);
+        let runner_up = round
+            .candidates
+            .iter()
+            .find(|c| c.name != ev.name && c.evidence.is_some())
+            .map(|c| (c.name.clone(), best_ev - c.evidence.unwrap_or(0.0)));
         round.added = Some(ev.name.clone());
         rounds.push(round);
         added.push(b);
-        added_ev.push(ev.evidence.unwrap_or(0.0));
+        added_ev.push((best_ev, runner_up));
         current_ll += ev.delta_log_likelihood.unwrap_or(0.0);
         current = run;
     }
@@ -364,7 +374,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let added_effects: Vec<AddedEffect> = added
         .iter()
         .zip(&added_ev)
-        .map(|(b, e)| {
+        .map(|(b, (e, r))| {
             let (estimate, sigma) = effect_values(&after, b.name());
             AddedEffect {
                 name: b.name().to_string(),
@@ -372,6 +382,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                 sigma,
                 unit: b.unit().to_string(),
                 evidence: *e,
+                runner_up: r.clone(),
             }
         })
         .collect();

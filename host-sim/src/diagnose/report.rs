@@ -334,18 +334,23 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     if !dg.added_effects.is_empty() {
         let _ = writeln!(
             s,
-            "| effect | estimate | 1-sigma | unit | evidence [nats] |"
+            "| effect | estimate | 1-sigma | unit | evidence [nats] | runner-up (nats behind) |"
         );
-        let _ = writeln!(s, "|---|---|---|---|---|");
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
         for e in &dg.added_effects {
+            let ru = e
+                .runner_up
+                .as_ref()
+                .map_or(String::from("-"), |(n, m)| format!("{n} ({m:.1})"));
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {:.1} |",
+                "| {} | {} | {} | {} | {:.1} | {} |",
                 e.name,
                 fmt_vec(&e.estimate),
                 fmt_vec(&e.sigma),
                 e.unit,
-                e.evidence
+                e.evidence,
+                ru
             );
         }
         s.push('\n');
