@@ -365,7 +365,7 @@ fn slope_fmt(a: &AxisResult, which: char) -> String {
 }
 
 /// `allan_params.toml`: `[accel]` / `[gyro]` in the layout of the simulator's sensor error
-/// model (`white_psd`, `gm_psd`, `gm_tau_s`, `rw_psd`, `quantization_step`, per axis x y z,
+/// model (`white_psd`, `gm_psd`, `gm_tau_s`, `rw_psd`, `flicker_b`, `quantization_step`, per axis x y z,
 /// SI, two-sided PSDs), `[x]` for a single generic channel, and `[uncertainty.*]` with the
 /// 1-sigma of every value.
 pub fn params_toml(an: &Analysis, source: &Path) -> String {
@@ -375,9 +375,10 @@ pub fn params_toml(an: &Analysis, source: &Path) -> String {
         "# Noise parameters identified by `host-sim allan` from {} ({} samples, tau0 = {} s).\n\
          # Fit of the overlapping Allan variance (corrected model of docs/DESIGN.md), SI units,\n\
          # two-sided PSDs (IEEE 952): white_psd S_N [m^2/s^3 | rad^2/s], gm_psd S_B [m^2/s^5 |\n\
-         # rad^2/s^3], gm_tau_s T_B [s], rw_psd S_K [m^2/s^5 | rad^2/s^3], quantization_step =\n\
-         # sqrt(12) Q [m/s | rad]. [accel] and [gyro] have the layout of the simulator's sensor\n\
-         # error model; a term the fit set to zero is 0 (gm_tau_s then 1 as a placeholder).",
+         # rad^2/s^3], gm_tau_s T_B [s], rw_psd S_K [m^2/s^5 | rad^2/s^3], flicker_b B (IEEE 952,\n\
+         # Allan floor 0.664 B) [m/s^2 | rad/s], quantization_step = sqrt(12) Q [m/s | rad].\n\
+         # [accel] and [gyro] have the layout of the simulator's sensor error model; a term the\n\
+         # fit set to zero (or term selection dropped) is 0 (gm_tau_s then 1 as a placeholder).",
         source.display(),
         an.n_samples,
         an.tau0_s
@@ -404,11 +405,22 @@ pub fn params_toml(an: &Analysis, source: &Path) -> String {
         )
     };
     type Field = (&'static str, fn(&FitResult) -> fit::Est);
-    let fields: [Field; 5] = [
+    let fields: [Field; 6] = [
         ("white_psd", |f| f.s_n),
         ("gm_psd", |f| f.s_b),
         ("gm_tau_s", |f| f.t_b_s),
         ("rw_psd", |f| f.s_k),
+        ("flicker_b", |f| {
+            let b = f.flicker_b2.value.max(0.0).sqrt();
+            fit::Est {
+                value: b,
+                sigma: if b > 0.0 {
+                    f.flicker_b2.sigma / (2.0 * b)
+                } else {
+                    f64::NAN
+                },
+            }
+        }),
         ("quantization_step", |f| {
             let q = f.q2.value.max(0.0).sqrt();
             fit::Est {
