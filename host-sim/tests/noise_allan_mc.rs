@@ -21,10 +21,15 @@ fn mc(
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(RUNS);
+    // Seeds seed0 + run; NOISE_MC_SEED sets seed0 (default 0xA11A) to try other seed sets.
+    let seed0: u64 = std::env::var("NOISE_MC_SEED")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0xA11A);
     let curves: Vec<Vec<(usize, f64, f64)>> = (0..runs)
         .into_par_iter()
         .map(|r| {
-            let mut rng = ChaCha8Rng::seed_from_u64(0xA11A + r);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed0 + r);
             let y = gen(&mut rng);
             deviation_curve(&y, DT, &CurveOptions::default())
                 .iter()
@@ -43,13 +48,24 @@ fn mc(
         .collect()
 }
 
+/// The criterion at every tau: |mean AVAR / theory - 1| < 3 / sqrt(runs EDF).
+///
+/// Statistically, the relative standard deviation of that mean is sqrt(2 / (runs EDF))
+/// (chi-square), so the band is 2.12 sigma per tau, and with ~15 correlated taus per process a
+/// correct generator fails it somewhere by chance in a fair share of seed sets. Measured with
+/// `NOISE_MC_SEED` = 100000, 200000, ..., 800000: 6 of those 8 seed sets failed at one or more
+/// taus, while the 531 normalized deviations z = (ratio - 1) / sqrt(2 / (runs EDF)) printed by
+/// those runs had RMS 1.00 and mean -0.04 (per process RMS 0.85 - 1.06): the generators and
+/// the EDF theory agree; the per-tau band is simply a 2-sigma test. This file's fixed seeds
+/// (the default 0xA11A, kept as first written) pass; z is printed for every tau.
 fn check(name: &str, res: &[(usize, f64, f64)], theory: impl Fn(usize) -> f64, max_m: usize) {
     let mut checked = 0;
     for &(m, mean, edf) in res.iter().filter(|r| r.0 <= max_m && r.2.is_finite()) {
         let th = theory(m);
         let tol = 3.0 / (RUNS as f64 * edf).sqrt();
         let ratio = mean / th;
-        println!("{name:10} m {m:6} ratio {ratio:.5} tol {tol:.5} edf {edf:.1}");
+        let z = (ratio - 1.0) / (2.0 / (RUNS as f64 * edf)).sqrt();
+        println!("{name:10} m {m:6} ratio {ratio:.5} tol {tol:.5} edf {edf:.1} z {z:+.2}");
         assert!(
             (ratio - 1.0).abs() < tol,
             "{name}: m = {m}: mean AVAR / theory = {ratio:.5}, allowed 1 +/- {tol:.5}"
