@@ -58,18 +58,23 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     }
     assert!(af.is_finite() && af < b, "before {b} after {af}");
 
-    // the augmented configuration: lever arm and time offset folded in, IMU effects by name
+    // the augmented configuration alone: lever arm and time offset folded into [gnss], the
+    // IMU effects in its `effects` key
     let dir = tempfile::tempdir().unwrap();
     write_outputs(dir.path(), &p, &out, Some(Path::new(config))).unwrap();
-    let mut a2 = RunArgs::new(dir.path().join("augmented.toml"));
-    a2.periodic_outages = a.periodic_outages.clone();
-    a2.effects = d
+    let aug = host_sim::io::read_run_config(dir.path().join("augmented.toml"))
+        .expect("augmented.toml is a valid run configuration");
+    let imu_effects: Vec<String> = d
         .added_effects
         .iter()
         .map(|e| e.name.clone())
         .filter(|n| n != "lever_arm" && n != "time_offset")
         .collect();
+    assert_eq!(aug.effects, imu_effects);
+    let mut a2 = RunArgs::new(dir.path().join("augmented.toml"));
+    a2.periodic_outages = a.periodic_outages.clone();
     let p2 = prepare(&a2).expect("the augmented configuration loads");
+    assert_eq!(p2.opts.extra_blocks.len(), imu_effects.len());
     let (_, m2) = execute(&p2, &mut |_, _| {}).expect("and runs");
     let e2 = host_sim::diagnose::outage_error_m(&m2);
     println!("run with the augmented configuration: outage error {e2:.3} m");

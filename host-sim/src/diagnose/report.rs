@@ -442,9 +442,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
 /// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the
 /// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
 /// `gnss.time_offset_s` and its relative paths made absolute; a comment header lists every
-/// added effect with its estimate and the `host-sim run --effects ...` option that appends the
-/// IMU effect blocks (the run configuration has no keys for them). KF-GINS YAML inputs are not
-/// rewritten.
+/// added effect with its estimate; the other added effects (IMU effect blocks) are listed in
+/// the top-level `effects` key, so `host-sim run --config augmented.toml` runs the augmented
+/// model. KF-GINS YAML inputs are not rewritten.
 pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyhow::Result<()> {
     let text =
         std::fs::read_to_string(config).with_context(|| format!("reading {}", config.display()))?;
@@ -501,9 +501,23 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
         .map(|e| e.name.as_str())
         .filter(|n| !matches!(*n, "lever_arm" | "time_offset"))
         .collect();
+    if !imu_effects.is_empty() {
+        let mut list: Vec<toml::Value> = doc
+            .get("effects")
+            .and_then(|v| v.as_array())
+            .cloned()
+            .unwrap_or_default();
+        for n in &imu_effects {
+            if !list.iter().any(|v| v.as_str() == Some(n)) {
+                list.push(toml::Value::String((*n).to_string()));
+            }
+        }
+        doc.insert("effects".into(), toml::Value::Array(list));
+    }
     let mut head = format!(
         "# Written by host-sim diagnose from {} (paths made absolute).\n\
-         # Verdict: {}. lever_arm and time_offset estimates are folded into [gnss];\n",
+         # Verdict: {}. lever_arm and time_offset estimates are folded into [gnss], the other\n\
+         # added effects are appended to the model by the `effects` key;\n",
         config.display(),
         d.verdict
     );
@@ -513,14 +527,7 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
             e.name, e.estimate, e.sigma, e.unit
         ));
     }
-    if imu_effects.is_empty() {
-        head.push_str("# run with: host-sim run --config augmented.toml\n");
-    } else {
-        head.push_str(&format!(
-            "# the IMU effect blocks are run by: host-sim run --config augmented.toml --effects {}\n",
-            imu_effects.join(",")
-        ));
-    }
+    head.push_str("# run with: host-sim run --config augmented.toml\n");
     let out = format!("{head}{}", toml::to_string_pretty(&doc).unwrap_or_default());
     let path = dir.join("augmented.toml");
     std::fs::write(&path, out).with_context(|| format!("writing {}", path.display()))?;

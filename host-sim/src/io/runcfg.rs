@@ -493,6 +493,12 @@ pub struct RunConfig {
     pub init: InitConfig,
     /// IMU noise model.
     pub noise: NoiseConfig,
+    /// Effect blocks appended to the error-state model, by their vocabulary names
+    /// (`accel_scale_factor`, `gyro_scale_factor`, `accel_misalignment`, `gyro_misalignment`,
+    /// `lever_arm`, `time_offset`, `accel_temperature_bias`, `gyro_temperature_bias`,
+    /// `gyro_g_sensitivity`), e.g. as written by `host-sim diagnose` into `augmented.toml`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<String>,
 }
 
 impl RunConfig {

@@ -248,14 +248,9 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         opts.model = m;
     }
     for name in &args.effects {
-        let b = Block::effect_from_name(name.trim()).with_context(|| {
+        add_effect(&mut opts, name).with_context(|| {
             format!("--effects {name}: not an effect name (see host-sim diagnose)")
         })?;
-        opts.extra_blocks.push(b);
-        if b == Block::TimeOffset {
-            let lim = 3.0 * opts.filter.effects.time_offset.init_sigma + 0.05;
-            opts.filter.max_gnss_time_offset_s = opts.filter.max_gnss_time_offset_s.max(lim);
-        }
     }
     if !args.effects.is_empty() {
         description.push_str(&format!("; effects {}", args.effects.join(",")));
@@ -381,6 +376,20 @@ fn prepare_kf_gins(
     ))
 }
 
+/// Appends the effect block `name` (vocabulary name) to the run's model, once; widens the
+/// GNSS time-offset limit when the block is `time_offset`. None: not an effect name.
+fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
+    let b = Block::effect_from_name(name.trim())?;
+    if !opts.extra_blocks.contains(&b) {
+        opts.extra_blocks.push(b);
+    }
+    if b == Block::TimeOffset {
+        let lim = 3.0 * opts.filter.effects.time_offset.init_sigma + 0.05;
+        opts.filter.max_gnss_time_offset_s = opts.filter.max_gnss_time_offset_s.max(lim);
+    }
+    Some(())
+}
+
 fn prepare_run_config(
     r: &RunConfig,
     dir: &Path,
@@ -503,12 +512,20 @@ fn prepare_run_config(
     opts.lever_arm_m = r.gnss.lever_arm_m;
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
-    let d = format!(
+    for name in &r.effects {
+        add_effect(&mut opts, name).with_context(|| {
+            format!("effects: `{name}` is not an effect name (see host-sim diagnose --help)")
+        })?;
+    }
+    let mut d = format!(
         "run configuration `{}`: IMU {}, GNSS {}{gaps}",
         r.name,
         imu_p.display(),
         gnss_p.display()
     );
+    if !r.effects.is_empty() {
+        d.push_str(&format!("; effects {}", r.effects.join(",")));
+    }
     Ok((CaseData { imu, gnss, truth }, opts, week, d))
 }
 

@@ -983,6 +983,14 @@ fn html(md: &str, out: &Path, names: &[String]) -> anyhow::Result<String> {
     Ok(h)
 }
 
+/// `x` with at most 6 significant decimals and no trailing zeros (unit conversions leave
+/// `0.10000000000000002`).
+fn tidy(x: f64) -> String {
+    let r = format!("{:.6}", x);
+    let r = r.trim_end_matches('0').trim_end_matches('.');
+    r.to_string()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1001,12 +1009,4 @@ mod tests {
             assert_eq!(base64(a.as_bytes()), b);
         }
     }
-}
-
-/// `x` with at most 6 significant decimals and no trailing zeros (unit conversions leave
-/// `0.10000000000000002`).
-fn tidy(x: f64) -> String {
-    let r = format!("{:.6}", x);
-    let r = r.trim_end_matches('0').trim_end_matches('.');
-    r.to_string()
 }
