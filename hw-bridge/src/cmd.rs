@@ -627,6 +627,41 @@ pub struct StreamArgs {
     /// Stop after this many seconds.
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Run the filter on the host too: the firmware's own application (18-state NBK, f32
+    /// covariance, started at the first fix) on the IMU frames of `--port` and the GNSS fixes
+    /// of both ports; its solution is shown next to the board's.
+    #[arg(long)]
+    pub host_filter: bool,
+}
+
+/// The wall clock as the application's time base (only its health timing fields use it).
+struct WallClock(Instant);
+impl crate::time::TimeBase for WallClock {
+    const HZ: u32 = 1_000_000;
+    fn now_ticks(&mut self) -> u64 {
+        self.0.elapsed().as_micros() as u64
+    }
+}
+
+/// The host filter of `stream --host-filter`.
+type HostApp = crate::fwapp::NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
+
+fn host_app() -> HostApp {
+    crate::fwapp::NavApp::new(
+        nav_core::model::LAYOUT_NBK,
+        nav_core::config::FilterConfig::source_nbk_model(),
+        0,
+        0,
+    )
+}
+
+/// Feeds a payload to the host filter (IMU samples and GNSS fixes only; its own output
+/// frames are discarded).
+fn host_feed(app: &mut HostApp, p: &Payload, clock: &mut WallClock) {
+    if matches!(p, Payload::Imu(_) | Payload::Gnss(_)) {
+        let mut sink: Vec<u8> = Vec::new();
+        let _ = app.handle(p, &mut sink, clock);
+    }
 }
 
 enum PortEvent {
@@ -670,7 +705,7 @@ fn reader_thread(
 
 /// `stream`: live decode of a board's frames (and a GNSS receiver's fixes) with a status
 /// line showing the latest solution, GNSS fix and link health.
-pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
+pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
     let (tx, rx) = mpsc::channel();
     reader_thread(
         a.port.clone(),
@@ -691,6 +726,8 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
     let mut status = StatusLine::new(Duration::from_millis(250), true);
     let mut log = FrameLog::default();
     let mut last_rx_fix: Option<GnssFix> = None;
+    let mut host = a.host_filter.then(host_app);
+    let mut clock = WallClock(Instant::now());
     let start = Instant::now();
     loop {
         if a.duration
@@ -701,6 +738,9 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(PortEvent::Board(b)) => {
                 for f in dec.feed(&b).flatten() {
+                    if let Some(h) = host.as_mut() {
+                        host_feed(h, &f.payload, &mut clock);
+                    }
                     log.push(f);
                 }
                 // Keep only the latest of each kind for display.
@@ -715,6 +755,9 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
             Ok(PortEvent::Gnss(b)) => {
                 for ev in gnss.feed(&b) {
                     if let GnssEvent::Fix(f) = ev {
+                        if let Some(h) = host.as_mut() {
+                            host_feed(h, &Payload::Gnss(f), &mut clock);
+                        }
                         last_rx_fix = Some(f);
                     }
                 }
@@ -747,6 +790,19 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
             } else if let Some(i) = log.imu.last() {
                 t.push_str(&format!(" | imu t {:.3}", i.t_s));
             }
+            if let Some(n) = host.as_ref().and_then(|h| h.filter()).map(|f| f.solution()) {
+                t.push_str(&format!(
+                    " | host t {:.2} lat {:.7} lon {:.7} h {:.2} yaw {:.2} std {:.2} {:.2} {:.2}",
+                    n.t_s,
+                    n.lat_rad.to_degrees(),
+                    n.lon_rad.to_degrees(),
+                    n.h_m,
+                    n.rpy_rad[2].to_degrees(),
+                    n.pos_std_ned_m[0],
+                    n.pos_std_ned_m[1],
+                    n.pos_std_ned_m[2]
+                ));
+            }
             if let Some(h) = log.health.last() {
                 t.push_str(&format!(
                     " | board rx ok {} crc {} lost {} gnss upd {}",
@@ -768,5 +824,41 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<DecoderStats> {
         });
     }
     status.finish();
-    Ok(*dec.stats())
+    Ok(StreamOutcome {
+        stats: *dec.stats(),
+        host_solution: host.as_ref().and_then(|h| h.filter()).map(|f| f.solution()),
+        host_imu_epochs: host.as_ref().map_or(0, |h| h.counters().imu_epochs),
+        host_gnss_updates: host.as_ref().map_or(0, |h| h.counters().gnss_updates),
+    })
+}
+
+/// What `stream` saw.
+#[derive(Debug, Clone, Copy)]
+pub struct StreamOutcome {
+    /// Decoder counters of the board port.
+    pub stats: DecoderStats,
+    /// The host filter's last solution (`--host-filter`, once started).
+    pub host_solution: Option<nav_core::types::NavSolution>,
+    /// IMU epochs the host filter ran.
+    pub host_imu_epochs: u32,
+    /// GNSS fixes the host filter used.
+    pub host_gnss_updates: u32,
+}
+
+/// The host filter of `stream --host-filter` run offline on payloads (what a live stream of
+/// them must reproduce exactly): its last solution, IMU epochs and GNSS updates.
+pub fn host_filter_offline(
+    payloads: &[Payload],
+) -> (Option<nav_core::types::NavSolution>, u32, u32) {
+    let mut app = host_app();
+    let mut clock = WallClock(Instant::now());
+    for p in payloads {
+        host_feed(&mut app, p, &mut clock);
+    }
+    let c = *app.counters();
+    (
+        app.filter().map(|f| f.solution()),
+        c.imu_epochs,
+        c.gnss_updates,
+    )
 }

@@ -80,7 +80,18 @@ fn main() -> anyhow::Result<()> {
         }
         Cmd::Stream(a) => {
             let s = cmd::stream(&a)?;
-            print!("{}", hw_bridge::status::decoder_report(&s));
+            print!("{}", hw_bridge::status::decoder_report(&s.stats));
+            if let Some(n) = s.host_solution {
+                println!(
+                    "host filter: {} IMU epochs, {} GNSS updates; last solution t {:.3} lat {:.8} lon {:.8} h {:.3}",
+                    s.host_imu_epochs,
+                    s.host_gnss_updates,
+                    n.t_s,
+                    n.lat_rad.to_degrees(),
+                    n.lon_rad.to_degrees(),
+                    n.h_m
+                );
+            }
         }
     }
     Ok(())

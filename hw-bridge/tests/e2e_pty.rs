@@ -449,3 +449,69 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
         );
     }
 }
+
+#[test]
+fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case() {
+    let name = "stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case";
+    if !require_socat(name) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = d.join("drive.toml");
+    std::fs::write(&sc, DRIVE).unwrap();
+    let case = d.join("case");
+    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
+        scenario: sc.display().to_string(),
+        errors: "tactical".into(),
+        seed: 12,
+        out: case.clone(),
+        outages: vec![],
+        gnss_rate_hz: None,
+        kf_gins: false,
+        plot: false,
+    })
+    .unwrap();
+    let _socat = pty_pair(d);
+    let port = d.join("B").display().to_string();
+    // live: stream --host-filter on one end (library call in a thread), send on the other
+    let live = std::thread::spawn(move || {
+        hw_bridge::cmd::stream(&hw_bridge::cmd::StreamArgs {
+            port,
+            baud: hw_bridge::cmd::DEFAULT_BAUD,
+            gnss_port: None,
+            gnss_baud: 38_400,
+            leap_seconds: 18,
+            duration: Some(6.0),
+            host_filter: true,
+        })
+        .unwrap()
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    let send = Command::new(BIN)
+        .args(["send", "--quiet", "--as-fast-as-possible", "--case"])
+        .arg(&case)
+        .arg("--port")
+        .arg(d.join("A"))
+        .output()
+        .unwrap();
+    assert!(send.status.success(), "{send:?}");
+    let got = live.join().unwrap();
+    // offline: the same filter on the same payloads
+    let payloads: Vec<_> = read_case(&case).unwrap().into_iter().map(|p| p.1).collect();
+    let (want, epochs, updates) = hw_bridge::cmd::host_filter_offline(&payloads);
+    assert_eq!(got.stats.rejected(), 0);
+    assert_eq!(got.stats.lost(), 0);
+    assert_eq!(u64::from(got.stats.frames_ok), payloads.len() as u64);
+    assert!(
+        epochs > 18_000 && updates > 50,
+        "{epochs} epochs, {updates} updates"
+    );
+    assert_eq!(got.host_imu_epochs, epochs);
+    assert_eq!(got.host_gnss_updates, updates);
+    let (a, b) = (got.host_solution.unwrap(), want.unwrap());
+    assert!(
+        nav_bits(&[a]) == nav_bits(&[b]),
+        "live {a:?} vs offline {b:?}"
+    );
+}
