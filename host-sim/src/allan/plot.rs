@@ -58,6 +58,8 @@ where
         .configure_mesh()
         .x_desc("tau [s]")
         .y_desc(format!("Allan deviation [{}]", p.unit))
+        .y_labels(8)
+        .x_labels(12)
         .y_label_formatter(&|v| format!("{v:.1e}"))
         .x_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
