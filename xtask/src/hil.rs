@@ -548,30 +548,33 @@ pub struct HostBins {
 }
 
 /// Builds `host-sim` and `hw-bridge` (release) and returns their paths (from cargo's JSON
-/// messages, so any `CARGO_TARGET_DIR` works).
+/// messages, so any `CARGO_TARGET_DIR` works). It asks for exactly the build of the CI's test
+/// step (`cargo test --workspace --release`, which builds both binaries for its integration
+/// tests), so after that step this is a no-op instead of a rebuild with other features.
 pub fn host_bins() -> Result<HostBins> {
     let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     c.args([
-        "build",
+        "test",
+        "--workspace",
         "--release",
-        "-p",
-        "host-sim",
-        "-p",
-        "hw-bridge",
-        "--bins",
+        "--no-run",
         "--message-format=json-render-diagnostics",
     ])
     .current_dir(crate::root())
     .stderr(Stdio::inherit());
     eprintln!("  $ {}", crate::show(&c));
-    let out = c.output().context("running cargo build")?;
+    let out = c.output().context("running cargo test --no-run")?;
     if !out.status.success() {
-        bail!("building host-sim and hw-bridge failed ({})", out.status);
+        bail!("building the host workspace failed ({})", out.status);
     }
     let text = String::from_utf8_lossy(&out.stdout);
     let exe = |name: &str| -> Result<PathBuf> {
         text.lines()
-            .filter(|l| l.contains(&format!("\"name\":\"{name}\"")))
+            .filter(|l| {
+                l.contains(&format!("\"name\":\"{name}\""))
+                    && l.contains("\"kind\":[\"bin\"]")
+                    && l.contains("\"test\":false")
+            })
             .find_map(|l| {
                 let i = l.find("\"executable\":\"")? + "\"executable\":\"".len();
                 let j = l[i..].find('"')?;
