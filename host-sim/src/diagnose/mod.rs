@@ -40,7 +40,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::metrics::{self, Metrics};
-use crate::run::cli::{execute, prepare, Prepared, RunArgs};
+use crate::run::cli::{execute, prepare, scale_white_noise, Prepared, RunArgs};
 use crate::run::{output, run_filter, CaseData, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use stats::{regressor_correlation, residual_stats, ResidualStats, Whiteness};
 
@@ -54,6 +54,12 @@ pub struct DiagnoseArgs {
     /// Largest number of effects to add.
     #[arg(long, default_value_t = 4)]
     pub max_effects: usize,
+    /// Before the effect search, fit one factor on the IMU white-noise PSDs by maximum
+    /// innovation likelihood (grid 1/4 .. 1024 in factors of 2; adopted when it pays its BIC
+    /// penalty). For real drives whose base model is far from consistent (NIS far above its
+    /// expectation): the effect evidence is then measured against a consistent base model.
+    #[arg(long)]
+    pub tune_noise: bool,
 }
 
 /// Options of [`diagnose`].
@@ -63,6 +69,38 @@ pub struct DiagnoseOptions {
     pub max_effects: usize,
     /// Candidates to consider (`None`: [`candidates`] of the case).
     pub candidates: Option<Vec<Block>>,
+    /// Fit a white-noise PSD factor first (`--tune-noise`).
+    pub tune_noise: bool,
+}
+
+/// The white-noise factor search of `--tune-noise`.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoiseTuning {
+    /// Factors tried on the accelerometer and gyro white-noise PSDs.
+    pub scales: Vec<f64>,
+    /// Innovation log-likelihood of each, nats (NaN: the run failed).
+    pub log_likelihood: Vec<f64>,
+    /// NIS mean of each.
+    pub nis_mean: Vec<f64>,
+    /// The factor adopted (1: the configuration's noise kept).
+    pub chosen_scale: f64,
+    /// Log-likelihood gain of the best factor over 1 minus the BIC penalty of one
+    /// parameter, nats (adopted when positive).
+    pub evidence: f64,
+    /// The same search repeated with the added effects in the model (an unmodelled effect
+    /// also inflates the innovations, so the first factor is an upper bound); its factor is
+    /// the one of the final model. Absent when no effect was added.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub with_effects: Option<Box<NoiseTuning>>,
+}
+
+impl NoiseTuning {
+    /// The factor of the final model (after the effects were added), 1 when not adopted.
+    pub fn final_scale(&self) -> f64 {
+        self.with_effects
+            .as_ref()
+            .map_or(self.chosen_scale, |t| t.chosen_scale)
+    }
 }
 
 impl Default for DiagnoseOptions {
@@ -71,6 +109,7 @@ impl Default for DiagnoseOptions {
         Self {
             max_effects: 4,
             candidates: None,
+            tune_noise: false,
         }
     }
 }
@@ -159,6 +198,10 @@ pub struct Diagnosis {
     pub added_effects: Vec<AddedEffect>,
     /// "no missing effect" or the names added.
     pub verdict: String,
+    /// The white-noise factor search (`--tune-noise`; absent otherwise). The added effects
+    /// and the errors after are with the chosen factor.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_tuning: Option<NoiseTuning>,
     /// Cautions about the diagnosis (e.g. a base model whose NIS is far from its
     /// expectation: the likelihood comparison then also rewards states that absorb
     /// noise-model error).
@@ -265,10 +308,28 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         p.opts.model.layout().dim() + p.opts.extra_blocks.iter().map(|b| b.dim()).sum::<usize>();
     let truth = p.case.truth.as_deref();
 
-    let mut added: Vec<Block> = Vec::new();
-    let mut added_ev: Vec<(f64, Option<(String, f64)>)> = Vec::new();
+    let mut base_opts = p.opts.clone();
     let mut current: (RunOutput, Metrics) = (before.clone(), errors_before.clone());
     let mut current_ll = residuals_before.log_likelihood;
+    let mut noise_tuning = if dopts.tune_noise {
+        let t = tune_white_noise(&p.case, &p.opts, &residuals_before);
+        if t.chosen_scale != 1.0 {
+            scale_white_noise(&mut base_opts.filter, t.chosen_scale);
+            let pt = Prepared {
+                case: p.case.clone(),
+                opts: base_opts.clone(),
+                week: p.week,
+                description: p.description.clone(),
+            };
+            current = execute(&pt, &mut |_, _| {})?;
+            current_ll = residual_stats(&current.0.innovations).log_likelihood;
+        }
+        Some(t)
+    } else {
+        None
+    };
+    let mut added: Vec<Block> = Vec::new();
+    let mut added_ev: Vec<(f64, Option<(String, f64)>)> = Vec::new();
     let mut rounds = Vec::new();
     while added.len() < dopts.max_effects {
         let dim_now = base_dim + added.iter().map(|b| b.dim()).sum::<usize>();
@@ -303,7 +364,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                 };
                 let mut blocks = added.clone();
                 blocks.push(b);
-                let opts = options_with(&p.opts, &blocks);
+                let opts = options_with(&base_opts, &blocks);
                 match run_filter(&p.case, &opts) {
                     Ok(out) => {
                         let rs = residual_stats(&out.innovations);
@@ -387,12 +448,25 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         })
         .collect();
     // the after run with the same recording as the before run (coasting baselines, epochs)
-    let (after, errors_after) = if added.is_empty() {
+    let tuned = noise_tuning.as_ref().is_some_and(|t| t.chosen_scale != 1.0);
+    let mut final_opts = options_with(&base_opts, &added);
+    if let Some(t) = noise_tuning.as_mut().filter(|_| !added.is_empty()) {
+        // re-fit the factor with the effects in the model, from the configuration's noise
+        let with = options_with(&p.opts, &added);
+        let base_stats = run_filter(&p.case, &with)
+            .map(|o| residual_stats(&o.innovations))
+            .unwrap_or_else(|_| residuals_before.clone());
+        let t2 = tune_white_noise(&p.case, &with, &base_stats);
+        final_opts = with;
+        scale_white_noise(&mut final_opts.filter, t2.chosen_scale);
+        t.with_effects = Some(Box::new(t2));
+    }
+    let (after, errors_after) = if added.is_empty() && !tuned {
         (after, errors_after)
     } else {
         let pa = Prepared {
             case: p.case.clone(),
-            opts: options_with(&p.opts, &added),
+            opts: final_opts,
             week: p.week,
             description: p.description.clone(),
         };
@@ -410,7 +484,23 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     };
     let mut warnings = Vec::new();
     let (nis, dim) = (residuals_before.nis_mean, residuals_before.nis_expected);
-    if dim > 0.0 && !(0.5 * dim..=2.0 * dim).contains(&nis) {
+    if let Some(t) = noise_tuning.as_ref().filter(|_| tuned) {
+        let tuned_nis = t
+            .scales
+            .iter()
+            .zip(&t.nis_mean)
+            .find(|(k, _)| **k == t.chosen_scale)
+            .map_or(nis, |(_, n)| *n);
+        let t = t.with_effects.as_deref().unwrap_or(t);
+        if t.scales.last() == Some(&t.chosen_scale) {
+            warnings.push(format!(
+                "white-noise factor at the top of its grid ({}; NIS mean {tuned_nis:.1} for an \
+                 expected {dim:.1}): the inconsistency is not only IMU white noise (GNSS \
+                 sigmas, vibration, unmodelled effects)",
+                t.chosen_scale
+            ));
+        }
+    } else if dim > 0.0 && !(0.5 * dim..=2.0 * dim).contains(&nis) {
         warnings.push(format!(
             "base model inconsistent with the data: NIS mean {nis:.1} for an expected {dim:.1}; \
              the evidence values are inflated and an added effect may partly absorb \
@@ -427,6 +517,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         diagnosis: Diagnosis {
             added_effects,
             verdict,
+            noise_tuning,
             warnings,
             candidates_considered: all.iter().map(|b| b.name().to_string()).collect(),
             residuals_before,
@@ -440,6 +531,46 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         before,
         after,
     })
+}
+
+/// The `--tune-noise` search: the base model with its white-noise PSDs times 2^i,
+/// i = -2..=10, in parallel; the best factor is adopted when its log-likelihood gain over the
+/// configuration's noise exceeds the BIC penalty of one parameter.
+fn tune_white_noise(case: &CaseData, opts: &RunOptions, before: &ResidualStats) -> NoiseTuning {
+    let scales: Vec<f64> = (-2..=10).map(|i| 2f64.powi(i)).collect();
+    let stats: Vec<(f64, f64)> = scales
+        .par_iter()
+        .map(|&k| {
+            if k == 1.0 {
+                return (before.log_likelihood, before.nis_mean);
+            }
+            let mut o = opts.clone();
+            scale_white_noise(&mut o.filter, k);
+            match run_filter(case, &o) {
+                Ok(out) => {
+                    let r = residual_stats(&out.innovations);
+                    (r.log_likelihood, r.nis_mean)
+                }
+                Err(_) => (f64::NAN, f64::NAN),
+            }
+        })
+        .collect();
+    let penalty = 0.5 * (before.scalar_measurements.max(2) as f64).ln();
+    let (best_k, best_ll) = scales
+        .iter()
+        .zip(&stats)
+        .filter(|(_, (ll, _))| ll.is_finite())
+        .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+        .map_or((1.0, before.log_likelihood), |(k, (ll, _))| (*k, *ll));
+    let evidence = best_ll - before.log_likelihood - penalty;
+    NoiseTuning {
+        scales,
+        log_likelihood: stats.iter().map(|s| s.0).collect(),
+        nis_mean: stats.iter().map(|s| s.1).collect(),
+        chosen_scale: if evidence > 0.0 { best_k } else { 1.0 },
+        evidence,
+        with_effects: None,
+    }
 }
 
 /// Writes diagnosis.json, nav_before.txt, nav_after.txt, the report and the augmented
@@ -470,6 +601,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let dopts = DiagnoseOptions {
         max_effects: args.max_effects,
         candidates: None,
+        tune_noise: args.tune_noise,
     };
     let d = diagnose(&p, &dopts)?;
     let dir: &PathBuf = &args.run.out;

@@ -323,6 +323,29 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     let mut s = String::new();
     let _ = writeln!(s, "# Diagnosis\n\n{}\n", p.description);
     let _ = writeln!(s, "Verdict: **{}**\n", dg.verdict);
+    if let Some(t) = &dg.noise_tuning {
+        let _ = writeln!(
+            s,
+            "White-noise factor (`--tune-noise`): **{}** (evidence {:.1} nats; the effect search and the errors after use it)\n",
+            t.chosen_scale, t.evidence
+        );
+        let _ = writeln!(
+            s,
+            "| factor on the white-noise PSDs | log-likelihood [nats] | NIS mean |"
+        );
+        let _ = writeln!(s, "|---|---|---|");
+        for ((k, ll), nis) in t.scales.iter().zip(&t.log_likelihood).zip(&t.nis_mean) {
+            let _ = writeln!(s, "| {k} | {ll:.1} | {nis:.2} |");
+        }
+        let _ = writeln!(s);
+        if let Some(t2) = &t.with_effects {
+            let _ = writeln!(
+                s,
+                "Re-fitted with the added effects in the model: factor **{}** (evidence {:.1} nats): the final model's.\n",
+                t2.chosen_scale, t2.evidence
+            );
+        }
+    }
     for w in &dg.warnings {
         let _ = writeln!(s, "Warning: {w}\n");
     }
@@ -492,6 +515,20 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
                     g.insert("time_offset_s".into(), toml::Value::Float(old + dt));
                 }
                 _ => {}
+            }
+        }
+    }
+    if let Some(k) = d.noise_tuning.as_ref().map(|t| t.final_scale()) {
+        if k != 1.0 {
+            let noise = doc
+                .entry("noise")
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(n) = noise {
+                let old = n
+                    .get("white_noise_scale")
+                    .and_then(|v| v.as_float())
+                    .unwrap_or(1.0);
+                n.insert("white_noise_scale".into(), toml::Value::Float(old * k));
             }
         }
     }

@@ -306,6 +306,11 @@ pub struct NoiseConfig {
     /// Gyro scale-factor states (absent: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gyro_scale: Option<ScaleNoiseConfig>,
+    /// Factor on the accelerometer and gyro white-noise PSDs (absent: 1), e.g. the
+    /// maximum-likelihood factor found by `host-sim diagnose --tune-noise` (vibration in a
+    /// vehicle raises the in-run noise above the datasheet's static figure).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub white_noise_scale: Option<f64>,
 }
 
 /// Picks the one given alternative (each already converted to SI); 0 when none.

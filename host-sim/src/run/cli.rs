@@ -268,15 +268,7 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         if !(k.is_finite() && k > 0.0) {
             bail!("--noise-scale {k}: must be positive");
         }
-        for s in opts
-            .filter
-            .accel
-            .s_n
-            .iter_mut()
-            .chain(opts.filter.gyro.s_n.iter_mut())
-        {
-            *s *= k;
-        }
+        scale_white_noise(&mut opts.filter, k);
         description.push_str(&format!("; white-noise PSDs x{k}"));
     }
     let (t0, t_end) = match (case.imu.first(), case.imu.last()) {
@@ -376,6 +368,18 @@ fn prepare_kf_gins(
     ))
 }
 
+/// Multiplies the accelerometer and gyro white-noise PSDs (`s_n`) of `filter` by `k`.
+pub fn scale_white_noise(filter: &mut FilterConfig, k: f64) {
+    for s in filter
+        .accel
+        .s_n
+        .iter_mut()
+        .chain(filter.gyro.s_n.iter_mut())
+    {
+        *s *= k;
+    }
+}
+
 /// Appends the effect block `name` (vocabulary name) to the run's model, once; widens the
 /// GNSS time-offset limit when the block is `time_offset`. None: not an effect name.
 fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
@@ -458,6 +462,12 @@ fn prepare_run_config(
         .to_sensor_noise()
         .map_err(|e| anyhow::anyhow!(e))?;
     let mut filter = FilterConfig::with_noise(accel, gyro);
+    if let Some(k) = r.noise.white_noise_scale {
+        if !(k.is_finite() && k > 0.0) {
+            bail!("noise.white_noise_scale = {k}: must be positive");
+        }
+        scale_white_noise(&mut filter, k);
+    }
     if let Some(s) = &r.noise.accel_scale {
         filter.accel_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
     }
