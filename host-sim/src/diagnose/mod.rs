@@ -500,11 +500,15 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                 t.chosen_scale
             ));
         }
-    } else if dim > 0.0 && !(0.5 * dim..=2.0 * dim).contains(&nis) {
+    } else if dim > 0.0 && !(0.5 * dim..=2.0 * dim).contains(&residuals_after.nis_mean) {
+        // judged on the final model: a missing effect alone also inflates the base NIS, and
+        // is then explained by the effect added
+        let after_nis = residuals_after.nis_mean;
         warnings.push(format!(
-            "base model inconsistent with the data: NIS mean {nis:.1} for an expected {dim:.1}; \
-             the evidence values are inflated and an added effect may partly absorb \
-             noise-model error (check the noise model, e.g. run's --noise-scale)"
+            "model inconsistent with the data even with the added effects: NIS mean \
+             {after_nis:.1} (base {nis:.1}) for an expected {dim:.1}; the evidence values are \
+             inflated and an added effect may partly absorb noise-model error (check the \
+             noise model, e.g. run's --noise-scale, or diagnose --tune-noise)"
         ));
     }
     if residuals_before.updates < 30 {
