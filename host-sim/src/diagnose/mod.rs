@@ -279,10 +279,8 @@ pub fn candidates(case: &CaseData, opts: &RunOptions) -> Vec<Block> {
 /// fixes further from an IMU epoch (its 3-sigma prior).
 pub fn options_with(base: &RunOptions, blocks: &[Block]) -> RunOptions {
     let mut o = base.clone();
-    o.extra_blocks.extend_from_slice(blocks);
-    if o.extra_blocks.contains(&Block::TimeOffset) {
-        let lim = 3.0 * o.filter.effects.time_offset.init_sigma + 0.05;
-        o.filter.max_gnss_time_offset_s = o.filter.max_gnss_time_offset_s.max(lim);
+    for &b in blocks {
+        o.add_effect_block(b);
     }
     o
 }

@@ -380,17 +380,10 @@ pub fn scale_white_noise(filter: &mut FilterConfig, k: f64) {
     }
 }
 
-/// Appends the effect block `name` (vocabulary name) to the run's model, once; widens the
-/// GNSS time-offset limit when the block is `time_offset`. None: not an effect name.
+/// Appends the effect block named `name` (vocabulary name) with
+/// [`RunOptions::add_effect_block`]. None: not an effect name.
 fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
-    let b = Block::effect_from_name(name.trim())?;
-    if !opts.extra_blocks.contains(&b) {
-        opts.extra_blocks.push(b);
-    }
-    if b == Block::TimeOffset {
-        let lim = 3.0 * opts.filter.effects.time_offset.init_sigma + 0.05;
-        opts.filter.max_gnss_time_offset_s = opts.filter.max_gnss_time_offset_s.max(lim);
-    }
+    opts.add_effect_block(Block::effect_from_name(name.trim())?);
     Some(())
 }
 
