@@ -550,26 +550,22 @@ pub fn outage_table(title: &str, per: &[OutageMetrics], sum: &OutageSummary) -> 
             f(o.max.heading_deg, 3),
         ));
     }
-    s.push_str(&format!(
-        "  RMS                    | {:>11} {:>6} {:>8} | {:>11} {:>6} {:>5} {:>8}\n",
-        f(sum.end_horizontal_m.rms, 3),
-        f(sum.end_height_m.rms, 3),
-        f(sum.end_heading_deg.rms, 3),
-        f(sum.max_horizontal_m.rms, 3),
-        f(sum.max_height_m.rms, 3),
-        f(sum.max_3d_m.rms, 3),
-        f(sum.max_heading_deg.rms, 3),
-    ));
-    s.push_str(&format!(
-        "  max                    | {:>11} {:>6} {:>8} | {:>11} {:>6} {:>5} {:>8}\n",
-        f(sum.end_horizontal_m.max, 3),
-        f(sum.end_height_m.max, 3),
-        f(sum.end_heading_deg.max, 3),
-        f(sum.max_horizontal_m.max, 3),
-        f(sum.max_height_m.max, 3),
-        f(sum.max_3d_m.max, 3),
-        f(sum.max_heading_deg.max, 3),
-    ));
+    // the summary rows: RMS and max over the outages of each column
+    for (label, pick) in [
+        ("RMS", (|st: &Stat| st.rms) as fn(&Stat) -> f64),
+        ("max", |st: &Stat| st.max),
+    ] {
+        s.push_str(&format!(
+            "  {label:<22} | {:>11} {:>6} {:>8} | {:>11} {:>6} {:>5} {:>8}\n",
+            f(pick(&sum.end_horizontal_m), 3),
+            f(pick(&sum.end_height_m), 3),
+            f(pick(&sum.end_heading_deg), 3),
+            f(pick(&sum.max_horizontal_m), 3),
+            f(pick(&sum.max_height_m), 3),
+            f(pick(&sum.max_3d_m), 3),
+            f(pick(&sum.max_heading_deg), 3),
+        ));
+    }
     s
 }
 
