@@ -15,6 +15,7 @@ pub mod app;
 pub mod boards;
 pub mod icm42688;
 pub mod model;
+pub mod scenario;
 pub mod stack;
 pub mod time;
 

@@ -15,14 +15,14 @@
 #![no_main]
 
 use cortex_m_rt::entry;
+use firmware::scenario::{imu_sample, start_pos, Lcg};
 use firmware::{board, error, info, stack, time::TimeBase};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
-use nav_core::earth::{self, Llh};
 use nav_core::filter::{Filter, InitialUncertainty};
 use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK};
 use nav_core::nav::{NavState, Strapdown};
-use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use nav_core::types::{FixQuality, GnssFix};
 
 /// IMU rate of the scenario, Hz.
 const IMU_HZ: f64 = 200.0;
@@ -114,45 +114,7 @@ const CASES: &[Case] = &[
     },
 ];
 
-/// Deterministic noise in [-1, 1) (64-bit LCG, top bits).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
-    }
-}
-
-const LAT_DEG: f64 = 48.0;
 const T0_S: f64 = 1000.0;
-
-fn start_pos() -> Llh {
-    Llh::from_deg(LAT_DEG, 11.0, 500.0)
-}
-
-/// The scenario: level, heading north, at rest; the IMU measures gravity and earth rate plus
-/// white noise (1e-3 m/s^2, 1e-5 rad/s uniform).
-fn imu_sample(k: u32, rng: &mut Lcg) -> ImuSample {
-    let p = start_pos();
-    let dt = 1.0 / IMU_HZ;
-    let g = earth::gravity_mps2(p.lat_rad, p.h_m);
-    let w = earth::OMEGA_IE_RADPS;
-    let rate = [
-        w * libm::cos(p.lat_rad) + 1e-5 * rng.next(),
-        1e-5 * rng.next(),
-        -w * libm::sin(p.lat_rad) + 1e-5 * rng.next(),
-    ];
-    let f = [1e-3 * rng.next(), 1e-3 * rng.next(), -g + 1e-3 * rng.next()];
-    ImuSample {
-        t_s: T0_S + f64::from(k) * dt,
-        dtheta_rad: rate.map(|r| r * dt),
-        dv_mps: f.map(|a| a * dt),
-        temperature_c: 25.0,
-    }
-}
 
 fn init_state() -> NavState {
     NavState::from_rpy(T0_S, start_pos(), Vector3::zeros(), [0.0, 0.0, 0.0])
@@ -163,7 +125,7 @@ fn strapdown(m: &mut Meter, case: &'static str) -> bool {
     let mut rng = Lcg(1);
     let mut acc = Acc::default();
     for k in 1..=EPOCHS {
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         let (r, t) = m.time(|| mech.update(&s));
         if r.is_err() {
             error!("bench {}: mechanization failed at epoch {}", case, k);
@@ -193,7 +155,7 @@ fn wire_decode(m: &mut Meter, case: &'static str) -> bool {
     let mut rng = Lcg(3);
     let mut frames = 0u32;
     for k in 1..=DECODE_FRAMES {
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         let mut one = [0u8; MAX_FRAME_LEN];
         let mut put = |p: &Payload, len: &mut usize| -> bool {
             let Ok(n) = enc.encode(p, &mut one) else {
@@ -344,7 +306,7 @@ fn filter<const N: usize>(
     let p0 = start_pos();
     let mut accepted = 0u32;
     for k in 1..=EPOCHS {
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         let preds = f.counters().cov_predictions;
         let (r, t) = m.time(|| f.propagate(&s));
         if r.is_err() {

@@ -14,54 +14,19 @@
 #![no_main]
 
 use cortex_m_rt::entry;
+use firmware::scenario::{imu_sample, start_pos, Lcg};
 use firmware::{board, error, info};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
-use nav_core::earth::{self, Llh};
 use nav_core::filter::{Filter, InitialUncertainty, STATUS_LAST_FIX_REJECTED};
 use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_NBK};
 use nav_core::nav::NavState;
-use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use nav_core::types::{FixQuality, GnssFix};
 
 const IMU_HZ: f64 = 200.0;
 const T0_S: f64 = 5000.0;
 /// Metres per radian of latitude (close enough for the offsets used here).
 const M_PER_RAD: f64 = 6_370_000.0;
-
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) * 2.0 - 1.0
-    }
-}
-
-fn start_pos() -> Llh {
-    Llh::from_deg(48.0, 11.0, 500.0)
-}
-
-/// At rest, level, heading north: gravity and earth rate plus uniform white noise.
-fn imu_sample(k: u32, rng: &mut Lcg) -> ImuSample {
-    let p = start_pos();
-    let dt = 1.0 / IMU_HZ;
-    let g = earth::gravity_mps2(p.lat_rad, p.h_m);
-    let w = earth::OMEGA_IE_RADPS;
-    let rate = [
-        w * libm::cos(p.lat_rad) + 1e-5 * rng.next(),
-        1e-5 * rng.next(),
-        -w * libm::sin(p.lat_rad) + 1e-5 * rng.next(),
-    ];
-    let f = [1e-3 * rng.next(), 1e-3 * rng.next(), -g + 1e-3 * rng.next()];
-    ImuSample {
-        t_s: T0_S + f64::from(k) * dt,
-        dtheta_rad: rate.map(|r| r * dt),
-        dv_mps: f.map(|a| a * dt),
-        temperature_c: 25.0,
-    }
-}
 
 /// A fix at the start position moved `north_m` north, with 1e-8 rad of noise.
 fn fix(t_s: f64, north_m: f64, rng: &mut Lcg) -> GnssFix {
@@ -126,7 +91,7 @@ fn covariance_stays_spd_over_a_long_run_21_states_f32() -> Result<(), &'static s
     let mut rng = Lcg(11);
     let (mut sigma_before, mut sigma_end_outage) = (0.0f64, 0.0f64);
     for k in 1..=36_000u32 {
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         f.propagate(&s).map_err(|_| "propagate failed")?;
         if k % 200 == 0 {
             let sec = k / 200;
@@ -174,7 +139,7 @@ fn gate_rejects_an_outlier_and_accepts_the_next_fix() -> Result<(), &'static str
     for _ in 0..20 {
         for _ in 0..200 {
             k += 1;
-            let s = imu_sample(k, &mut rng);
+            let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
             t = s.t_s;
             f.propagate(&s).map_err(|_| "propagate failed")?;
         }
@@ -187,7 +152,7 @@ fn gate_rejects_an_outlier_and_accepts_the_next_fix() -> Result<(), &'static str
     }
     for _ in 0..200 {
         k += 1;
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         t = s.t_s;
         f.propagate(&s).map_err(|_| "propagate failed")?;
     }
@@ -217,7 +182,7 @@ fn gate_rejects_an_outlier_and_accepts_the_next_fix() -> Result<(), &'static str
     }
     for _ in 0..200 {
         k += 1;
-        let s = imu_sample(k, &mut rng);
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
         t = s.t_s;
         f.propagate(&s).map_err(|_| "propagate failed")?;
     }
@@ -248,7 +213,7 @@ fn forced_update_resets_the_filter_after_consecutive_rejections() -> Result<(), 
         let mut t = T0_S;
         for _ in 0..200 {
             k += 1;
-            let s = imu_sample(k, &mut rng);
+            let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
             t = s.t_s;
             f.propagate(&s).map_err(|_| "propagate failed")?;
         }
