@@ -1,7 +1,7 @@
 //! The embedded half: toolchain set-up from Debian's packages, cross builds with
 //! `-Zbuild-std=core`, qemu runs and ELF size reports.
 //!
-//! The recipe (see `docs/DESIGN.md` in shared): Debian's `rustc-web` (rustc >= 1.89 at
+//! The recipe (see `docs/DESIGN.md`): Debian's `rustc-web` (rustc >= 1.89 at
 //! `/usr/bin/rustc`) with its `rust-web-src` standard-library source builds `core` for
 //! `thumbv7em-none-eabihf`; rustup's `rust-lld` links; `qemu-system-arm -machine mps2-an386`
 //! runs the result. Everything built by the Debian rustc goes to `target/embedded`, so the
