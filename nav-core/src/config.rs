@@ -372,8 +372,10 @@ pub struct RobustGating {
     /// It eases the inflation back off while the median is below this.
     pub mismatch_ratio_off: f64,
     /// Factor applied per fix to the process-noise inflation and the gate widening while a
-    /// mismatch is declared (and divided out per fix while easing off), > 1.
+    /// mismatch is declared, > 1.
     pub inflation_step: f64,
+    /// Factor divided out per fix while easing off (median below `mismatch_ratio_off`), > 1.
+    pub easing_step: f64,
     /// Largest process-noise inflation factor (multiplies Q), >= 1.
     pub max_q_inflation: f64,
     /// Largest gate widening factor (multiplies the rejection threshold), >= 1.
@@ -385,7 +387,8 @@ pub struct RobustGating {
 
 impl Default for RobustGating {
     /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
-    /// NIS/dof of 4, easing below 1.5; inflation x1.5 per fix up to x100 (Q and gate);
+    /// NIS/dof of 4 (or two rejections in a row), easing below 1.5; inflation x1.5 per fix up
+    /// to x100 (Q and gate), easing /1.1 per fix;
     /// heading reset above 5 m/s.
     fn default() -> Self {
         Self {
@@ -395,6 +398,7 @@ impl Default for RobustGating {
             mismatch_ratio_on: 4.0,
             mismatch_ratio_off: 1.5,
             inflation_step: 1.5,
+            easing_step: 1.1,
             max_q_inflation: 100.0,
             max_gate_widening: 100.0,
             heading_reset_min_speed_mps: 5.0,
@@ -412,6 +416,8 @@ impl RobustGating {
             && self.mismatch_ratio_off <= self.mismatch_ratio_on
             && self.inflation_step.is_finite()
             && self.inflation_step > 1.0
+            && self.easing_step.is_finite()
+            && self.easing_step > 1.0
             && self.max_q_inflation.is_finite()
             && self.max_q_inflation >= 1.0
             && self.max_gate_widening.is_finite()

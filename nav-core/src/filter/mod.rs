@@ -508,7 +508,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         if let Some(r) = self.cfg.gating.robust {
             if out.dim > 0 {
-                self.gate.monitor(&r, out.t_s, out.nis / out.dim as f64);
+                let rejected = !out.accepted && !out.forced;
+                self.gate
+                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected);
             }
             if self.gate.stats.mismatch {
                 self.status |= STATUS_MODEL_MISMATCH;
