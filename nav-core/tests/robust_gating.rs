@@ -632,3 +632,64 @@ fn an_undeclared_1_5_m_lever_arm_is_not_rejected_and_stays_within_1_2x_of_gate_o
     sc.lever_arm_body_m = [1.0, 0.9, -0.7];
     check_mismatch("undeclared lever arm 1.5 m", sc, 52, 15.0);
 }
+
+/// The heading is 15 deg wrong and the filter is sure of it (0.05 deg): at 10 m/s the fixes
+/// are rejected until the reset, which re-initialises the heading from the GNSS course too
+/// (hard gate: nothing else can recover it); the robust default recovers as well.
+#[test]
+fn a_reset_at_speed_re_initialises_the_heading_from_the_gnss_course() {
+    for (name, gating) in [
+        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
+        ("robust", Gating::robust()),
+    ] {
+        let sc = SimConfig::nbk(100.0);
+        let mut cfg = nbk_cfg(&sc);
+        cfg.gating = gating;
+        let mut sim = Sim::new(sc, 47);
+        let unc = InitialUncertainty {
+            att_sigma_rad: [0.05f64.to_radians(); 3],
+            vel_sigma_mps: [0.02; 3],
+            pos_sigma_m: [0.05; 3],
+        };
+        let mut init = *sim.truth();
+        init.q_nb = UnitQuaternion::from_scaled_axis(Vector3::new(0.0, 0.0, 15f64.to_radians()))
+            * init.q_nb;
+        let mut f: Filter<f64, N18> = Filter::new(LAYOUT_NBK, &cfg, init, &unc).unwrap();
+        let mut yaw_err_after_reset = None;
+        let mut fixes = 0;
+        let mut last_yaw_err = f64::NAN;
+        let mut max_pos_late: f64 = 0.0;
+        while fixes < 120 {
+            let e = sim.step();
+            f.propagate(&e.imu).unwrap();
+            let Some(fix) = e.gnss else { continue };
+            fixes += 1;
+            let o = f.update_gnss(&fix).unwrap();
+            let (phi, _, dr) = nav_errors(f.nav_state(), &e.truth);
+            last_yaw_err = phi[2].to_degrees();
+            if o.forced && yaw_err_after_reset.is_none() {
+                yaw_err_after_reset = Some(last_yaw_err);
+            }
+            if fixes > 60 {
+                max_pos_late = max_pos_late.max(horiz(&dr));
+            }
+        }
+        println!(
+            "{name}: yaw error after the first reset {yaw_err_after_reset:?} deg, final {last_yaw_err:.3} deg, \
+             resets {} (heading {}), rejected {}, max horizontal error after 60 s {max_pos_late:.3} m",
+            f.counters().gnss_forced,
+            f.robust_stats().heading_resets,
+            f.counters().gnss_rejected
+        );
+        if name == "hard" {
+            assert!(f.robust_stats().heading_resets >= 1);
+            let y = yaw_err_after_reset.expect("a reset");
+            assert!(y.abs() < 1.0, "{name}: yaw error after the reset {y} deg");
+        }
+        assert!(
+            last_yaw_err.abs() < 0.5,
+            "{name}: final yaw error {last_yaw_err} deg"
+        );
+        assert!(max_pos_late < 0.2, "{name}: {max_pos_late} m");
+    }
+}

@@ -110,6 +110,8 @@ pub(super) struct GateState {
     next: usize,
     /// The last rejected fix of the current run of rejections.
     pub last_rejected: Option<RejectedFix>,
+    /// The one rejected before it.
+    pub earlier_rejected: Option<RejectedFix>,
     rejection_run: u32,
     last_fix_t_s: f64,
     episode_start_t_s: f64,
@@ -123,6 +125,7 @@ impl Default for GateState {
             len: 0,
             next: 0,
             last_rejected: None,
+            earlier_rejected: None,
             rejection_run: 0,
             last_fix_t_s: f64::NAN,
             episode_start_t_s: f64::NAN,
@@ -244,6 +247,7 @@ impl GateState {
         self.len = 0;
         self.next = 0;
         self.last_rejected = None;
+        self.earlier_rejected = None;
     }
 
     /// Median of the window (insertion sort of at most [`MAX_NIS_WINDOW`] values).
