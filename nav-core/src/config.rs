@@ -385,14 +385,21 @@ pub struct RobustGating {
     pub easing_step: f64,
     /// Largest process-noise inflation factor (multiplies Q), >= 1.
     pub max_q_inflation: f64,
-    /// Largest gate widening factor (multiplies the rejection threshold), >= 1.
+    /// Largest gate widening factor (multiplies the rejection threshold), >= 1. A fix that
+    /// ends a gap (see `reacquisition_gap_intervals`) gets it at once.
     pub max_gate_widening: f64,
+    /// A fix ends a gap when no fix was used for more than this many nominal fix intervals
+    /// (the running mean of the intervals between fixes) ...
+    pub reacquisition_gap_intervals: f64,
+    /// ... and for more than this long, s.
+    pub reacquisition_min_gap_s: f64,
 }
 
 impl Default for RobustGating {
     /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
     /// NIS/dof of 4 (or two rejections in a row), easing below 1.5; inflation x1.5 per fix up
-    /// to x100 (Q and gate), easing /1.1 per fix.
+    /// to x100 (Q and gate), easing /1.1 per fix; the gate fully widened for a fix that ends
+    /// a gap of more than 2.5 fix intervals and 2 s.
     fn default() -> Self {
         Self {
             downweight_nis_pos: chi2::DIM3_P99,
@@ -404,6 +411,8 @@ impl Default for RobustGating {
             easing_step: 1.1,
             max_q_inflation: 100.0,
             max_gate_widening: 100.0,
+            reacquisition_gap_intervals: 2.5,
+            reacquisition_min_gap_s: 2.0,
         }
     }
 }
@@ -424,6 +433,9 @@ impl RobustGating {
             && self.max_q_inflation >= 1.0
             && self.max_gate_widening.is_finite()
             && self.max_gate_widening >= 1.0
+            && self.reacquisition_gap_intervals.is_finite()
+            && self.reacquisition_gap_intervals >= 1.0
+            && self.reacquisition_min_gap_s >= 0.0
     }
 }
 

@@ -509,6 +509,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             });
         }
         if let Some(r) = self.cfg.gating.robust {
+            self.gate.note_fix(out.t_s, out.accepted || out.forced);
             if out.dim > 0 {
                 let rejected = !out.accepted && !out.forced;
                 self.gate
@@ -731,7 +732,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         force: bool,
         t_s: f64,
     ) -> Result<UpdateOutcome, FilterError> {
-        let th = self.gate.thresholds(&self.cfg.gating, M);
+        let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
         let z = z64.map(T::of_f64);
         let mut r = r64.map(T::of_f64);
         let (mut pht, s, l) = self.innovation_cov(h, &r);

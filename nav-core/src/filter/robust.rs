@@ -114,6 +114,9 @@ pub(super) struct GateState {
     pub earlier_rejected: Option<RejectedFix>,
     rejection_run: u32,
     last_fix_t_s: f64,
+    last_seen_t_s: f64,
+    last_used_t_s: f64,
+    nominal_interval_s: f64,
     episode_start_t_s: f64,
     pub stats: RobustStats,
 }
@@ -128,6 +131,9 @@ impl Default for GateState {
             earlier_rejected: None,
             rejection_run: 0,
             last_fix_t_s: f64::NAN,
+            last_seen_t_s: f64::NAN,
+            last_used_t_s: f64::NAN,
+            nominal_interval_s: f64::NAN,
             episode_start_t_s: f64::NAN,
             stats: RobustStats::default(),
         }
@@ -145,7 +151,10 @@ pub(super) struct Thresholds {
 
 impl GateState {
     /// The thresholds for a measurement of dimension `dim` (3 or 6).
-    pub fn thresholds(&self, g: &Gating, dim: usize) -> Thresholds {
+    /// With robust gating the rejection threshold is widened by the monitor's factor, and by
+    /// [`RobustGating::max_gate_widening`] for a fix that ends a gap (see
+    /// [`Self::is_reacquisition`]). `t_s` is the fix time.
+    pub fn thresholds(&self, g: &Gating, dim: usize, t_s: f64) -> Thresholds {
         let base = if dim == 3 {
             g.nis_threshold_pos
         } else {
@@ -162,11 +171,55 @@ impl GateState {
                 } else {
                     r.downweight_nis_pos_vel
                 };
-                let reject = base * self.stats.gate_widening;
+                let widening = if self.is_reacquisition(r, t_s) {
+                    r.max_gate_widening.max(self.stats.gate_widening)
+                } else {
+                    self.stats.gate_widening
+                };
+                let reject = base * widening;
                 Thresholds {
                     downweight: dw.min(reject),
                     reject,
                 }
+            }
+        }
+    }
+
+    /// Whether a fix at `t_s` ends a gap: no fix used for longer than
+    /// [`RobustGating::reacquisition_gap_intervals`] nominal fix intervals (and at least
+    /// [`RobustGating::reacquisition_min_gap_s`]). After a gap the unaided error has grown
+    /// with whatever the model leaves out, so the predicted innovation covariance is least
+    /// trustworthy exactly there (an outage, or a run of rejections).
+    pub fn is_reacquisition(&self, r: &RobustGating, t_s: f64) -> bool {
+        let gap = t_s - self.last_used_t_s;
+        let nominal = if self.nominal_interval_s.is_finite() {
+            self.nominal_interval_s
+        } else {
+            0.0
+        };
+        gap.is_finite()
+            && gap > r.reacquisition_min_gap_s
+            && gap > r.reacquisition_gap_intervals * nominal
+    }
+
+    /// Notes a fix (robust gating only): its time, for the nominal fix interval, and whether it
+    /// was used (accepted or reset), for the gap.
+    pub fn note_fix(&mut self, t_s: f64, used: bool) {
+        let dt = t_s - self.last_seen_t_s;
+        if dt.is_finite() && dt > 0.0 {
+            if !self.nominal_interval_s.is_finite() {
+                self.nominal_interval_s = dt;
+            } else if dt < 2.0 * self.nominal_interval_s {
+                self.nominal_interval_s = 0.9 * self.nominal_interval_s + 0.1 * dt;
+            } else {
+                // a gap, or a slower fix rate: adapt slowly
+                self.nominal_interval_s *= 1.1;
+            }
+        }
+        if t_s.is_finite() {
+            self.last_seen_t_s = t_s;
+            if used {
+                self.last_used_t_s = t_s;
             }
         }
     }
