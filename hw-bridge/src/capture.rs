@@ -46,9 +46,9 @@ pub enum CaptureError {
     #[error("empty file")]
     Empty,
     /// The file ends inside the magic or header.
-    #[error("capture header truncated at byte {offset}")]
+    #[error("capture header truncated: the file ends in the header field at byte {offset}")]
     TruncatedHeader {
-        /// File offset where the file ended.
+        /// File offset of the field (magic, header length or header text) the file ends in.
         offset: u64,
     },
     /// Header not UTF-8 or malformed.
@@ -255,9 +255,7 @@ fn find_magic(r: &mut impl Read) -> Result<(u64, Vec<u8>), CaptureError> {
             return Err(if dropped == 0 && win.is_empty() {
                 CaptureError::Empty
             } else if dropped == 0 && MAGIC.starts_with(&win) {
-                CaptureError::TruncatedHeader {
-                    offset: win.len() as u64,
-                }
+                CaptureError::TruncatedHeader { offset: 0 }
             } else {
                 CaptureError::BadMagic(first)
             });
@@ -313,9 +311,7 @@ impl<R: Read> CaptureReader<R> {
             .read_to_end(&mut text)
             .map_err(CaptureError::Io)?;
         if text.len() != len as usize {
-            return Err(CaptureError::TruncatedHeader {
-                offset: base + 4 + text.len() as u64,
-            });
+            return Err(CaptureError::TruncatedHeader { offset: base + 4 });
         }
         let text = String::from_utf8(text).map_err(|e| CaptureError::BadHeader(e.to_string()))?;
         let header = CaptureHeader::parse(&text)?;

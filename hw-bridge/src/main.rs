@@ -29,7 +29,19 @@ enum Cmd {
 /// Exit status: 0 complete, 2 finished but incomplete (outputs hold everything up to the
 /// fault and say so), 1 error (the message names the cause once).
 fn main() -> ExitCode {
-    match run(Cli::parse().cmd) {
+    // clap's own usage errors exit 2, which means "incomplete" here: they exit 1.
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    match run(cli.cmd) {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(2),
         Err(e) => {
