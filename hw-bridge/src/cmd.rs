@@ -4,6 +4,7 @@
 use crate::capture::{CaptureError, CaptureHeader, CaptureReader, CaptureWriter, Record};
 use crate::frames::{case_payloads, FrameLog};
 use crate::gnss::{GnssEvent, GnssStream, NmeaOptions};
+use crate::outputs::{partial_name, rename, write_atomically, FrameFiles};
 use crate::serial;
 use crate::status::{decoder_report, decoder_summary, StatusLine};
 use anyhow::{bail, Context};
@@ -16,6 +17,60 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// Default baud rate (a 200 Hz IMU stream needs at least 230400, see docs/wire-protocol.md).
 pub const DEFAULT_BAUD: u32 = 921_600;
+
+/// Slowest replay speed factor accepted (`--speed`, `--rate-x`).
+pub const MIN_SPEED: f64 = 1e-3;
+/// Fastest replay speed factor accepted (`--speed`, `--rate-x`).
+pub const MAX_SPEED: f64 = 1e6;
+/// Longest duration or timeout accepted on the command line, s (about 31.7 years: beyond it a
+/// number is a typo, and every one of them converts to a `Duration`).
+pub const MAX_SECONDS: f64 = 1e9;
+
+fn parse_f64(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .map_err(|e| format!("{s:?} is not a number ({e})"))
+}
+
+/// Parses a speed factor: a number in [[`MIN_SPEED`], [`MAX_SPEED`]] (clap value parser of
+/// `replay --speed` and `send --rate-x`).
+pub fn parse_speed(s: &str) -> Result<f64, String> {
+    let v = parse_f64(s)?;
+    if (MIN_SPEED..=MAX_SPEED).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "{v} is outside [{MIN_SPEED}, {MAX_SPEED}] (a speed factor)"
+        ))
+    }
+}
+
+/// Parses a duration in seconds: a number in [0, [`MAX_SECONDS`]] (NaN and infinities are
+/// refused).
+pub fn parse_seconds(s: &str) -> Result<f64, String> {
+    let v = parse_f64(s)?;
+    if (0.0..=MAX_SECONDS).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside [0, {MAX_SECONDS}] s"))
+    }
+}
+
+/// Parses a timeout in seconds: a number in (0, [`MAX_SECONDS`]].
+pub fn parse_timeout(s: &str) -> Result<f64, String> {
+    let v = parse_seconds(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err("a timeout must be positive".into())
+    }
+}
+
+/// Seconds (validated by the parsers above, or any f64: clamped to [0, `MAX_SECONDS`], NaN as
+/// 0) as a `Duration`, without panicking.
+pub fn secs(s: f64) -> Duration {
+    Duration::try_from_secs_f64(s.clamp(0.0, MAX_SECONDS)).unwrap_or(Duration::ZERO)
+}
 
 /// `record` options.
 #[derive(clap::Args, Debug, Clone)]
@@ -30,12 +85,24 @@ pub struct RecordArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Stop after this many seconds.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_seconds)]
     pub duration: Option<f64>,
     /// Stop when no byte arrived for this many seconds after the first byte (before it, only
-    /// `--duration` stops the recording).
-    #[arg(long)]
+    /// `--duration` and `--first-byte-timeout` stop the recording).
+    #[arg(long, value_parser = parse_timeout)]
     pub idle_exit: Option<f64>,
+    /// Fail (exit 1) when no byte at all arrived within this many seconds of the start.
+    #[arg(long, value_parser = parse_timeout)]
+    pub first_byte_timeout: Option<f64>,
+    /// When the port is lost, try to reopen it for at most this many seconds, then stop and
+    /// report the capture incomplete (exit 2); without it, retry until another stop condition.
+    #[arg(long, value_parser = parse_timeout)]
+    pub reopen_timeout: Option<f64>,
+    /// The recording starts before the sender: every stream begins at sequence number 0, so
+    /// frames lost before a stream's first delivered frame are counted too (stored in the
+    /// capture header, used by `replay`).
+    #[arg(long)]
+    pub streams_from_start: bool,
     /// Do not decode frames for the status line (e.g. when recording a GNSS receiver).
     #[arg(long)]
     pub raw: bool,
@@ -48,16 +115,52 @@ pub struct RecordArgs {
     pub quiet: bool,
 }
 
+impl RecordArgs {
+    /// Recording `port` into `out` with the defaults of the command line (no stop condition
+    /// set: set `duration` or `idle_exit`).
+    pub fn new(port: impl Into<String>, out: impl Into<PathBuf>) -> Self {
+        Self {
+            port: port.into(),
+            baud: DEFAULT_BAUD,
+            out: out.into(),
+            duration: None,
+            idle_exit: None,
+            first_byte_timeout: None,
+            reopen_timeout: None,
+            streams_from_start: false,
+            raw: false,
+            shared: false,
+            quiet: true,
+        }
+    }
+}
+
 fn now_unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+}
+
+/// What `record` captured.
+#[derive(Debug, Clone, Default)]
+pub struct RecordOutcome {
+    /// Live decoder counters (zero with `--raw`).
+    pub stats: DecoderStats,
+    /// Data records written.
+    pub records: u64,
+    /// Data bytes written.
+    pub bytes: u64,
+    /// Link-reset events written (port lost).
+    pub link_resets: u64,
+    /// Why the capture is incomplete (the port vanished and did not come back within
+    /// `--reopen-timeout`); `None` when the recording ended by a stop condition.
+    pub incomplete: Option<String>,
 }
 
 /// `record`: raw bytes with receive timestamps into a capture file, live status on stderr.
 /// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
 /// reopened until it comes back or a stop condition is met.
-pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
+pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
     let file = std::fs::File::create(&a.out)
         .with_context(|| format!("creating capture {}", a.out.display()))?;
     let header = CaptureHeader {
@@ -65,46 +168,85 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
         baud: a.baud,
         start_unix_ns: now_unix_ns(),
         tool: format!("hw-bridge {}", env!("CARGO_PKG_VERSION")),
+        streams_from_start: a.streams_from_start,
     };
-    let mut w = CaptureWriter::new(BufWriter::new(file), &header)?;
+    let werr =
+        |e: std::io::Error| anyhow::Error::new(e).context(format!("writing {}", a.out.display()));
+    let mut w = CaptureWriter::new(BufWriter::new(file), &header).map_err(werr)?;
     let timeout = Duration::from_millis(50);
     let mut port = Some(serial::open_with(&a.port, a.baud, timeout, a.shared)?);
     // One line, even with --quiet: scripts (and the pty test) wait for it before sending.
     eprintln!("recording {} -> {}", a.port, a.out.display());
     let start = Instant::now();
     let mut last_data: Option<Instant> = None;
+    let mut lost_at: Option<Instant> = None;
     let mut dec = FrameDecoder::new();
+    if a.streams_from_start {
+        dec.expect_stream_starts();
+    }
     let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
     let mut buf = vec![0u8; 8192];
+    let mut out = RecordOutcome::default();
+    let duration = a.duration.map(secs);
+    let idle = a.idle_exit.map(secs);
+    let first_byte = a.first_byte_timeout.map(secs);
+    let reopen = a.reopen_timeout.map(secs);
+    let t_ns = |start: Instant| u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
     loop {
         let now = Instant::now();
-        if a.duration
-            .is_some_and(|d| now.duration_since(start).as_secs_f64() >= d)
-        {
+        let elapsed = now.saturating_duration_since(start);
+        if duration.is_some_and(|d| elapsed >= d) {
             break;
         }
-        if let (Some(d), Some(last)) = (a.idle_exit, last_data) {
-            if now.duration_since(last).as_secs_f64() >= d {
+        if let (Some(d), Some(last)) = (idle, last_data) {
+            if now.saturating_duration_since(last) >= d {
                 break;
             }
         }
+        if let (Some(d), None) = (first_byte, last_data) {
+            if elapsed >= d {
+                w.flush().map_err(werr)?;
+                bail!(
+                    "no byte from {} within --first-byte-timeout {} s (the capture {} holds no data)",
+                    a.port,
+                    d.as_secs_f64(),
+                    a.out.display()
+                );
+            }
+        }
         let Some(p) = port.as_mut() else {
+            if let (Some(d), Some(t)) = (reopen, lost_at) {
+                if now.saturating_duration_since(t) >= d {
+                    out.incomplete = Some(format!(
+                        "port {} lost and not back within --reopen-timeout {} s",
+                        a.port,
+                        d.as_secs_f64()
+                    ));
+                    break;
+                }
+            }
             std::thread::sleep(Duration::from_millis(100));
             port = serial::open_with(&a.port, a.baud, timeout, a.shared).ok();
+            if port.is_some() {
+                lost_at = None;
+            }
             continue;
         };
         match p.read(&mut buf) {
             Ok(0) => std::thread::sleep(Duration::from_millis(5)),
             Ok(n) => {
-                let t_ns = start.elapsed().as_nanos() as u64;
+                let data = buf.get(..n).unwrap_or_default();
                 last_data = Some(Instant::now());
                 w.write(&Record::Data {
-                    t_ns,
-                    bytes: buf[..n].to_vec(),
-                })?;
-                w.flush()?;
+                    t_ns: t_ns(start),
+                    bytes: data.to_vec(),
+                })
+                .map_err(werr)?;
+                w.flush().map_err(werr)?;
+                out.records += 1;
+                out.bytes += n as u64;
                 if !a.raw {
-                    dec.feed(&buf[..n]).for_each(drop);
+                    dec.feed(data).for_each(drop);
                 }
             }
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
@@ -114,9 +256,11 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
                     eprintln!("\nport {}: {e}; reopening", a.port);
                 }
                 port = None;
-                let t_ns = start.elapsed().as_nanos() as u64;
-                w.write(&Record::LinkReset { t_ns })?;
-                w.flush()?;
+                lost_at = Some(Instant::now());
+                w.write(&Record::LinkReset { t_ns: t_ns(start) })
+                    .map_err(werr)?;
+                w.flush().map_err(werr)?;
+                out.link_resets += 1;
                 dec.reset_link();
             }
         }
@@ -129,9 +273,13 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<DecoderStats> {
     let s = *dec.stats();
     status.update(u64::from(s.frames_ok), true, || decoder_summary(&s));
     status.finish();
-    w.flush()?;
-    Ok(s)
+    w.flush().map_err(werr)?;
+    out.stats = s;
+    Ok(out)
 }
+
+/// Default of `replay --max-gap`, s.
+pub const DEFAULT_MAX_GAP_S: f64 = 10.0;
 
 /// What `replay` decodes the capture as.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -148,10 +296,15 @@ pub enum InputKind {
 pub struct ReplayArgs {
     /// Capture file written by `record`.
     pub capture: PathBuf,
-    /// Replay at this multiple of the recorded timing (default: 1 with `--to-port`, else as
-    /// fast as possible).
-    #[arg(long, conflicts_with = "as_fast_as_possible")]
+    /// Replay at this multiple of the recorded timing, in [0.001, 1e6] (default: 1 with
+    /// `--to-port`, else as fast as possible).
+    #[arg(long, conflicts_with = "as_fast_as_possible", value_parser = parse_speed)]
     pub speed: Option<f64>,
+    /// Longest pause between two records when pacing, in recorded seconds: a larger jump of
+    /// the recorded time (a link down for minutes, a damaged timestamp) is paced as this long
+    /// and counted. Timestamps going backwards are counted and not waited for.
+    #[arg(long, default_value_t = DEFAULT_MAX_GAP_S, value_parser = parse_timeout)]
+    pub max_gap: f64,
     /// Ignore the recorded timing.
     #[arg(long)]
     pub as_fast_as_possible: bool,
@@ -198,6 +351,7 @@ impl ReplayArgs {
         Self {
             capture: capture.into(),
             speed: None,
+            max_gap: DEFAULT_MAX_GAP_S,
             as_fast_as_possible: true,
             to_port: None,
             baud: DEFAULT_BAUD,
@@ -230,10 +384,73 @@ pub struct ReplayOutcome {
     pub recorded_s: f64,
     /// A truncated last record, if any (every complete record was replayed).
     pub truncated: Option<String>,
+    /// Why the replay is incomplete (a truncated or corrupt record ended it: every record
+    /// before it was replayed); `None` when the whole capture was replayed.
+    pub incomplete: Option<String>,
+    /// Bytes of garbage skipped before the capture's magic.
+    pub skipped_bytes: u64,
+    /// Records identical to the previous one (same time and bytes, which a recorder cannot
+    /// write): skipped, not replayed.
+    pub duplicate_records: u64,
+    /// Pacing: timestamps at or before the previous record's (replayed without waiting) and
+    /// jumps longer than `--max-gap` (paced as `--max-gap`).
+    pub timing: TimingStats,
+    /// IMU samples left out of the host filter's input (`--config`) and of `imu.txt` because
+    /// their time is not after the previous sample's (duplicated or reordered frames).
+    pub imu_out_of_order: u64,
+    /// GNSS fixes left out of the filter's input and `gnss.txt` for the same reason.
+    pub gnss_out_of_order: u64,
     /// Wall time of the replay (decoding, and the filter run with `--config`), s.
     pub wall_s: f64,
     /// The host filter's run on the decoded frames (`--config`).
     pub filter: Option<FilterRun>,
+}
+
+/// Irregular timestamps met while replaying.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct TimingStats {
+    /// Records whose time is before the previous record's.
+    pub backwards: u64,
+    /// Gaps longer than `--max-gap` (each paced as `--max-gap`).
+    pub clamped_gaps: u64,
+    /// Recorded time the pacing followed (gaps clamped, backward steps ignored), ns.
+    pub paced_ns: u64,
+}
+
+/// Paces a replay: recorded record times in, the (recorded-time) instant each record is due
+/// at out, with saturating arithmetic and validated steps.
+#[derive(Debug, Clone)]
+pub struct Pacer {
+    max_gap_ns: u64,
+    prev: u64,
+    /// Counters.
+    pub stats: TimingStats,
+}
+
+impl Pacer {
+    /// A pacer allowing gaps up to `max_gap_s` (recorded seconds).
+    pub fn new(max_gap_s: f64) -> Self {
+        Self {
+            max_gap_ns: u64::try_from(secs(max_gap_s).as_nanos()).unwrap_or(u64::MAX),
+            prev: 0,
+            stats: TimingStats::default(),
+        }
+    }
+
+    /// The paced time of a record recorded at `t_ns`, ns since the capture start (the first
+    /// record is measured from 0, the capture's start).
+    pub fn advance(&mut self, t_ns: u64) -> u64 {
+        match t_ns.checked_sub(self.prev) {
+            None => self.stats.backwards += 1,
+            Some(gap) if gap > self.max_gap_ns => {
+                self.stats.clamped_gaps += 1;
+                self.stats.paced_ns = self.stats.paced_ns.saturating_add(self.max_gap_ns);
+            }
+            Some(gap) => self.stats.paced_ns = self.stats.paced_ns.saturating_add(gap),
+        }
+        self.prev = t_ns;
+        self.stats.paced_ns
+    }
 }
 
 /// The host filter run on a replay's frames (`replay --config`).
@@ -309,27 +526,55 @@ pub fn run_filter_on_frames(
 pub fn write_filter_outputs(dir: &Path, f: &FilterRun) -> anyhow::Result<()> {
     use host_sim::run::output;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    output::write_nav(&dir.join("nav.txt"), &f.output.nav, f.prepared.week)?;
-    output::write_std(&dir.join("std.txt"), &f.output)?;
-    output::write_bias(&dir.join("bias.txt"), &f.output)?;
-    output::write_innovations(&dir.join("innovations.txt"), &f.output.innovations)?;
-    let mp = dir.join("metrics.json");
+    // each file under its `.partial` name first, renamed when written completely
+    let p = |name: &str| partial_name(&dir.join(name));
+    output::write_nav(&p("nav.txt"), &f.output.nav, f.prepared.week)?;
+    output::write_std(&p("std.txt"), &f.output)?;
+    output::write_bias(&p("bias.txt"), &f.output)?;
+    output::write_innovations(&p("innovations.txt"), &f.output.innovations)?;
+    let mp = p("metrics.json");
     std::fs::write(&mp, serde_json::to_string_pretty(&f.metrics)?)
         .with_context(|| format!("writing {}", mp.display()))?;
+    for name in [
+        "nav.txt",
+        "std.txt",
+        "bias.txt",
+        "innovations.txt",
+        "metrics.json",
+    ] {
+        rename(&p(name), &dir.join(name))?;
+    }
     Ok(())
 }
 
+/// How often a replay flushes its `.partial` outputs.
+pub const CHECKPOINT: Duration = Duration::from_secs(1);
+
+/// Whether `t` can follow `last` in a time series (finite and strictly after it).
+fn in_order(t: f64, last: Option<f64>) -> bool {
+    t.is_finite() && last.is_none_or(|l| t > l)
+}
+
 /// `replay`: decode a capture (reproducing its chunking, and its timing with `--speed`), write
-/// the frames it contains in the project's text formats, optionally stream it to a port.
+/// the frames it contains in the project's text formats as they are decoded (under `.partial`
+/// names, renamed at the end), optionally stream it to a port. A truncated or corrupt record
+/// ends the replay early: every record before it is replayed and the outcome says
+/// [`ReplayOutcome::incomplete`].
 pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
-    let file = std::fs::File::open(&a.capture)
-        .with_context(|| format!("opening capture {}", a.capture.display()))?;
+    let cap = a.capture.display();
+    let file = std::fs::File::open(&a.capture).with_context(|| format!("opening capture {cap}"))?;
     let mut rd = CaptureReader::new(std::io::BufReader::new(file))
-        .with_context(|| format!("reading capture {}", a.capture.display()))?;
+        .with_context(|| format!("reading capture {cap}"))?;
+    if rd.skipped_bytes() > 0 {
+        eprintln!(
+            "warning: {cap}: skipped {} bytes before the capture header",
+            rd.skipped_bytes()
+        );
+    }
     let speed = match (a.as_fast_as_possible, a.speed, &a.to_port) {
         (true, _, _) => None,
-        (false, Some(s), _) if s > 0.0 && s.is_finite() => Some(s),
-        (false, Some(s), _) => bail!("--speed must be positive, got {s}"),
+        (false, Some(s), _) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Some(s),
+        (false, Some(s), _) => bail!("--speed {s} is outside [{MIN_SPEED}, {MAX_SPEED}]"),
         (false, None, Some(_)) => Some(1.0),
         (false, None, None) => None,
     };
@@ -337,28 +582,55 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         Some(p) => Some(serial::open(p, a.baud, Duration::from_secs(5))?),
         None => None,
     };
-    let mut out = ReplayOutcome::default();
+    let mut out = ReplayOutcome {
+        skipped_bytes: rd.skipped_bytes(),
+        ..ReplayOutcome::default()
+    };
+    let mut files = match &a.out {
+        Some(dir) if a.input == InputKind::Frames => Some(FrameFiles::new(dir, CHECKPOINT)?),
+        _ => None,
+    };
     let mut dec = FrameDecoder::new();
+    if rd.header().streams_from_start {
+        dec.expect_stream_starts();
+    }
     let mut gnss = GnssStream::new(NmeaOptions {
         leap_seconds: a.leap_seconds,
         ..NmeaOptions::default()
     });
+    let mut pacer = Pacer::new(a.max_gap);
+    let mut prev_data: Option<(u64, Vec<u8>)> = None;
+    let (mut last_imu_t, mut last_gnss_t) = (None, None);
     let start = Instant::now();
     loop {
         let rec = match rd.next_record() {
             Ok(Some(r)) => r,
             Ok(None) => break,
-            Err(e @ CaptureError::TruncatedRecord { .. }) => {
-                eprintln!("warning: {e}; replayed every complete record");
-                out.truncated = Some(e.to_string());
+            Err(e) => {
+                let what = format!("{e}; replayed every record before it");
+                eprintln!("warning: {cap}: {what}");
+                if matches!(e, CaptureError::TruncatedRecord { .. }) {
+                    out.truncated = Some(e.to_string());
+                }
+                out.incomplete = Some(what);
                 break;
             }
-            Err(e) => return Err(e).with_context(|| format!("reading {}", a.capture.display())),
         };
+        if let Record::Data { t_ns, bytes } = &rec {
+            if prev_data
+                .as_ref()
+                .is_some_and(|(t, b)| t == t_ns && b == bytes)
+            {
+                out.duplicate_records += 1;
+                continue;
+            }
+            prev_data = Some((*t_ns, bytes.clone()));
+        }
         out.records += 1;
         out.recorded_s = rec.t_ns() as f64 * 1e-9;
+        let paced_ns = pacer.advance(rec.t_ns());
         if let Some(s) = speed {
-            let due = Duration::from_secs_f64(rec.t_ns() as f64 * 1e-9 / s);
+            let due = secs(paced_ns as f64 * 1e-9 / s);
             if let Some(wait) = due.checked_sub(start.elapsed()) {
                 std::thread::sleep(wait);
             }
@@ -373,10 +645,53 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
                 match a.input {
                     InputKind::Frames => {
                         for r in dec.feed(&bytes) {
-                            match r {
-                                Ok(f) => out.log.push(f),
-                                Err(e) if a.verbose => eprintln!("rejected chunk: {e}"),
-                                Err(_) => {}
+                            let f = match r {
+                                Ok(f) => f,
+                                Err(e) => {
+                                    if a.verbose {
+                                        eprintln!("rejected chunk: {e}");
+                                    }
+                                    continue;
+                                }
+                            };
+                            out.log.frames.push(f);
+                            match f.payload {
+                                Payload::Imu(i) => {
+                                    if !in_order(i.sample.t_s, last_imu_t) {
+                                        out.imu_out_of_order += 1;
+                                        continue;
+                                    }
+                                    last_imu_t = Some(i.sample.t_s);
+                                    out.log.imu.push(i.sample);
+                                    out.log.imu_status.push(i.status);
+                                    if let Some(w) = files.as_mut() {
+                                        w.imu(&i.sample)?;
+                                    }
+                                }
+                                Payload::Gnss(g) => {
+                                    if !in_order(g.t_s, last_gnss_t) {
+                                        out.gnss_out_of_order += 1;
+                                        continue;
+                                    }
+                                    last_gnss_t = Some(g.t_s);
+                                    out.log.gnss.push(g);
+                                    if let Some(w) = files.as_mut() {
+                                        w.gnss(&g)?;
+                                    }
+                                }
+                                Payload::Nav(n) => {
+                                    out.log.nav.push(n);
+                                    if let Some(w) = files.as_mut() {
+                                        w.nav(&n)?;
+                                    }
+                                }
+                                Payload::Health(h) => {
+                                    out.log.health.push(h);
+                                    if let Some(w) = files.as_mut() {
+                                        w.health(&h)?;
+                                    }
+                                }
+                                Payload::Config(c) => out.log.config.push(c),
                             }
                         }
                     }
@@ -401,6 +716,27 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             }));
     }
     out.stats = *dec.stats();
+    out.timing = pacer.stats;
+    if out.timing.backwards + out.timing.clamped_gaps > 0 {
+        eprintln!(
+            "warning: {cap}: {} record time(s) went backwards, {} gap(s) over --max-gap {} s (paced as --max-gap)",
+            out.timing.backwards, out.timing.clamped_gaps, a.max_gap
+        );
+    }
+    if out.imu_out_of_order + out.gnss_out_of_order > 0 {
+        eprintln!(
+            "warning: {cap}: left out {} IMU sample(s) and {} GNSS fix(es) whose time is not after the previous one (duplicated or reordered frames)",
+            out.imu_out_of_order, out.gnss_out_of_order
+        );
+    }
+    out.wall_s = start.elapsed().as_secs_f64();
+    // The decoded files and the summary first: a filter run that fails leaves them in place.
+    if let Some(dir) = &a.out {
+        if let Some(w) = files.take() {
+            w.finish(&out.log.imu)?;
+        }
+        write_outputs(dir, &out, a.input, &gnss)?;
+    }
     if let Some(cfg) = &a.config {
         if a.input != InputKind::Frames {
             bail!("--config runs the filter on wire frames: not with --input gnss");
@@ -412,74 +748,57 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             a.model,
             a.f32,
         )?);
-    }
-    out.wall_s = start.elapsed().as_secs_f64();
-    if let Some(dir) = &a.out {
-        write_outputs(dir, &out, a.input, &gnss)?;
-        if let Some(f) = &out.filter {
+        out.wall_s = start.elapsed().as_secs_f64();
+        if let (Some(dir), Some(f)) = (&a.out, &out.filter) {
             write_filter_outputs(dir, f)?;
         }
     }
     Ok(out)
 }
 
+/// Writes `replay-summary.txt` (and, for GNSS input, `gnss.txt`), each through a `.partial`
+/// name and a rename.
 fn write_outputs(
     dir: &Path,
     o: &ReplayOutcome,
     input: InputKind,
     gnss: &GnssStream,
 ) -> anyhow::Result<()> {
-    use host_sim::io::{write_gnss_text, write_imu_text, write_nav_text};
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut summary = format!(
-        "capture records {}\ncapture bytes {}\nrecorded duration {:.3} s\n",
-        o.records, o.bytes, o.recorded_s
+        "status {}\ncapture records {}\ncapture bytes {}\nrecorded duration {:.3} s\n",
+        match &o.incomplete {
+            None => "complete".to_string(),
+            Some(why) => format!("incomplete: {why}"),
+        },
+        o.records,
+        o.bytes,
+        o.recorded_s
     );
+    summary.push_str(&format!(
+        "skipped bytes before header {}\nduplicate records skipped {}\nrecord times backwards {}\ngaps over --max-gap {}\n",
+        o.skipped_bytes, o.duplicate_records, o.timing.backwards, o.timing.clamped_gaps
+    ));
     if let Some(t) = &o.truncated {
         summary.push_str(&format!("warning: {t}\n"));
     }
     match input {
         InputKind::Frames => {
-            if !o.log.imu.is_empty() {
-                write_imu_text(dir.join("imu.txt"), &o.log.imu)?;
-            }
-            let gnss_fixes: Vec<GnssFix> = o.log.gnss.clone();
-            if !gnss_fixes.is_empty() {
-                write_gnss_text(dir.join("gnss.txt"), &gnss_fixes)?;
-            }
-            if !o.log.nav.is_empty() {
-                // the board's own solutions (nav.txt is the host filter's, with --config)
-                write_nav_text(dir.join("board-nav.txt"), &o.log.nav)?;
-            }
-            if !o.log.health.is_empty() {
-                let mut h = String::from("# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status\n");
-                for x in &o.log.health {
-                    h.push_str(&format!(
-                        "{} {} {} {} {} {} {} {} {} {} {}\n",
-                        x.uptime_ms,
-                        x.rx_frames_ok,
-                        x.rx_rejected,
-                        x.rx_crc_errors,
-                        x.rx_lost,
-                        x.imu_epochs,
-                        x.gnss_updates,
-                        x.gnss_rejected,
-                        x.epoch_ticks_max,
-                        x.stack_peak_bytes,
-                        x.filter_status
-                    ));
-                }
-                std::fs::write(dir.join("health.txt"), h)?;
-            }
+            summary.push_str(&format!(
+                "imu samples out of order (left out) {}\ngnss fixes out of order (left out) {}\n",
+                o.imu_out_of_order, o.gnss_out_of_order
+            ));
             summary.push_str(&decoder_report(&o.stats));
         }
         InputKind::Gnss => {
-            write_gnss_text(dir.join("gnss.txt"), &o.gnss_fixes)?;
+            let p = dir.join("gnss.txt");
+            let tmp = partial_name(&p);
+            host_sim::io::write_gnss_text(&tmp, &o.gnss_fixes)?;
+            rename(&tmp, &p)?;
             summary.push_str(&format!("{:?}\n", gnss.stats()));
         }
     }
-    std::fs::write(dir.join("replay-summary.txt"), summary)?;
-    Ok(())
+    write_atomically(&dir.join("replay-summary.txt"), summary.as_bytes())
 }
 
 /// `send` options.
@@ -494,15 +813,19 @@ pub struct SendArgs {
     /// Baud rate.
     #[arg(long, default_value_t = DEFAULT_BAUD)]
     pub baud: u32,
-    /// Speed-up over real time (sample times).
-    #[arg(long, default_value_t = 1.0, conflicts_with = "as_fast_as_possible")]
+    /// Speed-up over real time (sample times), in [0.001, 1e6].
+    #[arg(long, default_value_t = 1.0, conflicts_with = "as_fast_as_possible", value_parser = parse_speed)]
     pub rate_x: f64,
     /// Send as fast as the port takes it.
     #[arg(long)]
     pub as_fast_as_possible: bool,
     /// Keep the port open this long after the last byte so the receiver drains it, s.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = parse_seconds)]
     pub linger_s: f64,
+    /// Fail (exit 1) when the port takes no byte for this many seconds (nothing reads it),
+    /// also while waiting at the end for the bytes written to drain.
+    #[arg(long, default_value_t = DEFAULT_WRITE_TIMEOUT_S, value_parser = parse_timeout)]
+    pub write_timeout: f64,
     /// No live status line.
     #[arg(long)]
     pub quiet: bool,
@@ -514,6 +837,44 @@ pub struct SendArgs {
     /// on the same emulated board's pty) can use it at the same time.
     #[arg(long)]
     pub shared: bool,
+}
+
+/// Default of `send --write-timeout`, s.
+pub const DEFAULT_WRITE_TIMEOUT_S: f64 = 10.0;
+
+impl SendArgs {
+    /// Sending the case in `case` to `port` with the command line's defaults.
+    pub fn new(case: impl Into<PathBuf>, port: impl Into<String>) -> Self {
+        Self {
+            case: case.into(),
+            port: port.into(),
+            baud: DEFAULT_BAUD,
+            rate_x: 1.0,
+            as_fast_as_possible: false,
+            linger_s: 0.5,
+            write_timeout: DEFAULT_WRITE_TIMEOUT_S,
+            quiet: true,
+            copy_to: None,
+            shared: false,
+        }
+    }
+}
+
+/// Waits until the port's output queue is empty (the reader took every byte), at most
+/// `timeout`. A port that cannot report its queue (the ioctl fails) is not waited for. Unlike
+/// `flush` (POSIX `tcdrain`), this cannot block forever when nothing reads the port.
+fn drain_output(port: &dyn serialport::SerialPort, timeout: Duration) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    loop {
+        match port.bytes_to_write() {
+            Ok(0) | Err(_) => return Ok(()),
+            Ok(n) if t0.elapsed() >= timeout => bail!(
+                "{n} bytes still not taken by the receiver after --write-timeout {} s (nothing reads the port?)",
+                timeout.as_secs_f64()
+            ),
+            Ok(_) => std::thread::sleep(Duration::from_millis(5)),
+        }
+    }
 }
 
 /// What `send` sent.
@@ -541,11 +902,16 @@ pub fn read_case(dir: &Path) -> anyhow::Result<Vec<(f64, Payload)>> {
 
 /// `send`: stream a simulated case into a port as frames, paced by the sample times.
 pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
-    if !(a.rate_x > 0.0 && a.rate_x.is_finite()) {
-        bail!("--rate-x must be positive, got {}", a.rate_x);
+    if !(MIN_SPEED..=MAX_SPEED).contains(&a.rate_x) {
+        bail!(
+            "--rate-x {} is outside [{MIN_SPEED}, {MAX_SPEED}]",
+            a.rate_x
+        );
     }
     let payloads = read_case(&a.case)?;
-    let mut port = serial::open_with(&a.port, a.baud, Duration::from_secs(10), a.shared)?;
+    let write_timeout = secs(a.write_timeout);
+    let mut port = serial::open_with(&a.port, a.baud, write_timeout, a.shared)?;
+    let timeout_s = write_timeout.as_secs_f64();
     let mut copy = match &a.copy_to {
         Some(p) => Some(BufWriter::new(
             std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
@@ -553,7 +919,16 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
         None => None,
     };
     let mut put = |bytes: &[u8]| -> anyhow::Result<()> {
-        port.write_all(bytes).context("writing frames")?;
+        port.write_all(bytes).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::TimedOut {
+                anyhow::anyhow!(
+                    "writing frames to {}: the port took no byte within --write-timeout {timeout_s} s (nothing reads it?)",
+                    a.port
+                )
+            } else {
+                anyhow::Error::new(e).context(format!("writing frames to {}", a.port))
+            }
+        })?;
         if let Some(c) = copy.as_mut() {
             c.write_all(bytes).context("writing --copy-to")?;
         }
@@ -569,7 +944,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
     let mut buf = [0u8; MAX_FRAME_LEN];
     for (t, p) in &payloads {
         if !a.as_fast_as_possible {
-            let due = Duration::from_secs_f64(((t - t0) / a.rate_x).max(0.0));
+            let due = secs((t - t0) / a.rate_x);
             if let Some(wait) = due.checked_sub(start.elapsed()) {
                 if wait > Duration::from_millis(2) {
                     put(&pending)?;
@@ -594,14 +969,14 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
     }
     put(&pending)?;
     out.bytes += pending.len() as u64;
-    port.flush()?;
+    drain_output(port.as_ref(), write_timeout)?;
     if let Some(mut c) = copy {
         c.flush().context("writing --copy-to")?;
     }
     let (f, b) = (out.frames, out.bytes);
     status.update(f, true, || format!("sent {f} frames, {b} bytes"));
     status.finish();
-    std::thread::sleep(Duration::from_secs_f64(a.linger_s.max(0.0)));
+    std::thread::sleep(secs(a.linger_s));
     out.wall_s = start.elapsed().as_secs_f64();
     Ok(out)
 }
@@ -625,7 +1000,7 @@ pub struct StreamArgs {
     #[arg(long, default_value_t = 18)]
     pub leap_seconds: i64,
     /// Stop after this many seconds.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_seconds)]
     pub duration: Option<f64>,
     /// Run the filter on the host too: the firmware's own application (18-state NBK, f32
     /// covariance, started at the first fix) on the IMU frames of `--port` and the GNSS fixes
@@ -730,9 +1105,7 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
     let mut clock = WallClock(Instant::now());
     let start = Instant::now();
     loop {
-        if a.duration
-            .is_some_and(|d| start.elapsed().as_secs_f64() >= d)
-        {
+        if a.duration.is_some_and(|d| start.elapsed() >= secs(d)) {
             break;
         }
         match rx.recv_timeout(Duration::from_millis(100)) {

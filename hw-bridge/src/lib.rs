@@ -16,6 +16,8 @@ pub mod fuzz_checks;
 #[allow(dead_code, missing_docs)]
 pub mod fwapp;
 pub mod gnss;
+#[cfg(feature = "cli")]
+pub mod outputs;
 pub mod serial;
 pub mod status;
 /// The firmware's time-base trait (used by [`fwapp`]).

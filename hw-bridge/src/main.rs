@@ -1,6 +1,7 @@
 //! The `hw-bridge` command line.
 use clap::{Parser, Subcommand};
 use hw_bridge::cmd;
+use std::process::ExitCode;
 
 /// Serial bridge between a navigation board or GNSS receiver and nav-core.
 #[derive(Parser, Debug)]
@@ -25,8 +26,35 @@ enum Cmd {
     Stream(cmd::StreamArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().cmd {
+/// Exit status: 0 complete, 2 finished but incomplete (outputs hold everything up to the
+/// fault and say so), 1 error (the message names the cause once).
+fn main() -> ExitCode {
+    // clap's own usage errors exit 2, which means "incomplete" here: they exit 1.
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    match run(cli.cmd) {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(2),
+        Err(e) => {
+            eprintln!("error: {}", hw_bridge::status::error_chain(&e));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs a command: `Ok(true)` when its outputs are complete.
+fn run(cmd: Cmd) -> anyhow::Result<bool> {
+    let mut complete = true;
+    match cmd {
         Cmd::Ports => {
             let ports = hw_bridge::serial::list()?;
             if ports.is_empty() {
@@ -37,8 +65,16 @@ fn main() -> anyhow::Result<()> {
             }
         }
         Cmd::Record(a) => {
-            let s = cmd::record(&a)?;
-            println!("{}", hw_bridge::status::decoder_report(&s));
+            let o = cmd::record(&a)?;
+            println!(
+                "recorded {} records, {} bytes, {} link resets",
+                o.records, o.bytes, o.link_resets
+            );
+            println!("{}", hw_bridge::status::decoder_report(&o.stats));
+            if let Some(why) = &o.incomplete {
+                eprintln!("incomplete: {why}");
+                complete = false;
+            }
         }
         Cmd::Replay(a) => {
             let o = cmd::replay(&a)?;
@@ -54,6 +90,13 @@ fn main() -> anyhow::Result<()> {
             match a.input {
                 cmd::InputKind::Frames => print!("{}", hw_bridge::status::decoder_report(&o.stats)),
                 cmd::InputKind::Gnss => println!("{} GNSS fixes", o.gnss_fixes.len()),
+            }
+            if o.duplicate_records > 0 {
+                println!("{} duplicate records skipped", o.duplicate_records);
+            }
+            if let Some(why) = &o.incomplete {
+                println!("incomplete: {why}");
+                complete = false;
             }
             if let Some(f) = &o.filter {
                 let c = &f.output.counters;
@@ -94,5 +137,5 @@ fn main() -> anyhow::Result<()> {
             }
         }
     }
-    Ok(())
+    Ok(complete)
 }

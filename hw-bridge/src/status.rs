@@ -86,3 +86,21 @@ pub fn decoder_report(s: &DecoderStats) -> String {
     }
     out
 }
+
+/// An error and its causes on one line, each cause said once: a cause whose text the message
+/// so far already contains (an error type that prints its source in its own message, as
+/// `host_sim::io::IoError` does) is not repeated.
+pub fn error_chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}

@@ -10,6 +10,7 @@ fn header() -> CaptureHeader {
         baud: 921_600,
         start_unix_ns: 1_763_700_000_123_456_789,
         tool: "hw-bridge test".into(),
+        streams_from_start: false,
     }
 }
 

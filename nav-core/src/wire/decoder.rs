@@ -131,6 +131,20 @@ impl<const CAP: usize> Decoder<CAP> {
         }
     }
 
+    /// Declares that the bytes fed from now on start at the very beginning of every stream (a
+    /// recording started before the sender, e.g. `hw-bridge record --streams-from-start`):
+    /// each stream not seen yet is expected to begin at sequence number 0, so frames lost
+    /// before the first one delivered are counted in `lost_by_stream` too (without this, a
+    /// stream's first delivered frame sets the expectation and earlier losses are invisible).
+    /// A frame carrying the restart flag still starts its stream afresh without a gap.
+    pub fn expect_stream_starts(&mut self) {
+        for e in &mut self.expected_seq {
+            if e.is_none() {
+                *e = Some(0);
+            }
+        }
+    }
+
     /// The counters so far.
     pub fn stats(&self) -> &DecoderStats {
         &self.stats

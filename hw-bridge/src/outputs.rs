@@ -1,0 +1,287 @@
+//! Output files written while a replay decodes: each file is written under a `.partial` name,
+//! appended to as frames arrive and flushed at checkpoints, and renamed to its final name only
+//! when the replay is finished. A killed replay leaves `*.partial` files holding everything up
+//! to the last checkpoint; a file without the suffix is complete.
+//!
+//! The text formats are those of `host_sim::io` (the same digits, byte for byte: the test
+//! `streamed_outputs_equal_host_sims_writers_byte_for_byte` checks it).
+
+use anyhow::Context;
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
+use nav_core::wire::Health;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Suffix of a file still being written.
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// The `.partial` name of `path`.
+pub fn partial_name(path: &Path) -> PathBuf {
+    let mut s = path.as_os_str().to_os_string();
+    s.push(PARTIAL_SUFFIX);
+    PathBuf::from(s)
+}
+
+/// Writes `contents` to `path` through its `.partial` name and a rename.
+pub fn write_atomically(path: &Path, contents: &[u8]) -> anyhow::Result<()> {
+    let tmp = partial_name(path);
+    std::fs::write(&tmp, contents).with_context(|| format!("writing {}", tmp.display()))?;
+    rename(&tmp, path)
+}
+
+/// Renames `from` to `to`.
+pub fn rename(from: &Path, to: &Path) -> anyhow::Result<()> {
+    std::fs::rename(from, to)
+        .with_context(|| format!("renaming {} to {}", from.display(), to.display()))
+}
+
+/// One text file being appended to.
+struct Stream {
+    final_path: PathBuf,
+    w: BufWriter<File>,
+}
+
+impl Stream {
+    fn create(dir: &Path, name: &str) -> anyhow::Result<Self> {
+        let final_path = dir.join(name);
+        let tmp = partial_name(&final_path);
+        let f = File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        Ok(Self {
+            final_path,
+            w: BufWriter::new(f),
+        })
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        let p = partial_name(&self.final_path);
+        self.w
+            .flush()
+            .with_context(|| format!("writing {}", p.display()))
+    }
+
+    fn finish(mut self) -> anyhow::Result<PathBuf> {
+        self.flush()?;
+        let tmp = partial_name(&self.final_path);
+        rename(&tmp, &self.final_path)?;
+        Ok(self.final_path)
+    }
+}
+
+/// The header line of `health.txt`.
+pub const HEALTH_HEADER: &str = "# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status";
+
+/// The decoded frames of a replay as text files (`imu.txt`, `gnss.txt`, `board-nav.txt`,
+/// `health.txt`), each created at its first line.
+pub struct FrameFiles {
+    dir: PathBuf,
+    imu: Option<Stream>,
+    /// Whether `imu.txt` has the temperature column (decided by its first sample).
+    imu_temperature: bool,
+    /// Whether any IMU sample had a finite temperature (host-sim's rule for the column).
+    imu_any_temperature: bool,
+    gnss: Option<Stream>,
+    nav: Option<Stream>,
+    health: Option<Stream>,
+    checkpoint: Duration,
+    last_flush: Instant,
+}
+
+fn io<T>(r: std::io::Result<T>, path: &Path) -> anyhow::Result<T> {
+    r.with_context(|| format!("writing {}", partial_name(path).display()))
+}
+
+impl FrameFiles {
+    /// Files in `dir` (created when missing), flushed at least every `checkpoint`.
+    pub fn new(dir: &Path, checkpoint: Duration) -> anyhow::Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            imu: None,
+            imu_temperature: false,
+            imu_any_temperature: false,
+            gnss: None,
+            nav: None,
+            health: None,
+            checkpoint,
+            last_flush: Instant::now(),
+        })
+    }
+
+    /// Appends an IMU sample (format of `host_sim::io::write_imu_text`).
+    pub fn imu(&mut self, s: &ImuSample) -> anyhow::Result<()> {
+        let finite_t = s.temperature_c.is_finite();
+        self.imu_any_temperature |= finite_t;
+        if self.imu.is_none() {
+            self.imu = Some(Stream::create(&self.dir, "imu.txt")?);
+            self.imu_temperature = finite_t;
+        }
+        let with_temp = self.imu_temperature;
+        if let Some(st) = self.imu.as_mut() {
+            let w = &mut st.w;
+            let r = (|| {
+                write!(
+                    w,
+                    "{} {:e} {:e} {:e} {:e} {:e} {:e}",
+                    s.t_s,
+                    s.dtheta_rad[0],
+                    s.dtheta_rad[1],
+                    s.dtheta_rad[2],
+                    s.dv_mps[0],
+                    s.dv_mps[1],
+                    s.dv_mps[2]
+                )?;
+                if with_temp {
+                    write!(w, " {}", s.temperature_c)?;
+                }
+                writeln!(w)
+            })();
+            io(r, &st.final_path)?;
+        }
+        self.maybe_checkpoint()
+    }
+
+    /// Appends a GNSS fix (format of `host_sim::io::write_gnss_text`).
+    pub fn gnss(&mut self, f: &GnssFix) -> anyhow::Result<()> {
+        if self.gnss.is_none() {
+            self.gnss = Some(Stream::create(&self.dir, "gnss.txt")?);
+        }
+        if let Some(st) = self.gnss.as_mut() {
+            let w = &mut st.w;
+            let r = (|| {
+                write!(
+                    w,
+                    "{} {} {} {} {} {} {}",
+                    f.t_s,
+                    f.lat_rad.to_degrees(),
+                    f.lon_rad.to_degrees(),
+                    f.h_m,
+                    f.pos_std_ned_m[0],
+                    f.pos_std_ned_m[1],
+                    f.pos_std_ned_m[2]
+                )?;
+                if f.has_velocity {
+                    write!(
+                        w,
+                        " {} {} {} {} {} {}",
+                        f.vel_ned_mps[0],
+                        f.vel_ned_mps[1],
+                        f.vel_ned_mps[2],
+                        f.vel_std_ned_mps[0],
+                        f.vel_std_ned_mps[1],
+                        f.vel_std_ned_mps[2]
+                    )?;
+                }
+                writeln!(w)
+            })();
+            io(r, &st.final_path)?;
+        }
+        self.maybe_checkpoint()
+    }
+
+    /// Appends a board solution to `board-nav.txt` (format of `host_sim::io::write_nav_text`).
+    pub fn nav(&mut self, n: &NavSolution) -> anyhow::Result<()> {
+        if self.nav.is_none() {
+            self.nav = Some(Stream::create(&self.dir, "board-nav.txt")?);
+        }
+        if let Some(st) = self.nav.as_mut() {
+            let r = writeln!(
+                st.w,
+                "{} {} {} {} {} {} {} {} {} {} {}",
+                n.week,
+                n.t_s,
+                n.lat_rad.to_degrees(),
+                n.lon_rad.to_degrees(),
+                n.h_m,
+                n.vel_ned_mps[0],
+                n.vel_ned_mps[1],
+                n.vel_ned_mps[2],
+                n.rpy_rad[0].to_degrees(),
+                n.rpy_rad[1].to_degrees(),
+                n.rpy_rad[2].to_degrees()
+            );
+            io(r, &st.final_path)?;
+        }
+        self.maybe_checkpoint()
+    }
+
+    /// Appends a health frame to `health.txt`.
+    pub fn health(&mut self, x: &Health) -> anyhow::Result<()> {
+        if self.health.is_none() {
+            let mut st = Stream::create(&self.dir, "health.txt")?;
+            let r = writeln!(st.w, "{HEALTH_HEADER}");
+            io(r, &st.final_path)?;
+            self.health = Some(st);
+        }
+        if let Some(st) = self.health.as_mut() {
+            let r = writeln!(
+                st.w,
+                "{} {} {} {} {} {} {} {} {} {} {}",
+                x.uptime_ms,
+                x.rx_frames_ok,
+                x.rx_rejected,
+                x.rx_crc_errors,
+                x.rx_lost,
+                x.imu_epochs,
+                x.gnss_updates,
+                x.gnss_rejected,
+                x.epoch_ticks_max,
+                x.stack_peak_bytes,
+                x.filter_status
+            );
+            io(r, &st.final_path)?;
+        }
+        self.maybe_checkpoint()
+    }
+
+    fn maybe_checkpoint(&mut self) -> anyhow::Result<()> {
+        if self.last_flush.elapsed() >= self.checkpoint {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Flushes every file (a checkpoint: a killed replay keeps everything written so far).
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        for s in [
+            &mut self.imu,
+            &mut self.gnss,
+            &mut self.nav,
+            &mut self.health,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            s.flush()?;
+        }
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
+    /// Flushes and renames every file to its final name. `imu` is every sample appended:
+    /// when the temperature column decided by the first sample differs from host-sim's rule
+    /// (any sample with a finite temperature), `imu.txt` is rewritten with host-sim's writer.
+    pub fn finish(mut self, imu: &[ImuSample]) -> anyhow::Result<Vec<PathBuf>> {
+        let mut done = Vec::new();
+        if let Some(st) = self.imu.take() {
+            if self.imu_temperature == self.imu_any_temperature {
+                done.push(st.finish()?);
+            } else {
+                let path = st.final_path.clone();
+                drop(st);
+                let tmp = partial_name(&path);
+                host_sim::io::write_imu_text(&tmp, imu)?;
+                rename(&tmp, &path)?;
+                done.push(path);
+            }
+        }
+        for s in [self.gnss.take(), self.nav.take(), self.health.take()]
+            .into_iter()
+            .flatten()
+        {
+            done.push(s.finish()?);
+        }
+        Ok(done)
+    }
+}
