@@ -310,7 +310,7 @@ fn prepare_kf_gins(
             k.resolve_path(&k.gnsspath, dir),
         ),
     };
-    let imu = read_imu_text(&imu_p)?.samples;
+    let imu_rec = read_imu_text(&imu_p)?;
     let gnss = read_gnss_text(&gnss_p)?;
     let noise = k.imu_noise();
     let mut filter = FilterConfig::from_kf_gins(&noise);
@@ -358,9 +358,10 @@ fn prepare_kf_gins(
     );
     Ok((
         CaseData {
-            imu,
+            imu: imu_rec.samples,
             gnss,
             truth: None,
+            imu_origin: imu_rec.origin,
         },
         opts,
         week,
@@ -396,9 +397,9 @@ fn prepare_run_config(
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
-    let (imu, mut gnss, truth) = match case_dir {
+    let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
-            read_imu_text(&c.imu)?.samples,
+            read_imu_text(&c.imu)?,
             read_gnss_text(&c.gnss)?,
             if c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
@@ -433,9 +434,10 @@ fn prepare_run_config(
                     })
                     .collect(),
             });
-            (inp.imu.samples, inp.gnss, truth)
+            (inp.imu, inp.gnss, truth)
         }
     };
+    let imu = imu_rec.samples;
     for g in &mut gnss {
         for s in &mut g.pos_std_ned_m {
             *s *= r.gnss.sigma_scale;
@@ -529,7 +531,17 @@ fn prepare_run_config(
     if !r.effects.is_empty() {
         d.push_str(&format!("; effects {}", r.effects.join(",")));
     }
-    Ok((CaseData { imu, gnss, truth }, opts, week, d))
+    Ok((
+        CaseData {
+            imu,
+            gnss,
+            truth,
+            imu_origin: imu_rec.origin,
+        },
+        opts,
+        week,
+        d,
+    ))
 }
 
 /// Runs the filter and computes the metrics (with coasting baselines when there are outages).
@@ -579,22 +591,27 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} IMU samples {elapsed}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let (out, m) = execute(&p, &mut |done, _| pb.set_position(done as u64))?;
+    let res = execute(&p, &mut |done, _| pb.set_position(done as u64));
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
     let dir = &args.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let (out, m) = match res {
+        Ok(x) => x,
+        Err(e) => return Err(write_after_fault(&args, &p, e)),
+    };
     let nav: Vec<NavSolution> = match args.nav_rate {
         Some(r) if r > 0.0 => decimate(&out.nav, r),
         _ => out.nav.clone(),
     };
-    output::write_nav(&dir.join("nav.txt"), &nav, p.week)?;
-    output::write_std(&dir.join("std.txt"), &out)?;
-    output::write_bias(&dir.join("bias.txt"), &out)?;
-    output::write_innovations(&dir.join("innovations.txt"), &out.innovations)?;
-    let mp = dir.join("metrics.json");
-    std::fs::write(&mp, serde_json::to_string_pretty(&m)?)
-        .with_context(|| format!("writing {}", mp.display()))?;
+    let json = metrics_json(&m, &out, None)?;
+    output::write_all(dir, &out, &nav, p.week, &json, true).with_context(|| {
+        format!(
+            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+            dir.display(),
+            output::PARTIAL_SUFFIX
+        )
+    })?;
     let c = &out.counters;
     println!(
         "model {} ({} states), init: {} ({})",
@@ -614,12 +631,101 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         c.gnss_invalid,
         t_run
     );
+    print!("{}", imu_summary(&out));
     print!("{}", metrics::summary_table(&m));
     println!(
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",
         dir.display()
     );
     Ok(())
+}
+
+/// `metrics.json`: the metrics, the IMU report (gaps, rejected samples) and, after a fault,
+/// `"complete": false` with the fault.
+fn metrics_json(m: &Metrics, out: &RunOutput, fault: Option<&str>) -> anyhow::Result<String> {
+    #[derive(serde::Serialize)]
+    struct File<'a> {
+        #[serde(flatten)]
+        metrics: &'a Metrics,
+        imu: &'a super::ImuReport,
+        complete: bool,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        fault: Option<&'a str>,
+    }
+    Ok(serde_json::to_string_pretty(&File {
+        metrics: m,
+        imu: &out.imu_report,
+        complete: fault.is_none(),
+        fault,
+    })?)
+}
+
+/// Lines of the run summary about the IMU data (empty when nothing happened).
+pub fn imu_summary(out: &RunOutput) -> String {
+    let r = &out.imu_report;
+    let mut s = String::new();
+    if r.gaps > 0 {
+        s.push_str(&format!(
+            "IMU: {} time gap(s) bridged ({} sample(s) missing at {:.4} s nominal; {} filled by \
+             interpolation, {} spanned by the next increment)\n",
+            r.gaps, r.missing_samples, r.nominal_dt_s, r.gaps_filled, r.gaps_spanned
+        ));
+    }
+    if r.rejected > 0 {
+        s.push_str(&format!(
+            "IMU: {} sample(s) rejected as physically implausible\n",
+            r.rejected
+        ));
+    }
+    for e in r.events.iter().take(10) {
+        s.push_str(&format!("  {}: {}\n", e.location, e.what));
+    }
+    if r.events.len() > 10 {
+        s.push_str(&format!(
+            "  ... {} more in metrics.json\n",
+            r.events.len() - 10
+        ));
+    }
+    s
+}
+
+/// After a failed run: a fault mid-run writes the outputs up to it as `*.partial` and
+/// returns the error with where they are; other errors are returned as they are.
+fn write_after_fault(args: &RunArgs, p: &Prepared, e: anyhow::Error) -> anyhow::Error {
+    let e = match e.downcast::<super::RunError>() {
+        Ok(super::RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial,
+        }) => (location, t_s, msg, partial),
+        Ok(other) => return other.into(),
+        Err(e) => return e,
+    };
+    let (location, t_s, msg, partial) = e;
+    let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+    let m = metrics::compute(&partial, p.case.truth.as_deref());
+    let nav: Vec<NavSolution> = match args.nav_rate {
+        Some(r) if r > 0.0 => decimate(&partial.nav, r),
+        _ => partial.nav.clone(),
+    };
+    let written = metrics_json(&m, &partial, Some(&fault)).and_then(|json| {
+        Ok(output::write_all(
+            &args.out, &partial, &nav, p.week, &json, false,
+        )?)
+    });
+    let t_last = partial.nav.last().map_or(f64::NAN, |s| s.t_s);
+    match written {
+        Ok(_) => anyhow::anyhow!(
+            "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in {}/*{} \
+             (incomplete)",
+            args.out.display(),
+            output::PARTIAL_SUFFIX
+        ),
+        Err(w) => anyhow::anyhow!(
+            "{fault}; the run stopped there, and writing the partial outputs failed too: {w:#}"
+        ),
+    }
 }
 
 /// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.
