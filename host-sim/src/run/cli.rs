@@ -22,7 +22,7 @@ use super::output;
 use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
 use crate::io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    InitMode, KfGinsConfig, RunConfig, TruthData,
+    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use crate::metrics::{self, Metrics};
 use crate::sim::CaseFile;
@@ -31,6 +31,7 @@ use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
+use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind, ImuCorrection};
 use nav_core::nav::NavState;
 use nav_core::types::NavSolution;
@@ -93,6 +94,78 @@ pub struct RunArgs {
     /// (`accel_scale_factor,...,gyro_g_sensitivity`; e.g. what `host-sim diagnose` added).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
+    /// IMU class giving the plausibility limits (its full-scale range + 10 %; default: the
+    /// configuration's `[imu.checks] class`, else consumer-mems, the widest).
+    #[arg(long, value_enum)]
+    pub imu_class: Option<ImuClassName>,
+    /// Largest plausible angular rate, deg/s on any axis (overrides the class).
+    #[arg(long)]
+    pub imu_max_rate_dps: Option<f64>,
+    /// Largest plausible specific force, g on any axis (overrides the class).
+    #[arg(long)]
+    pub imu_max_accel_g: Option<f64>,
+    /// No plausibility limits (only non-finite samples are rejected).
+    #[arg(long)]
+    pub no_imu_limits: bool,
+    /// Longest IMU time gap bridged, s (default 1; a longer gap ends the run with an error).
+    #[arg(long)]
+    pub imu_max_gap: Option<f64>,
+    /// What the IMU increment after a time gap covers: auto (decided per gap from the
+    /// specific force), span (the whole gap), sample (one nominal interval: the missing
+    /// increments are lost and filled by interpolation). Default: span for CSV rate logs
+    /// (converted over the true interval), auto for increment files.
+    #[arg(long, value_parser = parse_gap_increments)]
+    pub imu_gaps: Option<GapIncrements>,
+    /// Stop at the first implausible IMU sample (outputs up to it kept as *.partial, exit
+    /// code 1) instead of skipping it.
+    #[arg(long)]
+    pub imu_strict: bool,
+}
+
+/// Parses `--imu-gaps`.
+pub fn parse_gap_increments(s: &str) -> anyhow::Result<GapIncrements> {
+    Ok(match s.trim() {
+        "auto" => GapIncrements::Auto,
+        "span" => GapIncrements::Span,
+        "sample" => GapIncrements::Sample,
+        other => bail!("--imu-gaps {other}: expected auto, span or sample"),
+    })
+}
+
+/// Applies `[imu.checks]` of a run configuration to the run options.
+fn apply_imu_checks(ch: &ImuChecksConfig, opts: &mut RunOptions) -> anyhow::Result<()> {
+    if let Some(c) = ch.class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(&mut opts.imu_checks, ch.max_rate_deg_s, ch.max_accel_g)?;
+    if let Some(g) = ch.max_gap_s {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("imu.checks.max_gap_s = {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    opts.imu_checks.stop_on_implausible |= ch.stop_on_implausible;
+    Ok(())
+}
+
+fn set_limits(
+    c: &mut super::ImuChecks,
+    rate_dps: Option<f64>,
+    accel_g: Option<f64>,
+) -> anyhow::Result<()> {
+    if let Some(r) = rate_dps {
+        if !(r.is_finite() && r > 0.0) {
+            bail!("IMU rate limit {r} deg/s: must be positive");
+        }
+        c.limits.max_rate_radps = r.to_radians();
+    }
+    if let Some(a) = accel_g {
+        if !(a.is_finite() && a > 0.0) {
+            bail!("IMU specific-force limit {a} g: must be positive");
+        }
+        c.limits.max_accel_mps2 = a * 9.806_65;
+    }
+    Ok(())
 }
 
 /// Parses a `--gate` value.
@@ -129,6 +202,13 @@ impl RunArgs {
             noise_scale: None,
             quiet: true,
             effects: Vec::new(),
+            imu_class: None,
+            imu_max_rate_dps: None,
+            imu_max_accel_g: None,
+            no_imu_limits: false,
+            imu_max_gap: None,
+            imu_gaps: None,
+            imu_strict: false,
         }
     }
 }
@@ -261,6 +341,27 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     if let Some(g) = &args.gate {
         opts.filter.gating = parse_gate(g)?;
     }
+    if let Some(c) = args.imu_class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(
+        &mut opts.imu_checks,
+        args.imu_max_rate_dps,
+        args.imu_max_accel_g,
+    )?;
+    if args.no_imu_limits {
+        opts.imu_checks.limits = ImuLimits::none();
+    }
+    if let Some(g) = args.imu_max_gap {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("--imu-max-gap {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    if args.imu_gaps.is_some() {
+        opts.imu_checks.increments = args.imu_gaps;
+    }
+    opts.imu_checks.stop_on_implausible |= args.imu_strict;
     if let Some(v) = args.gnss_velocity {
         opts.filter.use_gnss_velocity = v;
     }
@@ -514,6 +615,9 @@ fn prepare_run_config(
         }
     };
     let mut opts = RunOptions::new(model, filter, init);
+    if let Some(ch) = &r.imu.checks {
+        apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
+    }
     opts.lever_arm_m = r.gnss.lever_arm_m;
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
@@ -631,6 +735,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         c.gnss_invalid,
         t_run
     );
+    let ir = &out.imu_report;
+    if ir.rejected > 0 || ir.gaps > 0 {
+        eprintln!(
+            "warning: IMU data: {} time gap(s) bridged ({} sample(s) missing), {} implausible \
+             sample(s) rejected; see the summary and metrics.json (imu.events)",
+            ir.gaps, ir.missing_samples, ir.rejected
+        );
+    }
     print!("{}", imu_summary(&out));
     print!("{}", metrics::summary_table(&m));
     println!(

@@ -79,6 +79,9 @@ pub struct ImuChecks {
     pub limits: ImuLimits,
     /// Longest gap bridged, s (longer ends the run with an error).
     pub max_gap_s: f64,
+    /// An implausible sample ends the run (with the outputs up to it) instead of being
+    /// skipped.
+    pub stop_on_implausible: bool,
 }
 
 impl Default for ImuChecks {
@@ -87,6 +90,7 @@ impl Default for ImuChecks {
             increments: None,
             limits: ImuLimits::default(),
             max_gap_s: MAX_DT_S,
+            stop_on_implausible: false,
         }
     }
 }
@@ -873,6 +877,14 @@ fn run_layout<T: Scalar, const N: usize>(
         let dt = s.t_s - filter.nav_state().t_s;
         let c = match guard.check(&s) {
             Ok(Verdict::Use(c)) => c,
+            Ok(Verdict::Reject(why)) if opts.imu_checks.stop_on_implausible => {
+                fault = Some((
+                    case.locate_imu(k),
+                    s.t_s,
+                    format!("implausible IMU sample: {why}"),
+                ));
+                break;
+            }
             Ok(Verdict::Reject(why)) => {
                 counters.imu_implausible += 1;
                 if imu_report.events.len() < MAX_IMU_EVENTS {
