@@ -28,6 +28,7 @@ pub mod attitude;
 pub mod config;
 pub mod earth;
 pub mod filter;
+pub mod imu_guard;
 pub mod model;
 pub mod nav;
 pub mod scalar;

@@ -256,6 +256,8 @@ pub struct RawImuRecord {
     pub samples: Vec<RawImuSample>,
     /// 1-based file line of each row.
     pub lines: Vec<usize>,
+    /// The file read.
+    pub path: PathBuf,
     /// Time gaps between rows (a counted repair, not an error).
     pub gaps: TimeGapReport,
     /// The time tag used, when there was one.
@@ -287,7 +289,15 @@ impl RawImuRecord {
         for g in &mut gaps.gaps {
             g.index = g.index.saturating_sub(1);
         }
-        ImuRecord { samples, gaps }
+        ImuRecord {
+            samples,
+            gaps,
+            origin: Some(super::text::ImuOrigin {
+                path: self.path.clone(),
+                lines: self.lines.get(1..).unwrap_or(&[]).to_vec(),
+                increments_span_gaps: true,
+            }),
+        }
     }
 }
 
@@ -579,6 +589,7 @@ pub fn read_imu_csv_raw(
     Ok(RawImuRecord {
         samples,
         lines,
+        path: path.to_path_buf(),
         gaps,
         tag,
         stretch,

@@ -34,12 +34,12 @@ pub use mount::Mounting;
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,
-    GivenState, GnssFileKind, GnssSource, GyroNoiseConfig, ImuFileKind, ImuSource, InitConfig,
-    InitMode, NoiseConfig, RunConfig, RunInputs, ScaleNoiseConfig, TruthData, TruthFileKind,
-    TruthSource,
+    GivenState, GnssFileKind, GnssSource, GyroNoiseConfig, ImuChecksConfig, ImuClassName,
+    ImuFileKind, ImuSource, InitConfig, InitMode, NoiseConfig, RunConfig, RunInputs,
+    ScaleNoiseConfig, TruthData, TruthFileKind, TruthSource,
 };
 pub use tag::{read_time_tag, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_text, write_imu_bin,
-    write_imu_text, write_nav_text, ImuGap, ImuRecord, TimeGapReport,
+    write_imu_text, write_nav_text, ImuGap, ImuOrigin, ImuRecord, TimeGapReport,
 };

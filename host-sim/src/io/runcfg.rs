@@ -57,6 +57,59 @@ pub struct ImuSource {
     /// the mapping's own `time_offset_s`).
     #[serde(default)]
     pub time_offset_s: f64,
+    /// Physical plausibility limits and gap handling (default: consumer-MEMS ranges).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checks: Option<ImuChecksConfig>,
+}
+
+/// Sensor class names of `[imu.checks] class` (see `nav_core::imu_guard::ImuClass`).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImuClassName {
+    /// Consumer / automotive MEMS: 4000 deg/s, 32 g.
+    ConsumerMems,
+    /// Industrial MEMS: 2000 deg/s, 40 g.
+    Industrial,
+    /// Tactical grade: 1000 deg/s, 40 g.
+    Tactical,
+    /// Navigation grade: 500 deg/s, 30 g.
+    Navigation,
+}
+
+impl ImuClassName {
+    /// The nav-core class.
+    pub fn class(self) -> nav_core::imu_guard::ImuClass {
+        use nav_core::imu_guard::ImuClass;
+        match self {
+            Self::ConsumerMems => ImuClass::ConsumerMems,
+            Self::Industrial => ImuClass::Industrial,
+            Self::Tactical => ImuClass::Tactical,
+            Self::Navigation => ImuClass::Navigation,
+        }
+    }
+}
+
+/// `[imu.checks]`: IMU plausibility limits and gap handling (`host-sim run`).
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuChecksConfig {
+    /// Sensor class giving the default limits (its full-scale range + 10 %).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub class: Option<ImuClassName>,
+    /// Largest plausible angular rate on any axis, deg/s (overrides the class).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_rate_deg_s: Option<f64>,
+    /// Largest plausible specific force on any axis, g = 9.80665 m/s^2 (overrides the class).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_accel_g: Option<f64>,
+    /// Longest time gap bridged, s (default 1; longer ends the run with an error).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_gap_s: Option<f64>,
+    /// Stop the run at the first implausible sample instead of skipping it.
+    #[serde(default)]
+    pub stop_on_implausible: bool,
 }
 
 /// GNSS file kinds.

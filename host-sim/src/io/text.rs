@@ -29,7 +29,7 @@ use flate2::write::GzEncoder;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Seconds in a GPS week.
 pub const SECONDS_PER_WEEK: f64 = 604_800.0;
@@ -143,6 +143,31 @@ impl std::fmt::Display for TimeGapReport {
     }
 }
 
+/// Where the samples of an IMU record come from: the file and, per sample, its line (1-based;
+/// the record number for binary files), for messages that name the offending line.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ImuOrigin {
+    /// The file.
+    pub path: PathBuf,
+    /// File line of each sample (same length and order as the samples).
+    pub lines: Vec<usize>,
+    /// True when each increment covers the whole interval since the previous sample even
+    /// across a time gap (rates converted to increments over the true interval, CSV);
+    /// false when a gap may have lost increments (increment files: lines deleted, frames
+    /// lost), to be decided per gap (`nav_core::imu_guard::GapIncrements::Auto`).
+    pub increments_span_gaps: bool,
+}
+
+impl ImuOrigin {
+    /// `path:line` of sample `index` (`path, sample index` when the line is unknown).
+    pub fn locate(&self, index: usize) -> String {
+        match self.lines.get(index) {
+            Some(l) => format!("{} line {l}", self.path.display()),
+            None => format!("{} sample {}", self.path.display(), index + 1),
+        }
+    }
+}
+
 /// An IMU record as read: the samples (unchanged, nothing invented) and the gap report.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ImuRecord {
@@ -150,6 +175,8 @@ pub struct ImuRecord {
     pub samples: Vec<ImuSample>,
     /// Detected time gaps (a counted repair, not an error).
     pub gaps: TimeGapReport,
+    /// The file and line of each sample (None when built from samples in memory).
+    pub origin: Option<ImuOrigin>,
 }
 
 impl ImuRecord {
@@ -157,7 +184,11 @@ impl ImuRecord {
     pub fn from_samples(samples: Vec<ImuSample>) -> Self {
         let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
         let gaps = TimeGapReport::detect(&t, &[]);
-        Self { samples, gaps }
+        Self {
+            samples,
+            gaps,
+            origin: None,
+        }
     }
 
     /// Mean sample rate, Hz (0 with fewer than two samples).
@@ -217,7 +248,15 @@ pub fn read_imu_text(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
     }
     let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
     let gaps = TimeGapReport::detect(&t, &lines);
-    Ok(ImuRecord { samples, gaps })
+    Ok(ImuRecord {
+        samples,
+        gaps,
+        origin: Some(ImuOrigin {
+            path: path.to_path_buf(),
+            lines,
+            increments_span_gaps: false,
+        }),
+    })
 }
 
 /// Opens `path` for writing (gzip when it ends in `.gz`) and runs `body` on a buffered writer.
@@ -548,7 +587,15 @@ pub fn read_imu_bin(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
     }
     let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
     let gaps = TimeGapReport::detect(&t, &lines);
-    Ok(ImuRecord { samples, gaps })
+    Ok(ImuRecord {
+        samples,
+        gaps,
+        origin: Some(ImuOrigin {
+            path: path.to_path_buf(),
+            lines,
+            increments_span_gaps: false,
+        }),
+    })
 }
 
 /// Writes IMU samples in the binary format of [`read_imu_bin`] (temperature not written;

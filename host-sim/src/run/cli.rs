@@ -22,7 +22,7 @@ use super::output;
 use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
 use crate::io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    InitMode, KfGinsConfig, RunConfig, TruthData,
+    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use crate::metrics::{self, Metrics};
 use crate::sim::CaseFile;
@@ -31,6 +31,7 @@ use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
+use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind, ImuCorrection};
 use nav_core::nav::NavState;
 use nav_core::types::NavSolution;
@@ -94,6 +95,78 @@ pub struct RunArgs {
     /// (`accel_scale_factor,...,gyro_g_sensitivity`; e.g. what `host-sim diagnose` added).
     #[arg(long, value_delimiter = ',')]
     pub effects: Vec<String>,
+    /// IMU class giving the plausibility limits (its full-scale range + 10 %; default: the
+    /// configuration's `[imu.checks] class`, else consumer-mems, the widest).
+    #[arg(long, value_enum)]
+    pub imu_class: Option<ImuClassName>,
+    /// Largest plausible angular rate, deg/s on any axis (overrides the class).
+    #[arg(long)]
+    pub imu_max_rate_dps: Option<f64>,
+    /// Largest plausible specific force, g on any axis (overrides the class).
+    #[arg(long)]
+    pub imu_max_accel_g: Option<f64>,
+    /// No plausibility limits (only non-finite samples are rejected).
+    #[arg(long)]
+    pub no_imu_limits: bool,
+    /// Longest IMU time gap bridged, s (default 1; a longer gap ends the run with an error).
+    #[arg(long)]
+    pub imu_max_gap: Option<f64>,
+    /// What the IMU increment after a time gap covers: auto (decided per gap from the
+    /// specific force), span (the whole gap), sample (one nominal interval: the missing
+    /// increments are lost and filled by interpolation). Default: span for CSV rate logs
+    /// (converted over the true interval), auto for increment files.
+    #[arg(long, value_parser = parse_gap_increments)]
+    pub imu_gaps: Option<GapIncrements>,
+    /// Stop at the first implausible IMU sample (outputs up to it kept as *.partial, exit
+    /// code 1) instead of skipping it.
+    #[arg(long)]
+    pub imu_strict: bool,
+}
+
+/// Parses `--imu-gaps`.
+pub fn parse_gap_increments(s: &str) -> anyhow::Result<GapIncrements> {
+    Ok(match s.trim() {
+        "auto" => GapIncrements::Auto,
+        "span" => GapIncrements::Span,
+        "sample" => GapIncrements::Sample,
+        other => bail!("--imu-gaps {other}: expected auto, span or sample"),
+    })
+}
+
+/// Applies `[imu.checks]` of a run configuration to the run options.
+fn apply_imu_checks(ch: &ImuChecksConfig, opts: &mut RunOptions) -> anyhow::Result<()> {
+    if let Some(c) = ch.class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(&mut opts.imu_checks, ch.max_rate_deg_s, ch.max_accel_g)?;
+    if let Some(g) = ch.max_gap_s {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("imu.checks.max_gap_s = {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    opts.imu_checks.stop_on_implausible |= ch.stop_on_implausible;
+    Ok(())
+}
+
+fn set_limits(
+    c: &mut super::ImuChecks,
+    rate_dps: Option<f64>,
+    accel_g: Option<f64>,
+) -> anyhow::Result<()> {
+    if let Some(r) = rate_dps {
+        if !(r.is_finite() && r > 0.0) {
+            bail!("IMU rate limit {r} deg/s: must be positive");
+        }
+        c.limits.max_rate_radps = r.to_radians();
+    }
+    if let Some(a) = accel_g {
+        if !(a.is_finite() && a > 0.0) {
+            bail!("IMU specific-force limit {a} g: must be positive");
+        }
+        c.limits.max_accel_mps2 = a * 9.806_65;
+    }
+    Ok(())
 }
 
 /// Parses a `--gate` value.
@@ -131,6 +204,13 @@ impl RunArgs {
             noise_scale: None,
             quiet: true,
             effects: Vec::new(),
+            imu_class: None,
+            imu_max_rate_dps: None,
+            imu_max_accel_g: None,
+            no_imu_limits: false,
+            imu_max_gap: None,
+            imu_gaps: None,
+            imu_strict: false,
         }
     }
 }
@@ -263,6 +343,27 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     if let Some(g) = &args.gate {
         opts.filter.gating = parse_gate(g)?;
     }
+    if let Some(c) = args.imu_class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(
+        &mut opts.imu_checks,
+        args.imu_max_rate_dps,
+        args.imu_max_accel_g,
+    )?;
+    if args.no_imu_limits {
+        opts.imu_checks.limits = ImuLimits::none();
+    }
+    if let Some(g) = args.imu_max_gap {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("--imu-max-gap {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    if args.imu_gaps.is_some() {
+        opts.imu_checks.increments = args.imu_gaps;
+    }
+    opts.imu_checks.stop_on_implausible |= args.imu_strict;
     if let Some(v) = args.gnss_velocity {
         opts.filter.use_gnss_velocity = v;
     }
@@ -312,7 +413,7 @@ fn prepare_kf_gins(
             k.resolve_path(&k.gnsspath, dir),
         ),
     };
-    let imu = read_imu_text(&imu_p)?.samples;
+    let imu_rec = read_imu_text(&imu_p)?;
     let gnss = read_gnss_text(&gnss_p)?;
     let noise = k.imu_noise();
     let mut filter = FilterConfig::from_kf_gins(&noise);
@@ -360,9 +461,10 @@ fn prepare_kf_gins(
     );
     Ok((
         CaseData {
-            imu,
+            imu: imu_rec.samples,
             gnss,
             truth: None,
+            imu_origin: imu_rec.origin,
         },
         opts,
         week,
@@ -398,9 +500,9 @@ fn prepare_run_config(
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
-    let (imu, mut gnss, truth) = match case_dir {
+    let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
-            read_imu_text(&c.imu)?.samples,
+            read_imu_text(&c.imu)?,
             read_gnss_text(&c.gnss)?,
             if c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
@@ -435,9 +537,10 @@ fn prepare_run_config(
                     })
                     .collect(),
             });
-            (inp.imu.samples, inp.gnss, truth)
+            (inp.imu, inp.gnss, truth)
         }
     };
+    let imu = imu_rec.samples;
     for g in &mut gnss {
         for s in &mut g.pos_std_ned_m {
             *s *= r.gnss.sigma_scale;
@@ -514,6 +617,9 @@ fn prepare_run_config(
         }
     };
     let mut opts = RunOptions::new(model, filter, init);
+    if let Some(ch) = &r.imu.checks {
+        apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
+    }
     opts.lever_arm_m = r.gnss.lever_arm_m;
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
@@ -531,7 +637,17 @@ fn prepare_run_config(
     if !r.effects.is_empty() {
         d.push_str(&format!("; effects {}", r.effects.join(",")));
     }
-    Ok((CaseData { imu, gnss, truth }, opts, week, d))
+    Ok((
+        CaseData {
+            imu,
+            gnss,
+            truth,
+            imu_origin: imu_rec.origin,
+        },
+        opts,
+        week,
+        d,
+    ))
 }
 
 /// Runs the filter and computes the metrics (with coasting baselines when there are outages).
@@ -581,22 +697,27 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} IMU samples {elapsed}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let (out, m) = execute(&p, &mut |done, _| pb.set_position(done as u64))?;
+    let res = execute(&p, &mut |done, _| pb.set_position(done as u64));
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
     let dir = &args.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let (out, m) = match res {
+        Ok(x) => x,
+        Err(e) => return Err(write_after_fault(&args, &p, e)),
+    };
     let nav: Vec<NavSolution> = match args.nav_rate {
         Some(r) if r > 0.0 => decimate(&out.nav, r),
         _ => out.nav.clone(),
     };
-    output::write_nav(&dir.join("nav.txt"), &nav, p.week)?;
-    output::write_std(&dir.join("std.txt"), &out)?;
-    output::write_bias(&dir.join("bias.txt"), &out)?;
-    output::write_innovations(&dir.join("innovations.txt"), &out.innovations)?;
-    let mp = dir.join("metrics.json");
-    std::fs::write(&mp, serde_json::to_string_pretty(&m)?)
-        .with_context(|| format!("writing {}", mp.display()))?;
+    let json = metrics_json(&m, &out, None)?;
+    output::write_all(dir, &out, &nav, p.week, &json, true).with_context(|| {
+        format!(
+            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+            dir.display(),
+            output::PARTIAL_SUFFIX
+        )
+    })?;
     let c = &out.counters;
     println!(
         "model {} ({} states), init: {} ({})",
@@ -617,12 +738,109 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         t_run
     );
     println!("gate ({}): {}", out.gating.mode, out.gating.message);
+    let ir = &out.imu_report;
+    if ir.rejected > 0 || ir.gaps > 0 {
+        eprintln!(
+            "warning: IMU data: {} time gap(s) bridged ({} sample(s) missing), {} implausible \
+             sample(s) rejected; see the summary and metrics.json (imu.events)",
+            ir.gaps, ir.missing_samples, ir.rejected
+        );
+    }
+    print!("{}", imu_summary(&out));
     print!("{}", metrics::summary_table(&m));
     println!(
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",
         dir.display()
     );
     Ok(())
+}
+
+/// `metrics.json`: the metrics, the IMU report (gaps, rejected samples) and, after a fault,
+/// `"complete": false` with the fault.
+fn metrics_json(m: &Metrics, out: &RunOutput, fault: Option<&str>) -> anyhow::Result<String> {
+    #[derive(serde::Serialize)]
+    struct File<'a> {
+        #[serde(flatten)]
+        metrics: &'a Metrics,
+        imu: &'a super::ImuReport,
+        complete: bool,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        fault: Option<&'a str>,
+    }
+    Ok(serde_json::to_string_pretty(&File {
+        metrics: m,
+        imu: &out.imu_report,
+        complete: fault.is_none(),
+        fault,
+    })?)
+}
+
+/// Lines of the run summary about the IMU data (empty when nothing happened).
+pub fn imu_summary(out: &RunOutput) -> String {
+    let r = &out.imu_report;
+    let mut s = String::new();
+    if r.gaps > 0 {
+        s.push_str(&format!(
+            "IMU: {} time gap(s) bridged ({} sample(s) missing at {:.4} s nominal; {} filled by \
+             interpolation, {} spanned by the next increment)\n",
+            r.gaps, r.missing_samples, r.nominal_dt_s, r.gaps_filled, r.gaps_spanned
+        ));
+    }
+    if r.rejected > 0 {
+        s.push_str(&format!(
+            "IMU: {} sample(s) rejected as physically implausible\n",
+            r.rejected
+        ));
+    }
+    for e in r.events.iter().take(10) {
+        s.push_str(&format!("  {}: {}\n", e.location, e.what));
+    }
+    if r.events.len() > 10 {
+        s.push_str(&format!(
+            "  ... {} more in metrics.json\n",
+            r.events.len() - 10
+        ));
+    }
+    s
+}
+
+/// After a failed run: a fault mid-run writes the outputs up to it as `*.partial` and
+/// returns the error with where they are; other errors are returned as they are.
+fn write_after_fault(args: &RunArgs, p: &Prepared, e: anyhow::Error) -> anyhow::Error {
+    let e = match e.downcast::<super::RunError>() {
+        Ok(super::RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial,
+        }) => (location, t_s, msg, partial),
+        Ok(other) => return other.into(),
+        Err(e) => return e,
+    };
+    let (location, t_s, msg, partial) = e;
+    let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+    let m = metrics::compute(&partial, p.case.truth.as_deref());
+    let nav: Vec<NavSolution> = match args.nav_rate {
+        Some(r) if r > 0.0 => decimate(&partial.nav, r),
+        _ => partial.nav.clone(),
+    };
+    let written = metrics_json(&m, &partial, Some(&fault)).and_then(|json| {
+        Ok(output::write_all(
+            &args.out, &partial, &nav, p.week, &json, false,
+        )?)
+    });
+    let t_last = partial.nav.last().map_or(f64::NAN, |s| s.t_s);
+    match written {
+        Ok(_) => anyhow::anyhow!(
+            "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in {}/*{} \
+             (incomplete)",
+            args.out.display(),
+            output::PARTIAL_SUFFIX
+        ),
+        Err(w) => anyhow::anyhow!(
+            "{fault}; the run stopped there, and writing the partial outputs failed too: {w:#}"
+        ),
+    }
 }
 
 /// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.

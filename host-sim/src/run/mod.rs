@@ -32,10 +32,12 @@ pub use coast::{coast_outages, CoastMode, CoastTrack};
 pub use init::{InitReport, InitSpec, StaticAlign};
 pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 
+use crate::io::ImuOrigin;
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{dcm_f64, Counters, Filter, FilterError, UpdateOutcome};
+use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard, ImuLimits, Verdict};
 use nav_core::model::{
     BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N,
     LAYOUT_NBK, LAYOUT_NBK_SINGLE,
@@ -54,6 +56,44 @@ pub struct CaseData {
     pub gnss: Vec<GnssFix>,
     /// Truth at the IMU reference point (nav format), when known.
     pub truth: Option<Vec<NavSolution>>,
+    /// File and line of each IMU sample, for messages (used when its length matches `imu`).
+    pub imu_origin: Option<ImuOrigin>,
+}
+
+impl CaseData {
+    /// `file line N` of IMU sample `index` (or `IMU sample index` without an origin).
+    pub fn locate_imu(&self, index: usize) -> String {
+        match &self.imu_origin {
+            Some(o) if o.lines.len() == self.imu.len() => o.locate(index),
+            _ => format!("IMU sample {index}"),
+        }
+    }
+}
+
+/// IMU gap handling and plausibility limits of a run (see [`nav_core::imu_guard`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuChecks {
+    /// What the increment after a gap covers; `None`: from the data's origin (CSV rates:
+    /// spans the gap; increment files and data without origin: decided per gap).
+    pub increments: Option<GapIncrements>,
+    /// Physical range (default: the widest sensor class, consumer MEMS).
+    pub limits: ImuLimits,
+    /// Longest gap bridged, s (longer ends the run with an error).
+    pub max_gap_s: f64,
+    /// An implausible sample ends the run (with the outputs up to it) instead of being
+    /// skipped.
+    pub stop_on_implausible: bool,
+}
+
+impl Default for ImuChecks {
+    fn default() -> Self {
+        Self {
+            increments: None,
+            limits: ImuLimits::default(),
+            max_gap_s: MAX_DT_S,
+            stop_on_implausible: false,
+        }
+    }
 }
 
 impl CaseData {
@@ -63,6 +103,7 @@ impl CaseData {
             imu: case.meas.imu.clone(),
             gnss: case.meas.gnss.clone(),
             truth: Some(case.trajectory.truth.clone()),
+            imu_origin: None,
         }
     }
 }
@@ -165,6 +206,8 @@ pub struct RunOptions {
     /// `diagnose`), f64 only; the total must stay within [`MIN_EXTRA_DIM`]..=[`MAX_EXTRA_DIM`]
     /// states. Empty runs the model as it is.
     pub extra_blocks: Vec<Block>,
+    /// IMU gap handling and plausibility limits.
+    pub imu_checks: ImuChecks,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -202,6 +245,7 @@ impl RunOptions {
             start_s: None,
             end_s: None,
             extra_blocks: Vec::new(),
+            imu_checks: ImuChecks::default(),
         }
     }
 }
@@ -335,6 +379,16 @@ pub struct RunCounters {
     pub gnss_invalid: u64,
     /// Numerical failures of the filter.
     pub numerical_failures: u64,
+    /// IMU time gaps bridged (intervals beyond 1.5 nominal intervals).
+    pub imu_gaps: u64,
+    /// Nominal IMU intervals missing in those gaps.
+    pub imu_missing_samples: u64,
+    /// Gaps whose lost increments were filled with interpolated samples.
+    pub imu_gaps_filled: u64,
+    /// Synthetic IMU samples integrated to fill gaps.
+    pub imu_synthetic_samples: u64,
+    /// IMU samples rejected as physically implausible (beyond the configured range).
+    pub imu_implausible: u64,
 }
 
 impl RunCounters {
@@ -357,6 +411,39 @@ pub struct OutageSnapshot {
     /// The filter's sensor-error correction at that time.
     pub correction: ImuCorrection,
 }
+
+/// What happened to the IMU data at one sample (a gap bridged, a sample rejected).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImuEvent {
+    /// Sample time, GPS seconds of week.
+    pub t_s: f64,
+    /// `file line N` of the sample (or `IMU sample N`).
+    pub location: String,
+    /// What happened, in words.
+    pub what: String,
+}
+
+/// How the IMU data were taken: gaps, rejections and the first events with their location.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct ImuReport {
+    /// Nominal sample interval used to detect gaps, s (median interval of the record).
+    pub nominal_dt_s: f64,
+    /// Gaps bridged.
+    pub gaps: u64,
+    /// Nominal intervals missing in those gaps.
+    pub missing_samples: u64,
+    /// Gaps whose increment spanned the gap (used over the whole gap).
+    pub gaps_spanned: u64,
+    /// Gaps whose lost increments were filled with interpolated samples.
+    pub gaps_filled: u64,
+    /// Samples rejected as physically implausible.
+    pub rejected: u64,
+    /// The first [`MAX_IMU_EVENTS`] events.
+    pub events: Vec<ImuEvent>,
+}
+
+/// Events kept in [`ImuReport::events`].
+pub const MAX_IMU_EVENTS: usize = 50;
 
 /// The result of a run.
 #[derive(Debug, Clone)]
@@ -388,6 +475,8 @@ pub struct RunOutput {
     pub lever_arm_m: [f64; 3],
     /// What the innovation gate and its model-mismatch monitor did.
     pub gating: gating_report::GatingReport,
+    /// IMU gaps and rejected samples.
+    pub imu_report: ImuReport,
 }
 
 /// Errors of a run.
@@ -422,6 +511,18 @@ pub enum RunError {
     /// Invalid options.
     #[error("run: {0}")]
     Options(String),
+    /// A fault in the middle of the data ended the run; `partial` holds everything up to it.
+    #[error("run: {location} (t = {t_s:.6} s): {msg}; the run stopped there")]
+    Fault {
+        /// `file line N` of the offending sample (or `IMU sample N`, `GNSS fix at t`).
+        location: String,
+        /// Its time, s.
+        t_s: f64,
+        /// What went wrong.
+        msg: String,
+        /// The outputs up to the fault.
+        partial: Box<RunOutput>,
+    },
     /// The filter refused its construction or failed.
     #[error("run: filter at t = {t_s:.3} s: {msg}")]
     Filter {
@@ -690,10 +791,11 @@ fn run_layout<T: Scalar, const N: usize>(
     for (i, w) in case.imu.windows(2).enumerate() {
         if let [a, b] = w {
             if b.t_s <= a.t_s {
-                return Err(RunError::ImuNotMonotonic {
-                    index: i + 1,
-                    t_s: b.t_s,
-                });
+                return Err(RunError::Options(format!(
+                    "{}: IMU time {:.6} s is not after the previous sample's",
+                    case.locate_imu(i + 1),
+                    b.t_s
+                )));
             }
         }
     }
@@ -768,24 +870,76 @@ fn run_layout<T: Scalar, const N: usize>(
     let mut status_seen = 0u32;
     let total = last - first;
     let step = (total / 100).max(1);
-    for k in first..last {
+    let mut guard = imu_guard(case, opts, first, t0)?;
+    let mut imu_report = ImuReport {
+        nominal_dt_s: guard.config().nominal_dt_s,
+        ..ImuReport::default()
+    };
+    let mut fault: Option<(String, f64, String)> = None;
+    'imu: for k in first..last {
         let s = case.imu.get(k).copied().unwrap_or_default();
-        let t_prev = filter.nav_state().t_s;
-        let dt = s.t_s - t_prev;
-        if dt > MAX_DT_S {
-            return Err(RunError::ImuGap {
-                index: k,
+        let dt = s.t_s - filter.nav_state().t_s;
+        let c = match guard.check(&s) {
+            Ok(Verdict::Use(c)) => c,
+            Ok(Verdict::Reject(why)) if opts.imu_checks.stop_on_implausible => {
+                fault = Some((
+                    case.locate_imu(k),
+                    s.t_s,
+                    format!("implausible IMU sample: {why}"),
+                ));
+                break;
+            }
+            Ok(Verdict::Reject(why)) => {
+                counters.imu_implausible += 1;
+                if imu_report.events.len() < MAX_IMU_EVENTS {
+                    imu_report.events.push(ImuEvent {
+                        t_s: s.t_s,
+                        location: case.locate_imu(k),
+                        what: format!("rejected: {why}"),
+                    });
+                }
+                continue;
+            }
+            Err(e) => {
+                fault = Some((case.locate_imu(k), s.t_s, e.to_string()));
+                break;
+            }
+        };
+        if c.missing > 0 && imu_report.events.len() < MAX_IMU_EVENTS {
+            imu_report.events.push(ImuEvent {
                 t_s: s.t_s,
-                dt_s: dt,
+                location: case.locate_imu(k),
+                what: format!(
+                    "gap of {dt:.4} s ({} sample(s) missing): {}",
+                    c.missing,
+                    if c.spanned {
+                        "increment spans the gap"
+                    } else {
+                        "lost increments filled by interpolation"
+                    }
+                ),
             });
         }
-        match filter.propagate(&s) {
+        for f in c.fill {
+            if let Err(e) = filter.propagate(&f) {
+                fault = Some((
+                    case.locate_imu(k),
+                    s.t_s,
+                    format!("filling the gap before it: {e}"),
+                ));
+                break 'imu;
+            }
+        }
+        match filter.propagate(&c.sample) {
             Ok(()) => {}
             Err(FilterError::NonFiniteImu) => {
                 counters.imu_rejected += 1;
                 continue;
             }
-            Err(e) => return Err(filter_err(s.t_s, e)),
+            Err(e) => {
+                fault = Some((case.locate_imu(k), s.t_s, e.to_string()));
+                break;
+            }
         }
         let t_k = s.t_s;
         let dt_next = case
@@ -856,7 +1010,14 @@ fn run_layout<T: Scalar, const N: usize>(
                         },
                     });
                 }
-                Err(e) => return Err(filter_err(fix.t_s, e)),
+                Err(e) => {
+                    fault = Some((
+                        format!("GNSS fix at t = {:.3} s", fix.t_s),
+                        fix.t_s,
+                        e.to_string(),
+                    ));
+                    break 'imu;
+                }
             }
         }
         // snapshot at the first IMU epoch at or after an outage start
@@ -885,7 +1046,17 @@ fn run_layout<T: Scalar, const N: usize>(
     counters.imu_rejected = counters
         .imu_rejected
         .max(u64::from(filter.counters().imu_rejected));
-    Ok(RunOutput {
+    let g = guard.counters();
+    counters.imu_gaps = g.gaps;
+    counters.imu_missing_samples = g.missing_samples;
+    counters.imu_gaps_filled = g.gaps_filled;
+    counters.imu_synthetic_samples = g.synthetic_samples;
+    imu_report.gaps = g.gaps;
+    imu_report.missing_samples = g.missing_samples;
+    imu_report.gaps_spanned = g.gaps_spanned;
+    imu_report.gaps_filled = g.gaps_filled;
+    imu_report.rejected = counters.imu_implausible;
+    let out = RunOutput {
         model: opts.model,
         state_names: state_names(&layout),
         nav,
@@ -904,5 +1075,61 @@ fn run_layout<T: Scalar, const N: usize>(
             filter.robust_stats(),
             status_seen,
         ),
-    })
+        imu_report,
+    };
+    match fault {
+        None => Ok(out),
+        Some((location, t_s, msg)) => Err(RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial: Box::new(out),
+        }),
+    }
+}
+
+/// Median interval of the IMU record, s (None with fewer than two samples).
+pub fn median_imu_interval_s(imu: &[ImuSample]) -> Option<f64> {
+    let mut d: Vec<f64> = imu
+        .windows(2)
+        .filter_map(|w| match w {
+            [a, b] => Some(b.t_s - a.t_s),
+            _ => None,
+        })
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let m = d.len() / 2;
+    let (_, v, _) = d.select_nth_unstable_by(m, f64::total_cmp);
+    Some(*v)
+}
+
+/// The IMU guard of a run starting at sample `first` (the filter at `t0`).
+fn imu_guard(
+    case: &CaseData,
+    opts: &RunOptions,
+    first: usize,
+    t0: f64,
+) -> Result<ImuGuard, RunError> {
+    let nominal = median_imu_interval_s(&case.imu).unwrap_or(MAX_DT_S);
+    let ch = &opts.imu_checks;
+    let increments = ch.increments.unwrap_or(match &case.imu_origin {
+        Some(o) if o.increments_span_gaps => GapIncrements::Span,
+        _ => GapIncrements::Auto,
+    });
+    let cfg = GuardConfig {
+        increments,
+        limits: ch.limits,
+        max_gap_s: ch.max_gap_s,
+        ..GuardConfig::new(nominal)
+    };
+    // the sample ending at the initial epoch (with its interval), for the first fill
+    let prev = first
+        .checked_sub(1)
+        .and_then(|i| Some((case.imu.get(i)?, case.imu.get(i.checked_sub(1)?)?)))
+        .filter(|(p, _)| (p.t_s - t0).abs() < 1e-9)
+        .map(|(p, pp)| (*p, p.t_s - pp.t_s));
+    ImuGuard::new(cfg, t0, prev).map_err(|e| RunError::Options(e.to_string()))
 }

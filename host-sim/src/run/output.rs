@@ -140,3 +140,75 @@ pub fn write_innovations(path: &Path, recs: &[InnovationRecord]) -> Result<(), I
     }
     w.flush().map_err(&e)
 }
+
+/// The output files of `host-sim run`, in the order they are written.
+pub const OUTPUT_NAMES: [&str; 5] = [
+    "nav.txt",
+    "std.txt",
+    "bias.txt",
+    "innovations.txt",
+    "metrics.json",
+];
+
+/// Suffix of an output file that is not complete (being written, or the run failed).
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// `dir/name.partial`.
+pub fn partial_path(dir: &Path, name: &str) -> std::path::PathBuf {
+    dir.join(format!("{name}{PARTIAL_SUFFIX}"))
+}
+
+/// Writes every output of a run so that a file under its final name is always complete:
+/// outputs of an earlier run under the final names are removed first, each file is written
+/// to `NAME.partial` and synced to disk, and only when all are written and `complete` (the
+/// run reached its end) are they renamed to their final names. On a write error (a full
+/// disk) or when `complete` is false the `.partial` files stay, and nothing under a final
+/// name claims to be the result. Returns the paths written.
+pub fn write_all(
+    dir: &Path,
+    run: &RunOutput,
+    nav: &[NavSolution],
+    week: u16,
+    metrics_json: &str,
+    complete: bool,
+) -> Result<Vec<std::path::PathBuf>, IoError> {
+    for name in OUTPUT_NAMES {
+        let p = dir.join(name);
+        match std::fs::remove_file(&p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(source) => return Err(IoError::Write { path: p, source }),
+        }
+    }
+    let [p_nav, p_std, p_bias, p_inn, p_met] = OUTPUT_NAMES.map(|n| partial_path(dir, n));
+    write_nav(&p_nav, nav, week)?;
+    write_std(&p_std, run)?;
+    write_bias(&p_bias, run)?;
+    write_innovations(&p_inn, &run.innovations)?;
+    std::fs::write(&p_met, metrics_json).map_err(|source| IoError::Write {
+        path: p_met.clone(),
+        source,
+    })?;
+    let partial = [p_nav, p_std, p_bias, p_inn, p_met];
+    for p in &partial {
+        std::fs::File::open(p)
+            .and_then(|f| f.sync_all())
+            .map_err(|source| IoError::Write {
+                path: p.clone(),
+                source,
+            })?;
+    }
+    if !complete {
+        return Ok(partial.to_vec());
+    }
+    let mut done = Vec::new();
+    for (p, name) in partial.iter().zip(OUTPUT_NAMES) {
+        let fin = dir.join(name);
+        std::fs::rename(p, &fin).map_err(|source| IoError::Write {
+            path: fin.clone(),
+            source,
+        })?;
+        done.push(fin);
+    }
+    Ok(done)
+}

@@ -272,6 +272,7 @@ fn case_data(traj: &Trajectory, seed: u64, on: Sources) -> CaseData {
         imu: m.imu,
         gnss: m.gnss,
         truth: Some(traj.truth.iter().take(1).copied().collect()),
+        imu_origin: None,
     }
 }
 

@@ -1,0 +1,531 @@
+//! IMU sample conditioning before the strapdown: time gaps and physical plausibility.
+//!
+//! The mechanisation integrates gravity, Coriolis and transport rate over the true interval
+//! since the previous sample (`t_k - t_{k-1}`). When samples are missing that interval is
+//! longer than the nominal one, and what the increment of the next sample covers depends on
+//! the source:
+//!
+//! - [`GapIncrements::Span`]: the increment covers the whole interval since the previous
+//!   sample (a sensor that keeps accumulating, or rates converted to increments over the true
+//!   interval, as `host-sim`'s CSV reader does). The sample is used as it is, over the gap.
+//! - [`GapIncrements::Sample`]: the increment covers one nominal interval ending at its time
+//!   stamp; the increments of the missing samples are lost (lines deleted from an increment
+//!   file, a frame lost on the link). The lost part of the gap is filled with synthetic
+//!   samples at about the nominal interval whose rates are interpolated linearly between the
+//!   previous sample's mean rates and this one's, then the sample itself is used over its
+//!   own nominal interval.
+//! - [`GapIncrements::Auto`] (default): decided per gap from the specific force, which on
+//!   any vehicle is dominated by gravity: the hypothesis whose mean specific force
+//!   `|dv| / interval` is closer (in ratio) to the previous sample's is taken. The two
+//!   hypotheses differ by the factor `gap / nominal >= 1.5`, far more than the specific
+//!   force changes from one sample to the next on a land vehicle or a boat.
+//!
+//! A sample whose mean angular rate or specific force exceeds the configured physical range
+//! on any axis ([`ImuLimits`], e.g. from the sensor class with [`ImuLimits::for_class`]), or
+//! that is not finite, is *rejected*: it is not integrated and the interval it covered is
+//! bridged as a gap by the next sample. A gap longer than [`GuardConfig::max_gap_s`] is a
+//! fault ([`GuardError::GapTooLong`]): the caller stops there.
+//!
+//! Allocation-free and panic-free: [`ImuGuard::check`] returns a [`Conditioned`] holding the
+//! fill (an iterator of synthetic samples) and the sample to integrate after it.
+
+use crate::nav::MAX_DT_S;
+use crate::types::ImuSample;
+
+/// What the increment of the first sample after a time gap covers (see the module notes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GapIncrements {
+    /// Decide per gap from the specific force.
+    #[default]
+    Auto,
+    /// The increment covers the whole interval since the previous sample.
+    Span,
+    /// The increment covers one nominal interval; the missing samples' increments are lost.
+    Sample,
+}
+
+/// Sensor classes with typical full-scale ranges (used for [`ImuLimits::for_class`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ImuClass {
+    /// Consumer / automotive MEMS (e.g. ICM-4xxxx, BMI, LSM6): up to 4000 deg/s, 32 g.
+    #[default]
+    ConsumerMems,
+    /// Industrial MEMS (e.g. ADIS164xx): 2000 deg/s, 40 g.
+    Industrial,
+    /// Tactical grade (FOG / high-end MEMS): 1000 deg/s, 40 g.
+    Tactical,
+    /// Navigation grade (RLG / FOG): 500 deg/s, 30 g.
+    Navigation,
+}
+
+/// Physical plausibility limits of an IMU sample: per-axis magnitude of the mean angular rate
+/// (`|dtheta| / interval`) and of the mean specific force (`|dv| / interval`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ImuLimits {
+    /// Largest plausible angular rate on any axis, rad/s.
+    pub max_rate_radps: f64,
+    /// Largest plausible specific force on any axis, m/s^2.
+    pub max_accel_mps2: f64,
+}
+
+impl ImuLimits {
+    /// The full-scale range of a sensor class (module [`ImuClass`]) plus a 10 % margin for
+    /// calibration and the increment's integration.
+    pub fn for_class(c: ImuClass) -> Self {
+        const DEG: f64 = core::f64::consts::PI / 180.0;
+        const G: f64 = 9.806_65;
+        let (rate_deg, accel_g) = match c {
+            ImuClass::ConsumerMems => (4000.0, 32.0),
+            ImuClass::Industrial => (2000.0, 40.0),
+            ImuClass::Tactical => (1000.0, 40.0),
+            ImuClass::Navigation => (500.0, 30.0),
+        };
+        Self {
+            max_rate_radps: 1.1 * rate_deg * DEG,
+            max_accel_mps2: 1.1 * accel_g * G,
+        }
+    }
+
+    /// No limit (only non-finite samples are rejected).
+    pub fn none() -> Self {
+        Self {
+            max_rate_radps: f64::INFINITY,
+            max_accel_mps2: f64::INFINITY,
+        }
+    }
+}
+
+impl Default for ImuLimits {
+    /// [`ImuLimits::for_class`] of [`ImuClass::ConsumerMems`] (the widest class).
+    fn default() -> Self {
+        Self::for_class(ImuClass::ConsumerMems)
+    }
+}
+
+/// Configuration of an [`ImuGuard`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GuardConfig {
+    /// Nominal sample interval, s (e.g. the median interval of the record).
+    pub nominal_dt_s: f64,
+    /// An interval longer than `gap_factor * nominal_dt_s` is a gap (default 1.5).
+    pub gap_factor: f64,
+    /// Longest gap that is bridged, s; longer is a fault (default and at most
+    /// [`MAX_DT_S`] when the increment spans the gap).
+    pub max_gap_s: f64,
+    /// What the increment after a gap covers.
+    pub increments: GapIncrements,
+    /// Physical range.
+    pub limits: ImuLimits,
+}
+
+impl GuardConfig {
+    /// Defaults for a nominal interval: gaps beyond 1.5 intervals, bridged up to 1 s, auto
+    /// increments, consumer-MEMS limits.
+    pub fn new(nominal_dt_s: f64) -> Self {
+        Self {
+            nominal_dt_s,
+            gap_factor: 1.5,
+            max_gap_s: MAX_DT_S,
+            increments: GapIncrements::Auto,
+            limits: ImuLimits::default(),
+        }
+    }
+}
+
+/// Why a sample was rejected.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Implausible {
+    /// Time or an increment is NaN or infinite.
+    NonFinite,
+    /// Mean angular rate beyond the limit on an axis (rad/s).
+    Rate {
+        /// Axis (0 = x, 1 = y, 2 = z).
+        axis: u8,
+        /// The rate, rad/s.
+        value_radps: f64,
+    },
+    /// Mean specific force beyond the limit on an axis (m/s^2).
+    Accel {
+        /// Axis (0 = x, 1 = y, 2 = z).
+        axis: u8,
+        /// The specific force, m/s^2.
+        value_mps2: f64,
+    },
+}
+
+impl core::fmt::Display for Implausible {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        const AX: [&str; 3] = ["x", "y", "z"];
+        match *self {
+            Self::NonFinite => f.write_str("non-finite time or increment"),
+            Self::Rate { axis, value_radps } => write!(
+                f,
+                "angular rate {:.4e} deg/s on {} beyond the physical range",
+                value_radps.to_degrees(),
+                AX.get(usize::from(axis)).copied().unwrap_or("?")
+            ),
+            Self::Accel { axis, value_mps2 } => write!(
+                f,
+                "specific force {:.4e} m/s^2 on {} beyond the physical range",
+                value_mps2,
+                AX.get(usize::from(axis)).copied().unwrap_or("?")
+            ),
+        }
+    }
+}
+
+/// Faults that end a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum GuardError {
+    /// The sample's time is not after the previous accepted sample's.
+    NotIncreasing {
+        /// Interval, s.
+        dt_s: f64,
+    },
+    /// The gap before the sample is longer than [`GuardConfig::max_gap_s`].
+    GapTooLong {
+        /// Gap, s.
+        dt_s: f64,
+        /// The limit, s.
+        max_s: f64,
+    },
+    /// The configuration is unusable (nominal interval not positive and finite).
+    Config,
+}
+
+impl core::fmt::Display for GuardError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::NotIncreasing { dt_s } => {
+                write!(f, "IMU time not increasing (interval {dt_s:.6} s)")
+            }
+            Self::GapTooLong { dt_s, max_s } => write!(
+                f,
+                "IMU gap of {dt_s:.3} s exceeds the longest bridged gap ({max_s:.3} s)"
+            ),
+            Self::Config => f.write_str("IMU guard: nominal interval must be positive"),
+        }
+    }
+}
+
+impl core::error::Error for GuardError {}
+
+/// Counters of an [`ImuGuard`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GuardCounters {
+    /// Samples passed on unchanged.
+    pub passed: u64,
+    /// Gaps seen (intervals beyond `gap_factor` nominal intervals before an accepted sample).
+    pub gaps: u64,
+    /// Of those, gaps whose increment was taken as spanning the gap.
+    pub gaps_spanned: u64,
+    /// Of those, gaps whose missing increments were filled.
+    pub gaps_filled: u64,
+    /// Missing samples (nominal intervals missing, summed over gaps).
+    pub missing_samples: u64,
+    /// Synthetic samples produced by fills.
+    pub synthetic_samples: u64,
+    /// Samples rejected as implausible.
+    pub rejected: u64,
+}
+
+/// The fill of a gap: synthetic samples over the lost part of the gap (empty when none).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GapFill {
+    t_start_s: f64,
+    step_s: f64,
+    n: u32,
+    i: u32,
+    // mean rates at the middle of the previous and next sample's intervals
+    t_a: f64,
+    t_b: f64,
+    w_a: [f64; 3],
+    w_b: [f64; 3],
+    f_a: [f64; 3],
+    f_b: [f64; 3],
+    temperature_c: f64,
+}
+
+impl GapFill {
+    fn empty() -> Self {
+        Self {
+            t_start_s: 0.0,
+            step_s: 0.0,
+            n: 0,
+            i: 0,
+            t_a: 0.0,
+            t_b: 0.0,
+            w_a: [0.0; 3],
+            w_b: [0.0; 3],
+            f_a: [0.0; 3],
+            f_b: [0.0; 3],
+            temperature_c: f64::NAN,
+        }
+    }
+
+    /// Number of synthetic samples in the fill.
+    pub fn len(&self) -> u32 {
+        self.n
+    }
+
+    /// Whether the fill is empty.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+}
+
+impl Iterator for GapFill {
+    type Item = ImuSample;
+
+    fn next(&mut self) -> Option<ImuSample> {
+        if self.i >= self.n {
+            return None;
+        }
+        let t0 = self.t_start_s + f64::from(self.i) * self.step_s;
+        self.i += 1;
+        let t1 = if self.i == self.n {
+            self.t_start_s + f64::from(self.n) * self.step_s
+        } else {
+            self.t_start_s + f64::from(self.i) * self.step_s
+        };
+        let tm = 0.5 * (t0 + t1);
+        let span = self.t_b - self.t_a;
+        let u = if span > 0.0 {
+            ((tm - self.t_a) / span).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        let h = t1 - t0;
+        let lerp = |a: &[f64; 3], b: &[f64; 3]| {
+            [0, 1, 2].map(|k| {
+                let x = a.get(k).copied().unwrap_or(0.0);
+                let y = b.get(k).copied().unwrap_or(0.0);
+                (x + (y - x) * u) * h
+            })
+        };
+        Some(ImuSample {
+            t_s: t1,
+            dtheta_rad: lerp(&self.w_a, &self.w_b),
+            dv_mps: lerp(&self.f_a, &self.f_b),
+            temperature_c: self.temperature_c,
+        })
+    }
+}
+
+/// What to integrate for one input sample: the fill (possibly empty), then `sample`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Conditioned {
+    /// Synthetic samples over the lost part of a gap, to integrate first.
+    pub fill: GapFill,
+    /// The sample to integrate after the fill (the input sample, unchanged).
+    pub sample: ImuSample,
+    /// Missing nominal intervals before the sample (0 when there is no gap).
+    pub missing: u32,
+    /// When there was a gap: whether its increment was taken as spanning it.
+    pub spanned: bool,
+}
+
+/// The outcome of [`ImuGuard::check`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Verdict {
+    /// Integrate [`Conditioned::fill`] then [`Conditioned::sample`].
+    Use(Conditioned),
+    /// The sample is implausible: skip it (counted; its interval is bridged by the next one).
+    Reject(Implausible),
+}
+
+/// Gap handling and plausibility checks in front of the strapdown (module notes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuGuard {
+    cfg: GuardConfig,
+    prev: Option<(ImuSample, f64)>,
+    t_last_s: f64,
+    counters: GuardCounters,
+}
+
+fn rate(v: &[f64; 3], dt: f64) -> [f64; 3] {
+    v.map(|x| x / dt)
+}
+
+fn norm(v: &[f64; 3]) -> f64 {
+    libm::sqrt(v.iter().map(|x| x * x).sum::<f64>())
+}
+
+impl ImuGuard {
+    /// A guard whose last accepted sample is at `t_start_s` (the filter's initial epoch),
+    /// with `prev` the sample ending there and its interval (s) when known (for the rates
+    /// the first fill interpolates from).
+    pub fn new(
+        cfg: GuardConfig,
+        t_start_s: f64,
+        prev: Option<(ImuSample, f64)>,
+    ) -> Result<Self, GuardError> {
+        if !(cfg.nominal_dt_s.is_finite() && cfg.nominal_dt_s > 0.0) {
+            return Err(GuardError::Config);
+        }
+        Ok(Self {
+            cfg,
+            prev: prev.filter(|(s, dt)| s.is_finite() && dt.is_finite() && *dt > 0.0),
+            t_last_s: t_start_s,
+            counters: GuardCounters::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &GuardConfig {
+        &self.cfg
+    }
+
+    /// The counters.
+    pub fn counters(&self) -> &GuardCounters {
+        &self.counters
+    }
+
+    fn plausible(&self, s: &ImuSample, dt: f64) -> Result<(), Implausible> {
+        if !s.is_finite() {
+            return Err(Implausible::NonFinite);
+        }
+        let l = &self.cfg.limits;
+        for (axis, x) in (0u8..).zip(s.dtheta_rad.iter()) {
+            let r = x / dt;
+            if r.is_nan() || r.abs() > l.max_rate_radps {
+                return Err(Implausible::Rate {
+                    axis,
+                    value_radps: r,
+                });
+            }
+        }
+        for (axis, x) in (0u8..).zip(s.dv_mps.iter()) {
+            let a = x / dt;
+            if a.is_nan() || a.abs() > l.max_accel_mps2 {
+                return Err(Implausible::Accel {
+                    axis,
+                    value_mps2: a,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks one sample (in time order). `Ok(Verdict::Use)` gives what to integrate;
+    /// `Ok(Verdict::Reject)` an implausible sample to skip; `Err` a fault (time not
+    /// increasing, a gap longer than [`GuardConfig::max_gap_s`]).
+    pub fn check(&mut self, s: &ImuSample) -> Result<Verdict, GuardError> {
+        if !s.t_s.is_finite() {
+            self.counters.rejected = self.counters.rejected.saturating_add(1);
+            return Ok(Verdict::Reject(Implausible::NonFinite));
+        }
+        let dt = s.t_s - self.t_last_s;
+        if dt.is_nan() || dt <= 0.0 {
+            return Err(GuardError::NotIncreasing { dt_s: dt });
+        }
+        let dt0 = self.cfg.nominal_dt_s;
+        let is_gap = dt > self.cfg.gap_factor * dt0;
+        if !is_gap {
+            if let Err(e) = self.plausible(s, dt) {
+                self.counters.rejected = self.counters.rejected.saturating_add(1);
+                return Ok(Verdict::Reject(e));
+            }
+            self.accept(s, dt);
+            self.counters.passed = self.counters.passed.saturating_add(1);
+            return Ok(Verdict::Use(Conditioned {
+                fill: GapFill::empty(),
+                sample: *s,
+                missing: 0,
+                spanned: false,
+            }));
+        }
+        let spanned = match self.cfg.increments {
+            GapIncrements::Span => true,
+            GapIncrements::Sample => false,
+            GapIncrements::Auto => match self.prev {
+                Some((p, pdt)) => {
+                    let f_ref = norm(&p.dv_mps) / pdt;
+                    let f_span = norm(&s.dv_mps) / dt;
+                    let f_sample = norm(&s.dv_mps) / dt0;
+                    if f_ref > 0.0 && f_span > 0.0 && f_sample > 0.0 {
+                        libm::fabs(libm::log(f_span / f_ref))
+                            <= libm::fabs(libm::log(f_sample / f_ref))
+                    } else {
+                        true
+                    }
+                }
+                None => true,
+            },
+        };
+        let max = if spanned {
+            self.cfg.max_gap_s.min(MAX_DT_S)
+        } else {
+            self.cfg.max_gap_s
+        };
+        if dt.is_nan() || dt > max {
+            return Err(GuardError::GapTooLong {
+                dt_s: dt,
+                max_s: max,
+            });
+        }
+        let own = if spanned { dt } else { dt0.min(dt) };
+        if let Err(e) = self.plausible(s, own) {
+            self.counters.rejected = self.counters.rejected.saturating_add(1);
+            return Ok(Verdict::Reject(e));
+        }
+        let missing = (libm::round(dt / dt0) - 1.0).clamp(1.0, f64::from(u32::MAX)) as u32;
+        self.counters.gaps = self.counters.gaps.saturating_add(1);
+        self.counters.missing_samples = self
+            .counters
+            .missing_samples
+            .saturating_add(u64::from(missing));
+        let mut fill = GapFill::empty();
+        if spanned {
+            self.counters.gaps_spanned = self.counters.gaps_spanned.saturating_add(1);
+        } else {
+            self.counters.gaps_filled = self.counters.gaps_filled.saturating_add(1);
+            let lost = dt - own;
+            let n = libm::round(lost / dt0).clamp(1.0, f64::from(u32::MAX)) as u32;
+            let w_b = rate(&s.dtheta_rad, own);
+            let f_b = rate(&s.dv_mps, own);
+            let (t_a, w_a, f_a) = match self.prev {
+                Some((p, pdt)) => (
+                    self.t_last_s - 0.5 * pdt,
+                    rate(&p.dtheta_rad, pdt),
+                    rate(&p.dv_mps, pdt),
+                ),
+                None => (self.t_last_s, w_b, f_b),
+            };
+            fill = GapFill {
+                t_start_s: self.t_last_s,
+                step_s: lost / f64::from(n),
+                n,
+                i: 0,
+                t_a,
+                t_b: s.t_s - 0.5 * own,
+                w_a,
+                w_b,
+                f_a,
+                f_b,
+                temperature_c: s.temperature_c,
+            };
+            self.counters.synthetic_samples =
+                self.counters.synthetic_samples.saturating_add(u64::from(n));
+        }
+        self.accept(s, own);
+        Ok(Verdict::Use(Conditioned {
+            fill,
+            sample: *s,
+            missing,
+            spanned,
+        }))
+    }
+
+    fn accept(&mut self, s: &ImuSample, covered_s: f64) {
+        self.prev = Some((*s, covered_s));
+        self.t_last_s = s.t_s;
+    }
+}
