@@ -327,21 +327,103 @@ pub enum GateProbability {
 }
 
 /// Innovation gating of GNSS updates: a fix whose normalised innovation squared (NIS) exceeds
-/// the threshold for its measurement dimension is rejected and counted.
+/// the threshold for its measurement dimension is rejected and counted; after
+/// `max_consecutive_rejections` rejections in a row the filter re-initialises position and
+/// velocity (and heading when the GNSS course allows) from the fixes.
+///
+/// With `robust: Some(..)` (the default) the gate tells an isolated outlier from a persistent
+/// model mismatch: fixes between the down-weighting threshold and the gate are used with an
+/// inflated R (IGG-III weights) instead of being rejected, and a windowed NIS monitor widens the
+/// gate and inflates the process noise while the innovations stay larger than predicted (see
+/// `docs/robust-gating.md` and [`RobustGating`]). With `robust: None` the gate is the classical
+/// hard chi-square test.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gating {
     /// NIS threshold for a position-only update (3 degrees of freedom); `f64::INFINITY`
-    /// disables the gate.
+    /// disables the gate. With the robust scheme: the rejection threshold before widening.
     pub nis_threshold_pos: f64,
     /// NIS threshold for a position + velocity update (6 degrees of freedom).
     pub nis_threshold_pos_vel: f64,
-    /// After this many consecutive rejected fixes the next valid fix is accepted without the
-    /// gate (so a filter that drifted away recovers); 0 = never force.
+    /// After this many consecutive rejected fixes the next fix that fails the gate
+    /// re-initialises position and velocity from the fixes (so a filter that drifted away
+    /// recovers); 0 = never.
     pub max_consecutive_rejections: u32,
+    /// Robust re-weighting and the model-mismatch monitor; `None` = hard gate.
+    pub robust: Option<RobustGating>,
+}
+
+/// Largest NIS monitor window ([`RobustGating::window`]), fixes.
+pub const MAX_NIS_WINDOW: usize = 16;
+
+/// Parameters of the robust gating scheme (IGG-III down-weighting of R plus a windowed NIS
+/// monitor with adaptive process-noise inflation). Ratios are of the NIS normalised by the
+/// measurement dimension (1 = consistent on average).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobustGating {
+    /// NIS threshold (3 degrees of freedom) above which a fix is down-weighted (IGG-III k0^2);
+    /// default the 0.99 chi-square quantile.
+    pub downweight_nis_pos: f64,
+    /// The same for position + velocity updates (6 degrees of freedom).
+    pub downweight_nis_pos_vel: f64,
+    /// Number of fixes in the NIS monitor window (1..=[`MAX_NIS_WINDOW`]).
+    pub window: usize,
+    /// The monitor declares a model mismatch when the window median of NIS/dof exceeds this.
+    pub mismatch_ratio_on: f64,
+    /// It eases the inflation back off while the median is below this.
+    pub mismatch_ratio_off: f64,
+    /// Factor applied per fix to the process-noise inflation and the gate widening while a
+    /// mismatch is declared (and divided out per fix while easing off), > 1.
+    pub inflation_step: f64,
+    /// Largest process-noise inflation factor (multiplies Q), >= 1.
+    pub max_q_inflation: f64,
+    /// Largest gate widening factor (multiplies the rejection threshold), >= 1.
+    pub max_gate_widening: f64,
+    /// A reset re-initialises the heading from the GNSS course only when the horizontal
+    /// speed is at least this, m/s (`f64::INFINITY` = never).
+    pub heading_reset_min_speed_mps: f64,
+}
+
+impl Default for RobustGating {
+    /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
+    /// NIS/dof of 4, easing below 1.5; inflation x1.5 per fix up to x100 (Q and gate);
+    /// heading reset above 5 m/s.
+    fn default() -> Self {
+        Self {
+            downweight_nis_pos: chi2::DIM3_P99,
+            downweight_nis_pos_vel: chi2::DIM6_P99,
+            window: 10,
+            mismatch_ratio_on: 4.0,
+            mismatch_ratio_off: 1.5,
+            inflation_step: 1.5,
+            max_q_inflation: 100.0,
+            max_gate_widening: 100.0,
+            heading_reset_min_speed_mps: 5.0,
+        }
+    }
+}
+
+impl RobustGating {
+    fn is_valid(&self) -> bool {
+        self.downweight_nis_pos > 0.0
+            && self.downweight_nis_pos_vel > 0.0
+            && (1..=MAX_NIS_WINDOW).contains(&self.window)
+            && self.mismatch_ratio_on.is_finite()
+            && self.mismatch_ratio_off > 0.0
+            && self.mismatch_ratio_off <= self.mismatch_ratio_on
+            && self.inflation_step.is_finite()
+            && self.inflation_step > 1.0
+            && self.max_q_inflation.is_finite()
+            && self.max_q_inflation >= 1.0
+            && self.max_gate_widening.is_finite()
+            && self.max_gate_widening >= 1.0
+            && !self.heading_reset_min_speed_mps.is_nan()
+            && self.heading_reset_min_speed_mps >= 0.0
+    }
 }
 
 impl Gating {
-    /// Thresholds at the given probability for dimensions 3 and 6.
+    /// Hard chi-square gate with thresholds at the given probability for dimensions 3 and 6
+    /// (no down-weighting, no mismatch monitor).
     pub const fn with_probability(p: GateProbability, max_consecutive_rejections: u32) -> Self {
         let (a, b) = match p {
             GateProbability::P95 => (chi2::DIM3_P95, chi2::DIM6_P95),
@@ -353,6 +435,17 @@ impl Gating {
             nis_threshold_pos: a,
             nis_threshold_pos_vel: b,
             max_consecutive_rejections,
+            robust: None,
+        }
+    }
+
+    /// The robust gate: rejection at the P = 0.9999 quantile (widened by the monitor),
+    /// IGG-III down-weighting from the 0.99 quantile, the default [`RobustGating`], reset after
+    /// 10 consecutive rejections.
+    pub fn robust() -> Self {
+        Self {
+            robust: Some(RobustGating::default()),
+            ..Self::with_probability(GateProbability::P9999, 10)
         }
     }
 
@@ -362,14 +455,15 @@ impl Gating {
             nis_threshold_pos: f64::INFINITY,
             nis_threshold_pos_vel: f64::INFINITY,
             max_consecutive_rejections: 0,
+            robust: None,
         }
     }
 }
 
 impl Default for Gating {
-    /// P = 0.9999 thresholds; force a fix after 10 consecutive rejections.
+    /// The robust gate ([`Gating::robust`]).
     fn default() -> Self {
-        Self::with_probability(GateProbability::P9999, 10)
+        Self::robust()
     }
 }
 
@@ -558,6 +652,7 @@ impl FilterConfig {
         let g = &self.gating;
         if !(g.nis_threshold_pos > 0.0
             && g.nis_threshold_pos_vel > 0.0
+            && g.robust.is_none_or(|r| r.is_valid())
             && self.max_gnss_time_offset_s.is_finite()
             && self.max_gnss_time_offset_s >= 0.0)
         {
