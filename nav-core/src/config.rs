@@ -348,9 +348,16 @@ pub struct Gating {
     /// re-initialises position and velocity from the fixes (so a filter that drifted away
     /// recovers); 0 = never.
     pub max_consecutive_rejections: u32,
+    /// A reset re-initialises the heading from the GNSS course (assuming the vehicle moves
+    /// forward without sideslip) only when the horizontal speed is at least this and the
+    /// course is within 90 deg of the heading, m/s (`f64::INFINITY` = never).
+    pub reset_heading_min_speed_mps: f64,
     /// Robust re-weighting and the model-mismatch monitor; `None` = hard gate.
     pub robust: Option<RobustGating>,
 }
+
+/// Default [`Gating::reset_heading_min_speed_mps`], m/s.
+pub const DEFAULT_RESET_HEADING_MIN_SPEED_MPS: f64 = 5.0;
 
 /// Largest NIS monitor window ([`RobustGating::window`]), fixes.
 pub const MAX_NIS_WINDOW: usize = 16;
@@ -372,21 +379,20 @@ pub struct RobustGating {
     /// It eases the inflation back off while the median is below this.
     pub mismatch_ratio_off: f64,
     /// Factor applied per fix to the process-noise inflation and the gate widening while a
-    /// mismatch is declared (and divided out per fix while easing off), > 1.
+    /// mismatch is declared, > 1.
     pub inflation_step: f64,
+    /// Factor divided out per fix while easing off (median below `mismatch_ratio_off`), > 1.
+    pub easing_step: f64,
     /// Largest process-noise inflation factor (multiplies Q), >= 1.
     pub max_q_inflation: f64,
     /// Largest gate widening factor (multiplies the rejection threshold), >= 1.
     pub max_gate_widening: f64,
-    /// A reset re-initialises the heading from the GNSS course only when the horizontal
-    /// speed is at least this, m/s (`f64::INFINITY` = never).
-    pub heading_reset_min_speed_mps: f64,
 }
 
 impl Default for RobustGating {
     /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
-    /// NIS/dof of 4, easing below 1.5; inflation x1.5 per fix up to x100 (Q and gate);
-    /// heading reset above 5 m/s.
+    /// NIS/dof of 4 (or two rejections in a row), easing below 1.5; inflation x1.5 per fix up
+    /// to x100 (Q and gate), easing /1.1 per fix.
     fn default() -> Self {
         Self {
             downweight_nis_pos: chi2::DIM3_P99,
@@ -395,9 +401,9 @@ impl Default for RobustGating {
             mismatch_ratio_on: 4.0,
             mismatch_ratio_off: 1.5,
             inflation_step: 1.5,
+            easing_step: 1.1,
             max_q_inflation: 100.0,
             max_gate_widening: 100.0,
-            heading_reset_min_speed_mps: 5.0,
         }
     }
 }
@@ -412,12 +418,12 @@ impl RobustGating {
             && self.mismatch_ratio_off <= self.mismatch_ratio_on
             && self.inflation_step.is_finite()
             && self.inflation_step > 1.0
+            && self.easing_step.is_finite()
+            && self.easing_step > 1.0
             && self.max_q_inflation.is_finite()
             && self.max_q_inflation >= 1.0
             && self.max_gate_widening.is_finite()
             && self.max_gate_widening >= 1.0
-            && !self.heading_reset_min_speed_mps.is_nan()
-            && self.heading_reset_min_speed_mps >= 0.0
     }
 }
 
@@ -435,6 +441,7 @@ impl Gating {
             nis_threshold_pos: a,
             nis_threshold_pos_vel: b,
             max_consecutive_rejections,
+            reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
         }
     }
@@ -455,6 +462,7 @@ impl Gating {
             nis_threshold_pos: f64::INFINITY,
             nis_threshold_pos_vel: f64::INFINITY,
             max_consecutive_rejections: 0,
+            reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
         }
     }
@@ -653,6 +661,8 @@ impl FilterConfig {
         if !(g.nis_threshold_pos > 0.0
             && g.nis_threshold_pos_vel > 0.0
             && g.robust.is_none_or(|r| r.is_valid())
+            && !g.reset_heading_min_speed_mps.is_nan()
+            && g.reset_heading_min_speed_mps >= 0.0
             && self.max_gnss_time_offset_s.is_finite()
             && self.max_gnss_time_offset_s >= 0.0)
         {

@@ -491,6 +491,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
             self.consecutive_rejections = 0;
             self.gate.last_rejected = None;
+            self.gate.earlier_rejected = None;
             self.status &= !STATUS_NO_FIX_YET;
             if out.weight < 1.0 {
                 self.status |= STATUS_LAST_FIX_DOWNWEIGHTED;
@@ -500,6 +501,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             self.counters.gnss_rejected = self.counters.gnss_rejected.saturating_add(1);
             self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
             self.status |= STATUS_LAST_FIX_REJECTED;
+            self.gate.earlier_rejected = self.gate.last_rejected;
             self.gate.last_rejected = Some(RejectedFix {
                 t_s: out.t_s,
                 z_pos_m: *zp,
@@ -508,7 +510,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         if let Some(r) = self.cfg.gating.robust {
             if out.dim > 0 {
-                self.gate.monitor(&r, out.t_s, out.nis / out.dim as f64);
+                let rejected = !out.accepted && !out.forced;
+                self.gate
+                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected);
             }
             if self.gate.stats.mismatch {
                 self.status |= STATUS_MODEL_MISMATCH;
@@ -531,9 +535,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// Re-initialises position and velocity (and the heading when the GNSS course allows)
     /// from the fixes, with consistent covariance: the position from this fix (`zp` =
     /// predicted minus measured antenna position, NED m, variances `rp`), the velocity from
-    /// the fix's velocity when used (`zv`, variances) or else from the difference of this
-    /// fix's and the previous rejected fix's innovations (the mean velocity error over the
-    /// interval; the INS carries the acceleration). The rows and columns of the reset states
+    /// the fix's velocity when used (`zv`, variances) or else from the rate of the position
+    /// error through this fix's and the two previous rejected fixes' innovations (a quadratic;
+    /// with one previous fix the mean over the interval; the INS carries the acceleration). The rows and columns of the reset states
     /// are zeroed (no cross-covariance with the rest) and their variances set from the fix
     /// sigmas. Sensor-error estimates are kept.
     fn reset_from_fixes(
@@ -551,36 +555,49 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             }
             *v = v.max(0.0);
         }
-        let prev = self
-            .gate
-            .last_rejected
-            .filter(|p| (t_s - p.t_s) > 0.0 && (t_s - p.t_s) <= RESET_MAX_FIX_INTERVAL_S);
-        let vel_reset = match (zv, prev) {
-            (Some((z, r)), _) => Some((z, r)),
-            (None, Some(p)) => {
-                let dt = t_s - p.t_s;
+        let recent =
+            |p: &RejectedFix, t: f64| (t - p.t_s) > 0.0 && (t - p.t_s) <= RESET_MAX_FIX_INTERVAL_S;
+        let prev = self.gate.last_rejected.filter(|p| recent(p, t_s));
+        let earlier = match prev {
+            Some(p) => self.gate.earlier_rejected.filter(|e| recent(e, p.t_s)),
+            None => None,
+        };
+        let vel_reset = match (zv, prev, earlier) {
+            (Some((z, r)), _, _) => Some((z, r)),
+            (None, Some(p2), Some(p1)) => {
+                // the position error's rate at this fix from the quadratic through the last
+                // three (rejected, rejected, this) innovations: v = sum z_i L_i'(t3) of the
+                // Lagrange basis, variance sum r_i L_i'(t3)^2 (the error's third derivative
+                // is neglected)
+                let (t1, t2, t3) = (p1.t_s, p2.t_s, t_s);
+                let l1 = (t3 - t2) / ((t1 - t2) * (t1 - t3));
+                let l2 = (t3 - t1) / ((t2 - t1) * (t2 - t3));
+                let l3 = 1.0 / (t3 - t1) + 1.0 / (t3 - t2);
                 let mut dv = [0.0; 3];
                 let mut var = [0.0; 3];
-                for i in 0..3 {
-                    let (zi, zpi) = (
-                        zp.get(i).copied().unwrap_or(0.0),
-                        p.z_pos_m.get(i).copied().unwrap_or(0.0),
-                    );
-                    let d = (zi - zpi) / dt;
-                    let r = rp.get(i).copied().unwrap_or(0.0)
-                        + p.var_pos_m2.get(i).copied().unwrap_or(0.0);
-                    if let Some(x) = dv.get_mut(i) {
-                        *x = d;
-                    }
-                    // the fixes' noise, and the velocity error's change over the interval
-                    // (unknown; bounded by half the mean error when it grew from zero)
-                    if let Some(x) = var.get_mut(i) {
-                        *x = r / (dt * dt) + 0.25 * d * d;
-                    }
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = l1 * z(&p1.z_pos_m) + l2 * z(&p2.z_pos_m) + l3 * z(zp);
+                    *v =
+                        l1 * l1 * z(&p1.var_pos_m2) + l2 * l2 * z(&p2.var_pos_m2) + l3 * l3 * z(rp);
                 }
                 Some((dv, var))
             }
-            (None, None) => None,
+            (None, Some(p), None) => {
+                // only two fixes: their mean velocity error over the interval
+                let dt = t_s - p.t_s;
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = (z(zp) - z(&p.z_pos_m)) / dt;
+                    // the fixes' noise, and the velocity error's change over the interval
+                    // (unknown; bounded by half the mean error when it grew from zero)
+                    *v = (z(rp) + z(&p.var_pos_m2)) / (dt * dt) + 0.25 * *d * *d;
+                }
+                Some((dv, var))
+            }
+            (None, None, _) => None,
         };
         let mut reset_idx = [usize::MAX; 7];
         let mut reset_var = [0.0f64; 7];
@@ -605,21 +622,16 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                     *x = var_v.get(i).copied().unwrap_or(0.0).max(0.0);
                 }
             }
-            // heading from the GNSS course, when fast enough and clearly different
-            let min_speed = self
-                .cfg
-                .gating
-                .robust
-                .map_or(f64::INFINITY, |r| r.heading_reset_min_speed_mps);
+            // heading from the GNSS course (forward motion, no sideslip), when fast enough
+            // and clearly different from the heading
+            let min_speed = self.cfg.gating.reset_heading_min_speed_mps;
             let [dvn, dve, _] = dv;
             let (vn, ve) = (nav.vel_ned_mps.x - dvn, nav.vel_ned_mps.y - dve);
             let speed2 = vn * vn + ve * ve;
-            let ins_speed2 =
-                nav.vel_ned_mps.x * nav.vel_ned_mps.x + nav.vel_ned_mps.y * nav.vel_ned_mps.y;
-            if speed2 >= min_speed * min_speed && ins_speed2 >= min_speed * min_speed {
+            if speed2 >= min_speed * min_speed && speed2 > 0.0 {
                 let course = libm::atan2(ve, vn);
-                let ins_course = libm::atan2(nav.vel_ned_mps.y, nav.vel_ned_mps.x);
-                let mut dpsi = course - ins_course;
+                let [_, _, yaw] = attitude::euler_zyx_from_quat(&nav.q_nb);
+                let mut dpsi = course - yaw;
                 if dpsi > core::f64::consts::PI {
                     dpsi -= 2.0 * core::f64::consts::PI;
                 } else if dpsi < -core::f64::consts::PI {
@@ -628,7 +640,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 let [vv0, vv1, _] = var_v;
                 let var_course = vv0.max(vv1) / speed2;
                 let var_yaw = get2(&self.p, IDX_ATT + 2, IDX_ATT + 2).to_f64().max(0.0);
-                if dpsi * dpsi > 9.0 * (var_yaw + var_course) {
+                let var_new = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
+                if dpsi.abs() < core::f64::consts::FRAC_PI_2
+                    && dpsi * dpsi > 9.0 * (var_yaw + var_new)
+                {
                     if let Some(d) = dx.get_mut(IDX_ATT + 2) {
                         *d = dpsi;
                     }
@@ -636,7 +651,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                         *x = IDX_ATT + 2;
                     }
                     if let Some(x) = reset_var.get_mut(6) {
-                        *x = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
+                        *x = var_new;
                     }
                     self.gate.stats.heading_resets =
                         self.gate.stats.heading_resets.saturating_add(1);

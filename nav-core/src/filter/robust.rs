@@ -110,6 +110,9 @@ pub(super) struct GateState {
     next: usize,
     /// The last rejected fix of the current run of rejections.
     pub last_rejected: Option<RejectedFix>,
+    /// The one rejected before it.
+    pub earlier_rejected: Option<RejectedFix>,
+    rejection_run: u32,
     last_fix_t_s: f64,
     episode_start_t_s: f64,
     pub stats: RobustStats,
@@ -122,6 +125,8 @@ impl Default for GateState {
             len: 0,
             next: 0,
             last_rejected: None,
+            earlier_rejected: None,
+            rejection_run: 0,
             last_fix_t_s: f64::NAN,
             episode_start_t_s: f64::NAN,
             stats: RobustStats::default(),
@@ -172,8 +177,10 @@ impl GateState {
     }
 
     /// Feeds one fix's NIS/dof into the monitor and updates the inflation (robust gating
-    /// only). `t_s` is the fix time.
-    pub fn monitor(&mut self, r: &RobustGating, t_s: f64, nis_ratio: f64) {
+    /// only). `t_s` is the fix time; `rejected` whether the gate rejected the fix. Two
+    /// rejections in a row are not an isolated outlier: they inflate at once, without waiting
+    /// for the median to cross [`RobustGating::mismatch_ratio_on`].
+    pub fn monitor(&mut self, r: &RobustGating, t_s: f64, nis_ratio: f64, rejected: bool) {
         let dt = t_s - self.last_fix_t_s;
         self.last_fix_t_s = t_s;
         if self.stats.mismatch && dt.is_finite() && dt > 0.0 {
@@ -190,17 +197,25 @@ impl GateState {
         }
         self.next = (self.next + 1) % w;
         self.len = (self.len + 1).min(w);
+        let run = if rejected {
+            self.rejection_run = self.rejection_run.saturating_add(1);
+            self.rejection_run
+        } else {
+            self.rejection_run = 0;
+            0
+        };
         // a median needs a few values: below 3 one outlier would be half the window
-        if self.len < 3.min(w) {
-            return;
-        }
-        let med = self.median();
+        let med = if self.len < 3.min(w) {
+            f64::NAN
+        } else {
+            self.median()
+        };
         let s = &mut self.stats;
         s.median_ratio = med;
         if s.max_median_ratio.is_nan() || med > s.max_median_ratio {
             s.max_median_ratio = med;
         }
-        if med > r.mismatch_ratio_on {
+        if med > r.mismatch_ratio_on || run >= 2 {
             if !s.mismatch {
                 s.mismatch = true;
                 s.mismatch_episodes = s.mismatch_episodes.saturating_add(1);
@@ -213,8 +228,8 @@ impl GateState {
             s.gate_widening = (s.gate_widening * r.inflation_step).min(r.max_gate_widening);
         } else if med < r.mismatch_ratio_off {
             s.mismatch = false;
-            s.q_inflation = (s.q_inflation / r.inflation_step).max(1.0);
-            s.gate_widening = (s.gate_widening / r.inflation_step).max(1.0);
+            s.q_inflation = (s.q_inflation / r.easing_step).max(1.0);
+            s.gate_widening = (s.gate_widening / r.easing_step).max(1.0);
         }
         if s.mismatch {
             let d = t_s - self.episode_start_t_s;
@@ -232,6 +247,7 @@ impl GateState {
         self.len = 0;
         self.next = 0;
         self.last_rejected = None;
+        self.earlier_rejected = None;
     }
 
     /// Median of the window (insertion sort of at most [`MAX_NIS_WINDOW`] values).
@@ -291,12 +307,12 @@ mod tests {
         let mut g = GateState::default();
         for k in 0..30 {
             let ratio = if k == 15 { 1e6 } else { 1.0 };
-            g.monitor(&r, k as f64, ratio);
+            g.monitor(&r, k as f64, ratio, k == 15);
             assert!(!g.stats.mismatch);
         }
         assert_eq!(g.stats.q_inflation, 1.0);
         for k in 30..60 {
-            g.monitor(&r, k as f64, 9.0);
+            g.monitor(&r, k as f64, 9.0, false);
         }
         assert!(g.stats.mismatch);
         assert_eq!(g.stats.mismatch_episodes, 1);
@@ -305,7 +321,7 @@ mod tests {
         assert_eq!(g.stats.q_inflation, 100.0);
         assert_eq!(g.stats.gate_widening, 100.0);
         for k in 60..200 {
-            g.monitor(&r, k as f64, 1.0);
+            g.monitor(&r, k as f64, 1.0, false);
         }
         // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 65
         assert!((g.stats.mismatch_time_s - 31.0).abs() < 1e-9);
