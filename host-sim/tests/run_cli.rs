@@ -110,7 +110,7 @@ fn simulated_kf_gins_case_runs_from_its_yaml_alone() {
         "--quiet",
     ]));
     println!("{so}");
-    assert!(so.contains("model kf-gins (21 states)"), "{so}");
+    assert!(so.contains("model kf-gins-feedback (21 states)"), "{so}");
     for f in [
         "nav.txt",
         "std.txt",

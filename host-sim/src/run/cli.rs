@@ -2,8 +2,9 @@
 //!
 //! The configuration is the project's run configuration (TOML, [`crate::io::RunConfig`]) or a
 //! KF-GINS YAML file (detected by the extension `.yaml`/`.yml`, or by content: a TOML parse
-//! failure followed by a successful KF-GINS parse). A KF-GINS file runs the 21-state KF-GINS
-//! model with `FilterConfig::from_kf_gins`, its initial state (`initpos` is the IMU position at
+//! failure followed by a successful KF-GINS parse). A KF-GINS file runs KF-GINS's 21 states as
+//! KF-GINS's code runs them (`kf-gins-feedback`, `KfGinsConfig::filter_config_feedback`; with
+//! `--model kf-gins` the textbook Gauss-Markov reading), its initial state (`initpos` is the IMU position at
 //! `starttime`), initial sensor errors and lever arm.
 //!
 //! `--case DIR` reads a case written by `host-sim simulate` (`case.toml` names the files;
@@ -49,7 +50,7 @@ pub struct RunArgs {
     /// Reference trajectory in the nav format (overrides the configuration's).
     #[arg(long)]
     pub truth: Option<PathBuf>,
-    /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins).
+    /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
     #[arg(long, value_enum)]
     pub model: Option<Model>,
     /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable).
@@ -305,7 +306,7 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         None => None,
     };
     let (mut case, mut opts, mut week, mut description) = match kind {
-        ConfigKind::KfGins(k) => prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref())?,
+        ConfigKind::KfGins(k) => prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model)?,
         ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref())?,
     };
     if let Some(cd) = &case_dir {
@@ -403,6 +404,7 @@ fn prepare_kf_gins(
     k: &KfGinsConfig,
     dir: &Path,
     case_dir: Option<&CaseDir>,
+    model: Option<Model>,
 ) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
     k.validate()
         .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
@@ -415,21 +417,11 @@ fn prepare_kf_gins(
     };
     let imu_rec = read_imu_text(&imu_p)?;
     let gnss = read_gnss_text(&gnss_p)?;
-    let noise = k.imu_noise();
-    let mut filter = FilterConfig::from_kf_gins(&noise);
-    // KF-GINS's initial bias std: variance = stationary GM variance + bias_init_sigma^2
-    let extra = |init: [f64; 3], stat: [f64; 3]| {
-        [0, 1, 2].map(|i| (init[i] * init[i] - stat[i] * stat[i]).max(0.0).sqrt())
-    };
-    filter.gyro.bias_init_sigma = extra(k.init_bg_std_radps(), k.imunoise.gbstd_radps());
-    filter.accel.bias_init_sigma = extra(k.init_ba_std_mps2(), k.imunoise.abstd_mps2());
-    filter.gyro_scale = ScaleFactorNoise {
-        sigma: k.init_sg_std(),
-        t_s: filter.gyro_scale.t_s,
-    };
-    filter.accel_scale = ScaleFactorNoise {
-        sigma: k.init_sa_std(),
-        t_s: filter.accel_scale.t_s,
+    // the model: what KF-GINS's code does unless the command line asks for another layout
+    let model = model.unwrap_or(Model::KfGinsFeedback);
+    let filter = match model {
+        Model::KfGinsFeedback => k.filter_config_feedback(),
+        _ => k.filter_config_gauss_markov(),
     };
     let [lat, lon, h] = k.initpos;
     let state = NavState::from_rpy(
@@ -443,7 +435,7 @@ fn prepare_kf_gins(
         vel_sigma_mps: k.initvelstd,
         pos_sigma_m: k.initposstd,
     };
-    let mut opts = RunOptions::new(Model::KfGins21, filter, InitSpec::Given(state, unc));
+    let mut opts = RunOptions::new(model, filter, InitSpec::Given(state, unc));
     opts.lever_arm_m = k.antlever;
     opts.start_s = Some(k.starttime);
     opts.end_s = k.end_time_s();

@@ -11,6 +11,7 @@ pub mod errors;
 pub mod plot;
 pub mod scenario;
 pub mod trajectory;
+pub mod undeclared;
 
 pub use case::{simulate, Case, CaseFile, SimError};
 pub use errors::{ErrorModel, Measurements};

@@ -1,0 +1,581 @@
+//! Drives with one undeclared effect, written in the KF-GINS formats with a `kf-gins.yaml` that
+//! declares only KF-GINS's 21-state model (issue 13's robustness drives, reused by issue 14's
+//! diagnosis tests).
+//!
+//! What a drive is:
+//!
+//! - a land-vehicle scenario of `minutes` at `rate_hz` ([`drive_scenario`]): static start,
+//!   accelerations, braking to stops, left and right turns at 10-25 deg/s with a net rotation
+//!   of several full circles (so a gyro scale factor shows in the heading), hills; the truth is
+//!   integrated with RK4 at `rate_hz * substeps` (default 8 substeps, 1.6 kHz at 200 Hz);
+//! - the declared sensor: the source's tactical IMU (accelerometer white 8.1 ug/sqrt(Hz),
+//!   Gauss-Markov 2.4 ug / 45 s, random walk 10 ug/sqrt(h), turn-on 50 ug; gyro white
+//!   0.079 deg/sqrt(h), Gauss-Markov 0.05 deg/h / 1 h, turn-on 0.1 deg/h), quantized
+//!   (1e-6 m/s, 1e-8 rad), with RTK-like GNSS (white 1/1/2 cm plus a 5 mm / 60 s Gauss-Markov
+//!   error the YAML does not declare), fixes at 1 Hz and 60 s outages ([`drive_outages`]);
+//! - one undeclared effect ([`Effect`]) drawn per seed inside issue 13's realistic ranges
+//!   (random signs per axis);
+//! - a `kf-gins.yaml` ([`UndeclaredDrive::kf_gins_config`]) as a KF-GINS user writes it: the
+//!   noise of the declared sensor in KF-GINS's keys, scale-factor sigmas of zero, the lever arm
+//!   the user believes (zero for the lever-arm drive while the antenna is 1.5 m away), and an
+//!   initial state drawn around the truth with the declared initial standard deviations.
+//!
+//! The generator does not share the filter's assumptions where it can avoid it: the truth is
+//! integrated at a higher rate than the filter's mechanization, the GNSS error has a
+//! correlated part the configuration does not declare, the accelerometer bias has a random
+//! walk KF-GINS's single Gauss-Markov state does not represent, the outputs are quantized, and
+//! the effect itself is outside the declared model.
+
+use super::case::{simulate, Case, SimError};
+use super::errors::{
+    stream, Axes3, ErrorModel, GnssErrors, Outage, SensorErrors, Temperature, DEG_PER_H_RADPS,
+    UG_MPS2,
+};
+use super::scenario::{ImuRate, Scenario, Segment, Start, Vehicle};
+use crate::io::{write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml};
+use rand::Rng;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// An effect that the KF-GINS configuration of a drive does not declare.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Effect {
+    /// Gyro scale factor, 300-1000 ppm per axis.
+    GyroScaleFactor,
+    /// Accelerometer scale factor, 500-1500 ppm per axis.
+    AccelScaleFactor,
+    /// Accelerometer misalignment / non-orthogonality, 100-400 urad per off-diagonal element.
+    AccelMisalignment,
+    /// Accelerometer bias temperature coefficient, 25-60 ug/degC per axis, over a 20 degC
+    /// warm-up (time constant a third of the drive).
+    AccelTemperature,
+    /// GNSS antenna 1.5 m from the IMU while the configuration says 0.
+    LeverArm,
+    /// GNSS time tags 50-100 ms late.
+    TimeOffset,
+}
+
+impl Effect {
+    /// Every effect, in the order of issue 13.
+    pub const ALL: [Effect; 6] = [
+        Effect::GyroScaleFactor,
+        Effect::AccelScaleFactor,
+        Effect::AccelMisalignment,
+        Effect::AccelTemperature,
+        Effect::LeverArm,
+        Effect::TimeOffset,
+    ];
+
+    /// The name of the effect block of the filter's vocabulary that models it
+    /// (`nav_core::model::Block::effect_from_name`; the scale factors are KF-GINS's own
+    /// states, declared with a sigma of zero in the YAML).
+    pub const fn block_name(self) -> &'static str {
+        match self {
+            Effect::GyroScaleFactor => "gyro_scale_factor",
+            Effect::AccelScaleFactor => "accel_scale_factor",
+            Effect::AccelMisalignment => "accel_misalignment",
+            Effect::AccelTemperature => "accel_temperature_bias",
+            Effect::LeverArm => "lever_arm",
+            Effect::TimeOffset => "time_offset",
+        }
+    }
+
+    /// A short description of the magnitude range, for reports.
+    pub const fn range(self) -> &'static str {
+        match self {
+            Effect::GyroScaleFactor => "gyro scale factor 300-1000 ppm",
+            Effect::AccelScaleFactor => "accel scale factor 500-1500 ppm",
+            Effect::AccelMisalignment => "accel misalignment 100-400 urad",
+            Effect::AccelTemperature => {
+                "accel temperature coefficient 25-60 ug/degC, 20 degC warm-up"
+            }
+            Effect::LeverArm => "undeclared lever arm 1.5 m",
+            Effect::TimeOffset => "GNSS-IMU time offset 50-100 ms",
+        }
+    }
+}
+
+impl core::fmt::Display for Effect {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.block_name())
+    }
+}
+
+/// Parameters of a drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveSpec {
+    /// The undeclared effect (`None`: the declared model is complete).
+    pub effect: Option<Effect>,
+    /// Duration, minutes (at least 4).
+    pub minutes: f64,
+    /// IMU rate, Hz.
+    pub rate_hz: f64,
+    /// RK4 substeps per IMU interval of the truth integration.
+    pub substeps: u32,
+    /// Seed of the effect magnitudes, the sensor errors and the initial-state errors.
+    pub seed: u64,
+}
+
+impl DriveSpec {
+    /// An 8-minute 200 Hz drive with `effect`, 8 substeps, seed 13.
+    pub fn new(effect: Option<Effect>) -> Self {
+        Self {
+            effect,
+            minutes: 8.0,
+            rate_hz: 200.0,
+            substeps: 8,
+            seed: 13,
+        }
+    }
+}
+
+/// GPS week of the drives.
+pub const GPS_WEEK: u16 = 2200;
+/// GPS seconds of week of the first IMU epoch.
+pub const START_SOW: f64 = 300_000.0;
+/// Static time at the start, s (the vehicle stands while the filter settles).
+pub const STATIC_START_S: f64 = 30.0;
+/// Duration of each GNSS outage, s.
+pub const OUTAGE_S: f64 = 60.0;
+/// True antenna position of the lever-arm drive, body FRD, m (1.49 m from the IMU; the
+/// configuration says zero).
+pub const LEVER_ARM_TRUE_M: [f64; 3] = [1.2, -0.6, -0.65];
+
+/// The motion of a drive of `minutes` at `rate_hz` (RK4 `substeps` per IMU interval): 30 s
+/// static, then a repeated block of accelerations, turns both ways (net +360 deg per block),
+/// a hill, braking to a stop with a 5 s halt; ends with a stop and 10 s static.
+pub fn drive_scenario(minutes: f64, rate_hz: f64, substeps: u32) -> Scenario {
+    let target_s = minutes * 60.0;
+    let turn = |angle_deg: f64, rate_deg_s: f64| Segment::Turn {
+        angle_deg,
+        rate_deg_s: Some(rate_deg_s),
+        radius_m: None,
+        ramp_s: Some(1.5),
+    };
+    let block: Vec<Segment> = vec![
+        Segment::Accelerate {
+            delta_speed_mps: None,
+            to_speed_mps: Some(12.0),
+            duration_s: 8.0,
+        },
+        Segment::Cruise { duration_s: 10.0 },
+        turn(180.0, 18.0),
+        Segment::Cruise { duration_s: 8.0 },
+        Segment::Hill {
+            height_m: 6.0,
+            length_m: 150.0,
+            ramp_s: None,
+        },
+        turn(-90.0, 12.0),
+        Segment::Accelerate {
+            delta_speed_mps: None,
+            to_speed_mps: Some(16.0),
+            duration_s: 6.0,
+        },
+        Segment::Cruise { duration_s: 8.0 },
+        turn(270.0, 22.0),
+        Segment::Brake {
+            delta_speed_mps: None,
+            to_speed_mps: Some(8.0),
+            duration_s: 5.0,
+        },
+        turn(-120.0, 25.0),
+        Segment::Cruise { duration_s: 6.0 },
+        turn(200.0, 20.0),
+        Segment::Hill {
+            height_m: -6.0,
+            length_m: 120.0,
+            ramp_s: None,
+        },
+        turn(-60.0, 10.0),
+        Segment::Stop {
+            duration_s: Some(6.0),
+        },
+        Segment::Static { duration_s: 5.0 },
+    ];
+    let mut segments = vec![Segment::Static {
+        duration_s: STATIC_START_S,
+    }];
+    let mut sc = Scenario {
+        name: "undeclared-drive".into(),
+        description: format!("{minutes} min land-vehicle drive for the undeclared-effect tests"),
+        start: Start {
+            lat_deg: 48.2,
+            lon_deg: 16.37,
+            h_m: 180.0,
+            heading_deg: 30.0,
+            gps_week: GPS_WEEK,
+            sow_s: START_SOW,
+        },
+        imu: ImuRate { rate_hz, substeps },
+        vehicle: Vehicle::default(),
+        segments: Vec::new(),
+    };
+    // append whole segments of the block (cycling) until the target length minus the tail
+    let mut i = 0usize;
+    loop {
+        sc.segments.clone_from(&segments);
+        let d = sc.compile().map(|p| p.duration_s).unwrap_or(0.0);
+        if d + 20.0 >= target_s || i > 10_000 {
+            break;
+        }
+        let seg = block[i % block.len()].clone();
+        // never end a block while stopped: a stop is always followed by its static halt
+        segments.push(seg);
+        i += 1;
+    }
+    // finish: stop when moving, then stand still
+    sc.segments.clone_from(&segments);
+    let moving = !matches!(
+        segments.last(),
+        Some(Segment::Static { .. }) | Some(Segment::Stop { .. })
+    );
+    if moving {
+        segments.push(Segment::Stop {
+            duration_s: Some(6.0),
+        });
+    }
+    if !matches!(segments.last(), Some(Segment::Static { .. })) {
+        segments.push(Segment::Static { duration_s: 10.0 });
+    }
+    sc.segments = segments;
+    sc
+}
+
+/// The GNSS outages of a drive of `duration_s`: 60 s each, the first at 150 s, then every
+/// 150 s while an outage ends at least 30 s before the end (3 outages in 8 minutes).
+pub fn drive_outages(duration_s: f64) -> Vec<Outage> {
+    let mut v = Vec::new();
+    let mut s = 150.0;
+    while s + OUTAGE_S + 30.0 <= duration_s {
+        v.push(Outage {
+            start_s: s,
+            duration_s: OUTAGE_S,
+        });
+        s += 150.0;
+    }
+    v
+}
+
+/// The declared sensor and GNSS (no undeclared effect): see the module documentation.
+pub fn declared_error_model(duration_s: f64) -> ErrorModel {
+    let accel = SensorErrors {
+        white_psd: Axes3::splat(6.2865e-9),
+        gm_psd: Axes3::splat(2.4360e-11),
+        gm_tau_s: Axes3::splat(45.0),
+        rw_psd: Axes3::splat(2.6731e-12),
+        turn_on_bias_sigma: Axes3::splat(50.0 * UG_MPS2),
+        quantization_step: Axes3::splat(1e-6),
+        ..SensorErrors::default()
+    };
+    let gyro_gm_sigma = 0.05 * DEG_PER_H_RADPS;
+    let gyro = SensorErrors {
+        white_psd: Axes3::splat(5.3079e-10),
+        gm_psd: Axes3::splat(2.0 * gyro_gm_sigma * gyro_gm_sigma / 3600.0),
+        gm_tau_s: Axes3::splat(3600.0),
+        turn_on_bias_sigma: Axes3::splat(0.1 * DEG_PER_H_RADPS),
+        quantization_step: Axes3::splat(1e-8),
+        ..SensorErrors::default()
+    };
+    ErrorModel {
+        name: "undeclared-drive declared sensor".into(),
+        accel,
+        gyro,
+        temperature: None,
+        gnss: GnssErrors {
+            rate_hz: 1.0,
+            white_sigma_ned_m: Axes3([0.01, 0.01, 0.02]),
+            gm_sigma_ned_m: Axes3::splat(0.005),
+            gm_tau_s: 60.0,
+            reported_std_ned_m: Some(Axes3([0.01, 0.01, 0.02])),
+            outages: drive_outages(duration_s),
+            ..GnssErrors::default()
+        },
+    }
+}
+
+/// Sensor/source id of the drive's own random streams (effect magnitudes, initial errors),
+/// distinct from those of [`ErrorModel::apply`].
+const DRIVE_STREAMS: u64 = 13;
+
+/// A uniform draw in `[lo, hi]` with a random sign.
+fn signed(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
+    let m = lo + (hi - lo) * rng.random::<f64>();
+    if rng.random::<bool>() {
+        m
+    } else {
+        -m
+    }
+}
+
+/// Adds `effect` to `m` with magnitudes drawn from `seed` inside issue 13's ranges.
+pub fn add_effect(m: &mut ErrorModel, effect: Effect, seed: u64, duration_s: f64) {
+    let mut rng = stream(seed, DRIVE_STREAMS, 1, effect as u64);
+    match effect {
+        Effect::GyroScaleFactor => {
+            m.gyro.scale_factor_ppm = Axes3([0; 3].map(|_| signed(&mut rng, 300.0, 1000.0)));
+        }
+        Effect::AccelScaleFactor => {
+            m.accel.scale_factor_ppm = Axes3([0; 3].map(|_| signed(&mut rng, 500.0, 1500.0)));
+        }
+        Effect::AccelMisalignment => {
+            for i in 0..3 {
+                for j in 0..3 {
+                    if i != j {
+                        m.accel.misalignment_rad[i][j] = signed(&mut rng, 100e-6, 400e-6);
+                    }
+                }
+            }
+        }
+        Effect::AccelTemperature => {
+            m.accel.temp_coeff_per_c =
+                Axes3([0; 3].map(|_| signed(&mut rng, 25.0, 60.0) * UG_MPS2));
+            m.temperature = Some(Temperature {
+                start_c: 20.0,
+                rise_c: 20.0,
+                tau_s: duration_s / 3.0,
+                reference_c: None,
+                report_noise_c: 0.01,
+            });
+        }
+        Effect::LeverArm => m.gnss.lever_arm_b_m = Axes3(LEVER_ARM_TRUE_M),
+        Effect::TimeOffset => m.gnss.time_offset_s = 0.05 + 0.05 * rng.random::<f64>(),
+    }
+}
+
+/// A generated drive: the simulated case and what its configuration declares.
+#[derive(Debug, Clone)]
+pub struct UndeclaredDrive {
+    /// The drive's parameters.
+    pub spec: DriveSpec,
+    /// Truth, measurements and the complete error model (with the effect).
+    pub case: Case,
+    /// The KF-GINS configuration (paths relative to the drive's folder).
+    pub config: KfGinsConfig,
+}
+
+/// Generates a drive (truth, IMU, GNSS, configuration) in memory.
+pub fn generate(spec: &DriveSpec) -> Result<UndeclaredDrive, SimError> {
+    let scenario = drive_scenario(spec.minutes, spec.rate_hz, spec.substeps);
+    let duration_s = scenario.duration_s()?;
+    let mut errors = declared_error_model(duration_s);
+    if let Some(e) = spec.effect {
+        add_effect(&mut errors, e, spec.seed, duration_s);
+    }
+    errors.name = match spec.effect {
+        Some(e) => format!("undeclared {}", e.range()),
+        None => "declared model only".into(),
+    };
+    let case = simulate(&scenario, &errors, spec.seed)?;
+    let config = kf_gins_config(&case, spec.seed);
+    Ok(UndeclaredDrive {
+        spec: *spec,
+        case,
+        config,
+    })
+}
+
+/// The configuration a KF-GINS user writes for the declared sensor of `case`: 21 states,
+/// scale-factor sigmas of zero, lever arm zero (the antenna is not declared), the initial
+/// state = truth plus errors drawn from the declared initial standard deviations.
+pub fn kf_gins_config(case: &Case, seed: u64) -> KfGinsConfig {
+    let tr = &case.trajectory;
+    let s0 = tr.truth.first().copied().unwrap_or_default();
+    let mut rng = stream(seed, DRIVE_STREAMS, 2, 0);
+    let mut g =
+        || -> f64 { rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng) };
+    let pos_std = [0.02, 0.02, 0.03];
+    let vel_std = [0.01, 0.01, 0.01];
+    let att_std_deg = [0.02, 0.02, 0.3];
+    let dn = [
+        g() * pos_std[0] * 0.5,
+        g() * pos_std[1] * 0.5,
+        g() * pos_std[2] * 0.5,
+    ];
+    let p0 = nav_core::earth::displace(
+        &nav_core::earth::Llh {
+            lat_rad: s0.lat_rad,
+            lon_rad: s0.lon_rad,
+            h_m: s0.h_m,
+        },
+        &nalgebra::Vector3::from(dn),
+    );
+    let v0 = [0, 1, 2].map(|i| s0.vel_ned_mps[i] + 0.5 * vel_std[i] * g());
+    let rpy = [0, 1, 2].map(|i| s0.rpy_rad[i].to_degrees() + 0.5 * att_std_deg[i] * g());
+    // the declared sensor in KF-GINS's keys: one Gauss-Markov bias per axis with a 1 h
+    // correlation time; the accelerometer's 45 s Gauss-Markov and random walk (grown over
+    // the correlation time) folded into abstd; the turn-on biases in the initial stds
+    let acc_gm_var: f64 = 0.5 * 2.4360e-11 * 45.0 + 2.6731e-12 * 3600.0;
+    let abstd_mgal = acc_gm_var.sqrt() / 1e-5;
+    let gbstd_dph = 0.05;
+    let init_ba = ((50.0 * UG_MPS2).powi(2) + acc_gm_var).sqrt() / 1e-5;
+    let init_bg = (0.1f64.powi(2) + gbstd_dph * gbstd_dph).sqrt();
+    let imudatalen = if case.errors.temperature.is_some() {
+        8
+    } else {
+        7
+    };
+    KfGinsConfig {
+        imupath: "imu.txt".into(),
+        gnsspath: "gnss.txt".into(),
+        outputpath: "kf-gins-out".into(),
+        imudatalen,
+        imudatarate: tr.scenario.imu.rate_hz.round() as u32,
+        starttime: tr.t0_s,
+        endtime: -1.0,
+        initpos: [p0.lat_rad.to_degrees(), p0.lon_rad.to_degrees(), p0.h_m],
+        initvel: v0,
+        initatt: [rpy[0], rpy[1], rpy[2].rem_euclid(360.0)],
+        initgyrbias: [0.0; 3],
+        initaccbias: [0.0; 3],
+        initgyrscale: [0.0; 3],
+        initaccscale: [0.0; 3],
+        initposstd: pos_std,
+        initvelstd: vel_std,
+        initattstd: att_std_deg,
+        initbgstd: Some([init_bg; 3]),
+        initbastd: Some([init_ba; 3]),
+        initsgstd: Some([0.0; 3]),
+        initsastd: Some([0.0; 3]),
+        imunoise: KfGinsImuNoiseYaml {
+            arw: [5.3079e-10f64.sqrt().to_degrees() * 60.0; 3],
+            vrw: [6.2865e-9f64.sqrt() * 60.0; 3],
+            gbstd: [gbstd_dph; 3],
+            abstd: [abstd_mgal; 3],
+            gsstd: [0.0; 3],
+            asstd: [0.0; 3],
+            corrtime: 1.0,
+        },
+        antlever: [0.0; 3],
+        unknown_keys: BTreeMap::new(),
+    }
+}
+
+impl UndeclaredDrive {
+    /// Writes the drive into `dir` (created if needed): `imu.txt`, `gnss.txt`, `truth.nav`,
+    /// `case.toml` (the complete model, with the effect and the outages) and `kf-gins.yaml`
+    /// (the declared model). `host-sim run --config DIR/kf-gins.yaml` picks up the truth and
+    /// the outages from `case.toml`.
+    pub fn write(&self, dir: &Path) -> Result<(), SimError> {
+        self.case.write(dir, false)?;
+        write_kf_gins_yaml(dir.join("kf-gins.yaml"), &self.config)?;
+        Ok(())
+    }
+
+    /// What the drive holds, in one line (effect and realised magnitudes).
+    pub fn describe(&self) -> String {
+        let e = &self.case.errors;
+        let what = match self.spec.effect {
+            None => "no undeclared effect".to_string(),
+            Some(Effect::GyroScaleFactor) => {
+                format!(
+                    "gyro scale factor {:?} ppm",
+                    e.gyro.scale_factor_ppm.0.map(r1)
+                )
+            }
+            Some(Effect::AccelScaleFactor) => {
+                format!(
+                    "accel scale factor {:?} ppm",
+                    e.accel.scale_factor_ppm.0.map(r1)
+                )
+            }
+            Some(Effect::AccelMisalignment) => format!(
+                "accel misalignment {:?} urad",
+                e.accel.misalignment_rad.map(|r| r.map(|x| r1(x * 1e6)))
+            ),
+            Some(Effect::AccelTemperature) => format!(
+                "accel temperature coefficient {:?} ug/degC over a 20 degC warm-up",
+                e.accel.temp_coeff_per_c.0.map(|x| r1(x / UG_MPS2))
+            ),
+            Some(Effect::LeverArm) => {
+                format!(
+                    "antenna at {:?} m, declared [0, 0, 0]",
+                    e.gnss.lever_arm_b_m.0
+                )
+            }
+            Some(Effect::TimeOffset) => {
+                format!("GNSS tags {:.1} ms late", e.gnss.time_offset_s * 1e3)
+            }
+        };
+        format!(
+            "{:.1} min at {} Hz (truth RK4 x{}), seed {}: {what}",
+            self.case.trajectory.duration_s() / 60.0,
+            self.spec.rate_hz,
+            self.spec.substeps,
+            self.spec.seed
+        )
+    }
+}
+
+fn r1(x: f64) -> f64 {
+    (x * 10.0).round() / 10.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scenario_length_and_outages() {
+        let sc = drive_scenario(8.0, 100.0, 2);
+        let d = sc.duration_s().unwrap();
+        assert!((460.0..=520.0).contains(&d), "{d}");
+        let o = drive_outages(d);
+        assert_eq!(o.len(), 2, "{o:?}");
+        assert!(o.iter().all(|o| o.start_s + o.duration_s + 30.0 <= d));
+    }
+
+    #[test]
+    fn effect_magnitudes_are_in_range() {
+        for seed in 0..20 {
+            for e in Effect::ALL {
+                let mut m = declared_error_model(480.0);
+                add_effect(&mut m, e, seed, 480.0);
+                m.validate().unwrap();
+                match e {
+                    Effect::GyroScaleFactor => assert!(m
+                        .gyro
+                        .scale_factor_ppm
+                        .0
+                        .iter()
+                        .all(|x| (300.0..=1000.0).contains(&x.abs()))),
+                    Effect::AccelScaleFactor => assert!(m
+                        .accel
+                        .scale_factor_ppm
+                        .0
+                        .iter()
+                        .all(|x| (500.0..=1500.0).contains(&x.abs()))),
+                    Effect::AccelMisalignment => {
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                let x = m.accel.misalignment_rad[i][j].abs();
+                                if i == j {
+                                    assert_eq!(x, 0.0);
+                                } else {
+                                    assert!((100e-6..=400e-6).contains(&x), "{x}");
+                                }
+                            }
+                        }
+                    }
+                    Effect::AccelTemperature => {
+                        assert!(m
+                            .accel
+                            .temp_coeff_per_c
+                            .0
+                            .iter()
+                            .all(|x| (25.0..=60.0).contains(&(x.abs() / UG_MPS2))));
+                        assert_eq!(m.temperature.as_ref().unwrap().rise_c, 20.0);
+                    }
+                    Effect::LeverArm => {
+                        let n = LEVER_ARM_TRUE_M.iter().map(|x| x * x).sum::<f64>().sqrt();
+                        assert!((n - 1.5).abs() < 0.05, "{n}");
+                        assert_eq!(m.gnss.lever_arm_b_m.0, LEVER_ARM_TRUE_M);
+                    }
+                    Effect::TimeOffset => {
+                        assert!((0.05..=0.1).contains(&m.gnss.time_offset_s))
+                    }
+                }
+            }
+        }
+    }
+}
