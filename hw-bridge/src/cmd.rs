@@ -232,8 +232,16 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
             }
             continue;
         };
-        match p.read(&mut buf) {
-            Ok(0) => std::thread::sleep(Duration::from_millis(5)),
+        // A read of 0 bytes after the port polled readable is an end of file: the other side
+        // hung up (a pty whose master closed). It is a lost link, like an error.
+        let read = match p.read(&mut buf) {
+            Ok(0) => Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "end of file (the other side hung up)",
+            )),
+            r => r,
+        };
+        match read {
             Ok(n) => {
                 let data = buf.get(..n).unwrap_or_default();
                 last_data = Some(Instant::now());
@@ -547,6 +555,9 @@ pub fn write_filter_outputs(dir: &Path, f: &FilterRun) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Longest time `replay --to-port` waits for the port to take a byte.
+pub const TO_PORT_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// How often a replay flushes its `.partial` outputs.
 pub const CHECKPOINT: Duration = Duration::from_secs(1);
 
@@ -579,7 +590,7 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         (false, None, None) => None,
     };
     let mut port = match &a.to_port {
-        Some(p) => Some(serial::open(p, a.baud, Duration::from_secs(5))?),
+        Some(p) => Some(serial::open_for_writing(p, a.baud, TO_PORT_TIMEOUT, false)?),
         None => None,
     };
     let mut out = ReplayOutcome {
@@ -640,7 +651,9 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             Record::Data { bytes, .. } => {
                 out.bytes += bytes.len() as u64;
                 if let Some(p) = port.as_mut() {
-                    p.write_all(&bytes).context("writing to --to-port")?;
+                    serial::write_all_within(p.as_mut(), &bytes, TO_PORT_TIMEOUT).with_context(
+                        || format!("writing to --to-port (no byte taken for {TO_PORT_TIMEOUT:?}?)"),
+                    )?;
                 }
                 match a.input {
                     InputKind::Frames => {
@@ -910,7 +923,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
     }
     let payloads = read_case(&a.case)?;
     let write_timeout = secs(a.write_timeout);
-    let mut port = serial::open_with(&a.port, a.baud, write_timeout, a.shared)?;
+    let mut port = serial::open_for_writing(&a.port, a.baud, write_timeout, a.shared)?;
     let timeout_s = write_timeout.as_secs_f64();
     let mut copy = match &a.copy_to {
         Some(p) => Some(BufWriter::new(
@@ -919,7 +932,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
         None => None,
     };
     let mut put = |bytes: &[u8]| -> anyhow::Result<()> {
-        port.write_all(bytes).map_err(|e| {
+        serial::write_all_within(port.as_mut(), bytes, write_timeout).map_err(|e| {
             if e.kind() == std::io::ErrorKind::TimedOut {
                 anyhow::anyhow!(
                     "writing frames to {}: the port took no byte within --write-timeout {timeout_s} s (nothing reads it?)",

@@ -14,6 +14,8 @@
 //! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
 //!   `host-sim run` on the same case (wall times, ratio, identical output);
 //! - `fuzz [--seconds S]`: every cargo-fuzz target for S seconds (CI: 15 s each);
+//! - `soak [--seconds S]`: `hw-bridge send` -> faulty pty link -> `hw-bridge record` for S
+//!   seconds (default 600), counters balancing exactly at the end;
 //! - `ci`: everything CI checks, each step named and timed.
 
 mod budget;
@@ -21,6 +23,7 @@ mod embedded;
 mod fuzz;
 mod hil;
 mod replaybench;
+mod soak;
 mod vectors;
 
 /// hw-bridge's capture format (reading what `hw-bridge record` wrote in the HIL test).
@@ -75,6 +78,13 @@ enum Cmd {
     Fuzz {
         /// Seconds per target.
         #[arg(long, default_value_t = 15)]
+        seconds: u32,
+    },
+    /// The 10-minute soak: `hw-bridge send` and `record` over a pty link with random faults;
+    /// per stream, frames sent = delivered + lost at the end.
+    Soak {
+        /// Seconds of sending.
+        #[arg(long, default_value_t = 600)]
         seconds: u32,
     },
     /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
@@ -145,6 +155,7 @@ fn main() -> std::process::ExitCode {
         },
         Cmd::Ci => ci(),
         Cmd::Fuzz { seconds } => fuzz::run(seconds).map(|_| ()),
+        Cmd::Soak { seconds } => soak::run(seconds),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
     };
     match res {
