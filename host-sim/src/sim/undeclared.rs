@@ -220,13 +220,10 @@ pub fn drive_scenario(minutes: f64, rate_hz: f64, substeps: u32) -> Scenario {
         if d + 20.0 >= target_s || i > 10_000 {
             break;
         }
-        let seg = block[i % block.len()].clone();
-        // never end a block while stopped: a stop is always followed by its static halt
-        segments.push(seg);
+        segments.push(block[i % block.len()].clone());
         i += 1;
     }
     // finish: stop when moving, then stand still
-    sc.segments.clone_from(&segments);
     let moving = !matches!(
         segments.last(),
         Some(Segment::Static { .. }) | Some(Segment::Stop { .. })
