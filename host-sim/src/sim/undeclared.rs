@@ -529,6 +529,18 @@ mod tests {
     }
 
     #[test]
+    fn block_names_are_the_filter_vocabulary() {
+        use nav_core::model::{Block, EFFECT_BLOCKS};
+        for e in Effect::ALL {
+            let known = EFFECT_BLOCKS
+                .iter()
+                .chain(&[Block::GyroScaleFactor, Block::AccelScaleFactor])
+                .any(|b| b.name() == e.block_name());
+            assert!(known, "{e}");
+        }
+    }
+
+    #[test]
     fn effect_magnitudes_are_in_range() {
         for seed in 0..20 {
             for e in Effect::ALL {
