@@ -726,3 +726,53 @@ fn a_reset_at_speed_re_initialises_the_heading_from_the_gnss_course() {
         assert!(max_pos_late < 0.2, "{name}: {max_pos_late} m");
     }
 }
+
+/// The price of re-acquisition: after a 60 s outage the first fix gets the fully widened gate.
+/// A 30 m outlier there is rejected when it is beyond 46 sigma (RTK sigmas) and used when it
+/// is inside (1 m sigmas); either way the filter is back on the fixes within 15 fixes.
+#[test]
+fn an_outlier_as_the_first_fix_after_an_outage_does_not_derail_the_filter() {
+    for (sigma, seed) in [(0.02, 61u64), (1.0, 62)] {
+        let mut sc = SimConfig::nbk(100.0);
+        sc.gnss_pos_sigma_m = [sigma, sigma, 2.0 * sigma];
+        let cfg = nbk_cfg(&sc);
+        let mut sim = Sim::new(sc, seed);
+        let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+        let mut k = 0;
+        let mut errs = Vec::new();
+        let mut first = None;
+        while k < 220 {
+            let e = sim.step();
+            f.propagate(&e.imu).unwrap();
+            let Some(fix) = e.gnss else { continue };
+            k += 1;
+            if (120..180).contains(&k) {
+                continue; // outage
+            }
+            let fix = if k == 180 {
+                shifted(&fix, [18.0, 24.0, 0.0])
+            } else {
+                fix
+            };
+            let o = f.update_gnss(&fix).unwrap();
+            let (_, _, dr) = nav_errors(f.nav_state(), &e.truth);
+            if k == 180 {
+                first = Some(o);
+            }
+            if k >= 180 {
+                errs.push(horiz(&dr));
+            }
+        }
+        let o = first.unwrap();
+        let back = errs.iter().skip(1).position(|e| *e < 3.0 * sigma + 0.05);
+        println!(
+            "sigma {sigma} m: 30 m outlier after a 60 s outage: NIS {:.0} (gate {:.0}), accepted {}, weight {:.3}; \
+             error after it {:.2} m; back within {}: {:?} fixes later; final {:.3} m, resets {}",
+            o.nis, o.nis_threshold, o.accepted, o.weight, errs[0], 3.0 * sigma + 0.05, back.map(|b| b + 1),
+            errs.last().unwrap(), f.counters().gnss_forced
+        );
+        let back = back.expect("the filter did not come back onto the fixes") + 1;
+        assert!(back <= 15, "sigma {sigma}: {back} fixes");
+        assert!(*errs.last().unwrap() < 3.0 * sigma + 0.05);
+    }
+}
