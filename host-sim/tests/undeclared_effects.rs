@@ -56,6 +56,21 @@ fn check(effect: Effect) {
     let t_gen = t.elapsed().as_secs_f64();
     let def = run(dir.path(), None);
     let off = run(dir.path(), Some("off"));
+    // the same drive (same seed, same sensor errors) without the effect: what the effect costs
+    let base = generate(&DriveSpec {
+        effect: None,
+        ..spec
+    })
+    .expect("generate");
+    let bdir = tempfile::tempdir().expect("tempdir");
+    base.write(bdir.path()).expect("write");
+    let b = run(bdir.path(), Some("off"));
+    println!(
+        "{effect}: without the effect (gate off) {:.3} m with GNSS, outage error {:.2} m; {} rejected with the default gate",
+        b.rms_with_gnss_m,
+        b.outage_m,
+        run(bdir.path(), None).rejected
+    );
     let rej = def.rejected as f64 / def.fixes.max(1) as f64;
     let r_rms = def.rms_with_gnss_m / off.rms_with_gnss_m;
     let r_out = def.outage_m / off.outage_m;

@@ -408,7 +408,10 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
         .unwrap();
     assert!(st.status.success(), "{st:?}");
     let so = String::from_utf8_lossy(&st.stdout);
-    assert!(so.contains("filter: model kf-gins-feedback (21 states)"), "{so}");
+    assert!(
+        so.contains("filter: model kf-gins-feedback (21 states)"),
+        "{so}"
+    );
     for f in [
         "nav.txt",
         "std.txt",

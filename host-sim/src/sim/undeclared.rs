@@ -12,7 +12,8 @@
 //!   Gauss-Markov 2.4 ug / 45 s, random walk 10 ug/sqrt(h), turn-on 50 ug; gyro white
 //!   0.079 deg/sqrt(h), Gauss-Markov 0.05 deg/h / 1 h, turn-on 0.1 deg/h), quantized
 //!   (1e-6 m/s, 1e-8 rad), with RTK-like GNSS (white 1/1/2 cm plus a 5 mm / 60 s Gauss-Markov
-//!   error the YAML does not declare), fixes at 1 Hz and 60 s outages ([`drive_outages`]);
+//!   error the YAML does not declare), fixes at 1 Hz and 60 s outages every 120 s
+//!   ([`drive_outages`]);
 //! - one undeclared effect ([`Effect`]) drawn per seed inside issue 13's realistic ranges
 //!   (random signs per axis);
 //! - a `kf-gins.yaml` ([`UndeclaredDrive::kf_gins_config`]) as a KF-GINS user writes it: the
@@ -117,11 +118,11 @@ pub struct DriveSpec {
 }
 
 impl DriveSpec {
-    /// An 8-minute 200 Hz drive with `effect`, 8 substeps, seed 13.
+    /// A 10-minute 200 Hz drive (4 outages) with `effect`, 8 substeps, seed 13.
     pub fn new(effect: Option<Effect>) -> Self {
         Self {
             effect,
-            minutes: 8.0,
+            minutes: 10.0,
             rate_hz: 200.0,
             substeps: 8,
             seed: 13,
@@ -219,13 +220,10 @@ pub fn drive_scenario(minutes: f64, rate_hz: f64, substeps: u32) -> Scenario {
         if d + 20.0 >= target_s || i > 10_000 {
             break;
         }
-        let seg = block[i % block.len()].clone();
-        // never end a block while stopped: a stop is always followed by its static halt
-        segments.push(seg);
+        segments.push(block[i % block.len()].clone());
         i += 1;
     }
     // finish: stop when moving, then stand still
-    sc.segments.clone_from(&segments);
     let moving = !matches!(
         segments.last(),
         Some(Segment::Static { .. }) | Some(Segment::Stop { .. })
@@ -242,17 +240,20 @@ pub fn drive_scenario(minutes: f64, rate_hz: f64, substeps: u32) -> Scenario {
     sc
 }
 
-/// The GNSS outages of a drive of `duration_s`: 60 s each, the first at 150 s, then every
-/// 150 s while an outage ends at least 30 s before the end (3 outages in 8 minutes).
+/// Period of the GNSS outages, s (60 s of GNSS between two outages).
+pub const OUTAGE_PERIOD_S: f64 = 120.0;
+
+/// The GNSS outages of a drive of `duration_s`: 60 s each, the first at 120 s, then every
+/// 120 s while an outage ends at least 30 s before the end (4 outages in 10 minutes).
 pub fn drive_outages(duration_s: f64) -> Vec<Outage> {
     let mut v = Vec::new();
-    let mut s = 150.0;
+    let mut s = OUTAGE_PERIOD_S;
     while s + OUTAGE_S + 30.0 <= duration_s {
         v.push(Outage {
             start_s: s,
             duration_s: OUTAGE_S,
         });
-        s += 150.0;
+        s += OUTAGE_PERIOD_S;
     }
     v
 }
@@ -521,8 +522,22 @@ mod tests {
         let d = sc.duration_s().unwrap();
         assert!((460.0..=520.0).contains(&d), "{d}");
         let o = drive_outages(d);
-        assert_eq!(o.len(), 2, "{o:?}");
+        assert_eq!(o.len(), 3, "{o:?}");
+        let d10 = drive_scenario(10.0, 100.0, 2).duration_s().unwrap();
+        assert_eq!(drive_outages(d10).len(), 4);
         assert!(o.iter().all(|o| o.start_s + o.duration_s + 30.0 <= d));
+    }
+
+    #[test]
+    fn block_names_are_the_filter_vocabulary() {
+        use nav_core::model::{Block, EFFECT_BLOCKS};
+        for e in Effect::ALL {
+            let known = EFFECT_BLOCKS
+                .iter()
+                .chain(&[Block::GyroScaleFactor, Block::AccelScaleFactor])
+                .any(|b| b.name() == e.block_name());
+            assert!(known, "{e}");
+        }
     }
 
     #[test]

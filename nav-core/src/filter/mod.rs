@@ -178,6 +178,8 @@ pub struct Filter<T: Scalar, const N: usize> {
     counters: Counters,
     consecutive_rejections: u32,
     gate: GateState,
+    /// Initial variance of every state (the floor of a reset's re-initialised covariance).
+    prior_var: [f64; N],
     status: u32,
     /// Reference temperature of the temperature blocks, degC (NaN until known).
     temperature_ref_c: f64,
@@ -261,6 +263,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             counters: Counters::default(),
             consecutive_rejections: 0,
             gate: GateState::default(),
+            prior_var: var,
             status: STATUS_NO_FIX_YET,
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
@@ -509,11 +512,22 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             });
         }
         if let Some(r) = self.cfg.gating.robust {
-            self.gate.note_fix(out.t_s, out.accepted || out.forced);
+            let ends_gap = out.forced || (out.accepted && self.gate.last_within_normal_gate);
+            self.gate.note_fix(out.t_s, ends_gap);
             if out.dim > 0 {
                 let rejected = !out.accepted && !out.forced;
+                let base = if out.dim == 3 {
+                    self.cfg.gating.nis_threshold_pos
+                } else {
+                    self.cfg.gating.nis_threshold_pos_vel
+                };
+                let grow = if out.accepted && !out.forced {
+                    r.growth_per_fix * out.nis / base
+                } else {
+                    0.0
+                };
                 self.gate
-                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected);
+                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected, grow);
             }
             if self.gate.stats.mismatch {
                 self.status |= STATUS_MODEL_MISMATCH;
@@ -538,9 +552,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// predicted minus measured antenna position, NED m, variances `rp`), the velocity from
     /// the fix's velocity when used (`zv`, variances) or else from the rate of the position
     /// error through this fix's and the two previous rejected fixes' innovations (a quadratic;
-    /// with one previous fix the mean over the interval; the INS carries the acceleration). The rows and columns of the reset states
-    /// are zeroed (no cross-covariance with the rest) and their variances set from the fix
-    /// sigmas. Sensor-error estimates are kept.
+    /// with one previous fix the mean over the interval; the INS carries the acceleration).
+    /// The reset states' variances are set from the fix sigmas; every other state keeps its
+    /// estimate with its variance raised to at least its initial one; no cross-covariance is
+    /// kept (the filter had diverged: its correlations are not to be trusted).
     fn reset_from_fixes(
         &mut self,
         t_s: f64,
@@ -661,22 +676,22 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         let dx_t = dx.map(T::of_f64);
         self.feedback(&dx_t);
-        for (idx, var) in reset_idx.iter().zip(reset_var.iter()) {
-            if *idx >= N {
-                continue;
+        // the filter diverged: its correlations are not to be trusted. Every other state keeps
+        // its estimate with its variance raised to at least its initial one, and no
+        // cross-covariance is kept; the reset states get the fixes' variances.
+        let mut p = [[T::ZERO; N]; N];
+        for (i, (row, prior)) in p.iter_mut().zip(self.prior_var.iter()).enumerate() {
+            let v = get2(&self.p, i, i).to_f64().max(*prior);
+            if let Some(x) = row.get_mut(i) {
+                *x = T::of_f64(v);
             }
-            for (k, row) in self.p.iter_mut().enumerate() {
-                if let Some(x) = row.get_mut(*idx) {
-                    *x = T::ZERO;
-                }
-                if k == *idx {
-                    for x in row.iter_mut() {
-                        *x = T::ZERO;
-                    }
-                }
-            }
-            set2(&mut self.p, *idx, *idx, T::of_f64(*var));
         }
+        for (idx, var) in reset_idx.iter().zip(reset_var.iter()) {
+            if *idx < N {
+                set2(&mut p, *idx, *idx, T::of_f64(*var));
+            }
+        }
+        self.p = p;
         self.gate.stats.resets = self.gate.stats.resets.saturating_add(1);
         self.gate.clear_window();
     }
@@ -764,6 +779,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !nis.is_finite() {
             return Err(self.numerical_failure());
         }
+        self.gate.last_within_normal_gate = nis <= th.normal_reject;
         let weight = if nis <= th.downweight {
             1.0
         } else {

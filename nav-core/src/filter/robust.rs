@@ -110,6 +110,8 @@ pub(super) struct GateState {
     next: usize,
     /// The last rejected fix of the current run of rejections.
     pub last_rejected: Option<RejectedFix>,
+    /// Whether the last fix's NIS was within the gate without the re-acquisition widening.
+    pub last_within_normal_gate: bool,
     /// The one rejected before it.
     pub earlier_rejected: Option<RejectedFix>,
     rejection_run: u32,
@@ -128,6 +130,7 @@ impl Default for GateState {
             len: 0,
             next: 0,
             last_rejected: None,
+            last_within_normal_gate: false,
             earlier_rejected: None,
             rejection_run: 0,
             last_fix_t_s: f64::NAN,
@@ -147,6 +150,8 @@ pub(super) struct Thresholds {
     pub downweight: f64,
     /// Above: rejected.
     pub reject: f64,
+    /// The rejection threshold without the re-acquisition widening.
+    pub normal_reject: f64,
 }
 
 impl GateState {
@@ -164,6 +169,7 @@ impl GateState {
             None => Thresholds {
                 downweight: base,
                 reject: base,
+                normal_reject: base,
             },
             Some(r) => {
                 let dw = if dim == 3 {
@@ -178,8 +184,9 @@ impl GateState {
                 };
                 let reject = base * widening;
                 Thresholds {
-                    downweight: dw.min(reject),
+                    downweight: (dw * widening).min(reject),
                     reject,
+                    normal_reject: base * self.stats.gate_widening,
                 }
             }
         }
@@ -203,7 +210,7 @@ impl GateState {
     }
 
     /// Notes a fix (robust gating only): its time, for the nominal fix interval, and whether it
-    /// was used (accepted or reset), for the gap.
+    /// ended a gap (used within the gate without the re-acquisition widening, or a reset).
     pub fn note_fix(&mut self, t_s: f64, used: bool) {
         let dt = t_s - self.last_seen_t_s;
         if dt.is_finite() && dt > 0.0 {
@@ -232,8 +239,18 @@ impl GateState {
     /// Feeds one fix's NIS/dof into the monitor and updates the inflation (robust gating
     /// only). `t_s` is the fix time; `rejected` whether the gate rejected the fix. Two
     /// rejections in a row are not an isolated outlier: they inflate at once, without waiting
-    /// for the median to cross [`RobustGating::mismatch_ratio_on`].
-    pub fn monitor(&mut self, r: &RobustGating, t_s: f64, nis_ratio: f64, rejected: bool) {
+    /// for the median to cross [`RobustGating::mismatch_ratio_on`]. `accepted_widening` is the
+    /// widening that the fix's own NIS times [`RobustGating::growth_per_fix`] asks for when it
+    /// was used (0 otherwise): innovations that grow steadily from fix to fix (a mismatch
+    /// building up in a manoeuvre) stay inside the gate.
+    pub fn monitor(
+        &mut self,
+        r: &RobustGating,
+        t_s: f64,
+        nis_ratio: f64,
+        rejected: bool,
+        accepted_widening: f64,
+    ) {
         let dt = t_s - self.last_fix_t_s;
         self.last_fix_t_s = t_s;
         if self.stats.mismatch && dt.is_finite() && dt > 0.0 {
@@ -278,12 +295,23 @@ impl GateState {
                 }
             }
             s.q_inflation = (s.q_inflation * r.inflation_step).min(r.max_q_inflation);
-            s.gate_widening = (s.gate_widening * r.inflation_step).min(r.max_gate_widening);
         } else if med < r.mismatch_ratio_off {
             s.mismatch = false;
             s.q_inflation = (s.q_inflation / r.easing_step).max(1.0);
-            s.gate_widening = (s.gate_widening / r.easing_step).max(1.0);
         }
+        // the gate follows the innovations actually seen (covariance matching): widened by
+        // the window median of NIS/dof, faster on a run of rejections, easing off slowly
+        let mut g = s.gate_widening / r.easing_step;
+        if med.is_finite() {
+            g = g.max(med);
+        }
+        if run >= 2 {
+            g = g.max(s.gate_widening * r.inflation_step);
+        }
+        if accepted_widening.is_finite() {
+            g = g.max(accepted_widening);
+        }
+        s.gate_widening = g.clamp(1.0, r.max_gate_widening);
         if s.mismatch {
             let d = t_s - self.episode_start_t_s;
             if d > s.longest_mismatch_s {
@@ -356,32 +384,71 @@ mod tests {
 
     #[test]
     fn monitor_ignores_one_outlier_and_declares_a_persistent_mismatch() {
-        let r = RobustGating::default();
-        let mut g = GateState::default();
-        for k in 0..30 {
-            let ratio = if k == 15 { 1e6 } else { 1.0 };
-            g.monitor(&r, k as f64, ratio, k == 15);
+        // the default (gate follows the innovations, no process-noise inflation) and the
+        // optional Q inflation
+        for max_q in [1.0, 100.0] {
+            let r = RobustGating {
+                max_q_inflation: max_q,
+                ..RobustGating::default()
+            };
+            let mut g = GateState::default();
+            for k in 0..30 {
+                let ratio = if k == 15 { 1e6 } else { 1.0 };
+                g.monitor(&r, k as f64, ratio, k == 15, 0.0);
+                assert!(!g.stats.mismatch);
+                assert_eq!(g.stats.gate_widening, 1.0);
+            }
+            assert_eq!(g.stats.q_inflation, 1.0);
+            for k in 30..60 {
+                g.monitor(&r, k as f64, 9.0, false, 0.0);
+            }
+            assert!(g.stats.mismatch);
+            assert_eq!(g.stats.mismatch_episodes, 1);
+            // declared when 5 of the 10 are 9: median (1 + 9) / 2 = 5 > 4
+            assert_eq!(g.stats.first_mismatch_t_s, 34.0);
+            assert_eq!(g.stats.q_inflation, max_q);
+            // the gate follows the median of NIS/dof
+            assert_eq!(g.stats.gate_widening, 9.0);
+            // a used fix asks for room to grow: 2 x its own NIS over the base gate
+            g.monitor(&r, 60.0, 9.0, false, 30.0);
+            assert_eq!(g.stats.gate_widening, 30.0);
+            for k in 61..200 {
+                g.monitor(&r, k as f64, 1.0, false, 0.0);
+            }
+            // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 66
+            assert!((g.stats.mismatch_time_s - 32.0).abs() < 1e-9);
+            assert!((g.stats.longest_mismatch_s - 31.0).abs() < 1e-9);
             assert!(!g.stats.mismatch);
+            assert_eq!(g.stats.q_inflation, 1.0);
+            assert_eq!(g.stats.gate_widening, 1.0);
+            assert_eq!(g.stats.max_q_inflation, max_q);
+            assert_eq!(g.stats.max_gate_widening, 30.0);
+            assert_eq!(g.stats.max_median_ratio, 9.0);
         }
-        assert_eq!(g.stats.q_inflation, 1.0);
-        for k in 30..60 {
-            g.monitor(&r, k as f64, 9.0, false);
+    }
+
+    #[test]
+    fn a_fix_after_a_gap_gets_the_widest_gate() {
+        let r = RobustGating::default();
+        let gating = Gating::robust();
+        let mut g = GateState::default();
+        for k in 0..20 {
+            g.note_fix(k as f64, true);
         }
-        assert!(g.stats.mismatch);
-        assert_eq!(g.stats.mismatch_episodes, 1);
-        // declared when 5 of the 10 are 9: median (1 + 9) / 2 = 5 > 4
-        assert_eq!(g.stats.first_mismatch_t_s, 34.0);
-        assert_eq!(g.stats.q_inflation, 100.0);
-        assert_eq!(g.stats.gate_widening, 100.0);
-        for k in 60..200 {
-            g.monitor(&r, k as f64, 1.0, false);
-        }
-        // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 65
-        assert!((g.stats.mismatch_time_s - 31.0).abs() < 1e-9);
-        assert!((g.stats.longest_mismatch_s - 30.0).abs() < 1e-9);
-        assert!(!g.stats.mismatch);
-        assert_eq!(g.stats.q_inflation, 1.0);
-        assert_eq!(g.stats.max_q_inflation, 100.0);
-        assert_eq!(g.stats.max_median_ratio, 9.0);
+        let normal = g.thresholds(&gating, 3, 20.0);
+        assert_eq!(normal.reject, gating.nis_threshold_pos);
+        assert_eq!(normal.downweight, r.downweight_nis_pos);
+        // 2 s after the last used fix at 1 Hz: not yet a gap (needs > 2.5 intervals and > 2 s)
+        assert!(!g.is_reacquisition(&r, 21.0));
+        assert!(!g.is_reacquisition(&r, 21.5));
+        assert!(g.is_reacquisition(&r, 79.0));
+        let wide = g.thresholds(&gating, 3, 79.0);
+        assert_eq!(wide.reject, gating.nis_threshold_pos * r.max_gate_widening);
+        assert_eq!(wide.normal_reject, gating.nis_threshold_pos);
+        // a fix beyond the normal gate does not end the gap
+        g.note_fix(79.0, false);
+        assert!(g.is_reacquisition(&r, 80.0));
+        g.note_fix(80.0, true);
+        assert!(!g.is_reacquisition(&r, 81.0));
     }
 }
