@@ -10,7 +10,10 @@
 //! [`RobustGating::mismatch_ratio_off`] both are divided by it again down to 1. A single
 //! outlier moves the median by one rank and cannot trigger it.
 
+use super::{HEADING_RESET_SIDESLIP_VAR_RAD2, RESET_MAX_FIX_INTERVAL_S};
 use crate::config::{Gating, RobustGating, MAX_NIS_WINDOW};
+use crate::model::{IDX_ATT, IDX_POS, IDX_VEL};
+use nalgebra::UnitQuaternion;
 
 /// IGG-III weight of a fix with normalised innovation squared `nis` between the
 /// down-weighting threshold `k0_sq` and the rejection threshold `k1_sq` (both NIS values):
@@ -143,6 +146,36 @@ impl Default for GateState {
     }
 }
 
+/// What a re-initialisation from the fixes needs to know (see [`GateState::reset_plan`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ResetInput {
+    /// Fix time, s.
+    pub t_s: f64,
+    /// Position innovation of this fix (predicted minus measured antenna), NED m.
+    pub z_pos_m: [f64; 3],
+    /// Its variances, m^2.
+    pub var_pos_m2: [f64; 3],
+    /// Velocity innovation and variances (m/s, m^2/s^2) when the fix's velocity is used.
+    pub vel: Option<([f64; 3], [f64; 3])>,
+    /// The filter's velocity, NED m/s.
+    pub vel_ned_mps: [f64; 3],
+    /// The filter's attitude.
+    pub q_nb: UnitQuaternion<f64>,
+    /// The filter's heading variance, rad^2.
+    pub var_yaw_rad2: f64,
+    /// Heading reset only at this horizontal speed or more, m/s.
+    pub heading_min_speed_mps: f64,
+}
+
+/// The states a reset sets: error-state indices (`usize::MAX` = unused), the error to feed
+/// back (estimate minus truth) and the new variance of each.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ResetPlan {
+    pub idx: [usize; 7],
+    pub dx: [f64; 7],
+    pub var: [f64; 7],
+}
+
 /// The thresholds that apply to one fix (NIS values).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Thresholds {
@@ -265,7 +298,7 @@ impl GateState {
                 f64::MAX
             };
         }
-        self.next = (self.next + 1) % w;
+        self.next = if self.next + 1 >= w { 0 } else { self.next + 1 };
         self.len = (self.len + 1).min(w);
         let run = if rejected {
             self.rejection_run = self.rejection_run.saturating_add(1);
@@ -311,7 +344,8 @@ impl GateState {
         if accepted_widening.is_finite() {
             g = g.max(accepted_widening);
         }
-        s.gate_widening = g.clamp(1.0, r.max_gate_widening);
+        // (not f64::clamp: its NaN/order assertion would link float formatting on the MCU)
+        s.gate_widening = g.min(r.max_gate_widening).max(1.0);
         if s.mismatch {
             let d = t_s - self.episode_start_t_s;
             if d > s.longest_mismatch_s {
@@ -320,6 +354,116 @@ impl GateState {
         }
         s.max_q_inflation = s.max_q_inflation.max(s.q_inflation);
         s.max_gate_widening = s.max_gate_widening.max(s.gate_widening);
+    }
+
+    /// What a re-initialisation from the fixes sets (and counts it; empties the window):
+    /// the position from this fix; the velocity from the fix's velocity when used, else from
+    /// the rate of the position error through this fix's and the two previous rejected fixes'
+    /// innovations (a quadratic: v = sum z_i L_i'(t3) of the Lagrange basis, variance
+    /// sum r_i L_i'(t3)^2, the error's third derivative neglected; with one previous fix the
+    /// mean over the interval, with a variance that allows for the change of the error over
+    /// it); the heading from the GNSS course when the horizontal speed is at least
+    /// `heading_min_speed_mps`, the course is within 90 deg of the heading and differs from it
+    /// by more than 3 sigma (forward motion without sideslip).
+    pub fn reset_plan(&mut self, inp: &ResetInput) -> ResetPlan {
+        let t_s = inp.t_s;
+        let zp = &inp.z_pos_m;
+        let rp = &inp.var_pos_m2;
+        let mut plan = ResetPlan {
+            idx: [usize::MAX; 7],
+            dx: [0.0; 7],
+            var: [0.0; 7],
+        };
+        let mut put = |slot: usize, idx: usize, dx: f64, var: f64| {
+            if let Some(x) = plan.idx.get_mut(slot) {
+                *x = idx;
+            }
+            if let Some(x) = plan.dx.get_mut(slot) {
+                *x = dx;
+            }
+            if let Some(x) = plan.var.get_mut(slot) {
+                *x = var.max(0.0);
+            }
+        };
+        for (i, (z, r)) in zp.iter().zip(rp.iter()).enumerate() {
+            put(i, IDX_POS + i, *z, *r);
+        }
+        let recent =
+            |p: &RejectedFix, t: f64| (t - p.t_s) > 0.0 && (t - p.t_s) <= RESET_MAX_FIX_INTERVAL_S;
+        let prev = self.last_rejected.filter(|p| recent(p, t_s));
+        let earlier = match prev {
+            Some(p) => self.earlier_rejected.filter(|e| recent(e, p.t_s)),
+            None => None,
+        };
+        let vel_reset = match (inp.vel, prev, earlier) {
+            (Some((z, r)), _, _) => Some((z, r)),
+            (None, Some(p2), Some(p1)) => {
+                let (t1, t2, t3) = (p1.t_s, p2.t_s, t_s);
+                let l1 = (t3 - t2) / ((t1 - t2) * (t1 - t3));
+                let l2 = (t3 - t1) / ((t2 - t1) * (t2 - t3));
+                let l3 = 1.0 / (t3 - t1) + 1.0 / (t3 - t2);
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = l1 * z(&p1.z_pos_m) + l2 * z(&p2.z_pos_m) + l3 * z(zp);
+                    *v =
+                        l1 * l1 * z(&p1.var_pos_m2) + l2 * l2 * z(&p2.var_pos_m2) + l3 * l3 * z(rp);
+                }
+                Some((dv, var))
+            }
+            (None, Some(p), None) => {
+                let dt = t_s - p.t_s;
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = (z(zp) - z(&p.z_pos_m)) / dt;
+                    // the fixes' noise, and the velocity error's change over the interval
+                    // (unknown; bounded by half the mean error when it grew from zero)
+                    *v = (z(rp) + z(&p.var_pos_m2)) / (dt * dt) + 0.25 * *d * *d;
+                }
+                Some((dv, var))
+            }
+            (None, None, _) => None,
+        };
+        if let Some((dv, var_v)) = vel_reset {
+            for (i, (d, v)) in dv.iter().zip(var_v.iter()).enumerate() {
+                put(3 + i, IDX_VEL + i, *d, *v);
+            }
+            let [dvn, dve, _] = dv;
+            let [v_n, v_e, _] = inp.vel_ned_mps;
+            let (vn, ve) = (v_n - dvn, v_e - dve);
+            let speed2 = vn * vn + ve * ve;
+            let min_speed = inp.heading_min_speed_mps;
+            if speed2 >= min_speed * min_speed && speed2 > 0.0 {
+                let course = libm::atan2(ve, vn);
+                // yaw of the ZYX Euler angles: atan2(C_21, C_11)
+                let q = inp.q_nb.quaternion();
+                let yaw = libm::atan2(
+                    2.0 * (q.w * q.k + q.i * q.j),
+                    1.0 - 2.0 * (q.j * q.j + q.k * q.k),
+                );
+                let mut dpsi = course - yaw;
+                if dpsi > core::f64::consts::PI {
+                    dpsi -= 2.0 * core::f64::consts::PI;
+                } else if dpsi < -core::f64::consts::PI {
+                    dpsi += 2.0 * core::f64::consts::PI;
+                }
+                let [vv0, vv1, _] = var_v;
+                let var_course = vv0.max(vv1) / speed2;
+                let var_new = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
+                if dpsi.abs() < core::f64::consts::FRAC_PI_2
+                    && dpsi * dpsi > 9.0 * (inp.var_yaw_rad2 + var_new)
+                {
+                    put(6, IDX_ATT + 2, dpsi, var_new);
+                    self.stats.heading_resets = self.stats.heading_resets.saturating_add(1);
+                }
+            }
+        }
+        self.stats.resets = self.stats.resets.saturating_add(1);
+        self.clear_window();
+        plan
     }
 
     /// Empties the NIS window (after a re-initialisation the old innovations say nothing about
@@ -351,7 +495,7 @@ impl GateState {
         }
         let mid = n / 2;
         let hi = a.get(mid).copied().unwrap_or(f64::NAN);
-        if n % 2 == 1 {
+        if n & 1 == 1 {
             hi
         } else {
             0.5 * (a.get(mid.wrapping_sub(1)).copied().unwrap_or(hi) + hi)
