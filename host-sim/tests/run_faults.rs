@@ -586,3 +586,43 @@ fn run_error_of_a_fault_carries_the_partial_output() {
         other => panic!("{other}"),
     }
 }
+
+#[test]
+fn run_configuration_sets_the_imu_checks() {
+    use host_sim::io::{parse_run_config, ImuClassName};
+    let cfg_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let text = std::fs::read_to_string(cfg_dir.join("drive0708.toml")).unwrap();
+    let abs = cfg_dir.join("../../shared").canonicalize();
+    let extra = "\n[imu.checks]\nclass = \"navigation\"\nmax_accel_g = 8.0\nmax_gap_s = 0.5\n\
+                 stop_on_implausible = true\n";
+    let r = parse_run_config(Path::new("x.toml"), &(text.clone() + extra)).unwrap();
+    let ch = r.imu.checks.as_ref().unwrap();
+    assert_eq!(ch.class, Some(ImuClassName::Navigation));
+    assert_eq!(ch.max_accel_g, Some(8.0));
+    assert!(parse_run_config(
+        Path::new("x.toml"),
+        &(text.clone() + "\n[imu.checks]\nclas = 1\n")
+    )
+    .is_err());
+    // applied by prepare (needs the drive's data)
+    let Ok(shared) = abs else {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "shared data missing"
+        );
+        println!("SKIPPED: ../shared missing");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let t = text.replace("../../shared", shared.to_str().unwrap()) + extra;
+    let p = dir.path().join("drive.toml");
+    std::fs::write(&p, t).unwrap();
+    let prep = prepare(&RunArgs::new(&p)).unwrap();
+    let c = prep.opts.imu_checks;
+    assert!((c.limits.max_rate_radps.to_degrees() - 550.0).abs() < 1e-9);
+    assert!((c.limits.max_accel_mps2 - 8.0 * 9.806_65).abs() < 1e-12);
+    assert_eq!(c.max_gap_s, 0.5);
+    assert!(c.stop_on_implausible);
+    // a CSV rate log: increments span gaps
+    assert!(prep.case.imu_origin.as_ref().unwrap().increments_span_gaps);
+}
