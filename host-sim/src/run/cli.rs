@@ -14,7 +14,16 @@
 //! Outputs in `--out` (default `run-out`): `nav.txt`, `std.txt`, `bias.txt`,
 //! `innovations.txt`, `metrics.json` (against the truth when there is one, else against the
 //! withheld fixes; with outages also free-inertial coasting baselines, see
-//! [`super::coast`]).
+//! [`super::coast`]; and the IMU report: gaps bridged, samples rejected, with file and line).
+//!
+//! Every output is written as `NAME.partial`, synced, and renamed to `NAME` only when all of
+//! them are written: after a full disk or any write error no file under a final name
+//! exists (outputs of an earlier run in the folder are removed first). A fault in the middle
+//! of the data (a gap longer than `--imu-max-gap`, a numerical failure, an implausible
+//! sample with `--imu-strict`) stops the run: the error names the file and line of the
+//! sample, the outputs up to it stay as `*.partial` (metrics.json.partial says
+//! `"complete": false` and the fault), and the exit code is 1. IMU gaps and plausibility:
+//! [`nav_core::imu_guard`], options `--imu-*` and `[imu.checks]`.
 
 use super::coast::{coast_outages, CoastMode};
 use super::init::{InitSpec, StaticAlign};

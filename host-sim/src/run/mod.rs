@@ -1101,12 +1101,30 @@ fn run_layout<T: Scalar, const N: usize>(
     };
     match fault {
         None => Ok(out),
-        Some((location, t_s, msg)) => Err(RunError::Fault {
-            location,
-            t_s,
-            msg,
-            partial: Box::new(out),
-        }),
+        Some((location, t_s, msg)) => {
+            let mut out = out;
+            // a numerical failure is noticed after the fact: drop the records from the
+            // first non-finite one on
+            let bad = |s: &NavSolution| {
+                !(s.lat_rad.is_finite()
+                    && s.lon_rad.is_finite()
+                    && s.h_m.is_finite()
+                    && s.vel_ned_mps.iter().all(|v| v.is_finite())
+                    && s.rpy_rad.iter().all(|v| v.is_finite()))
+            };
+            if let Some(i) = out.nav.iter().position(bad) {
+                out.nav.truncate(i);
+            }
+            if let Some(i) = out.epochs.iter().position(|e| bad(&e.nav)) {
+                out.epochs.truncate(i);
+            }
+            Err(RunError::Fault {
+                location,
+                t_s,
+                msg,
+                partial: Box::new(out),
+            })
+        }
     }
 }
 
