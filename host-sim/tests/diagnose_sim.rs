@@ -174,14 +174,75 @@ fn summary(d: &Diagnosis) -> String {
         s.push_str(&format!("  round {i}:"));
         for c in &r.candidates {
             s.push_str(&format!(
-                " {}={:.1}",
+                " {}={:.1}{}",
                 c.name,
-                c.evidence.unwrap_or(f64::NAN)
+                c.evidence.unwrap_or(f64::NAN),
+                c.refused
+                    .as_ref()
+                    .filter(|_| c.evidence.is_some_and(|e| e > 0.0))
+                    .map_or(String::new(), |r| format!(" [refused: {r}]"))
             ));
+        }
+        for n in r.ambiguous.iter().chain(&r.unexplained) {
+            s.push_str(&format!("\n    {n}"));
         }
         s.push('\n');
     }
+    for st in &d.steps {
+        let e = &st.errors;
+        s.push_str(&format!(
+            "  step {} kept {}: held-out {:?} gnss {:.4} truth outage {:?} NIS {:.2} {}\n",
+            st.label,
+            st.accepted,
+            e.heldout_outage_m,
+            e.gnss_prior_horizontal_rms_m,
+            e.truth_outage_m,
+            e.nis_mean,
+            st.reason.as_deref().unwrap_or("")
+        ));
+    }
     s
+}
+
+/// After is never worse than before: the outage error against the truth and against the
+/// withheld fixes, and the error with GNSS (prior residuals of the used fixes), for every
+/// kept step against the one before it and for the final model against the configuration.
+fn assert_never_worse(d: &Diagnosis) {
+    let (b, a) = (
+        d.error_before.outage_max_3d_rms_m,
+        d.error_after.outage_max_3d_rms_m,
+    );
+    assert!(
+        a <= b,
+        "outage error vs truth: before {b} after {a}\n{}",
+        summary(d)
+    );
+    let kept: Vec<_> = d.steps.iter().filter(|s| s.accepted).collect();
+    for w in kept.windows(2) {
+        let (p, n) = (&w[0].errors, &w[1].errors);
+        if let (Some(x), Some(y)) = (p.heldout_outage_m, n.heldout_outage_m) {
+            assert!(y < x, "{}: held-out {x} -> {y}", w[1].label);
+        }
+        assert!(
+            n.gnss_prior_horizontal_rms_m <= p.gnss_prior_horizontal_rms_m,
+            "{}: GNSS {} -> {}",
+            w[1].label,
+            p.gnss_prior_horizontal_rms_m,
+            n.gnss_prior_horizontal_rms_m
+        );
+    }
+    assert!(
+        d.error_after.gnss_residual_horizontal_rms_m
+            <= d.error_before.gnss_residual_horizontal_rms_m
+    );
+    for e in &d.added_effects {
+        assert!(e.after.gnss_prior_horizontal_rms_m <= e.before.gnss_prior_horizontal_rms_m);
+        assert!(
+            e.after.heldout_outage_m < e.before.heldout_outage_m,
+            "{}",
+            e.name
+        );
+    }
 }
 
 /// Asserts the effect is named first, every state is within 20 % of the truth or 3 sigma, and
@@ -207,6 +268,7 @@ fn check_first(d: &Diagnosis, name: &str, truth: &[f64]) {
         "{name}: outage error before {b} m after {a} m"
     );
     assert!(d.residuals_after.log_likelihood > d.residuals_before.log_likelihood);
+    assert_never_worse(d);
 }
 
 fn run(v: u32, e: &ErrorModel, lever: [f64; 3], seed: u64) -> Diagnosis {
@@ -313,8 +375,33 @@ fn undeclared_time_offset_is_found() {
     // simulator: a fix tagged t is the antenna at IMU time t - 0.07 s (GNSS tags late);
     // filter state: the fix is the antenna at t + dt, so dt = -0.07 s
     e.gnss.time_offset_s = 0.07;
-    let d = run(1, &e, [0.0; 3], 606);
-    check_first(&d, "time_offset", &[-0.07]);
+    let p = prepared(1, &e, [0.0; 3], 606);
+    let out = diagnose(&p, &DiagnoseOptions::default()).unwrap();
+    let d = &out.diagnosis;
+    check_first(d, "time_offset", &[-0.07]);
+    // the output on the GNSS clock: nav_after.txt stamped IMU time - estimate, and closer to
+    // the fixes than the before solution on the IMU clock
+    let dt = d.added_effects[0].estimate[0];
+    assert_eq!(d.output_clock_shift_s, -dt);
+    let dir = tempfile::tempdir().unwrap();
+    write_outputs(dir.path(), &p, &out, None).unwrap();
+    let first_t = |f: &str| -> f64 {
+        let text = std::fs::read_to_string(dir.path().join(f)).unwrap();
+        let row = text.lines().find(|l| !l.starts_with('#')).unwrap();
+        let cols: Vec<f64> = row
+            .split_whitespace()
+            .map(|x| x.parse::<f64>().unwrap())
+            .collect();
+        cols[1]
+    };
+    let shift = first_t("nav_after.txt") - first_t("nav_before.txt");
+    assert!((shift + dt).abs() < 1e-6, "shift {shift} estimate {dt}");
+    let (b, a) = (
+        d.error_before.output_vs_fixes_horizontal_rms_m,
+        d.error_after.output_vs_fixes_horizontal_rms_m,
+    );
+    println!("solution vs fixes outside outages: before {b:.4} m after (GNSS clock) {a:.4} m");
+    assert!(a < b, "before {b} after {a}");
 }
 
 #[test]
@@ -365,6 +452,31 @@ fn gyro_g_sensitivity_of_half_deg_per_h_per_g_is_not_detectable_on_a_land_drive(
         d.error_before.outage_max_3d_rms_m,
         d.error_after.outage_max_3d_rms_m
     );
+    // "none detectable", with a bound above the effect's size
+    assert_eq!(d.verdict, "none detectable");
+    let u = d
+        .undetected
+        .iter()
+        .find(|u| u.name == "gyro_g_sensitivity")
+        .expect("a bound for the g-sensitivity");
+    let per_g = DEG_PER_H_RADPS / nav_core::earth::G0_MPS2;
+    println!(
+        "g-sensitivity detectability bound: {:.2} deg/h/g (per axis {:?})",
+        u.min_bound / per_g,
+        u.bound.iter().map(|b| b / per_g).collect::<Vec<_>>()
+    );
+    assert!(
+        u.min_bound > 0.5 * per_g,
+        "bound {} deg/h/g",
+        u.min_bound / per_g
+    );
+    assert_eq!(u.bound.len(), 3);
+    // every candidate has a finite bound
+    assert_eq!(d.undetected.len(), d.candidates_considered.len());
+    assert!(d
+        .undetected
+        .iter()
+        .all(|u| u.min_bound.is_finite() && u.min_bound > 0.0));
 }
 
 /// At 10 deg/h/g (20x the issue's size) the g-sensitivity is named first and the outage error
@@ -395,7 +507,6 @@ fn two_undeclared_effects_are_both_found() {
     println!("{}", summary(&d));
     let names: Vec<&str> = d.added_effects.iter().map(|e| e.name.as_str()).collect();
     assert!(names.contains(&"lever_arm"), "{names:?}");
-    assert!(names.contains(&"gyro_scale_factor"), "{names:?}");
     let la = d
         .added_effects
         .iter()
@@ -408,13 +519,119 @@ fn two_undeclared_effects_are_both_found() {
             "{est} {sig} {tr}"
         );
     }
-    let sf = d
+    assert!(d.error_after.outage_max_3d_rms_m <= 0.7 * d.error_before.outage_max_3d_rms_m);
+    assert_never_worse(&d);
+    // The gyro z scale factor (1400 ppm) is seen (its likelihood gain is large and its
+    // estimate significant) but, with the lever arm in the model, adding it RAISES the
+    // held-out outage error on this drive (measured: 0.518 -> 0.604 m against the withheld
+    // fixes), so issue 14's rule "after never worse" refuses it: it must be either added
+    // with its estimate within 20 % / 3 sigma, or reported as refused by the held-out check
+    // with the likelihood gain it leaves unexplained.
+    match d
         .added_effects
         .iter()
         .find(|e| e.name == "gyro_scale_factor")
-        .unwrap();
-    assert!((sf.estimate[2] - 1400e-6).abs() <= (0.2 * 1400e-6f64).max(3.0 * sf.sigma[2]));
-    assert!(d.error_after.outage_max_3d_rms_m <= 0.7 * d.error_before.outage_max_3d_rms_m);
+    {
+        Some(sf) => {
+            assert!((sf.estimate[2] - 1400e-6).abs() <= (0.2 * 1400e-6f64).max(3.0 * sf.sigma[2]))
+        }
+        None => {
+            let c = d
+                .rounds
+                .last()
+                .and_then(|r| r.candidates.iter().find(|c| c.name == "gyro_scale_factor"))
+                .expect("gyro_scale_factor tried in the last round");
+            assert!(c.evidence.unwrap() > 0.0 && c.max_z >= 2.0, "{c:?}");
+            assert!(
+                c.refused.as_deref().unwrap().starts_with("held-out"),
+                "{c:?}"
+            );
+            assert!(
+                d.warnings.iter().any(|w| w.contains("gyro_scale_factor")),
+                "{:?}",
+                d.warnings
+            );
+            let z = c.estimate[2] / c.sigma[2];
+            println!(
+                "gyro z scale factor refused: estimate {:.0} ppm ({z:.1} sigma) for 1400 ppm; {}",
+                c.estimate[2] * 1e6,
+                c.refused.as_deref().unwrap()
+            );
+        }
+    }
+}
+
+/// A case configured from its `kf-gins.yaml` alone (21-state KF-GINS model) whose scale
+/// factors are declared absent (`gsstd`, `asstd`, `initsgstd`, `initsastd` = 0: the states
+/// exist but are frozen), 30 s outages every 100 s from 150 s.
+fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) -> Prepared {
+    let case = simulate(&scenario(v), e, seed).unwrap();
+    case.write(dir, true).unwrap();
+    let yp = dir.join("kf-gins.yaml");
+    let y = std::fs::read_to_string(&yp).unwrap();
+    let y: String = y
+        .lines()
+        .map(|l| {
+            let t = l.trim_start();
+            for k in ["gsstd:", "asstd:", "initsgstd:", "initsastd:"] {
+                if t.starts_with(k) {
+                    let indent = &l[..l.len() - t.len()];
+                    return format!("{indent}{k} [ 0, 0, 0 ]");
+                }
+            }
+            l.to_string()
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&yp, y).unwrap();
+    let mut a = host_sim::run::cli::RunArgs::new(&yp);
+    a.periodic_outages = vec![host_sim::run::parse_periodic("150:30:100").unwrap()];
+    let p = host_sim::run::cli::prepare(&a).unwrap();
+    assert_eq!(p.opts.model, Model::KfGins21);
+    assert_eq!(p.opts.filter.gyro_scale.sigma, [0.0; 3]);
+    assert_eq!(p.opts.filter.accel_scale.sigma, [0.0; 3]);
+    assert!(p.case.truth.is_some());
+    p
+}
+
+/// Issue 14 item 2: an undeclared scale factor under a KF-GINS configuration that freezes the
+/// scale-factor states is named (the frozen block is freed), estimated within 20 % / 3 sigma,
+/// and the outage error drops by at least 30 %, never worse in any step.
+#[test]
+fn kf_gins_frozen_scale_factors_are_freed_and_named() {
+    let gyro = [-600.0, 800.0, 1000.0];
+    let accel = [1200.0, -1000.0, 900.0];
+    let cases = [
+        ("gyro_scale_factor", gyro, 2u32, 1401u64),
+        ("accel_scale_factor", accel, 1, 1402),
+    ];
+    let res: Vec<(&str, [f64; 3], Diagnosis)> = cases
+        .par_iter()
+        .map(|&(name, ppm, v, seed)| {
+            let mut e = base_errors();
+            if name == "gyro_scale_factor" {
+                e.gyro.scale_factor_ppm = Axes3(ppm);
+            } else {
+                e.accel.scale_factor_ppm = Axes3(ppm);
+            }
+            let dir = tempfile::tempdir().unwrap();
+            let p = kf_gins_prepared(v, &e, seed, dir.path());
+            assert!(host_sim::diagnose::candidates(&p.case, &p.opts)
+                .iter()
+                .any(|b| b.name() == name));
+            let d = diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis;
+            (name, ppm, d)
+        })
+        .collect();
+    for (name, ppm, d) in &res {
+        let first = d.added_effects.first().expect("an effect must be added");
+        println!(
+            "KF-GINS {name}: estimate {:?} ppm",
+            first.estimate.iter().map(|x| x * 1e6).collect::<Vec<_>>()
+        );
+        assert!(first.freed, "{name} was frozen in the configuration");
+        check_first(d, name, &ppm.map(|p| p * 1e-6));
+    }
 }
 
 fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f64) {
@@ -545,7 +762,9 @@ fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
         if d.added_effects.is_empty() {
             clean += 1;
             assert_eq!(d.residuals_before.updates, d.residuals_after.updates);
+            assert_eq!(d.verdict, "none detectable");
         }
+        assert_never_worse(d);
     }
     println!("no missing effect in {clean} of 20 seeds");
     assert!(clean >= 19, "no missing effect in only {clean} of 20 seeds");
