@@ -258,6 +258,8 @@ pub struct Metrics {
     pub gnss_residuals: ResidualStats,
     /// Free-inertial coasting baselines from the same points.
     pub coasting: Vec<CoastingMetrics>,
+    /// What the innovation gate and its model-mismatch monitor did (in numbers and words).
+    pub gating: crate::run::gating_report::GatingReport,
 }
 
 fn wrap_deg(a: f64) -> f64 {
@@ -432,6 +434,7 @@ pub fn compute(run: &RunOutput, truth: Option<&[NavSolution]>) -> Metrics {
         per_outage,
         gnss_residuals: residuals,
         coasting: Vec::new(),
+        gating: run.gating.clone(),
     }
 }
 

@@ -327,21 +327,121 @@ pub enum GateProbability {
 }
 
 /// Innovation gating of GNSS updates: a fix whose normalised innovation squared (NIS) exceeds
-/// the threshold for its measurement dimension is rejected and counted.
+/// the threshold for its measurement dimension is rejected and counted; after
+/// `max_consecutive_rejections` rejections in a row the filter re-initialises position and
+/// velocity (and heading when the GNSS course allows) from the fixes.
+///
+/// With `robust: Some(..)` (the default) the gate tells an isolated outlier from a persistent
+/// model mismatch: fixes between the down-weighting threshold and the gate are used with an
+/// inflated R (IGG-III weights) instead of being rejected, and a windowed NIS monitor widens the
+/// gate and inflates the process noise while the innovations stay larger than predicted (see
+/// `docs/robust-gating.md` and [`RobustGating`]). With `robust: None` the gate is the classical
+/// hard chi-square test.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gating {
     /// NIS threshold for a position-only update (3 degrees of freedom); `f64::INFINITY`
-    /// disables the gate.
+    /// disables the gate. With the robust scheme: the rejection threshold before widening.
     pub nis_threshold_pos: f64,
     /// NIS threshold for a position + velocity update (6 degrees of freedom).
     pub nis_threshold_pos_vel: f64,
-    /// After this many consecutive rejected fixes the next valid fix is accepted without the
-    /// gate (so a filter that drifted away recovers); 0 = never force.
+    /// After this many consecutive rejected fixes the next fix that fails the gate
+    /// re-initialises position and velocity from the fixes (so a filter that drifted away
+    /// recovers); 0 = never.
     pub max_consecutive_rejections: u32,
+    /// A reset re-initialises the heading from the GNSS course (assuming the vehicle moves
+    /// forward without sideslip) only when the horizontal speed is at least this and the
+    /// course is within 90 deg of the heading, m/s (`f64::INFINITY` = never).
+    pub reset_heading_min_speed_mps: f64,
+    /// Robust re-weighting and the model-mismatch monitor; `None` = hard gate.
+    pub robust: Option<RobustGating>,
+}
+
+/// Default [`Gating::reset_heading_min_speed_mps`], m/s.
+pub const DEFAULT_RESET_HEADING_MIN_SPEED_MPS: f64 = 5.0;
+
+/// Largest NIS monitor window ([`RobustGating::window`]), fixes.
+pub const MAX_NIS_WINDOW: usize = 16;
+
+/// Parameters of the robust gating scheme (IGG-III down-weighting of R plus a windowed NIS
+/// monitor with adaptive process-noise inflation). Ratios are of the NIS normalised by the
+/// measurement dimension (1 = consistent on average).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobustGating {
+    /// NIS threshold (3 degrees of freedom) above which a fix is down-weighted (IGG-III k0^2);
+    /// default the 0.99 chi-square quantile.
+    pub downweight_nis_pos: f64,
+    /// The same for position + velocity updates (6 degrees of freedom).
+    pub downweight_nis_pos_vel: f64,
+    /// Number of fixes in the NIS monitor window (1..=[`MAX_NIS_WINDOW`]).
+    pub window: usize,
+    /// The monitor declares a model mismatch when the window median of NIS/dof exceeds this.
+    pub mismatch_ratio_on: f64,
+    /// It eases the inflation back off while the median is below this.
+    pub mismatch_ratio_off: f64,
+    /// Factor applied per fix to the process-noise inflation and the gate widening while a
+    /// mismatch is declared, > 1.
+    pub inflation_step: f64,
+    /// Factor divided out per fix while easing off (median below `mismatch_ratio_off`), > 1.
+    pub easing_step: f64,
+    /// Largest process-noise inflation factor (multiplies Q), >= 1.
+    pub max_q_inflation: f64,
+    /// Largest gate widening factor (multiplies the rejection threshold), >= 1. A fix that
+    /// ends a gap (see `reacquisition_gap_intervals`) gets it at once.
+    pub max_gate_widening: f64,
+    /// A fix ends a gap when no fix was used for more than this many nominal fix intervals
+    /// (the running mean of the intervals between fixes) ...
+    pub reacquisition_gap_intervals: f64,
+    /// ... and for more than this long, s.
+    pub reacquisition_min_gap_s: f64,
+}
+
+impl Default for RobustGating {
+    /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
+    /// NIS/dof of 4 (or two rejections in a row), easing below 1.5; inflation x1.5 per fix up
+    /// to x100 (Q and gate), easing /1.1 per fix; the gate fully widened for a fix that ends
+    /// a gap of more than 2.5 fix intervals and 2 s.
+    fn default() -> Self {
+        Self {
+            downweight_nis_pos: chi2::DIM3_P99,
+            downweight_nis_pos_vel: chi2::DIM6_P99,
+            window: 10,
+            mismatch_ratio_on: 4.0,
+            mismatch_ratio_off: 1.5,
+            inflation_step: 1.5,
+            easing_step: 1.1,
+            max_q_inflation: 100.0,
+            max_gate_widening: 100.0,
+            reacquisition_gap_intervals: 2.5,
+            reacquisition_min_gap_s: 2.0,
+        }
+    }
+}
+
+impl RobustGating {
+    fn is_valid(&self) -> bool {
+        self.downweight_nis_pos > 0.0
+            && self.downweight_nis_pos_vel > 0.0
+            && (1..=MAX_NIS_WINDOW).contains(&self.window)
+            && self.mismatch_ratio_on.is_finite()
+            && self.mismatch_ratio_off > 0.0
+            && self.mismatch_ratio_off <= self.mismatch_ratio_on
+            && self.inflation_step.is_finite()
+            && self.inflation_step > 1.0
+            && self.easing_step.is_finite()
+            && self.easing_step > 1.0
+            && self.max_q_inflation.is_finite()
+            && self.max_q_inflation >= 1.0
+            && self.max_gate_widening.is_finite()
+            && self.max_gate_widening >= 1.0
+            && self.reacquisition_gap_intervals.is_finite()
+            && self.reacquisition_gap_intervals >= 1.0
+            && self.reacquisition_min_gap_s >= 0.0
+    }
 }
 
 impl Gating {
-    /// Thresholds at the given probability for dimensions 3 and 6.
+    /// Hard chi-square gate with thresholds at the given probability for dimensions 3 and 6
+    /// (no down-weighting, no mismatch monitor).
     pub const fn with_probability(p: GateProbability, max_consecutive_rejections: u32) -> Self {
         let (a, b) = match p {
             GateProbability::P95 => (chi2::DIM3_P95, chi2::DIM6_P95),
@@ -353,6 +453,18 @@ impl Gating {
             nis_threshold_pos: a,
             nis_threshold_pos_vel: b,
             max_consecutive_rejections,
+            reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
+            robust: None,
+        }
+    }
+
+    /// The robust gate: rejection at the P = 0.9999 quantile (widened by the monitor),
+    /// IGG-III down-weighting from the 0.99 quantile, the default [`RobustGating`], reset after
+    /// 10 consecutive rejections.
+    pub fn robust() -> Self {
+        Self {
+            robust: Some(RobustGating::default()),
+            ..Self::with_probability(GateProbability::P9999, 10)
         }
     }
 
@@ -362,14 +474,16 @@ impl Gating {
             nis_threshold_pos: f64::INFINITY,
             nis_threshold_pos_vel: f64::INFINITY,
             max_consecutive_rejections: 0,
+            reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
+            robust: None,
         }
     }
 }
 
 impl Default for Gating {
-    /// P = 0.9999 thresholds; force a fix after 10 consecutive rejections.
+    /// The robust gate ([`Gating::robust`]).
     fn default() -> Self {
-        Self::with_probability(GateProbability::P9999, 10)
+        Self::robust()
     }
 }
 
@@ -558,6 +672,9 @@ impl FilterConfig {
         let g = &self.gating;
         if !(g.nis_threshold_pos > 0.0
             && g.nis_threshold_pos_vel > 0.0
+            && g.robust.is_none_or(|r| r.is_valid())
+            && !g.reset_heading_min_speed_mps.is_nan()
+            && g.reset_heading_min_speed_mps >= 0.0
             && self.max_gnss_time_offset_s.is_finite()
             && self.max_gnss_time_offset_s >= 0.0)
         {

@@ -76,8 +76,9 @@ pub struct RunArgs {
     /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
     #[arg(long, allow_hyphen_values = true)]
     pub imu_time_offset: Option<f64>,
-    /// Innovation gate: off, or the acceptance probability 0.95, 0.99, 0.999, 0.9999
-    /// (default: the filter's, 0.9999).
+    /// Innovation gate: robust (default: IGG-III down-weighting and a model-mismatch
+    /// monitor, docs/robust-gating.md), off, or a hard gate at the acceptance probability
+    /// 0.95, 0.99, 0.999, 0.9999.
     #[arg(long)]
     pub gate: Option<String>,
     /// Use the GNSS velocities: on/off (default: the configuration's).
@@ -99,12 +100,13 @@ pub struct RunArgs {
 pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
     let max_rej = Gating::default().max_consecutive_rejections;
     Ok(match s.trim() {
+        "robust" | "default" => Gating::robust(),
         "off" | "none" => Gating::disabled(),
         "0.95" | "95" => Gating::with_probability(GateProbability::P95, max_rej),
         "0.99" | "99" => Gating::with_probability(GateProbability::P99, max_rej),
         "0.999" | "99.9" => Gating::with_probability(GateProbability::P999, max_rej),
         "0.9999" | "99.99" => Gating::with_probability(GateProbability::P9999, max_rej),
-        other => bail!("--gate {other}: expected off, 0.95, 0.99, 0.999 or 0.9999"),
+        other => bail!("--gate {other}: expected robust, off, 0.95, 0.99, 0.999 or 0.9999"),
     })
 }
 
@@ -614,6 +616,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         c.gnss_invalid,
         t_run
     );
+    println!("gate ({}): {}", out.gating.mode, out.gating.message);
     print!("{}", metrics::summary_table(&m));
     println!(
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",

@@ -23,6 +23,7 @@
 
 pub mod cli;
 pub mod coast;
+pub mod gating_report;
 pub mod init;
 pub mod outage;
 pub mod output;
@@ -385,6 +386,8 @@ pub struct RunOutput {
     pub final_effects: Vec<EffectEstimate>,
     /// Antenna lever arm used, body FRD, m.
     pub lever_arm_m: [f64; 3],
+    /// What the innovation gate and its model-mismatch monitor did.
+    pub gating: gating_report::GatingReport,
 }
 
 /// Errors of a run.
@@ -762,6 +765,7 @@ fn run_layout<T: Scalar, const N: usize>(
     let mut gi = case.gnss.partition_point(|g| g.t_s < t0 - 1e-9);
     counters.gnss_outside_run = gi as u64;
     let mut next_outage = outages.partition_point(|o| o.start_s < t0);
+    let mut status_seen = 0u32;
     let total = last - first;
     let step = (total / 100).max(1);
     for k in first..last {
@@ -820,6 +824,7 @@ fn run_layout<T: Scalar, const N: usize>(
             }
             match filter.update_gnss(fix) {
                 Ok(o) => {
+                    status_seen |= filter.status();
                     let r = record_of(&o, fix);
                     match r.used {
                         FixUse::Accepted => counters.gnss_accepted += 1,
@@ -893,5 +898,11 @@ fn run_layout<T: Scalar, const N: usize>(
         final_blocks: block_estimates(&filter),
         final_effects: effect_estimates(&filter),
         lever_arm_m: opts.lever_arm_m,
+        gating: gating_report::GatingReport::new(
+            &cfg.gating,
+            filter.counters(),
+            filter.robust_stats(),
+            status_seen,
+        ),
     })
 }

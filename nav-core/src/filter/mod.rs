@@ -15,6 +15,7 @@
 //! the previous covariance kept.
 
 pub mod linalg;
+pub mod robust;
 
 use crate::attitude;
 use crate::config::{ConfigError, FilterConfig};
@@ -29,6 +30,7 @@ use crate::scalar::Scalar;
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use robust::{igg3_weight, GateState, RejectedFix, RobustStats, MIN_WEIGHT};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
 pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
@@ -36,6 +38,14 @@ pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
 pub const STATUS_NUMERICAL_FAILURE: u32 = 2;
 /// Status bit: no GNSS fix has been accepted yet.
 pub const STATUS_NO_FIX_YET: u32 = 4;
+/// Status bit: the NIS monitor declares a model mismatch (innovations persistently larger than
+/// predicted): the process noise is inflated and the gate widened (robust gating).
+pub const STATUS_MODEL_MISMATCH: u32 = 8;
+/// Status bit: the last GNSS fix was used with an inflated R (IGG-III down-weighting).
+pub const STATUS_LAST_FIX_DOWNWEIGHTED: u32 = 16;
+/// Status bit: the last GNSS fix re-initialised position and velocity after consecutive
+/// rejections.
+pub const STATUS_RESET: u32 = 32;
 
 /// Errors of the filter. The filter is unchanged by the call that returned one (except for the
 /// counters) and stays usable.
@@ -117,7 +127,8 @@ pub struct Counters {
     pub gnss_accepted: u32,
     /// GNSS fixes rejected by the innovation gate.
     pub gnss_rejected: u32,
-    /// GNSS fixes accepted without the gate after too many consecutive rejections.
+    /// GNSS fixes that re-initialised position and velocity after too many consecutive
+    /// rejections (counted in `gnss_accepted` too).
     pub gnss_forced: u32,
     /// GNSS fixes refused as invalid or mistimed.
     pub gnss_invalid: u32,
@@ -144,8 +155,12 @@ pub struct UpdateOutcome {
     pub nis_threshold: f64,
     /// Whether the fix was used.
     pub accepted: bool,
-    /// Whether it was used without the gate (after too many consecutive rejections).
+    /// Whether it re-initialised position and velocity (after too many consecutive
+    /// rejections) instead of a Kalman update.
     pub forced: bool,
+    /// Weight of the fix: 1 = full update, in (0, 1) = used with R / weight (IGG-III
+    /// down-weighting), 0 = not used by a Kalman update (rejected, or a reset).
+    pub weight: f64,
 }
 
 /// The error-state filter with N states and covariance scalar T.
@@ -162,6 +177,7 @@ pub struct Filter<T: Scalar, const N: usize> {
     last_step: StepInfo,
     counters: Counters,
     consecutive_rejections: u32,
+    gate: GateState,
     status: u32,
     /// Reference temperature of the temperature blocks, degC (NaN until known).
     temperature_ref_c: f64,
@@ -244,6 +260,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             last_step: StepInfo::default(),
             counters: Counters::default(),
             consecutive_rejections: 0,
+            gate: GateState::default(),
             status: STATUS_NO_FIX_YET,
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
@@ -314,8 +331,18 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if self.acc.epochs == 0 {
             return Ok(());
         }
-        let d = discrete::discretize(&self.layout, &self.cfg, self.mech.state(), &self.acc);
+        let mut d = discrete::discretize(&self.layout, &self.cfg, self.mech.state(), &self.acc);
         self.acc = Accumulator::default();
+        let infl = self.gate.q_inflation();
+        if infl > 1.0 {
+            // the NIS monitor's adaptive process-noise inflation (model mismatch)
+            let k = T::of_f64(infl);
+            d.q_att = crate::model::scale3(&d.q_att, k);
+            d.q_vel = crate::model::scale3(&d.q_vel, k);
+            for q in d.q_diag.iter_mut() {
+                *q *= k;
+            }
+        }
         // the estimates follow their deterministic dynamics (Gauss-Markov means decay)
         let mut decayed = false;
         for (e, k) in self.est.iter_mut().zip(d.est_decay.iter()).skip(CORE_DIM) {
@@ -423,43 +450,235 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let rp = fix.pos_std_ned_m.map(|s| s * s);
         let force = self.cfg.gating.max_consecutive_rejections > 0
             && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
-        if self.cfg.use_gnss_velocity && fix.has_velocity {
+        let zp_a = [zp.x, zp.y, zp.z];
+        let (out, zv) = if self.cfg.use_gnss_velocity && fix.has_velocity {
             let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
             if time_offset {
                 v_ant += acc_n * tau;
             }
             let zv = v_ant - Vector3::from(fix.vel_ned_mps);
-            let [rv0, rv1, rv2] = fix.vel_std_ned_mps.map(|s| s * s);
+            let rv = fix.vel_std_ned_mps.map(|s| s * s);
+            let [rv0, rv1, rv2] = rv;
             let [rp0, rp1, rp2] = rp;
             let [a, b, cc] = h_pos;
             let [d, e, f] = h_vel;
-            self.kalman_update::<6>(
+            let out = self.kalman_update::<6>(
                 &[zp.x, zp.y, zp.z, zv.x, zv.y, zv.z],
                 &[a, b, cc, d, e, f],
                 &[rp0, rp1, rp2, rv0, rv1, rv2],
-                &[
-                    IDX_POS,
-                    IDX_POS + 1,
-                    IDX_POS + 2,
-                    IDX_VEL,
-                    IDX_VEL + 1,
-                    IDX_VEL + 2,
-                ],
-                self.cfg.gating.nis_threshold_pos_vel,
                 force,
                 fix.t_s,
-            )
+            )?;
+            (out, Some(([zv.x, zv.y, zv.z], rv)))
         } else {
-            self.kalman_update::<3>(
-                &[zp.x, zp.y, zp.z],
-                &h_pos,
-                &rp,
-                &[IDX_POS, IDX_POS + 1, IDX_POS + 2],
-                self.cfg.gating.nis_threshold_pos,
-                force,
-                fix.t_s,
-            )
+            let out = self.kalman_update::<3>(&zp_a, &h_pos, &rp, force, fix.t_s)?;
+            (out, None)
+        };
+        Ok(self.after_update(out, &zp_a, &rp, zv))
+    }
+
+    /// Bookkeeping after the gate decided: counters, status bits, the NIS monitor, and the
+    /// re-initialisation from the fixes when the gate forced one.
+    fn after_update(
+        &mut self,
+        mut out: UpdateOutcome,
+        zp: &[f64; 3],
+        rp: &[f64; 3],
+        zv: Option<([f64; 3], [f64; 3])>,
+    ) -> UpdateOutcome {
+        self.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_LAST_FIX_DOWNWEIGHTED | STATUS_RESET);
+        if out.accepted {
+            self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
+            self.consecutive_rejections = 0;
+            self.gate.last_rejected = None;
+            self.gate.earlier_rejected = None;
+            self.status &= !STATUS_NO_FIX_YET;
+            if out.weight < 1.0 {
+                self.status |= STATUS_LAST_FIX_DOWNWEIGHTED;
+                self.gate.stats.downweighted = self.gate.stats.downweighted.saturating_add(1);
+            }
+        } else if !out.forced {
+            self.counters.gnss_rejected = self.counters.gnss_rejected.saturating_add(1);
+            self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
+            self.status |= STATUS_LAST_FIX_REJECTED;
+            self.gate.earlier_rejected = self.gate.last_rejected;
+            self.gate.last_rejected = Some(RejectedFix {
+                t_s: out.t_s,
+                z_pos_m: *zp,
+                var_pos_m2: *rp,
+            });
         }
+        if let Some(r) = self.cfg.gating.robust {
+            self.gate.note_fix(out.t_s, out.accepted || out.forced);
+            if out.dim > 0 {
+                let rejected = !out.accepted && !out.forced;
+                self.gate
+                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected);
+            }
+            if self.gate.stats.mismatch {
+                self.status |= STATUS_MODEL_MISMATCH;
+            } else {
+                self.status &= !STATUS_MODEL_MISMATCH;
+            }
+        }
+        if out.forced {
+            self.reset_from_fixes(out.t_s, zp, rp, zv);
+            self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
+            self.counters.gnss_forced = self.counters.gnss_forced.saturating_add(1);
+            self.consecutive_rejections = 0;
+            self.status &= !STATUS_NO_FIX_YET;
+            self.status |= STATUS_RESET;
+            out.accepted = true;
+        }
+        out
+    }
+
+    /// Re-initialises position and velocity (and the heading when the GNSS course allows)
+    /// from the fixes, with consistent covariance: the position from this fix (`zp` =
+    /// predicted minus measured antenna position, NED m, variances `rp`), the velocity from
+    /// the fix's velocity when used (`zv`, variances) or else from the rate of the position
+    /// error through this fix's and the two previous rejected fixes' innovations (a quadratic;
+    /// with one previous fix the mean over the interval; the INS carries the acceleration). The rows and columns of the reset states
+    /// are zeroed (no cross-covariance with the rest) and their variances set from the fix
+    /// sigmas. Sensor-error estimates are kept.
+    fn reset_from_fixes(
+        &mut self,
+        t_s: f64,
+        zp: &[f64; 3],
+        rp: &[f64; 3],
+        zv: Option<([f64; 3], [f64; 3])>,
+    ) {
+        let mut dx = [0.0f64; N];
+        let mut var_pos = *rp;
+        for (i, (z, v)) in zp.iter().zip(var_pos.iter_mut()).enumerate() {
+            if let Some(d) = dx.get_mut(IDX_POS + i) {
+                *d = *z;
+            }
+            *v = v.max(0.0);
+        }
+        let recent =
+            |p: &RejectedFix, t: f64| (t - p.t_s) > 0.0 && (t - p.t_s) <= RESET_MAX_FIX_INTERVAL_S;
+        let prev = self.gate.last_rejected.filter(|p| recent(p, t_s));
+        let earlier = match prev {
+            Some(p) => self.gate.earlier_rejected.filter(|e| recent(e, p.t_s)),
+            None => None,
+        };
+        let vel_reset = match (zv, prev, earlier) {
+            (Some((z, r)), _, _) => Some((z, r)),
+            (None, Some(p2), Some(p1)) => {
+                // the position error's rate at this fix from the quadratic through the last
+                // three (rejected, rejected, this) innovations: v = sum z_i L_i'(t3) of the
+                // Lagrange basis, variance sum r_i L_i'(t3)^2 (the error's third derivative
+                // is neglected)
+                let (t1, t2, t3) = (p1.t_s, p2.t_s, t_s);
+                let l1 = (t3 - t2) / ((t1 - t2) * (t1 - t3));
+                let l2 = (t3 - t1) / ((t2 - t1) * (t2 - t3));
+                let l3 = 1.0 / (t3 - t1) + 1.0 / (t3 - t2);
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = l1 * z(&p1.z_pos_m) + l2 * z(&p2.z_pos_m) + l3 * z(zp);
+                    *v =
+                        l1 * l1 * z(&p1.var_pos_m2) + l2 * l2 * z(&p2.var_pos_m2) + l3 * l3 * z(rp);
+                }
+                Some((dv, var))
+            }
+            (None, Some(p), None) => {
+                // only two fixes: their mean velocity error over the interval
+                let dt = t_s - p.t_s;
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = (z(zp) - z(&p.z_pos_m)) / dt;
+                    // the fixes' noise, and the velocity error's change over the interval
+                    // (unknown; bounded by half the mean error when it grew from zero)
+                    *v = (z(rp) + z(&p.var_pos_m2)) / (dt * dt) + 0.25 * *d * *d;
+                }
+                Some((dv, var))
+            }
+            (None, None, _) => None,
+        };
+        let mut reset_idx = [usize::MAX; 7];
+        let mut reset_var = [0.0f64; 7];
+        for i in 0..3 {
+            if let Some(x) = reset_idx.get_mut(i) {
+                *x = IDX_POS + i;
+            }
+            if let Some(x) = reset_var.get_mut(i) {
+                *x = var_pos.get(i).copied().unwrap_or(0.0);
+            }
+        }
+        let nav = *self.mech.state();
+        if let Some((dv, var_v)) = vel_reset {
+            for i in 0..3 {
+                if let Some(d) = dx.get_mut(IDX_VEL + i) {
+                    *d = dv.get(i).copied().unwrap_or(0.0);
+                }
+                if let Some(x) = reset_idx.get_mut(3 + i) {
+                    *x = IDX_VEL + i;
+                }
+                if let Some(x) = reset_var.get_mut(3 + i) {
+                    *x = var_v.get(i).copied().unwrap_or(0.0).max(0.0);
+                }
+            }
+            // heading from the GNSS course (forward motion, no sideslip), when fast enough
+            // and clearly different from the heading
+            let min_speed = self.cfg.gating.reset_heading_min_speed_mps;
+            let [dvn, dve, _] = dv;
+            let (vn, ve) = (nav.vel_ned_mps.x - dvn, nav.vel_ned_mps.y - dve);
+            let speed2 = vn * vn + ve * ve;
+            if speed2 >= min_speed * min_speed && speed2 > 0.0 {
+                let course = libm::atan2(ve, vn);
+                let [_, _, yaw] = attitude::euler_zyx_from_quat(&nav.q_nb);
+                let mut dpsi = course - yaw;
+                if dpsi > core::f64::consts::PI {
+                    dpsi -= 2.0 * core::f64::consts::PI;
+                } else if dpsi < -core::f64::consts::PI {
+                    dpsi += 2.0 * core::f64::consts::PI;
+                }
+                let [vv0, vv1, _] = var_v;
+                let var_course = vv0.max(vv1) / speed2;
+                let var_yaw = get2(&self.p, IDX_ATT + 2, IDX_ATT + 2).to_f64().max(0.0);
+                let var_new = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
+                if dpsi.abs() < core::f64::consts::FRAC_PI_2
+                    && dpsi * dpsi > 9.0 * (var_yaw + var_new)
+                {
+                    if let Some(d) = dx.get_mut(IDX_ATT + 2) {
+                        *d = dpsi;
+                    }
+                    if let Some(x) = reset_idx.get_mut(6) {
+                        *x = IDX_ATT + 2;
+                    }
+                    if let Some(x) = reset_var.get_mut(6) {
+                        *x = var_new;
+                    }
+                    self.gate.stats.heading_resets =
+                        self.gate.stats.heading_resets.saturating_add(1);
+                }
+            }
+        }
+        let dx_t = dx.map(T::of_f64);
+        self.feedback(&dx_t);
+        for (idx, var) in reset_idx.iter().zip(reset_var.iter()) {
+            if *idx >= N {
+                continue;
+            }
+            for (k, row) in self.p.iter_mut().enumerate() {
+                if let Some(x) = row.get_mut(*idx) {
+                    *x = T::ZERO;
+                }
+                if k == *idx {
+                    for x in row.iter_mut() {
+                        *x = T::ZERO;
+                    }
+                }
+            }
+            set2(&mut self.p, *idx, *idx, T::of_f64(*var));
+        }
+        self.gate.stats.resets = self.gate.stats.resets.saturating_add(1);
+        self.gate.clear_window();
     }
 
     /// P H^T, S = H P H^T + R (symmetrised) and its Cholesky factor, for the current P.
@@ -501,22 +720,21 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     }
 
     /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
-    /// diagonal R, then closed-loop feedback and reset. `direct[m]` is the state measurement m
-    /// observes directly: a forced update (too many consecutive rejections) first adds the
-    /// squared innovation to those variances so the jump can be absorbed.
-    #[allow(clippy::too_many_arguments)]
+    /// diagonal R, then closed-loop feedback and reset. Between the down-weighting threshold
+    /// and the (widened) rejection threshold R is divided by the IGG-III weight (robust
+    /// gating); beyond it the fix is not used and nothing changes (`accepted` false; `forced`
+    /// true when `force` asks the caller to re-initialise from the fixes instead).
     fn kalman_update<const M: usize>(
         &mut self,
         z64: &[f64; M],
         h: &[[T; N]; M],
         r64: &[f64; M],
-        direct: &[usize; M],
-        threshold: f64,
         force: bool,
         t_s: f64,
     ) -> Result<UpdateOutcome, FilterError> {
+        let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
         let z = z64.map(T::of_f64);
-        let r = r64.map(T::of_f64);
+        let mut r = r64.map(T::of_f64);
         let (mut pht, s, l) = self.innovation_cov(h, &r);
         let mut out = UpdateOutcome {
             t_s,
@@ -524,9 +742,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             innovation: [0.0; 6],
             innovation_var: [0.0; 6],
             nis: f64::NAN,
-            nis_threshold: threshold,
+            nis_threshold: th.reject,
             accepted: false,
             forced: false,
+            weight: 0.0,
         };
         for (i, zi) in z64.iter().enumerate() {
             if let Some(o) = out.innovation.get_mut(i) {
@@ -545,19 +764,19 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !nis.is_finite() {
             return Err(self.numerical_failure());
         }
-        let passes_gate = nis <= threshold;
-        if !passes_gate && !force {
-            self.counters.gnss_rejected = self.counters.gnss_rejected.saturating_add(1);
-            self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
-            self.status |= STATUS_LAST_FIX_REJECTED;
+        let weight = if nis <= th.downweight {
+            1.0
+        } else {
+            igg3_weight(nis, th.downweight, th.reject)
+        };
+        if !(nis <= th.reject && weight >= MIN_WEIGHT) {
+            out.forced = force;
             return Ok(out);
         }
-        let forced = !passes_gate;
-        if forced {
-            for (d, zi) in direct.iter().zip(z.iter()) {
-                if let Some(x) = self.p.get_mut(*d).and_then(|row| row.get_mut(*d)) {
-                    *x += *zi * *zi;
-                }
+        if weight < 1.0 {
+            let k = T::of_f64(1.0 / weight);
+            for rv in r.iter_mut() {
+                *rv *= k;
             }
             let (pht2, _, l2) = self.innovation_cov(h, &r);
             let Some(l2) = l2 else {
@@ -603,14 +822,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         self.p = p;
         self.feedback(&dx);
-        self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
-        if forced {
-            self.counters.gnss_forced = self.counters.gnss_forced.saturating_add(1);
-        }
-        self.consecutive_rejections = 0;
-        self.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_NO_FIX_YET);
         out.accepted = true;
-        out.forced = forced;
+        out.weight = weight;
         Ok(out)
     }
 
@@ -816,6 +1029,12 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         &self.counters
     }
 
+    /// What the robust gating and its NIS monitor did, and their current state (all zero /
+    /// one with the hard gate, except `resets`).
+    pub fn robust_stats(&self) -> &RobustStats {
+        &self.gate.stats
+    }
+
     /// Status bits (`STATUS_*`).
     pub fn status(&self) -> u32 {
         self.status
@@ -848,6 +1067,15 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         sym && cholesky_in_place(&mut a)
     }
 }
+
+/// Largest interval between the previous rejected fix and the fix that re-initialises the
+/// filter for the velocity to be taken from their difference, s.
+pub const RESET_MAX_FIX_INTERVAL_S: f64 = 30.0;
+
+/// Variance added to the course-derived heading of a heading reset for the vehicle's unknown
+/// sideslip, rad^2 ((2 deg)^2).
+pub const HEADING_RESET_SIDESLIP_VAR_RAD2: f64 =
+    (2.0 * core::f64::consts::PI / 180.0) * (2.0 * core::f64::consts::PI / 180.0);
 
 /// The error-state dimension of the core (re-exported for users indexing `state_std`).
 pub const CORE_STATES: usize = CORE_DIM;

@@ -1,0 +1,203 @@
+//! What the innovation gate and its model-mismatch monitor did in a run, in numbers and in
+//! words (run summary and `metrics.json`; see `docs/robust-gating.md`).
+
+use nav_core::config::Gating;
+use nav_core::filter::robust::RobustStats;
+use nav_core::filter::{
+    Counters, STATUS_LAST_FIX_DOWNWEIGHTED, STATUS_MODEL_MISMATCH, STATUS_RESET,
+};
+use serde::Serialize;
+
+/// The gate's report of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GatingReport {
+    /// `robust` (default), `hard` (chi-square gate only) or `off`.
+    pub mode: String,
+    /// Fixes used with an inflated R (IGG-III down-weighting).
+    pub downweighted: u64,
+    /// Re-initialisations of position and velocity from the fixes after consecutive
+    /// rejections.
+    pub resets: u64,
+    /// Of which also re-initialised the heading from the GNSS course.
+    pub heading_resets: u64,
+    /// Times the monitor declared a model mismatch.
+    pub mismatch_episodes: u64,
+    /// Total time with a mismatch declared, s.
+    pub mismatch_time_s: f64,
+    /// Longest mismatch episode, s.
+    pub longest_mismatch_s: f64,
+    /// Fix time of the first declared mismatch, s of week.
+    pub first_mismatch_t_s: Option<f64>,
+    /// Largest windowed median of the innovations relative to their predicted sigma
+    /// (sqrt of the median NIS per degree of freedom; 1 = as predicted).
+    pub max_innovation_ratio: Option<f64>,
+    /// Largest process-noise inflation factor applied.
+    pub max_q_inflation: f64,
+    /// Largest gate widening factor applied.
+    pub max_gate_widening: f64,
+    /// Status bits (`nav_core::filter::STATUS_*`) seen after any fix, OR-ed.
+    pub status_bits_seen: u32,
+    /// What happened, in words.
+    pub message: String,
+}
+
+impl GatingReport {
+    /// The report from the filter's counters and robust statistics at the end of a run.
+    pub fn new(g: &Gating, c: &Counters, st: &RobustStats, status_bits_seen: u32) -> Self {
+        let mode = if g.robust.is_some() {
+            "robust"
+        } else if g.nis_threshold_pos.is_finite() || g.nis_threshold_pos_vel.is_finite() {
+            "hard"
+        } else {
+            "off"
+        };
+        let ratio = st
+            .max_median_ratio
+            .is_finite()
+            .then(|| st.max_median_ratio.sqrt());
+        let mut r = Self {
+            mode: mode.to_string(),
+            downweighted: u64::from(st.downweighted),
+            resets: u64::from(c.gnss_forced),
+            heading_resets: u64::from(st.heading_resets),
+            mismatch_episodes: u64::from(st.mismatch_episodes),
+            mismatch_time_s: st.mismatch_time_s,
+            longest_mismatch_s: st.longest_mismatch_s,
+            first_mismatch_t_s: st
+                .first_mismatch_t_s
+                .is_finite()
+                .then_some(st.first_mismatch_t_s),
+            max_innovation_ratio: ratio,
+            max_q_inflation: st.max_q_inflation,
+            max_gate_widening: st.max_gate_widening,
+            status_bits_seen,
+            message: String::new(),
+        };
+        r.message = r.words(g, c);
+        r
+    }
+
+    fn words(&self, g: &Gating, c: &Counters) -> String {
+        let mut parts = Vec::new();
+        if self.mismatch_episodes > 0 {
+            let ratio = self.max_innovation_ratio.unwrap_or(f64::NAN);
+            parts.push(format!(
+                "innovations up to {ratio:.1}x larger than predicted for {:.0} s in {} episode(s) \
+                 (first at t = {:.1} s, longest {:.0} s): model mismatch, process noise inflated \
+                 up to x{:.1} and the gate widened up to x{:.1}; run `host-sim diagnose` to find \
+                 the missing effect",
+                self.mismatch_time_s,
+                self.mismatch_episodes,
+                self.first_mismatch_t_s.unwrap_or(f64::NAN),
+                self.longest_mismatch_s,
+                self.max_q_inflation,
+                self.max_gate_widening
+            ));
+        }
+        if self.downweighted > 0 {
+            parts.push(format!(
+                "{} fix(es) down-weighted (IGG-III) instead of rejected",
+                self.downweighted
+            ));
+        }
+        if c.gnss_rejected > 0 {
+            parts.push(format!("{} fix(es) rejected as outliers", c.gnss_rejected));
+        }
+        if self.resets > 0 {
+            parts.push(format!(
+                "{} reset(s) of position and velocity from the fixes after {} consecutive \
+                 rejections ({} with the heading from the GNSS course)",
+                self.resets, g.max_consecutive_rejections, self.heading_resets
+            ));
+        }
+        if parts.is_empty() {
+            return match self.mode.as_str() {
+                "off" => "gate off: every valid fix used".to_string(),
+                _ => "innovations consistent with the model: no fix down-weighted, rejected or \
+                      reset"
+                    .to_string(),
+            };
+        }
+        parts.join("; ")
+    }
+
+    /// Names of the status bits in [`Self::status_bits_seen`] that concern the gate.
+    pub fn status_names(&self) -> Vec<&'static str> {
+        [
+            (STATUS_MODEL_MISMATCH, "MODEL_MISMATCH"),
+            (STATUS_LAST_FIX_DOWNWEIGHTED, "LAST_FIX_DOWNWEIGHTED"),
+            (STATUS_RESET, "RESET"),
+        ]
+        .iter()
+        .filter(|(b, _)| self.status_bits_seen & b != 0)
+        .map(|(_, n)| *n)
+        .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_declared_mismatch_is_told_in_words_with_its_numbers() {
+        let st = RobustStats {
+            mismatch_episodes: 2,
+            mismatch_time_s: 120.0,
+            longest_mismatch_s: 80.0,
+            first_mismatch_t_s: 1234.5,
+            max_median_ratio: 64.0,
+            max_q_inflation: 4.0,
+            max_gate_widening: 4.0,
+            downweighted: 7,
+            ..RobustStats::default()
+        };
+        let c = Counters {
+            gnss_rejected: 3,
+            gnss_forced: 1,
+            ..Counters::default()
+        };
+        let r = GatingReport::new(
+            &Gating::robust(),
+            &c,
+            &st,
+            STATUS_MODEL_MISMATCH | STATUS_RESET,
+        );
+        assert_eq!(r.mode, "robust");
+        assert_eq!(r.max_innovation_ratio, Some(8.0));
+        for needle in [
+            "innovations up to 8.0x larger than predicted for 120 s",
+            "model mismatch, process noise inflated up to x4.0",
+            "host-sim diagnose",
+            "7 fix(es) down-weighted",
+            "3 fix(es) rejected",
+            "1 reset(s) of position and velocity",
+        ] {
+            assert!(
+                r.message.contains(needle),
+                "{needle:?} not in {:?}",
+                r.message
+            );
+        }
+        assert_eq!(r.status_names(), vec!["MODEL_MISMATCH", "RESET"]);
+        let quiet = GatingReport::new(
+            &Gating::robust(),
+            &Counters::default(),
+            &RobustStats::default(),
+            0,
+        );
+        assert!(
+            quiet.message.starts_with("innovations consistent"),
+            "{}",
+            quiet.message
+        );
+        assert_eq!(quiet.first_mismatch_t_s, None);
+        let off = GatingReport::new(
+            &Gating::disabled(),
+            &Counters::default(),
+            &RobustStats::default(),
+            0,
+        );
+        assert_eq!(off.mode, "off");
+    }
+}

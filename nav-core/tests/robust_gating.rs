@@ -1,0 +1,695 @@
+//! Robust gating by default (issue 13, items 1-3): isolated outliers are still rejected with
+//! the state untouched; a jump of every fix is followed through a reset that re-initialises
+//! position and velocity; a diverged velocity is reset from the fixes; a slow vehicle with
+//! stops does not diverge; a persistent model mismatch (an undeclared gyro scale factor, an
+//! undeclared lever arm) is not rejected and its error with GNSS stays within 1.2x of the
+//! same run without the gate.
+//!
+//! Every scenario prints its numbers (run with `--nocapture`); `docs/robust-gating.md` quotes
+//! them.
+
+mod common_filter;
+
+use common_filter::*;
+use nalgebra::{UnitQuaternion, Vector3};
+use nav_core::attitude;
+use nav_core::config::{FilterConfig, GateProbability, Gating, KfGinsImuNoise};
+use nav_core::earth::{self, Llh};
+use nav_core::filter::{
+    Filter, InitialUncertainty, STATUS_LAST_FIX_DOWNWEIGHTED, STATUS_LAST_FIX_REJECTED,
+    STATUS_MODEL_MISMATCH, STATUS_RESET,
+};
+use nav_core::model::{IDX_POS, IDX_VEL, LAYOUT_KF_GINS, LAYOUT_NBK};
+use nav_core::nav::{NavState, Strapdown};
+use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+const N18: usize = LAYOUT_NBK.dim();
+const N21: usize = LAYOUT_KF_GINS.dim();
+
+fn horiz(d: &[f64]) -> f64 {
+    (d[0] * d[0] + d[1] * d[1]).sqrt()
+}
+
+fn shifted(fix: &GnssFix, d_ned_m: [f64; 3]) -> GnssFix {
+    let p = earth::displace(
+        &Llh {
+            lat_rad: fix.lat_rad,
+            lon_rad: fix.lon_rad,
+            h_m: fix.h_m,
+        },
+        &Vector3::from(d_ned_m),
+    );
+    GnssFix {
+        lat_rad: p.lat_rad,
+        lon_rad: p.lon_rad,
+        h_m: p.h_m,
+        ..*fix
+    }
+}
+
+fn nbk_cfg(sc: &SimConfig) -> FilterConfig {
+    FilterConfig {
+        lever_arm_body_m: sc.lever_arm_body_m,
+        ..FilterConfig::source_nbk_model()
+    }
+}
+
+#[test]
+fn the_default_gating_is_robust_and_the_hard_gate_stays_selectable() {
+    let g = FilterConfig::source_nbk_model().gating;
+    assert_eq!(g, Gating::robust());
+    assert!(g.robust.is_some());
+    assert_eq!(g.max_consecutive_rejections, 10);
+    let hard = Gating::with_probability(GateProbability::P9999, 10);
+    assert!(hard.robust.is_none());
+    assert_eq!(hard.nis_threshold_pos, g.nis_threshold_pos);
+}
+
+/// 5 m and 30 m outliers with RTK sigmas (2 cm) and with 0.5 m sigmas: rejected, counted, in
+/// the status, and the state and covariance bit-for-bit unchanged; the next fix is used.
+#[test]
+fn isolated_5_m_and_30_m_outliers_are_rejected_with_the_state_untouched() {
+    for (sigma, seed) in [(0.02, 31u64), (0.5, 32)] {
+        let mut sc = SimConfig::nbk(100.0);
+        sc.gnss_pos_sigma_m = [sigma, sigma, 2.0 * sigma];
+        let cfg = nbk_cfg(&sc);
+        let mut sim = Sim::new(sc, seed);
+        let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+        let mut fixes = 0;
+        let mut checked = 0;
+        while fixes < 200 {
+            let e = sim.step();
+            f.propagate(&e.imu).unwrap();
+            let Some(fix) = e.gnss else { continue };
+            fixes += 1;
+            let off = match fixes {
+                100 => Some([3.0, 4.0, 0.0]),
+                101 | 150 => None,
+                130 => Some([-18.0, 24.0, 0.0]),
+                _ => None,
+            };
+            if let Some(d) = off {
+                f.predict_covariance().unwrap();
+                let before = *f.nav_state();
+                let p_before = *f.covariance();
+                let rejected_before = f.counters().gnss_rejected;
+                let accepted_before = f.counters().gnss_accepted;
+                let out = f.update_gnss(&shifted(&fix, d)).unwrap();
+                println!(
+                    "sigma {sigma} m, outlier {:.0} m: NIS {:.0} (gate {:.1}), weight {}",
+                    horiz(&d),
+                    out.nis,
+                    out.nis_threshold,
+                    out.weight
+                );
+                assert!(!out.accepted && !out.forced);
+                assert_eq!(out.weight, 0.0);
+                assert!(out.nis > out.nis_threshold);
+                assert_eq!(f.counters().gnss_rejected, rejected_before + 1);
+                assert_eq!(f.counters().gnss_accepted, accepted_before);
+                assert_ne!(f.status() & STATUS_LAST_FIX_REJECTED, 0);
+                assert_eq!(f.status() & (STATUS_RESET | STATUS_MODEL_MISMATCH), 0);
+                assert_eq!(f.nav_state(), &before);
+                assert_eq!(f.covariance(), &p_before);
+                checked += 1;
+                continue;
+            }
+            let out = f.update_gnss(&fix).unwrap();
+            assert!(out.accepted && !out.forced, "fix {fixes}: {out:?}");
+            if fixes == 101 || fixes == 131 {
+                assert_eq!(f.status() & STATUS_LAST_FIX_REJECTED, 0);
+                let (_, _, dr) = nav_errors(f.nav_state(), &e.truth);
+                assert!(horiz(&dr) < 3.0 * sigma + 0.05, "error {dr:?}");
+            }
+        }
+        assert_eq!(checked, 2);
+        assert_eq!(f.counters().gnss_rejected, 2);
+        assert_eq!(f.counters().gnss_forced, 0);
+        let st = f.robust_stats();
+        println!("sigma {sigma} m: {st:?}");
+        assert_eq!(st.mismatch_episodes, 0);
+        assert_eq!(st.q_inflation, 1.0);
+    }
+}
+
+/// Runs a filter on the sim, calling `fix_map` on every fix; returns per-fix (outcome, horiz
+/// position error, horiz velocity error) after the update, errors against the truth shifted
+/// by `truth_shift(fix index)`.
+#[allow(clippy::type_complexity)]
+fn run_with<const N: usize>(
+    sim: &mut Sim,
+    f: &mut Filter<f64, N>,
+    n_fixes: usize,
+    mut fix_map: impl FnMut(usize, GnssFix) -> GnssFix,
+    truth_shift: impl Fn(usize) -> [f64; 3],
+) -> Vec<(nav_core::filter::UpdateOutcome, f64, f64, u32)> {
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < n_fixes {
+        let e = sim.step();
+        f.propagate(&e.imu).unwrap();
+        let Some(fix) = e.gnss else { continue };
+        k += 1;
+        let o = f.update_gnss(&fix_map(k, fix)).unwrap();
+        let (_, dv, dr) = nav_errors(f.nav_state(), &e.truth);
+        let s = truth_shift(k);
+        let dr = [dr[0] - s[0], dr[1] - s[1], dr[2] - s[2]];
+        out.push((o, horiz(&dr), horiz(&dv), f.status()));
+    }
+    out
+}
+
+/// Every fix from fix 61 on is 150 m north (the reference changed): 10 rejections, then a
+/// reset onto the new position with a velocity from the fixes, and the following fixes are
+/// used again (robust default and the hard gate).
+#[test]
+fn a_150_m_jump_of_all_fixes_is_followed() {
+    for (name, gating) in [
+        ("robust", Gating::robust()),
+        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
+    ] {
+        let sc = SimConfig::nbk(100.0);
+        let mut cfg = nbk_cfg(&sc);
+        cfg.gating = gating;
+        let mut sim = Sim::new(sc, 41);
+        let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+        let jump = |k: usize| if k > 60 { [150.0, 0.0, 0.0] } else { [0.0; 3] };
+        let res = run_with(&mut sim, &mut f, 120, |k, fix| shifted(&fix, jump(k)), jump);
+        for (k, (o, _, _, _)) in res.iter().enumerate().take(60) {
+            assert!(o.accepted && !o.forced, "fix {}: {o:?}", k + 1);
+        }
+        for (o, _, _, st) in &res[60..70] {
+            assert!(!o.accepted, "{name}: a 150 m jump passed the gate: {o:?}");
+            assert_ne!(st & STATUS_LAST_FIX_REJECTED, 0);
+        }
+        let (o, e_pos, e_vel, st) = res[70];
+        println!(
+            "{name}: reset at fix 71: position error {e_pos:.3} m, velocity error {e_vel:.4} m/s; \
+             later max {:.3} m / {:.4} m/s; {:?}",
+            res[71..].iter().map(|r| r.1).fold(0.0, f64::max),
+            res[71..].iter().map(|r| r.2).fold(0.0, f64::max),
+            f.robust_stats()
+        );
+        assert!(o.accepted && o.forced, "{name}: {o:?}");
+        assert_ne!(st & STATUS_RESET, 0);
+        assert_eq!(st & STATUS_LAST_FIX_REJECTED, 0);
+        // the reset puts the IMU point on the fix (2 cm sigma) and keeps the velocity
+        assert!(e_pos < 0.15, "{name}: error after the reset {e_pos} m");
+        assert!(
+            e_vel < 0.05,
+            "{name}: velocity error after the reset {e_vel} m/s"
+        );
+        for (k, (o, e_pos, e_vel, st)) in res.iter().enumerate().skip(71) {
+            assert!(o.accepted && !o.forced, "{name}: fix {}: {o:?}", k + 1);
+            assert_eq!(st & STATUS_RESET, 0);
+            assert!(*e_pos < 0.15, "{name}: fix {}: error {e_pos} m", k + 1);
+            assert!(*e_vel < 0.05, "{name}: fix {}: {e_vel} m/s", k + 1);
+        }
+        assert_eq!(f.counters().gnss_forced, 1);
+        assert_eq!(f.counters().gnss_rejected, 10);
+        assert_eq!(f.robust_stats().resets, 1);
+        assert!(f.covariance_is_positive_definite());
+        // the covariance of the reset states is consistent with the fix sigmas
+        let sd = f.state_std();
+        assert!(sd[IDX_POS] < 0.05 && sd[IDX_VEL] < 0.05, "{sd:?}");
+    }
+}
+
+/// The velocity of the filter is 3 m/s wrong and it is sure of it (sigma 1 cm/s): every fix is
+/// rejected until the reset, which must re-initialise the velocity from the fixes (the old
+/// forced update moved the position only and kept the diverged velocity).
+#[test]
+fn a_reset_re_initialises_a_diverged_velocity_from_the_fixes() {
+    for (name, gating) in [
+        ("robust", Gating::robust()),
+        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
+    ] {
+        let sc = SimConfig::nbk(100.0);
+        let mut cfg = nbk_cfg(&sc);
+        cfg.gating = gating;
+        let mut sim = Sim::new(sc, 43);
+        let unc = InitialUncertainty {
+            vel_sigma_mps: [0.01; 3],
+            pos_sigma_m: [0.05; 3],
+            ..test_uncertainty()
+        };
+        let mut init = *sim.truth();
+        init.vel_ned_mps += Vector3::new(0.0, 3.0, 0.0);
+        let mut f: Filter<f64, N18> = Filter::new(LAYOUT_NBK, &cfg, init, &unc).unwrap();
+        let res = run_with(&mut sim, &mut f, 40, |_, fix| fix, |_| [0.0; 3]);
+        let first_reset = res.iter().position(|r| r.0.forced).expect("a reset");
+        let (_, e_pos, e_vel, _) = res[first_reset];
+        println!(
+            "{name}: {} rejections, reset at fix {}: position error {e_pos:.3} m, velocity \
+             error {e_vel:.4} m/s (3 m/s before); final {:.3} m / {:.4} m/s; resets {}",
+            res[..first_reset].iter().filter(|r| !r.0.accepted).count(),
+            first_reset + 1,
+            res.last().unwrap().1,
+            res.last().unwrap().2,
+            f.counters().gnss_forced
+        );
+        assert!(e_pos < 0.15, "{name}: {e_pos} m");
+        // the mean velocity error over the 1 s between the two fixes is removed
+        assert!(
+            e_vel < 0.1,
+            "{name}: velocity error after the reset {e_vel} m/s"
+        );
+        assert_eq!(f.counters().gnss_forced, 1, "{name}: more than one reset");
+        for (o, e_pos, e_vel, _) in &res[first_reset + 1..] {
+            assert!(o.accepted && !o.forced, "{name}: {o:?}");
+            assert!(
+                *e_pos < 0.15 && *e_vel < 0.1,
+                "{name}: {e_pos} m {e_vel} m/s"
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Slow rover: truth integrated at 1 kHz, IMU increments summed to 100 Hz (the filter's
+// rate), body vibration at 7.3 and 13 Hz (coning / sculling at the IMU rate), a gyro bias
+// 20x and an accelerometer bias 10x the filter's priors (with a slow sinusoidal drift the
+// filter does not model), RTK fixes every 3 s.
+
+struct Rover {
+    truth: Strapdown,
+    rng: ChaCha8Rng,
+    t0: f64,
+    k: u64,
+    heading: f64,
+}
+
+const ROVER_SUB: u64 = 10;
+const ROVER_HZ: f64 = 100.0;
+
+impl Rover {
+    fn new(seed: u64) -> Self {
+        let init = initial_truth(0.0);
+        Self {
+            t0: init.t_s,
+            truth: Strapdown::new(init),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            k: 0,
+            heading: 30f64.to_radians(),
+        }
+    }
+
+    /// Along-track acceleration and yaw rate at `tau`: a 120 s cycle of start (0.04 m/s^2
+    /// for 5 s up to 0.2 m/s), 30 s at 0.2 m/s turning, stop, 20 s standing; twice per
+    /// cycle, turning left then right.
+    fn profile(tau: f64) -> (f64, f64) {
+        let p = tau % 120.0;
+        let q = p % 60.0;
+        let turn = if p < 60.0 { 0.02 } else { -0.03 };
+        match q {
+            q if q < 5.0 => (0.04, 0.0),
+            q if q < 35.0 => (0.0, turn),
+            q if q < 40.0 => (-0.04, 0.0),
+            _ => (0.0, 0.0),
+        }
+    }
+
+    /// One 100 Hz IMU sample (sum of 10 1-kHz increments) and the truth at its end.
+    fn step(&mut self) -> (ImuSample, NavState) {
+        let dt = 1.0 / (ROVER_HZ * ROVER_SUB as f64);
+        let mut dth = Vector3::zeros();
+        let mut dv = Vector3::zeros();
+        for _ in 0..ROVER_SUB {
+            let s = *self.truth.state();
+            let tau = self.k as f64 * dt + 0.5 * dt;
+            let (along, yaw_rate) = Self::profile(tau);
+            let lat = s.pos.lat_rad;
+            let w_ie = earth::earth_rate_ned_radps(lat);
+            let w_en = earth::transport_rate_ned_radps(lat, s.pos.h_m, &s.vel_ned_mps);
+            let c = s.q_nb.to_rotation_matrix().into_inner();
+            let hdg = Vector3::new(self.heading.cos(), self.heading.sin(), 0.0);
+            let speed = s.vel_ned_mps.xy().norm();
+            // steer the velocity onto the heading (no sideslip), stop exactly at zero
+            let mut a_n = hdg * along
+                + Vector3::new(-yaw_rate * s.vel_ned_mps.y, yaw_rate * s.vel_ned_mps.x, 0.0);
+            if along < 0.0 && speed < 0.04 * dt {
+                a_n = -s.vel_ned_mps / dt;
+            }
+            let (w7, w13) = (
+                2.0 * std::f64::consts::PI * 7.3,
+                2.0 * std::f64::consts::PI * 13.0,
+            );
+            let moving = if speed > 0.01 { 1.0 } else { 0.0 };
+            // roll/pitch vibration (0.05 deg) and vertical vibration (0.2 m/s^2) while moving
+            let a_vib = 0.05f64.to_radians() * moving;
+            let w_nb = Vector3::new(
+                a_vib * w7 * (w7 * tau).cos(),
+                a_vib * w13 * (w13 * tau + 1.0).cos(),
+                yaw_rate,
+            );
+            a_n.z += 0.2 * moving * (w13 * tau).sin();
+            let w_ib = w_nb + c.transpose() * (w_ie + w_en);
+            let dtheta = w_ib * dt;
+            let g = earth::gravity_ned_mps2(lat, s.pos.h_m);
+            let f_n = a_n - g + (2.0 * w_ie + w_en).cross(&s.vel_ned_mps);
+            let c_mid = c * attitude::dcm_from_rotvec(&(dtheta * 0.5));
+            let dvk = c_mid.transpose() * f_n * dt;
+            self.k += 1;
+            let clean = ImuSample {
+                t_s: self.t0 + self.k as f64 * dt,
+                dtheta_rad: dtheta.into(),
+                dv_mps: dvk.into(),
+                temperature_c: f64::NAN,
+            };
+            self.truth.update(&clean).expect("truth");
+            self.heading += yaw_rate * dt;
+            dth += dtheta;
+            dv += dvk;
+        }
+        let t = self.t0 + self.k as f64 * dt;
+        let tau = t - self.t0;
+        let dt_imu = 1.0 / ROVER_HZ;
+        // sensor errors: gyro bias 10 deg/h (+ 3 deg/h drift over 10 min), accel bias 1 mg
+        // (+ 0.3 mg drift), white noise of the configured level
+        let gb = nav_core::config::units::radps_from_deg_per_h(10.0)
+            + nav_core::config::units::radps_from_deg_per_h(3.0)
+                * (2.0 * std::f64::consts::PI * tau / 600.0).sin();
+        let ab = 1e-3 * 9.81 + 0.3e-3 * 9.81 * (2.0 * std::f64::consts::PI * tau / 400.0).cos();
+        let n = FilterConfig::source_nbk_model();
+        let mut imu = ImuSample {
+            t_s: t,
+            dtheta_rad: dth.into(),
+            dv_mps: dv.into(),
+            temperature_c: f64::NAN,
+        };
+        for i in 0..3 {
+            let sgn = [1.0, -0.7, 0.5][i];
+            imu.dtheta_rad[i] +=
+                sgn * gb * dt_imu + (n.gyro.s_n[i] * dt_imu).sqrt() * randn(&mut self.rng);
+            imu.dv_mps[i] +=
+                sgn * ab * dt_imu + (n.accel.s_n[i] * dt_imu).sqrt() * randn(&mut self.rng);
+        }
+        (imu, *self.truth.state())
+    }
+
+    fn fix(&mut self, truth: &NavState, lever: [f64; 3], sigma: [f64; 3]) -> GnssFix {
+        let c = truth.q_nb.to_rotation_matrix().into_inner();
+        let ant = earth::displace(&truth.pos, &(c * Vector3::from(lever)));
+        let n = Vector3::new(
+            sigma[0] * randn(&mut self.rng),
+            sigma[1] * randn(&mut self.rng),
+            sigma[2] * randn(&mut self.rng),
+        );
+        let p = earth::displace(&ant, &n);
+        GnssFix {
+            t_s: truth.t_s,
+            lat_rad: p.lat_rad,
+            lon_rad: p.lon_rad,
+            h_m: p.h_m,
+            pos_std_ned_m: sigma,
+            vel_ned_mps: [0.0; 3],
+            vel_std_ned_mps: [0.0; 3],
+            has_velocity: false,
+            quality: FixQuality::RtkFixed,
+            num_sats: 14,
+        }
+    }
+}
+
+struct RoverRun {
+    rejected: usize,
+    offered: usize,
+    resets: u32,
+    max_pos_m: f64,
+    max_vel_mps: f64,
+    final_pos_m: f64,
+    rms_pos_m: f64,
+}
+
+fn rover_run(gating: Gating, minutes: f64) -> RoverRun {
+    let lever = [0.2, 0.0, -0.5];
+    let sigma = [0.02, 0.02, 0.04];
+    let mut cfg = FilterConfig::source_nbk_model();
+    cfg.lever_arm_body_m = lever;
+    cfg.gating = gating;
+    let mut rover = Rover::new(77);
+    let unc = test_uncertainty();
+    let mut init = *rover.truth.state();
+    init.q_nb = UnitQuaternion::from_scaled_axis(Vector3::new(0.0005, -0.0005, 0.003)) * init.q_nb;
+    let mut f: Filter<f64, N18> = Filter::new(LAYOUT_NBK, &cfg, init, &unc).unwrap();
+    let n = (minutes * 60.0 * ROVER_HZ) as u64;
+    let mut r = RoverRun {
+        rejected: 0,
+        offered: 0,
+        resets: 0,
+        max_pos_m: 0.0,
+        max_vel_mps: 0.0,
+        final_pos_m: 0.0,
+        rms_pos_m: 0.0,
+    };
+    let mut sum2 = 0.0;
+    for k in 1..=n {
+        let (imu, truth) = rover.step();
+        f.propagate(&imu).unwrap();
+        if k % (3 * ROVER_HZ as u64) == 0 {
+            let fix = rover.fix(&truth, lever, sigma);
+            let o = f.update_gnss(&fix).unwrap();
+            r.offered += 1;
+            if !o.accepted {
+                r.rejected += 1;
+            }
+            let (_, dv, dr) = nav_errors(f.nav_state(), &truth);
+            let (ep, ev) = (horiz(&dr), horiz(&dv));
+            sum2 += ep * ep;
+            if k as f64 > 60.0 * ROVER_HZ {
+                r.max_pos_m = r.max_pos_m.max(ep);
+                r.max_vel_mps = r.max_vel_mps.max(ev);
+            }
+            r.final_pos_m = ep;
+        }
+    }
+    r.resets = f.counters().gnss_forced;
+    r.rms_pos_m = (sum2 / r.offered as f64).sqrt();
+    println!("{:?}", f.robust_stats());
+    r
+}
+
+/// A slow vehicle (0.2 m/s, stops, RTK every 3 s) whose IMU is worse than configured does not
+/// diverge with the default gating.
+#[test]
+fn a_slow_rover_with_stops_and_fixes_every_3_s_does_not_diverge() {
+    for (name, gating) in [
+        ("robust", Gating::robust()),
+        (
+            "hard 0.9999",
+            Gating::with_probability(GateProbability::P9999, 10),
+        ),
+        ("off", Gating::disabled()),
+    ] {
+        let r = rover_run(gating, 10.0);
+        println!(
+            "slow rover, {name}: {} of {} fixes rejected, {} resets, horizontal error RMS {:.3} m \
+             max {:.3} m final {:.3} m, max velocity error {:.4} m/s",
+            r.rejected, r.offered, r.resets, r.rms_pos_m, r.max_pos_m, r.final_pos_m, r.max_vel_mps
+        );
+        if name == "robust" {
+            assert!(r.max_pos_m < 0.5, "diverged: {} m", r.max_pos_m);
+            assert!(
+                r.max_vel_mps < 0.1,
+                "velocity diverged: {} m/s",
+                r.max_vel_mps
+            );
+            assert!(
+                r.rejected * 20 < r.offered,
+                "{} of {} rejected",
+                r.rejected,
+                r.offered
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Persistent mismatch: a KF-GINS configuration (21 states, scale-factor sigmas of zero) on
+// data with an undeclared gyro scale factor, and on data with an undeclared 1.5 m lever arm.
+
+fn kf_gins_cfg() -> FilterConfig {
+    FilterConfig::from_kf_gins(&KfGinsImuNoise {
+        arw_deg_per_sqrt_h: [0.003; 3],
+        vrw_mps_per_sqrt_h: [0.03; 3],
+        gbstd_deg_per_h: [0.027; 3],
+        abstd_mgal: [15.0; 3],
+        gsstd_ppm: [0.0; 3],
+        asstd_ppm: [0.0; 3],
+        corrtime_h: 4.0,
+    })
+}
+
+struct MismatchRun {
+    rejected: usize,
+    downweighted: u32,
+    offered: usize,
+    rms_m: f64,
+    mismatch_s: f64,
+    max_q: f64,
+}
+
+fn mismatch_run(sc: SimConfig, seed: u64, gating: Gating, minutes: f64) -> MismatchRun {
+    let mut cfg = kf_gins_cfg();
+    cfg.gating = gating;
+    let mut sim = Sim::new(sc, seed);
+    let unc = test_uncertainty();
+    let init = sim.perturbed_initial(&unc);
+    let mut f: Filter<f64, N21> = Filter::new(LAYOUT_KF_GINS, &cfg, init, &unc).unwrap();
+    let n = (minutes * 60.0 * sc.imu_hz) as usize;
+    let (mut rejected, mut offered, mut sum2, mut cnt) = (0, 0, 0.0, 0);
+    for k in 0..n {
+        let e = sim.step();
+        f.propagate(&e.imu).unwrap();
+        if let Some(fix) = e.gnss {
+            offered += 1;
+            let o = f.update_gnss(&fix).unwrap();
+            if !o.accepted {
+                rejected += 1;
+            }
+            if o.weight < 1.0 && o.accepted && !o.forced {
+                assert_ne!(f.status() & STATUS_LAST_FIX_DOWNWEIGHTED, 0);
+            }
+        }
+        // horizontal error with GNSS, after the first minute, at 1 Hz
+        if k as f64 >= 60.0 * sc.imu_hz && k % sc.imu_hz as usize == 0 {
+            let (_, _, dr) = nav_errors(f.nav_state(), &e.truth);
+            sum2 += horiz(&dr).powi(2);
+            cnt += 1;
+        }
+    }
+    let st = *f.robust_stats();
+    MismatchRun {
+        rejected,
+        downweighted: st.downweighted,
+        offered,
+        rms_m: (sum2 / cnt as f64).sqrt(),
+        mismatch_s: st.mismatch_time_s,
+        max_q: st.max_q_inflation,
+    }
+}
+
+fn check_mismatch(label: &str, sc: SimConfig, seed: u64, minutes: f64) {
+    let robust = mismatch_run(sc, seed, Gating::robust(), minutes);
+    let off = mismatch_run(sc, seed, Gating::disabled(), minutes);
+    let hard = mismatch_run(
+        sc,
+        seed,
+        Gating::with_probability(GateProbability::P9999, 10),
+        minutes,
+    );
+    for (name, r) in [("robust", &robust), ("hard 0.9999", &hard), ("off", &off)] {
+        println!(
+            "{label}, {name}: {} of {} fixes rejected ({:.1} %), {} down-weighted, horizontal RMS \
+             with GNSS {:.4} m, mismatch declared {:.0} s, max Q inflation x{:.1}",
+            r.rejected,
+            r.offered,
+            100.0 * r.rejected as f64 / r.offered as f64,
+            r.downweighted,
+            r.rms_m,
+            r.mismatch_s,
+            r.max_q
+        );
+    }
+    println!(
+        "{label}: RMS ratio robust / off = {:.3}",
+        robust.rms_m / off.rms_m
+    );
+    assert!(
+        robust.rejected * 20 < robust.offered,
+        "{label}: {} of {} fixes rejected",
+        robust.rejected,
+        robust.offered
+    );
+    assert!(
+        robust.rms_m <= 1.2 * off.rms_m,
+        "{label}: RMS {} m vs {} m with the gate off",
+        robust.rms_m,
+        off.rms_m
+    );
+}
+
+#[test]
+fn an_undeclared_gyro_scale_factor_is_not_rejected_and_stays_within_1_2x_of_gate_off() {
+    let mut sc = SimConfig::nbk(100.0);
+    sc.truth = kf_gins_cfg();
+    sc.motion = Motion::Track;
+    sc.wobble = true;
+    sc.lever_arm_body_m = [0.0; 3];
+    sc.effects.gyro_sf = [500e-6, -400e-6, 600e-6];
+    check_mismatch("gyro scale factor 400-600 ppm", sc, 51, 15.0);
+}
+
+#[test]
+fn an_undeclared_1_5_m_lever_arm_is_not_rejected_and_stays_within_1_2x_of_gate_off() {
+    let mut sc = SimConfig::nbk(100.0);
+    sc.truth = kf_gins_cfg();
+    sc.motion = Motion::Drive;
+    sc.wobble = true;
+    // the configuration says no lever arm
+    sc.lever_arm_body_m = [1.0, 0.9, -0.7];
+    check_mismatch("undeclared lever arm 1.5 m", sc, 52, 15.0);
+}
+
+/// The heading is 15 deg wrong and the filter is sure of it (0.05 deg): at 10 m/s the fixes
+/// are rejected until the reset, which re-initialises the heading from the GNSS course too
+/// (hard gate: nothing else can recover it); the robust default recovers as well.
+#[test]
+fn a_reset_at_speed_re_initialises_the_heading_from_the_gnss_course() {
+    for (name, gating) in [
+        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
+        ("robust", Gating::robust()),
+    ] {
+        let sc = SimConfig::nbk(100.0);
+        let mut cfg = nbk_cfg(&sc);
+        cfg.gating = gating;
+        let mut sim = Sim::new(sc, 47);
+        let unc = InitialUncertainty {
+            att_sigma_rad: [0.05f64.to_radians(); 3],
+            vel_sigma_mps: [0.02; 3],
+            pos_sigma_m: [0.05; 3],
+        };
+        let mut init = *sim.truth();
+        init.q_nb = UnitQuaternion::from_scaled_axis(Vector3::new(0.0, 0.0, 15f64.to_radians()))
+            * init.q_nb;
+        let mut f: Filter<f64, N18> = Filter::new(LAYOUT_NBK, &cfg, init, &unc).unwrap();
+        let mut yaw_err_after_reset = None;
+        let mut fixes = 0;
+        let mut last_yaw_err = f64::NAN;
+        let mut max_pos_late: f64 = 0.0;
+        while fixes < 120 {
+            let e = sim.step();
+            f.propagate(&e.imu).unwrap();
+            let Some(fix) = e.gnss else { continue };
+            fixes += 1;
+            let o = f.update_gnss(&fix).unwrap();
+            let (phi, _, dr) = nav_errors(f.nav_state(), &e.truth);
+            last_yaw_err = phi[2].to_degrees();
+            if o.forced && yaw_err_after_reset.is_none() {
+                yaw_err_after_reset = Some(last_yaw_err);
+            }
+            if fixes > 60 {
+                max_pos_late = max_pos_late.max(horiz(&dr));
+            }
+        }
+        println!(
+            "{name}: yaw error after the first reset {yaw_err_after_reset:?} deg, final {last_yaw_err:.3} deg, \
+             resets {} (heading {}), rejected {}, max horizontal error after 60 s {max_pos_late:.3} m",
+            f.counters().gnss_forced,
+            f.robust_stats().heading_resets,
+            f.counters().gnss_rejected
+        );
+        if name == "hard" {
+            assert!(f.robust_stats().heading_resets >= 1);
+            let y = yaw_err_after_reset.expect("a reset");
+            assert!(y.abs() < 1.0, "{name}: yaw error after the reset {y} deg");
+        }
+        assert!(
+            last_yaw_err.abs() < 0.5,
+            "{name}: final yaw error {last_yaw_err} deg"
+        );
+        assert!(max_pos_late < 0.2, "{name}: {max_pos_late} m");
+    }
+}
