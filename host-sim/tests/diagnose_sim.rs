@@ -248,6 +248,11 @@ fn assert_never_worse(d: &Diagnosis) {
 /// Asserts the effect is named first, every state is within 20 % of the truth or 3 sigma, and
 /// the outage error dropped by at least 30 %.
 fn check_first(d: &Diagnosis, name: &str, truth: &[f64]) {
+    check_first_ratio(d, name, truth, 0.7);
+}
+
+/// [`check_first`] with the largest allowed outage-error ratio after / before.
+fn check_first_ratio(d: &Diagnosis, name: &str, truth: &[f64], max_ratio: f64) {
     println!("{name}: truth {truth:?}\n{}", summary(d));
     let first = d.added_effects.first().expect("an effect must be added");
     assert_eq!(first.name, name);
@@ -263,8 +268,9 @@ fn check_first(d: &Diagnosis, name: &str, truth: &[f64]) {
         d.error_before.outage_max_3d_rms_m,
         d.error_after.outage_max_3d_rms_m,
     );
+    println!("{name}: outage error ratio after/before {:.3}", a / b);
     assert!(
-        a <= 0.7 * b,
+        a <= max_ratio * b,
         "{name}: outage error before {b} m after {a} m"
     );
     assert!(d.residuals_after.log_likelihood > d.residuals_before.log_likelihood);
@@ -276,13 +282,18 @@ fn run(v: u32, e: &ErrorModel, lever: [f64; 3], seed: u64) -> Diagnosis {
     diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis
 }
 
+/// With the robust gating of the base run (issue 14 item 1) the base no longer diverges on
+/// this drive (outage error 0.607 m; 50.5 m with the earlier hard 0.9999 gate), so the
+/// scale factor's share of the outage error is smaller: measured 0.607 -> 0.493 m (ratio
+/// 0.81). The 30 % target of the other cases is NOT met here; asserted: named first, estimate
+/// within 20 % / 3 sigma, after better than before (and never worse in any step).
 #[test]
 fn undeclared_accel_scale_factor_is_found() {
     let mut e = base_errors();
     let ppm = [1500.0, -900.0, 1200.0];
     e.accel.scale_factor_ppm = Axes3(ppm);
     let d = run(0, &e, [0.0; 3], 101);
-    check_first(&d, "accel_scale_factor", &ppm.map(|p| p * 1e-6));
+    check_first_ratio(&d, "accel_scale_factor", &ppm.map(|p| p * 1e-6), 1.0);
 }
 
 #[test]
@@ -779,6 +790,9 @@ fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
 fn tune_noise_recovers_an_understated_white_noise_and_keeps_a_right_one() {
     let tuned = |v: u32, e: &ErrorModel, seed: u64, understate: f64| {
         let mut p = prepared(v, e, [0.0; 3], seed);
+        // the classic 0.9999 gate: the robust gating's Q inflation (now the default) would
+        // itself absorb part of the understated noise and hide what this test measures
+        p.opts.filter.gating = host_sim::run::cli::parse_gate("0.9999").unwrap();
         host_sim::run::cli::scale_white_noise(&mut p.opts.filter, 1.0 / understate);
         let o = DiagnoseOptions {
             tune_noise: true,
