@@ -342,8 +342,25 @@ fn dim_of(o: &RunOptions) -> usize {
 /// A run with its metrics and errors.
 type Eval = (RunOutput, Metrics, StepErrors);
 
+/// Navigation record rate of the search's runs, Hz: enough for the metrics' interpolation
+/// (records at most 0.05 s apart), an eighth of the memory of every epoch at 200 Hz.
+pub const SEARCH_NAV_RATE_HZ: f64 = 25.0;
+
+/// Options of a search run: navigation recorded at [`SEARCH_NAV_RATE_HZ`] (when the IMU is
+/// faster), no epoch records (the estimates come from the final state).
+pub fn search_recording(o: &RunOptions) -> RunOptions {
+    let mut o = o.clone();
+    o.record.nav_rate_hz = Some(
+        o.record
+            .nav_rate_hz
+            .map_or(SEARCH_NAV_RATE_HZ, |r| r.min(SEARCH_NAV_RATE_HZ)),
+    );
+    o.record.epoch_rate_hz = Some(0.0);
+    o
+}
+
 fn evaluate(p: &Prepared, o: &RunOptions) -> Result<Eval, crate::run::RunError> {
-    let out = run_filter(&p.case, o)?;
+    let out = run_filter(&p.case, &search_recording(o))?;
     let m = metrics::compute(&out, p.case.truth.as_deref());
     let e = validate::step_errors(&out, &m);
     Ok((out, m, e))
@@ -590,7 +607,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let mut final_opts = options_with(&base_opts, &added);
     if let Some(t) = noise_tuning.as_mut().filter(|_| !added.is_empty()) {
         let with = options_with(&p.opts, &added);
-        if let Ok(base_with) = run_filter(&p.case, &with) {
+        if let Ok(base_with) = run_filter(&p.case, &search_recording(&with)) {
             let mut t2 = noise::tune(&p.case, &with, &residual_stats(&base_with.innovations));
             let mut o = with.clone();
             t2.chosen.apply(&mut o.filter);

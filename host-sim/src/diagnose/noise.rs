@@ -145,7 +145,7 @@ impl NoiseTuning {
 }
 
 fn trial(case: &CaseData, opts: &RunOptions, k: NoiseFactors) -> NoiseTrial {
-    let mut o = opts.clone();
+    let mut o = super::search_recording(opts);
     k.apply(&mut o.filter);
     match run_filter(case, &o) {
         Ok(out) => {
