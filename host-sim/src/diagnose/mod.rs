@@ -390,42 +390,21 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         );
     }
 
-    // the noise model first
+    // the noise model: fitted first, then put into the model in competition with the
+    // effects (it is adopted in the round where its evidence beats the best eligible effect's,
+    // so neither absorbs the other)
     let mut base_opts = p.opts.clone();
     let mut cur: Eval = (before.clone(), errors_before.clone(), se_before);
-    let mut noise_tuning = None;
-    if dopts.tune_noise {
-        let mut t = noise::tune(&p.case, &p.opts, &residuals_before);
-        if !t.chosen.is_one() {
-            let mut o = p.opts.clone();
-            t.chosen.apply(&mut o.filter);
-            let label = format!("noise tuned: {}", t.chosen.describe());
-            match evaluate(p, &o) {
-                Ok(ev) => match validate::check_heldout(&ev.2, &cur.2) {
-                    Ok(()) => {
-                        steps.push(Step {
-                            label,
-                            accepted: true,
-                            reason: None,
-                            errors: ev.2,
-                        });
-                        t.adopted = true;
-                        base_opts = o;
-                        cur = ev;
-                    }
-                    Err(why) => steps.push(Step {
-                        label,
-                        accepted: false,
-                        reason: Some(why),
-                        errors: ev.2,
-                    }),
-                },
-                Err(e) => warnings.push(format!("tuned noise run failed: {e}")),
-            }
-        }
-        noise_tuning = Some(t);
-    }
-
+    let mut noise_tuning = if dopts.tune_noise {
+        Some(noise::tune(&p.case, &p.opts, &residuals_before))
+    } else {
+        None
+    };
+    let mut pending_noise = noise_tuning
+        .as_ref()
+        .map(|t| t.chosen)
+        .filter(|k| !k.is_one());
+    let mut last_noise_refusal: Option<Step> = None;
     let mut added: Vec<Block> = Vec::new();
     let mut added_info: Vec<AddedEffect> = Vec::new();
     let mut rounds: Vec<Round> = Vec::new();
@@ -532,6 +511,60 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                 ));
             }
         }
+        if let Some(k) = pending_noise {
+            let mut o = cur_opts.clone();
+            k.apply(&mut o.filter);
+            let params = [k.accel_white, k.gyro_white, k.accel_bias, k.gyro_bias]
+                .iter()
+                .filter(|x| **x != 1.0)
+                .count();
+            let label = format!("noise tuned: {}", k.describe());
+            match evaluate(p, &o) {
+                Ok(ev) => {
+                    let pen = 0.5 * params as f64 * n_meas.ln();
+                    let evidence = ev.2.log_likelihood - cur_ll - pen;
+                    let check = if evidence > 0.0 {
+                        validate::check_heldout(&ev.2, &cur_se)
+                    } else {
+                        Err("likelihood gain below the BIC penalty".into())
+                    };
+                    let beats = eligible.first().is_none_or(|&j| evidence > key(&j));
+                    match check {
+                        Ok(()) if beats => {
+                            steps.push(Step {
+                                label,
+                                accepted: true,
+                                reason: None,
+                                errors: ev.2,
+                            });
+                            round.added = Some(format!("noise ({evidence:.1} nats)"));
+                            rounds.push(round);
+                            if let Some(t) = noise_tuning.as_mut() {
+                                t.adopted = true;
+                            }
+                            k.apply(&mut base_opts.filter);
+                            pending_noise = None;
+                            last_noise_refusal = None;
+                            cur = ev;
+                            continue;
+                        }
+                        Ok(()) => {}
+                        Err(why) => {
+                            last_noise_refusal = Some(Step {
+                                label,
+                                accepted: false,
+                                reason: Some(why),
+                                errors: ev.2,
+                            })
+                        }
+                    }
+                }
+                Err(e) => {
+                    warnings.push(format!("tuned noise run failed: {e}"));
+                    pending_noise = None;
+                }
+            }
+        }
         let Some(&top) = eligible.first() else {
             rounds.push(round);
             break;
@@ -603,6 +636,9 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         cur = run;
     }
 
+    if let Some(st) = last_noise_refusal.filter(|_| pending_noise.is_some()) {
+        steps.push(st);
+    }
     // the noise re-fitted with the effects in the model, from the configuration's noise
     let mut final_opts = options_with(&base_opts, &added);
     if let Some(t) = noise_tuning.as_mut().filter(|_| !added.is_empty()) {
