@@ -378,12 +378,13 @@ pub struct RobustGating {
     pub mismatch_ratio_on: f64,
     /// It eases the inflation back off while the median is below this.
     pub mismatch_ratio_off: f64,
-    /// Factor applied per fix to the process-noise inflation and the gate widening while a
-    /// mismatch is declared, > 1.
+    /// Factor applied per fix to the process-noise inflation while a mismatch is declared, and
+    /// to the gate widening per rejection in a run of two or more, > 1.
     pub inflation_step: f64,
     /// Factor divided out per fix while easing off (median below `mismatch_ratio_off`), > 1.
     pub easing_step: f64,
-    /// Largest process-noise inflation factor (multiplies Q), >= 1.
+    /// Largest process-noise inflation factor (multiplies Q while a mismatch is declared,
+    /// `inflation_step` per fix), >= 1; 1 = no inflation (the default).
     pub max_q_inflation: f64,
     /// Largest gate widening factor (multiplies the rejection threshold), >= 1. A fix that
     /// ends a gap (see `reacquisition_gap_intervals`) gets it at once.
@@ -393,13 +394,19 @@ pub struct RobustGating {
     pub reacquisition_gap_intervals: f64,
     /// ... and for more than this long, s.
     pub reacquisition_min_gap_s: f64,
+    /// A used fix widens the gate for the next one to this many times its own NIS, >= 1: an
+    /// innovation that grows steadily (a mismatch building up) is not rejected, an isolated
+    /// jump is.
+    pub growth_per_fix: f64,
 }
 
 impl Default for RobustGating {
-    /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch above a median
-    /// NIS/dof of 4 (or two rejections in a row), easing below 1.5; inflation x1.5 per fix up
-    /// to x100 (Q and gate), easing /1.1 per fix; the gate fully widened for a fix that ends
-    /// a gap of more than 2.5 fix intervals and 2 s.
+    /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch declared above a
+    /// median NIS/dof of 4 (or two rejections in a row), cleared below 1.5; the gate widened to
+    /// the median NIS/dof, to twice the last used fix's NIS, and x1.5 per rejection in a run
+    /// (at most x100), easing /1.1 per fix; the gate fully widened for a fix that ends a gap of
+    /// more than 2.5 fix intervals and 2 s; no process-noise inflation (`max_q_inflation` 1:
+    /// it made the outage errors 1.7x worse, see `docs/robust-gating.md`).
     fn default() -> Self {
         Self {
             downweight_nis_pos: chi2::DIM3_P99,
@@ -409,10 +416,11 @@ impl Default for RobustGating {
             mismatch_ratio_off: 1.5,
             inflation_step: 1.5,
             easing_step: 1.1,
-            max_q_inflation: 100.0,
+            max_q_inflation: 1.0,
             max_gate_widening: 100.0,
             reacquisition_gap_intervals: 2.5,
             reacquisition_min_gap_s: 2.0,
+            growth_per_fix: 2.0,
         }
     }
 }
@@ -436,6 +444,8 @@ impl RobustGating {
             && self.reacquisition_gap_intervals.is_finite()
             && self.reacquisition_gap_intervals >= 1.0
             && self.reacquisition_min_gap_s >= 0.0
+            && self.growth_per_fix.is_finite()
+            && self.growth_per_fix >= 1.0
     }
 }
 

@@ -606,7 +606,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         out.init.heading_source
     );
     println!(
-        "{} IMU epochs, GNSS: {} used ({} forced), {} rejected, {} withheld in {} outage(s), {} invalid; {:.2} s",
+        "{} IMU epochs, GNSS: {} used ({} reset), {} rejected, {} withheld in {} outage(s), {} invalid; {:.2} s",
         c.imu_epochs,
         c.gnss_accepted,
         c.gnss_forced,

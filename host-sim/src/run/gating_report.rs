@@ -81,16 +81,23 @@ impl GatingReport {
         let mut parts = Vec::new();
         if self.mismatch_episodes > 0 {
             let ratio = self.max_innovation_ratio.unwrap_or(f64::NAN);
+            let q = if self.max_q_inflation > 1.0 {
+                format!(
+                    ", process noise inflated up to x{:.1}",
+                    self.max_q_inflation
+                )
+            } else {
+                String::new()
+            };
             parts.push(format!(
                 "innovations up to {ratio:.1}x larger than predicted for {:.0} s in {} episode(s) \
-                 (first at t = {:.1} s, longest {:.0} s): model mismatch, process noise inflated \
-                 up to x{:.1} and the gate widened up to x{:.1}; run `host-sim diagnose` to find \
-                 the missing effect",
+                 (first at t = {:.1} s, longest {:.0} s): model mismatch, gate widened up to \
+                 x{:.1}{q} so the fixes are still used; run `host-sim diagnose` to find the \
+                 missing effect",
                 self.mismatch_time_s,
                 self.mismatch_episodes,
                 self.first_mismatch_t_s.unwrap_or(f64::NAN),
                 self.longest_mismatch_s,
-                self.max_q_inflation,
                 self.max_gate_widening
             ));
         }
@@ -167,7 +174,7 @@ mod tests {
         assert_eq!(r.max_innovation_ratio, Some(8.0));
         for needle in [
             "innovations up to 8.0x larger than predicted for 120 s",
-            "model mismatch, process noise inflated up to x4.0",
+            "model mismatch, gate widened up to x4.0, process noise inflated up to x4.0",
             "host-sim diagnose",
             "7 fix(es) down-weighted",
             "3 fix(es) rejected",

@@ -325,7 +325,7 @@ pub struct RunCounters {
     pub gnss_outside_run: u64,
     /// Fixes used.
     pub gnss_accepted: u64,
-    /// Fixes used without the gate.
+    /// Fixes that re-initialised position and velocity after consecutive rejections (reset).
     pub gnss_forced: u64,
     /// Fixes rejected by the gate.
     pub gnss_rejected: u64,

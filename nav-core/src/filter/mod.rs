@@ -178,6 +178,8 @@ pub struct Filter<T: Scalar, const N: usize> {
     counters: Counters,
     consecutive_rejections: u32,
     gate: GateState,
+    /// Initial variance of every state (the floor of a reset's re-initialised covariance).
+    prior_var: [f64; N],
     status: u32,
     /// Reference temperature of the temperature blocks, degC (NaN until known).
     temperature_ref_c: f64,
@@ -261,6 +263,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             counters: Counters::default(),
             consecutive_rejections: 0,
             gate: GateState::default(),
+            prior_var: var,
             status: STATUS_NO_FIX_YET,
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
@@ -509,11 +512,22 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             });
         }
         if let Some(r) = self.cfg.gating.robust {
-            self.gate.note_fix(out.t_s, out.accepted || out.forced);
+            let ends_gap = out.forced || (out.accepted && self.gate.last_within_normal_gate);
+            self.gate.note_fix(out.t_s, ends_gap);
             if out.dim > 0 {
                 let rejected = !out.accepted && !out.forced;
+                let base = if out.dim == 3 {
+                    self.cfg.gating.nis_threshold_pos
+                } else {
+                    self.cfg.gating.nis_threshold_pos_vel
+                };
+                let grow = if out.accepted && !out.forced {
+                    r.growth_per_fix * out.nis / base
+                } else {
+                    0.0
+                };
                 self.gate
-                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected);
+                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected, grow);
             }
             if self.gate.stats.mismatch {
                 self.status |= STATUS_MODEL_MISMATCH;
@@ -538,9 +552,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// predicted minus measured antenna position, NED m, variances `rp`), the velocity from
     /// the fix's velocity when used (`zv`, variances) or else from the rate of the position
     /// error through this fix's and the two previous rejected fixes' innovations (a quadratic;
-    /// with one previous fix the mean over the interval; the INS carries the acceleration). The rows and columns of the reset states
-    /// are zeroed (no cross-covariance with the rest) and their variances set from the fix
-    /// sigmas. Sensor-error estimates are kept.
+    /// with one previous fix the mean over the interval; the INS carries the acceleration).
+    /// The reset states' variances are set from the fix sigmas; every other state keeps its
+    /// estimate with its variance raised to at least its initial one; no cross-covariance is
+    /// kept (the filter had diverged: its correlations are not to be trusted).
     fn reset_from_fixes(
         &mut self,
         t_s: f64,
@@ -548,137 +563,39 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         rp: &[f64; 3],
         zv: Option<([f64; 3], [f64; 3])>,
     ) {
-        let mut dx = [0.0f64; N];
-        let mut var_pos = *rp;
-        for (i, (z, v)) in zp.iter().zip(var_pos.iter_mut()).enumerate() {
-            if let Some(d) = dx.get_mut(IDX_POS + i) {
-                *d = *z;
-            }
-            *v = v.max(0.0);
-        }
-        let recent =
-            |p: &RejectedFix, t: f64| (t - p.t_s) > 0.0 && (t - p.t_s) <= RESET_MAX_FIX_INTERVAL_S;
-        let prev = self.gate.last_rejected.filter(|p| recent(p, t_s));
-        let earlier = match prev {
-            Some(p) => self.gate.earlier_rejected.filter(|e| recent(e, p.t_s)),
-            None => None,
-        };
-        let vel_reset = match (zv, prev, earlier) {
-            (Some((z, r)), _, _) => Some((z, r)),
-            (None, Some(p2), Some(p1)) => {
-                // the position error's rate at this fix from the quadratic through the last
-                // three (rejected, rejected, this) innovations: v = sum z_i L_i'(t3) of the
-                // Lagrange basis, variance sum r_i L_i'(t3)^2 (the error's third derivative
-                // is neglected)
-                let (t1, t2, t3) = (p1.t_s, p2.t_s, t_s);
-                let l1 = (t3 - t2) / ((t1 - t2) * (t1 - t3));
-                let l2 = (t3 - t1) / ((t2 - t1) * (t2 - t3));
-                let l3 = 1.0 / (t3 - t1) + 1.0 / (t3 - t2);
-                let mut dv = [0.0; 3];
-                let mut var = [0.0; 3];
-                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
-                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
-                    *d = l1 * z(&p1.z_pos_m) + l2 * z(&p2.z_pos_m) + l3 * z(zp);
-                    *v =
-                        l1 * l1 * z(&p1.var_pos_m2) + l2 * l2 * z(&p2.var_pos_m2) + l3 * l3 * z(rp);
-                }
-                Some((dv, var))
-            }
-            (None, Some(p), None) => {
-                // only two fixes: their mean velocity error over the interval
-                let dt = t_s - p.t_s;
-                let mut dv = [0.0; 3];
-                let mut var = [0.0; 3];
-                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
-                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
-                    *d = (z(zp) - z(&p.z_pos_m)) / dt;
-                    // the fixes' noise, and the velocity error's change over the interval
-                    // (unknown; bounded by half the mean error when it grew from zero)
-                    *v = (z(rp) + z(&p.var_pos_m2)) / (dt * dt) + 0.25 * *d * *d;
-                }
-                Some((dv, var))
-            }
-            (None, None, _) => None,
-        };
-        let mut reset_idx = [usize::MAX; 7];
-        let mut reset_var = [0.0f64; 7];
-        for i in 0..3 {
-            if let Some(x) = reset_idx.get_mut(i) {
-                *x = IDX_POS + i;
-            }
-            if let Some(x) = reset_var.get_mut(i) {
-                *x = var_pos.get(i).copied().unwrap_or(0.0);
-            }
-        }
         let nav = *self.mech.state();
-        if let Some((dv, var_v)) = vel_reset {
-            for i in 0..3 {
-                if let Some(d) = dx.get_mut(IDX_VEL + i) {
-                    *d = dv.get(i).copied().unwrap_or(0.0);
-                }
-                if let Some(x) = reset_idx.get_mut(3 + i) {
-                    *x = IDX_VEL + i;
-                }
-                if let Some(x) = reset_var.get_mut(3 + i) {
-                    *x = var_v.get(i).copied().unwrap_or(0.0).max(0.0);
-                }
-            }
-            // heading from the GNSS course (forward motion, no sideslip), when fast enough
-            // and clearly different from the heading
-            let min_speed = self.cfg.gating.reset_heading_min_speed_mps;
-            let [dvn, dve, _] = dv;
-            let (vn, ve) = (nav.vel_ned_mps.x - dvn, nav.vel_ned_mps.y - dve);
-            let speed2 = vn * vn + ve * ve;
-            if speed2 >= min_speed * min_speed && speed2 > 0.0 {
-                let course = libm::atan2(ve, vn);
-                let [_, _, yaw] = attitude::euler_zyx_from_quat(&nav.q_nb);
-                let mut dpsi = course - yaw;
-                if dpsi > core::f64::consts::PI {
-                    dpsi -= 2.0 * core::f64::consts::PI;
-                } else if dpsi < -core::f64::consts::PI {
-                    dpsi += 2.0 * core::f64::consts::PI;
-                }
-                let [vv0, vv1, _] = var_v;
-                let var_course = vv0.max(vv1) / speed2;
-                let var_yaw = get2(&self.p, IDX_ATT + 2, IDX_ATT + 2).to_f64().max(0.0);
-                let var_new = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
-                if dpsi.abs() < core::f64::consts::FRAC_PI_2
-                    && dpsi * dpsi > 9.0 * (var_yaw + var_new)
-                {
-                    if let Some(d) = dx.get_mut(IDX_ATT + 2) {
-                        *d = dpsi;
-                    }
-                    if let Some(x) = reset_idx.get_mut(6) {
-                        *x = IDX_ATT + 2;
-                    }
-                    if let Some(x) = reset_var.get_mut(6) {
-                        *x = var_new;
-                    }
-                    self.gate.stats.heading_resets =
-                        self.gate.stats.heading_resets.saturating_add(1);
-                }
+        let var_yaw = get2(&self.p, IDX_ATT + 2, IDX_ATT + 2).to_f64().max(0.0);
+        let plan = self.gate.reset_plan(&robust::ResetInput {
+            t_s,
+            z_pos_m: *zp,
+            var_pos_m2: *rp,
+            vel: zv,
+            vel_ned_mps: nav.vel_ned_mps.into(),
+            q_nb: nav.q_nb,
+            var_yaw_rad2: var_yaw,
+            heading_min_speed_mps: self.cfg.gating.reset_heading_min_speed_mps,
+        });
+        let mut dx = [T::ZERO; N];
+        for (idx, d) in plan.idx.iter().zip(plan.dx.iter()) {
+            if let Some(x) = dx.get_mut(*idx) {
+                *x = T::of_f64(*d);
             }
         }
-        let dx_t = dx.map(T::of_f64);
-        self.feedback(&dx_t);
-        for (idx, var) in reset_idx.iter().zip(reset_var.iter()) {
-            if *idx >= N {
-                continue;
+        self.feedback(&dx);
+        // the filter diverged: its correlations are not to be trusted. Every other state keeps
+        // its estimate with its variance raised to at least its initial one, and no
+        // cross-covariance is kept; the reset states get the fixes' variances.
+        let mut p = [[T::ZERO; N]; N];
+        for (i, (row, prior)) in p.iter_mut().zip(self.prior_var.iter()).enumerate() {
+            let v = get2(&self.p, i, i).to_f64().max(*prior);
+            if let Some(x) = row.get_mut(i) {
+                *x = T::of_f64(v);
             }
-            for (k, row) in self.p.iter_mut().enumerate() {
-                if let Some(x) = row.get_mut(*idx) {
-                    *x = T::ZERO;
-                }
-                if k == *idx {
-                    for x in row.iter_mut() {
-                        *x = T::ZERO;
-                    }
-                }
-            }
-            set2(&mut self.p, *idx, *idx, T::of_f64(*var));
         }
-        self.gate.stats.resets = self.gate.stats.resets.saturating_add(1);
-        self.gate.clear_window();
+        for (idx, var) in plan.idx.iter().zip(plan.var.iter()) {
+            set2(&mut p, *idx, *idx, T::of_f64(*var));
+        }
+        self.p = p;
     }
 
     /// P H^T, S = H P H^T + R (symmetrised) and its Cholesky factor, for the current P.
@@ -735,7 +652,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
         let z = z64.map(T::of_f64);
         let mut r = r64.map(T::of_f64);
-        let (mut pht, s, l) = self.innovation_cov(h, &r);
+        let (pht, s, l) = self.innovation_cov(h, &r);
         let mut out = UpdateOutcome {
             t_s,
             dim: M,
@@ -764,6 +681,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !nis.is_finite() {
             return Err(self.numerical_failure());
         }
+        self.gate.last_within_normal_gate = nis <= th.normal_reject;
         let weight = if nis <= th.downweight {
             1.0
         } else {
@@ -774,16 +692,20 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Ok(out);
         }
         if weight < 1.0 {
+            // R / w: only the diagonal of S changes (P H^T does not)
             let k = T::of_f64(1.0 / weight);
-            for rv in r.iter_mut() {
+            let mut s2 = s;
+            for (i, rv) in r.iter_mut().enumerate() {
+                let extra = *rv * k - *rv;
                 *rv *= k;
+                if let Some(x) = s2.get_mut(i).and_then(|row| row.get_mut(i)) {
+                    *x += extra;
+                }
             }
-            let (pht2, _, l2) = self.innovation_cov(h, &r);
-            let Some(l2) = l2 else {
+            if !cholesky_in_place(&mut s2) {
                 return Err(self.numerical_failure());
-            };
-            pht = pht2;
-            l = l2;
+            }
+            l = s2;
         }
         // K = P H^T S^-1 (row i solves S k_i = (P H^T)_i)
         let mut k = [[T::ZERO; M]; N];

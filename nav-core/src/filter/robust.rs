@@ -10,7 +10,10 @@
 //! [`RobustGating::mismatch_ratio_off`] both are divided by it again down to 1. A single
 //! outlier moves the median by one rank and cannot trigger it.
 
+use super::{HEADING_RESET_SIDESLIP_VAR_RAD2, RESET_MAX_FIX_INTERVAL_S};
 use crate::config::{Gating, RobustGating, MAX_NIS_WINDOW};
+use crate::model::{IDX_ATT, IDX_POS, IDX_VEL};
+use nalgebra::UnitQuaternion;
 
 /// IGG-III weight of a fix with normalised innovation squared `nis` between the
 /// down-weighting threshold `k0_sq` and the rejection threshold `k1_sq` (both NIS values):
@@ -110,6 +113,8 @@ pub(super) struct GateState {
     next: usize,
     /// The last rejected fix of the current run of rejections.
     pub last_rejected: Option<RejectedFix>,
+    /// Whether the last fix's NIS was within the gate without the re-acquisition widening.
+    pub last_within_normal_gate: bool,
     /// The one rejected before it.
     pub earlier_rejected: Option<RejectedFix>,
     rejection_run: u32,
@@ -128,6 +133,7 @@ impl Default for GateState {
             len: 0,
             next: 0,
             last_rejected: None,
+            last_within_normal_gate: false,
             earlier_rejected: None,
             rejection_run: 0,
             last_fix_t_s: f64::NAN,
@@ -140,6 +146,36 @@ impl Default for GateState {
     }
 }
 
+/// What a re-initialisation from the fixes needs to know (see [`GateState::reset_plan`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ResetInput {
+    /// Fix time, s.
+    pub t_s: f64,
+    /// Position innovation of this fix (predicted minus measured antenna), NED m.
+    pub z_pos_m: [f64; 3],
+    /// Its variances, m^2.
+    pub var_pos_m2: [f64; 3],
+    /// Velocity innovation and variances (m/s, m^2/s^2) when the fix's velocity is used.
+    pub vel: Option<([f64; 3], [f64; 3])>,
+    /// The filter's velocity, NED m/s.
+    pub vel_ned_mps: [f64; 3],
+    /// The filter's attitude.
+    pub q_nb: UnitQuaternion<f64>,
+    /// The filter's heading variance, rad^2.
+    pub var_yaw_rad2: f64,
+    /// Heading reset only at this horizontal speed or more, m/s.
+    pub heading_min_speed_mps: f64,
+}
+
+/// The states a reset sets: error-state indices (`usize::MAX` = unused), the error to feed
+/// back (estimate minus truth) and the new variance of each.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ResetPlan {
+    pub idx: [usize; 7],
+    pub dx: [f64; 7],
+    pub var: [f64; 7],
+}
+
 /// The thresholds that apply to one fix (NIS values).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Thresholds {
@@ -147,6 +183,8 @@ pub(super) struct Thresholds {
     pub downweight: f64,
     /// Above: rejected.
     pub reject: f64,
+    /// The rejection threshold without the re-acquisition widening.
+    pub normal_reject: f64,
 }
 
 impl GateState {
@@ -164,6 +202,7 @@ impl GateState {
             None => Thresholds {
                 downweight: base,
                 reject: base,
+                normal_reject: base,
             },
             Some(r) => {
                 let dw = if dim == 3 {
@@ -178,8 +217,9 @@ impl GateState {
                 };
                 let reject = base * widening;
                 Thresholds {
-                    downweight: dw.min(reject),
+                    downweight: (dw * widening).min(reject),
                     reject,
+                    normal_reject: base * self.stats.gate_widening,
                 }
             }
         }
@@ -203,7 +243,7 @@ impl GateState {
     }
 
     /// Notes a fix (robust gating only): its time, for the nominal fix interval, and whether it
-    /// was used (accepted or reset), for the gap.
+    /// ended a gap (used within the gate without the re-acquisition widening, or a reset).
     pub fn note_fix(&mut self, t_s: f64, used: bool) {
         let dt = t_s - self.last_seen_t_s;
         if dt.is_finite() && dt > 0.0 {
@@ -232,8 +272,18 @@ impl GateState {
     /// Feeds one fix's NIS/dof into the monitor and updates the inflation (robust gating
     /// only). `t_s` is the fix time; `rejected` whether the gate rejected the fix. Two
     /// rejections in a row are not an isolated outlier: they inflate at once, without waiting
-    /// for the median to cross [`RobustGating::mismatch_ratio_on`].
-    pub fn monitor(&mut self, r: &RobustGating, t_s: f64, nis_ratio: f64, rejected: bool) {
+    /// for the median to cross [`RobustGating::mismatch_ratio_on`]. `accepted_widening` is the
+    /// widening that the fix's own NIS times [`RobustGating::growth_per_fix`] asks for when it
+    /// was used (0 otherwise): innovations that grow steadily from fix to fix (a mismatch
+    /// building up in a manoeuvre) stay inside the gate.
+    pub fn monitor(
+        &mut self,
+        r: &RobustGating,
+        t_s: f64,
+        nis_ratio: f64,
+        rejected: bool,
+        accepted_widening: f64,
+    ) {
         let dt = t_s - self.last_fix_t_s;
         self.last_fix_t_s = t_s;
         if self.stats.mismatch && dt.is_finite() && dt > 0.0 {
@@ -248,7 +298,7 @@ impl GateState {
                 f64::MAX
             };
         }
-        self.next = (self.next + 1) % w;
+        self.next = if self.next + 1 >= w { 0 } else { self.next + 1 };
         self.len = (self.len + 1).min(w);
         let run = if rejected {
             self.rejection_run = self.rejection_run.saturating_add(1);
@@ -278,12 +328,24 @@ impl GateState {
                 }
             }
             s.q_inflation = (s.q_inflation * r.inflation_step).min(r.max_q_inflation);
-            s.gate_widening = (s.gate_widening * r.inflation_step).min(r.max_gate_widening);
         } else if med < r.mismatch_ratio_off {
             s.mismatch = false;
             s.q_inflation = (s.q_inflation / r.easing_step).max(1.0);
-            s.gate_widening = (s.gate_widening / r.easing_step).max(1.0);
         }
+        // the gate follows the innovations actually seen (covariance matching): widened by
+        // the window median of NIS/dof, faster on a run of rejections, easing off slowly
+        let mut g = s.gate_widening / r.easing_step;
+        if med.is_finite() {
+            g = g.max(med);
+        }
+        if run >= 2 {
+            g = g.max(s.gate_widening * r.inflation_step);
+        }
+        if accepted_widening.is_finite() {
+            g = g.max(accepted_widening);
+        }
+        // (not f64::clamp: its NaN/order assertion would link float formatting on the MCU)
+        s.gate_widening = g.min(r.max_gate_widening).max(1.0);
         if s.mismatch {
             let d = t_s - self.episode_start_t_s;
             if d > s.longest_mismatch_s {
@@ -292,6 +354,116 @@ impl GateState {
         }
         s.max_q_inflation = s.max_q_inflation.max(s.q_inflation);
         s.max_gate_widening = s.max_gate_widening.max(s.gate_widening);
+    }
+
+    /// What a re-initialisation from the fixes sets (and counts it; empties the window):
+    /// the position from this fix; the velocity from the fix's velocity when used, else from
+    /// the rate of the position error through this fix's and the two previous rejected fixes'
+    /// innovations (a quadratic: v = sum z_i L_i'(t3) of the Lagrange basis, variance
+    /// sum r_i L_i'(t3)^2, the error's third derivative neglected; with one previous fix the
+    /// mean over the interval, with a variance that allows for the change of the error over
+    /// it); the heading from the GNSS course when the horizontal speed is at least
+    /// `heading_min_speed_mps`, the course is within 90 deg of the heading and differs from it
+    /// by more than 3 sigma (forward motion without sideslip).
+    pub fn reset_plan(&mut self, inp: &ResetInput) -> ResetPlan {
+        let t_s = inp.t_s;
+        let zp = &inp.z_pos_m;
+        let rp = &inp.var_pos_m2;
+        let mut plan = ResetPlan {
+            idx: [usize::MAX; 7],
+            dx: [0.0; 7],
+            var: [0.0; 7],
+        };
+        let mut put = |slot: usize, idx: usize, dx: f64, var: f64| {
+            if let Some(x) = plan.idx.get_mut(slot) {
+                *x = idx;
+            }
+            if let Some(x) = plan.dx.get_mut(slot) {
+                *x = dx;
+            }
+            if let Some(x) = plan.var.get_mut(slot) {
+                *x = var.max(0.0);
+            }
+        };
+        for (i, (z, r)) in zp.iter().zip(rp.iter()).enumerate() {
+            put(i, IDX_POS + i, *z, *r);
+        }
+        let recent =
+            |p: &RejectedFix, t: f64| (t - p.t_s) > 0.0 && (t - p.t_s) <= RESET_MAX_FIX_INTERVAL_S;
+        let prev = self.last_rejected.filter(|p| recent(p, t_s));
+        let earlier = match prev {
+            Some(p) => self.earlier_rejected.filter(|e| recent(e, p.t_s)),
+            None => None,
+        };
+        let vel_reset = match (inp.vel, prev, earlier) {
+            (Some((z, r)), _, _) => Some((z, r)),
+            (None, Some(p2), Some(p1)) => {
+                let (t1, t2, t3) = (p1.t_s, p2.t_s, t_s);
+                let l1 = (t3 - t2) / ((t1 - t2) * (t1 - t3));
+                let l2 = (t3 - t1) / ((t2 - t1) * (t2 - t3));
+                let l3 = 1.0 / (t3 - t1) + 1.0 / (t3 - t2);
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = l1 * z(&p1.z_pos_m) + l2 * z(&p2.z_pos_m) + l3 * z(zp);
+                    *v =
+                        l1 * l1 * z(&p1.var_pos_m2) + l2 * l2 * z(&p2.var_pos_m2) + l3 * l3 * z(rp);
+                }
+                Some((dv, var))
+            }
+            (None, Some(p), None) => {
+                let dt = t_s - p.t_s;
+                let mut dv = [0.0; 3];
+                let mut var = [0.0; 3];
+                for (i, (d, v)) in dv.iter_mut().zip(var.iter_mut()).enumerate() {
+                    let z = |a: &[f64; 3]| a.get(i).copied().unwrap_or(0.0);
+                    *d = (z(zp) - z(&p.z_pos_m)) / dt;
+                    // the fixes' noise, and the velocity error's change over the interval
+                    // (unknown; bounded by half the mean error when it grew from zero)
+                    *v = (z(rp) + z(&p.var_pos_m2)) / (dt * dt) + 0.25 * *d * *d;
+                }
+                Some((dv, var))
+            }
+            (None, None, _) => None,
+        };
+        if let Some((dv, var_v)) = vel_reset {
+            for (i, (d, v)) in dv.iter().zip(var_v.iter()).enumerate() {
+                put(3 + i, IDX_VEL + i, *d, *v);
+            }
+            let [dvn, dve, _] = dv;
+            let [v_n, v_e, _] = inp.vel_ned_mps;
+            let (vn, ve) = (v_n - dvn, v_e - dve);
+            let speed2 = vn * vn + ve * ve;
+            let min_speed = inp.heading_min_speed_mps;
+            if speed2 >= min_speed * min_speed && speed2 > 0.0 {
+                let course = libm::atan2(ve, vn);
+                // yaw of the ZYX Euler angles: atan2(C_21, C_11)
+                let q = inp.q_nb.quaternion();
+                let yaw = libm::atan2(
+                    2.0 * (q.w * q.k + q.i * q.j),
+                    1.0 - 2.0 * (q.j * q.j + q.k * q.k),
+                );
+                let mut dpsi = course - yaw;
+                if dpsi > core::f64::consts::PI {
+                    dpsi -= 2.0 * core::f64::consts::PI;
+                } else if dpsi < -core::f64::consts::PI {
+                    dpsi += 2.0 * core::f64::consts::PI;
+                }
+                let [vv0, vv1, _] = var_v;
+                let var_course = vv0.max(vv1) / speed2;
+                let var_new = var_course + HEADING_RESET_SIDESLIP_VAR_RAD2;
+                if dpsi.abs() < core::f64::consts::FRAC_PI_2
+                    && dpsi * dpsi > 9.0 * (inp.var_yaw_rad2 + var_new)
+                {
+                    put(6, IDX_ATT + 2, dpsi, var_new);
+                    self.stats.heading_resets = self.stats.heading_resets.saturating_add(1);
+                }
+            }
+        }
+        self.stats.resets = self.stats.resets.saturating_add(1);
+        self.clear_window();
+        plan
     }
 
     /// Empties the NIS window (after a re-initialisation the old innovations say nothing about
@@ -323,7 +495,7 @@ impl GateState {
         }
         let mid = n / 2;
         let hi = a.get(mid).copied().unwrap_or(f64::NAN);
-        if n % 2 == 1 {
+        if n & 1 == 1 {
             hi
         } else {
             0.5 * (a.get(mid.wrapping_sub(1)).copied().unwrap_or(hi) + hi)
@@ -356,32 +528,71 @@ mod tests {
 
     #[test]
     fn monitor_ignores_one_outlier_and_declares_a_persistent_mismatch() {
-        let r = RobustGating::default();
-        let mut g = GateState::default();
-        for k in 0..30 {
-            let ratio = if k == 15 { 1e6 } else { 1.0 };
-            g.monitor(&r, k as f64, ratio, k == 15);
+        // the default (gate follows the innovations, no process-noise inflation) and the
+        // optional Q inflation
+        for max_q in [1.0, 100.0] {
+            let r = RobustGating {
+                max_q_inflation: max_q,
+                ..RobustGating::default()
+            };
+            let mut g = GateState::default();
+            for k in 0..30 {
+                let ratio = if k == 15 { 1e6 } else { 1.0 };
+                g.monitor(&r, k as f64, ratio, k == 15, 0.0);
+                assert!(!g.stats.mismatch);
+                assert_eq!(g.stats.gate_widening, 1.0);
+            }
+            assert_eq!(g.stats.q_inflation, 1.0);
+            for k in 30..60 {
+                g.monitor(&r, k as f64, 9.0, false, 0.0);
+            }
+            assert!(g.stats.mismatch);
+            assert_eq!(g.stats.mismatch_episodes, 1);
+            // declared when 5 of the 10 are 9: median (1 + 9) / 2 = 5 > 4
+            assert_eq!(g.stats.first_mismatch_t_s, 34.0);
+            assert_eq!(g.stats.q_inflation, max_q);
+            // the gate follows the median of NIS/dof
+            assert_eq!(g.stats.gate_widening, 9.0);
+            // a used fix asks for room to grow: 2 x its own NIS over the base gate
+            g.monitor(&r, 60.0, 9.0, false, 30.0);
+            assert_eq!(g.stats.gate_widening, 30.0);
+            for k in 61..200 {
+                g.monitor(&r, k as f64, 1.0, false, 0.0);
+            }
+            // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 66
+            assert!((g.stats.mismatch_time_s - 32.0).abs() < 1e-9);
+            assert!((g.stats.longest_mismatch_s - 31.0).abs() < 1e-9);
             assert!(!g.stats.mismatch);
+            assert_eq!(g.stats.q_inflation, 1.0);
+            assert_eq!(g.stats.gate_widening, 1.0);
+            assert_eq!(g.stats.max_q_inflation, max_q);
+            assert_eq!(g.stats.max_gate_widening, 30.0);
+            assert_eq!(g.stats.max_median_ratio, 9.0);
         }
-        assert_eq!(g.stats.q_inflation, 1.0);
-        for k in 30..60 {
-            g.monitor(&r, k as f64, 9.0, false);
+    }
+
+    #[test]
+    fn a_fix_after_a_gap_gets_the_widest_gate() {
+        let r = RobustGating::default();
+        let gating = Gating::robust();
+        let mut g = GateState::default();
+        for k in 0..20 {
+            g.note_fix(k as f64, true);
         }
-        assert!(g.stats.mismatch);
-        assert_eq!(g.stats.mismatch_episodes, 1);
-        // declared when 5 of the 10 are 9: median (1 + 9) / 2 = 5 > 4
-        assert_eq!(g.stats.first_mismatch_t_s, 34.0);
-        assert_eq!(g.stats.q_inflation, 100.0);
-        assert_eq!(g.stats.gate_widening, 100.0);
-        for k in 60..200 {
-            g.monitor(&r, k as f64, 1.0, false);
-        }
-        // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 65
-        assert!((g.stats.mismatch_time_s - 31.0).abs() < 1e-9);
-        assert!((g.stats.longest_mismatch_s - 30.0).abs() < 1e-9);
-        assert!(!g.stats.mismatch);
-        assert_eq!(g.stats.q_inflation, 1.0);
-        assert_eq!(g.stats.max_q_inflation, 100.0);
-        assert_eq!(g.stats.max_median_ratio, 9.0);
+        let normal = g.thresholds(&gating, 3, 20.0);
+        assert_eq!(normal.reject, gating.nis_threshold_pos);
+        assert_eq!(normal.downweight, r.downweight_nis_pos);
+        // 2 s after the last used fix at 1 Hz: not yet a gap (needs > 2.5 intervals and > 2 s)
+        assert!(!g.is_reacquisition(&r, 21.0));
+        assert!(!g.is_reacquisition(&r, 21.5));
+        assert!(g.is_reacquisition(&r, 79.0));
+        let wide = g.thresholds(&gating, 3, 79.0);
+        assert_eq!(wide.reject, gating.nis_threshold_pos * r.max_gate_widening);
+        assert_eq!(wide.normal_reject, gating.nis_threshold_pos);
+        // a fix beyond the normal gate does not end the gap
+        g.note_fix(79.0, false);
+        assert!(g.is_reacquisition(&r, 80.0));
+        g.note_fix(80.0, true);
+        assert!(!g.is_reacquisition(&r, 81.0));
     }
 }
