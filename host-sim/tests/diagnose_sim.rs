@@ -809,8 +809,9 @@ fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
 fn tune_noise_recovers_an_understated_white_noise_and_keeps_a_right_one() {
     let tuned = |v: u32, e: &ErrorModel, seed: u64, understate: f64| {
         let mut p = prepared(v, e, [0.0; 3], seed);
-        // the classic 0.9999 gate: the robust gating's Q inflation (now the default) would
-        // itself absorb part of the understated noise and hide what this test measures
+        // the classic 0.9999 gate: the robust gating (the default) adapts to a mismatch by
+        // itself and hides part of the understated noise this test measures (with its first
+        // version, which inflated Q: base NIS 3.84 instead of 8.57)
         p.opts.filter.gating = host_sim::run::cli::parse_gate("0.9999").unwrap();
         host_sim::run::cli::scale_white_noise(&mut p.opts.filter, 1.0 / understate);
         let o = DiagnoseOptions {
