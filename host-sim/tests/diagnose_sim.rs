@@ -3,7 +3,7 @@
 //! of the vocabulary, a drive whose data contain it while the configuration does not declare
 //! it must have that effect named first, estimated within 20 % of the truth (or 3 sigma) per
 //! state, and the outage position error must drop by at least 30 %. A drive with only
-//! declared errors must give "no missing effect" in at least 19 of 20 seeds, and two
+//! declared errors must give "none detectable" (nothing added) in at least 19 of 20 seeds, and two
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
