@@ -145,11 +145,18 @@ fn main() {
     let secs = t.elapsed().as_secs_f64();
     let dg = &d.diagnosis;
     let runs: usize = dg.rounds.iter().map(|r| r.candidates.len()).sum();
+    let noise_runs = dg.noise_tuning.as_ref().map_or(0, |t| {
+        let one = |t: &host_sim::diagnose::NoiseTuning| t.scales.len() - 1 + t.refinement.len();
+        one(t) + t.with_effects.as_deref().map_or(0, |t2| one(t2) + 1)
+    });
     println!(
-        "diagnose: {secs:.1} s on {} threads ({} rounds, {} candidate runs + 2 full runs); verdict: {}",
+        "diagnose: {secs:.1} s on {} threads ({} rounds, {} candidate runs, {} noise-tuning runs, \
+         {} steps + 2 full runs); verdict: {}",
         rayon::current_num_threads(),
         dg.rounds.len(),
         runs,
+        noise_runs,
+        dg.steps.len(),
         dg.verdict
     );
     for a in &dg.added_effects {

@@ -1,10 +1,12 @@
 //! `diagnose` on the real drive (`../shared/data/rtklibexplorer-drive0708`, consumer MEMS IMU +
-//! RTK, `configs/drive0708.toml`) with 10 s outages every 60 s from 120 s: the withheld RTK
-//! fixes are the reference. Checks: an IMU-GNSS time offset is found first, of the size of
+//! RTK, `configs/drive0708.toml`) with seven 20 s outages every 60 s from 120 s: the withheld
+//! RTK fixes are the reference. Checks: an IMU-GNSS time offset is found first, of the size of
 //! the logging delay the data's source corrects (0.125 s, applied there to the IMU time; not
-//! applied by our configuration), every added effect is finite, the outage error after is
-//! below the error before, and the augmented configuration loads and runs with the IMU
-//! effects via `--effects`.
+//! applied by our configuration), every added effect is finite and significant, after is not
+//! worse than before in the outages (withheld fixes) and with GNSS (prior residuals of the
+//! used fixes, and the written solution against the fixes on the GNSS clock), and the
+//! augmented configuration (time offset as `imu.time_offset_s`, IMU effects in `effects`, the
+//! tuned noise) loads and runs with a lower outage error.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions};
 use host_sim::run::cli::{execute, prepare, RunArgs};
 use host_sim::run::parse_periodic;
@@ -30,7 +32,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
     let mut a = RunArgs::new(config);
-    a.periodic_outages = vec![parse_periodic("120:10:60").unwrap()];
+    a.periodic_outages = vec![parse_periodic("120:20:60").unwrap()];
     let p = prepare(&a).expect("loading the drive");
     let out = diagnose(&p, &DiagnoseOptions::default()).expect("diagnose");
     let d = &out.diagnosis;
@@ -55,8 +57,60 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     );
     for e in &d.added_effects {
         assert!(e.estimate.iter().chain(&e.sigma).all(|v| v.is_finite()));
+        assert!(host_sim::diagnose::validate::max_z(&e.estimate, &e.sigma) >= 2.0);
+        assert!(
+            e.after.heldout_outage_m < e.before.heldout_outage_m,
+            "{}",
+            e.name
+        );
+        assert!(e.after.gnss_prior_horizontal_rms_m <= e.before.gnss_prior_horizontal_rms_m);
+    }
+    for s in &d.steps {
+        let e = &s.errors;
+        println!(
+            "step {} kept {}: held-out outage {:?} m, GNSS prior residual {:.3} m, NIS {:.2} {}",
+            s.label,
+            s.accepted,
+            e.heldout_outage_m,
+            e.gnss_prior_horizontal_rms_m,
+            e.nis_mean,
+            s.reason.as_deref().unwrap_or("")
+        );
+    }
+    if let Some(t) = &d.noise_tuning {
+        println!(
+            "noise: {} (NIS {:.1} -> {:.1}, adopted {}); with effects: {:?}",
+            t.chosen.describe(),
+            t.nis_before,
+            t.nis_after,
+            t.adopted,
+            t.with_effects
+                .as_ref()
+                .map(|t2| (t2.chosen.describe(), t2.nis_after, t2.adopted))
+        );
+    }
+    for u in &d.undetected {
+        println!(
+            "not added {}: bound {:.3e} [{}]: {}",
+            u.name, u.min_bound, u.unit, u.reason
+        );
+    }
+    for w in &d.warnings {
+        println!("warning: {w}");
     }
     assert!(af.is_finite() && af < b, "before {b} after {af}");
+    let (gb, ga) = (
+        d.error_before.gnss_residual_horizontal_rms_m,
+        d.error_after.gnss_residual_horizontal_rms_m,
+    );
+    let (ob, oa) = (
+        d.error_before.output_vs_fixes_horizontal_rms_m,
+        d.error_after.output_vs_fixes_horizontal_rms_m,
+    );
+    println!("with GNSS: prior residual horizontal RMS {gb:.3} -> {ga:.3} m; written solution vs RTK fixes {ob:.3} -> {oa:.3} m (after on the GNSS clock, shift {:+.4} s)", d.output_clock_shift_s);
+    assert!(ga <= gb, "GNSS prior residual {gb} -> {ga}");
+    assert!(oa <= ob, "solution vs fixes {ob} -> {oa}");
+    assert_eq!(d.output_clock_shift_s, -first.estimate[0]);
 
     // the augmented configuration alone: lever arm and time offset folded into [gnss], the
     // IMU effects in its `effects` key
@@ -64,6 +118,9 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     write_outputs(dir.path(), &p, &out, Some(Path::new(config))).unwrap();
     let aug = host_sim::io::read_run_config(dir.path().join("augmented.toml"))
         .expect("augmented.toml is a valid run configuration");
+    // the IMU moved onto the GNSS clock: imu.time_offset_s = configured - estimate
+    assert!((aug.imu.time_offset_s + first.estimate[0]).abs() < 1e-12);
+    assert_eq!(aug.gnss.time_offset_s, 0.0);
     let imu_effects: Vec<String> = d
         .added_effects
         .iter()

@@ -3,7 +3,7 @@
 //! of the vocabulary, a drive whose data contain it while the configuration does not declare
 //! it must have that effect named first, estimated within 20 % of the truth (or 3 sigma) per
 //! state, and the outage position error must drop by at least 30 %. A drive with only
-//! declared errors must give "no missing effect" in at least 19 of 20 seeds, and two
+//! declared errors must give "none detectable" (nothing added) in at least 19 of 20 seeds, and two
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
@@ -174,19 +174,85 @@ fn summary(d: &Diagnosis) -> String {
         s.push_str(&format!("  round {i}:"));
         for c in &r.candidates {
             s.push_str(&format!(
-                " {}={:.1}",
+                " {}={:.1}{}",
                 c.name,
-                c.evidence.unwrap_or(f64::NAN)
+                c.evidence.unwrap_or(f64::NAN),
+                c.refused
+                    .as_ref()
+                    .filter(|_| c.evidence.is_some_and(|e| e > 0.0))
+                    .map_or(String::new(), |r| format!(" [refused: {r}]"))
             ));
+        }
+        for n in r.ambiguous.iter().chain(&r.unexplained) {
+            s.push_str(&format!("\n    {n}"));
         }
         s.push('\n');
     }
+    for st in &d.steps {
+        let e = &st.errors;
+        s.push_str(&format!(
+            "  step {} kept {}: held-out {:?} gnss {:.4} truth outage {:?} NIS {:.2} {}\n",
+            st.label,
+            st.accepted,
+            e.heldout_outage_m,
+            e.gnss_prior_horizontal_rms_m,
+            e.truth_outage_m,
+            e.nis_mean,
+            st.reason.as_deref().unwrap_or("")
+        ));
+    }
     s
+}
+
+/// After is never worse than before: the outage error against the truth and against the
+/// withheld fixes, and the error with GNSS (prior residuals of the used fixes), for every
+/// kept step against the one before it and for the final model against the configuration.
+fn assert_never_worse(d: &Diagnosis) {
+    let (b, a) = (
+        d.error_before.outage_max_3d_rms_m,
+        d.error_after.outage_max_3d_rms_m,
+    );
+    assert!(
+        a <= b,
+        "outage error vs truth: before {b} after {a}\n{}",
+        summary(d)
+    );
+    let kept: Vec<_> = d.steps.iter().filter(|s| s.accepted).collect();
+    for w in kept.windows(2) {
+        let (p, n) = (&w[0].errors, &w[1].errors);
+        if let (Some(x), Some(y)) = (p.heldout_outage_m, n.heldout_outage_m) {
+            assert!(y < x, "{}: held-out {x} -> {y}", w[1].label);
+        }
+        assert!(
+            n.gnss_prior_horizontal_rms_m <= p.gnss_prior_horizontal_rms_m,
+            "{}: GNSS {} -> {}",
+            w[1].label,
+            p.gnss_prior_horizontal_rms_m,
+            n.gnss_prior_horizontal_rms_m
+        );
+    }
+    assert!(
+        d.error_after.gnss_residual_horizontal_rms_m
+            <= d.error_before.gnss_residual_horizontal_rms_m
+    );
+    for e in &d.added_effects {
+        assert!(e.after.gnss_prior_horizontal_rms_m <= e.before.gnss_prior_horizontal_rms_m);
+        assert!(
+            e.after.heldout_outage_m < e.before.heldout_outage_m,
+            "{}",
+            e.name
+        );
+    }
 }
 
 /// Asserts the effect is named first, every state is within 20 % of the truth or 3 sigma, and
 /// the outage error dropped by at least 30 %.
 fn check_first(d: &Diagnosis, name: &str, truth: &[f64]) {
+    check_first_ratio(d, name, truth, 0.7);
+}
+
+/// [`check_first`] with the largest allowed outage-error ratio after / before.
+fn check_first_ratio(d: &Diagnosis, name: &str, truth: &[f64], max_ratio: f64) {
     println!("{name}: truth {truth:?}\n{}", summary(d));
     let first = d.added_effects.first().expect("an effect must be added");
     assert_eq!(first.name, name);
@@ -202,11 +268,13 @@ fn check_first(d: &Diagnosis, name: &str, truth: &[f64]) {
         d.error_before.outage_max_3d_rms_m,
         d.error_after.outage_max_3d_rms_m,
     );
+    println!("{name}: outage error ratio after/before {:.3}", a / b);
     assert!(
-        a <= 0.7 * b,
+        a <= max_ratio * b,
         "{name}: outage error before {b} m after {a} m"
     );
     assert!(d.residuals_after.log_likelihood > d.residuals_before.log_likelihood);
+    assert_never_worse(d);
 }
 
 fn run(v: u32, e: &ErrorModel, lever: [f64; 3], seed: u64) -> Diagnosis {
@@ -313,8 +381,33 @@ fn undeclared_time_offset_is_found() {
     // simulator: a fix tagged t is the antenna at IMU time t - 0.07 s (GNSS tags late);
     // filter state: the fix is the antenna at t + dt, so dt = -0.07 s
     e.gnss.time_offset_s = 0.07;
-    let d = run(1, &e, [0.0; 3], 606);
-    check_first(&d, "time_offset", &[-0.07]);
+    let p = prepared(1, &e, [0.0; 3], 606);
+    let out = diagnose(&p, &DiagnoseOptions::default()).unwrap();
+    let d = &out.diagnosis;
+    check_first(d, "time_offset", &[-0.07]);
+    // the output on the GNSS clock: nav_after.txt stamped IMU time - estimate, and closer to
+    // the fixes than the before solution on the IMU clock
+    let dt = d.added_effects[0].estimate[0];
+    assert_eq!(d.output_clock_shift_s, -dt);
+    let dir = tempfile::tempdir().unwrap();
+    write_outputs(dir.path(), &p, &out, None).unwrap();
+    let first_t = |f: &str| -> f64 {
+        let text = std::fs::read_to_string(dir.path().join(f)).unwrap();
+        let row = text.lines().find(|l| !l.starts_with('#')).unwrap();
+        let cols: Vec<f64> = row
+            .split_whitespace()
+            .map(|x| x.parse::<f64>().unwrap())
+            .collect();
+        cols[1]
+    };
+    let shift = first_t("nav_after.txt") - first_t("nav_before.txt");
+    assert!((shift + dt).abs() < 1e-6, "shift {shift} estimate {dt}");
+    let (b, a) = (
+        d.error_before.output_vs_fixes_horizontal_rms_m,
+        d.error_after.output_vs_fixes_horizontal_rms_m,
+    );
+    println!("solution vs fixes outside outages: before {b:.4} m after (GNSS clock) {a:.4} m");
+    assert!(a < b, "before {b} after {a}");
 }
 
 #[test]
@@ -365,6 +458,31 @@ fn gyro_g_sensitivity_of_half_deg_per_h_per_g_is_not_detectable_on_a_land_drive(
         d.error_before.outage_max_3d_rms_m,
         d.error_after.outage_max_3d_rms_m
     );
+    // "none detectable", with a bound above the effect's size
+    assert_eq!(d.verdict, "none detectable");
+    let u = d
+        .undetected
+        .iter()
+        .find(|u| u.name == "gyro_g_sensitivity")
+        .expect("a bound for the g-sensitivity");
+    let per_g = DEG_PER_H_RADPS / nav_core::earth::G0_MPS2;
+    println!(
+        "g-sensitivity detectability bound: {:.2} deg/h/g (per axis {:?})",
+        u.min_bound / per_g,
+        u.bound.iter().map(|b| b / per_g).collect::<Vec<_>>()
+    );
+    assert!(
+        u.min_bound > 0.5 * per_g,
+        "bound {} deg/h/g",
+        u.min_bound / per_g
+    );
+    assert_eq!(u.bound.len(), 3);
+    // every candidate has a finite bound
+    assert_eq!(d.undetected.len(), d.candidates_considered.len());
+    assert!(d
+        .undetected
+        .iter()
+        .all(|u| u.min_bound.is_finite() && u.min_bound > 0.0));
 }
 
 /// At 10 deg/h/g (20x the issue's size) the g-sensitivity is named first and the outage error
@@ -395,7 +513,6 @@ fn two_undeclared_effects_are_both_found() {
     println!("{}", summary(&d));
     let names: Vec<&str> = d.added_effects.iter().map(|e| e.name.as_str()).collect();
     assert!(names.contains(&"lever_arm"), "{names:?}");
-    assert!(names.contains(&"gyro_scale_factor"), "{names:?}");
     let la = d
         .added_effects
         .iter()
@@ -408,13 +525,119 @@ fn two_undeclared_effects_are_both_found() {
             "{est} {sig} {tr}"
         );
     }
-    let sf = d
+    assert!(d.error_after.outage_max_3d_rms_m <= 0.7 * d.error_before.outage_max_3d_rms_m);
+    assert_never_worse(&d);
+    // The gyro z scale factor (1400 ppm) is seen (its likelihood gain is large and its
+    // estimate significant) but, with the lever arm in the model, adding it RAISES the
+    // held-out outage error on this drive (measured: 0.518 -> 0.604 m against the withheld
+    // fixes), so issue 14's rule "after never worse" refuses it: it must be either added
+    // with its estimate within 20 % / 3 sigma, or reported as refused by the held-out check
+    // with the likelihood gain it leaves unexplained.
+    match d
         .added_effects
         .iter()
         .find(|e| e.name == "gyro_scale_factor")
-        .unwrap();
-    assert!((sf.estimate[2] - 1400e-6).abs() <= (0.2 * 1400e-6f64).max(3.0 * sf.sigma[2]));
-    assert!(d.error_after.outage_max_3d_rms_m <= 0.7 * d.error_before.outage_max_3d_rms_m);
+    {
+        Some(sf) => {
+            assert!((sf.estimate[2] - 1400e-6).abs() <= (0.2 * 1400e-6f64).max(3.0 * sf.sigma[2]))
+        }
+        None => {
+            let c = d
+                .rounds
+                .last()
+                .and_then(|r| r.candidates.iter().find(|c| c.name == "gyro_scale_factor"))
+                .expect("gyro_scale_factor tried in the last round");
+            assert!(c.evidence.unwrap() > 0.0 && c.max_z >= 2.0, "{c:?}");
+            assert!(
+                c.refused.as_deref().unwrap().starts_with("held-out"),
+                "{c:?}"
+            );
+            assert!(
+                d.warnings.iter().any(|w| w.contains("gyro_scale_factor")),
+                "{:?}",
+                d.warnings
+            );
+            let z = c.estimate[2] / c.sigma[2];
+            println!(
+                "gyro z scale factor refused: estimate {:.0} ppm ({z:.1} sigma) for 1400 ppm; {}",
+                c.estimate[2] * 1e6,
+                c.refused.as_deref().unwrap()
+            );
+        }
+    }
+}
+
+/// A case configured from its `kf-gins.yaml` alone (21-state KF-GINS model) whose scale
+/// factors are declared absent (`gsstd`, `asstd`, `initsgstd`, `initsastd` = 0: the states
+/// exist but are frozen), 30 s outages every 100 s from 150 s.
+fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) -> Prepared {
+    let case = simulate(&scenario(v), e, seed).unwrap();
+    case.write(dir, true).unwrap();
+    let yp = dir.join("kf-gins.yaml");
+    let y = std::fs::read_to_string(&yp).unwrap();
+    let y: String = y
+        .lines()
+        .map(|l| {
+            let t = l.trim_start();
+            for k in ["gsstd:", "asstd:", "initsgstd:", "initsastd:"] {
+                if t.starts_with(k) {
+                    let indent = &l[..l.len() - t.len()];
+                    return format!("{indent}{k} [ 0, 0, 0 ]");
+                }
+            }
+            l.to_string()
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&yp, y).unwrap();
+    let mut a = host_sim::run::cli::RunArgs::new(&yp);
+    a.periodic_outages = vec![host_sim::run::parse_periodic("150:30:100").unwrap()];
+    let p = host_sim::run::cli::prepare(&a).unwrap();
+    assert_eq!(p.opts.model, Model::KfGins21);
+    assert_eq!(p.opts.filter.gyro_scale.sigma, [0.0; 3]);
+    assert_eq!(p.opts.filter.accel_scale.sigma, [0.0; 3]);
+    assert!(p.case.truth.is_some());
+    p
+}
+
+/// Issue 14 item 2: an undeclared scale factor under a KF-GINS configuration that freezes the
+/// scale-factor states is named (the frozen block is freed), estimated within 20 % / 3 sigma,
+/// and the outage error drops by at least 30 %, never worse in any step.
+#[test]
+fn kf_gins_frozen_scale_factors_are_freed_and_named() {
+    let gyro = [-600.0, 800.0, 1000.0];
+    let accel = [1200.0, -1000.0, 900.0];
+    let cases = [
+        ("gyro_scale_factor", gyro, 2u32, 1401u64),
+        ("accel_scale_factor", accel, 1, 1402),
+    ];
+    let res: Vec<(&str, [f64; 3], Diagnosis)> = cases
+        .par_iter()
+        .map(|&(name, ppm, v, seed)| {
+            let mut e = base_errors();
+            if name == "gyro_scale_factor" {
+                e.gyro.scale_factor_ppm = Axes3(ppm);
+            } else {
+                e.accel.scale_factor_ppm = Axes3(ppm);
+            }
+            let dir = tempfile::tempdir().unwrap();
+            let p = kf_gins_prepared(v, &e, seed, dir.path());
+            assert!(host_sim::diagnose::candidates(&p.case, &p.opts)
+                .iter()
+                .any(|b| b.name() == name));
+            let d = diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis;
+            (name, ppm, d)
+        })
+        .collect();
+    for (name, ppm, d) in &res {
+        let first = d.added_effects.first().expect("an effect must be added");
+        println!(
+            "KF-GINS {name}: estimate {:?} ppm",
+            first.estimate.iter().map(|x| x * 1e6).collect::<Vec<_>>()
+        );
+        assert!(first.freed, "{name} was frozen in the configuration");
+        check_first(d, name, &ppm.map(|p| p * 1e-6));
+    }
 }
 
 fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f64) {
@@ -438,11 +661,12 @@ fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f6
     (named, est_ok, a <= 0.7 * b, b, a)
 }
 
-/// 32 more drives (8 effects x 4 seeds, magnitudes x0.6 to x1.33 of the per-effect tests'
-/// sizes, other trajectories and seeds): the effect must be named first with its estimate
-/// within 20 % / 3 sigma in every one; the 30 % outage-error improvement is counted and
-/// printed (measured: 30 of 32; the two misses, 25 % and 20 %, are drives where the effect is a
-/// small part of the outage error). About 35 s in release: run with `--ignored`.
+/// 40 more drives (8 effects x 4 seeds, magnitudes x0.6 to x1.33 of the per-effect tests'
+/// sizes, other trajectories and seeds, plus the two scale factors x 4 seeds configured from a
+/// KF-GINS YAML with frozen scale-factor states): the effect must be named first with its
+/// estimate within 20 % / 3 sigma in every one, the median outage-error ratio after/before at
+/// most 0.7 and no case worse than before (issue 14); the 30 % improvement per case is counted
+/// and printed. Run with `--ignored` (measured numbers in the README's diagnose section).
 #[test]
 #[ignore]
 fn robustness_sweep_over_seeds_and_magnitudes() {
@@ -497,35 +721,58 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
             ("gyro_temperature_bias".into(), c.to_vec())
         }),
     ];
-    let jobs: Vec<(usize, u64)> = (0..cases.len())
-        .flat_map(|c| (0..4u64).map(move |s| (c, s)))
+    // 8 effects x 4 seeds from our TOML-style NBK configuration, plus the two scale factors
+    // x 4 seeds from a KF-GINS YAML with frozen (zero-sigma) scale-factor states
+    let jobs: Vec<(usize, u64, bool)> = (0..cases.len())
+        .flat_map(|c| (0..4u64).map(move |s| (c, s, false)))
+        .chain((0..2usize).flat_map(|c| (0..4u64).map(move |s| (c, s, true))))
         .collect();
-    let res: Vec<(String, bool, bool, bool)> = jobs
+    let n_jobs = jobs.len();
+    let res: Vec<(String, bool, bool, bool, f64)> = jobs
         .par_iter()
-        .map(|&(c, s)| {
+        .map(|&(c, s, kf)| {
             let mut e = base_errors();
             let k = 1.0 + 0.5 * (s as f64) / 3.0 * if s % 2 == 0 { 1.0 } else { -0.8 };
             let (name, truth) = cases[c](&mut e, k);
-            let seed = 90000 + 101 * c as u64 + 7 * s;
-            let d = run((s + c as u64) as u32 % 4, &e, [0.0; 3], seed);
+            let seed = 90000 + 101 * c as u64 + 7 * s + if kf { 5000 } else { 0 };
+            let v = (s + c as u64) as u32 % 4;
+            let d = if kf {
+                let dir = tempfile::tempdir().unwrap();
+                let p = kf_gins_prepared(v, &e, seed, dir.path());
+                diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis
+            } else {
+                run(v, &e, [0.0; 3], seed)
+            };
             let (n, eo, imp, b, a) = grade(&d, &name, &truth);
+            if !(n && eo) {
+                println!("MISS {name} seed {seed}:\n{}", summary(&d));
+            }
             let line = format!(
-                "{name} seed {seed} k {k:.2}: named {n} est {eo} improved30 {imp} \
-             before {b:.3} after {a:.3} verdict {}",
+                "{}{name} seed {seed} k {k:.2}: named {n} est {eo} improved30 {imp} \
+             before {b:.3} after {a:.3} ratio {:.3} verdict {}",
+                if kf { "KF-GINS " } else { "" },
+                a / b,
                 d.verdict
             );
-            (line, n, eo, imp)
+            (line, n, eo, imp, a / b)
         })
         .collect();
     for r in &res {
         println!("{}", r.0);
     }
     let improved = res.iter().filter(|r| r.3).count();
+    let mut ratios: Vec<f64> = res.iter().map(|r| r.4).collect();
+    ratios.sort_by(f64::total_cmp);
+    let median = 0.5 * (ratios[(n_jobs - 1) / 2] + ratios[n_jobs / 2]);
+    let worst = ratios[n_jobs - 1];
     println!(
-        "named first {} / 32, estimate {} / 32, improved 30 % {improved} / 32",
+        "named first {} / {n_jobs}, estimate {} / {n_jobs}, improved 30 % {improved} / {n_jobs}; \
+         outage-error ratio after/before: median {median:.3}, worst {worst:.3}",
         res.iter().filter(|r| r.1).count(),
         res.iter().filter(|r| r.2).count()
     );
+    assert!(median <= 0.7, "median ratio {median}");
+    assert!(worst <= 1.0, "a case worse than before: {worst}");
     assert!(res.iter().all(|r| r.1 && r.2));
 }
 
@@ -545,7 +792,9 @@ fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
         if d.added_effects.is_empty() {
             clean += 1;
             assert_eq!(d.residuals_before.updates, d.residuals_after.updates);
+            assert_eq!(d.verdict, "none detectable");
         }
+        assert_never_worse(d);
     }
     println!("no missing effect in {clean} of 20 seeds");
     assert!(clean >= 19, "no missing effect in only {clean} of 20 seeds");
@@ -560,6 +809,10 @@ fn clean_drive_gives_no_missing_effect_in_19_of_20_seeds() {
 fn tune_noise_recovers_an_understated_white_noise_and_keeps_a_right_one() {
     let tuned = |v: u32, e: &ErrorModel, seed: u64, understate: f64| {
         let mut p = prepared(v, e, [0.0; 3], seed);
+        // the classic 0.9999 gate: the robust gating (the default) adapts to a mismatch by
+        // itself and hides part of the understated noise this test measures (with its first
+        // version, which inflated Q: base NIS 3.84 instead of 8.57)
+        p.opts.filter.gating = host_sim::run::cli::parse_gate("0.9999").unwrap();
         host_sim::run::cli::scale_white_noise(&mut p.opts.filter, 1.0 / understate);
         let o = DiagnoseOptions {
             tune_noise: true,

@@ -326,8 +326,23 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     if let Some(t) = &dg.noise_tuning {
         let _ = writeln!(
             s,
-            "White-noise factor (`--tune-noise`): **{}** (evidence {:.1} nats; the effect search and the errors after use it)\n",
-            t.chosen_scale, t.evidence
+            "Noise tuning (default; `--no-tune-noise` keeps the configuration's): stage 1 factor \
+             on both white-noise PSDs **{}** (evidence {:.1} nats); all stages: **{}** (evidence \
+             {:.1} nats); NIS mean {:.2} -> {:.2} (expected {:.2}); {}\n",
+            t.chosen_scale,
+            t.evidence,
+            t.chosen.describe(),
+            t.total_evidence,
+            t.nis_before,
+            t.nis_after,
+            t.nis_expected,
+            if t.adopted {
+                "adopted"
+            } else if t.chosen.is_one() {
+                "nothing to change"
+            } else {
+                "NOT adopted (held-out check, see the steps)"
+            }
         );
         let _ = writeln!(
             s,
@@ -341,10 +356,68 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
         if let Some(t2) = &t.with_effects {
             let _ = writeln!(
                 s,
-                "Re-fitted with the added effects in the model: factor **{}** (evidence {:.1} nats): the final model's.\n",
-                t2.chosen_scale, t2.evidence
+                "Re-tuned with the added effects in the model: **{}** (evidence {:.1} nats, NIS \
+                 {:.2} -> {:.2}); {}.\n",
+                t2.chosen.describe(),
+                t2.total_evidence,
+                t2.nis_before,
+                t2.nis_after,
+                if t2.adopted { "adopted" } else { "not adopted" }
             );
         }
+    }
+    let _ = writeln!(
+        s,
+        "## Steps (every model change; after is never worse than before on the fixes)\n"
+    );
+    let _ = writeln!(
+        s,
+        "| step | kept | held-out outage error [m] | GNSS prior residual, horizontal RMS [m] | outage error vs truth [m] | 3D RMS with GNSS vs truth [m] | NIS mean | why not |\n|---|---|---|---|---|---|---|---|"
+    );
+    let o = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.3}"));
+    for st in &dg.steps {
+        let e = &st.errors;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.3} | {} | {} | {:.2} | {} |",
+            st.label,
+            if st.accepted { "yes" } else { "no" },
+            o(e.heldout_outage_m),
+            e.gnss_prior_horizontal_rms_m,
+            o(e.truth_outage_m),
+            o(e.truth_with_gnss_3d_rms_m),
+            e.nis_mean,
+            st.reason.as_deref().unwrap_or("")
+        );
+    }
+    s.push('\n');
+    if dg.output_clock_shift_s != 0.0 {
+        let _ = writeln!(
+            s,
+            "nav_after.txt is on the GNSS clock: its times are the IMU times {:+.4} s (minus the \
+             time offset estimate).\n",
+            dg.output_clock_shift_s
+        );
+    }
+    if !dg.undetected.is_empty() {
+        let _ = writeln!(
+            s,
+            "Not added, with the detectability bound on this drive (the smallest magnitude that \
+             would have been found):\n\n| effect | bound (smallest state) | bound per state | unit | last estimate | why not |\n|---|---|---|---|---|---|"
+        );
+        for u in &dg.undetected {
+            let _ = writeln!(
+                s,
+                "| {} | {:.3e} | {} | {} | {} | {} |",
+                u.name,
+                u.min_bound,
+                fmt_vec(&u.bound),
+                u.unit,
+                fmt_vec(&u.estimate),
+                u.reason
+            );
+        }
+        s.push('\n');
     }
     for w in &dg.warnings {
         let _ = writeln!(s, "Warning: {w}\n");
@@ -357,9 +430,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     if !dg.added_effects.is_empty() {
         let _ = writeln!(
             s,
-            "| effect | estimate | 1-sigma | unit | evidence [nats] | runner-up (nats behind) |"
+            "| effect | estimate | 1-sigma | unit | evidence [nats] | runner-up (nats behind) | held-out outage error before -> after [m] | GNSS prior residual before -> after [m] |"
         );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
         for e in &dg.added_effects {
             let ru = e
                 .runner_up
@@ -367,13 +440,18 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
                 .map_or(String::from("-"), |(n, m)| format!("{n} ({m:.1})"));
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {:.1} | {} |",
+                "| {}{} | {} | {} | {} | {:.1} | {} | {} -> {} | {:.3} -> {:.3} |",
                 e.name,
+                if e.freed { " (freed)" } else { "" },
                 fmt_vec(&e.estimate),
                 fmt_vec(&e.sigma),
                 e.unit,
                 e.evidence,
-                ru
+                ru,
+                o(e.before.heldout_outage_m),
+                o(e.after.heldout_outage_m),
+                e.before.gnss_prior_horizontal_rms_m,
+                e.after.gnss_prior_horizontal_rms_m
             );
         }
         s.push('\n');
@@ -383,7 +461,7 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     let (b, a) = (&dg.error_before, &dg.error_after);
     let _ = writeln!(
         s,
-        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n",
+        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n| written solution vs GNSS fixes outside outages, horizontal RMS [m] | {:.3} | {:.3} |\n",
         b.outages,
         a.outages,
         b.outage_max_3d_rms_m,
@@ -393,7 +471,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
         b.overall_3d_rms_m,
         a.overall_3d_rms_m,
         b.gnss_residual_horizontal_rms_m,
-        a.gnss_residual_horizontal_rms_m
+        a.gnss_residual_horizontal_rms_m,
+        b.output_vs_fixes_horizontal_rms_m,
+        a.output_vs_fixes_horizontal_rms_m
     );
     let _ = writeln!(s, "![errors](errors.png)\n");
     let _ = writeln!(s, "## Residuals\n");
@@ -438,20 +518,26 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             r.model_effects.join(", "),
             r.added.as_deref().unwrap_or("none")
         );
+        for note in r.ambiguous.iter().chain(&r.unexplained) {
+            let _ = writeln!(s, "{note}\n");
+        }
         let _ = writeln!(
             s,
-            "| candidate | evidence [nats] | LL gain | BIC penalty | regressor corr z | outage error [m] |\n|---|---|---|---|---|---|"
+            "| candidate | evidence [nats] | LL gain | BIC penalty | max z | regressor corr z | held-out outage error [m] | refused |\n|---|---|---|---|---|---|---|---|"
         );
         for c in &r.candidates {
             let _ = writeln!(
                 s,
-                "| {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.3} |",
+                "| {}{} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
                 c.name,
+                if c.freed { " (freed)" } else { "" },
                 c.evidence.unwrap_or(f64::NAN),
                 c.delta_log_likelihood.unwrap_or(f64::NAN),
                 c.bic_penalty,
+                c.max_z,
                 c.correlation_z,
-                c.outage_error_m.unwrap_or(f64::NAN)
+                o(c.errors.and_then(|e| e.heldout_outage_m)),
+                c.refused.as_deref().unwrap_or("")
             );
         }
         s.push('\n');
@@ -464,7 +550,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
 
 /// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the
 /// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
-/// `gnss.time_offset_s` and its relative paths made absolute; a comment header lists every
+/// `imu.time_offset_s` (the IMU on the GNSS clock, so the run's output is on the GNSS clock),
+/// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, and its relative paths made
+/// absolute; a comment header lists every
 /// added effect with its estimate; the other added effects (IMU effect blocks) are listed in
 /// the top-level `effects` key, so `host-sim run --config augmented.toml` runs the augmented
 /// model. KF-GINS YAML inputs are not rewritten.
@@ -489,8 +577,8 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
         .or_insert_with(|| toml::Value::Table(toml::Table::new()));
     if let toml::Value::Table(g) = gnss {
         for e in &d.added_effects {
-            match e.name.as_str() {
-                "lever_arm" => {
+            {
+                if e.name == "lever_arm" {
                     let old: Vec<f64> = g
                         .get("lever_arm_m")
                         .and_then(|v| v.as_array())
@@ -504,31 +592,67 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
                         .collect();
                     g.insert("lever_arm_m".into(), toml::Value::Array(new));
                 }
-                "time_offset" => {
-                    // a fix tagged t is the antenna at IMU time t + dt: its tag must move by
-                    // +dt; the run configuration's gnss.time_offset_s is added to the tags
-                    let old = g
-                        .get("time_offset_s")
-                        .and_then(|v| v.as_float())
-                        .unwrap_or(0.0);
-                    let dt = e.estimate.first().copied().unwrap_or(0.0);
-                    g.insert("time_offset_s".into(), toml::Value::Float(old + dt));
-                }
-                _ => {}
             }
         }
     }
-    if let Some(k) = d.noise_tuning.as_ref().map(|t| t.final_scale()) {
-        if k != 1.0 {
-            let noise = doc
-                .entry("noise")
-                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-            if let toml::Value::Table(n) = noise {
-                let old = n
-                    .get("white_noise_scale")
-                    .and_then(|v| v.as_float())
-                    .unwrap_or(1.0);
-                n.insert("white_noise_scale".into(), toml::Value::Float(old * k));
+    if let Some(dt) = d
+        .added_effects
+        .iter()
+        .find(|e| e.name == "time_offset")
+        .and_then(|e| e.estimate.first())
+    {
+        // a fix tagged t is the antenna at IMU time t + dt: the IMU tags move by -dt onto the
+        // GNSS clock (the run configuration's imu.time_offset_s is added to the IMU tags), so
+        // the run's output is on the GNSS clock as nav_after.txt is
+        let imu = doc
+            .entry("imu")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(t) = imu {
+            let old = t
+                .get("time_offset_s")
+                .and_then(|v| v.as_float())
+                .unwrap_or(0.0);
+            t.insert("time_offset_s".into(), toml::Value::Float(old - dt));
+        }
+    }
+    if let Some(psd) = d.final_noise_psd {
+        // the tuned PSDs in SI (they include any white_noise_scale of the input)
+        let noise = doc
+            .entry("noise")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(n) = noise {
+            n.remove("white_noise_scale");
+            type Keys<'a> = &'a [&'a str];
+            let sensors: [(&str, [f64; 3], Keys, Keys, Keys); 2] = [
+                (
+                    "accel",
+                    [psd[0], psd[1], psd[2]],
+                    &["s_n", "n_ug_per_sqrt_hz", "vrw_mps_per_sqrt_h"],
+                    &["s_b", "gm_sigma_ug"],
+                    &["s_k", "k_ug_per_sqrt_h", "k_ug_per_sqrt_hz"],
+                ),
+                (
+                    "gyro",
+                    [psd[3], psd[4], psd[5]],
+                    &["s_n", "arw_deg_per_sqrt_h", "n_deg_per_s_per_sqrt_hz"],
+                    &["s_b", "gm_sigma_deg_per_h"],
+                    &["s_k", "k_deg_per_h_per_sqrt_h", "k_deg_per_s_per_sqrt_hz"],
+                ),
+            ];
+            for (name, v, white, gm, rw) in sensors {
+                let t = n
+                    .entry(name)
+                    .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                if let toml::Value::Table(t) = t {
+                    for (keys, val) in [(white, v[0]), (gm, v[1]), (rw, v[2])] {
+                        for k in keys {
+                            t.remove(*k);
+                        }
+                        if val > 0.0 {
+                            t.insert(keys[0].into(), toml::Value::Float(val));
+                        }
+                    }
+                }
             }
         }
     }
@@ -553,7 +677,7 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
     }
     let mut head = format!(
         "# Written by host-sim diagnose from {} (paths made absolute).\n\
-         # Verdict: {}. lever_arm and time_offset estimates are folded into [gnss], the other\n\
+         # Verdict: {}. lever_arm is folded into [gnss], time_offset into [imu] (output on the GNSS clock), the other\n\
          # added effects are appended to the model by the `effects` key;\n",
         config.display(),
         d.verdict
