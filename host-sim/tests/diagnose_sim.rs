@@ -567,7 +567,8 @@ fn two_undeclared_effects_are_both_found() {
     }
 }
 
-/// A case configured from its `kf-gins.yaml` alone (21-state KF-GINS model) whose scale
+/// A case configured from its `kf-gins.yaml` alone (21-state KF-GINS model, as KF-GINS runs
+/// it: `kf-gins-feedback`) whose scale
 /// factors are declared absent (`gsstd`, `asstd`, `initsgstd`, `initsastd` = 0: the states
 /// exist but are frozen), 30 s outages every 100 s from 150 s.
 fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) -> Prepared {
@@ -593,7 +594,7 @@ fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) ->
     let mut a = host_sim::run::cli::RunArgs::new(&yp);
     a.periodic_outages = vec![host_sim::run::parse_periodic("150:30:100").unwrap()];
     let p = host_sim::run::cli::prepare(&a).unwrap();
-    assert_eq!(p.opts.model, Model::KfGins21);
+    assert_eq!(p.opts.model, Model::KfGinsFeedback);
     assert_eq!(p.opts.filter.gyro_scale.sigma, [0.0; 3]);
     assert_eq!(p.opts.filter.accel_scale.sigma, [0.0; 3]);
     assert!(p.case.truth.is_some());

@@ -519,6 +519,9 @@ pub fn run_filter_on_frames(
         }
     }
     prepared.case.imu = log.imu.clone();
+    // the samples are the capture's now: messages name IMU sample indices, not the
+    // configuration's file lines
+    prepared.case.imu_origin = None;
     prepared.case.gnss = gnss;
     let t = Instant::now();
     let (output, metrics) = execute(&prepared, &mut |_, _| {})?;
@@ -541,8 +544,11 @@ pub fn write_filter_outputs(dir: &Path, f: &FilterRun) -> anyhow::Result<()> {
     output::write_bias(&p("bias.txt"), &f.output)?;
     output::write_innovations(&p("innovations.txt"), &f.output.innovations)?;
     let mp = p("metrics.json");
-    std::fs::write(&mp, serde_json::to_string_pretty(&f.metrics)?)
-        .with_context(|| format!("writing {}", mp.display()))?;
+    std::fs::write(
+        &mp,
+        host_sim::run::cli::metrics_json(&f.metrics, &f.output, None)?,
+    )
+    .with_context(|| format!("writing {}", mp.display()))?;
     for name in [
         "nav.txt",
         "std.txt",

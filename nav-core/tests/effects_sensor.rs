@@ -78,7 +78,11 @@ fn gyro_scale_factor_block_estimates_the_yaw_scale_error_and_lowers_outage_error
         &[2],
         &[],
     );
-    assert!(a < 0.7 * b, "with {a} m without {b} m");
+    // The margin is against a baseline that uses its fixes. Under the old hard 0.9999 gate the
+    // filter without the block rejected 814 of 1,200 fixes and drifted to 39.9 m, so this once
+    // asserted "30 % lower" (it was 92 %); with the robust default gate the baseline uses every
+    // fix and the block's real gain is 15 % (3.07 m with it, 3.60 m without, 3.57 m gate off).
+    assert!(a < 0.9 * b, "with {a} m without {b} m");
 }
 
 #[test]

@@ -758,7 +758,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
 
 /// `metrics.json`: the metrics, the IMU report (gaps, rejected samples) and, after a fault,
 /// `"complete": false` with the fault.
-fn metrics_json(m: &Metrics, out: &RunOutput, fault: Option<&str>) -> anyhow::Result<String> {
+pub fn metrics_json(m: &Metrics, out: &RunOutput, fault: Option<&str>) -> anyhow::Result<String> {
     #[derive(serde::Serialize)]
     struct File<'a> {
         #[serde(flatten)]
