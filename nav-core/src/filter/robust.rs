@@ -221,7 +221,15 @@ impl GateState {
                     r.downweight_nis_pos_vel
                 };
                 let widening = if self.is_reacquisition(r, t_s) {
-                    r.max_gate_widening.max(self.stats.gate_widening)
+                    // after an outage (no fix at all, not a run of rejections) times the
+                    // remembered level of a persistent mismatch: unaided, what the model
+                    // leaves out grows beyond the level seen at the fix rate
+                    let lvl = if t_s - self.last_seen_t_s > r.reacquisition_min_gap_s {
+                        self.level
+                    } else {
+                        1.0
+                    };
+                    (r.max_gate_widening * lvl).max(self.stats.gate_widening)
                 } else {
                     self.stats.gate_widening
                 };
