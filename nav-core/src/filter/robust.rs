@@ -37,6 +37,13 @@ pub fn igg3_weight(nis: f64, k0_sq: f64, k1_sq: f64) -> f64 {
 /// times, which keeps S well conditioned in f32.
 pub const MIN_WEIGHT: f64 = 1e-4;
 
+/// Bound of the gate widening while a persistent mismatch is followed (keeps the widened
+/// thresholds finite).
+pub const UNCAPPED_WIDENING: f64 = 1e9;
+
+/// Per-fix factor by which the remembered level of a persistent mismatch eases off.
+const LEVEL_EASING: f64 = 0.99;
+
 /// What the robust gating and the monitor did over the run, and their current state. Times
 /// are GNSS fix times, s; ratios are NIS/dof.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,6 +130,8 @@ pub(super) struct GateState {
     last_used_t_s: f64,
     nominal_interval_s: f64,
     episode_start_t_s: f64,
+    /// Remembered NIS/dof level of a persistent mismatch (floor of the widening, >= 1).
+    level: f64,
     pub stats: RobustStats,
 }
 
@@ -141,6 +150,7 @@ impl Default for GateState {
             last_used_t_s: f64::NAN,
             nominal_interval_s: f64::NAN,
             episode_start_t_s: f64::NAN,
+            level: 1.0,
             stats: RobustStats::default(),
         }
     }
@@ -211,7 +221,15 @@ impl GateState {
                     r.downweight_nis_pos_vel
                 };
                 let widening = if self.is_reacquisition(r, t_s) {
-                    r.max_gate_widening.max(self.stats.gate_widening)
+                    // after an outage (no fix at all, not a run of rejections) times the
+                    // remembered level of a persistent mismatch: unaided, what the model
+                    // leaves out grows beyond the level seen at the fix rate
+                    let lvl = if t_s - self.last_seen_t_s > r.reacquisition_min_gap_s {
+                        self.level
+                    } else {
+                        1.0
+                    };
+                    (r.max_gate_widening * lvl).max(self.stats.gate_widening)
                 } else {
                     self.stats.gate_widening
                 };
@@ -344,8 +362,26 @@ impl GateState {
         if accepted_widening.is_finite() {
             g = g.max(accepted_widening);
         }
+        // A declared mismatch whose last fix was used is persistent, not an outlier: the gate
+        // follows the innovations without the cap (a 1.5 m lever arm in a turn against 2 cm
+        // fixes is ~1e4 in NIS/dof). Otherwise (a run of rejections: a jump, or clean data)
+        // the cap holds, and a widening already beyond it is kept, not grown.
+        // The level of such a mismatch is remembered (easing off by 1 % per fix) as a floor
+        // of the widening: its signature comes back (each turn for a lever arm) and must not
+        // be rejected at its onset. Only fixes used by an update teach it, not rejected ones
+        // (a jump of all fixes) nor a reset.
+        let used = accepted_widening > 0.0;
+        let cap = if s.mismatch && used {
+            if med.is_finite() && med > self.level {
+                self.level = med.min(UNCAPPED_WIDENING);
+            }
+            UNCAPPED_WIDENING
+        } else {
+            r.max_gate_widening.max(s.gate_widening)
+        };
+        self.level = (self.level * LEVEL_EASING).max(1.0);
         // (not f64::clamp: its NaN/order assertion would link float formatting on the MCU)
-        s.gate_widening = g.min(r.max_gate_widening).max(1.0);
+        s.gate_widening = g.min(cap).max(self.level);
         if s.mismatch {
             let d = t_s - self.episode_start_t_s;
             if d > s.longest_mismatch_s {
@@ -558,12 +594,19 @@ mod tests {
             assert_eq!(g.stats.gate_widening, 30.0);
             for k in 61..200 {
                 g.monitor(&r, k as f64, 1.0, false, 0.0);
+                // the level of the mismatch seen on a used fix (median 9) stays the floor of
+                // the widening, easing off by 1 % per fix
+                let floor = 9.0 * libm::pow(0.99, (k - 59) as f64);
+                assert!(g.stats.gate_widening >= floor.max(1.0) * (1.0 - 1e-12));
             }
             // held until 6 of the 10 are consistent again (median 1 < 1.5) at t = 66
             assert!((g.stats.mismatch_time_s - 32.0).abs() < 1e-9);
             assert!((g.stats.longest_mismatch_s - 31.0).abs() < 1e-9);
             assert!(!g.stats.mismatch);
             assert_eq!(g.stats.q_inflation, 1.0);
+            for k in 200..450 {
+                g.monitor(&r, k as f64, 1.0, false, 0.0);
+            }
             assert_eq!(g.stats.gate_widening, 1.0);
             assert_eq!(g.stats.max_q_inflation, max_q);
             assert_eq!(g.stats.max_gate_widening, 30.0);
