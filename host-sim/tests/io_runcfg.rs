@@ -249,6 +249,17 @@ fn run_config_errors_name_the_file_and_the_problem() {
         m.contains("only one of") && m.contains("vrw_mps_per_sqrt_h"),
         "{m}"
     );
+    // an empty noise section is not "no noise": both sensors named
+    let m = err_of(
+        dir.path(),
+        &base
+            .replace("vrw_mps_per_sqrt_h = 0.03\n", "")
+            .replace("arw_deg_per_sqrt_h = 0.003\n", ""),
+    );
+    assert!(
+        m.contains("noise.accel: no white noise") && m.contains("noise.gyro: no white noise"),
+        "{m}"
+    );
     // Gauss-Markov sigma without a correlation time
     let m = err_of(dir.path(), &base.replace("t_b_s = 3600.0\n", ""));
     assert!(m.contains("t_b_s"), "{m}");

@@ -631,11 +631,26 @@ impl RunConfig {
                 bad.push(format!("end_s {b} must be after start_s {a}"));
             }
         }
-        if let Err(e) = self.noise.accel.to_sensor_noise() {
-            bad.push(e);
+        // an absent key means 0, but a sensor without white noise is a filter that trusts the
+        // IMU absolutely: an empty `[noise]` section ran silently with zero noise (26 m
+        // residuals on a rover); say it instead
+        match self.noise.accel.to_sensor_noise() {
+            Err(e) => bad.push(e),
+            Ok(n) if n.s_n.iter().all(|v| *v <= 0.0) => bad.push(
+                "noise.accel: no white noise given (one of s_n, n_ug_per_sqrt_hz, \
+                 vrw_mps_per_sqrt_h is required; `host-sim allan` identifies it)"
+                    .into(),
+            ),
+            Ok(_) => {}
         }
-        if let Err(e) = self.noise.gyro.to_sensor_noise() {
-            bad.push(e);
+        match self.noise.gyro.to_sensor_noise() {
+            Err(e) => bad.push(e),
+            Ok(n) if n.s_n.iter().all(|v| *v <= 0.0) => bad.push(
+                "noise.gyro: no white noise given (one of s_n, arw_deg_per_sqrt_h, \
+                 n_deg_per_s_per_sqrt_hz is required; `host-sim allan` identifies it)"
+                    .into(),
+            ),
+            Ok(_) => {}
         }
         for (n, s) in [
             ("accel_scale", &self.noise.accel_scale),
