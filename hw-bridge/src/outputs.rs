@@ -119,24 +119,7 @@ impl FrameFiles {
         }
         let with_temp = self.imu_temperature;
         if let Some(st) = self.imu.as_mut() {
-            let w = &mut st.w;
-            let r = (|| {
-                write!(
-                    w,
-                    "{} {:e} {:e} {:e} {:e} {:e} {:e}",
-                    s.t_s,
-                    s.dtheta_rad[0],
-                    s.dtheta_rad[1],
-                    s.dtheta_rad[2],
-                    s.dv_mps[0],
-                    s.dv_mps[1],
-                    s.dv_mps[2]
-                )?;
-                if with_temp {
-                    write!(w, " {}", s.temperature_c)?;
-                }
-                writeln!(w)
-            })();
+            let r = host_sim::io::write_imu_line(&mut st.w, s, with_temp);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()
@@ -148,33 +131,7 @@ impl FrameFiles {
             self.gnss = Some(Stream::create(&self.dir, "gnss.txt")?);
         }
         if let Some(st) = self.gnss.as_mut() {
-            let w = &mut st.w;
-            let r = (|| {
-                write!(
-                    w,
-                    "{} {} {} {} {} {} {}",
-                    f.t_s,
-                    f.lat_rad.to_degrees(),
-                    f.lon_rad.to_degrees(),
-                    f.h_m,
-                    f.pos_std_ned_m[0],
-                    f.pos_std_ned_m[1],
-                    f.pos_std_ned_m[2]
-                )?;
-                if f.has_velocity {
-                    write!(
-                        w,
-                        " {} {} {} {} {} {}",
-                        f.vel_ned_mps[0],
-                        f.vel_ned_mps[1],
-                        f.vel_ned_mps[2],
-                        f.vel_std_ned_mps[0],
-                        f.vel_std_ned_mps[1],
-                        f.vel_std_ned_mps[2]
-                    )?;
-                }
-                writeln!(w)
-            })();
+            let r = host_sim::io::write_gnss_line(&mut st.w, f);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()
@@ -186,21 +143,7 @@ impl FrameFiles {
             self.nav = Some(Stream::create(&self.dir, "board-nav.txt")?);
         }
         if let Some(st) = self.nav.as_mut() {
-            let r = writeln!(
-                st.w,
-                "{} {} {} {} {} {} {} {} {} {} {}",
-                n.week,
-                n.t_s,
-                n.lat_rad.to_degrees(),
-                n.lon_rad.to_degrees(),
-                n.h_m,
-                n.vel_ned_mps[0],
-                n.vel_ned_mps[1],
-                n.vel_ned_mps[2],
-                n.rpy_rad[0].to_degrees(),
-                n.rpy_rad[1].to_degrees(),
-                n.rpy_rad[2].to_degrees()
-            );
+            let r = host_sim::io::write_nav_line(&mut st.w, n);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()

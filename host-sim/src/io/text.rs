@@ -296,24 +296,34 @@ pub fn write_imu_text(path: impl AsRef<Path>, samples: &[ImuSample]) -> Result<(
     let with_temp = samples.iter().any(|s| s.temperature_c.is_finite());
     write_with(path, |w| {
         for s in samples {
-            write!(
-                w,
-                "{} {:e} {:e} {:e} {:e} {:e} {:e}",
-                s.t_s,
-                s.dtheta_rad[0],
-                s.dtheta_rad[1],
-                s.dtheta_rad[2],
-                s.dv_mps[0],
-                s.dv_mps[1],
-                s.dv_mps[2]
-            )?;
-            if with_temp {
-                write!(w, " {}", s.temperature_c)?;
-            }
-            writeln!(w)?;
+            write_imu_line(w, s, with_temp)?;
         }
         Ok(())
     })
+}
+
+/// One line of the IMU text format (with the temperature column when `with_temp`); the one
+/// definition [`write_imu_text`] and streaming writers (hw-bridge) share.
+pub fn write_imu_line<W: Write + ?Sized>(
+    w: &mut W,
+    s: &ImuSample,
+    with_temp: bool,
+) -> std::io::Result<()> {
+    write!(
+        w,
+        "{} {:e} {:e} {:e} {:e} {:e} {:e}",
+        s.t_s,
+        s.dtheta_rad[0],
+        s.dtheta_rad[1],
+        s.dtheta_rad[2],
+        s.dv_mps[0],
+        s.dv_mps[1],
+        s.dv_mps[2]
+    )?;
+    if with_temp {
+        write!(w, " {}", s.temperature_c)?;
+    }
+    writeln!(w)
 }
 
 const GNSS_NAMES: [&str; 13] = [
@@ -390,33 +400,39 @@ pub fn read_gnss_text(path: impl AsRef<Path>) -> Result<Vec<GnssFix>, IoError> {
 pub fn write_gnss_text(path: impl AsRef<Path>, fixes: &[GnssFix]) -> Result<(), IoError> {
     write_with(path.as_ref(), |w| {
         for f in fixes {
-            write!(
-                w,
-                "{} {} {} {} {} {} {}",
-                f.t_s,
-                f.lat_rad.to_degrees(),
-                f.lon_rad.to_degrees(),
-                f.h_m,
-                f.pos_std_ned_m[0],
-                f.pos_std_ned_m[1],
-                f.pos_std_ned_m[2]
-            )?;
-            if f.has_velocity {
-                write!(
-                    w,
-                    " {} {} {} {} {} {}",
-                    f.vel_ned_mps[0],
-                    f.vel_ned_mps[1],
-                    f.vel_ned_mps[2],
-                    f.vel_std_ned_mps[0],
-                    f.vel_std_ned_mps[1],
-                    f.vel_std_ned_mps[2]
-                )?;
-            }
-            writeln!(w)?;
+            write_gnss_line(w, f)?;
         }
         Ok(())
     })
+}
+
+/// One line of the GNSS text format (the six velocity fields when `has_velocity`); shared by
+/// [`write_gnss_text`] and streaming writers (hw-bridge).
+pub fn write_gnss_line<W: Write + ?Sized>(w: &mut W, f: &GnssFix) -> std::io::Result<()> {
+    write!(
+        w,
+        "{} {} {} {} {} {} {}",
+        f.t_s,
+        f.lat_rad.to_degrees(),
+        f.lon_rad.to_degrees(),
+        f.h_m,
+        f.pos_std_ned_m[0],
+        f.pos_std_ned_m[1],
+        f.pos_std_ned_m[2]
+    )?;
+    if f.has_velocity {
+        write!(
+            w,
+            " {} {} {} {} {} {}",
+            f.vel_ned_mps[0],
+            f.vel_ned_mps[1],
+            f.vel_ned_mps[2],
+            f.vel_std_ned_mps[0],
+            f.vel_std_ned_mps[1],
+            f.vel_std_ned_mps[2]
+        )?;
+    }
+    writeln!(w)
 }
 
 const NAV_NAMES: [&str; 11] = [
@@ -484,24 +500,30 @@ pub fn read_nav_text(path: impl AsRef<Path>) -> Result<Vec<NavSolution>, IoError
 pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<(), IoError> {
     write_with(path.as_ref(), |w| {
         for n in sols {
-            writeln!(
-                w,
-                "{} {} {} {} {} {} {} {} {} {} {}",
-                n.week,
-                n.t_s,
-                n.lat_rad.to_degrees(),
-                n.lon_rad.to_degrees(),
-                n.h_m,
-                n.vel_ned_mps[0],
-                n.vel_ned_mps[1],
-                n.vel_ned_mps[2],
-                n.rpy_rad[0].to_degrees(),
-                n.rpy_rad[1].to_degrees(),
-                n.rpy_rad[2].to_degrees()
-            )?;
+            write_nav_line(w, n)?;
         }
         Ok(())
     })
+}
+
+/// One line of the KF-GINS nav format; shared by [`write_nav_text`] and streaming writers
+/// (hw-bridge).
+pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "{} {} {} {} {} {} {} {} {} {} {}",
+        n.week,
+        n.t_s,
+        n.lat_rad.to_degrees(),
+        n.lon_rad.to_degrees(),
+        n.h_m,
+        n.vel_ned_mps[0],
+        n.vel_ned_mps[1],
+        n.vel_ned_mps[2],
+        n.rpy_rad[0].to_degrees(),
+        n.rpy_rad[1].to_degrees(),
+        n.rpy_rad[2].to_degrees()
+    )
 }
 
 /// Bytes of one record of the binary IMU format (7 little-endian f64).
