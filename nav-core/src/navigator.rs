@@ -977,6 +977,21 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         &self.cfg
     }
 
+    /// Replaces the start-up mode before the start (e.g. a board that learns only then that
+    /// its IMU clock is set from GNSS). Returns false, changing nothing, once the filter runs
+    /// or for [`AlignMode::Given`] (which starts at construction: use [`Self::new`]).
+    pub fn set_align_mode(&mut self, align: AlignMode) -> bool {
+        if self.filter.is_some() || matches!(align, AlignMode::Given { .. }) {
+            return false;
+        }
+        if let AlignMode::Static(s) = align {
+            self.window = StaticWindow::new(s.seconds);
+            self.fix_mean = FixMean::default();
+        }
+        self.cfg.align = align;
+        true
+    }
+
     /// Changes the filter configuration used by a later start; a running filter keeps the
     /// configuration it started with.
     pub fn set_filter_config(&mut self, cfg: FilterConfig) {
