@@ -198,7 +198,13 @@ fn generate(seconds: f64, imu_hz: f64) -> (Vec<ImuSample>, Vec<GnssFix>, NavStat
                 lon_rad: p.lon_rad,
                 h_m: p.h_m,
                 pos_std_ned_m: [0.02, 0.02, 0.04],
-                vel_ned_mps: (t.vel_ned_mps + Vector3::from([0.02 * noise.next(); 3])).into(),
+                vel_ned_mps: (t.vel_ned_mps
+                    + Vector3::new(
+                        0.02 * noise.next(),
+                        0.02 * noise.next(),
+                        0.04 * noise.next(),
+                    ))
+                .into(),
                 vel_std_ned_mps: [0.02, 0.02, 0.04],
                 has_velocity: true,
                 quality: FixQuality::RtkFixed,
