@@ -232,8 +232,7 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
             (t - ts <= self.cfg.stationarity.gnss_max_age_s && t - ts >= -1.0).then_some(v)
         });
         let g = earth::gravity_mps2(nav.pos.lat_rad, nav.pos.h_m);
-        self.stationary =
-            stationarity::is_stationary(&self.cfg.stationarity, &stats, g, speed);
+        self.stationary = stationarity::is_stationary(&self.cfg.stationarity, &stats, g, speed);
         let layout = *f.layout();
         if self.stationary {
             self.counters.stationary_epochs = self.counters.stationary_epochs.saturating_add(1);

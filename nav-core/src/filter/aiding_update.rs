@@ -41,8 +41,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         r64: &[f64; M],
         nis_threshold: f64,
     ) -> Result<AidingOutcome, FilterError> {
-        if !(z64.iter().all(|v| v.is_finite()) && r64.iter().all(|v| v.is_finite() && *v > 0.0))
-        {
+        if !(z64.iter().all(|v| v.is_finite()) && r64.iter().all(|v| v.is_finite() && *v > 0.0)) {
             return Err(self.numerical_failure());
         }
         self.predict_covariance()?;
