@@ -22,6 +22,7 @@
     )
 )]
 
+pub mod aiding;
 pub mod align;
 pub mod allan;
 pub mod attitude;

@@ -14,8 +14,11 @@
 //! failure (non-finite covariance, innovation covariance not positive definite) is reported and
 //! the previous covariance kept.
 
+mod aiding_update;
 pub mod linalg;
 pub mod robust;
+
+pub use aiding_update::AidingOutcome;
 
 use crate::attitude;
 use crate::config::{ConfigError, FilterConfig};
