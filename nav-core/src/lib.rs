@@ -76,6 +76,7 @@
     )
 )]
 
+pub mod aiding;
 pub mod align;
 pub mod allan;
 pub mod attitude;

@@ -21,6 +21,7 @@
 //! covariance scalar ([`Precision`]) is f64 by default, f32 allowed. Adding a model is one line
 //! in [`run_filter_with_progress`]'s dispatch macro.
 
+pub mod aiding;
 pub mod cli;
 pub mod coast;
 pub mod gating_report;
@@ -229,6 +230,9 @@ pub struct RunOptions {
     pub extra_blocks: Vec<Block>,
     /// IMU gap handling and plausibility limits.
     pub imu_checks: ImuChecks,
+    /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates; all off by
+    /// default), see [`aiding`].
+    pub aiding: nav_core::aiding::AidingConfig,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -267,6 +271,7 @@ impl RunOptions {
             end_s: None,
             extra_blocks: Vec::new(),
             imu_checks: ImuChecks::default(),
+            aiding: nav_core::aiding::AidingConfig::OFF,
         }
     }
 }
@@ -498,6 +503,8 @@ pub struct RunOutput {
     pub gating: gating_report::GatingReport,
     /// IMU gaps and rejected samples.
     pub imu_report: ImuReport,
+    /// What the land-vehicle aiding did.
+    pub aiding: aiding::AidingReport,
 }
 
 /// Errors of a run.
@@ -898,6 +905,7 @@ fn run_layout<T: Scalar, const N: usize>(
         ..ImuReport::default()
     };
     let mut fault: Option<(String, f64, String)> = None;
+    let mut aid = aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
     'imu: for k in first..last {
         let s = case.imu.get(k).copied().unwrap_or_default();
         let dt = s.t_s - filter.nav_state().t_s;
@@ -953,7 +961,7 @@ fn run_layout<T: Scalar, const N: usize>(
             }
         }
         match filter.propagate(&c.sample) {
-            Ok(()) => {}
+            Ok(()) => aid.after_imu(&mut filter),
             Err(FilterError::NonFiniteImu) => {
                 counters.imu_rejected += 1;
                 continue;
@@ -998,6 +1006,7 @@ fn run_layout<T: Scalar, const N: usize>(
                 });
                 continue;
             }
+            aid.note_fix(fix);
             match filter.update_gnss(fix) {
                 Ok(o) => {
                     status_seen |= filter.status();
@@ -1098,6 +1107,7 @@ fn run_layout<T: Scalar, const N: usize>(
             status_seen,
         ),
         imu_report,
+        aiding: aid.report(),
     };
     match fault {
         None => Ok(out),

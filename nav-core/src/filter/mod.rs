@@ -15,8 +15,11 @@
 //! the previous covariance kept.
 
 mod access;
+mod aiding_update;
 pub(crate) mod linalg;
 pub mod robust;
+
+pub use aiding_update::AidingOutcome;
 
 use crate::attitude;
 use crate::config::{ConfigError, FilterConfig};
