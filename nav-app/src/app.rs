@@ -83,8 +83,9 @@ impl<const N: usize> NavApp<N> {
         nav_divider: u16,
         health_every: u32,
     ) -> Result<Self, NavigatorError> {
+        let nav = Navigator::new(layout, NavigatorConfig::new(cfg, first_fix(false)))?;
         Ok(Self {
-            nav: Navigator::new(layout, NavigatorConfig::new(cfg, first_fix(false)))?,
+            nav,
             last_imu: None,
             dec: FrameDecoder::new(),
             enc: Encoder::new(),

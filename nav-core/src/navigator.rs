@@ -488,11 +488,26 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     /// (errors: the filter's, for a bad configuration or initial state); the other modes
     /// check the configuration by building a filter at a neutral state.
     pub fn new(layout: Layout, cfg: NavigatorConfig) -> Result<Self, NavigatorError> {
+        match cfg.align {
+            AlignMode::Given { state, unc } => {
+                let mut nav = Self::unstarted(layout, cfg);
+                nav.start(state, &unc, &cfg.filter, true)?;
+                Ok(nav)
+            }
+            _ => {
+                // the configuration is checked now, not at the first fix
+                check_config::<T, N>(layout, &cfg.filter)?;
+                Ok(Self::unstarted(layout, cfg))
+            }
+        }
+    }
+
+    fn unstarted(layout: Layout, cfg: NavigatorConfig) -> Self {
         let seconds = match cfg.align {
             AlignMode::Static(s) => s.seconds,
             _ => 0.0,
         };
-        let mut nav = Self {
+        Self {
             layout,
             cfg,
             filter: None,
@@ -507,34 +522,11 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
             fix_mean: FixMean::default(),
             counters: NavigatorCounters::default(),
             aligned: None,
-        };
-        match cfg.align {
-            AlignMode::Given { state, unc } => {
-                nav.start(state, &unc, &cfg.filter, true)?;
-            }
-            _ => {
-                // the configuration is checked now, not at the first fix
-                let probe = NavState::from_rpy(
-                    0.0,
-                    Llh {
-                        lat_rad: 0.0,
-                        lon_rad: 0.0,
-                        h_m: 0.0,
-                    },
-                    Vector3::zeros(),
-                    [0.0; 3],
-                );
-                let unc = InitialUncertainty {
-                    att_sigma_rad: [1.0; 3],
-                    vel_sigma_mps: [1.0; 3],
-                    pos_sigma_m: [1.0; 3],
-                };
-                Filter::<T, N>::new(layout, &cfg.filter, probe, &unc)?;
-            }
         }
-        Ok(nav)
     }
 
+    // cold (start-up): kept out of the per-sample frames (MCU stack)
+    #[inline(never)]
     fn start(
         &mut self,
         state: NavState,
@@ -564,9 +556,11 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         Ok(a)
     }
 
-    /// The guard for the first sample after the start at `t0` (the latest sample seeds the
-    /// gap fill when it ends at `t0`).
-    fn make_guard(&self, t0: f64) -> Result<ImuGuard, GuardError> {
+    /// Sets up the guard for the first sample after the start at `t0` (the latest sample
+    /// seeds the gap fill when it ends at `t0`).
+    // cold (start-up): kept out of the per-sample frames (MCU stack)
+    #[inline(never)]
+    fn make_guard(&mut self, t0: f64) -> Result<(), GuardError> {
         let mut gc = self.cfg.guard;
         if !(gc.nominal_dt_s.is_finite() && gc.nominal_dt_s > 0.0) {
             gc.nominal_dt_s = self.leveller.mean_dt_s().unwrap_or(MAX_DT_S);
@@ -575,7 +569,8 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
             (Some(p), Some(pp)) if libm::fabs(p.t_s - t0) < 1e-9 => Some((p, p.t_s - pp.t_s)),
             _ => None,
         };
-        ImuGuard::new(gc, t0, prev)
+        self.guard = Some(ImuGuard::new(gc, t0, prev)?);
+        Ok(())
     }
 
     /// Applies the queued fixes due before a sample at `t_next_s` (nearest-epoch rule).
@@ -650,7 +645,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
                 step.imu = ImuEvent::BeforeStart;
                 return Ok(step);
             }
-            self.guard = Some(self.make_guard(t0)?);
+            self.make_guard(t0)?;
         }
         let (Some(guard), Some(filter)) = (self.guard.as_mut(), self.filter.as_mut()) else {
             return Ok(step);
@@ -694,6 +689,8 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     }
 
     /// A sample before the filter runs: levelling or the static window.
+    // cold (start-up): kept out of the per-sample frames (MCU stack)
+    #[inline(never)]
     fn align_with(&mut self, s: &ImuSample, step: &mut ImuStep<Q>) {
         match self.cfg.align {
             AlignMode::Given { .. } => {}
@@ -739,6 +736,8 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         }
     }
 
+    // cold (start-up): kept out of the per-sample frames (MCU stack)
+    #[inline(never)]
     fn finish_static(&mut self, sa: &StaticAlignSettings) -> Result<Aligned, AlignFailure> {
         let (ant, ant_std) = self.fix_mean.mean().ok_or(AlignFailure::NoFix)?;
         let acfg = sa.align.with_filter_biases(&self.cfg.filter);
@@ -838,6 +837,8 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         })
     }
 
+    // cold (start-up): kept out of the per-sample frames (MCU stack)
+    #[inline(never)]
     fn first_fix(&mut self, fix: &GnssFix, ff: &FirstFixAlign) -> GnssEvent {
         let Some(last) = self.last_imu else {
             self.counters.gnss_dropped = self.counters.gnss_dropped.saturating_add(1);
@@ -997,6 +998,31 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     pub fn set_filter_config(&mut self, cfg: FilterConfig) {
         self.cfg.filter = cfg;
     }
+}
+
+/// Whether a filter accepts `layout` and `cfg` (built at a neutral state and dropped; its own
+/// frame, so the caller's stack does not hold the filter).
+#[inline(never)]
+fn check_config<T: Scalar, const N: usize>(
+    layout: Layout,
+    cfg: &FilterConfig,
+) -> Result<(), FilterError> {
+    let probe = NavState::from_rpy(
+        0.0,
+        Llh {
+            lat_rad: 0.0,
+            lon_rad: 0.0,
+            h_m: 0.0,
+        },
+        Vector3::zeros(),
+        [0.0; 3],
+    );
+    let unc = InitialUncertainty {
+        att_sigma_rad: [1.0; 3],
+        vel_sigma_mps: [1.0; 3],
+        pos_sigma_m: [1.0; 3],
+    };
+    Filter::<T, N>::new(layout, cfg, probe, &unc).map(|_| ())
 }
 
 /// The classical 15-state model with the f32 covariance of the MCU; its layout is

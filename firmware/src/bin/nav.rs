@@ -1,5 +1,6 @@
 //! The navigation application: the board supplies the frame link, the time base and (on a
-//! real board) the IMU; [`firmware::app::NavApp`] (crate `nav-app`) runs the filter of the compile-time model.
+//! real board) the IMU; [`firmware::app::NavApp`] (crate `nav-app`) runs the navigator over
+//! the filter of the compile-time model.
 #![no_std]
 #![no_main]
 
@@ -13,14 +14,26 @@ const NAV_DIVIDER: u16 = 20;
 /// One health frame per this many IMU epochs (1 Hz at 200 Hz).
 const HEALTH_EVERY: u32 = 200;
 
-#[entry]
-fn main() -> ! {
-    stack::paint();
-    let Ok(mut app) =
-        NavApp::<{ model::N }>::new(model::LAYOUT, model::config(), NAV_DIVIDER, HEALTH_EVERY)
-    else {
+type App = NavApp<{ model::N }>;
+
+/// The application in static RAM (about 10 KiB with its navigator), built in this function's
+/// own frame so `main`'s frame, live for the whole run, holds no copy of it.
+#[inline(never)]
+fn make_app() -> &'static mut App {
+    let app = NavApp::new(model::LAYOUT, model::config(), NAV_DIVIDER, HEALTH_EVERY);
+    let Ok(app) = app else {
         // the compile-time model's configuration is refused: a build error in practice
         panic!("nav: the filter refuses the model's configuration")
     };
-    board::run_nav(&mut app)
+    let Some(slot) = cortex_m::singleton!(: App = app) else {
+        panic!("nav: the application is built once")
+    };
+    slot
+}
+
+#[entry]
+fn main() -> ! {
+    stack::paint();
+    let app = make_app();
+    board::run_nav(app)
 }

@@ -15,7 +15,9 @@
 use crate::scalar::Scalar;
 use core::ops::{Add, Mul};
 
-/// `J(v)` (3 x 6): `M v = J(v) m` for the misalignment state order of the module docs.
+/// `J(v)` (3 x 6): `M v = J(v) m` for the misalignment state order of the module docs (the
+/// definition [`c_mis`] is checked against; the filter uses `c_mis` only).
+#[cfg(test)]
 pub fn misalignment_jacobian<T: Copy + Default>(v: &[T; 3]) -> [[T; 6]; 3] {
     let [x, y, z] = *v;
     let o = T::default();

@@ -1,0 +1,214 @@
+//! Read access to a [`Filter`] and its sensor-error estimates: the solution, the nominal
+//! state, the covariance and standard deviations, block estimates (and setting them from a
+//! calibration), the IMU correction, counters and status.
+
+use super::*;
+
+impl<T: Scalar, const N: usize> Filter<T, N> {
+    /// The IMU error correction from the current sensor-error estimates.
+    pub fn imu_correction(&self) -> ImuCorrection {
+        let mut c = ImuCorrection {
+            temperature_ref_c: self.temperature_ref_c,
+            ..ImuCorrection::default()
+        };
+        for (off, b) in self.layout.iter() {
+            if let Some(e) = self.est.get(off..off + b.dim()) {
+                b.add_correction(e, &mut c);
+            }
+        }
+        c
+    }
+
+    /// The GNSS antenna lever arm in use, body FRD, m: the configured one plus the
+    /// [`crate::model::Block::LeverArm`] estimate when the layout has it.
+    pub fn lever_arm_body_m(&self) -> [f64; 3] {
+        let mut l = self.cfg.lever_arm_body_m;
+        if let Some(e) = self.block_estimate(BlockKind::LeverArm) {
+            for (a, b) in l.iter_mut().zip(e) {
+                *a += *b;
+            }
+        }
+        l
+    }
+
+    /// The estimated IMU-GNSS time offset, s ([`crate::model::Block::TimeOffset`]; 0 without
+    /// the block).
+    pub fn time_offset_s(&self) -> f64 {
+        self.block_estimate(BlockKind::TimeOffset)
+            .and_then(|e| e.first().copied())
+            .unwrap_or(0.0)
+    }
+
+    /// The reference temperature of the temperature blocks, degC (NaN until the first sample
+    /// with a temperature when none is configured).
+    pub fn temperature_ref_c(&self) -> f64 {
+        self.temperature_ref_c
+    }
+
+    /// Estimate and 1-sigma of every state of a block (SI units of the block, see
+    /// [`crate::model::Block`]), or None when the layout has no such block.
+    pub fn block_value(&self, kind: BlockKind) -> Option<BlockValue> {
+        let (off, b) = self.layout.find(kind)?;
+        let mut v = BlockValue {
+            block: b,
+            dim: b.dim(),
+            estimate: [0.0; MAX_BLOCK_DIM],
+            sigma: [0.0; MAX_BLOCK_DIM],
+        };
+        for (k, (e, sg)) in v.estimate.iter_mut().zip(v.sigma.iter_mut()).enumerate() {
+            if k >= b.dim() {
+                break;
+            }
+            *e = self.est.get(off + k).copied().unwrap_or(0.0);
+            *sg = libm::sqrt(get2(&self.p, off + k, off + k).to_f64().max(0.0));
+        }
+        Some(v)
+    }
+
+    /// The nominal navigation state (IMU reference point).
+    pub fn nav_state(&self) -> &NavState {
+        self.mech.state()
+    }
+
+    /// The last mechanisation step (corrected specific force and rate).
+    pub fn last_step(&self) -> &StepInfo {
+        &self.last_step
+    }
+
+    /// The error covariance (row-major; units of the states: rad, m/s, m, sensor units).
+    pub fn covariance(&self) -> &Cov<T, N> {
+        &self.p
+    }
+
+    /// 1-sigma of every error state (sqrt of the covariance diagonal).
+    pub fn state_std(&self) -> [f64; N] {
+        let mut out = [0.0; N];
+        for (i, (o, row)) in out.iter_mut().zip(self.p.iter()).enumerate() {
+            *o = libm::sqrt(row.get(i).copied().unwrap_or(T::ZERO).to_f64());
+        }
+        out
+    }
+
+    /// The current estimate of a block's states (sensor errors in SI units; the core's entries
+    /// are always zero: its errors are fed back), or None when the layout has no such block.
+    pub fn block_estimate(&self, kind: BlockKind) -> Option<&[f64]> {
+        let (off, b) = self.layout.find(kind)?;
+        self.est.get(off..off + b.dim())
+    }
+
+    /// Sets a block's sensor-error estimate (e.g. biases saved from a previous run or a
+    /// calibration), SI units, `values.len()` must equal the block's dimension. The covariance
+    /// is unchanged. Errors: no such block, wrong length, or non-finite values.
+    pub fn set_block_estimate(
+        &mut self,
+        kind: BlockKind,
+        values: &[f64],
+    ) -> Result<(), FilterError> {
+        let (off, b) = self.layout.find(kind).ok_or(FilterError::NoSuchBlock)?;
+        if kind == BlockKind::Core
+            || values.len() != b.dim()
+            || !values.iter().all(|v| v.is_finite())
+        {
+            return Err(FilterError::NoSuchBlock);
+        }
+        let dst = self
+            .est
+            .get_mut(off..off + b.dim())
+            .ok_or(FilterError::NoSuchBlock)?;
+        dst.copy_from_slice(values);
+        self.refresh_correction();
+        Ok(())
+    }
+
+    /// Total estimate and 1-sigma per axis of an IMU error quantity (the sum over the block's
+    /// 3-state groups, e.g. b_GM + b_RW, with their cross-covariance), or None when absent.
+    pub fn imu_error(&self, kind: BlockKind) -> Option<([f64; 3], [f64; 3])> {
+        let (off, b) = self.layout.find(kind)?;
+        b.quantity()?;
+        let groups = b.dim() / 3;
+        let mut val = [0.0; 3];
+        let mut std = [0.0; 3];
+        for axis in 0..3 {
+            let mut v = 0.0;
+            let mut var = 0.0;
+            for g in 0..groups {
+                let i = off + 3 * g + axis;
+                v += self.est.get(i).copied().unwrap_or(0.0);
+                for h in 0..groups {
+                    var += get2(&self.p, i, off + 3 * h + axis).to_f64();
+                }
+            }
+            if let Some(x) = val.get_mut(axis) {
+                *x = v;
+            }
+            if let Some(x) = std.get_mut(axis) {
+                *x = libm::sqrt(var);
+            }
+        }
+        Some((val, std))
+    }
+
+    /// The navigation solution with standard deviations (GPS week unknown to the filter: 0).
+    pub fn solution(&self) -> NavSolution {
+        let s = self.mech.state();
+        let sd = self.state_std();
+        let rpy = attitude::euler_zyx_from_quat(&s.q_nb);
+        let att_std = euler_std(&rpy, &self.p);
+        NavSolution {
+            week: 0,
+            t_s: s.t_s,
+            lat_rad: s.pos.lat_rad,
+            lon_rad: s.pos.lon_rad,
+            h_m: s.pos.h_m,
+            vel_ned_mps: s.vel_ned_mps.into(),
+            rpy_rad: rpy,
+            pos_std_ned_m: vec3_at(&sd, IDX_POS),
+            vel_std_ned_mps: vec3_at(&sd, IDX_VEL),
+            att_std_rad: att_std,
+            status: self.status,
+        }
+    }
+
+    /// Event counters.
+    pub fn counters(&self) -> &Counters {
+        &self.counters
+    }
+
+    /// What the robust gating and its NIS monitor did, and their current state (all zero /
+    /// one with the hard gate, except `resets`).
+    pub fn robust_stats(&self) -> &RobustStats {
+        &self.gate.stats
+    }
+
+    /// Status bits (`STATUS_*`).
+    pub fn status(&self) -> u32 {
+        self.status
+    }
+
+    /// The state layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FilterConfig {
+        &self.cfg
+    }
+
+    /// IMU time accumulated since the last covariance prediction, s.
+    pub fn pending_prediction_s(&self) -> f64 {
+        self.acc.dt_s
+    }
+
+    /// Whether the covariance is symmetric positive definite, checked by a Cholesky
+    /// factorisation in the filter's own scalar type (N^3/6 multiply-adds).
+    pub fn covariance_is_positive_definite(&self) -> bool {
+        let sym = self.p.iter().enumerate().all(|(i, row)| {
+            row.iter()
+                .enumerate()
+                .all(|(j, v)| *v == get2(&self.p, j, i))
+        });
+        let mut a = self.p;
+        sym && cholesky_in_place(&mut a)
+    }
+}
