@@ -11,6 +11,7 @@
 //! Writers write gzip when the path ends in `.gz`.
 
 mod error;
+pub mod gnsscsv;
 pub mod gpstime;
 pub mod imucsv;
 pub mod kfgins;
@@ -22,6 +23,10 @@ pub mod tag;
 pub mod text;
 
 pub use error::IoError;
+pub use gnsscsv::{
+    read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
+    QualityMap, SpeedUnit, TimeScale,
+};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,

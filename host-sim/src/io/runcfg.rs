@@ -19,6 +19,7 @@
 //! (`k_..._per_sqrt_hz` is the bias random walk written as a rate PSD per sqrt(Hz), the way
 //! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
 
+use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
 use super::imucsv::{read_imu_csv, ImuCsvFormat};
 use super::mount::Mounting;
 use super::pos::{read_rtklib_pos, PosOptions};
@@ -120,6 +121,8 @@ pub enum GnssFileKind {
     Text,
     /// An RTKLIB `.pos` solution file.
     RtklibPos,
+    /// A generic CSV/text log, mapped by `[gnss.csv]`.
+    Csv,
 }
 
 fn default_max_q() -> u8 {
@@ -138,6 +141,9 @@ pub struct GnssSource {
     pub path: PathBuf,
     /// File kind.
     pub format: GnssFileKind,
+    /// Column/time/quality mapping, required for `format = "csv"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub csv: Option<GnssCsvFormat>,
     /// Keep RTKLIB records with quality 1 <= Q <= max_q (1 fixed .. 6 PPP); default 6.
     #[serde(default = "default_max_q")]
     pub max_q: u8,
@@ -576,6 +582,9 @@ impl RunConfig {
         if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
             bad.push("imu.format = \"csv\" needs an [imu.csv] mapping".into());
         }
+        if (self.gnss.format == GnssFileKind::Csv) != self.gnss.csv.is_some() {
+            bad.push("gnss.format = \"csv\" and a [gnss.csv] mapping go together".into());
+        }
         if !self.imu.mounting.is_finite() {
             bad.push("imu.mounting angles must be finite".into());
         }
@@ -729,6 +738,8 @@ pub struct RunInputs {
     pub gnss_week: Option<i64>,
     /// GNSS records dropped by the quality filter.
     pub gnss_dropped_by_quality: usize,
+    /// Things the readers want the user to know, each once (e.g. default GNSS sigmas used).
+    pub warnings: Vec<String>,
     /// Reference trajectory, when configured.
     pub truth: Option<TruthData>,
 }
@@ -759,8 +770,18 @@ impl RunConfig {
             }
         }
         let gnss_path = Self::resolve(config_dir, &self.gnss.path);
+        let mut warnings = Vec::new();
         let (mut gnss, gnss_week, dropped) = match self.gnss.format {
             GnssFileKind::Text => (read_gnss_text(&gnss_path)?, None, 0),
+            GnssFileKind::Csv => {
+                let fmt = self.gnss.csv.as_ref().ok_or_else(|| IoError::Config {
+                    path: gnss_path.clone(),
+                    message: "gnss.format = \"csv\" needs a [gnss.csv] mapping".into(),
+                })?;
+                let r = read_gnss_csv(&gnss_path, fmt)?;
+                warnings.extend(r.warnings);
+                (r.fixes, r.week, r.dropped_by_quality)
+            }
             GnssFileKind::RtklibPos => {
                 let r = read_rtklib_pos(
                     &gnss_path,
@@ -791,6 +812,7 @@ impl RunConfig {
             gnss,
             gnss_week,
             gnss_dropped_by_quality: dropped,
+            warnings,
             truth,
         })
     }

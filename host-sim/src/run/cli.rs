@@ -513,6 +513,9 @@ fn prepare_run_config(
         ),
         None => {
             let inp = r.load_inputs(dir)?;
+            for w in &inp.warnings {
+                eprintln!("warning: {w}");
+            }
             if let Some(w) = inp.gnss_week {
                 week = u16::try_from(w).unwrap_or(0);
             }
