@@ -3,11 +3,9 @@
 //! name; u-blox CSV with speed and bearing and no accuracy), missing sigmas, the quality
 //! filter, and malformed input named by file, line and column.
 
-use host_sim::io::gpstime::gpst_week_sow;
-use host_sim::io::{
-    parse_run_config, read_gnss_csv, GnssCsvFormat, GnssFileKind, IoError, RunConfig,
-};
 use nav_core::types::FixQuality;
+use nav_io::gpstime::gpst_week_sow;
+use nav_io::{parse_run_config, read_gnss_csv, GnssCsvFormat, GnssFileKind, IoError, RunConfig};
 use std::path::{Path, PathBuf};
 
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
