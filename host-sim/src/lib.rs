@@ -9,6 +9,7 @@
 pub mod allan;
 pub mod diagnose;
 pub mod metrics;
+pub mod mounting;
 pub mod noise;
 pub mod run;
 pub mod sim;

@@ -24,6 +24,9 @@ enum Cmd {
     /// Find the effect the model lacks from the innovations, add it if the data pay for it
     /// (BIC), and write diagnosis.json, nav_before.txt and nav_after.txt.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
+    /// Estimate the IMU-to-body rotation from the data (the configured [imu.mounting] is
+    /// ignored) and print the [imu.mounting] section to paste.
+    Mounting(host_sim::mounting::MountingArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -34,6 +37,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Study(a) => host_sim::study::run(a),
         Cmd::Run(a) => host_sim::run::cli::run(a),
         Cmd::Diagnose(a) => host_sim::diagnose::run(a),
+        Cmd::Mounting(a) => host_sim::mounting::run(a),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -120,6 +120,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         json: Some(json.clone()),
         no_plot: false,
         quiet: true,
+        exclude_outliers: false,
     })
     .expect("allan run");
     let v: serde_json::Value =

@@ -147,6 +147,14 @@ pub enum AlignError {
         /// Limit from the configuration (m/s^2 or rad/s).
         limit: f64,
     },
+    /// In-motion alignment: the GNSS horizontal speed is too low for its course to give the
+    /// heading.
+    TooSlow {
+        /// Horizontal speed, m/s.
+        speed_mps: f64,
+        /// Required speed, m/s.
+        min_mps: f64,
+    },
     /// Gyrocompassing would be worse than [`AlignConfig::max_gyrocompass_std_rad`] (gyro too
     /// poor for the latitude, or window too short).
     GyrocompassInaccurate {
@@ -191,6 +199,11 @@ impl core::fmt::Display for AlignError {
             Self::NotStatic { cue, value, limit } => write!(
                 f,
                 "alignment window is not static: {cue} = {value:e} exceeds {limit:e}"
+            ),
+            Self::TooSlow { speed_mps, min_mps } => write!(
+                f,
+                "in-motion alignment: GNSS horizontal speed {speed_mps:.3} m/s is below \
+                 {min_mps} m/s, too slow for the course to give the heading"
             ),
             Self::GyrocompassInaccurate { std_rad, limit_rad } => write!(
                 f,
@@ -627,4 +640,133 @@ pub fn static_start(
         gyro_bias_radps: bias,
         gyro_bias_sigma_floor_radps: floor,
     }
+}
+
+/// Settings of the in-motion alignment ([`motion_align`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionAlignConfig {
+    /// Lowest horizontal GNSS speed whose course is taken as the heading, m/s.
+    pub min_speed_mps: f64,
+    /// Assumed one-sigma angle between the body x axis and the velocity (side slip, crab,
+    /// residual mounting yaw), rad; added to the course uncertainty for the yaw sigma.
+    pub sideslip_std_rad: f64,
+    /// Assumed one-sigma angle between the body x axis and the velocity in the vertical plane
+    /// (angle of attack, residual mounting pitch), rad; added for the pitch sigma.
+    pub attack_std_rad: f64,
+    /// One-sigma roll when it cannot be levelled (no specific force given), rad.
+    pub unlevelled_roll_std_rad: f64,
+    /// Assumed one-sigma residual accelerometer bias, m/s^2 (for the roll sigma).
+    pub accel_bias_mps2: f64,
+}
+
+impl Default for MotionAlignConfig {
+    /// 3 m/s, 2 deg side slip, 2 deg angle of attack, 10 deg roll when not levelled,
+    /// 10 mg accelerometer bias (consumer MEMS).
+    fn default() -> Self {
+        Self {
+            min_speed_mps: 3.0,
+            sideslip_std_rad: 2.0 * DEG,
+            attack_std_rad: 2.0 * DEG,
+            unlevelled_roll_std_rad: 10.0 * DEG,
+            accel_bias_mps2: 0.01 * earth::G0_MPS2,
+        }
+    }
+}
+
+/// What [`motion_align`] measured the roll from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MotionLevelling {
+    /// Mean specific force over a short interval, body axes, m/s^2.
+    pub mean_f_body_mps2: [f64; 3],
+    /// Mean kinematic acceleration over the same interval (from the GNSS velocity), NED,
+    /// m/s^2.
+    pub accel_ned_mps2: [f64; 3],
+    /// One-sigma of `accel_ned_mps2` per axis, m/s^2.
+    pub accel_std_mps2: f64,
+    /// Magnitude of gravity at the position, m/s^2.
+    pub gravity_mps2: f64,
+}
+
+/// In-motion coarse alignment from the GNSS velocity (a vehicle that moves from the first
+/// sample, where the static levelling cannot work):
+///
+/// * yaw = the course `atan2(v_E, v_N)`, assuming the body x axis points along the velocity
+///   (a land vehicle without side slip; the IMU mounting rotation already applied);
+/// * pitch = the climb angle `atan2(-v_D, |v_H|)`;
+/// * roll: levelled on the move when `level` is given: the specific force predicted from the
+///   GNSS acceleration, `f^n = a^n - g^n`, rotated by the yaw and pitch above, is compared
+///   with the measured mean specific force in the body y-z plane; roll is the angle between
+///   them. Without `level` the roll is 0 with [`MotionAlignConfig::unlevelled_roll_std_rad`].
+///
+/// `vel_ned_mps` is the GNSS velocity (m/s) and `vel_std_mps` its one-sigma per axis (m/s).
+/// The one-sigma attitude returned combines the course/climb noise (`vel_std / speed`) with
+/// the configured side-slip and attack allowances, and for the roll the accelerometer bias
+/// and the GNSS acceleration noise over gravity. The result's window fields
+/// (`mean_omega_body_radps`, `duration_s`, `t_end_s`) are zero: the caller places the state.
+pub fn motion_align(
+    vel_ned_mps: [f64; 3],
+    vel_std_mps: f64,
+    level: Option<&MotionLevelling>,
+    cfg: &MotionAlignConfig,
+) -> Result<Alignment, AlignError> {
+    let [vn, ve, vd] = vel_ned_mps;
+    if !(vn.is_finite() && ve.is_finite() && vd.is_finite() && vel_std_mps.is_finite()) {
+        return Err(AlignError::NonFinite { index: 0 });
+    }
+    let vh = sqrt(vn * vn + ve * ve);
+    if vh.is_nan() || vh < cfg.min_speed_mps {
+        return Err(AlignError::TooSlow {
+            speed_mps: vh,
+            min_mps: cfg.min_speed_mps,
+        });
+    }
+    let yaw = atan2(ve, vn);
+    let pitch = atan2(-vd, vh);
+    let course_std = vel_std_mps.abs() / vh;
+    let yaw_std = sqrt(course_std * course_std + cfg.sideslip_std_rad * cfg.sideslip_std_rad);
+    let pitch_std = sqrt(course_std * course_std + cfg.attack_std_rad * cfg.attack_std_rad);
+    let (roll, roll_std, mean_f) = match level {
+        None => (0.0, cfg.unlevelled_roll_std_rad, [0.0; 3]),
+        Some(l) => {
+            let [an, ae, ad] = l.accel_ned_mps2;
+            let [fx, fy, fz] = l.mean_f_body_mps2;
+            let all = [an, ae, ad, fx, fy, fz, l.gravity_mps2, l.accel_std_mps2];
+            if !all.iter().all(|v| v.is_finite()) {
+                return Err(AlignError::NonFinite { index: 0 });
+            }
+            // f^n = a^n - g^n, g^n = (0, 0, g)
+            let (n, e, d) = (an, ae, ad - l.gravity_mps2);
+            // C_n^b without roll: R2(pitch) R3(yaw)
+            let (sy, cy) = (sin(yaw), cos(yaw));
+            let (sp, cp) = (sin(pitch), cos(pitch));
+            let x1 = cy * n + sy * e;
+            let y1 = -sy * n + cy * e;
+            let z1 = d;
+            let y2 = y1;
+            let z2 = sp * x1 + cp * z1;
+            // body = R1(roll) (y2, z2): the body vector is the predicted one turned by -roll
+            let mut r = atan2(z2, y2) - atan2(fz, fy);
+            while r > core::f64::consts::PI {
+                r -= 2.0 * core::f64::consts::PI;
+            }
+            while r < -core::f64::consts::PI {
+                r += 2.0 * core::f64::consts::PI;
+            }
+            let g = l.gravity_mps2.max(1.0);
+            let tilt = sqrt(
+                cfg.accel_bias_mps2 * cfg.accel_bias_mps2 + l.accel_std_mps2 * l.accel_std_mps2,
+            ) / g;
+            (r, tilt, l.mean_f_body_mps2)
+        }
+    };
+    Ok(Alignment {
+        rpy_rad: [roll, pitch, yaw],
+        att_std_rad: [roll_std, pitch_std, yaw_std],
+        mean_f_body_mps2: mean_f,
+        mean_omega_body_radps: [0.0; 3],
+        duration_s: 0.0,
+        t_end_s: 0.0,
+    })
 }

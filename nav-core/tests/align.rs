@@ -359,3 +359,59 @@ fn an_aligned_strapdown_stays_at_rest() {
     println!("aligned from perfect data, 60 s later: {d:.3e} m from the start");
     assert!(d < 1e-4, "{d} m");
 }
+
+/// In-motion alignment: yaw and pitch from the GNSS velocity, roll levelled with the specific
+/// force predicted from the GNSS acceleration (a car in a banked turn, climbing).
+#[test]
+fn motion_alignment_recovers_the_attitude_from_gnss_velocity_and_specific_force() {
+    use nav_core::align::{motion_align, MotionAlignConfig, MotionLevelling};
+    let g = 9.81;
+    for (roll, pitch, yaw) in [
+        (0.0, 0.0, 30.0),
+        (3.0, 2.0, -120.0),
+        (-5.0, -4.0, 179.0),
+        (8.0, 1.0, 90.0),
+    ] {
+        let rpy = [roll * DEG, pitch * DEG, yaw * DEG];
+        let q = nav_core::attitude::quat_from_euler_zyx(rpy);
+        let c_bn = q.to_rotation_matrix().into_inner();
+        // velocity along the body x axis at 15 m/s
+        let v = c_bn * Vector3::new(15.0, 0.0, 0.0);
+        // turning left at 0.2 rad/s: centripetal acceleration along body -y, plus braking
+        let a = c_bn * Vector3::new(-1.0, -3.0, 0.0);
+        let f_b = c_bn.transpose() * (a - Vector3::new(0.0, 0.0, g));
+        let lv = MotionLevelling {
+            mean_f_body_mps2: f_b.into(),
+            accel_ned_mps2: a.into(),
+            accel_std_mps2: 0.05,
+            gravity_mps2: g,
+        };
+        let al = motion_align(v.into(), 0.05, Some(&lv), &MotionAlignConfig::default()).unwrap();
+        for (k, (got, want)) in al.rpy_rad.iter().zip(rpy).enumerate() {
+            assert!(
+                wrap(got - want).abs() < 1e-9,
+                "axis {k}: {} vs {}",
+                got / DEG,
+                want / DEG
+            );
+        }
+        // yaw sigma: course noise 0.05 / |v_H| rad with the 2 deg side-slip allowance
+        let vh = v.x.hypot(v.y);
+        let want = ((0.05 / vh).powi(2) + (2.0 * DEG).powi(2)).sqrt();
+        assert!((al.att_std_rad[2] - want).abs() < 1e-12);
+        // without levelling: roll 0 and the configured 10 deg
+        let al = motion_align(v.into(), 0.05, None, &MotionAlignConfig::default()).unwrap();
+        assert_eq!(al.rpy_rad[0], 0.0);
+        assert!((al.att_std_rad[0] - 10.0 * DEG).abs() < 1e-12);
+    }
+    let e = motion_align([1.0, 1.0, 0.0], 0.05, None, &MotionAlignConfig::default()).unwrap_err();
+    assert!(matches!(e, AlignError::TooSlow { .. }));
+    assert!(e.to_string().contains("1.414"), "{e}");
+    let e = motion_align(
+        [f64::NAN, 1.0, 0.0],
+        0.05,
+        None,
+        &MotionAlignConfig::default(),
+    );
+    assert!(e.is_err());
+}

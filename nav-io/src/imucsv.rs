@@ -339,7 +339,7 @@ fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
 
 /// Names from a header line: fields (comma or space separated) reduced to their first word,
 /// leading `#`/`%` removed.
-fn header_names(line: &str) -> Vec<String> {
+pub(crate) fn header_names(line: &str) -> Vec<String> {
     let body = line.trim_start().trim_start_matches(['#', '%']);
     split_fields(body)
         .into_iter()
@@ -347,7 +347,7 @@ fn header_names(line: &str) -> Vec<String> {
         .collect()
 }
 
-fn resolve(
+pub(crate) fn resolve(
     path: &Path,
     c: &Column,
     names: Option<&[String]>,

@@ -15,6 +15,7 @@
 
 pub mod aidingcfg;
 mod error;
+pub mod gnsscsv;
 pub mod gpstime;
 pub mod imucsv;
 pub mod kfgins;
@@ -27,6 +28,10 @@ pub mod text;
 
 pub use aidingcfg::AidingSection;
 pub use error::IoError;
+pub use gnsscsv::{
+    read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
+    QualityMap, SpeedUnit, TimeScale,
+};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,

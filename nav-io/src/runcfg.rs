@@ -19,6 +19,7 @@
 //! (`k_..._per_sqrt_hz` is the bias random walk written as a rate PSD per sqrt(Hz), the way
 //! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
 
+use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
 use super::imucsv::{read_imu_csv, ImuCsvFormat};
 use super::mount::Mounting;
 use super::pos::{read_rtklib_pos, PosOptions};
@@ -119,6 +120,8 @@ pub enum GnssFileKind {
     Text,
     /// An RTKLIB `.pos` solution file.
     RtklibPos,
+    /// A generic CSV/text log, mapped by `[gnss.csv]`.
+    Csv,
 }
 
 fn default_max_q() -> u8 {
@@ -137,6 +140,9 @@ pub struct GnssSource {
     pub path: PathBuf,
     /// File kind.
     pub format: GnssFileKind,
+    /// Column/time/quality mapping, required for `format = "csv"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub csv: Option<GnssCsvFormat>,
     /// Keep RTKLIB records with quality 1 <= Q <= max_q (1 fixed .. 6 PPP); default 6.
     #[serde(default = "default_max_q")]
     pub max_q: u8,
@@ -574,9 +580,16 @@ impl RunConfig {
     /// Checks what serde cannot: CSV mapping present for CSV input, finite angles and
     /// offsets, non-negative sigmas, consistent noise keys, `1 <= max_q <= 6`.
     pub fn validate(&self) -> Result<(), String> {
-        let mut bad: Vec<String> = Vec::new();
+        let mut bad: Vec<String> = self
+            .located_problems()
+            .into_iter()
+            .map(|(table, key, msg)| format!("{}{key}: {msg}", dotted(table)))
+            .collect();
         if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
             bad.push("imu.format = \"csv\" needs an [imu.csv] mapping".into());
+        }
+        if (self.gnss.format == GnssFileKind::Csv) != self.gnss.csv.is_some() {
+            bad.push("gnss.format = \"csv\" and a [gnss.csv] mapping go together".into());
         }
         if !self.imu.mounting.is_finite() {
             bad.push("imu.mounting angles must be finite".into());
@@ -676,12 +689,179 @@ impl RunConfig {
     }
 }
 
+fn dotted(table: &str) -> String {
+    if table.is_empty() {
+        String::new()
+    } else {
+        format!("{table}.")
+    }
+}
+
+impl AccelNoiseConfig {
+    /// Every key with its value (absent: None).
+    fn entries(&self) -> [(&'static str, Option<f64>); 11] {
+        [
+            ("s_n", self.s_n),
+            ("n_ug_per_sqrt_hz", self.n_ug_per_sqrt_hz),
+            ("vrw_mps_per_sqrt_h", self.vrw_mps_per_sqrt_h),
+            ("s_b", self.s_b),
+            ("gm_sigma_ug", self.gm_sigma_ug),
+            ("t_b_s", self.t_b_s),
+            ("s_k", self.s_k),
+            ("k_ug_per_sqrt_h", self.k_ug_per_sqrt_h),
+            ("k_ug_per_sqrt_hz", self.k_ug_per_sqrt_hz),
+            ("bias_init_sigma", self.bias_init_sigma),
+            ("bias_init_ug", self.bias_init_ug),
+        ]
+    }
+}
+
+impl GyroNoiseConfig {
+    /// Every key with its value (absent: None).
+    fn entries(&self) -> [(&'static str, Option<f64>); 12] {
+        [
+            ("s_n", self.s_n),
+            ("arw_deg_per_sqrt_h", self.arw_deg_per_sqrt_h),
+            ("n_deg_per_s_per_sqrt_hz", self.n_deg_per_s_per_sqrt_hz),
+            ("s_b", self.s_b),
+            ("gm_sigma_deg_per_h", self.gm_sigma_deg_per_h),
+            ("t_b_s", self.t_b_s),
+            ("s_k", self.s_k),
+            ("k_deg_per_h_per_sqrt_h", self.k_deg_per_h_per_sqrt_h),
+            ("k_deg_per_s_per_sqrt_hz", self.k_deg_per_s_per_sqrt_hz),
+            ("bias_init_sigma", self.bias_init_sigma),
+            ("bias_init_deg_per_h", self.bias_init_deg_per_h),
+            ("bias_init_deg_per_s", self.bias_init_deg_per_s),
+        ]
+    }
+}
+
+/// White-noise keys: a density of zero there is a sensor trusted absolutely.
+const WHITE_KEYS: [&str; 6] = [
+    "s_n",
+    "n_ug_per_sqrt_hz",
+    "vrw_mps_per_sqrt_h",
+    "arw_deg_per_sqrt_h",
+    "n_deg_per_s_per_sqrt_hz",
+    "t_b_s",
+];
+
+impl RunConfig {
+    /// Problems tied to one key, as (table, key, message): noise values that are not finite,
+    /// negative (the TOML keys are densities or sigmas that are squared: a sign would vanish
+    /// silently), or zero where zero is meaningless (white noise, correlation time); effect
+    /// names that are not effects.
+    pub fn located_problems(&self) -> Vec<(&'static str, String, String)> {
+        let mut out = Vec::new();
+        let noise = self
+            .noise
+            .accel
+            .entries()
+            .into_iter()
+            .map(|e| ("noise.accel", e))
+            .chain(
+                self.noise
+                    .gyro
+                    .entries()
+                    .into_iter()
+                    .map(|e| ("noise.gyro", e)),
+            );
+        for (table, (key, v)) in noise {
+            let Some(v) = v else { continue };
+            if !v.is_finite() || v < 0.0 {
+                out.push((
+                    table,
+                    key.to_string(),
+                    format!(
+                        "{v} is not allowed: noise values are densities or sigmas and must be \
+                         finite and >= 0 (the sign would be squared away)"
+                    ),
+                ));
+            } else if v == 0.0 && WHITE_KEYS.contains(&key) {
+                out.push((
+                    table,
+                    key.to_string(),
+                    if key == "t_b_s" {
+                        "0 is not a correlation time: give t_b_s > 0 or drop the Gauss-Markov term"
+                            .to_string()
+                    } else {
+                        "a white-noise density of 0 makes the filter trust the sensor absolutely: \
+                         give the datasheet or `host-sim allan` value"
+                            .to_string()
+                    },
+                ));
+            }
+        }
+        for name in &self.effects {
+            if nav_core::model::Block::effect_from_name(name.trim()).is_none() {
+                let known: Vec<&str> = nav_core::model::EFFECT_BLOCKS
+                    .iter()
+                    .map(|b| b.name())
+                    .collect();
+                out.push((
+                    "",
+                    "effects".to_string(),
+                    format!(
+                        "{name:?} is not an effect name; known: {}",
+                        known.join(", ")
+                    ),
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// The 1-based line of `key` in the TOML table `table` ("" = top level) of `text`, when it is
+/// written there as `key = ...` (dotted keys and inline tables are not followed).
+pub fn key_line(text: &str, table: &str, key: &str) -> Option<usize> {
+    let mut cur = String::new();
+    for (i, raw) in text.lines().enumerate() {
+        let l = raw.trim();
+        if let Some(h) = l.strip_prefix('[') {
+            let h = h.trim_start_matches('[');
+            cur = h
+                .split(']')
+                .next()
+                .unwrap_or("")
+                .split('.')
+                .map(|p| p.trim().trim_matches('"'))
+                .collect::<Vec<_>>()
+                .join(".");
+            continue;
+        }
+        if cur == table {
+            if let Some(rest) = l.strip_prefix(key) {
+                if rest.trim_start().starts_with('=') {
+                    return Some(i + 1);
+                }
+            }
+        }
+    }
+    None
+}
+
 /// Parses and validates a run configuration from TOML text (`name` is used in errors).
 pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     let cfg: RunConfig = toml::from_str(text).map_err(|e| IoError::Config {
         path: name.to_path_buf(),
         message: e.to_string(),
     })?;
+    let located = cfg.located_problems();
+    if !located.is_empty() {
+        let message = located
+            .iter()
+            .map(|(table, key, msg)| match key_line(text, table, key) {
+                Some(l) => format!("line {l}: {}{key}: {msg}", dotted(table)),
+                None => format!("{}{key}: {msg}", dotted(table)),
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        return Err(IoError::Config {
+            path: name.to_path_buf(),
+            message,
+        });
+    }
     cfg.validate().map_err(|message| IoError::Config {
         path: name.to_path_buf(),
         message,
@@ -751,6 +931,8 @@ pub struct RunInputs {
     pub gnss_week: Option<i64>,
     /// GNSS records dropped by the quality filter.
     pub gnss_dropped_by_quality: usize,
+    /// Things the readers want the user to know, each once (e.g. default GNSS sigmas used).
+    pub warnings: Vec<String>,
     /// Reference trajectory, when configured.
     pub truth: Option<TruthData>,
 }
@@ -781,8 +963,18 @@ impl RunConfig {
             }
         }
         let gnss_path = Self::resolve(config_dir, &self.gnss.path);
+        let mut warnings = Vec::new();
         let (mut gnss, gnss_week, dropped) = match self.gnss.format {
             GnssFileKind::Text => (read_gnss_text(&gnss_path)?, None, 0),
+            GnssFileKind::Csv => {
+                let fmt = self.gnss.csv.as_ref().ok_or_else(|| IoError::Config {
+                    path: gnss_path.clone(),
+                    message: "gnss.format = \"csv\" needs a [gnss.csv] mapping".into(),
+                })?;
+                let r = read_gnss_csv(&gnss_path, fmt)?;
+                warnings.extend(r.warnings);
+                (r.fixes, r.week, r.dropped_by_quality)
+            }
             GnssFileKind::RtklibPos => {
                 let r = read_rtklib_pos(
                     &gnss_path,
@@ -813,6 +1005,7 @@ impl RunConfig {
             gnss,
             gnss_week,
             gnss_dropped_by_quality: dropped,
+            warnings,
             truth,
         })
     }

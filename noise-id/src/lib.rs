@@ -23,6 +23,7 @@
 #![deny(missing_docs)]
 pub mod edf;
 pub mod fit;
+pub mod outliers;
 pub mod reader;
 pub mod stats;
 

@@ -112,6 +112,10 @@ pub struct AllanArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Replace the outliers (Hampel filter: more than 8 robust sigmas from the median of 51
+    /// samples, always reported) by their window median before the statistics.
+    #[arg(long)]
+    pub exclude_outliers: bool,
 }
 
 /// The analysis of one channel.
@@ -598,7 +602,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         pb.enable_steady_tick(std::time::Duration::from_millis(120));
         pb
     });
-    let ch = read_input(&args)?;
+    let mut ch = read_input(&args)?;
     if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
@@ -608,6 +612,50 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
     }
     for note in &ch.notes {
         eprintln!("{note}");
+    }
+    // outliers: reported always, removed with --exclude-outliers
+    let hopt = noise_id::outliers::HampelOptions::default();
+    let outliers: Vec<noise_id::outliers::Outliers> = ch
+        .data
+        .par_iter()
+        .map(|y| noise_id::outliers::hampel(y, &hopt))
+        .collect();
+    println!(
+        "Outliers (Hampel: > {} robust sigma from the median of {} samples){}:",
+        hopt.n_sigma,
+        2 * hopt.half_window + 1,
+        if args.exclude_outliers {
+            ", replaced by the window median"
+        } else {
+            "; --exclude-outliers removes them"
+        }
+    );
+    for (name, o) in ch.names.iter().zip(&outliers) {
+        let times: Vec<String> = o
+            .indices
+            .iter()
+            .take(5)
+            .map(|&i| format!("{:.3}", i as f64 * ch.tau0_s))
+            .collect();
+        println!(
+            "  {name:3} {:8} ({:.4} %){}",
+            o.indices.len(),
+            100.0 * o.fraction(),
+            if times.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " at {} s from the start{}",
+                    times.join(", "),
+                    if o.indices.len() > 5 { ", ..." } else { "" }
+                )
+            }
+        );
+    }
+    if args.exclude_outliers {
+        for (y, o) in ch.data.iter_mut().zip(&outliers) {
+            *y = o.replaced(y);
+        }
     }
     let taus = match args.taus {
         TauArg::Octave => Taus::Octave,
@@ -681,7 +729,27 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", toml_path.display()))?;
     println!("wrote {}", toml_path.display());
     if let Some(j) = &args.json {
-        std::fs::write(j, to_json(&an)?).with_context(|| format!("writing {}", j.display()))?;
+        let mut v: serde_json::Value = serde_json::from_str(&to_json(&an)?)?;
+        if let Some(obj) = v.as_object_mut() {
+            let mut o = serde_json::Map::new();
+            for (name, out) in ch.names.iter().zip(&outliers) {
+                o.insert(
+                    name.clone(),
+                    serde_json::json!({
+                        "count": out.indices.len(),
+                        "fraction": out.fraction(),
+                        "excluded": args.exclude_outliers,
+                        "times_s": out.indices.iter().map(|&i| i as f64 * ch.tau0_s).collect::<Vec<_>>(),
+                        "sizes_sigma": out.sizes_sigma,
+                        "half_window": hopt.half_window,
+                        "n_sigma": hopt.n_sigma,
+                    }),
+                );
+            }
+            obj.insert("outliers".into(), serde_json::Value::Object(o));
+        }
+        std::fs::write(j, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("writing {}", j.display()))?;
         println!("wrote {}", j.display());
     }
     if !args.no_plot {

@@ -513,6 +513,9 @@ fn prepare_run_config(
         ),
         None => {
             let inp = r.load_inputs(dir)?;
+            for w in &inp.warnings {
+                eprintln!("warning: {w}");
+            }
             if let Some(w) = inp.gnss_week {
                 week = u16::try_from(w).unwrap_or(0);
             }
@@ -542,6 +545,10 @@ fn prepare_run_config(
         }
     };
     let imu = imu_rec.samples;
+    // the data against the configured [imu.mounting] (z gyro vs GNSS course, gravity at rest)
+    for w in crate::mounting::check_mounting(&imu, &gnss).warnings {
+        eprintln!("warning: {w}");
+    }
     for g in &mut gnss {
         for s in &mut g.pos_std_ned_m {
             *s *= r.gnss.sigma_scale;

@@ -17,13 +17,17 @@
 
 use super::{CaseData, RunError, RunOptions};
 use nalgebra::Vector3;
-use nav_core::align::{coarse_align, static_start, AlignConfig, HeadingSource};
+use nav_core::align::{
+    coarse_align, motion_align, static_start, AlignConfig, AlignError, HeadingSource,
+    MotionAlignConfig, MotionCue, MotionLevelling,
+};
 use nav_core::attitude::quat_from_rotvec;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::InitialUncertainty;
 use nav_core::model::BlockKind;
 use nav_core::nav::NavState;
+use nav_core::types::GnssFix;
 use serde::Serialize;
 
 /// How the filter's initial state is obtained.
@@ -208,7 +212,33 @@ fn static_alignment(
         .get(i0)
         .map(|s| s.t_s)
         .ok_or_else(|| RunError::Init("no IMU samples at or after the start".into()))?;
-    let i1 = case.imu.partition_point(|s| s.t_s <= t_a + sa.seconds);
+    // a vehicle that moves at the start cannot be levelled at rest: align from the GNSS
+    // velocity instead (and say so)
+    if let Some((speed, t_fix)) = start_speed(case, t_a) {
+        if speed >= MOVING_SPEED_MPS {
+            return motion_alignment(
+                case,
+                opts,
+                sa,
+                t_a,
+                format!(
+                    "GNSS speed {speed:.2} m/s at {t_fix:.2} s: the vehicle moves at the start"
+                ),
+            );
+        }
+    }
+    // the window covers `seconds`: it ends at the first sample at or after t_a + seconds (the
+    // samples' times need not fall on t_a + seconds: "static_s = 10" at 125 Hz gave a
+    // 9.9938 s window, refused as shorter than 10 s)
+    let mut i1 = case.imu.partition_point(|s| s.t_s <= t_a + sa.seconds);
+    if case
+        .imu
+        .get(i1.wrapping_sub(1))
+        .is_some_and(|s| s.t_s < t_a + sa.seconds - 1e-9)
+        && i1 < case.imu.len()
+    {
+        i1 += 1;
+    }
     let window = case.imu.get(i0..i1).unwrap_or(&[]);
     let t_b = window.last().map_or(t_a, |s| s.t_s);
 
@@ -278,9 +308,35 @@ fn static_alignment(
             )
         }
     };
-    let acfg = sa.align.with_filter_biases(cfg);
-    let al = coarse_align(window, &ant, heading.0, &acfg)
-        .map_err(|e| RunError::Init(format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}")))?;
+    let mut acfg = sa.align.with_filter_biases(cfg);
+    // the window length is the user's choice (static_s); float slack only
+    acfg.min_duration_s = sa.seconds - 1e-6;
+    let al = coarse_align(window, &ant, heading.0, &acfg).map_err(|e| {
+        let way_out = match e {
+            AlignError::TooShort { .. } => format!(
+                "the data after the start hold less than static_s = {} s: shorten \
+                 [init.align] static_s or move start_s earlier",
+                sa.seconds
+            ),
+            AlignError::NotStatic {
+                cue: MotionCue::GravityMismatch,
+                ..
+            } => "the vehicle accelerates, or the accelerometer bias/scale error is larger \
+                  than max_gravity_mismatch_mps2 (raise it for consumer MEMS, e.g. 0.2)"
+                .into(),
+            AlignError::NotStatic { .. } => format!(
+                "the vehicle is not at rest during the first {} s and the GNSS speed at the \
+                 start is below {MOVING_SPEED_MPS} m/s (so in-motion alignment was not used): \
+                 shorten static_s to the part at rest, move start_s to a stop or to where \
+                 the vehicle drives, or give [init.given]",
+                sa.seconds
+            ),
+            _ => "check the IMU time stamps of the window, or give [init.given]".into(),
+        };
+        RunError::Init(format!(
+            "static alignment on {t_a:.3} .. {t_b:.3} s: {e}; {way_out}"
+        ))
+    })?;
     let st = static_start(
         &al,
         &ant,
@@ -357,4 +413,172 @@ fn gnss_velocity_course(
             let v = vn.hypot(ve);
             (v >= min_speed_mps).then(|| (ve.atan2(vn), g.t_s, v))
         })
+}
+
+/// GNSS horizontal speed at or above which the run is aligned in motion, m/s.
+pub const MOVING_SPEED_MPS: f64 = 2.0;
+
+fn llh_of(g: &GnssFix) -> Llh {
+    Llh {
+        lat_rad: g.lat_rad,
+        lon_rad: g.lon_rad,
+        h_m: g.h_m,
+    }
+}
+
+/// The first two valid fixes at or after `t_a` (within 5 s of each other).
+fn first_two_fixes(case: &CaseData, t_a: f64) -> Option<(&GnssFix, &GnssFix)> {
+    let mut it = case
+        .gnss
+        .iter()
+        .filter(|g| g.t_s >= t_a - 1e-6 && g.t_s <= t_a + 5.0 && g.is_valid());
+    let a = it.next()?;
+    let b = it.next()?;
+    (b.t_s - a.t_s > 0.0 && b.t_s - a.t_s <= 5.0).then_some((a, b))
+}
+
+/// NED velocity at fix `a` (its own, or the mean over a -> b from the positions), m/s, and
+/// its one-sigma per axis.
+fn fix_velocity(a: &GnssFix, b: &GnssFix) -> (Vector3<f64>, f64) {
+    if a.has_velocity {
+        let s = max3(&a.vel_std_ned_mps);
+        return (Vector3::from(a.vel_ned_mps), s);
+    }
+    let dt = b.t_s - a.t_s;
+    let d = earth::ned_offset_m(&llh_of(a), &llh_of(b));
+    let s = a.pos_std_ned_m[0]
+        .max(a.pos_std_ned_m[1])
+        .hypot(b.pos_std_ned_m[0].max(b.pos_std_ned_m[1]));
+    (d / dt, s / dt)
+}
+
+/// Horizontal GNSS speed at the start and the time of the fix it is from.
+fn start_speed(case: &CaseData, t_a: f64) -> Option<(f64, f64)> {
+    let (a, b) = first_two_fixes(case, t_a)?;
+    let (v, _) = fix_velocity(a, b);
+    Some((v.x.hypot(v.y), a.t_s))
+}
+
+/// In-motion alignment (`nav_core::align::motion_align`): yaw from the GNSS course, pitch
+/// from the climb, roll levelled with the mean specific force between the first two fixes
+/// against the GNSS acceleration; position and velocity from the first fix after the start.
+fn motion_alignment(
+    case: &CaseData,
+    opts: &RunOptions,
+    sa: &StaticAlign,
+    t_a: f64,
+    why: String,
+) -> Result<Start, RunError> {
+    let (f0, f1) = first_two_fixes(case, t_a).ok_or_else(|| {
+        RunError::Init(format!(
+            "in-motion alignment ({why}) needs two valid GNSS fixes within 5 s after the start"
+        ))
+    })?;
+    let dt = f1.t_s - f0.t_s;
+    let (v0, v_std) = fix_velocity(f0, f1);
+    // acceleration: from the two fixes' velocities, or (positions only) from a third fix
+    let third = case
+        .gnss
+        .iter()
+        .filter(|g| g.t_s > f1.t_s && g.t_s <= f1.t_s + 5.0 && g.is_valid())
+        .find(|_| !f0.has_velocity);
+    let (acc, acc_std) = match (f0.has_velocity && f1.has_velocity, third) {
+        (true, _) => (
+            (Vector3::from(f1.vel_ned_mps) - v0) / dt,
+            std::f64::consts::SQRT_2 * v_std / dt,
+        ),
+        (false, Some(f2)) => {
+            let (v1, _) = fix_velocity(f1, f2);
+            let dtm = 0.5 * (f2.t_s - f0.t_s);
+            ((v1 - v0) / dtm, std::f64::consts::SQRT_2 * v_std / dtm)
+        }
+        (false, None) => (Vector3::zeros(), 1.0),
+    };
+    // mean specific force over (t0, t1]
+    let (mut dv, mut tsum) = (Vector3::zeros(), 0.0);
+    let mut prev: Option<f64> = None;
+    for s in case
+        .imu
+        .iter()
+        .filter(|s| s.t_s > f0.t_s - 0.02 && s.t_s <= f1.t_s)
+    {
+        if let Some(p) = prev {
+            dv += Vector3::from(s.dv_mps);
+            tsum += s.t_s - p;
+        }
+        prev = Some(s.t_s);
+    }
+    let p0 = llh_of(f0);
+    let level = (tsum > 0.0).then(|| MotionLevelling {
+        mean_f_body_mps2: (dv / tsum).into(),
+        accel_ned_mps2: acc.into(),
+        accel_std_mps2: acc_std,
+        gravity_mps2: earth::gravity_mps2(p0.lat_rad, p0.h_m),
+    });
+    let mcfg = MotionAlignConfig::default();
+    let mut al = motion_align(v0.into(), v_std, level.as_ref(), &mcfg).map_err(|e| {
+        RunError::Init(format!(
+            "in-motion alignment ({why}): {e}; give [init.given] or start where the vehicle \
+             stands still or drives faster"
+        ))
+    })?;
+    let heading = match sa.heading_rad {
+        Some(y) => {
+            al.rpy_rad[2] = y;
+            al.att_std_rad[2] = sa.heading_std_rad;
+            "given".to_string()
+        }
+        None => format!(
+            "GNSS velocity course at {:.2} m/s (fix at {:.2} s): {:.2} deg",
+            v0.x.hypot(v0.y),
+            f0.t_s,
+            al.rpy_rad[2].to_degrees()
+        ),
+    };
+    // start at the first IMU sample at or after the fix
+    let i = case.imu.partition_point(|s| s.t_s < f0.t_s);
+    let t0 = case.imu.get(i).map(|s| s.t_s).ok_or_else(|| {
+        RunError::Init(format!(
+            "in-motion alignment ({why}): no IMU sample after the first fix"
+        ))
+    })?;
+    let q = nav_core::attitude::quat_from_euler_zyx(al.rpy_rad);
+    let c = dcm_f64(&q);
+    let lag = t0 - f0.t_s;
+    let ant = earth::displace(&p0, &(v0 * lag));
+    let pos = earth::displace(&ant, &(-(c * Vector3::from(opts.lever_arm_m))));
+    let state = NavState {
+        t_s: t0,
+        pos,
+        vel_ned_mps: v0 + acc * lag,
+        q_nb: q,
+    };
+    let unc = InitialUncertainty {
+        att_sigma_rad: al.att_std_rad,
+        vel_sigma_mps: [v_std.max(sa.vel_sigma_mps); 3],
+        pos_sigma_m: f0.pos_std_ned_m.map(|s| s + 0.01),
+    };
+    Ok(Start {
+        gyro_bias_sigma_floor: None,
+        state,
+        unc,
+        estimates: Vec::new(),
+        report: InitReport {
+            t_s: t0,
+            method: format!("in-motion alignment ({why})"),
+            rpy_rad: al.rpy_rad,
+            att_sigma_rad: al.att_std_rad,
+            heading_source: format!(
+                "{heading}; pitch from the climb, roll {}",
+                if level.is_some() {
+                    "levelled on the move"
+                } else {
+                    "0 (no IMU data between the first fixes)"
+                }
+            ),
+            static_gyro_bias_radps: None,
+            static_mean_f_mps2: level.map(|l| l.mean_f_body_mps2),
+            static_window_s: None,
+        },
+    })
 }

@@ -1,0 +1,109 @@
+//! `run` warns when the data contradict the configured mounting: the body z gyro turning
+//! against the GNSS course, gravity at rest not along body -z.
+
+use host_sim::mounting::check_mounting;
+use host_sim::run::CaseData;
+use host_sim::sim::{simulate, ErrorModel, Scenario};
+
+fn case() -> CaseData {
+    let sc = Scenario::from_toml_str(
+        r#"
+name = "mount-check"
+description = "rest, then turns"
+[start]
+lat_deg = 48.1990
+lon_deg = 16.3700
+h_m = 220.0
+heading_deg = 20.0
+gps_week = 2227
+sow_s = 118800.0
+[imu]
+rate_hz = 100.0
+[[segment]]
+kind = "static"
+duration_s = 10.0
+[[segment]]
+kind = "accelerate"
+to_speed_mps = 10.0
+duration_s = 8.0
+[[segment]]
+kind = "turn"
+angle_deg = 120.0
+radius_m = 40.0
+[[segment]]
+kind = "turn"
+angle_deg = -150.0
+radius_m = 50.0
+[[segment]]
+kind = "cruise"
+duration_s = 10.0
+"#,
+        "mount-check",
+    )
+    .unwrap();
+    CaseData::from_sim(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
+}
+
+#[test]
+fn the_right_mounting_gives_no_warning() {
+    let d = case();
+    let c = check_mounting(&d.imu, &d.gnss);
+    let (slope, n) = c.turn_slope.unwrap();
+    println!(
+        "slope {slope:.4} over {n} intervals, rest f {:?}",
+        c.rest_f_body_mps2
+    );
+    assert!((slope - 1.0).abs() < 0.05, "{slope}");
+    assert!(n >= 10, "{n}");
+    let (f, t) = c.rest_f_body_mps2.unwrap();
+    assert!(t > 5.0 && f[2] < -9.7, "{f:?} {t}");
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+}
+
+#[test]
+fn an_upside_down_imu_is_named() {
+    let mut d = case();
+    // IMU mounted with 180 deg of roll but configured as identity: y and z negated
+    for s in &mut d.imu {
+        s.dtheta_rad[1] = -s.dtheta_rad[1];
+        s.dtheta_rad[2] = -s.dtheta_rad[2];
+        s.dv_mps[1] = -s.dv_mps[1];
+        s.dv_mps[2] = -s.dv_mps[2];
+    }
+    let c = check_mounting(&d.imu, &d.gnss);
+    let (slope, _) = c.turn_slope.unwrap();
+    assert!((slope + 1.0).abs() < 0.05, "{slope}");
+    assert_eq!(c.warnings.len(), 2, "{:?}", c.warnings);
+    assert!(c.warnings[0].contains("AGAINST the GNSS course"));
+    assert!(
+        c.warnings[1].contains("tilts the body by 180 deg"),
+        "{}",
+        c.warnings[1]
+    );
+}
+
+#[test]
+fn a_sideways_z_axis_is_named() {
+    let mut d = case();
+    // IMU x up: body z (down) is the IMU's -x; configured as identity
+    for s in &mut d.imu {
+        let (t, v) = (s.dtheta_rad, s.dv_mps);
+        s.dtheta_rad = [-t[2], t[1], t[0]];
+        s.dv_mps = [-v[2], v[1], v[0]];
+    }
+    let c = check_mounting(&d.imu, &d.gnss);
+    let (slope, _) = c.turn_slope.unwrap();
+    assert!(slope.abs() < 0.1, "{slope}");
+    assert!(
+        c.warnings.iter().any(|w| w.contains("hardly follows")),
+        "{:?}",
+        c.warnings
+    );
+    assert!(
+        c.warnings
+            .iter()
+            .any(|w| w.contains("tilts the body by 90 deg")),
+        "{:?}",
+        c.warnings
+    );
+}

@@ -1,0 +1,117 @@
+//! Run-configuration validation (issue 15): negative or zero noise densities, unknown effect
+//! names and unknown keys are errors naming the file and the line.
+
+use nav_io::runcfg::key_line;
+use nav_io::{read_run_config, IoError};
+
+const BASE: &str = r#"name = "v"
+effects = ["lever_arm", "time_offset"]
+
+[imu]
+path = "imu.txt"
+format = "text"
+
+[gnss]
+path = "gnss.txt"
+format = "text"
+
+[init]
+pos_std_m = [1.0, 1.0, 2.0]
+vel_std_mps = [0.1, 0.1, 0.1]
+att_std_deg = [1.0, 1.0, 5.0]
+
+[init.align]
+static_s = 10.0
+
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+gm_sigma_ug = 50.0
+t_b_s = 300.0
+
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.2
+k_deg_per_h_per_sqrt_h = 1.0
+"#;
+
+fn err_of(text: &str) -> IoError {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("mine.toml");
+    std::fs::write(&p, text).unwrap();
+    let e = read_run_config(&p).unwrap_err();
+    assert!(matches!(e, IoError::Config { .. }), "{e:?}");
+    assert!(e.to_string().contains("mine.toml"), "{e}");
+    e
+}
+
+#[test]
+fn the_base_configuration_is_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.toml");
+    std::fs::write(&p, BASE).unwrap();
+    let c = read_run_config(&p).unwrap();
+    assert_eq!(c.effects.len(), 2);
+}
+
+#[test]
+fn negative_density_is_an_error_with_its_line() {
+    // the TOML reader squared -0.2 deg/sqrt(h) into a valid PSD before
+    let e = err_of(&BASE.replace("arw_deg_per_sqrt_h = 0.2", "arw_deg_per_sqrt_h = -0.2"));
+    let m = e.to_string();
+    assert!(
+        m.contains("line 26: noise.gyro.arw_deg_per_sqrt_h: -0.2 is not allowed"),
+        "{m}"
+    );
+    let e = err_of(&BASE.replace("gm_sigma_ug = 50.0", "gm_sigma_ug = -50.0"));
+    assert!(
+        e.to_string().contains("line 22: noise.accel.gm_sigma_ug"),
+        "{e}"
+    );
+}
+
+#[test]
+fn zero_white_noise_and_zero_correlation_time_are_errors_with_their_lines() {
+    let e = err_of(&BASE.replace("vrw_mps_per_sqrt_h = 0.03", "vrw_mps_per_sqrt_h = 0.0"));
+    let m = e.to_string();
+    assert!(m.contains("line 21: noise.accel.vrw_mps_per_sqrt_h"), "{m}");
+    assert!(m.contains("trust the sensor absolutely"), "{m}");
+    let e = err_of(&BASE.replace("t_b_s = 300.0", "t_b_s = 0.0"));
+    assert!(e.to_string().contains("line 23: noise.accel.t_b_s"), "{e}");
+    // a zero random walk is just "no random walk": accepted
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("ok.toml");
+    std::fs::write(
+        &p,
+        BASE.replace(
+            "k_deg_per_h_per_sqrt_h = 1.0",
+            "k_deg_per_h_per_sqrt_h = 0.0",
+        ),
+    )
+    .unwrap();
+    read_run_config(&p).unwrap();
+}
+
+#[test]
+fn unknown_effect_name_is_an_error_with_its_line_and_the_known_names() {
+    let e = err_of(&BASE.replace("\"time_offset\"", "\"time_ofset\""));
+    let m = e.to_string();
+    assert!(
+        m.contains("line 2: effects: \"time_ofset\" is not an effect name"),
+        "{m}"
+    );
+    assert!(m.contains("gyro_g_sensitivity"), "{m}");
+}
+
+#[test]
+fn unknown_key_is_an_error_with_its_line() {
+    let e = err_of(&BASE.replace("static_s = 10.0", "static_s = 10.0\nstatic_seconds = 5.0"));
+    let m = e.to_string();
+    assert!(m.contains("static_seconds") && m.contains("line 19"), "{m}");
+}
+
+#[test]
+fn key_line_follows_tables() {
+    assert_eq!(key_line(BASE, "", "effects"), Some(2));
+    assert_eq!(key_line(BASE, "noise.gyro", "arw_deg_per_sqrt_h"), Some(26));
+    assert_eq!(key_line(BASE, "noise.accel", "arw_deg_per_sqrt_h"), None);
+    assert_eq!(key_line(BASE, "init.align", "static_s"), Some(18));
+}
