@@ -35,6 +35,10 @@ pub struct NhcConfig {
     pub mount_rpy_rad: [f64; 3],
     /// The constraint point (rear-axle centre) relative to the IMU, body axes, m.
     pub lever_arm_m: [f64; 3],
+    /// 1-sigma of the side-slip angle per m/s^2 of lateral acceleration, rad per m/s^2: the
+    /// lateral variance grows by `(speed * slip_sigma * a_lat)^2` with `a_lat = speed * yaw
+    /// rate` (tyres slip in turns; 0: a fixed sigma).
+    pub slip_sigma_rad_per_mps2: f64,
     /// Chi-square gate on the 2-dof NIS (dimensionless; infinite: none).
     pub nis_gate: f64,
 }
@@ -49,6 +53,7 @@ impl NhcConfig {
         min_speed_mps: 1.0,
         mount_rpy_rad: [0.0; 3],
         lever_arm_m: [0.0; 3],
+        slip_sigma_rad_per_mps2: 0.0,
         nis_gate: 18.42,
     };
 
@@ -107,27 +112,36 @@ pub fn nhc_measurement<T: Scalar, const N: usize>(
     for (k, row) in h.iter_mut().enumerate() {
         let r = k + 1; // vehicle y (lateral), z (vertical)
         for j in 0..3 {
-            put(row, IDX_ATT + j, h_phi[(r, j)]);
-            put(row, IDX_VEL + j, a[(r, j)]);
+            put(row, IDX_ATT + j, m3(&h_phi, r, j));
+            put(row, IDX_VEL + j, m3(&a, r, j));
         }
         for (off, b) in layout.iter() {
             if let Block::GyroBias(_) = b {
                 for g in 0..b.dim() / 3 {
                     for j in 0..3 {
-                        put(row, off + 3 * g + j, h_bg[(r, j)]);
+                        put(row, off + 3 * g + j, m3(&h_bg, r, j));
                     }
                 }
             }
         }
     }
+    // side slip: a_lat = speed * yaw rate (body z), slip sigma proportional to it
+    let speed = v.norm();
+    let a_lat = speed * step.omega_ib_body_radps.z;
+    let slip_v = speed * cfg.slip_sigma_rad_per_mps2 * a_lat;
     NhcMeasurement {
         z_mps: [vp.y, vp.z],
         h,
         r: [
-            cfg.sigma_lateral_mps * cfg.sigma_lateral_mps,
+            cfg.sigma_lateral_mps * cfg.sigma_lateral_mps + slip_v * slip_v,
             cfg.sigma_vertical_mps * cfg.sigma_vertical_mps,
         ],
     }
+}
+
+/// Element (r, c) of a 3x3 matrix (0 outside).
+fn m3(m: &Matrix3<f64>, r: usize, c: usize) -> f64 {
+    m.get((r, c)).copied().unwrap_or(0.0)
 }
 
 pub(crate) fn put<T: Scalar, const N: usize>(row: &mut [T; N], i: usize, v: f64) {
