@@ -275,7 +275,7 @@ fn aiding_section_errors_name_the_file_and_line() {
         "/../configs/drive0708_aided.toml"
     );
     let text = std::fs::read_to_string(cfg_path).unwrap();
-    let c = host_sim::io::parse_run_config(Path::new(cfg_path), &text).unwrap();
+    let c = nav_io::parse_run_config(Path::new(cfg_path), &text).unwrap();
     let a = c.aiding.as_ref().unwrap().to_config().unwrap();
     assert!(a.nhc.enabled && a.zupt.enabled && a.zaru.enabled);
     assert_eq!(a.nhc.sigma_lateral_mps, 0.1);
@@ -286,7 +286,7 @@ fn aiding_section_errors_name_the_file_and_line() {
         .position(|l| l.starts_with("sigma_lateral_mps = -0.1"))
         .unwrap()
         + 1;
-    let e = host_sim::io::parse_run_config(Path::new("x/drive.toml"), &bad)
+    let e = nav_io::parse_run_config(Path::new("x/drive.toml"), &bad)
         .unwrap_err()
         .to_string();
     assert!(e.contains("x/drive.toml"), "{e}");
@@ -297,7 +297,7 @@ fn aiding_section_errors_name_the_file_and_line() {
         "[aiding.zupt]\nenabled = true",
         "[aiding.zupt]\nenabled = true\nsigma = 1.0",
     );
-    let e = host_sim::io::parse_run_config(Path::new("y.toml"), &bad)
+    let e = nav_io::parse_run_config(Path::new("y.toml"), &bad)
         .unwrap_err()
         .to_string();
     assert!(e.contains("y.toml") && e.contains("sigma"), "{e}");
