@@ -156,19 +156,20 @@ impl<T: Scalar, const W: usize> StationarityDetector<T, W> {
     }
 }
 
-/// Mean and root of summed per-axis (sample) variances of the last `n` entries before `head`.
+/// Mean and root of summed per-axis (sample) variances of the last `n` entries before `head`,
+/// two-pass in the scalar type (f32 on the MCU: no soft-float f64 in the loop).
 fn mean_spread<T: Scalar, const W: usize>(
     buf: &[[T; 3]; W],
     head: usize,
     n: usize,
 ) -> ([f64; 3], f64) {
-    let mut mean = [0.0f64; 3];
+    let mut mean = [T::ZERO; 3];
     let mut k = 0usize;
     for i in 0..n {
         let idx = (head + W - 1 - i) % W;
         if let Some(s) = buf.get(idx) {
             for (m, v) in mean.iter_mut().zip(s) {
-                *m += v.to_f64();
+                *m += *v;
             }
             k += 1;
         }
@@ -176,21 +177,22 @@ fn mean_spread<T: Scalar, const W: usize>(
     if k < 2 {
         return ([f64::NAN; 3], f64::NAN);
     }
-    let kf = k as f64;
+    let kf = T::of_f64(k as f64);
     for m in mean.iter_mut() {
         *m /= kf;
     }
-    let mut ss = 0.0f64;
+    let mut ss = T::ZERO;
     for i in 0..n {
         let idx = (head + W - 1 - i) % W;
         if let Some(s) = buf.get(idx) {
             for (m, v) in mean.iter().zip(s) {
-                let d = v.to_f64() - m;
+                let d = *v - *m;
                 ss += d * d;
             }
         }
     }
-    (mean, libm::sqrt(ss / (kf - 1.0)))
+    let var = ss / (kf - T::ONE);
+    (mean.map(|m| m.to_f64()), var.sqrt_libm().to_f64())
 }
 
 /// The detector's decision on window statistics: whether every test passes. `gravity_mps2` is
