@@ -102,10 +102,6 @@ const CASES: &[Case] = &[
         },
     },
     Case {
-        name: "aiding18_NBK_f32",
-        run: |m, n| aiding::<{ LAYOUT_NBK.dim() }>(m, n, LAYOUT_NBK, FilterConfig::source_nbk_model()),
-    },
-    Case {
         name: "filter21_KFGINS_f32",
         run: |m, n| {
             filter::<{ LAYOUT_KF_GINS.dim() }>(
@@ -366,109 +362,6 @@ fn filter<const N: usize>(
     );
     if !f.covariance_is_positive_definite() || accepted != EPOCHS / GNSS_EVERY {
         error!("bench {}: covariance not SPD or fixes rejected", case);
-        return false;
-    }
-    true
-}
-
-/// Stationarity-detector window of the firmware, IMU samples (0.16 s at 200 Hz).
-const AID_WINDOW: usize = 32;
-/// IMU epochs per aiding update (10 Hz at 200 Hz).
-const AID_EVERY: u32 = 20;
-
-/// The land-vehicle aiding on the MCU: the stationarity detector's push per IMU epoch and its
-/// decision, and one NHC, one ZUPT and one ZARU update (measurement + gated Joseph update) per
-/// aiding epoch (10 Hz), each timed on its own (the bench scenario stands still, so the runner
-/// would only do ZUPT/ZARU: the NHC is called directly).
-fn aiding<const N: usize>(
-    m: &mut Meter,
-    case: &'static str,
-    layout: Layout,
-    cfg: FilterConfig,
-) -> bool {
-    use nav_core::aiding::{nhc, stationarity, zupt, AidingConfig, StationarityDetector};
-    let unc = InitialUncertainty {
-        att_sigma_rad: [0.01, 0.01, 0.05],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let Ok(mut f) = Filter::<f32, N>::new(layout, &cfg, init_state(), &unc) else {
-        error!("bench {}: filter construction failed", case);
-        return false;
-    };
-    let mut a = AidingConfig::OFF;
-    a.nhc.enabled = true;
-    a.zupt.enabled = true;
-    a.zaru.enabled = true;
-    let mut det = StationarityDetector::<f32, AID_WINDOW>::new();
-    let mut rng = Lcg(5);
-    let (mut push, mut decide, mut nhc_t, mut zupt_t, mut zaru_t) = (
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-        Acc::default(),
-    );
-    let mut used = 0u32;
-    for k in 1..=EPOCHS {
-        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
-        if f.propagate(&s).is_err() {
-            error!("bench {}: propagate failed at epoch {}", case, k);
-            return false;
-        }
-        let st = *f.last_step();
-        let ((), t) = m.time(|| det.push(&st.f_body_mps2.into(), &st.omega_ib_body_radps.into()));
-        push.add(t);
-        if k % AID_EVERY != 0 {
-            continue;
-        }
-        let (still, t) = m.time(|| {
-            det.stats(AID_WINDOW).map(|w| {
-                (
-                    stationarity::is_stationary(&a.stationarity, &w, 9.81, None, 0.0),
-                    w.w_mean_radps,
-                )
-            })
-        });
-        decide.add(t);
-        let Some((_, w_mean)) = still else {
-            continue;
-        };
-        let (r, t) = m.time(|| {
-            let z = nhc::nhc_measurement::<f32, N>(&a.nhc, &layout, f.nav_state(), &st);
-            f.update_aiding(&z.z_mps, &z.h, &z.r, f64::INFINITY)
-        });
-        nhc_t.add(t);
-        let (r2, t) = m.time(|| {
-            let (z, h, rv) = zupt::zupt_measurement::<f32, N>(&a.zupt, f.nav_state());
-            f.update_aiding(&z, &h, &rv, f64::INFINITY)
-        });
-        zupt_t.add(t);
-        let (r3, t) = m.time(|| {
-            zupt::zaru_measurement::<f32, N>(&a.zaru, &layout, f.nav_state(), &w_mean)
-                .map(|(z, h, rv)| f.update_aiding(&z, &h, &rv, f64::INFINITY))
-        });
-        zaru_t.add(t);
-        match (r, r2, r3) {
-            (Ok(x), Ok(y), Some(Ok(zz))) if x.accepted && y.accepted && zz.accepted => used += 1,
-            _ => {
-                error!("bench {}: aiding update failed at epoch {}", case, k);
-                return false;
-            }
-        }
-    }
-    push.print(case, "detector_push_per_epoch");
-    decide.print(case, "detector_decision");
-    nhc_t.print(case, "nhc_update");
-    zupt_t.print(case, "zupt_update");
-    zaru_t.print(case, "zaru_update");
-    info!(
-        "BENCH size what=StationarityDetector<f32,{}> bytes={}",
-        AID_WINDOW,
-        core::mem::size_of::<StationarityDetector<f32, AID_WINDOW>>()
-    );
-    if used == 0 || !f.covariance_is_positive_definite() {
-        error!("bench {}: no aiding update used or covariance not SPD", case);
         return false;
     }
     true
