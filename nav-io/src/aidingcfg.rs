@@ -13,6 +13,7 @@
 //! gyro_std_max_deg_per_s = 0.5
 //! gnss_speed_max_mps = 0.15        # when a GNSS velocity is at most gnss_max_age_s old
 //! gnss_max_age_s = 1.0
+//! filter_speed_max_mps = 1.0       # the filter's own speed estimate
 //! [aiding.nhc]                     # non-holonomic constraint
 //! enabled = true
 //! sigma_lateral_mps = 0.1
@@ -20,6 +21,7 @@
 //! min_speed_mps = 1.0
 //! mount_rpy_deg = [0.0, 0.0, 0.0]  # vehicle -> body (body = vehicle when zero)
 //! lever_arm_m = [0.0, 0.0, 0.0]    # constraint point (rear axle) from the IMU, body FRD
+//! slip_sigma_deg_per_mps2 = 0.0    # side-slip sigma per m/s^2 of lateral acceleration
 //! nis_gate = 18.42
 //! [aiding.zupt]
 //! enabled = true
@@ -79,6 +81,9 @@ pub struct StationaritySection {
     /// Oldest GNSS velocity used, s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gnss_max_age_s: Option<f64>,
+    /// Largest speed of the filter's estimate, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub filter_speed_max_mps: Option<f64>,
 }
 
 /// `[aiding.nhc]`.
@@ -103,6 +108,9 @@ pub struct NhcSection {
     /// Constraint point from the IMU, body FRD, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lever_arm_m: Option<[f64; 3]>,
+    /// 1-sigma side slip per m/s^2 of lateral acceleration, deg per m/s^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slip_sigma_deg_per_mps2: Option<f64>,
     /// Chi-square gate (2 dof).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nis_gate: Option<f64>,
@@ -158,6 +166,7 @@ impl AidingSection {
         set(&mut d.gyro_std_max_radps, deg(s.gyro_std_max_deg_per_s));
         set(&mut d.gnss_speed_max_mps, s.gnss_speed_max_mps);
         set(&mut d.gnss_max_age_s, s.gnss_max_age_s);
+        set(&mut d.filter_speed_max_mps, s.filter_speed_max_mps);
         let n = &self.nhc;
         c.nhc.enabled = n.enabled;
         set(&mut c.nhc.sigma_lateral_mps, n.sigma_lateral_mps);
@@ -169,6 +178,10 @@ impl AidingSection {
         if let Some(l) = n.lever_arm_m {
             c.nhc.lever_arm_m = l;
         }
+        set(
+            &mut c.nhc.slip_sigma_rad_per_mps2,
+            deg(n.slip_sigma_deg_per_mps2),
+        );
         set(&mut c.nhc.nis_gate, n.nis_gate);
         c.zupt.enabled = self.zupt.enabled;
         set(&mut c.zupt.sigma_mps, self.zupt.sigma_mps);

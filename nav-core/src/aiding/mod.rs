@@ -110,6 +110,11 @@ impl AidingConfig {
         nonneg(s.gyro_std_max_radps, "stationarity.gyro_std_max")?;
         nonneg(s.gnss_speed_max_mps, "stationarity.gnss_speed_max_mps")?;
         nonneg(s.gnss_max_age_s, "stationarity.gnss_max_age_s")?;
+        nonneg(s.filter_speed_max_mps, "stationarity.filter_speed_max_mps")?;
+        nonneg(
+            self.nhc.slip_sigma_rad_per_mps2,
+            "nhc.slip_sigma_deg_per_mps2",
+        )?;
         pos(self.nhc.sigma_lateral_mps, "nhc.sigma_lateral_mps")?;
         pos(self.nhc.sigma_vertical_mps, "nhc.sigma_vertical_mps")?;
         nonneg(self.nhc.min_speed_mps, "nhc.min_speed_mps")?;
@@ -232,7 +237,13 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
             (t - ts <= self.cfg.stationarity.gnss_max_age_s && t - ts >= -1.0).then_some(v)
         });
         let g = earth::gravity_mps2(nav.pos.lat_rad, nav.pos.h_m);
-        self.stationary = stationarity::is_stationary(&self.cfg.stationarity, &stats, g, speed);
+        self.stationary = stationarity::is_stationary(
+            &self.cfg.stationarity,
+            &stats,
+            g,
+            speed,
+            nav.vel_ned_mps.norm(),
+        );
         let layout = *f.layout();
         if self.stationary {
             self.counters.stationary_epochs = self.counters.stationary_epochs.saturating_add(1);

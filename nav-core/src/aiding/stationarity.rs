@@ -34,6 +34,9 @@ pub struct StationarityConfig {
     pub gnss_speed_max_mps: f64,
     /// Oldest GNSS velocity used by the test, s.
     pub gnss_max_age_s: f64,
+    /// Largest speed of the filter's own estimate, m/s: without GNSS a straight drive at
+    /// constant speed on a smooth road looks still to the IMU; the filter knows it moves.
+    pub filter_speed_max_mps: f64,
 }
 
 impl StationarityConfig {
@@ -48,6 +51,7 @@ impl StationarityConfig {
         gyro_std_max_radps: 0.5 * core::f64::consts::PI / 180.0,
         gnss_speed_max_mps: 0.15,
         gnss_max_age_s: 1.0,
+        filter_speed_max_mps: 1.0,
     };
 }
 
@@ -152,19 +156,20 @@ impl<T: Scalar, const W: usize> StationarityDetector<T, W> {
     }
 }
 
-/// Mean and root of summed per-axis (sample) variances of the last `n` entries before `head`.
+/// Mean and root of summed per-axis (sample) variances of the last `n` entries before `head`,
+/// two-pass in the scalar type (f32 on the MCU: no soft-float f64 in the loop).
 fn mean_spread<T: Scalar, const W: usize>(
     buf: &[[T; 3]; W],
     head: usize,
     n: usize,
 ) -> ([f64; 3], f64) {
-    let mut mean = [0.0f64; 3];
+    let mut mean = [T::ZERO; 3];
     let mut k = 0usize;
     for i in 0..n {
         let idx = (head + W - 1 - i) % W;
         if let Some(s) = buf.get(idx) {
             for (m, v) in mean.iter_mut().zip(s) {
-                *m += v.to_f64();
+                *m += *v;
             }
             k += 1;
         }
@@ -172,30 +177,33 @@ fn mean_spread<T: Scalar, const W: usize>(
     if k < 2 {
         return ([f64::NAN; 3], f64::NAN);
     }
-    let kf = k as f64;
+    let kf = T::of_f64(k as f64);
     for m in mean.iter_mut() {
         *m /= kf;
     }
-    let mut ss = 0.0f64;
+    let mut ss = T::ZERO;
     for i in 0..n {
         let idx = (head + W - 1 - i) % W;
         if let Some(s) = buf.get(idx) {
             for (m, v) in mean.iter().zip(s) {
-                let d = v.to_f64() - m;
+                let d = *v - *m;
                 ss += d * d;
             }
         }
     }
-    (mean, libm::sqrt(ss / (kf - 1.0)))
+    let var = ss / (kf - T::ONE);
+    (mean.map(|m| m.to_f64()), var.sqrt_libm().to_f64())
 }
 
 /// The detector's decision on window statistics: whether every test passes. `gravity_mps2` is
-/// normal gravity at the vehicle; `gnss_speed_mps` a recent GNSS speed, if any.
+/// normal gravity at the vehicle; `gnss_speed_mps` a recent GNSS speed, if any;
+/// `filter_speed_mps` the filter's estimated speed.
 pub fn is_stationary(
     cfg: &StationarityConfig,
     s: &WindowStats,
     gravity_mps2: f64,
     gnss_speed_mps: Option<f64>,
+    filter_speed_mps: f64,
 ) -> bool {
     let norm = |v: &[f64; 3]| libm::sqrt(v.iter().map(|x| x * x).sum::<f64>());
     let imu_still = s.f_std_mps2 <= cfg.accel_std_max_mps2
@@ -203,7 +211,7 @@ pub fn is_stationary(
         && norm(&s.w_mean_radps) <= cfg.gyro_mean_max_radps
         && s.w_std_radps <= cfg.gyro_std_max_radps;
     let gnss_still = gnss_speed_mps.is_none_or(|v| v <= cfg.gnss_speed_max_mps);
-    imu_still && gnss_still
+    imu_still && gnss_still && filter_speed_mps <= cfg.filter_speed_max_mps
 }
 
 #[cfg(test)]
@@ -222,16 +230,18 @@ mod tests {
         let s = d.stats(50).expect("full window");
         assert_eq!(s.n, 50);
         assert!((s.f_mean_mps2[2] + 9.80).abs() < 1e-3);
-        assert!(is_stationary(&cfg, &s, 9.80, None));
-        assert!(is_stationary(&cfg, &s, 9.80, Some(0.05)));
+        assert!(is_stationary(&cfg, &s, 9.80, None, 0.0));
+        assert!(is_stationary(&cfg, &s, 9.80, Some(0.05), 0.0));
         // the GNSS says it moves
-        assert!(!is_stationary(&cfg, &s, 9.80, Some(1.0)));
+        assert!(!is_stationary(&cfg, &s, 9.80, Some(1.0), 0.0));
+        // the filter says it moves (a smooth straight drive without GNSS)
+        assert!(!is_stationary(&cfg, &s, 9.80, None, 10.0));
         // turning at 3 deg/s
         for _ in 0..64 {
             d.push(&[0.0, 0.0, -9.80], &[0.0, 0.0, 0.05]);
         }
         let s = d.stats(50).expect("full window");
-        assert!(!is_stationary(&cfg, &s, 9.80, None));
+        assert!(!is_stationary(&cfg, &s, 9.80, None, 0.0));
         // vibrating / accelerating
         for k in 0..64 {
             let a = if k % 2 == 0 { 0.5 } else { -0.5 };
@@ -239,7 +249,7 @@ mod tests {
         }
         let s = d.stats(50).expect("full window");
         assert!(s.f_std_mps2 > 0.4);
-        assert!(!is_stationary(&cfg, &s, 9.80, None));
+        assert!(!is_stationary(&cfg, &s, 9.80, None, 0.0));
         // a NaN empties the window
         d.push(&[f64::NAN, 0.0, 0.0], &[0.0; 3]);
         assert!(d.is_empty());
