@@ -12,4 +12,5 @@ pub mod metrics;
 pub mod noise;
 pub mod run;
 pub mod sim;
+pub mod smooth;
 pub mod study;

@@ -229,6 +229,8 @@ pub struct RunOptions {
     pub extra_blocks: Vec<Block>,
     /// IMU gap handling and plausibility limits.
     pub imu_checks: ImuChecks,
+    /// Record what the smoother needs ([`RunOutput::history`], `crate::smooth`).
+    pub smoother_history: bool,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -267,6 +269,7 @@ impl RunOptions {
             end_s: None,
             extra_blocks: Vec::new(),
             imu_checks: ImuChecks::default(),
+            smoother_history: false,
         }
     }
 }
@@ -498,6 +501,8 @@ pub struct RunOutput {
     pub gating: gating_report::GatingReport,
     /// IMU gaps and rejected samples.
     pub imu_report: ImuReport,
+    /// The smoother's record of the run (with [`RunOptions::smoother_history`]).
+    pub history: Option<crate::smooth::History>,
 }
 
 /// Errors of a run.
@@ -898,6 +903,11 @@ fn run_layout<T: Scalar, const N: usize>(
         ..ImuReport::default()
     };
     let mut fault: Option<(String, f64, String)> = None;
+    let mut rec = if opts.smoother_history {
+        crate::smooth::Recorder::new(N)
+    } else {
+        crate::smooth::Recorder::disabled()
+    };
     'imu: for k in first..last {
         let s = case.imu.get(k).copied().unwrap_or_default();
         let dt = s.t_s - filter.nav_state().t_s;
@@ -943,7 +953,7 @@ fn run_layout<T: Scalar, const N: usize>(
             });
         }
         for f in c.fill {
-            if let Err(e) = filter.propagate(&f) {
+            if let Err(e) = filter.propagate_observed(&f, &mut rec) {
                 fault = Some((
                     case.locate_imu(k),
                     s.t_s,
@@ -952,7 +962,7 @@ fn run_layout<T: Scalar, const N: usize>(
                 break 'imu;
             }
         }
-        match filter.propagate(&c.sample) {
+        match filter.propagate_observed(&c.sample, &mut rec) {
             Ok(()) => {}
             Err(FilterError::NonFiniteImu) => {
                 counters.imu_rejected += 1;
@@ -997,6 +1007,11 @@ fn run_layout<T: Scalar, const N: usize>(
                     quality: fix.quality.rtklib_q(),
                 });
                 continue;
+            }
+            if rec.is_enabled() {
+                // the update's own prediction, seen by the smoother's recorder (a failure is
+                // reported by the update)
+                let _ = filter.predict_covariance_observed(&mut rec);
             }
             match filter.update_gnss(fix) {
                 Ok(o) => {
@@ -1078,6 +1093,11 @@ fn run_layout<T: Scalar, const N: usize>(
     imu_report.gaps_spanned = g.gaps_spanned;
     imu_report.gaps_filled = g.gaps_filled;
     imu_report.rejected = counters.imu_implausible;
+    let history = rec.finish(
+        filter.covariance(),
+        filter.pending_correction(),
+        u64::from(filter.counters().cov_predictions),
+    );
     let out = RunOutput {
         model: opts.model,
         state_names: state_names(&layout),
@@ -1098,6 +1118,7 @@ fn run_layout<T: Scalar, const N: usize>(
             status_seen,
         ),
         imu_report,
+        history,
     };
     match fault {
         None => Ok(out),
