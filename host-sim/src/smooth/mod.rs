@@ -367,34 +367,37 @@ impl Smoothed {
     }
 }
 
-/// `X = P^-1 B` for a symmetric positive semi-definite P: Cholesky of the Jacobi-scaled P
-/// (`D^-1/2 P D^-1/2`, the states' units differ by 10 orders of magnitude), else its
-/// pseudo-inverse (`fallback` counts those).
+/// `X = P^+ B` for a symmetric positive semi-definite P. States with zero variance (a block
+/// configured with a zero sigma and no noise, e.g. the Gauss-Markov part of an NBK bias when
+/// the configuration has only a random walk) are left out (their rows of X are zero, as the
+/// pseudo-inverse gives); the rest is solved by Cholesky of the Jacobi-scaled matrix
+/// (`D^-1/2 P D^-1/2`: the states' units differ by 10 orders of magnitude), or by its
+/// pseudo-inverse when that fails (`fallback` counts those).
 fn solve_spd(p: &DMatrix<f64>, b: &DMatrix<f64>, fallback: &mut usize) -> DMatrix<f64> {
-    let n = p.nrows();
-    let s: Vec<f64> = (0..n)
-        .map(|i| {
-            let d = p[(i, i)];
-            if d > 0.0 {
-                1.0 / d.sqrt()
-            } else {
-                1.0
-            }
-        })
+    let active: Vec<usize> = (0..p.nrows())
+        .filter(|&i| p[(i, i)] > 0.0 && p[(i, i)].is_finite())
         .collect();
-    let ps = DMatrix::from_fn(n, n, |i, j| s[i] * p[(i, j)] * s[j]);
-    let bs = DMatrix::from_fn(n, b.ncols(), |i, j| s[i] * b[(i, j)]);
+    let m = active.len();
+    let s: Vec<f64> = active.iter().map(|&i| 1.0 / p[(i, i)].sqrt()).collect();
+    let ps = DMatrix::from_fn(m, m, |a, c| s[a] * p[(active[a], active[c])] * s[c]);
+    let bs = DMatrix::from_fn(m, b.ncols(), |a, j| s[a] * b[(active[a], j)]);
     let y = match ps.clone().cholesky() {
         Some(c) => c.solve(&bs),
         None => {
             *fallback += 1;
             let pinv = ps
                 .pseudo_inverse(1e-12)
-                .unwrap_or_else(|_| DMatrix::zeros(n, n));
+                .unwrap_or_else(|_| DMatrix::zeros(m, m));
             pinv * bs
         }
     };
-    DMatrix::from_fn(n, b.ncols(), |i, j| s[i] * y[(i, j)])
+    let mut x = DMatrix::zeros(p.nrows(), b.ncols());
+    for (a, &i) in active.iter().enumerate() {
+        for j in 0..b.ncols() {
+            x[(i, j)] = s[a] * y[(a, j)];
+        }
+    }
+    x
 }
 
 /// The Rauch-Tung-Striebel backward pass over a recorded history (see the module notes).
