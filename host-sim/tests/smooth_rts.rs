@@ -25,7 +25,10 @@ fn pack(p: &DMatrix<f64>) -> Vec<f64> {
 
 fn phi_rows(phi: &DMatrix<f64>) -> Vec<f64> {
     // the 9 core rows (n = 9: no diagonal part)
-    (0..N).flat_map(|i| (0..N).map(move |j| (i, j))).map(|(i, j)| phi[(i, j)]).collect()
+    (0..N)
+        .flat_map(|i| (0..N).map(move |j| (i, j)))
+        .map(|(i, j)| phi[(i, j)])
+        .collect()
 }
 
 struct Case {
@@ -187,7 +190,10 @@ fn smoothed_covariance_is_below_the_filtered_one_and_equals_it_at_the_end() {
         for i in 0..N {
             let pf = post[idx];
             let ps = sm.var[k * N + i];
-            assert!(ps <= pf * (1.0 + 1e-9) && ps > 0.0, "node {k} state {i}: {ps} vs {pf}");
+            assert!(
+                ps <= pf * (1.0 + 1e-9) && ps > 0.0,
+                "node {k} state {i}: {ps} vs {pf}"
+            );
             if k == m - 1 {
                 assert!((ps - pf).abs() <= 1e-12 * pf);
             }

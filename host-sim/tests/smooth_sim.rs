@@ -183,7 +183,8 @@ fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
                 .filter(|(_, t)| **t >= t_start)
                 .map(|(x, _)| x[g])
                 .collect();
-            let inside = v.iter().filter(|x| **x >= lo && **x <= hi).count() as f64 / v.len() as f64;
+            let inside =
+                v.iter().filter(|x| **x >= lo && **x <= hi).count() as f64 / v.len() as f64;
             let mean = v.iter().sum::<f64>() / v.len() as f64;
             (inside, mean)
         };
@@ -198,8 +199,16 @@ fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
         );
         // the smoothed solution is consistent: its time-averaged NEES is inside the band of
         // a single epoch's average over the runs, and most epochs are inside the band
-        assert!(smn > lo && smn < hi, "{}: smoothed NEES mean {smn}", names[g]);
-        assert!(si >= 0.8, "{}: only {si} of the epochs inside the band", names[g]);
+        assert!(
+            smn > lo && smn < hi,
+            "{}: smoothed NEES mean {smn}",
+            names[g]
+        );
+        assert!(
+            si >= 0.8,
+            "{}: only {si} of the epochs inside the band",
+            names[g]
+        );
     }
     let rms_ratio = (ratios.iter().map(|r| r * r).sum::<f64>() / ratios.len() as f64).sqrt();
     println!("smoothed / forward outage RMS-of-max: {ratios:.3?}, RMS {rms_ratio:.3}");
@@ -266,4 +275,142 @@ fn forty_minute_drive_with_three_minute_outages() {
     );
     assert_eq!(ms.per_outage.len(), 3);
     assert!(os <= of / 3.0, "smoothed {os} vs forward {of}");
+}
+
+/// Every model and an effect-block layout (runtime dimension 15 to 23, f64 and f32): the
+/// smoother runs, needs no pseudo-inverse, and cuts the outage error.
+#[test]
+fn every_layout_is_smoothed() {
+    use host_sim::run::{Model, Precision};
+    use nav_core::model::Block;
+    let sc = Scenario::from_toml_str(SCENARIO, "smooth-test").unwrap();
+    let case = simulate(&sc, &truth_errors(), 21).unwrap();
+    let data = CaseData::from_sim(&case);
+    let t0 = case.trajectory.t0_s;
+    let base = Variant::Nbk.config();
+    let mut variants: Vec<(String, RunOptions)> = Vec::new();
+    for model in [
+        Model::N,
+        Model::Nbk,
+        Model::NbkSingle,
+        Model::KfGins21,
+        Model::KfGinsFeedback,
+    ] {
+        let o = RunOptions::new(model, base, init_spec(21, Sources::All));
+        variants.push((model.name().to_string(), o));
+    }
+    let mut o = RunOptions::new(Model::Nbk, base, init_spec(21, Sources::All));
+    o.add_effect_block(Block::LeverArm);
+    o.add_effect_block(Block::TimeOffset);
+    variants.push(("nbk + lever_arm + time_offset".into(), o));
+    let mut o = RunOptions::new(Model::Nbk, base, init_spec(21, Sources::All));
+    o.precision = Precision::F32;
+    variants.push(("nbk f32".into(), o));
+    for (name, mut opts) in variants {
+        opts.smoother_history = true;
+        opts.outages = vec![Outage {
+            start_s: t0 + 150.0,
+            duration_s: 30.0,
+        }];
+        let fwd = run_filter(&data, &opts).unwrap();
+        let (sm, _, rep) = smooth_run(&data, &fwd).unwrap();
+        let truth = &case.trajectory.truth;
+        let of = metrics::compute(&fwd, Some(truth))
+            .outage_summary
+            .max_horizontal_m
+            .rms;
+        let os = metrics::compute(&sm, Some(truth))
+            .outage_summary
+            .max_horizontal_m
+            .rms;
+        println!(
+            "{name}: {} states, {} nodes, {:.0} B/node, outage max horizontal {of:.3} -> {os:.3} m",
+            rep.states, rep.nodes, rep.history_bytes_per_node
+        );
+        assert_eq!(rep.states, fwd.state_names.len());
+        assert_eq!(rep.pinv_fallbacks, 0, "{name}");
+        assert!(os < 0.3 * of, "{name}: {of} -> {os}");
+    }
+}
+
+/// `host-sim run --smooth` on a simulated case run from its KF-GINS YAML (21 states): the
+/// smoothed nav.txt / std.txt, the forward nav_forward.txt, metrics.json with the forward
+/// metrics at the top level and `smoothed` / `smoother` beside them.
+#[test]
+fn run_smooth_writes_the_smoothed_and_forward_solutions() {
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("scenario.toml");
+    std::fs::write(&sc, SCENARIO).unwrap();
+    let case = dir.path().join("case");
+    let bin = env!("CARGO_BIN_EXE_host-sim");
+    let ok = |args: &[&str]| {
+        let o = Command::new(bin).args(args).output().unwrap();
+        let so = String::from_utf8_lossy(&o.stdout).to_string();
+        assert!(
+            o.status.success(),
+            "{so}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        so
+    };
+    ok(&[
+        "simulate",
+        "--scenario",
+        sc.to_str().unwrap(),
+        "--errors",
+        "tactical",
+        "--seed",
+        "4",
+        "--kf-gins",
+        "--outage",
+        "150:30",
+        "--out",
+        case.to_str().unwrap(),
+    ]);
+    let out = dir.path().join("out");
+    let so = ok(&[
+        "run",
+        "--config",
+        case.join("kf-gins.yaml").to_str().unwrap(),
+        "--smooth",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    println!("{so}");
+    assert!(so.contains("smoother:"), "{so}");
+    let fwd = host_sim::io::read_nav_text(out.join("nav_forward.txt")).unwrap();
+    let sm = host_sim::io::read_nav_text(out.join("nav.txt")).unwrap();
+    assert_eq!(fwd.len(), sm.len());
+    assert!(fwd.iter().zip(&sm).all(|(a, b)| a.t_s == b.t_s));
+    // the two solutions differ (most in the outage), and the smoothed one is nearer the truth
+    let truth = host_sim::io::read_nav_text(case.join("truth.nav")).unwrap();
+    let (ef, es) = (errors_vs_truth(&fwd, &truth), errors_vs_truth(&sm, &truth));
+    let worst = |e: &[host_sim::metrics::ErrSample]| {
+        e.iter().map(|x| x.horizontal_m()).fold(0.0f64, f64::max)
+    };
+    println!(
+        "nav.txt vs truth: largest horizontal error forward {:.3} m, smoothed {:.3} m",
+        worst(&ef),
+        worst(&es)
+    );
+    assert!(worst(&es) < 0.3 * worst(&ef));
+    let std_txt = std::fs::read_to_string(out.join("std.txt")).unwrap();
+    assert_eq!(
+        std_txt.lines().nth(1).unwrap().split_whitespace().count(),
+        2 + 21
+    );
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    let rms = |v: &serde_json::Value| {
+        v["outage_summary"]["max_horizontal_m"]["rms"]
+            .as_f64()
+            .unwrap()
+    };
+    let (f, s) = (rms(&m), rms(&m["smoothed"]));
+    println!("outage RMS-of-max horizontal: forward {f:.3} m, smoothed {s:.3} m");
+    assert!(s < 0.3 * f, "{f} -> {s}");
+    assert_eq!(m["smoother"]["states"].as_u64(), Some(21));
+    assert!(m["smoother"]["history_bytes"].as_u64().unwrap() > 0);
 }

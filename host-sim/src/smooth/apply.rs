@@ -89,7 +89,11 @@ fn euler_std(rpy: &[f64; 3], cov: &[f64; 81]) -> [f64; 3] {
     };
     let s = Matrix3::from_fn(|i, j| cov[(IDX_ATT + i) * 9 + IDX_ATT + j]);
     let e = ai * s * ai.transpose();
-    [e.m11.max(0.0).sqrt(), e.m22.max(0.0).sqrt(), e.m33.max(0.0).sqrt()]
+    [
+        e.m11.max(0.0).sqrt(),
+        e.m22.max(0.0).sqrt(),
+        e.m33.max(0.0).sqrt(),
+    ]
 }
 
 fn state_of(s: &NavSolution) -> NavState {

@@ -320,7 +320,10 @@ impl Smoothed {
     /// at that time (see the module notes); `None` before the first node.
     pub fn at(&self, t_s: f64) -> Option<SmoothedPoint> {
         let n = self.n;
-        let k = self.t_s.partition_point(|t| *t <= t_s + 1e-9).checked_sub(1)?;
+        let k = self
+            .t_s
+            .partition_point(|t| *t <= t_s + 1e-9)
+            .checked_sub(1)?;
         let tk = *self.t_s.get(k)?;
         let point = |dx: Vec<f64>, cov: &[f64], var: &[f64]| {
             let mut c = [0.0; 81];
@@ -346,10 +349,7 @@ impl Smoothed {
             Some(t1) if linked && (t_s - tk).abs() > 1e-9 && t1 > tk => {
                 let f = ((t_s - tk) / (t1 - tk)).clamp(0.0, 1.0);
                 let lerp = |a: &[f64], b: &[f64]| -> Vec<f64> {
-                    a.iter()
-                        .zip(b)
-                        .map(|(x, y)| x + f * (y - x))
-                        .collect()
+                    a.iter().zip(b).map(|(x, y)| x + f * (y - x)).collect()
                 };
                 let dx = lerp(
                     Self::slice(&self.dx_post, k, n),
@@ -359,7 +359,10 @@ impl Smoothed {
                     Self::slice(&self.cov_core, k, 81),
                     Self::slice(&self.cov_core, k + 1, 81),
                 );
-                let var = lerp(Self::slice(&self.var, k, n), Self::slice(&self.var, k + 1, n));
+                let var = lerp(
+                    Self::slice(&self.var, k, n),
+                    Self::slice(&self.var, k + 1, n),
+                );
                 Some(point(dx, &cov, &var))
             }
             _ => Some(here()),

@@ -29,9 +29,9 @@ use crate::model::{
 use crate::nav::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::scalar::Scalar;
 use crate::types::{GnssFix, ImuSample, NavSolution};
-use observe::{CovObserver, PredictionRecord};
 use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use observe::{CovObserver, PredictionRecord};
 use robust::{igg3_weight, GateState, RejectedFix, RobustStats, MIN_WEIGHT};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
