@@ -8,9 +8,9 @@ use host_sim::metrics::{self, errors_vs_truth};
 use host_sim::run::{run_filter, CaseData, Outage, RunOptions};
 use host_sim::sim::{simulate, Scenario};
 use host_sim::smooth::apply::smooth_run;
-use host_sim::study::chi2::nees_band_95;
 use host_sim::study::setup::{init_spec, truth_errors, Sources, Variant};
 use nav_core::types::NavSolution;
+use noise_id::stats::nees_band_95;
 
 /// A 6-minute drive at 100 Hz: 60 s static, accelerations, turns, a hill, a stop.
 const SCENARIO: &str = r#"
@@ -380,12 +380,12 @@ fn run_smooth_writes_the_smoothed_and_forward_solutions() {
     ]);
     println!("{so}");
     assert!(so.contains("smoother:"), "{so}");
-    let fwd = host_sim::io::read_nav_text(out.join("nav_forward.txt")).unwrap();
-    let sm = host_sim::io::read_nav_text(out.join("nav.txt")).unwrap();
+    let fwd = nav_io::read_nav_text(out.join("nav_forward.txt")).unwrap();
+    let sm = nav_io::read_nav_text(out.join("nav.txt")).unwrap();
     assert_eq!(fwd.len(), sm.len());
     assert!(fwd.iter().zip(&sm).all(|(a, b)| a.t_s == b.t_s));
     // the two solutions differ (most in the outage), and the smoothed one is nearer the truth
-    let truth = host_sim::io::read_nav_text(case.join("truth.nav")).unwrap();
+    let truth = nav_io::read_nav_text(case.join("truth.nav")).unwrap();
     let (ef, es) = (errors_vs_truth(&fwd, &truth), errors_vs_truth(&sm, &truth));
     let worst = |e: &[host_sim::metrics::ErrSample]| {
         e.iter().map(|x| x.horizontal_m()).fold(0.0f64, f64::max)
