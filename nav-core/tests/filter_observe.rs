@@ -105,12 +105,8 @@ fn every_prediction_is_observed_in_a_chain_with_its_corrections() {
             chained += 1;
         }
         let phi = &log.phi_dense[k];
-        for i in 0..N {
-            assert!(
-                phi[i][i] > 0.9 && phi[i][i] <= 1.0 + 1e-3,
-                "{i}: {}",
-                phi[i][i]
-            );
+        for (i, row) in phi.iter().enumerate() {
+            assert!(row[i] > 0.9 && row[i] <= 1.0 + 1e-3, "{i}: {}", row[i]);
         }
     }
     assert!(chained > 100);
