@@ -3,7 +3,9 @@
 //!
 //! The forward filter ([`nav_core::filter::Filter`]) feeds every error estimate back into its
 //! nominal state and resets the error state to zero. The smoother therefore works on the error
-//! relative to the stored forward nominal trajectory (`docs/derivations/rts_smoother.md`):
+//! relative to the stored forward nominal trajectory. Derivation, storage and numerics:
+//! `docs/derivations/rts_smoother.md` (sections 1-2: equations (3) and (4) below; section 3:
+//! what is stored and the interpolation between nodes; section 4: the solve).
 //!
 //! * **Forward** ([`Recorder`], a [`CovObserver`]): at every covariance prediction the filter
 //!   hands over Phi, the covariance before (the posterior at the interval start) and after
