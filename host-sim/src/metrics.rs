@@ -260,6 +260,8 @@ pub struct Metrics {
     pub coasting: Vec<CoastingMetrics>,
     /// What the innovation gate and its model-mismatch monitor did (in numbers and words).
     pub gating: crate::run::gating_report::GatingReport,
+    /// Land-vehicle aiding updates used/rejected per source.
+    pub aiding: crate::run::aiding::AidingReport,
 }
 
 fn wrap_deg(a: f64) -> f64 {
@@ -435,6 +437,7 @@ pub fn compute(run: &RunOutput, truth: Option<&[NavSolution]>) -> Metrics {
         gnss_residuals: residuals,
         coasting: Vec::new(),
         gating: run.gating.clone(),
+        aiding: run.aiding,
     }
 }
 

@@ -22,6 +22,7 @@
     )
 )]
 
+pub mod aiding;
 pub mod align;
 pub mod allan;
 pub mod attitude;
@@ -31,6 +32,7 @@ pub mod filter;
 pub mod imu_guard;
 pub mod model;
 pub mod nav;
+pub mod navigator;
 pub mod scalar;
 pub mod selftest;
 pub mod types;

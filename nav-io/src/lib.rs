@@ -13,6 +13,7 @@
 //! Writers write gzip when the path ends in `.gz`.
 #![deny(missing_docs)]
 
+pub mod aidingcfg;
 mod error;
 pub mod gpstime;
 pub mod imucsv;
@@ -24,6 +25,7 @@ pub mod runcfg;
 pub mod tag;
 pub mod text;
 
+pub use aidingcfg::AidingSection;
 pub use error::IoError;
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,

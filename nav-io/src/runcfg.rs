@@ -556,6 +556,9 @@ pub struct RunConfig {
     /// `gyro_g_sensitivity`), e.g. as written by `host-sim diagnose` into `augmented.toml`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<String>,
+    /// Land-vehicle aiding (`[aiding]`, see [`super::aidingcfg`]); absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aiding: Option<super::aidingcfg::AidingSection>,
 }
 
 impl RunConfig {
@@ -683,6 +686,26 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
         path: name.to_path_buf(),
         message,
     })?;
+    if let Some(a) = &cfg.aiding {
+        if let Err(message) = a.to_config() {
+            // name the line of the offending key (the error names `table.key`)
+            let key = message
+                .strip_prefix("aiding: ")
+                .and_then(|m| m.split_whitespace().next())
+                .unwrap_or("");
+            let (table, k) = match key.rsplit_once('.') {
+                Some((t, k)) => (format!("aiding.{t}"), k),
+                None => ("aiding".to_string(), key),
+            };
+            let line = super::aidingcfg::line_of_key(text, &table, k)
+                .or_else(|| super::aidingcfg::line_of_key(text, "aiding", ""));
+            let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
+            return Err(IoError::Config {
+                path: name.to_path_buf(),
+                message: format!("{at}[{table}] {message}"),
+            });
+        }
+    }
     Ok(cfg)
 }
 

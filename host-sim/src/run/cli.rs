@@ -629,6 +629,12 @@ fn prepare_run_config(
         apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
     }
     opts.lever_arm_m = r.gnss.lever_arm_m;
+    if let Some(a) = &r.aiding {
+        opts.aiding = a
+            .to_config()
+            .map_err(|e| anyhow::anyhow!(e))
+            .context("[aiding]")?;
+    }
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
     for name in &r.effects {
@@ -758,6 +764,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         );
     }
     print!("{}", imu_summary(&out));
+    let al = out.aiding.summary_line();
+    if !al.is_empty() {
+        println!("{al}");
+    }
     print!("{}", metrics::summary_table(&m));
     println!(
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",

@@ -21,6 +21,7 @@
 //! covariance scalar ([`Precision`]) is f64 by default, f32 allowed. Adding a model is one line
 //! in [`run_filter_with_progress`]'s dispatch macro.
 
+pub mod aiding;
 pub mod cli;
 pub mod coast;
 pub mod gating_report;
@@ -231,6 +232,9 @@ pub struct RunOptions {
     pub imu_checks: ImuChecks,
     /// Record what the smoother needs ([`RunOutput::history`], `crate::smooth`).
     pub smoother_history: bool,
+    /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates; all off by
+    /// default), see [`aiding`].
+    pub aiding: nav_core::aiding::AidingConfig,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -270,6 +274,7 @@ impl RunOptions {
             extra_blocks: Vec::new(),
             imu_checks: ImuChecks::default(),
             smoother_history: false,
+            aiding: nav_core::aiding::AidingConfig::OFF,
         }
     }
 }
@@ -503,6 +508,8 @@ pub struct RunOutput {
     pub imu_report: ImuReport,
     /// The smoother's record of the run (with [`RunOptions::smoother_history`]).
     pub history: Option<crate::smooth::History>,
+    /// What the land-vehicle aiding did.
+    pub aiding: aiding::AidingReport,
 }
 
 /// Errors of a run.
@@ -908,6 +915,7 @@ fn run_layout<T: Scalar, const N: usize>(
     } else {
         crate::smooth::Recorder::disabled()
     };
+    let mut aid = aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
     'imu: for k in first..last {
         let s = case.imu.get(k).copied().unwrap_or_default();
         let dt = s.t_s - filter.nav_state().t_s;
@@ -963,7 +971,7 @@ fn run_layout<T: Scalar, const N: usize>(
             }
         }
         match filter.propagate_observed(&c.sample, &mut rec) {
-            Ok(()) => {}
+            Ok(()) => aid.after_imu(&mut filter, &mut rec),
             Err(FilterError::NonFiniteImu) => {
                 counters.imu_rejected += 1;
                 continue;
@@ -1013,6 +1021,7 @@ fn run_layout<T: Scalar, const N: usize>(
                 // reported by the update)
                 let _ = filter.predict_covariance_observed(&mut rec);
             }
+            aid.note_fix(fix);
             match filter.update_gnss(fix) {
                 Ok(o) => {
                     status_seen |= filter.status();
@@ -1119,6 +1128,7 @@ fn run_layout<T: Scalar, const N: usize>(
         ),
         imu_report,
         history,
+        aiding: aid.report(),
     };
     match fault {
         None => Ok(out),

@@ -107,6 +107,18 @@ pub struct Vehicle {
     /// Default duration of the yaw-rate ramps at the start and end of a turn, s.
     #[serde(default = "default_turn_ramp")]
     pub turn_ramp_s: f64,
+    /// Side slip of the body (constraint point) per m/s^2 of lateral acceleration, degrees per
+    /// m/s^2: the velocity points `slip` to the outside of the body x axis, so the
+    /// non-holonomic constraint is violated by `speed * sin(slip)` in turns (0: none; a
+    /// passenger car: about 0.2 to 0.5).
+    #[serde(default)]
+    pub slip_deg_per_mps2: f64,
+    /// Bounce: amplitude of a vertical velocity oscillation of the body while it moves, m/s
+    /// (sum of three incommensurate sines 1.1 / 1.9 / 3.3 Hz of relative amplitudes
+    /// 1 / 0.6 / 0.3, faded in with speed up to 5 m/s; 0: none; a car on a normal road: about
+    /// 0.02 to 0.05).
+    #[serde(default)]
+    pub bounce_mps: f64,
 }
 
 fn default_roll_per_g() -> f64 {
@@ -121,6 +133,8 @@ impl Default for Vehicle {
         Self {
             roll_per_g_deg: default_roll_per_g(),
             turn_ramp_s: default_turn_ramp(),
+            slip_deg_per_mps2: 0.0,
+            bounce_mps: 0.0,
         }
     }
 }
@@ -473,6 +487,8 @@ impl Scenario {
             pieces,
             duration_s,
             roll_rad_per_mps2: v.roll_per_g_deg.to_radians() / G0,
+            slip_rad_per_mps2: v.slip_deg_per_mps2.to_radians(),
+            bounce_mps: v.bounce_mps,
         })
     }
 }
@@ -583,6 +599,14 @@ pub struct Kinematics {
     pub roll_rad: f64,
     /// Roll rate, rad/s.
     pub roll_rate_radps: f64,
+    /// Side-slip angle: velocity heading minus body heading, rad (0 without slip).
+    pub slip_rad: f64,
+    /// Its rate, rad/s.
+    pub slip_rate_radps: f64,
+    /// Vertical (down) velocity of the bounce added to the NED velocity, m/s.
+    pub bounce_vel_mps: f64,
+    /// Its time derivative, m/s^2.
+    pub bounce_acc_mps2: f64,
 }
 
 /// A compiled scenario: smooth kinematics as functions of time since the start.
@@ -592,6 +616,8 @@ pub struct Profile {
     /// Total duration, s (whole IMU intervals).
     pub duration_s: f64,
     roll_rad_per_mps2: f64,
+    slip_rad_per_mps2: f64,
+    bounce_mps: f64,
 }
 
 /// Plateau function on [0, len] with C-infinity ramps of `ramp` s: value and derivative.
@@ -661,6 +687,30 @@ impl Profile {
         let lat_acc_dot = k.speed_dot_mps2 * k.yaw_rate_radps + k.speed_mps * yaw_acc;
         k.roll_rad = -self.roll_rad_per_mps2 * lat_acc;
         k.roll_rate_radps = -self.roll_rad_per_mps2 * lat_acc_dot;
+        // side slip: the velocity turns outward of the body x axis (a right turn: the body's
+        // nose points right of the velocity, i.e. the velocity is to the left in the body)
+        k.slip_rad = self.slip_rad_per_mps2 * lat_acc;
+        k.slip_rate_radps = self.slip_rad_per_mps2 * lat_acc_dot;
+        if self.bounce_mps != 0.0 {
+            // faded in with speed: smooth_step of speed / 5 m/s
+            // (below 0.01 m/s the step is exp(-500) = 0; its derivative formula would be 0 * inf)
+            let x = k.speed_mps / 5.0;
+            let (fade, dfade, _) = if x > 2e-3 {
+                smooth_step_d(x)
+            } else {
+                (0.0, 0.0, 0.0)
+            };
+            let dfade_dt = dfade / 5.0 * k.speed_dot_mps2;
+            let mut b = 0.0;
+            let mut db = 0.0;
+            for (f_hz, a, ph) in [(1.1, 1.0, 0.0), (1.9, 0.6, 1.3), (3.3, 0.3, 2.1)] {
+                let w = 2.0 * std::f64::consts::PI * f_hz;
+                b += a * (w * t_s + ph).sin();
+                db += a * w * (w * t_s + ph).cos();
+            }
+            k.bounce_vel_mps = self.bounce_mps * fade * b;
+            k.bounce_acc_mps2 = self.bounce_mps * (fade * db + dfade_dt * b);
+        }
         k
     }
 

@@ -116,6 +116,8 @@ impl EarthTerms {
 /// The inverse mechanization at relative time `t` for position/yaw `y`.
 fn instant(prof: &Profile, t: f64, y: &State) -> Instant {
     let kin = prof.eval(t);
+    // y[3] is the heading of the velocity (course); the body yaw is the course minus the side
+    // slip (zero without slip)
     let (lat, h, yaw) = (y[0], y[2], y[3]);
     let (st, ct) = kin.pitch_rad.sin_cos();
     let (sp, cp) = yaw.sin_cos();
@@ -133,11 +135,14 @@ fn instant(prof: &Profile, t: f64, y: &State) -> Instant {
         -st * qd * sp + ct * cp * rd,
         -ct * qd,
     );
-    let a_n = u * kin.speed_dot_mps2 + du * s;
+    let a_n = u * kin.speed_dot_mps2 + du * s + Vector3::new(0.0, 0.0, kin.bounce_acc_mps2);
+    let v = v + Vector3::new(0.0, 0.0, kin.bounce_vel_mps);
     let e = EarthTerms::new(lat, h, &v);
     let (w_ie, w_en, g) = (e.w_ie, e.w_en, e.g);
     let f_n = a_n + (2.0 * w_ie + w_en).cross(&v) - g;
-    let c_bn = dcm_from_euler(kin.roll_rad, kin.pitch_rad, yaw);
+    let yaw_b = yaw - kin.slip_rad;
+    let rd = rd - kin.slip_rate_radps;
+    let c_bn = dcm_from_euler(kin.roll_rad, kin.pitch_rad, yaw_b);
     let c_nb = c_bn.transpose();
     let w_nb_b = Vector3::new(
         pd - rd * st,
@@ -239,7 +244,11 @@ impl Trajectory {
             lon_rad: y[1],
             h_m: y[2],
             vel_ned_mps: [i.vel_ned_mps.x, i.vel_ned_mps.y, i.vel_ned_mps.z],
-            rpy_rad: [i.kin.roll_rad, i.kin.pitch_rad, wrap_pi(y[3])],
+            rpy_rad: [
+                i.kin.roll_rad,
+                i.kin.pitch_rad,
+                wrap_pi(y[3] - i.kin.slip_rad),
+            ],
             pos_std_ned_m: [f64::NAN; 3],
             vel_std_ned_mps: [f64::NAN; 3],
             att_std_rad: [f64::NAN; 3],

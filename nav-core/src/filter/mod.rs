@@ -14,9 +14,12 @@
 //! failure (non-finite covariance, innovation covariance not positive definite) is reported and
 //! the previous covariance kept.
 
+mod aiding_update;
 pub mod linalg;
 pub mod observe;
 pub mod robust;
+
+pub use aiding_update::AidingOutcome;
 
 use crate::attitude;
 use crate::config::{ConfigError, FilterConfig};

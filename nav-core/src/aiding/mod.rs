@@ -1,0 +1,269 @@
+//! Land-vehicle aiding: constraints and auxiliary measurements fused by the error-state filter
+//! through [`crate::filter::Filter::update_aiding`]. One file per source, measurement checks
+//! apart from the fusion maths (PX4 EKF2 style):
+//!
+//! * [`stationarity`]: the stationarity detector (window of IMU specific force and rate, GNSS
+//!   speed when present);
+//! * [`nhc`]: the non-holonomic constraint (lateral and vertical vehicle velocity ~ 0);
+//! * [`zupt`]: zero-velocity and zero-angular-rate updates at stops.
+//!
+//! [`Aiding`] runs them at IMU epochs: call [`Aiding::on_imu`] after every successful
+//! [`crate::filter::Filter::propagate`]. Every source is off by default ([`AidingConfig`]);
+//! what each did is counted in [`AidingCounters`]. No allocation, no panics, fixed sizes.
+
+pub mod nhc;
+pub mod stationarity;
+pub mod zupt;
+
+use crate::earth;
+use crate::filter::{Filter, FilterError};
+use crate::scalar::Scalar;
+pub use nhc::NhcConfig;
+pub use stationarity::{StationarityConfig, StationarityDetector, WindowStats};
+pub use zupt::{ZaruConfig, ZuptConfig};
+
+/// Configuration of every aiding source.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AidingConfig {
+    /// Interval between aiding updates, s (0: every IMU epoch).
+    pub interval_s: f64,
+    /// Stationarity detector thresholds.
+    pub stationarity: StationarityConfig,
+    /// Non-holonomic constraint.
+    pub nhc: NhcConfig,
+    /// Zero-velocity update.
+    pub zupt: ZuptConfig,
+    /// Zero-angular-rate update.
+    pub zaru: ZaruConfig,
+}
+
+/// An invalid aiding setting (names the field).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AidingConfigError {
+    /// The field must be finite and >= 0.
+    NotNonNegative(&'static str),
+    /// The field must be finite and > 0.
+    NotPositive(&'static str),
+    /// The field must be finite.
+    NotFinite(&'static str),
+}
+
+impl core::fmt::Display for AidingConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NotNonNegative(n) => write!(f, "aiding: {n} must be finite and >= 0"),
+            Self::NotPositive(n) => write!(f, "aiding: {n} must be finite and > 0"),
+            Self::NotFinite(n) => write!(f, "aiding: {n} must be finite"),
+        }
+    }
+}
+
+impl core::error::Error for AidingConfigError {}
+
+impl AidingConfig {
+    /// Everything off (the filter's behaviour without aiding).
+    pub const OFF: Self = Self {
+        interval_s: 0.1,
+        stationarity: StationarityConfig::DEFAULT,
+        nhc: NhcConfig::DEFAULT,
+        zupt: ZuptConfig::DEFAULT,
+        zaru: ZaruConfig::DEFAULT,
+    };
+
+    /// Whether any source is on.
+    pub fn any_enabled(&self) -> bool {
+        self.nhc.enabled || self.zupt.enabled || self.zaru.enabled
+    }
+
+    /// Checks every threshold and sigma; the error names the first bad field.
+    pub fn validate(&self) -> Result<(), AidingConfigError> {
+        use AidingConfigError::{NotFinite, NotNonNegative, NotPositive};
+        let nonneg = |v: f64, n| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(NotNonNegative(n))
+            }
+        };
+        let pos = |v: f64, n| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(NotPositive(n))
+            }
+        };
+        let gate = |v: f64, n| {
+            if v > 0.0 {
+                Ok(())
+            } else {
+                Err(NotPositive(n))
+            }
+        };
+        let s = &self.stationarity;
+        nonneg(self.interval_s, "interval_s")?;
+        pos(s.window_s, "stationarity.window_s")?;
+        nonneg(s.accel_std_max_mps2, "stationarity.accel_std_max_mps2")?;
+        nonneg(s.accel_mag_tol_mps2, "stationarity.accel_mag_tol_mps2")?;
+        nonneg(s.gyro_mean_max_radps, "stationarity.gyro_mean_max")?;
+        nonneg(s.gyro_std_max_radps, "stationarity.gyro_std_max")?;
+        nonneg(s.gnss_speed_max_mps, "stationarity.gnss_speed_max_mps")?;
+        nonneg(s.gnss_max_age_s, "stationarity.gnss_max_age_s")?;
+        pos(self.nhc.sigma_lateral_mps, "nhc.sigma_lateral_mps")?;
+        pos(self.nhc.sigma_vertical_mps, "nhc.sigma_vertical_mps")?;
+        nonneg(self.nhc.min_speed_mps, "nhc.min_speed_mps")?;
+        if !self
+            .nhc
+            .mount_rpy_rad
+            .iter()
+            .chain(&self.nhc.lever_arm_m)
+            .all(|v| v.is_finite())
+        {
+            return Err(NotFinite("nhc.mount_rpy / nhc.lever_arm_m"));
+        }
+        gate(self.nhc.nis_gate, "nhc.nis_gate")?;
+        pos(self.zupt.sigma_mps, "zupt.sigma_mps")?;
+        gate(self.zupt.nis_gate, "zupt.nis_gate")?;
+        pos(self.zaru.sigma_radps, "zaru.sigma")?;
+        gate(self.zaru.nis_gate, "zaru.nis_gate")?;
+        Ok(())
+    }
+}
+
+/// Counts of one aiding source.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SourceCounters {
+    /// Updates used.
+    pub used: u32,
+    /// Updates rejected by the source's chi-square gate.
+    pub rejected: u32,
+    /// Updates skipped by a numerical failure (innovation covariance not positive definite).
+    pub failed: u32,
+}
+
+/// What the aiding did over a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AidingCounters {
+    /// Aiding epochs at which the detector had a full window.
+    pub epochs: u32,
+    /// Of those, epochs declared stationary.
+    pub stationary_epochs: u32,
+    /// Non-holonomic constraint.
+    pub nhc: SourceCounters,
+    /// Zero-velocity update.
+    pub zupt: SourceCounters,
+    /// Zero-angular-rate update.
+    pub zaru: SourceCounters,
+}
+
+/// The aiding runner: the stationarity detector (window of at most `W` IMU samples), the
+/// update timer and the counters.
+#[derive(Debug, Clone)]
+pub struct Aiding<T: Scalar, const W: usize> {
+    cfg: AidingConfig,
+    det: StationarityDetector<T, W>,
+    last_t_s: f64,
+    stationary: bool,
+    counters: AidingCounters,
+}
+
+impl<T: Scalar, const W: usize> Aiding<T, W> {
+    /// A runner for a validated configuration.
+    pub fn new(cfg: &AidingConfig) -> Result<Self, AidingConfigError> {
+        cfg.validate()?;
+        Ok(Self {
+            cfg: *cfg,
+            det: StationarityDetector::new(),
+            last_t_s: f64::NEG_INFINITY,
+            stationary: false,
+            counters: AidingCounters::default(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &AidingConfig {
+        &self.cfg
+    }
+
+    /// The counters.
+    pub fn counters(&self) -> &AidingCounters {
+        &self.counters
+    }
+
+    /// The detector's last decision.
+    pub fn is_stationary(&self) -> bool {
+        self.stationary
+    }
+
+    /// Runs the aiding after a successful [`Filter::propagate`]: feeds the detector with the
+    /// epoch's corrected specific force and rate and, every `interval_s`, decides stationarity
+    /// and applies the enabled updates (ZUPT and ZARU when still, else the NHC when fast
+    /// enough). `gnss_speed` is `(fix time s, speed m/s)` of the latest GNSS velocity, if any.
+    /// A numerical failure of one update is counted (`failed`) and the others go on; the
+    /// filter stays usable, so this never fails for a numerical reason.
+    pub fn on_imu<const N: usize>(&mut self, f: &mut Filter<T, N>, gnss_speed: Option<(f64, f64)>) {
+        if !self.cfg.any_enabled() {
+            return;
+        }
+        let step = *f.last_step();
+        self.det
+            .push(&step.f_body_mps2.into(), &step.omega_ib_body_radps.into());
+        let nav = *f.nav_state();
+        let t = nav.t_s;
+        if t - self.last_t_s < self.cfg.interval_s - 0.5 * step.dt_s {
+            return;
+        }
+        self.last_t_s = t;
+        let n = if step.dt_s > 0.0 {
+            libm::round(self.cfg.stationarity.window_s / step.dt_s) as usize
+        } else {
+            0
+        }
+        .clamp(2, W.max(2));
+        let Some(stats) = self.det.stats(n) else {
+            self.stationary = false;
+            return;
+        };
+        self.counters.epochs = self.counters.epochs.saturating_add(1);
+        let speed = gnss_speed.and_then(|(ts, v)| {
+            (t - ts <= self.cfg.stationarity.gnss_max_age_s && t - ts >= -1.0).then_some(v)
+        });
+        let g = earth::gravity_mps2(nav.pos.lat_rad, nav.pos.h_m);
+        self.stationary = stationarity::is_stationary(&self.cfg.stationarity, &stats, g, speed);
+        let layout = *f.layout();
+        if self.stationary {
+            self.counters.stationary_epochs = self.counters.stationary_epochs.saturating_add(1);
+            if self.cfg.zupt.enabled {
+                let (z, h, r) = zupt::zupt_measurement::<T, N>(&self.cfg.zupt, f.nav_state());
+                let res = f.update_aiding(&z, &h, &r, self.cfg.zupt.nis_gate);
+                count(&mut self.counters.zupt, res);
+            }
+            if self.cfg.zaru.enabled {
+                if let Some((z, h, r)) = zupt::zaru_measurement::<T, N>(
+                    &self.cfg.zaru,
+                    &layout,
+                    f.nav_state(),
+                    &stats.w_mean_radps,
+                ) {
+                    let res = f.update_aiding(&z, &h, &r, self.cfg.zaru.nis_gate);
+                    count(&mut self.counters.zaru, res);
+                }
+            }
+        } else if nhc::nhc_applies(&self.cfg.nhc, f.nav_state(), false) {
+            let m = nhc::nhc_measurement::<T, N>(&self.cfg.nhc, &layout, f.nav_state(), &step);
+            let res = f.update_aiding(&m.z_mps, &m.h, &m.r, self.cfg.nhc.nis_gate);
+            count(&mut self.counters.nhc, res);
+        }
+    }
+}
+
+fn count(c: &mut SourceCounters, res: Result<crate::filter::AidingOutcome, FilterError>) {
+    match res {
+        Ok(o) if o.accepted => c.used = c.used.saturating_add(1),
+        Ok(_) => c.rejected = c.rejected.saturating_add(1),
+        Err(_) => c.failed = c.failed.saturating_add(1),
+    }
+}

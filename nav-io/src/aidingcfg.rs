@@ -1,0 +1,207 @@
+//! The `[aiding]` section of the run configuration ([`super::RunConfig::aiding`]):
+//! land-vehicle aiding of `nav_core::aiding`, every source off unless `enabled = true`.
+//! Absent keys take `nav_core`'s defaults. Angles in degrees, everything else SI.
+//!
+//! ```toml
+//! [aiding]
+//! interval_s = 0.1                 # between aiding updates
+//! [aiding.stationarity]            # detector of stops (ZUPT/ZARU)
+//! window_s = 0.5
+//! accel_std_max_mps2 = 0.1         # spread of the specific force
+//! accel_mag_tol_mps2 = 0.3         # | |f| - g |
+//! gyro_mean_max_deg_per_s = 1.0
+//! gyro_std_max_deg_per_s = 0.5
+//! gnss_speed_max_mps = 0.15        # when a GNSS velocity is at most gnss_max_age_s old
+//! gnss_max_age_s = 1.0
+//! [aiding.nhc]                     # non-holonomic constraint
+//! enabled = true
+//! sigma_lateral_mps = 0.1
+//! sigma_vertical_mps = 0.05
+//! min_speed_mps = 1.0
+//! mount_rpy_deg = [0.0, 0.0, 0.0]  # vehicle -> body (body = vehicle when zero)
+//! lever_arm_m = [0.0, 0.0, 0.0]    # constraint point (rear axle) from the IMU, body FRD
+//! nis_gate = 18.42
+//! [aiding.zupt]
+//! enabled = true
+//! sigma_mps = 0.02
+//! nis_gate = 21.11
+//! [aiding.zaru]
+//! enabled = true
+//! sigma_deg_per_s = 0.01
+//! nis_gate = 21.11
+//! ```
+
+use nav_core::aiding::AidingConfig;
+
+/// `[aiding]`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AidingSection {
+    /// Interval between aiding updates, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval_s: Option<f64>,
+    /// `[aiding.stationarity]`.
+    #[serde(default)]
+    pub stationarity: StationaritySection,
+    /// `[aiding.nhc]`.
+    #[serde(default)]
+    pub nhc: NhcSection,
+    /// `[aiding.zupt]`.
+    #[serde(default)]
+    pub zupt: ZuptSection,
+    /// `[aiding.zaru]`.
+    #[serde(default)]
+    pub zaru: ZaruSection,
+}
+
+/// `[aiding.stationarity]`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StationaritySection {
+    /// Test window, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_s: Option<f64>,
+    /// Largest specific-force spread, m/s^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_std_max_mps2: Option<f64>,
+    /// Largest | |f| - g |, m/s^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accel_mag_tol_mps2: Option<f64>,
+    /// Largest mean rate, deg/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro_mean_max_deg_per_s: Option<f64>,
+    /// Largest rate spread, deg/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro_std_max_deg_per_s: Option<f64>,
+    /// Largest GNSS speed, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss_speed_max_mps: Option<f64>,
+    /// Oldest GNSS velocity used, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss_max_age_s: Option<f64>,
+}
+
+/// `[aiding.nhc]`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NhcSection {
+    /// Use the non-holonomic constraint.
+    #[serde(default)]
+    pub enabled: bool,
+    /// Lateral sigma, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_lateral_mps: Option<f64>,
+    /// Vertical sigma, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_vertical_mps: Option<f64>,
+    /// Lowest speed, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_speed_mps: Option<f64>,
+    /// Vehicle-to-body rotation, ZYX Euler roll/pitch/yaw, deg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mount_rpy_deg: Option<[f64; 3]>,
+    /// Constraint point from the IMU, body FRD, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lever_arm_m: Option<[f64; 3]>,
+    /// Chi-square gate (2 dof).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nis_gate: Option<f64>,
+}
+
+/// `[aiding.zupt]`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZuptSection {
+    /// Use zero-velocity updates.
+    #[serde(default)]
+    pub enabled: bool,
+    /// Velocity sigma at stops, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_mps: Option<f64>,
+    /// Chi-square gate (3 dof).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nis_gate: Option<f64>,
+}
+
+/// `[aiding.zaru]`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZaruSection {
+    /// Use zero-rate updates.
+    #[serde(default)]
+    pub enabled: bool,
+    /// Rate sigma at stops, deg/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_deg_per_s: Option<f64>,
+    /// Chi-square gate (3 dof).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nis_gate: Option<f64>,
+}
+
+impl AidingSection {
+    /// The filter-side configuration, validated (the error names the key).
+    pub fn to_config(&self) -> Result<AidingConfig, String> {
+        let mut c = AidingConfig::OFF;
+        let set = |dst: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *dst = v;
+            }
+        };
+        let deg = |v: Option<f64>| v.map(f64::to_radians);
+        set(&mut c.interval_s, self.interval_s);
+        let s = &self.stationarity;
+        let d = &mut c.stationarity;
+        set(&mut d.window_s, s.window_s);
+        set(&mut d.accel_std_max_mps2, s.accel_std_max_mps2);
+        set(&mut d.accel_mag_tol_mps2, s.accel_mag_tol_mps2);
+        set(&mut d.gyro_mean_max_radps, deg(s.gyro_mean_max_deg_per_s));
+        set(&mut d.gyro_std_max_radps, deg(s.gyro_std_max_deg_per_s));
+        set(&mut d.gnss_speed_max_mps, s.gnss_speed_max_mps);
+        set(&mut d.gnss_max_age_s, s.gnss_max_age_s);
+        let n = &self.nhc;
+        c.nhc.enabled = n.enabled;
+        set(&mut c.nhc.sigma_lateral_mps, n.sigma_lateral_mps);
+        set(&mut c.nhc.sigma_vertical_mps, n.sigma_vertical_mps);
+        set(&mut c.nhc.min_speed_mps, n.min_speed_mps);
+        if let Some(r) = n.mount_rpy_deg {
+            c.nhc.mount_rpy_rad = r.map(f64::to_radians);
+        }
+        if let Some(l) = n.lever_arm_m {
+            c.nhc.lever_arm_m = l;
+        }
+        set(&mut c.nhc.nis_gate, n.nis_gate);
+        c.zupt.enabled = self.zupt.enabled;
+        set(&mut c.zupt.sigma_mps, self.zupt.sigma_mps);
+        set(&mut c.zupt.nis_gate, self.zupt.nis_gate);
+        c.zaru.enabled = self.zaru.enabled;
+        set(&mut c.zaru.sigma_radps, deg(self.zaru.sigma_deg_per_s));
+        set(&mut c.zaru.nis_gate, self.zaru.nis_gate);
+        c.validate().map_err(|e| e.to_string())?;
+        Ok(c)
+    }
+}
+
+/// 1-based line of `key` inside the table `[table]` (or its first line when the key is not
+/// written there) of a TOML text, for error messages; None when the table is absent.
+pub fn line_of_key(text: &str, table: &str, key: &str) -> Option<usize> {
+    let mut current = String::new();
+    let mut table_line = None;
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if let Some(h) = t.strip_prefix('[') {
+            current = h.trim_end_matches(']').trim().to_string();
+            if current == table && table_line.is_none() {
+                table_line = Some(i + 1);
+            }
+            continue;
+        }
+        if current == table {
+            if let Some((k, _)) = t.split_once('=') {
+                if k.trim() == key {
+                    return Some(i + 1);
+                }
+            }
+        }
+    }
+    table_line
+}
