@@ -60,3 +60,35 @@ fn real_drive_smoothed_outage_error_meets_the_target() {
     assert!(s < f, "{s} vs forward {f}");
     assert!(dir.path().join("nav_forward.txt").exists());
 }
+
+/// The same protocol with the land-vehicle aiding (`configs/drive0708_aided.toml`: NHC,
+/// ZUPT/ZARU): the aiding updates' predictions are recorded too (the smoother refuses a
+/// history with unrecorded predictions), and the smoothed outage error meets the target.
+#[test]
+fn real_drive_with_aiding_is_smoothed() {
+    if !data_present() {
+        println!("SKIPPED real_drive_with_aiding_is_smoothed: ../shared/data not found");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = RunArgs::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../configs/drive0708_aided.toml"
+    ));
+    a.periodic_outages = vec![parse_periodic("120:20:60").unwrap()];
+    a.smooth = true;
+    a.out = dir.path().to_path_buf();
+    run(a).unwrap();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("metrics.json")).unwrap())
+            .unwrap();
+    let rms = |v: &serde_json::Value| {
+        v["outage_summary"]["max_horizontal_m"]["rms"]
+            .as_f64()
+            .unwrap()
+    };
+    let (f, s) = (rms(&m), rms(&m["smoothed"]));
+    println!("real drive with aiding: RMS-of-max horizontal forward {f:.3} m, smoothed {s:.3} m");
+    assert!(s <= 2.0, "smoothed {s} m");
+    assert!(s < f);
+}
