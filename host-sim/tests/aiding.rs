@@ -61,12 +61,7 @@ fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
 }
 
 fn case(seed: u64) -> Case {
-    simulate(
-        &scenario(),
-        &ErrorModel::preset("consumer-mems").unwrap(),
-        seed,
-    )
-    .unwrap()
+    simulate(&scenario(), &ErrorModel::preset("consumer-mems").unwrap(), seed).unwrap()
 }
 
 fn all_on() -> AidingConfig {
@@ -156,10 +151,7 @@ fn zupt_holds_the_position_to_centimetres_during_stops() {
         r.zupt.used, r.zupt.rejected, r.zaru.used, r.zaru.rejected, r.stationary_epochs, r.epochs
     );
     // detector: about 1 decision per 0.1 s, 150 s of stops in the 494 s scenario
-    assert!(
-        r.stationary_epochs > 1000 && r.stationary_epochs < 1600,
-        "{r:?}"
-    );
+    assert!(r.stationary_epochs > 1000 && r.stationary_epochs < 1600, "{r:?}");
     assert!(r.zupt.used > 500, "{r:?}");
     let drift = |nav: &[nav_core::types::NavSolution], o: &Outage| {
         let e = errors_vs_truth(nav, truth);
@@ -205,15 +197,10 @@ fn data_dir() -> Option<&'static Path> {
 #[test]
 fn real_drive_with_aiding_meets_the_issue_targets() {
     if data_dir().is_none() {
-        println!(
-            "SKIPPED real_drive_with_aiding_meets_the_issue_targets: ../shared/data not found"
-        );
+        println!("SKIPPED real_drive_with_aiding_meets_the_issue_targets: ../shared/data not found");
         return;
     }
-    let cfg = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../configs/drive0708_aided.toml"
-    );
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708_aided.toml");
     // without outages: the prior residuals of the RTK fixes
     let p = prepare(&RunArgs::new(cfg)).expect("loading the drive");
     let (out0, m0) = execute(&p, &mut |_, _| {}).expect("run");
@@ -246,10 +233,7 @@ fn real_drive_with_aiding_meets_the_issue_targets() {
 
 #[test]
 fn aiding_section_errors_name_the_file_and_line() {
-    let cfg_path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../configs/drive0708_aided.toml"
-    );
+    let cfg_path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708_aided.toml");
     let text = std::fs::read_to_string(cfg_path).unwrap();
     let c = nav_io::parse_run_config(Path::new(cfg_path), &text).unwrap();
     let a = c.aiding.as_ref().unwrap().to_config().unwrap();
@@ -269,10 +253,7 @@ fn aiding_section_errors_name_the_file_and_line() {
     assert!(e.contains(&format!("line {line}")), "{e}");
     assert!(e.contains("nhc.sigma_lateral_mps"), "{e}");
     // an unknown key: the parser's line
-    let bad = text.replace(
-        "[aiding.zupt]\nenabled = true",
-        "[aiding.zupt]\nenabled = true\nsigma = 1.0",
-    );
+    let bad = text.replace("[aiding.zupt]\nenabled = true", "[aiding.zupt]\nenabled = true\nsigma = 1.0");
     let e = nav_io::parse_run_config(Path::new("y.toml"), &bad)
         .unwrap_err()
         .to_string();

@@ -244,11 +244,7 @@ impl Trajectory {
             lon_rad: y[1],
             h_m: y[2],
             vel_ned_mps: [i.vel_ned_mps.x, i.vel_ned_mps.y, i.vel_ned_mps.z],
-            rpy_rad: [
-                i.kin.roll_rad,
-                i.kin.pitch_rad,
-                wrap_pi(y[3] - i.kin.slip_rad),
-            ],
+            rpy_rad: [i.kin.roll_rad, i.kin.pitch_rad, wrap_pi(y[3] - i.kin.slip_rad)],
             pos_std_ned_m: [f64::NAN; 3],
             vel_std_ned_mps: [f64::NAN; 3],
             att_std_rad: [f64::NAN; 3],
