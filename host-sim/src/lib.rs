@@ -13,4 +13,5 @@ pub mod mounting;
 pub mod noise;
 pub mod run;
 pub mod sim;
+pub mod smooth;
 pub mod study;

@@ -102,6 +102,8 @@ impl AidingReport {
 pub struct RunAiding<T: Scalar> {
     inner: Aiding<T, HOST_WINDOW>,
     gnss_speed: Option<(f64, f64)>,
+    /// The aiding's decision time as `Aiding::on_imu` keeps it (for the smoother's recorder).
+    last_decision_s: f64,
 }
 
 impl<T: Scalar> RunAiding<T> {
@@ -110,6 +112,7 @@ impl<T: Scalar> RunAiding<T> {
         Ok(Self {
             inner: Aiding::new(cfg).map_err(|e| e.to_string())?,
             gnss_speed: None,
+            last_decision_s: f64::NEG_INFINITY,
         })
     }
 
@@ -122,7 +125,23 @@ impl<T: Scalar> RunAiding<T> {
     }
 
     /// After an integrated IMU sample.
-    pub fn after_imu<const N: usize>(&mut self, f: &mut Filter<T, N>) {
+    /// With the smoother's recorder enabled, the covariance is predicted (and recorded) first
+    /// at every aiding decision epoch (the rule of `Aiding::on_imu`), so that the prediction
+    /// an aiding update makes is seen.
+    pub fn after_imu<const N: usize>(
+        &mut self,
+        f: &mut Filter<T, N>,
+        rec: &mut crate::smooth::Recorder,
+    ) {
+        let cfg = self.inner.config();
+        if rec.is_enabled() && cfg.any_enabled() {
+            let (t, dt) = (f.nav_state().t_s, f.last_step().dt_s);
+            if t - self.last_decision_s >= cfg.interval_s - 0.5 * dt {
+                self.last_decision_s = t;
+                // a failure is counted by the update that follows
+                let _ = f.predict_covariance_observed(rec);
+            }
+        }
         self.inner.on_imu(f, self.gnss_speed);
     }
 

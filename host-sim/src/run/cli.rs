@@ -131,6 +131,11 @@ pub struct RunArgs {
     /// code 1) instead of skipping it.
     #[arg(long)]
     pub imu_strict: bool,
+    /// Post-processing: run the Rauch-Tung-Striebel smoother after the forward filter;
+    /// nav.txt / std.txt are then smoothed, the forward solution is nav_forward.txt, and
+    /// metrics.json has the smoothed metrics under `smoothed` (see host_sim::smooth).
+    #[arg(long)]
+    pub smooth: bool,
 }
 
 /// Parses `--imu-gaps`.
@@ -221,6 +226,7 @@ impl RunArgs {
             imu_max_gap: None,
             imu_gaps: None,
             imu_strict: false,
+            smooth: false,
         }
     }
 }
@@ -401,6 +407,7 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     }
     opts.record.nav_rate_hz = None;
     opts.record.epoch_rate_hz = Some(args.std_rate);
+    opts.smoother_history = args.smooth;
     Ok(Prepared {
         case,
         opts,
@@ -720,6 +727,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         Ok(x) => x,
         Err(e) => return Err(write_after_fault(&args, &p, e)),
     };
+    if args.smooth {
+        return crate::smooth::apply::finish(&args, &p, out, m, t_run);
+    }
     let nav: Vec<NavSolution> = match args.nav_rate {
         Some(r) if r > 0.0 => decimate(&out.nav, r),
         _ => out.nav.clone(),

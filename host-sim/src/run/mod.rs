@@ -230,6 +230,8 @@ pub struct RunOptions {
     pub extra_blocks: Vec<Block>,
     /// IMU gap handling and plausibility limits.
     pub imu_checks: ImuChecks,
+    /// Record what the smoother needs ([`RunOutput::history`], `crate::smooth`).
+    pub smoother_history: bool,
     /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates; all off by
     /// default), see [`aiding`].
     pub aiding: nav_core::aiding::AidingConfig,
@@ -271,6 +273,7 @@ impl RunOptions {
             end_s: None,
             extra_blocks: Vec::new(),
             imu_checks: ImuChecks::default(),
+            smoother_history: false,
             aiding: nav_core::aiding::AidingConfig::OFF,
         }
     }
@@ -503,6 +506,8 @@ pub struct RunOutput {
     pub gating: gating_report::GatingReport,
     /// IMU gaps and rejected samples.
     pub imu_report: ImuReport,
+    /// The smoother's record of the run (with [`RunOptions::smoother_history`]).
+    pub history: Option<crate::smooth::History>,
     /// What the land-vehicle aiding did.
     pub aiding: aiding::AidingReport,
 }
@@ -905,6 +910,11 @@ fn run_layout<T: Scalar, const N: usize>(
         ..ImuReport::default()
     };
     let mut fault: Option<(String, f64, String)> = None;
+    let mut rec = if opts.smoother_history {
+        crate::smooth::Recorder::new(N)
+    } else {
+        crate::smooth::Recorder::disabled()
+    };
     let mut aid = aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
     'imu: for k in first..last {
         let s = case.imu.get(k).copied().unwrap_or_default();
@@ -951,7 +961,7 @@ fn run_layout<T: Scalar, const N: usize>(
             });
         }
         for f in c.fill {
-            if let Err(e) = filter.propagate(&f) {
+            if let Err(e) = filter.propagate_observed(&f, &mut rec) {
                 fault = Some((
                     case.locate_imu(k),
                     s.t_s,
@@ -960,8 +970,8 @@ fn run_layout<T: Scalar, const N: usize>(
                 break 'imu;
             }
         }
-        match filter.propagate(&c.sample) {
-            Ok(()) => aid.after_imu(&mut filter),
+        match filter.propagate_observed(&c.sample, &mut rec) {
+            Ok(()) => aid.after_imu(&mut filter, &mut rec),
             Err(FilterError::NonFiniteImu) => {
                 counters.imu_rejected += 1;
                 continue;
@@ -1005,6 +1015,11 @@ fn run_layout<T: Scalar, const N: usize>(
                     quality: fix.quality.rtklib_q(),
                 });
                 continue;
+            }
+            if rec.is_enabled() {
+                // the update's own prediction, seen by the smoother's recorder (a failure is
+                // reported by the update)
+                let _ = filter.predict_covariance_observed(&mut rec);
             }
             aid.note_fix(fix);
             match filter.update_gnss(fix) {
@@ -1087,6 +1102,11 @@ fn run_layout<T: Scalar, const N: usize>(
     imu_report.gaps_spanned = g.gaps_spanned;
     imu_report.gaps_filled = g.gaps_filled;
     imu_report.rejected = counters.imu_implausible;
+    let history = rec.finish(
+        filter.covariance(),
+        filter.pending_correction(),
+        u64::from(filter.counters().cov_predictions),
+    );
     let out = RunOutput {
         model: opts.model,
         state_names: state_names(&layout),
@@ -1107,6 +1127,7 @@ fn run_layout<T: Scalar, const N: usize>(
             status_seen,
         ),
         imu_report,
+        history,
         aiding: aid.report(),
     };
     match fault {

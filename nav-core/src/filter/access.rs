@@ -211,4 +211,11 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let mut a = self.p;
         sym && cholesky_in_place(&mut a)
     }
+
+    /// The error-state correction fed back since the last covariance prediction (summed over
+    /// the updates; estimate minus truth, state units): what a smoother's last node needs
+    /// after the run ([`super::observe`]).
+    pub fn pending_correction(&self) -> &[T; N] {
+        &self.fed_back
+    }
 }

@@ -17,6 +17,7 @@
 mod access;
 mod aiding_update;
 pub(crate) mod linalg;
+pub mod observe;
 pub mod robust;
 
 pub use aiding_update::AidingOutcome;
@@ -34,6 +35,7 @@ use crate::scalar::Scalar;
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use observe::{CovObserver, PredictionRecord};
 use robust::{igg3_weight, GateState, RejectedFix, RobustStats, MIN_WEIGHT};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
@@ -189,6 +191,9 @@ pub struct Filter<T: Scalar, const N: usize> {
     temperature_ref_c: f64,
     /// Temperature of the last IMU sample, degC (NaN: none).
     last_temperature_c: f64,
+    /// Error-state corrections fed back since the last covariance prediction (summed), for
+    /// [`observe::PredictionRecord::correction`].
+    fed_back: [T; N],
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -271,6 +276,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             status: STATUS_NO_FIX_YET,
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
+            fed_back: [T::ZERO; N],
         })
     }
 
@@ -278,6 +284,15 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// mechanises, and accumulates the error dynamics; predicts the covariance when the
     /// configured interval is full.
     pub fn propagate(&mut self, imu: &ImuSample) -> Result<(), FilterError> {
+        self.propagate_observed(imu, &mut ())
+    }
+
+    /// [`Self::propagate`], handing a covariance prediction (when one is due) to `obs`.
+    pub fn propagate_observed<O: CovObserver<T, N>>(
+        &mut self,
+        imu: &ImuSample,
+        obs: &mut O,
+    ) -> Result<(), FilterError> {
         if !imu.is_finite() {
             self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
             return Err(FilterError::NonFiniteImu);
@@ -327,7 +342,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         self.acc.add(&self.layout, &reg, step.dt_s, &f_n);
         self.counters.imu_epochs = self.counters.imu_epochs.saturating_add(1);
         if self.acc.dt_s + 0.5 * step.dt_s >= self.cfg.cov_predict_interval_s {
-            self.predict_covariance()?;
+            self.predict_covariance_observed(obs)?;
         }
         Ok(())
     }
@@ -335,9 +350,18 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// Predicts the covariance over the IMU epochs accumulated since the last prediction (a
     /// no-op when there are none). Called by [`Self::propagate`] and before every update.
     pub fn predict_covariance(&mut self) -> Result<(), FilterError> {
+        self.predict_covariance_observed(&mut ())
+    }
+
+    /// [`Self::predict_covariance`], handing the prediction (when there is one) to `obs`.
+    pub fn predict_covariance_observed<O: CovObserver<T, N>>(
+        &mut self,
+        obs: &mut O,
+    ) -> Result<(), FilterError> {
         if self.acc.epochs == 0 {
             return Ok(());
         }
+        let interval_s = self.acc.dt_s;
         let mut d = discrete::discretize(&self.layout, &self.cfg, self.mech.state(), &self.acc);
         self.acc = Accumulator::default();
         let infl = self.gate.q_inflation();
@@ -366,6 +390,16 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !all_finite(&p) || !diag_nonneg(&p) {
             return Err(self.numerical_failure());
         }
+        let t_end_s = self.mech.state().t_s;
+        obs.predicted(&PredictionRecord {
+            t_start_s: t_end_s - interval_s,
+            t_end_s,
+            phi: &d.phi,
+            p_before: &self.p,
+            p_after: &p,
+            correction: &self.fed_back,
+        });
+        self.fed_back = [T::ZERO; N];
         self.p = p;
         self.counters.cov_predictions = self.counters.cov_predictions.saturating_add(1);
         Ok(())
@@ -756,6 +790,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// Closed-loop feedback of the estimated error `dx` (estimate - truth) into the nominal
     /// state and the sensor-error estimates; the error state is then zero again.
     fn feedback(&mut self, dx: &[T; N]) {
+        for (a, d) in self.fed_back.iter_mut().zip(dx) {
+            *a += *d;
+        }
         let dx64: [f64; N] = dx.map(|v| v.to_f64());
         let phi = vec3_at(&dx64, IDX_ATT);
         let dv = vec3_at(&dx64, IDX_VEL);

@@ -1,0 +1,295 @@
+//! The smoothed solution of a run: corrected navigation records, smoothed standard
+//! deviations, GNSS errors recomputed against the smoothed trajectory, and `run --smooth`'s
+//! outputs.
+
+use super::{smooth, SmoothError, Smoothed, SmoothedPoint};
+use crate::metrics::{self, Metrics};
+use crate::run::cli::{decimate, imu_summary, Prepared, RunArgs};
+use crate::run::{output, position_innovation, CaseData, FixUse, RunOutput};
+use anyhow::Context;
+use nalgebra::{Matrix3, Vector3};
+use nav_core::attitude;
+use nav_core::earth::{self, Llh};
+use nav_core::model::{CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL};
+use nav_core::nav::NavState;
+use nav_core::types::{GnssFix, NavSolution};
+use serde::Serialize;
+
+/// Memory and time of the smoother.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SmootherReport {
+    /// Error-state dimension.
+    pub states: usize,
+    /// Nodes (covariance-prediction epochs) stored.
+    pub nodes: usize,
+    /// Nodes with an update (posterior and/or correction stored).
+    pub update_nodes: usize,
+    /// Memory of the forward history, bytes.
+    pub history_bytes: usize,
+    /// History bytes per node.
+    pub history_bytes_per_node: f64,
+    /// Memory of the smoothed node data, bytes.
+    pub smoothed_bytes: usize,
+    /// Time of the backward pass, s.
+    pub backward_s: f64,
+    /// Time to apply it to the records, s.
+    pub apply_s: f64,
+    /// Backward steps that needed the pseudo-inverse of the prior covariance.
+    pub pinv_fallbacks: usize,
+}
+
+/// The nav record of the stored forward nominal corrected by the smoothed error, as the
+/// filter's feedback does (`C <- (I + [phi x]) C`, `v <- v - dv`, `r <- r - dr`), with the
+/// smoothed standard deviations.
+pub fn correct(nav: &NavSolution, p: &SmoothedPoint) -> NavSolution {
+    let g = |i: usize| p.dx.get(i).copied().unwrap_or(0.0);
+    let v3 = |o: usize| Vector3::new(g(o), g(o + 1), g(o + 2));
+    let q = attitude::quat_from_euler_zyx(nav.rpy_rad);
+    let q_s = attitude::quat_from_rotvec(&v3(IDX_ATT)) * q;
+    let pos = earth::displace(
+        &Llh {
+            lat_rad: nav.lat_rad,
+            lon_rad: nav.lon_rad,
+            h_m: nav.h_m,
+        },
+        &(-v3(IDX_POS)),
+    );
+    let dv = v3(IDX_VEL);
+    let sd = |i: usize| p.var.get(i).copied().unwrap_or(0.0).max(0.0).sqrt();
+    let rpy = attitude::euler_zyx_from_quat(&q_s);
+    NavSolution {
+        lat_rad: pos.lat_rad,
+        lon_rad: pos.lon_rad,
+        h_m: pos.h_m,
+        vel_ned_mps: [0, 1, 2].map(|i| nav.vel_ned_mps[i] - dv[i]),
+        rpy_rad: rpy,
+        pos_std_ned_m: [0, 1, 2].map(|i| sd(IDX_POS + i)),
+        vel_std_ned_mps: [0, 1, 2].map(|i| sd(IDX_VEL + i)),
+        att_std_rad: euler_std(&rpy, &p.cov_core),
+        ..*nav
+    }
+}
+
+/// Roll/pitch/yaw 1-sigma from the phi covariance (as `nav_core::filter`'s solution does).
+fn euler_std(rpy: &[f64; 3], cov: &[f64; 81]) -> [f64; 3] {
+    let [_, th, ps] = *rpy;
+    let a = Matrix3::new(
+        ps.cos() * th.cos(),
+        -ps.sin(),
+        0.0,
+        ps.sin() * th.cos(),
+        ps.cos(),
+        0.0,
+        -th.sin(),
+        0.0,
+        1.0,
+    );
+    let Some(ai) = a.try_inverse() else {
+        return [f64::NAN; 3];
+    };
+    let s = Matrix3::from_fn(|i, j| cov[(IDX_ATT + i) * 9 + IDX_ATT + j]);
+    let e = ai * s * ai.transpose();
+    [
+        e.m11.max(0.0).sqrt(),
+        e.m22.max(0.0).sqrt(),
+        e.m33.max(0.0).sqrt(),
+    ]
+}
+
+fn state_of(s: &NavSolution) -> NavState {
+    NavState {
+        t_s: s.t_s,
+        pos: Llh {
+            lat_rad: s.lat_rad,
+            lon_rad: s.lon_rad,
+            h_m: s.h_m,
+        },
+        vel_ned_mps: Vector3::from(s.vel_ned_mps),
+        q_nb: attitude::quat_from_euler_zyx(s.rpy_rad),
+    }
+}
+
+/// The record of `nav` nearest to `t_s` (records in time order).
+fn nearest(nav: &[NavSolution], t_s: f64) -> Option<&NavSolution> {
+    let i = nav.partition_point(|s| s.t_s < t_s);
+    let after = nav.get(i);
+    let before = i.checked_sub(1).and_then(|j| nav.get(j));
+    match (before, after) {
+        (Some(b), Some(a)) => Some(if t_s - b.t_s <= a.t_s - t_s { b } else { a }),
+        (b, a) => b.or(a),
+    }
+}
+
+/// The run's outputs with the smoothed solution: nav records corrected, `epochs`' standard
+/// deviations and sensor-error estimates smoothed (their `blocks`, i.e. `bias.txt`, stay
+/// the forward ones), and the position innovation of every GNSS fix (used and withheld)
+/// recomputed against the smoothed trajectory (the antenna from the smoothed nav record
+/// nearest the fix, with the forward run's final lever-arm and time-offset estimates).
+pub fn smoothed_output(case: &CaseData, fwd: &RunOutput, sm: &Smoothed) -> RunOutput {
+    let mut out = fwd.clone();
+    out.history = None;
+    for s in &mut out.nav {
+        if let Some(p) = sm.at(s.t_s) {
+            *s = correct(s, &p);
+        }
+    }
+    for e in &mut out.epochs {
+        if let Some(p) = sm.at(e.t_s) {
+            e.nav = correct(&e.nav, &p);
+            for (sd, v) in e.state_std.iter_mut().zip(&p.var) {
+                *sd = v.max(0.0).sqrt();
+            }
+            for (i, (est, d)) in e.estimates.iter_mut().zip(&p.dx).enumerate() {
+                if i >= CORE_DIM {
+                    *est -= d;
+                }
+            }
+        }
+    }
+    let effect = |name: &str| {
+        fwd.final_effects
+            .iter()
+            .find(|e| e.name == name)
+            .map(|e| e.value.clone())
+    };
+    let mut lever = fwd.lever_arm_m;
+    if let Some(v) = effect("lever_arm") {
+        for (l, d) in lever.iter_mut().zip(v) {
+            *l += d;
+        }
+    }
+    let dt_off = effect("time_offset")
+        .and_then(|v| v.first().copied())
+        .unwrap_or(0.0);
+    for r in &mut out.innovations {
+        if !matches!(
+            r.used,
+            FixUse::Accepted | FixUse::Forced | FixUse::Withheld | FixUse::Rejected
+        ) {
+            continue;
+        }
+        let i = case.gnss.partition_point(|g| g.t_s < r.t_s);
+        let Some(fix) = case.gnss.get(i).filter(|g| g.t_s == r.t_s) else {
+            continue;
+        };
+        let Some(s) = nearest(&out.nav, fix.t_s) else {
+            continue;
+        };
+        let shifted = GnssFix {
+            t_s: fix.t_s + dt_off,
+            ..*fix
+        };
+        let inn = position_innovation(&state_of(s), &lever, &shifted);
+        r.innovation[..3].copy_from_slice(&inn);
+        r.innovation_var = [f64::NAN; 6];
+        r.nis = f64::NAN;
+    }
+    out
+}
+
+/// Smooths a run that recorded its history (`RunOptions::smoother_history`): the smoothed
+/// outputs and the smoother's memory and time.
+pub fn smooth_run(
+    case: &CaseData,
+    fwd: &RunOutput,
+) -> Result<(RunOutput, Smoothed, SmootherReport), SmoothError> {
+    let h = fwd.history.as_ref().ok_or(SmoothError::Empty)?;
+    let t = std::time::Instant::now();
+    let sm = smooth(h)?;
+    let backward_s = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let out = smoothed_output(case, fwd, &sm);
+    let apply_s = t.elapsed().as_secs_f64();
+    let hb = h.bytes();
+    let rep = SmootherReport {
+        states: h.n,
+        nodes: h.nodes.len(),
+        update_nodes: h.update_nodes(),
+        history_bytes: hb,
+        history_bytes_per_node: hb as f64 / h.nodes.len().max(1) as f64,
+        smoothed_bytes: sm.bytes(),
+        backward_s,
+        apply_s,
+        pinv_fallbacks: sm.pinv_fallbacks,
+    };
+    Ok((out, sm, rep))
+}
+
+/// `run --smooth`: smooths the forward run `fwd` (metrics `m`), writes the smoothed
+/// `nav.txt`, `std.txt` (and the other outputs), the forward solution as `nav_forward.txt`,
+/// and `metrics.json` with the forward metrics at the top level and the smoothed ones under
+/// `smoothed` (with `smoother`: memory and time); prints both summaries.
+pub fn finish(
+    args: &RunArgs,
+    p: &Prepared,
+    fwd: RunOutput,
+    m: Metrics,
+    t_run_s: f64,
+) -> anyhow::Result<()> {
+    let (out, _, rep) = smooth_run(&p.case, &fwd)?;
+    let ms = metrics::compute(&out, p.case.truth.as_deref());
+    let dir = &args.out;
+    let rate = |nav: &[NavSolution]| match args.nav_rate {
+        Some(r) if r > 0.0 => decimate(nav, r),
+        _ => nav.to_vec(),
+    };
+    output::write_nav(&dir.join("nav_forward.txt"), &rate(&fwd.nav), p.week)
+        .with_context(|| format!("writing {}/nav_forward.txt", dir.display()))?;
+    #[derive(Serialize)]
+    struct File<'a> {
+        #[serde(flatten)]
+        forward: &'a Metrics,
+        smoothed: &'a Metrics,
+        smoother: &'a SmootherReport,
+        imu: &'a crate::run::ImuReport,
+        complete: bool,
+    }
+    let json = serde_json::to_string_pretty(&File {
+        forward: &m,
+        smoothed: &ms,
+        smoother: &rep,
+        imu: &fwd.imu_report,
+        complete: true,
+    })?;
+    output::write_all(dir, &out, &rate(&out.nav), p.week, &json, true)
+        .with_context(|| format!("writing the outputs in {}", dir.display()))?;
+    let c = &fwd.counters;
+    println!(
+        "model {} ({} states): {} IMU epochs, GNSS {} used, {} withheld in {} outage(s); \
+         forward {:.2} s",
+        fwd.model.name(),
+        rep.states,
+        c.imu_epochs,
+        c.gnss_accepted,
+        c.gnss_withheld,
+        fwd.outages.len(),
+        t_run_s
+    );
+    print!("{}", imu_summary(&fwd));
+    println!(
+        "smoother: {} nodes ({} with updates), history {:.1} MB ({:.0} B/node), smoothed {:.1} MB, \
+         backward pass {:.2} s, applied in {:.2} s{}",
+        rep.nodes,
+        rep.update_nodes,
+        rep.history_bytes as f64 / 1e6,
+        rep.history_bytes_per_node,
+        rep.smoothed_bytes as f64 / 1e6,
+        rep.backward_s,
+        rep.apply_s,
+        if rep.pinv_fallbacks > 0 {
+            format!(", {} pseudo-inverse fallback(s)", rep.pinv_fallbacks)
+        } else {
+            String::new()
+        }
+    );
+    println!("forward:");
+    print!("{}", metrics::summary_table(&m));
+    println!("smoothed:");
+    print!("{}", metrics::summary_table(&ms));
+    println!(
+        "wrote {}/{{nav.txt, std.txt (smoothed), nav_forward.txt, bias.txt (forward), \
+         innovations.txt (vs smoothed), metrics.json}}",
+        dir.display()
+    );
+    Ok(())
+}
