@@ -812,7 +812,7 @@ fn write_outputs(
         InputKind::Gnss => {
             let p = dir.join("gnss.txt");
             let tmp = partial_name(&p);
-            host_sim::io::write_gnss_text(&tmp, &o.gnss_fixes)?;
+            nav_io::write_gnss_text(&tmp, &o.gnss_fixes)?;
             rename(&tmp, &p)?;
             summary.push_str(&format!("{:?}\n", gnss.stats()));
         }
@@ -909,10 +909,10 @@ pub struct SendOutcome {
 
 /// Reads a case directory's imu.txt and (when present) gnss.txt as the payloads to send.
 pub fn read_case(dir: &Path) -> anyhow::Result<Vec<(f64, Payload)>> {
-    let imu = host_sim::io::read_imu_text(dir.join("imu.txt"))?.samples;
+    let imu = nav_io::read_imu_text(dir.join("imu.txt"))?.samples;
     let gnss_path = dir.join("gnss.txt");
     let gnss = if gnss_path.exists() {
-        host_sim::io::read_gnss_text(&gnss_path)?
+        nav_io::read_gnss_text(&gnss_path)?
     } else {
         Vec::new()
     };

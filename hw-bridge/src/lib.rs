@@ -1,6 +1,6 @@
 //! `hw-bridge`: moves IMU/GNSS frames between a serial port and `nav-core`; records captures
 //! and replays them bit-exactly. The wire codec itself lives in `nav-core::wire`; the text
-//! formats in `host_sim::io`.
+//! formats in `nav_io`.
 #![deny(missing_docs)]
 
 pub mod capture;

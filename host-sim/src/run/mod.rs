@@ -32,7 +32,6 @@ pub use coast::{coast_outages, CoastMode, CoastTrack};
 pub use init::{InitReport, InitSpec, StaticAlign};
 pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 
-use crate::io::ImuOrigin;
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
@@ -45,6 +44,7 @@ use nav_core::model::{
 use nav_core::nav::{NavState, MAX_DT_S};
 use nav_core::scalar::Scalar;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_io::ImuOrigin;
 use serde::{Deserialize, Serialize};
 
 /// The measurements of a case, in memory (and the truth when there is one).

@@ -2,8 +2,8 @@
 //! deviations), `bias.txt` (IMU error estimates) and `innovations.txt`.
 
 use super::{EpochRecord, FixUse, InnovationRecord, RunOutput};
-use crate::io::{write_nav_text, IoError};
 use nav_core::types::NavSolution;
+use nav_io::{write_nav_text, IoError};
 use std::io::Write;
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! Allan statistics (overlapping/non-overlapping Allan, modified Allan, Hadamard and
+//! `noise-id`: inertial sensor noise identification. Allan statistics (overlapping/non-overlapping Allan, modified Allan, Hadamard and
 //! overlapping Hadamard deviations) with confidence intervals, and the noise-model fit of the
 //! source document.
 //!
@@ -19,17 +19,33 @@
 //! Confidence intervals: equivalent degrees of freedom by Greenhall's algorithm
 //! ([`edf::edf_greenhall`]) for the noise type identified at each tau by the lag-1
 //! autocorrelation method ([`edf::noise_id_lag1`]), and chi-square bounds
-//! ([`edf::chi2_inv`]).
-pub mod cli;
+//! ([`stats::chi2_inv`]).
+#![deny(missing_docs)]
 pub mod edf;
 pub mod fit;
-pub mod plot;
 pub mod reader;
+pub mod stats;
 
 use serde::{Deserialize, Serialize};
 
+/// Theoretical Allan variance of the continuous first-order Gauss-Markov process (corrected
+/// formula of `docs/DESIGN.md`, coefficient 1 on `e^(-2 tau/T_B)`):
+/// `(S_B T_B^2 / tau) [1 - (T_B / (2 tau)) (3 - 4 e^(-tau/T_B) + e^(-2 tau/T_B))]`.
+pub fn gauss_markov_avar(s_b: f64, t_b_s: f64, tau_s: f64) -> f64 {
+    let r = tau_s / t_b_s;
+    // For small r the bracket cancels: use the series 1 - (3 - 4e^-r + e^-2r)/(2r) =
+    // r^2/3 - r^3/4 + 7 r^4/60 - r^5/24 + 31 r^6/2520 - ... (S_B tau / 3 at small tau).
+    let bracket = if r < 1e-2 {
+        r * r * (1.0 / 3.0 + r * (-0.25 + r * (7.0 / 60.0 + r * (-1.0 / 24.0 + r * 31.0 / 2520.0))))
+    } else {
+        1.0 - (3.0 - 4.0 * (-r).exp() + (-2.0 * r).exp()) / (2.0 * r)
+    };
+    s_b * t_b_s * t_b_s / tau_s * bracket
+}
+
 /// Which deviation to compute.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Deviation {
     /// Non-overlapping Allan deviation.
     Adev,
@@ -499,6 +515,29 @@ pub fn deviation_curve_phase(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gauss_markov_avar_peak_is_0437() {
+        // IEEE 952: peak deviation 0.437 sqrt(S_B T_B) at tau = 1.89 T_B.
+        let (mut best, mut at) = (0.0, 0.0);
+        for i in 0..4000 {
+            let tau = 0.5 + i as f64 * 0.001;
+            let v = gauss_markov_avar(1.0, 1.0, tau).sqrt();
+            if v > best {
+                best = v;
+                at = tau;
+            }
+        }
+        assert!((best - 0.437).abs() < 5e-4, "{best}");
+        assert!((at - 1.89).abs() < 0.01, "{at}");
+        // The series branch agrees with the closed form at the switch point.
+        let closed = gauss_markov_avar(1.0, 1.0, 1e-2 * (1.0 + 1e-12));
+        let series = gauss_markov_avar(1.0, 1.0, 1e-2 * (1.0 - 1e-12));
+        assert!((closed / series - 1.0).abs() < 1e-8, "{closed} {series}");
+        // Small tau: S_B tau / 3 (the process looks like a random walk).
+        let v = gauss_markov_avar(2.0, 45.0, 1e-3);
+        assert!((v / (2.0 * 1e-3 / 3.0) - 1.0).abs() < 1e-4);
+    }
 
     /// The cache-blocked sweep gives the per-tau sums (octave and non-octave factors, factors
     /// beyond the chunk length, one term at the largest) to rounding.
