@@ -1,3 +1,5 @@
+#![doc = include_str!("../README.md")]
+//!
 //! `hw-bridge`: moves IMU/GNSS frames between a serial port and `nav-core`; records captures
 //! and replays them bit-exactly. The wire codec itself lives in `nav-core::wire`; the text
 //! formats in `nav_io`.

@@ -1030,6 +1030,8 @@ impl core::fmt::Display for LayoutError {
     }
 }
 
+impl core::error::Error for LayoutError {}
+
 /// An ordered list of blocks, built at compile time:
 /// `const L: Layout = Layout::new(&[Block::Core, ...]); type F = Filter<f32, { L.dim() }>;`
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
