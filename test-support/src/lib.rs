@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod filter_sim;
+pub mod scenario;
 pub mod trajectory;
 pub mod transition;
 
