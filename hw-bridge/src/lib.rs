@@ -17,7 +17,6 @@ pub mod fuzz_checks;
 #[path = "../../firmware/src/app.rs"]
 #[allow(dead_code, missing_docs)]
 pub mod fwapp;
-pub mod gnss;
 #[cfg(feature = "cli")]
 pub mod outputs;
 pub mod serial;

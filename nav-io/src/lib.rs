@@ -13,6 +13,7 @@
 #![deny(missing_docs)]
 
 mod error;
+pub mod gnss;
 pub mod gpstime;
 pub mod imucsv;
 pub mod kfgins;
