@@ -476,7 +476,7 @@ fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case
     let got = live.join().unwrap();
     // offline: the same filter on the same payloads
     let payloads: Vec<_> = read_case(&case).unwrap().into_iter().map(|p| p.1).collect();
-    let (want, epochs, updates) = hw_bridge::cmd::host_filter_offline(&payloads);
+    let (want, epochs, updates) = hw_bridge::cmd::host_filter_offline(&payloads).unwrap();
     assert_eq!(got.stats.rejected(), 0);
     assert_eq!(got.stats.lost(), 0);
     assert_eq!(u64::from(got.stats.frames_ok), payloads.len() as u64);

@@ -28,15 +28,6 @@ mod replaybench;
 mod soak;
 mod vectors;
 
-/// The firmware's board-independent application, compiled for the host too (HIL comparison).
-#[path = "../../firmware/src/app.rs"]
-#[allow(dead_code)]
-mod fwapp;
-/// The firmware's time-base trait (used by `fwapp`).
-#[path = "../../firmware/src/time.rs"]
-#[allow(dead_code)]
-mod time;
-
 use embedded::Board;
 
 use anyhow::{bail, Context, Result};
