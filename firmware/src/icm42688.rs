@@ -179,6 +179,8 @@ impl<E: core::fmt::Debug> core::fmt::Display for Error<E> {
     }
 }
 
+impl<E: core::fmt::Debug> core::error::Error for Error<E> {}
+
 /// One burst in physical units, chip axes.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Raw {

@@ -1,3 +1,5 @@
+#![doc = include_str!("../README.md")]
+//!
 //! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
 //! the run engine, the source document's bias-model study, model diagnosis, metrics, plots,
 //! reports and the command line (the `allan` command over the `noise-id` crate). The data

@@ -14,98 +14,39 @@ use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
 use rayon::prelude::*;
+use test_support::scenario::ScenarioToml;
 
 /// A drive of about 11 minutes: a static start, then three laps of accelerations, turns both
 /// ways, hills and stops; `v` varies speeds, radii and the start heading.
 fn scenario(v: u32) -> Scenario {
     let k = f64::from(v % 4);
-    let mut s = format!(
-        r#"
-name = "diagnose-test"
-description = "11 min test drive"
-[start]
-lat_deg = {lat}
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = {hdg}
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-"#,
-        lat = 48.0 + 0.3 * k,
-        hdg = 30.0 + 70.0 * k,
-    );
+    let mut s = ScenarioToml::new("diagnose-test")
+        .description("11 min test drive")
+        .start(48.0 + 0.3 * k, 16.37, 220.0, 30.0 + 70.0 * k)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(30.0);
     for lap in 0..3 {
         let l = f64::from(lap);
         let sp = 12.0 + 2.0 * k + 2.0 * l;
-        s.push_str(&format!(
-            r#"
-[[segment]]
-kind = "accelerate"
-to_speed_mps = {sp}
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = {r1}
-[[segment]]
-kind = "cruise"
-duration_s = 15.0
-[[segment]]
-kind = "turn"
-angle_deg = -135.0
-radius_m = {r2}
-[[segment]]
-kind = "hill"
-height_m = {hh}
-length_m = 300.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = {sp2}
-duration_s = 6.0
-[[segment]]
-kind = "turn"
-angle_deg = 180.0
-radius_m = {r3}
-[[segment]]
-kind = "brake"
-to_speed_mps = 4.0
-duration_s = 6.0
-[[segment]]
-kind = "turn"
-angle_deg = -90.0
-radius_m = 12.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = {sp}
-duration_s = 7.0
-[[segment]]
-kind = "turn"
-angle_deg = 60.0
-radius_m = {r1}
-[[segment]]
-kind = "hill"
-height_m = {hd}
-length_m = 250.0
-[[segment]]
-kind = "stop"
-[[segment]]
-kind = "static"
-duration_s = 8.0
-"#,
-            r1 = 30.0 + 5.0 * k,
-            r2 = 25.0 + 4.0 * l,
-            r3 = 40.0 + 5.0 * k,
-            hh = 6.0 + 2.0 * l,
-            hd = -5.0 - l,
-            sp2 = sp + 6.0,
-        ));
+        let r1 = 30.0 + 5.0 * k;
+        s = s
+            .accelerate(sp, 8.0)
+            .turn(90.0, r1)
+            .cruise(15.0)
+            .turn(-135.0, 25.0 + 4.0 * l)
+            .hill(6.0 + 2.0 * l, 300.0)
+            .accelerate(sp + 6.0, 6.0)
+            .turn(180.0, 40.0 + 5.0 * k)
+            .brake(4.0, 6.0)
+            .turn(-90.0, 12.0)
+            .accelerate(sp, 7.0)
+            .turn(60.0, r1)
+            .hill(-5.0 - l, 250.0)
+            .stop()
+            .stationary(8.0);
     }
-    Scenario::from_toml_str(&s, "diagnose-test").unwrap()
+    Scenario::from_toml_str(&s.build(), "diagnose-test").unwrap()
 }
 
 /// The source's tactical IMU (NBK noise), RTK GNSS at 1 Hz, a 25 degC warm-up with a

@@ -4,56 +4,26 @@ use host_sim::metrics::errors_vs_truth;
 use nav_io::read_nav_text;
 use std::path::Path;
 use std::process::Command;
+use test_support::scenario::ScenarioToml;
 
-const SCENARIO: &str = r#"
-name = "run-cli-test"
-description = "4 min test drive"
-[start]
-lat_deg = 30.5
-lon_deg = 114.3
-h_m = 20.0
-heading_deg = 120.0
-gps_week = 2300
-sow_s = 200000.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 30.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = -180.0
-radius_m = 25.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 15.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 120.0
-[[segment]]
-kind = "turn"
-angle_deg = 45.0
-radius_m = 50.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-"#;
+fn scenario_toml() -> String {
+    ScenarioToml::new("run-cli-test")
+        .description("4 min test drive")
+        .start(30.5, 114.3, 20.0, 120.0)
+        .gps_time(2300, 200000.0)
+        .imu_rate_hz(100.0)
+        .stationary(30.0)
+        .accelerate(10.0, 10.0)
+        .turn(90.0, 30.0)
+        .cruise(30.0)
+        .turn(-180.0, 25.0)
+        .accelerate(15.0, 10.0)
+        .cruise(120.0)
+        .turn(45.0, 50.0)
+        .brake(0.0, 10.0)
+        .stationary(10.0)
+        .build()
+}
 
 fn host_sim() -> Command {
     Command::new(env!("CARGO_BIN_EXE_host-sim"))
@@ -82,7 +52,7 @@ fn count_data_lines(p: &Path) -> usize {
 fn simulated_kf_gins_case_runs_from_its_yaml_alone() {
     let dir = tempfile::tempdir().unwrap();
     let sc = dir.path().join("scenario.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario_toml()).unwrap();
     let case = dir.path().join("case");
     run_ok(host_sim().args([
         "simulate",
@@ -172,7 +142,7 @@ fn simulated_kf_gins_case_runs_from_its_yaml_alone() {
 fn run_imposes_outages_and_decimates_nav() {
     let dir = tempfile::tempdir().unwrap();
     let sc = dir.path().join("scenario.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario_toml()).unwrap();
     let case = dir.path().join("case");
     run_ok(host_sim().args([
         "simulate",

@@ -16,56 +16,26 @@ use nav_io::{
 };
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use test_support::scenario::ScenarioToml;
 
-const SCENARIO: &str = r#"
-name = "run-faults-test"
-description = "4 min test drive"
-[start]
-lat_deg = 30.5
-lon_deg = 114.3
-h_m = 20.0
-heading_deg = 120.0
-gps_week = 2300
-sow_s = 200000.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 30.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = -180.0
-radius_m = 25.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 15.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 120.0
-[[segment]]
-kind = "turn"
-angle_deg = 45.0
-radius_m = 50.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-"#;
+fn scenario_toml() -> String {
+    ScenarioToml::new("run-faults-test")
+        .description("4 min test drive")
+        .start(30.5, 114.3, 20.0, 120.0)
+        .gps_time(2300, 200000.0)
+        .imu_rate_hz(100.0)
+        .stationary(30.0)
+        .accelerate(10.0, 10.0)
+        .turn(90.0, 30.0)
+        .cruise(30.0)
+        .turn(-180.0, 25.0)
+        .accelerate(15.0, 10.0)
+        .cruise(120.0)
+        .turn(45.0, 50.0)
+        .brake(0.0, 10.0)
+        .stationary(10.0)
+        .build()
+}
 
 /// Where the gaps go (first missing sample index, IMU at 100 Hz from t0 = 200000 s) and how
 /// many samples are missing: static (t0 + 15 s), accelerating (+35 s), in the 180-degree
@@ -80,7 +50,7 @@ const GAPS: [(usize, &[usize]); 4] = [
 
 /// Writes the simulated case (with `kf-gins.yaml`) into `dir/case`.
 fn write_case(dir: &Path) -> PathBuf {
-    let sc = Scenario::from_toml_str(SCENARIO, "run-faults").unwrap();
+    let sc = Scenario::from_toml_str(&scenario_toml(), "run-faults").unwrap();
     let case = simulate(&sc, &ErrorModel::preset("tactical").unwrap(), 4).unwrap();
     let d = dir.join("case");
     case.write(&d, true).unwrap();

@@ -9,66 +9,29 @@ use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::earth;
 use nav_core::filter::InitialUncertainty;
+use test_support::scenario::ScenarioToml;
 
 /// A 6-minute drive at 100 Hz: 60 s static, then accelerations, turns, a hill, a stop.
 fn scenario() -> Scenario {
     Scenario::from_toml_str(
-        r#"
-name = "run-test"
-description = "6 min test drive"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 60.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 12.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "hill"
-height_m = 5.0
-length_m = 300.0
-[[segment]]
-kind = "turn"
-angle_deg = -120.0
-radius_m = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 18.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = 60.0
-radius_m = 60.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-"#,
+        &ScenarioToml::new("run-test")
+            .description("6 min test drive")
+            .start(48.199, 16.37, 220.0, 30.0)
+            .gps_time(2227, 118800.0)
+            .imu_rate_hz(100.0)
+            .stationary(60.0)
+            .accelerate(12.0, 10.0)
+            .cruise(30.0)
+            .turn(90.0, 40.0)
+            .cruise(40.0)
+            .hill(5.0, 300.0)
+            .turn(-120.0, 30.0)
+            .accelerate(18.0, 10.0)
+            .cruise(40.0)
+            .turn(60.0, 60.0)
+            .brake(0.0, 10.0)
+            .stationary(20.0)
+            .build(),
         "run-test",
     )
     .unwrap()

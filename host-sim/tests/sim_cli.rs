@@ -5,33 +5,19 @@ use host_sim::sim::cli::{run, SimulateArgs};
 use host_sim::sim::errors::Outage;
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_io::{read_gnss_text, read_imu_text, read_nav_text};
+use test_support::scenario::ScenarioToml;
 
-const SCENARIO: &str = r#"
-name = "short"
-[start]
-lat_deg = 30.4447873701
-lon_deg = 114.4718632047
-h_m = 20.899
-heading_deg = 185.0
-gps_week = 2100
-sow_s = 456300.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 8.0
-duration_s = 6.0
-[[segment]]
-kind = "turn"
-angle_deg = -90.0
-radius_m = 30.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-"#;
+fn scenario_toml() -> String {
+    ScenarioToml::new("short")
+        .start(30.4447873701, 114.4718632047, 20.899, 185.0)
+        .gps_time(2100, 456300.0)
+        .imu_rate_hz(100.0)
+        .stationary(30.0)
+        .accelerate(8.0, 6.0)
+        .turn(-90.0, 30.0)
+        .cruise(40.0)
+        .build()
+}
 
 const ERRORS: &str = r#"
 base = "seed-nbk"
@@ -52,7 +38,7 @@ velocity = true
 fn simulate_writes_a_case_the_readers_and_kf_gins_config_agree_with() {
     let dir = tempfile::tempdir().unwrap();
     let sc = dir.path().join("short.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario_toml()).unwrap();
     let er = dir.path().join("errors.toml");
     std::fs::write(&er, ERRORS).unwrap();
     let out = dir.path().join("case");
@@ -78,7 +64,7 @@ fn simulate_writes_a_case_the_readers_and_kf_gins_config_agree_with() {
         duration_s: 20.0,
     });
     errors.gnss.rate_hz = 2.0;
-    let scenario = Scenario::from_toml_str(SCENARIO, "short").unwrap();
+    let scenario = Scenario::from_toml_str(&scenario_toml(), "short").unwrap();
     let case = simulate(&scenario, &errors, 42).unwrap();
 
     let imu = read_imu_text(out.join("imu.txt")).unwrap().samples;

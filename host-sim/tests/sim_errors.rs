@@ -9,25 +9,21 @@ use nav_core::earth::{ned_offset_m, Llh};
 use nav_core::types::{GnssFix, ImuSample};
 use std::path::Path;
 use std::sync::OnceLock;
+use test_support::scenario::ScenarioToml;
 
-const STATIC_30MIN: &str = r#"
-name = "static-30"
-[start]
-lat_deg = 48.199
-lon_deg = 16.37
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[[segment]]
-kind = "static"
-duration_s = 1800.0
-"#;
+fn static_30min_toml() -> String {
+    ScenarioToml::new("static-30")
+        .start(48.199, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .stationary(1800.0)
+        .build()
+}
 
 fn static_30min() -> &'static Trajectory {
     static T: OnceLock<Trajectory> = OnceLock::new();
     T.get_or_init(|| {
-        Trajectory::generate(&Scenario::from_toml_str(STATIC_30MIN, "static-30").unwrap()).unwrap()
+        Trajectory::generate(&Scenario::from_toml_str(&static_30min_toml(), "static-30").unwrap())
+            .unwrap()
     })
 }
 

@@ -3,13 +3,13 @@
 
 use crate::capture::{CaptureError, CaptureHeader, CaptureReader, CaptureWriter, Record};
 use crate::frames::{case_payloads, FrameLog};
-use crate::gnss::{GnssEvent, GnssStream, NmeaOptions};
 use crate::outputs::{partial_name, rename, write_atomically, FrameFiles};
 use crate::serial;
 use crate::status::{decoder_report, decoder_summary, StatusLine};
 use anyhow::{bail, Context};
 use nav_core::types::GnssFix;
 use nav_core::wire::{DecoderStats, Encoder, FrameDecoder, Payload, MAX_FRAME_LEN};
+use nav_io::gnss::{GnssEvent, GnssStream, NmeaOptions};
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;

@@ -3,8 +3,8 @@
 //! panics when a property is violated; bad input itself must only ever produce errors.
 
 use crate::capture::CaptureReader;
-use crate::gnss::{GnssStream, NmeaAssembler, NmeaOptions};
 use nav_core::wire::{encode, FrameDecoder, MAX_FRAME_LEN};
+use nav_io::gnss::{GnssStream, NmeaAssembler, NmeaOptions};
 
 /// Splits off the first byte as a chunk size (so fuzzers explore chunking too).
 fn chunking(data: &[u8]) -> Option<(usize, &[u8])> {

@@ -6,38 +6,21 @@ use hw_bridge::capture::{CaptureHeader, CaptureWriter, Record};
 use hw_bridge::cmd::{decode_capture, read_case, run_filter_on_frames};
 use nav_core::wire::{Encoder, Payload, MAX_FRAME_LEN};
 use std::path::Path;
+use test_support::scenario::ScenarioToml;
 
-const SCENARIO: &str = r#"
-name = "capture-gaps"
-description = "2 min drive"
-[start]
-lat_deg = 30.5
-lon_deg = 114.3
-h_m = 20.0
-heading_deg = 120.0
-gps_week = 2300
-sow_s = 200000.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 30.0
-[[segment]]
-kind = "cruise"
-duration_s = 60.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-"#;
+fn scenario_toml() -> String {
+    ScenarioToml::new("capture-gaps")
+        .description("2 min drive")
+        .start(30.5, 114.3, 20.0, 120.0)
+        .gps_time(2300, 200000.0)
+        .imu_rate_hz(100.0)
+        .stationary(20.0)
+        .accelerate(10.0, 10.0)
+        .turn(90.0, 30.0)
+        .cruise(60.0)
+        .brake(0.0, 10.0)
+        .build()
+}
 
 /// Writes a capture of the case's frames in 4 kB chunks; with `flip = Some(k)` one byte in
 /// the middle of the k-th IMU frame is changed (never into the 0x00 delimiter).
@@ -79,7 +62,7 @@ fn a_lost_imu_frame_is_filled_and_the_solution_kept() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let sc = d.join("drive.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario_toml()).unwrap();
     let case = d.join("case");
     host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
         scenario: sc.display().to_string(),

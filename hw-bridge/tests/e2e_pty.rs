@@ -9,6 +9,7 @@ use nav_core::wire::{encode_raw, Frame, MAX_RAW_LEN};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+use test_support::scenario::ScenarioToml;
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 
@@ -286,44 +287,21 @@ fn send_and_record(d: &Path, port: &Path, peer: &Path, send_args: &[&str]) -> st
     cap
 }
 
-const DRIVE: &str = r#"
-name = "e2e-replay"
-description = "100 s drive for the send/record/replay test"
-[start]
-lat_deg = 48.2
-lon_deg = 16.37
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 200.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 12.0
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = -60.0
-radius_m = 50.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 8.0
-[[segment]]
-kind = "static"
-duration_s = 5.0
-"#;
+fn drive_toml() -> String {
+    ScenarioToml::new("e2e-replay")
+        .description("100 s drive for the send/record/replay test")
+        .start(48.2, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(200.0)
+        .stationary(20.0)
+        .accelerate(12.0, 8.0)
+        .turn(90.0, 40.0)
+        .cruise(40.0)
+        .turn(-60.0, 50.0)
+        .brake(0.0, 8.0)
+        .stationary(5.0)
+        .build()
+}
 
 /// Every field of every solution as bits.
 fn nav_bits(nav: &[nav_core::types::NavSolution]) -> Vec<u64> {
@@ -358,7 +336,7 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
     let d = dir.path();
     // a simulated drive with a GNSS outage, written by host-sim's simulate (KF-GINS config)
     let sc = d.join("drive.toml");
-    std::fs::write(&sc, DRIVE).unwrap();
+    std::fs::write(&sc, drive_toml()).unwrap();
     let case = d.join("case");
     host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
         scenario: sc.display().to_string(),
@@ -458,7 +436,7 @@ fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let sc = d.join("drive.toml");
-    std::fs::write(&sc, DRIVE).unwrap();
+    std::fs::write(&sc, drive_toml()).unwrap();
     let case = d.join("case");
     host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
         scenario: sc.display().to_string(),

@@ -15,6 +15,7 @@ use proptest::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
+use test_support::scenario::ScenarioToml;
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 const IMU: usize = 0;
@@ -918,40 +919,25 @@ proptest! {
     }
 }
 
-const DRIVE: &str = r#"
-name = "faults-config"
-description = "40 s drive for the duplicated-chunk replay --config test"
-[start]
-lat_deg = 48.2
-lon_deg = 16.37
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 200.0
-[[segment]]
-kind = "static"
-duration_s = 15.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 8.0
-"#;
+fn drive_toml() -> String {
+    ScenarioToml::new("faults-config")
+        .description("40 s drive for the duplicated-chunk replay --config test")
+        .start(48.2, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(200.0)
+        .stationary(15.0)
+        .accelerate(10.0, 8.0)
+        .turn(90.0, 40.0)
+        .cruise(8.0)
+        .build()
+}
 
 #[test]
 fn replay_config_on_a_capture_with_a_duplicated_chunk_writes_every_output_and_the_clean_solution() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let sc = d.join("drive.toml");
-    std::fs::write(&sc, DRIVE).unwrap();
+    std::fs::write(&sc, drive_toml()).unwrap();
     let case_dir = d.join("case");
     host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
         scenario: sc.display().to_string(),

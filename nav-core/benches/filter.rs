@@ -5,12 +5,10 @@
 //! Run: `CARGO_TARGET_DIR=... cargo bench -p nav-core --bench filter -- --warm-up-time 1
 //! --measurement-time 3`.
 
-#[path = "../tests/common_filter/mod.rs"]
-#[allow(dead_code, clippy::all)]
-mod common_filter;
+use test_support::filter_sim;
 
-use common_filter::{Sim, SimConfig};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
+use filter_sim::{Sim, SimConfig};
 use nav_core::config::FilterConfig;
 use nav_core::filter::Filter;
 use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK};
@@ -45,7 +43,7 @@ fn config() -> FilterConfig {
 fn bench_model<T: Scalar, const N: usize>(c: &mut Criterion, layout: Layout, tag: &str) {
     let (init, imu, fixes) = data();
     let cfg = config();
-    let unc = common_filter::test_uncertainty();
+    let unc = filter_sim::test_uncertainty();
     let fresh = Filter::<T, N>::new(layout, &cfg, init, &unc).unwrap();
 
     // propagate: average per IMU epoch over 1 s blocks (200 epochs, 10 predictions)

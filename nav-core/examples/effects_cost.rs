@@ -7,11 +7,9 @@
 //! Run: `CARGO_TARGET_DIR=... cargo run -p nav-core --release --example effects_cost`
 //! (the machine is shared: repeat and take the minimum; figures are +-20 %).
 
-#[path = "../tests/common_filter/mod.rs"]
-#[allow(dead_code, clippy::all)]
-mod common_filter;
+use test_support::filter_sim;
 
-use common_filter::{Sim, SimConfig, TempProfile};
+use filter_sim::{Sim, SimConfig, TempProfile};
 use nav_core::config::FilterConfig;
 use nav_core::filter::Filter;
 use nav_core::model::{Block, Layout, EFFECT_BLOCKS, LAYOUT_NBK};
@@ -58,7 +56,7 @@ fn time_layout<T: Scalar, const N: usize>(
     let mut cfg = FilterConfig::source_nbk_model();
     cfg.lever_arm_body_m = SimConfig::nbk(200.0).lever_arm_body_m;
     cfg.max_gnss_time_offset_s = 0.2;
-    let unc = common_filter::test_uncertainty();
+    let unc = filter_sim::test_uncertainty();
     let mut best_p = f64::INFINITY;
     let mut best_u = f64::INFINITY;
     for _ in 0..reps {

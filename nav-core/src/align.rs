@@ -216,6 +216,8 @@ impl core::fmt::Display for AlignError {
     }
 }
 
+impl core::error::Error for AlignError {}
+
 /// Result of a coarse alignment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

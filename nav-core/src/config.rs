@@ -543,6 +543,8 @@ impl core::fmt::Display for ConfigError {
     }
 }
 
+impl core::error::Error for ConfigError {}
+
 /// Everything numeric the filter needs besides the state layout and the initial state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FilterConfig {

@@ -113,6 +113,8 @@ impl core::fmt::Display for MechError {
     }
 }
 
+impl core::error::Error for MechError {}
+
 /// Longest IMU interval the mechanization accepts, s.
 pub const MAX_DT_S: f64 = 1.0;
 

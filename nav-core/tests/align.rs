@@ -1,7 +1,6 @@
 //! Static coarse alignment (issue 3, part 8): levelling, gyrocompassing, static detection.
 
-#[path = "common/trajectory.rs"]
-mod trajectory;
+use test_support::trajectory;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::align::{coarse_align, AlignConfig, AlignError, HeadingSource, MotionCue};

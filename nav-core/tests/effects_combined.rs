@@ -5,11 +5,9 @@
 //! whose effect is absent must stay at zero within their 3 sigma (no false attribution), and
 //! the outage errors must be lower than the base filter's.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{units, FilterConfig, ScaleFactorNoise};
 use nav_core::model::{Block, BlockKind, Layout, EFFECT_BLOCKS, LAYOUT_NBK};
+use test_support::filter_sim::*;
 
 const fn all_effects() -> Layout {
     let mut l = LAYOUT_NBK;

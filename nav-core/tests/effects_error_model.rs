@@ -10,16 +10,14 @@
 //!   lever-arm velocity terms): the change of the innovation when one state's estimate is
 //!   perturbed must equal `-H` times the perturbation, for position and velocity updates.
 
-mod common_filter;
-
-use common_filter::*;
-use nalgebra::{SMatrix, Vector3};
+use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, ScaleFactorNoise, SensorNoise};
 use nav_core::filter::{dcm_f64, Filter, InitialUncertainty};
-use nav_core::model::discrete::{discretize, Accumulator};
-use nav_core::model::{Block, BlockKind, Layout, Regressors, LAYOUT_N};
+use nav_core::model::{Block, BlockKind, Layout, LAYOUT_N};
 use nav_core::nav::NavState;
 use nav_core::types::ImuSample;
+use test_support::filter_sim::*;
+use test_support::transition::{err9, TransitionRun};
 
 const T_REF_C: f64 = 25.0;
 
@@ -39,13 +37,6 @@ fn unc() -> InitialUncertainty {
         vel_sigma_mps: [0.1; 3],
         pos_sigma_m: [1.0; 3],
     }
-}
-
-fn err9(est: &NavState, reference: &NavState) -> [f64; 9] {
-    let (phi, dv, dr) = nav_errors(est, reference);
-    [
-        phi[0], phi[1], phi[2], dv[0], dv[1], dv[2], dr[0], dr[1], dr[2],
-    ]
 }
 
 /// 20 s of error-free increments of a wobbling drive (starting 20 s into the profile), with a
@@ -88,92 +79,18 @@ fn eps_of(b: Block) -> f64 {
 fn check_layout<const N: usize>(layout: Layout, name: &str) -> f64 {
     let cfg = config();
     let (start, samples) = samples();
-    let mut reference: Filter<f64, N> = Filter::new(layout, &cfg, start, &unc()).unwrap();
-    let mut acc: Accumulator<f64, N> = Accumulator::default();
-    let mut phi_total = SMatrix::<f64, N, N>::identity();
-    for s in &samples {
-        reference.propagate(s).unwrap();
-        let st = *reference.last_step();
-        let nav = *reference.nav_state();
-        let c = dcm_f64(&nav.q_nb);
-        let reg = Regressors {
-            dt: st.dt_s,
-            c_nb: c.transpose().into(),
-            f_b: st.f_body_mps2.into(),
-            omega_b: st.omega_ib_body_radps.into(),
-            temperature_c: s.temperature_c - T_REF_C,
-        };
-        acc.add(&layout, &reg, st.dt_s, &st.f_ned_mps2.into());
-        if reference.pending_prediction_s() == 0.0 {
-            let d = discretize(&layout, &cfg, &nav, &acc);
-            acc = Accumulator::default();
-            let p = d.phi.to_dense();
-            let m = SMatrix::<f64, N, N>::from_fn(|i, j| p[i][j]);
-            phi_total = m * phi_total;
-        }
-    }
-    assert_eq!(acc.epochs, 0);
-
+    let unc = unc();
+    let run = TransitionRun::<N>::new(layout, &cfg, &unc, start, &samples, Some(T_REF_C));
     let mut worst = 0.0f64;
-    let first_effect = LAYOUT_N.dim();
-    for j in first_effect..N {
-        let (off, b) = layout
+    for j in LAYOUT_N.dim()..N {
+        let (_, b) = layout
             .iter()
             .find(|(o, b)| j >= *o && j < o + b.dim())
             .unwrap();
-        let eps = eps_of(b);
-        let mut f: Filter<f64, N> = Filter::new(layout, &cfg, start, &unc()).unwrap();
-        let mut v = vec![0.0; b.dim()];
-        v[j - off] = eps;
-        f.set_block_estimate(b.kind(), &v).unwrap();
-        for s in &samples {
-            f.propagate(s).unwrap();
-        }
-        let e = err9(f.nav_state(), reference.nav_state());
-        let mut col_fd = [0.0; 9];
-        let mut col_m = [0.0; 9];
-        for i in 0..9 {
-            col_fd[i] = e[i] / eps;
-            col_m[i] = phi_total[(i, j)];
-        }
-        let est = f.block_estimate(b.kind()).unwrap()[j - off];
-        assert!(
-            (est / eps - phi_total[(j, j)]).abs() < 1e-9,
-            "{name}: state {j} estimate decay"
-        );
-        let mut col_worst = 0.0f64;
-        let mut any = false;
-        for g in 0..3 {
-            let r = 3 * g..3 * g + 3;
-            let scale = r.clone().map(|i| col_fd[i].abs()).fold(0.0, f64::max);
-            let diff = r.map(|i| (col_fd[i] - col_m[i]).abs()).fold(0.0, f64::max);
-            let tiny = [1e-9, 1e-7, 1e-6][g];
-            let rel = if scale > tiny {
-                any = true;
-                diff / scale
-            } else {
-                diff / tiny
-            };
-            col_worst = col_worst.max(rel);
-        }
+        let c = run.check_column(j, eps_of(b), &format!("{name} {}", b.name()));
         // every effect state must actually move the solution on this drive
-        assert!(any, "{name}: state {j} ({}) has no effect", b.name());
-        println!(
-            "{name} state {j:2} {}[{}]: fd [{}]\n              model [{}]  worst rel {col_worst:.2e}",
-            b.name(),
-            j - off,
-            col_fd
-                .iter()
-                .map(|v| format!("{v:10.3e}"))
-                .collect::<Vec<_>>()
-                .join(" "),
-            col_m
-                .iter()
-                .map(|v| format!("{v:10.3e}"))
-                .collect::<Vec<_>>()
-                .join(" ")
-        );
-        worst = worst.max(col_worst);
+        assert!(c.moves, "{name}: state {j} ({}) has no effect", b.name());
+        worst = worst.max(c.worst_rel);
     }
     worst
 }

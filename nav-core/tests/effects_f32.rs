@@ -5,12 +5,10 @@
 //! symmetric positive definite at every update (checked by a Cholesky in f32), the solutions
 //! must agree to centimetres and the effect estimates to a small fraction of their sigma.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{units, FilterConfig, ScaleFactorNoise};
 use nav_core::filter::Filter;
 use nav_core::model::{Layout, EFFECT_BLOCKS, LAYOUT_NBK};
+use test_support::filter_sim::*;
 
 const fn all_effects() -> Layout {
     let mut l = LAYOUT_NBK;

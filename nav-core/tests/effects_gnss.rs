@@ -5,11 +5,9 @@
 //! asserts the estimate against the truth (every component within 3 sigma; the observable
 //! ones within 20 %) and that the block lowers the position error during the outages.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::FilterConfig;
 use nav_core::model::{Block, BlockKind, Layout, LAYOUT_NBK};
+use test_support::filter_sim::*;
 
 const L_LEVER: Layout = LAYOUT_NBK.with(Block::LeverArm);
 const L_TIME: Layout = LAYOUT_NBK.with(Block::TimeOffset);

@@ -9,11 +9,9 @@
 //! the outages. What a level land drive cannot observe is said per test, with the numbers
 //! printed.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{units, EffectNoise, FilterConfig, ScaleFactorNoise};
 use nav_core::model::{Block, BlockKind, Layout, LAYOUT_NBK};
+use test_support::filter_sim::*;
 
 const PPM: f64 = 1e-6;
 const MRAD: f64 = 1e-3;

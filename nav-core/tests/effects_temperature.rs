@@ -6,11 +6,9 @@
 //! coefficients against the truth (within 3 sigma and within 20 %, sigma below 20 %) and that
 //! the block lowers the horizontal position error during the outages.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{units, EffectNoise, FilterConfig};
 use nav_core::model::{Block, BlockKind, Layout, LAYOUT_NBK};
+use test_support::filter_sim::*;
 
 const L_AT: Layout = LAYOUT_NBK.with(Block::AccelTemperatureBias);
 const L_GT: Layout = LAYOUT_NBK.with(Block::GyroTemperatureBias);

@@ -4,14 +4,13 @@
 //! parameters, gyro biases random constants. The drive (accelerations and turns) makes heading
 //! and the horizontal accelerometer biases observable.
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{FilterConfig, Gating};
 use nav_core::filter::Filter;
 use nav_core::model::{
     BlockKind, Layout, IDX_ATT, IDX_POS, IDX_VEL, LAYOUT_NBK, LAYOUT_NBK_SINGLE,
 };
+use test_support::filter_sim::*;
+use test_support::stats::chi2_inv;
 
 const RUNS: usize = 30;
 const DURATION_S: usize = 600;
@@ -86,8 +85,8 @@ fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
     let t0 = std::time::Instant::now();
     let r = run_mc::<{ LAYOUT_NBK.dim() }>(LAYOUT_NBK);
     let m = RUNS as f64;
-    let lo = chi2_quantile(0.025, 3.0 * m) / m;
-    let hi = chi2_quantile(0.975, 3.0 * m) / m;
+    let lo = chi2_inv(0.025, 3.0 * m) / m;
+    let hi = chi2_inv(0.975, 3.0 * m) / m;
     let names = ["attitude", "velocity", "position"];
     let n_ep = r.nees_sum.len() as f64;
     for (k, name) in names.iter().enumerate() {
@@ -113,8 +112,8 @@ fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
     let nis = r.nis_sum / (m * n_ep);
     let n_upd = m * n_ep;
     let (nlo, nhi) = (
-        chi2_quantile(0.005, 3.0 * n_upd) / n_upd,
-        chi2_quantile(0.995, 3.0 * n_upd) / n_upd,
+        chi2_inv(0.005, 3.0 * n_upd) / n_upd,
+        chi2_inv(0.995, 3.0 * n_upd) / n_upd,
     );
     println!("average NIS {nis:.3} over {n_upd} updates (99% band [{nlo:.3}, {nhi:.3}])");
     assert!(nis > nlo && nis < nhi, "average NIS {nis}");
@@ -143,7 +142,7 @@ fn nbk_filter_on_nbk_data_is_consistent_over_30_monte_carlo_runs() {
 fn single_state_nbk_variant_is_inconsistent_on_data_with_a_turn_on_bias() {
     let r = run_mc::<{ LAYOUT_NBK_SINGLE.dim() }>(LAYOUT_NBK_SINGLE);
     let m = RUNS as f64;
-    let hi = chi2_quantile(0.975, 3.0 * m) / m;
+    let hi = chi2_inv(0.975, 3.0 * m) / m;
     let n_ep = r.nees_sum.len() as f64;
     let mut grand = [0.0; 3];
     for (k, name) in ["attitude", "velocity", "position"].iter().enumerate() {

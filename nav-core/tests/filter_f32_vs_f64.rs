@@ -4,12 +4,10 @@
 //! attitudes to 0.001 deg at every epoch; and over a 6-hour run (100 Hz) the f32 covariance
 //! must stay symmetric positive definite (Cholesky in f32 at every GNSS update).
 
-mod common_filter;
-
-use common_filter::*;
 use nav_core::config::{units, FilterConfig, ScaleFactorNoise, SensorNoise};
 use nav_core::filter::Filter;
 use nav_core::model::LAYOUT_KF_GINS;
+use test_support::filter_sim::*;
 
 const N21: usize = LAYOUT_KF_GINS.dim();
 

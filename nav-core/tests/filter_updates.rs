@@ -3,15 +3,14 @@
 //! the velocity update with a lever arm, construction errors, and the covariance
 //! prediction rate.
 
-mod common_filter;
-
-use common_filter::*;
 use nalgebra::{SMatrix, Vector3};
 use nav_core::config::{FilterConfig, GateProbability, Gating};
 use nav_core::earth;
 use nav_core::filter::{Filter, FilterError, InitialUncertainty, STATUS_LAST_FIX_REJECTED};
 use nav_core::model::{LayoutError, IDX_POS, LAYOUT_N, LAYOUT_NBK};
 use nav_core::types::FixQuality;
+use test_support::filter_sim::*;
+use test_support::stats::chi2_inv;
 
 const N18: usize = LAYOUT_NBK.dim();
 
@@ -364,8 +363,8 @@ fn velocity_updates_with_a_lever_arm_have_consistent_innovations() {
     }
     let avg = nis_sum / n as f64;
     let dof = 6.0 * n as f64;
-    let lo = chi2_quantile(0.005, dof) / n as f64;
-    let hi = chi2_quantile(0.995, dof) / n as f64;
+    let lo = chi2_inv(0.005, dof) / n as f64;
+    let hi = chi2_inv(0.995, dof) / n as f64;
     println!("velocity+position updates: average NIS {avg:.3} over {n} fixes (99% band [{lo:.3}, {hi:.3}])");
     assert!(avg > lo && avg < hi);
 }

@@ -2,8 +2,7 @@
 //! when" bullets 1-3): at rest with perfect sensors, the Schuler period of the free-inertial
 //! horizontal channels, 10 minutes of dynamic driving from error-free increments, and coning.
 
-#[path = "common/trajectory.rs"]
-mod trajectory;
+use test_support::trajectory;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::attitude;

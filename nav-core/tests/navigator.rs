@@ -3,9 +3,8 @@
 //! `t_f < t_k + dt_next / 2`) on the same data; the alignment modes start where they should;
 //! the fix queue reports overflow.
 
-mod common_filter;
+use test_support::filter_sim::{nav_errors, test_uncertainty, Motion, Sim, SimConfig};
 
-use common_filter::{nav_errors, test_uncertainty, Motion, Sim, SimConfig};
 use nav_core::config::FilterConfig;
 use nav_core::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use nav_core::imu_guard::{GuardConfig, ImuGuard, Verdict};

@@ -8,9 +8,6 @@
 //! Every scenario prints its numbers (run with `--nocapture`); `docs/robust-gating.md` quotes
 //! them.
 
-mod common_filter;
-
-use common_filter::*;
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::attitude;
 use nav_core::config::{FilterConfig, GateProbability, Gating, KfGinsImuNoise};
@@ -24,6 +21,7 @@ use nav_core::nav::{NavState, Strapdown};
 use nav_core::types::{FixQuality, GnssFix, ImuSample};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use test_support::filter_sim::*;
 
 const N18: usize = LAYOUT_NBK.dim();
 const N21: usize = LAYOUT_KF_GINS.dim();

@@ -152,6 +152,9 @@ pub enum IoError {
         path: PathBuf,
         /// What is wrong (with the parser's line/column where it gives them).
         message: String,
+        /// The parser's or serializer's own error, when it is the cause (TOML, YAML).
+        #[source]
+        source: Option<Box<dyn std::error::Error + Send + Sync + 'static>>,
     },
 }
 

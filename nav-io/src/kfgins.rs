@@ -409,6 +409,7 @@ pub fn parse_kf_gins_yaml(name: &Path, text: &str) -> Result<KfGinsConfig, IoErr
     let err = |e: serde_yaml::Error| IoError::Config {
         path: name.to_path_buf(),
         message: e.to_string(),
+        source: Some(Box::new(e)),
     };
     // Typed parse first: its errors carry the line and column.
     let mut cfg: KfGinsConfig = serde_yaml::from_str(text).map_err(err)?;
@@ -426,6 +427,7 @@ pub fn parse_kf_gins_yaml(name: &Path, text: &str) -> Result<KfGinsConfig, IoErr
     cfg.validate().map_err(|message| IoError::Config {
         path: name.to_path_buf(),
         message,
+        source: None,
     })?;
     Ok(cfg)
 }
@@ -446,6 +448,7 @@ pub fn write_kf_gins_yaml(path: impl AsRef<Path>, cfg: &KfGinsConfig) -> Result<
     let text = serde_yaml::to_string(cfg).map_err(|e| IoError::Config {
         path: path.to_path_buf(),
         message: e.to_string(),
+        source: Some(Box::new(e)),
     })?;
     write_with(path, |w| {
         w.write_all(b"# KF-GINS configuration file (written by host-sim)\n")?;

@@ -1,7 +1,6 @@
-//! `nav-io`: readers and writers for the data formats users have (IMU/GNSS/nav text, RTKLIB
-//! .pos, generic IMU CSV, KF-GINS YAML) and the run configuration (TOML), with errors that
-//! name file, line and column. It depends only on `nav-core` (for the sample, fix and solution
-//! types), so every tool (host-sim, hw-bridge, noise-id) shares one definition of each format.
+#![doc = include_str!("../README.md")]
+//!
+//! ## Common rules
 //!
 //! Common rules for every text reader here:
 //! - gzip-compressed input is detected by its magic bytes (`1f 8b`), whatever the file name;
@@ -15,6 +14,7 @@
 
 pub mod aidingcfg;
 mod error;
+pub mod gnss;
 pub mod gnsscsv;
 pub mod gpstime;
 pub mod imucsv;

@@ -468,6 +468,7 @@ pub fn read_rtklib_pos(path: impl AsRef<Path>, opts: &PosOptions) -> Result<PosR
         return Err(IoError::Config {
             path: path.to_path_buf(),
             message: format!("max_q must be in 1..=6, got {}", opts.max_q),
+            source: None,
         });
     }
     let mut rd = open_text(path)?;

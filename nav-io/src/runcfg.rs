@@ -846,6 +846,7 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     let cfg: RunConfig = toml::from_str(text).map_err(|e| IoError::Config {
         path: name.to_path_buf(),
         message: e.to_string(),
+        source: Some(Box::new(e)),
     })?;
     let located = cfg.located_problems();
     if !located.is_empty() {
@@ -865,6 +866,7 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     cfg.validate().map_err(|message| IoError::Config {
         path: name.to_path_buf(),
         message,
+        source: None,
     })?;
     if let Some(a) = &cfg.aiding {
         if let Err(message) = a.to_config() {
@@ -905,6 +907,7 @@ pub fn write_run_config(path: impl AsRef<Path>, cfg: &RunConfig) -> Result<(), I
     let text = toml::to_string_pretty(cfg).map_err(|e| IoError::Config {
         path: path.to_path_buf(),
         message: e.to_string(),
+        source: Some(Box::new(e)),
     })?;
     super::text::write_with(path, |w| w.write_all(text.as_bytes()))
 }
@@ -948,6 +951,7 @@ impl RunConfig {
                 let fmt = self.imu.csv.as_ref().ok_or_else(|| IoError::Config {
                     path: imu_path.clone(),
                     message: "imu.format = \"csv\" needs an [imu.csv] mapping".into(),
+                    source: None,
                 })?;
                 read_imu_csv(&imu_path, fmt)?
             }

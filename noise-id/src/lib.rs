@@ -1,3 +1,7 @@
+#![doc = include_str!("../README.md")]
+//!
+//! ## Module notes
+//!
 //! `noise-id`: inertial sensor noise identification. Allan statistics (overlapping/non-overlapping Allan, modified Allan, Hadamard and
 //! overlapping Hadamard deviations) with confidence intervals, and the noise-model fit of the
 //! source document.

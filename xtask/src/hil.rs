@@ -719,10 +719,10 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     // the firmware: what `record` captured, in its recorded chunks
     let mut got_bytes = Vec::new();
     let f = File::open(&cap).with_context(|| format!("opening {}", cap.display()))?;
-    let mut rd = crate::capture::CaptureReader::new(std::io::BufReader::new(f))?;
+    let mut rd = hw_bridge::capture::CaptureReader::new(std::io::BufReader::new(f))?;
     let mut records = 0usize;
     while let Some(r) = rd.next_record()? {
-        if let crate::capture::Record::Data { bytes, .. } = r {
+        if let hw_bridge::capture::Record::Data { bytes, .. } = r {
             got_bytes.extend_from_slice(&bytes);
             records += 1;
         }

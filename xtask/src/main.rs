@@ -1,4 +1,6 @@
-//! `cargo xtask`: the project's automation, written in Rust so it runs wherever cargo does.
+#![doc = include_str!("../README.md")]
+//!
+//! ## Commands
 //!
 //! - `setup`: installs what the embedded half needs (Debian `rustc-web`, `rust-web-src`,
 //!   `rust-web-clippy`, `qemu-system-arm`, `socat`) when it is missing;
@@ -25,11 +27,6 @@ mod hil;
 mod replaybench;
 mod soak;
 mod vectors;
-
-/// hw-bridge's capture format (reading what `hw-bridge record` wrote in the HIL test).
-#[path = "../../hw-bridge/src/capture.rs"]
-#[allow(dead_code)]
-mod capture;
 
 use embedded::Board;
 

@@ -137,7 +137,7 @@ impl CaseFile {
         toml::from_str(&text).map_err(|e| {
             SimError::ErrorModel(ErrorModelError::Parse {
                 path: path.display().to_string(),
-                msg: e.to_string(),
+                source: Box::new(e),
             })
         })
     }

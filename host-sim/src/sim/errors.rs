@@ -44,12 +44,12 @@ pub enum ErrorModelError {
         source: std::io::Error,
     },
     /// TOML could not be parsed or has unknown keys (message carries line and column).
-    #[error("error model {path}: {msg}")]
+    #[error("error model {path}: {source}")]
     Parse {
         /// File path or `<string>`.
         path: String,
-        /// Parser message.
-        msg: String,
+        /// The TOML parser's (or, merging a preset, serializer's) error.
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
     },
     /// Unknown preset name.
     #[error("unknown error preset `{0}` (known: none, seed-nbk, tactical, consumer-mems)")]
@@ -428,12 +428,12 @@ impl ErrorModel {
     /// Parses an error model from TOML. A top-level `base = "<preset>"` starts from that
     /// preset and overrides only the keys given.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ErrorModelError> {
-        let perr = |msg: String| ErrorModelError::Parse {
+        let perr = |e: Box<dyn std::error::Error + Send + Sync>| ErrorModelError::Parse {
             path: origin.to_string(),
-            msg,
+            source: e,
         };
         // Typed parse first: unknown keys and wrong types are reported with line and column.
-        let direct: ErrorModelFile = toml::from_str(text).map_err(|e| perr(e.to_string()))?;
+        let direct: ErrorModelFile = toml::from_str(text).map_err(|e| perr(Box::new(e)))?;
         let merged = match direct.base {
             None => {
                 let m = ErrorModel {
@@ -447,11 +447,10 @@ impl ErrorModel {
                 return Ok(m);
             }
             Some(name) => {
-                let mut user: toml::Table =
-                    toml::from_str(text).map_err(|e| perr(e.to_string()))?;
+                let mut user: toml::Table = toml::from_str(text).map_err(|e| perr(Box::new(e)))?;
                 user.remove("base");
                 let preset = Self::preset(&name)?;
-                let mut t = toml::Table::try_from(&preset).map_err(|e| perr(e.to_string()))?;
+                let mut t = toml::Table::try_from(&preset).map_err(|e| perr(Box::new(e)))?;
                 merge(&mut t, user);
                 if !t.contains_key("name")
                     || t.get("name") == Some(&toml::Value::from(name.clone()))
@@ -466,7 +465,7 @@ impl ErrorModel {
         };
         let m: ErrorModel = merged
             .try_into()
-            .map_err(|e: toml::de::Error| perr(e.to_string()))?;
+            .map_err(|e: toml::de::Error| perr(Box::new(e)))?;
         m.validate()?;
         Ok(m)
     }

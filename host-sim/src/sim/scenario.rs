@@ -28,12 +28,12 @@ pub enum ScenarioError {
         source: std::io::Error,
     },
     /// The TOML could not be parsed (message carries line and column).
-    #[error("scenario {path}: {msg}")]
+    #[error("scenario {path}: {source}")]
     Parse {
         /// File path (or `<string>`).
         path: String,
-        /// Parser message.
-        msg: String,
+        /// The TOML parser's error.
+        source: toml::de::Error,
     },
     /// A value is out of range or inconsistent.
     #[error("scenario: {0}")]
@@ -250,9 +250,9 @@ pub struct Scenario {
 impl Scenario {
     /// Parses a scenario from TOML text; `origin` names the source in errors.
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ScenarioError> {
-        let s: Scenario = toml::from_str(text).map_err(|e| ScenarioError::Parse {
+        let s: Scenario = toml::from_str(text).map_err(|source| ScenarioError::Parse {
             path: origin.to_string(),
-            msg: e.to_string(),
+            source,
         })?;
         s.compile()?;
         Ok(s)

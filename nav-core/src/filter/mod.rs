@@ -107,6 +107,18 @@ impl core::fmt::Display for FilterError {
     }
 }
 
+/// The layout and configuration errors are the sources of [`FilterError::Layout`] and
+/// [`FilterError::Config`].
+impl core::error::Error for FilterError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Layout(e) => Some(e),
+            Self::Config(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
 /// Initial 1-sigma uncertainty of the core states (the sensor-error blocks take theirs from
 /// the [`FilterConfig`]).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -182,3 +182,5 @@ pub const LAYOUT_KF_GINS: Layout = Layout::new(&[
     Block::GyroScaleFactor,
     Block::AccelScaleFactor,
 ]);
+
+impl core::error::Error for LayoutError {}

@@ -528,64 +528,6 @@ pub fn start_filter<T: Scalar, const N: usize>(
     Filter::new(layout, cfg, init, unc).expect("filter construction")
 }
 
-/// ln Gamma(x) (Lanczos, g = 7, n = 9), for x > 0.
-fn ln_gamma(x: f64) -> f64 {
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + 7.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
-
-/// Regularised lower incomplete gamma P(a, x) by its series (fine for the moderate
-/// arguments used here).
-fn gamma_p(a: f64, x: f64) -> f64 {
-    if x <= 0.0 {
-        return 0.0;
-    }
-    let mut sum = 1.0 / a;
-    let mut term = sum;
-    let mut n = 1.0;
-    while term > sum * 1e-16 && n < 10_000.0 {
-        term *= x / (a + n);
-        sum += term;
-        n += 1.0;
-    }
-    (sum.ln() - x + a * x.ln() - ln_gamma(a)).exp()
-}
-
-/// Chi-square CDF with `dof` degrees of freedom.
-pub fn chi2_cdf(x: f64, dof: f64) -> f64 {
-    gamma_p(0.5 * dof, 0.5 * x)
-}
-
-/// Chi-square quantile by bisection.
-pub fn chi2_quantile(p: f64, dof: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, dof * 10.0 + 100.0);
-    for _ in 0..200 {
-        let m = 0.5 * (lo + hi);
-        if chi2_cdf(m, dof) < p {
-            lo = m;
-        } else {
-            hi = m;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
 /// A filter of any dimension, for running several layouts on the same data.
 pub trait AnyFilter {
     /// Integrates one IMU sample.

@@ -1,9 +1,9 @@
 //! NMEA 0183 and UBX NAV-PVT input: real-looking sentences and packets with checksums,
 //! malformed ones, and arbitrary chunking of a mixed receiver stream.
 
-use hw_bridge::gnss::nmea_epoch::gps_seconds_of_week;
-use hw_bridge::gnss::{GnssError, GnssEvent, GnssStream, NmeaAssembler, NmeaOptions};
 use nav_core::types::{FixQuality, GnssFix};
+use nav_io::gnss::nmea_epoch::gps_seconds_of_week;
+use nav_io::gnss::{GnssError, GnssEvent, GnssStream, NmeaAssembler, NmeaOptions};
 use proptest::prelude::*;
 
 /// NMEA checksum (XOR of the characters between `$` and `*`), computed independently.

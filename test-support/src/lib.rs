@@ -1,0 +1,9 @@
+#![doc = include_str!("../README.md")]
+
+pub mod filter_sim;
+pub mod scenario;
+pub mod trajectory;
+pub mod transition;
+
+/// Chi-square statistics for consistency bands: the workspace's one definition.
+pub use noise_id::stats;
