@@ -32,7 +32,7 @@ use super::output;
 use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
 use crate::io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
+    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use crate::metrics::{self, Metrics};
 use crate::sim::CaseFile;
@@ -297,8 +297,28 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     att_std_rad
 }
 
+/// An IMU text file the run streams instead of loading ([`prepare_streaming`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuStream {
+    /// The IMU text file (plain or gzip).
+    pub path: PathBuf,
+    /// Offset added to every time stamp, s (`--imu-time-offset`).
+    pub time_offset_s: f64,
+}
+
 /// Loads everything a run needs from the arguments.
 pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
+    Ok(prepare_inner(args, false)?.0)
+}
+
+/// [`prepare`] without loading the IMU when it is a text file (KF-GINS configurations and
+/// case directories): the case's IMU list stays empty and the file is returned, to be read
+/// while the filter runs ([`execute_streaming`]). Other IMU formats are loaded as before.
+pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
+    prepare_inner(args, true)
+}
+
+fn prepare_inner(args: &RunArgs, stream: bool) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
     let kind = read_config(&args.config)
         .with_context(|| format!("reading the configuration {}", args.config.display()))?;
     let cfg_dir = args
@@ -314,10 +334,16 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         }
         None => None,
     };
-    let (mut case, mut opts, mut week, mut description) = match kind {
-        ConfigKind::KfGins(k) => prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model)?,
-        ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref())?,
+    let (mut case, mut opts, mut week, mut description, imu_stream) = match kind {
+        ConfigKind::KfGins(k) => {
+            prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
+        }
+        ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream)?,
     };
+    let mut imu_stream = imu_stream.map(|path| ImuStream {
+        path,
+        time_offset_s: 0.0,
+    });
     if let Some(cd) = &case_dir {
         week = cd.week;
         if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
@@ -333,6 +359,9 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     if let Some(dt) = args.imu_time_offset {
         for s in &mut case.imu {
             s.t_s += dt;
+        }
+        if let Some(st) = &mut imu_stream {
+            st.time_offset_s = dt;
         }
         description.push_str(&format!("; IMU time offset {dt:+} s"));
     }
@@ -384,8 +413,13 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         scale_white_noise(&mut opts.filter, k);
         description.push_str(&format!("; white-noise PSDs x{k}"));
     }
-    let (t0, t_end) = match (case.imu.first(), case.imu.last()) {
-        (Some(a), Some(b)) => (a.t_s, b.t_s),
+    let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
+    let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
+        (Some(st), _, _) => {
+            let (a, b) = imu_text_time_span(&st.path, periodic_wanted)?;
+            (a + st.time_offset_s, b + st.time_offset_s)
+        }
+        (None, Some(a), Some(b)) => (a.t_s, b.t_s),
         _ => bail!("no IMU samples in the data"),
     };
     let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
@@ -401,12 +435,32 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     }
     opts.record.nav_rate_hz = None;
     opts.record.epoch_rate_hz = Some(args.std_rate);
-    Ok(Prepared {
-        case,
-        opts,
-        week,
-        description,
-    })
+    Ok((
+        Prepared {
+            case,
+            opts,
+            week,
+            description,
+        },
+        imu_stream,
+    ))
+}
+
+/// Time of the first IMU sample of a text file and, when `last` is asked, of its last one
+/// (the whole file is read then; otherwise the second value is the first time too).
+fn imu_text_time_span(path: &Path, last: bool) -> anyhow::Result<(f64, f64)> {
+    let mut rd = ImuTextReader::open(path)?;
+    let Some(first) = rd.next().transpose()? else {
+        bail!("no IMU samples in {}", path.display());
+    };
+    let t0 = first.0.t_s;
+    let mut t1 = t0;
+    if last {
+        for r in rd {
+            t1 = r?.0.t_s;
+        }
+    }
+    Ok((t0, t1))
 }
 
 fn prepare_kf_gins(
@@ -414,7 +468,8 @@ fn prepare_kf_gins(
     dir: &Path,
     case_dir: Option<&CaseDir>,
     model: Option<Model>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    stream: bool,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
     k.validate()
         .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
     let (imu_p, gnss_p) = match case_dir {
@@ -424,7 +479,11 @@ fn prepare_kf_gins(
             k.resolve_path(&k.gnsspath, dir),
         ),
     };
-    let imu_rec = read_imu_text(&imu_p)?;
+    let (imu_rec, imu_stream) = if stream {
+        (crate::io::ImuRecord::default(), Some(imu_p.clone()))
+    } else {
+        (read_imu_text(&imu_p)?, None)
+    };
     let gnss = read_gnss_text(&gnss_p)?;
     // the model: what KF-GINS's code does unless the command line asks for another layout
     let model = model.unwrap_or(Model::KfGinsFeedback);
@@ -470,6 +529,7 @@ fn prepare_kf_gins(
         opts,
         week,
         d,
+        imu_stream,
     ))
 }
 
@@ -496,14 +556,21 @@ fn prepare_run_config(
     r: &RunConfig,
     dir: &Path,
     case_dir: Option<&CaseDir>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    stream: bool,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
     let mut week = 0u16;
+    let mut imu_stream = None;
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
     let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
-            read_imu_text(&c.imu)?,
+            if stream {
+                imu_stream = Some(c.imu.clone());
+                crate::io::ImuRecord::default()
+            } else {
+                read_imu_text(&c.imu)?
+            },
             read_gnss_text(&c.gnss)?,
             if c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
@@ -595,6 +662,10 @@ fn prepare_run_config(
             let t = r
                 .start_s
                 .or_else(|| imu.first().map(|s| s.t_s))
+                .or_else(|| {
+                    let p = imu_stream.as_ref()?;
+                    imu_text_time_span(p, false).ok().map(|(a, _)| a)
+                })
                 .unwrap_or(0.0);
             InitSpec::Given(
                 NavState::from_rpy(
@@ -648,6 +719,7 @@ fn prepare_run_config(
         opts,
         week,
         d,
+        imu_stream,
     ))
 }
 
@@ -684,41 +756,123 @@ pub fn execute(
     Ok((out, m))
 }
 
-/// Runs `host-sim run`.
+/// Runs the filter on a prepared case with the IMU streamed from `imu` (or from the case's
+/// samples in memory when `None`), writing the outputs in `dir` as it goes
+/// ([`super::sink::FileSink`]: `*.partial`, renamed when complete) and computing the metrics
+/// online, with the coasting baselines. `nav_rate_hz`: rate of `nav.txt` (None: every IMU
+/// epoch). A fault mid-run leaves the outputs up to it as `*.partial` and returns
+/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); other errors
+/// leave no output.
+pub fn execute_streaming(
+    p: &Prepared,
+    imu: Option<&ImuStream>,
+    dir: &Path,
+    nav_rate_hz: Option<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let mut opts = p.opts.clone();
+    opts.record.nav_rate_hz = nav_rate_hz.filter(|r| *r > 0.0);
+    let truth = p.case.truth.as_deref();
+    let mut sink = super::sink::FileSink::create(dir, p.week, &opts.outages, truth)?;
+    let data = super::RunData {
+        gnss: &p.case.gnss,
+        truth,
+    };
+    let coast = super::CoastPlan {
+        raw: true,
+        static_gyro_bias: true,
+    };
+    let res = match imu {
+        Some(st) => {
+            let rd = ImuTextReader::open(&st.path)?;
+            let info = super::ImuSourceInfo {
+                path: Some(st.path.clone()),
+                increments_span_gaps: false,
+            };
+            let dt = st.time_offset_s;
+            let mut it = rd.map(|r| {
+                r.map(|(mut s, line)| {
+                    s.t_s += dt;
+                    super::ImuItem { sample: s, line }
+                })
+                .map_err(super::RunError::Input)
+            });
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+        None => {
+            let (mut it, info) = super::case_imu_stream(&p.case);
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+    };
+    match res {
+        Ok(out) => {
+            let m = sink
+                .finish(&out, None, |m| metrics_json(m, &out, None))
+                .with_context(|| {
+                    format!(
+                        "writing the outputs in {}: incomplete, left as *{} (no file under its \
+                         final name)",
+                        dir.display(),
+                        output::PARTIAL_SUFFIX
+                    )
+                })?;
+            Ok((out, m))
+        }
+        Err(super::RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial,
+        }) => {
+            let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+            let t_last = sink.last_nav_t();
+            let written = sink.finish(&partial, Some(&fault), |m| {
+                metrics_json(m, &partial, Some(&fault))
+            });
+            Err(match written {
+                Ok(_) => anyhow::anyhow!(
+                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                     {}/*{} (incomplete)",
+                    dir.display(),
+                    output::PARTIAL_SUFFIX
+                ),
+                Err(w) => anyhow::anyhow!(
+                    "{fault}; the run stopped there, and writing the partial outputs failed \
+                     too: {w:#}"
+                ),
+            })
+        }
+        Err(e) => {
+            drop(sink);
+            for n in output::OUTPUT_NAMES {
+                let _ = std::fs::remove_file(output::partial_path(dir, n));
+            }
+            Err(e.into())
+        }
+    }
+}
+
+/// Runs `host-sim run` (streaming: see [`execute_streaming`]).
 pub fn run(args: RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
-    let p = prepare(&args)?;
+    let (p, imu) = prepare_streaming(&args)?;
     println!("{}", p.description);
     let pb = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {
-        indicatif::ProgressBar::new(p.case.imu.len() as u64)
+        indicatif::ProgressBar::new_spinner()
     };
     pb.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} IMU samples {elapsed}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template("{spinner} {pos} IMU samples {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
     );
-    let res = execute(&p, &mut |done, _| pb.set_position(done as u64));
+    let dir = &args.out;
+    let res = execute_streaming(&p, imu.as_ref(), dir, args.nav_rate, &mut |done, _| {
+        pb.set_position(done as u64)
+    });
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (out, m) = match res {
-        Ok(x) => x,
-        Err(e) => return Err(write_after_fault(&args, &p, e)),
-    };
-    let nav: Vec<NavSolution> = match args.nav_rate {
-        Some(r) if r > 0.0 => decimate(&out.nav, r),
-        _ => out.nav.clone(),
-    };
-    let json = metrics_json(&m, &out, None)?;
-    output::write_all(dir, &out, &nav, p.week, &json, true).with_context(|| {
-        format!(
-            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
-            dir.display(),
-            output::PARTIAL_SUFFIX
-        )
-    })?;
+    let (out, m) = res?;
     let c = &out.counters;
     println!(
         "model {} ({} states), init: {} ({})",
@@ -803,45 +957,6 @@ pub fn imu_summary(out: &RunOutput) -> String {
         ));
     }
     s
-}
-
-/// After a failed run: a fault mid-run writes the outputs up to it as `*.partial` and
-/// returns the error with where they are; other errors are returned as they are.
-fn write_after_fault(args: &RunArgs, p: &Prepared, e: anyhow::Error) -> anyhow::Error {
-    let e = match e.downcast::<super::RunError>() {
-        Ok(super::RunError::Fault {
-            location,
-            t_s,
-            msg,
-            partial,
-        }) => (location, t_s, msg, partial),
-        Ok(other) => return other.into(),
-        Err(e) => return e,
-    };
-    let (location, t_s, msg, partial) = e;
-    let fault = format!("{location} (t = {t_s:.6} s): {msg}");
-    let m = metrics::compute(&partial, p.case.truth.as_deref());
-    let nav: Vec<NavSolution> = match args.nav_rate {
-        Some(r) if r > 0.0 => decimate(&partial.nav, r),
-        _ => partial.nav.clone(),
-    };
-    let written = metrics_json(&m, &partial, Some(&fault)).and_then(|json| {
-        Ok(output::write_all(
-            &args.out, &partial, &nav, p.week, &json, false,
-        )?)
-    });
-    let t_last = partial.nav.last().map_or(f64::NAN, |s| s.t_s);
-    match written {
-        Ok(_) => anyhow::anyhow!(
-            "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in {}/*{} \
-             (incomplete)",
-            args.out.display(),
-            output::PARTIAL_SUFFIX
-        ),
-        Err(w) => anyhow::anyhow!(
-            "{fault}; the run stopped there, and writing the partial outputs failed too: {w:#}"
-        ),
-    }
 }
 
 /// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.
