@@ -297,6 +297,11 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     att_std_rad
 }
 
+struct ExecRef<'a> {
+    case: &'a CaseData,
+    opts: &'a RunOptions,
+}
+
 /// An IMU text file the run streams instead of loading ([`prepare_streaming`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImuStream {
@@ -728,11 +733,21 @@ pub fn execute(
     p: &Prepared,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
-    let out = run_filter_with_progress(&p.case, &p.opts, progress)?;
+    execute_case(&p.case, &p.opts, progress)
+}
+
+/// [`execute`] on a case and options apart (the case is not copied).
+pub fn execute_case(
+    case: &CaseData,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let p = ExecRef { case, opts };
+    let out = run_filter_with_progress(p.case, p.opts, progress)?;
     let truth = p.case.truth.as_deref();
     let mut m = metrics::compute(&out, truth);
     if !out.snapshots.is_empty() {
-        let raw = coast_outages(&p.case, &out, CoastMode::Raw);
+        let raw = coast_outages(p.case, &out, CoastMode::Raw);
         m.coasting.push(metrics::coasting_metrics(
             "raw: no sensor-error correction",
             &raw,
@@ -744,7 +759,7 @@ pub fn execute(
                 gyro_bias_radps: b,
                 ..ImuCorrection::default()
             };
-            let st = coast_outages(&p.case, &out, CoastMode::Fixed(Box::new(c)));
+            let st = coast_outages(p.case, &out, CoastMode::Fixed(Box::new(c)));
             m.coasting.push(metrics::coasting_metrics(
                 "static gyro bias only",
                 &st,
@@ -770,10 +785,9 @@ pub fn execute_streaming(
     nav_rate_hz: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
-    let mut opts = p.opts.clone();
-    opts.record.nav_rate_hz = nav_rate_hz.filter(|r| *r > 0.0);
+    let opts = p.opts.clone();
     let truth = p.case.truth.as_deref();
-    let mut sink = super::sink::FileSink::create(dir, p.week, &opts.outages, truth)?;
+    let mut sink = super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, truth)?;
     let data = super::RunData {
         gnss: &p.case.gnss,
         truth,
@@ -784,19 +798,11 @@ pub fn execute_streaming(
     };
     let res = match imu {
         Some(st) => {
-            let rd = ImuTextReader::open(&st.path)?;
             let info = super::ImuSourceInfo {
                 path: Some(st.path.clone()),
                 increments_span_gaps: false,
             };
-            let dt = st.time_offset_s;
-            let mut it = rd.map(|r| {
-                r.map(|(mut s, line)| {
-                    s.t_s += dt;
-                    super::ImuItem { sample: s, line }
-                })
-                .map_err(super::RunError::Input)
-            });
+            let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
             super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
         }
         None => {
@@ -842,6 +848,11 @@ pub fn execute_streaming(
                 ),
             })
         }
+        Err(e @ super::RunError::Output(_)) => Err(anyhow::Error::new(e).context(format!(
+            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+            dir.display(),
+            output::PARTIAL_SUFFIX
+        ))),
         Err(e) => {
             drop(sink);
             for n in output::OUTPUT_NAMES {
@@ -850,6 +861,64 @@ pub fn execute_streaming(
             Err(e.into())
         }
     }
+}
+
+/// Samples per message from the reader thread.
+const READ_CHUNK: usize = 2048;
+/// Messages in flight between the reader thread and the filter.
+const READ_QUEUE: usize = 4;
+
+/// The samples of an IMU text file read and parsed by a thread of their own and handed over
+/// in chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
+/// flight): reading and parsing overlap the filter. The thread stops at the first error
+/// (passed on) or when the receiver is dropped.
+pub fn threaded_imu_reader(
+    path: PathBuf,
+    time_offset_s: f64,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    type Msg = Result<Vec<super::ImuItem>, super::RunError>;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
+    std::thread::spawn(move || {
+        let rd = match ImuTextReader::open(&path) {
+            Ok(r) => r,
+            Err(e) => {
+                let _ = tx.send(Err(super::RunError::Input(e)));
+                return;
+            }
+        };
+        let mut chunk = Vec::with_capacity(READ_CHUNK);
+        for r in rd {
+            match r {
+                Ok((mut s, line)) => {
+                    s.t_s += time_offset_s;
+                    chunk.push(super::ImuItem { sample: s, line });
+                    if chunk.len() == READ_CHUNK {
+                        let full = std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
+                        if tx.send(Ok(full)).is_err() {
+                            return;
+                        }
+                    }
+                }
+                Err(e) => {
+                    if !chunk.is_empty() {
+                        let _ = tx.send(Ok(std::mem::take(&mut chunk)));
+                    }
+                    let _ = tx.send(Err(super::RunError::Input(e)));
+                    return;
+                }
+            }
+        }
+        if !chunk.is_empty() {
+            let _ = tx.send(Ok(chunk));
+        }
+    });
+    rx.into_iter().flat_map(|m| {
+        let (items, err) = match m {
+            Ok(v) => (v, None),
+            Err(e) => (Vec::new(), Some(Err(e))),
+        };
+        items.into_iter().map(Ok).chain(err)
+    })
 }
 
 /// Runs `host-sim run` (streaming: see [`execute_streaming`]).

@@ -2,7 +2,7 @@
 //! deviations), `bias.txt` (IMU error estimates) and `innovations.txt`.
 
 use super::{EpochRecord, FixUse, InnovationRecord, RunOutput};
-use crate::io::{write_nav_text, IoError};
+use crate::io::IoError;
 use nav_core::types::NavSolution;
 use std::io::Write;
 use std::path::Path;
@@ -24,8 +24,28 @@ fn werr(path: &Path) -> impl Fn(std::io::Error) -> IoError + '_ {
 
 /// Writes the navigation solution with the GPS week filled in.
 pub fn write_nav(path: &Path, nav: &[NavSolution], week: u16) -> Result<(), IoError> {
-    let v: Vec<NavSolution> = nav.iter().map(|s| NavSolution { week, ..*s }).collect();
-    write_nav_text(path, &v)
+    write_nav_with(path, nav, week, 0.0)
+}
+
+/// [`write_nav`] with `shift_s` added to every time (record by record: no copy of the
+/// solution). Same text as [`crate::io::write_nav_text`] (gzip when the name ends in `.gz`).
+pub fn write_nav_with(
+    path: &Path,
+    nav: &[NavSolution],
+    week: u16,
+    shift_s: f64,
+) -> Result<(), IoError> {
+    crate::io::text::write_with(path, |w| {
+        for s in nav {
+            let t_s = if shift_s == 0.0 {
+                s.t_s
+            } else {
+                s.t_s + shift_s
+            };
+            crate::io::write_nav_line(w, &NavSolution { week, t_s, ..*s })?;
+        }
+        Ok(())
+    })
 }
 
 /// The two header lines of `std.txt`.

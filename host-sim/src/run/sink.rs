@@ -89,6 +89,8 @@ pub struct FileSink<'a> {
     coasting: [Option<Vec<OutageMetrics>>; 2],
     nav_count: u64,
     last_nav_t: f64,
+    nav_rate_hz: Option<f64>,
+    nav_dec: Option<super::Decimator>,
 }
 
 /// Names of the coasting modes of [`super::engine::CoastPlan`] (index = mode).
@@ -97,10 +99,12 @@ pub const COAST_MODE_NAMES: [&str; 2] =
 
 impl<'a> FileSink<'a> {
     /// Removes earlier outputs in `dir` and opens the `.partial` files. `outages` must be the
-    /// run's outages (normalised: sorted) and `truth` the reference when there is one.
+    /// run's outages and `truth` the reference when there is one. `nav_rate_hz`: rate of
+    /// `nav.txt` (None: every record; the metrics always see every record).
     pub fn create(
         dir: &Path,
         week: u16,
+        nav_rate_hz: Option<f64>,
         outages: &[Outage],
         truth: Option<&'a [NavSolution]>,
     ) -> Result<Self, RunError> {
@@ -143,10 +147,12 @@ impl<'a> FileSink<'a> {
             coasting: [None, None],
             nav_count: 0,
             last_nav_t: f64::NAN,
+            nav_rate_hz: nav_rate_hz.filter(|r| *r > 0.0),
+            nav_dec: None,
         })
     }
 
-    /// Navigation records written.
+    /// Navigation records written to `nav.txt`.
     pub fn nav_count(&self) -> u64 {
         self.nav_count
     }
@@ -232,6 +238,17 @@ impl RunSink for FileSink<'_> {
     }
 
     fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
+        if let Some(m) = &mut self.matcher {
+            let acc = &mut self.samples;
+            m.push(s, |e| acc.push(&e));
+        }
+        let rate = self.nav_rate_hz;
+        let dec = self
+            .nav_dec
+            .get_or_insert_with(|| super::Decimator::new(rate, s.t_s));
+        if !dec.take(s.t_s) {
+            return Ok(());
+        }
         if self.nav.cut.is_none() && !solution_is_finite(s) {
             self.nav.cut = Some(self.nav.n);
         }
@@ -250,10 +267,6 @@ impl RunSink for FileSink<'_> {
         r?;
         self.nav_count += 1;
         self.last_nav_t = s.t_s;
-        if let Some(m) = &mut self.matcher {
-            let acc = &mut self.samples;
-            m.push(s, |e| acc.push(&e));
-        }
         Ok(())
     }
 
