@@ -1,13 +1,13 @@
 //! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
-//! readers and writers for the data formats users have, Allan-variance noise identification,
-//! the source document's bias-model study, model diagnosis, metrics, plots and reports.
+//! the run engine, the source document's bias-model study, model diagnosis, metrics, plots,
+//! reports and the command line (the `allan` command over the `noise-id` crate). The data
+//! formats are read and written by the `nav-io` crate.
 //!
 //! Every computation that also runs on the MCU lives in `nav-core`; this crate only drives it.
 #![deny(missing_docs)]
 
 pub mod allan;
 pub mod diagnose;
-pub mod io;
 pub mod metrics;
 pub mod noise;
 pub mod run;

@@ -44,7 +44,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-/// The error and its causes on one line, each said once: `host_sim::io::IoError` prints its
+/// The error and its causes on one line, each said once: `nav_io::IoError` prints its
 /// source in its own message, so a cause the line already contains is not repeated.
 fn error_chain(e: &anyhow::Error) -> String {
     let mut out = String::new();

@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | white, `S_N` (`N = sqrt(S_N)`) | `S_N` | `S_N / tau` |
 //! | random walk, `S_K` (`K = sqrt(S_K)`) | `S_K / (2 pi f)^2` | `S_K tau / 3` |
-//! | Gauss-Markov, `S_B`, `T_B` | `S_B T_B^2 / (1 + (2 pi f T_B)^2)` | see [`gauss_markov_avar`] |
+//! | Gauss-Markov, `S_B`, `T_B` | `S_B T_B^2 / (1 + (2 pi f T_B)^2)` | see [`noise_id::gauss_markov_avar`] |
 //! | flicker, `B` | `B^2 / (2 pi f)` | `2 ln 2 B^2 / pi` (floor `0.6643 B`) |
 //! | quantization, `Q = step / sqrt(12)` | (increments) | `3 Q^2 / tau^2` |
 //!
@@ -296,21 +296,6 @@ pub fn flicker_avar_discrete(b: f64, m: usize) -> f64 {
     2.0 * b * b / (m * m) * integral_x / std::f64::consts::PI
 }
 
-/// Theoretical Allan variance of the continuous first-order Gauss-Markov process (corrected
-/// formula of `docs/DESIGN.md`, coefficient 1 on `e^(-2 tau/T_B)`):
-/// `(S_B T_B^2 / tau) [1 - (T_B / (2 tau)) (3 - 4 e^(-tau/T_B) + e^(-2 tau/T_B))]`.
-pub fn gauss_markov_avar(s_b: f64, t_b_s: f64, tau_s: f64) -> f64 {
-    let r = tau_s / t_b_s;
-    // For small r the bracket cancels: use the series 1 - (3 - 4e^-r + e^-2r)/(2r) =
-    // r^2/3 - r^3/4 + 7 r^4/60 - r^5/24 + 31 r^6/2520 - ... (S_B tau / 3 at small tau).
-    let bracket = if r < 1e-2 {
-        r * r * (1.0 / 3.0 + r * (-0.25 + r * (7.0 / 60.0 + r * (-1.0 / 24.0 + r * 31.0 / 2520.0))))
-    } else {
-        1.0 - (3.0 - 4.0 * (-r).exp() + (-2.0 * r).exp()) / (2.0 * r)
-    };
-    s_b * t_b_s * t_b_s / tau_s * bracket
-}
-
 /// Quantizer of accumulated increments with residual carry (the way an IMU's velocity or angle
 /// counter works): the input is the true increment over one sample (e.g. `dv` in m/s), the
 /// output the quantized increment (a multiple of `step`); the part not yet output is carried
@@ -474,28 +459,5 @@ mod tests {
         let floor = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
         let a = flicker_avar_discrete(1.0, 4096);
         assert!((a / floor - 1.0).abs() < 1e-3, "{a} vs {floor}");
-    }
-
-    #[test]
-    fn gauss_markov_avar_peak_is_0437() {
-        // IEEE 952: peak deviation 0.437 sqrt(S_B T_B) at tau = 1.89 T_B.
-        let (mut best, mut at) = (0.0, 0.0);
-        for i in 0..4000 {
-            let tau = 0.5 + i as f64 * 0.001;
-            let v = gauss_markov_avar(1.0, 1.0, tau).sqrt();
-            if v > best {
-                best = v;
-                at = tau;
-            }
-        }
-        assert!((best - 0.437).abs() < 5e-4, "{best}");
-        assert!((at - 1.89).abs() < 0.01, "{at}");
-        // The series branch agrees with the closed form at the switch point.
-        let closed = gauss_markov_avar(1.0, 1.0, 1e-2 * (1.0 + 1e-12));
-        let series = gauss_markov_avar(1.0, 1.0, 1e-2 * (1.0 - 1e-12));
-        assert!((closed / series - 1.0).abs() < 1e-8, "{closed} {series}");
-        // Small tau: S_B tau / 3 (the process looks like a random walk).
-        let v = gauss_markov_avar(2.0, 45.0, 1e-3);
-        assert!((v / (2.0 * 1e-3 / 3.0) - 1.0).abs() < 1e-4);
     }
 }

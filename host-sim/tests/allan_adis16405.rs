@@ -2,8 +2,8 @@
 //! the figures in `../shared/data/adis16405/README.md`, the outputs (table, TOML, JSON keys,
 //! PNG/SVG) written.
 use host_sim::allan::cli::{run, AllanArgs, Format, TauArg, TermArg};
-use host_sim::allan::reader::{read_columns, AccelUnitArg, ColumnSpec, GyroUnit};
-use host_sim::allan::{deviation_curve, CurveOptions, Deviation, Taus};
+use noise_id::reader::{read_columns, AccelUnitArg, ColumnSpec, GyroUnit};
+use noise_id::{deviation_curve, CurveOptions, Deviation, Taus};
 use std::path::PathBuf;
 
 fn data_file() -> Option<PathBuf> {
@@ -177,7 +177,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
 #[test]
 fn adis16405_all_runs_identify_datasheet_white_noise_and_bias_instability() {
     use host_sim::allan::cli::analyse;
-    use host_sim::allan::fit::{FitOptions, SensorKind, Terms};
+    use noise_id::fit::{FitOptions, SensorKind, Terms};
     use rayon::prelude::*;
     let Some(first) = data_file() else {
         println!("SKIPPED adis16405_all_runs_identify_datasheet_white_noise_and_bias_instability: ../shared/data not found");

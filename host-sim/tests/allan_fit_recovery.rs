@@ -2,10 +2,10 @@
 //! T_B = 45 s, S_K = 2.6731e-12) from simulated 6-hour 100 Hz records (white + first-order
 //! Gauss-Markov + random walk), Monte Carlo, by the weighted least-squares fit of the overlapping
 //! Allan variance; and the slope/minimum method on the same runs.
-use host_sim::allan::fit::{fit, slope_method, FitOptions, Terms};
-use host_sim::allan::{deviation_curve, CurveOptions};
 use host_sim::noise::{GaussMarkov, RandomWalk, White};
 use nav_core::config::units;
+use noise_id::fit::{fit, slope_method, FitOptions, Terms};
+use noise_id::{deviation_curve, CurveOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -45,7 +45,7 @@ fn one_run(seed: u64) -> Run {
         },
     )
     .expect("fit");
-    let ds = f.datasheet(host_sim::allan::fit::SensorKind::Accel);
+    let ds = f.datasheet(noise_id::fit::SensorKind::Accel);
     let s = slope_method(&curve).expect("slope method");
     Run {
         n: (ds.n.value, ds.n.sigma),
@@ -187,7 +187,7 @@ fn source_accelerometer_parameters_are_recovered_from_6h_records_90_runs() {
 /// model-error floor it estimates stays negligible (the data follow the model).
 #[test]
 fn term_selection_keeps_white_gm_rw_on_simulated_source_records() {
-    use host_sim::allan::fit::fit_select;
+    use noise_id::fit::fit_select;
     let all = Terms {
         quant: true,
         white: true,

@@ -1,8 +1,8 @@
 //! nav-core's streaming (octave-pyramid, non-overlapping) Allan variance agrees with the host's
 //! non-overlapping ADEV on the same data.
-use host_sim::allan::{Deviation, Phase};
 use host_sim::noise::{GaussMarkov, RandomWalk, White};
 use nav_core::allan::StreamingAllan;
+use noise_id::{Deviation, Phase};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 

@@ -116,7 +116,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     // IMU effects in its `effects` key
     let dir = tempfile::tempdir().unwrap();
     write_outputs(dir.path(), &p, &out, Some(Path::new(config))).unwrap();
-    let aug = host_sim::io::read_run_config(dir.path().join("augmented.toml"))
+    let aug = nav_io::read_run_config(dir.path().join("augmented.toml"))
         .expect("augmented.toml is a valid run configuration");
     // the IMU moved onto the GNSS clock: imu.time_offset_s = configured - estimate
     assert!((aug.imu.time_offset_s + first.estimate[0]).abs() < 1e-12);

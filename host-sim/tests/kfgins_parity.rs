@@ -18,11 +18,11 @@
 //! that the default mapping stays closer to KF-GINS than that reading.
 //!
 //! Reads the data in place; skips with a visible "SKIPPED" when it is missing unless CI=true.
-use host_sim::io::read_nav_text;
 use host_sim::metrics::{errors_vs_truth, outage_metrics, ErrSample, OutageSummary};
 use host_sim::run::cli::{execute, prepare, RunArgs};
 use host_sim::run::{Model, Outage};
 use nav_core::types::NavSolution;
+use nav_io::read_nav_text;
 use std::path::PathBuf;
 
 fn data_dir() -> Option<PathBuf> {

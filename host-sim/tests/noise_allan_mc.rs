@@ -1,8 +1,8 @@
 //! Each simulated noise process measured back through the Allan variance: the mean overlapping
 //! AVAR over Monte Carlo runs is within 1 +/- 3 / sqrt(runs * EDF) of the theory at every octave
 //! tau (EDF: Greenhall's, for the noise type the pipeline identifies at that tau).
-use host_sim::allan::{deviation_curve, edf, CurveOptions, Deviation};
 use host_sim::noise::{flicker_avar_discrete, Flicker, GaussMarkov, Quantizer, RandomWalk, White};
+use noise_id::{deviation_curve, edf, CurveOptions, Deviation};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -117,7 +117,7 @@ fn gauss_markov_allan_variance_matches_exact_discrete_theory() {
     check("gm", &res, |m| gm_discrete_avar(s_b, t_b, m), N / 4);
     // The continuous formula (docs/DESIGN.md, corrected) agrees once tau >> dt.
     for m in [64usize, 256, 1024] {
-        let c = host_sim::noise::gauss_markov_avar(s_b, t_b, m as f64 * DT);
+        let c = noise_id::gauss_markov_avar(s_b, t_b, m as f64 * DT);
         let d = gm_discrete_avar(s_b, t_b, m);
         assert!((c / d - 1.0).abs() < 0.02, "m {m}: {c} vs {d}");
     }

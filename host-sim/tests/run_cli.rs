@@ -1,7 +1,7 @@
 //! `host-sim run` end to end through the binary: a case written by `host-sim simulate
 //! --kf-gins` runs from its `kf-gins.yaml` alone, and the outputs are complete and right.
-use host_sim::io::read_nav_text;
 use host_sim::metrics::errors_vs_truth;
+use nav_io::read_nav_text;
 use std::path::Path;
 use std::process::Command;
 
@@ -213,10 +213,7 @@ fn run_imposes_outages_and_decimates_nav() {
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     // outage times count from the first IMU epoch (`--outage` help): the first increment
     // ends at 200000.01 s
-    let t0 = host_sim::io::read_imu_text(case.join("imu.txt"))
-        .unwrap()
-        .samples[0]
-        .t_s;
+    let t0 = nav_io::read_imu_text(case.join("imu.txt")).unwrap().samples[0].t_s;
     assert!((t0 - 200_000.01).abs() < 1e-6, "{t0}");
     let starts: Vec<f64> = m["outages"]
         .as_array()

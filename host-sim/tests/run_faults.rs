@@ -5,15 +5,15 @@
 //! Gap tests compare the run on the gapped record with the run on the same record without
 //! the gap (position and height errors against the truth), with the default gate, the hard
 //! 0.9999 chi-square gate set explicitly and the gate off.
-use host_sim::io::{
-    read_imu_csv, read_nav_text, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit,
-    SampleConvention,
-};
 use host_sim::metrics::Metrics;
 use host_sim::run::cli::{execute, parse_gate, prepare, Prepared, RunArgs};
 use host_sim::run::{RunError, RunOutput};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::imu_guard::GapIncrements;
+use nav_io::{
+    read_imu_csv, read_nav_text, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit,
+    SampleConvention,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -589,7 +589,7 @@ fn run_error_of_a_fault_carries_the_partial_output() {
 
 #[test]
 fn run_configuration_sets_the_imu_checks() {
-    use host_sim::io::{parse_run_config, ImuClassName};
+    use nav_io::{parse_run_config, ImuClassName};
     let cfg_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
     let text = std::fs::read_to_string(cfg_dir.join("drive0708.toml")).unwrap();
     let abs = cfg_dir.join("../../shared").canonicalize();

@@ -812,7 +812,7 @@ fn write_outputs(
         InputKind::Gnss => {
             let p = dir.join("gnss.txt");
             let tmp = partial_name(&p);
-            host_sim::io::write_gnss_text(&tmp, &o.gnss_fixes)?;
+            nav_io::write_gnss_text(&tmp, &o.gnss_fixes)?;
             rename(&tmp, &p)?;
             summary.push_str(&format!("{:?}\n", gnss.stats()));
         }
@@ -909,10 +909,10 @@ pub struct SendOutcome {
 
 /// Reads a case directory's imu.txt and (when present) gnss.txt as the payloads to send.
 pub fn read_case(dir: &Path) -> anyhow::Result<Vec<(f64, Payload)>> {
-    let imu = host_sim::io::read_imu_text(dir.join("imu.txt"))?.samples;
+    let imu = nav_io::read_imu_text(dir.join("imu.txt"))?.samples;
     let gnss_path = dir.join("gnss.txt");
     let gnss = if gnss_path.exists() {
-        host_sim::io::read_gnss_text(&gnss_path)?
+        nav_io::read_gnss_text(&gnss_path)?
     } else {
         Vec::new()
     };
@@ -1030,7 +1030,7 @@ pub struct StreamArgs {
 
 /// The wall clock as the application's time base (only its health timing fields use it).
 struct WallClock(Instant);
-impl crate::time::TimeBase for WallClock {
+impl nav_app::TimeBase for WallClock {
     const HZ: u32 = 1_000_000;
     fn now_ticks(&mut self) -> u64 {
         self.0.elapsed().as_micros() as u64
@@ -1038,15 +1038,16 @@ impl crate::time::TimeBase for WallClock {
 }
 
 /// The host filter of `stream --host-filter`.
-type HostApp = crate::fwapp::NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
+type HostApp = nav_app::NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
 
-fn host_app() -> HostApp {
-    crate::fwapp::NavApp::new(
+fn host_app() -> anyhow::Result<HostApp> {
+    nav_app::NavApp::new(
         nav_core::model::LAYOUT_NBK,
         nav_core::config::FilterConfig::source_nbk_model(),
         0,
         0,
     )
+    .map_err(|e| anyhow::anyhow!("host filter: {e}"))
 }
 
 /// Feeds a payload to the host filter (IMU samples and GNSS fixes only; its own output
@@ -1120,7 +1121,7 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
     let mut status = StatusLine::new(Duration::from_millis(250), true);
     let mut log = FrameLog::default();
     let mut last_rx_fix: Option<GnssFix> = None;
-    let mut host = a.host_filter.then(host_app);
+    let mut host = a.host_filter.then(host_app).transpose()?;
     let mut clock = WallClock(Instant::now());
     let start = Instant::now();
     loop {
@@ -1241,16 +1242,16 @@ pub struct StreamOutcome {
 /// them must reproduce exactly): its last solution, IMU epochs and GNSS updates.
 pub fn host_filter_offline(
     payloads: &[Payload],
-) -> (Option<nav_core::types::NavSolution>, u32, u32) {
-    let mut app = host_app();
+) -> anyhow::Result<(Option<nav_core::types::NavSolution>, u32, u32)> {
+    let mut app = host_app()?;
     let mut clock = WallClock(Instant::now());
     for p in payloads {
         host_feed(&mut app, p, &mut clock);
     }
     let c = *app.counters();
-    (
+    Ok((
         app.filter().map(|f| f.solution()),
         c.imu_epochs,
         c.gnss_updates,
-    )
+    ))
 }

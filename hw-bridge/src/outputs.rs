@@ -3,7 +3,7 @@
 //! when the replay is finished. A killed replay leaves `*.partial` files holding everything up
 //! to the last checkpoint; a file without the suffix is complete.
 //!
-//! The text formats are those of `host_sim::io` (the same digits, byte for byte: the test
+//! The text formats are those of `nav_io` (the same digits, byte for byte: the test
 //! `streamed_outputs_equal_host_sims_writers_byte_for_byte` checks it).
 
 use anyhow::Context;
@@ -109,7 +109,7 @@ impl FrameFiles {
         })
     }
 
-    /// Appends an IMU sample (format of `host_sim::io::write_imu_text`).
+    /// Appends an IMU sample (format of `nav_io::write_imu_text`).
     pub fn imu(&mut self, s: &ImuSample) -> anyhow::Result<()> {
         let finite_t = s.temperature_c.is_finite();
         self.imu_any_temperature |= finite_t;
@@ -119,31 +119,31 @@ impl FrameFiles {
         }
         let with_temp = self.imu_temperature;
         if let Some(st) = self.imu.as_mut() {
-            let r = host_sim::io::write_imu_line(&mut st.w, s, with_temp);
+            let r = nav_io::write_imu_line(&mut st.w, s, with_temp);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()
     }
 
-    /// Appends a GNSS fix (format of `host_sim::io::write_gnss_text`).
+    /// Appends a GNSS fix (format of `nav_io::write_gnss_text`).
     pub fn gnss(&mut self, f: &GnssFix) -> anyhow::Result<()> {
         if self.gnss.is_none() {
             self.gnss = Some(Stream::create(&self.dir, "gnss.txt")?);
         }
         if let Some(st) = self.gnss.as_mut() {
-            let r = host_sim::io::write_gnss_line(&mut st.w, f);
+            let r = nav_io::write_gnss_line(&mut st.w, f);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()
     }
 
-    /// Appends a board solution to `board-nav.txt` (format of `host_sim::io::write_nav_text`).
+    /// Appends a board solution to `board-nav.txt` (format of `nav_io::write_nav_text`).
     pub fn nav(&mut self, n: &NavSolution) -> anyhow::Result<()> {
         if self.nav.is_none() {
             self.nav = Some(Stream::create(&self.dir, "board-nav.txt")?);
         }
         if let Some(st) = self.nav.as_mut() {
-            let r = host_sim::io::write_nav_line(&mut st.w, n);
+            let r = nav_io::write_nav_line(&mut st.w, n);
             io(r, &st.final_path)?;
         }
         self.maybe_checkpoint()
@@ -214,7 +214,7 @@ impl FrameFiles {
                 let path = st.final_path.clone();
                 drop(st);
                 let tmp = partial_name(&path);
-                host_sim::io::write_imu_text(&tmp, imu)?;
+                nav_io::write_imu_text(&tmp, imu)?;
                 rename(&tmp, &path)?;
                 done.push(path);
             }

@@ -89,7 +89,7 @@ pub fn decoder_report(s: &DecoderStats) -> String {
 
 /// An error and its causes on one line, each cause said once: a cause whose text the message
 /// so far already contains (an error type that prints its source in its own message, as
-/// `host_sim::io::IoError` does) is not repeated.
+/// `nav_io::IoError` does) is not repeated.
 pub fn error_chain(e: &anyhow::Error) -> String {
     let mut out = String::new();
     for cause in e.chain() {

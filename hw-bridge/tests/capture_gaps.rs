@@ -93,7 +93,7 @@ fn a_lost_imu_frame_is_filled_and_the_solution_kept() {
     })
     .unwrap();
     let config = case.join("kf-gins.yaml");
-    let n_imu = host_sim::io::read_imu_text(case.join("imu.txt"))
+    let n_imu = nav_io::read_imu_text(case.join("imu.txt"))
         .unwrap()
         .samples
         .len();

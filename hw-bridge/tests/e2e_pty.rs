@@ -190,12 +190,8 @@ fn send_record_over_a_pty_pair_then_capture_decodes_to_exactly_the_frames_sent()
         .output()
         .unwrap();
     assert!(st.status.success(), "{st:?}");
-    let imu_back = host_sim::io::read_imu_text(out.join("imu.txt"))
-        .unwrap()
-        .samples;
-    let imu_sent = host_sim::io::read_imu_text(d.join("imu.txt"))
-        .unwrap()
-        .samples;
+    let imu_back = nav_io::read_imu_text(out.join("imu.txt")).unwrap().samples;
+    let imu_sent = nav_io::read_imu_text(d.join("imu.txt")).unwrap().samples;
     assert_eq!(imu_back.len(), imu_sent.len());
     for (a, b) in imu_back.iter().zip(&imu_sent) {
         assert_eq!(a.t_s.to_bits(), b.t_s.to_bits());
@@ -206,7 +202,7 @@ fn send_record_over_a_pty_pair_then_capture_decodes_to_exactly_the_frames_sent()
         assert_eq!(a.dv_mps.map(f64::to_bits), b.dv_mps.map(f64::to_bits));
         assert_eq!(a.temperature_c.to_bits(), b.temperature_c.to_bits());
     }
-    let gnss_back = host_sim::io::read_gnss_text(out.join("gnss.txt")).unwrap();
+    let gnss_back = nav_io::read_gnss_text(out.join("gnss.txt")).unwrap();
     assert_eq!(gnss_back.len(), 6);
     assert!(gnss_back.iter().all(|g| g.has_velocity));
 }
@@ -502,7 +498,7 @@ fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case
     let got = live.join().unwrap();
     // offline: the same filter on the same payloads
     let payloads: Vec<_> = read_case(&case).unwrap().into_iter().map(|p| p.1).collect();
-    let (want, epochs, updates) = hw_bridge::cmd::host_filter_offline(&payloads);
+    let (want, epochs, updates) = hw_bridge::cmd::host_filter_offline(&payloads).unwrap();
     assert_eq!(got.stats.rejected(), 0);
     assert_eq!(got.stats.lost(), 0);
     assert_eq!(u64::from(got.stats.frames_ok), payloads.len() as u64);

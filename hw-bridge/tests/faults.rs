@@ -693,9 +693,7 @@ fn a_truncated_capture_exits_2_with_complete_outputs_marked_incomplete() {
         summary.starts_with("status incomplete: capture truncated in record"),
         "{summary}"
     );
-    let imu = host_sim::io::read_imu_text(out.join("imu.txt"))
-        .unwrap()
-        .samples;
+    let imu = nav_io::read_imu_text(out.join("imu.txt")).unwrap().samples;
     let lib = replay(&ReplayArgs::new(&p)).unwrap();
     assert_eq!(imu, lib.log.imu);
     // records are at most 300 bytes: at most 4 frames go with the truncated one
@@ -743,8 +741,8 @@ fn streamed_outputs_equal_host_sims_writers_byte_for_byte() {
         let out = dir.path().join("out");
         a.out = Some(out.clone());
         let o = replay(&a).unwrap();
-        host_sim::io::write_imu_text(dir.path().join("imu.txt"), &o.log.imu).unwrap();
-        host_sim::io::write_gnss_text(dir.path().join("gnss.txt"), &o.log.gnss).unwrap();
+        nav_io::write_imu_text(dir.path().join("imu.txt"), &o.log.imu).unwrap();
+        nav_io::write_gnss_text(dir.path().join("gnss.txt"), &o.log.gnss).unwrap();
         for f in ["imu.txt", "gnss.txt"] {
             let a = std::fs::read(out.join(f)).unwrap();
             let b = std::fs::read(dir.path().join(f)).unwrap();

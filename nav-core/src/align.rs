@@ -27,7 +27,9 @@
 //! must stay below [`AlignConfig::max_mean_rate_radps`] (a steady turn). A motion at constant
 //! velocity in a straight line is indistinguishable from rest for an IMU and is not detected.
 
+use crate::config::FilterConfig;
 use crate::earth::{self, Llh};
+use crate::filter::InitialUncertainty;
 use crate::nav::{NavState, MAX_DT_S};
 use crate::types::ImuSample;
 use libm::{atan2, cos, sin, sqrt};
@@ -234,7 +236,7 @@ impl Alignment {
 }
 
 /// Per-segment sums.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Seg {
     dt_s: f64,
     dv: Vector3<f64>,
@@ -244,7 +246,7 @@ struct Seg {
 /// Static coarse alignment of `window` (consecutive IMU samples at rest, oldest first) at
 /// position `pos`. The increments of samples 1..n are used (sample 0 only marks the start
 /// time). See the module documentation for the method, the static test and the gyro grade
-/// needed for gyrocompassing.
+/// needed for gyrocompassing. [`StaticWindow`] is the same alignment on a stream.
 pub fn coarse_align(
     window: &[ImuSample],
     pos: &Llh,
@@ -278,11 +280,7 @@ pub fn coarse_align(
 
     // Segment sums over the n - 1 intervals.
     let m = n - 1;
-    let mut segs = [Seg {
-        dt_s: 0.0,
-        dv: Vector3::zeros(),
-        dth: Vector3::zeros(),
-    }; SEGMENTS];
+    let mut segs = [Seg::ZERO; SEGMENTS];
     let mut t_prev = t_first;
     for (i, s) in window.iter().enumerate().skip(1) {
         let dt = s.t_s - t_prev;
@@ -292,13 +290,51 @@ pub fn coarse_align(
         t_prev = s.t_s;
         let j = (i - 1) * SEGMENTS / m;
         if let Some(seg) = segs.get_mut(j) {
-            seg.dt_s += dt;
-            seg.dv += Vector3::from(s.dv_mps);
-            seg.dth += Vector3::from(s.dtheta_rad);
+            seg.add(dt, s);
         }
     }
+    align_segments(&segs, n, t_first, t_last, pos, heading, cfg)
+}
+
+impl Seg {
+    const ZERO: Self = Self {
+        dt_s: 0.0,
+        dv: Vector3::new(0.0, 0.0, 0.0),
+        dth: Vector3::new(0.0, 0.0, 0.0),
+    };
+
+    fn add(&mut self, dt: f64, s: &ImuSample) {
+        self.dt_s += dt;
+        self.dv += Vector3::from(s.dv_mps);
+        self.dth += Vector3::from(s.dtheta_rad);
+    }
+}
+
+/// The alignment from the segment sums of a window of `n` samples from `t_first` to `t_last`
+/// (the static test, levelling and heading of [`coarse_align`]).
+fn align_segments(
+    segs: &[Seg; SEGMENTS],
+    n: usize,
+    t_first: f64,
+    t_last: f64,
+    pos: &Llh,
+    heading: HeadingSource,
+    cfg: &AlignConfig,
+) -> Result<Alignment, AlignError> {
+    let duration_s = t_last - t_first;
+    if n < SEGMENTS + 1
+        || duration_s.is_nan()
+        || duration_s < cfg.min_duration_s
+        || segs.iter().any(|s| s.dt_s <= 0.0)
+    {
+        return Err(AlignError::TooShort {
+            duration_s,
+            samples: n,
+            min_s: cfg.min_duration_s,
+        });
+    }
     let (mut dv, mut dth) = (Vector3::zeros(), Vector3::zeros());
-    for seg in &segs {
+    for seg in segs {
         dv += seg.dv;
         dth += seg.dth;
     }
@@ -308,8 +344,8 @@ pub fn coarse_align(
     // Static test.
     let (mut f_dev, mut w_dev) = (0.0f64, 0.0f64);
     let (mut f_ss, mut w_ss) = (0.0, 0.0);
-    for seg in &segs {
-        // Every segment holds at least one interval (m >= SEGMENTS), so dt_s > 0.
+    for seg in segs {
+        // Every segment holds at least one interval (checked above), so dt_s > 0.
         let df = seg.dv / seg.dt_s - f;
         let dw = seg.dth / seg.dt_s - w;
         f_dev = f_dev.max(df.norm());
@@ -390,4 +426,205 @@ pub fn coarse_align(
         duration_s,
         t_end_s: t_last,
     })
+}
+
+/// [`coarse_align`] on a stream: push the samples of a static window one by one (no buffer),
+/// then [`StaticWindow::align`]. The window is the samples with `t_s <= t_first + length_s`
+/// (the first sample only marks the start time, as in [`coarse_align`]). The intervals are
+/// cut into the [`SEGMENTS`] of the static test by the time of their middle (the number of
+/// samples is not known in advance), which equals [`coarse_align`]'s cut for evenly spaced
+/// samples up to rounding at the segment borders.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticWindow {
+    length_s: f64,
+    t_first_s: f64,
+    t_last_s: f64,
+    samples: usize,
+    segs: [Seg; SEGMENTS],
+    fault: Option<AlignError>,
+}
+
+impl StaticWindow {
+    /// An empty window of `length_s` seconds.
+    pub fn new(length_s: f64) -> Self {
+        Self {
+            length_s,
+            t_first_s: f64::NAN,
+            t_last_s: f64::NAN,
+            samples: 0,
+            segs: [Seg::ZERO; SEGMENTS],
+            fault: None,
+        }
+    }
+
+    /// Empties the window (same length).
+    pub fn clear(&mut self) {
+        *self = Self::new(self.length_s);
+    }
+
+    /// Time of the first sample, s (NaN while empty).
+    pub fn start_s(&self) -> f64 {
+        self.t_first_s
+    }
+
+    /// Time of the last sample, s (NaN while empty).
+    pub fn end_s(&self) -> f64 {
+        self.t_last_s
+    }
+
+    /// Samples pushed.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// Whether a sample at `t_s` belongs to the window (true while it is empty); a sample
+    /// that does not closes the window.
+    pub fn contains(&self, t_s: f64) -> bool {
+        self.samples == 0 || t_s <= self.t_first_s + self.length_s
+    }
+
+    /// Adds a sample (the caller checks [`Self::contains`] first). A non-finite sample or a
+    /// bad time step is remembered and returned by [`Self::align`].
+    pub fn push(&mut self, s: &ImuSample) {
+        let index = self.samples;
+        self.samples = self.samples.saturating_add(1);
+        if self.fault.is_some() {
+            return;
+        }
+        if !s.is_finite() {
+            self.fault = Some(AlignError::NonFinite { index });
+            return;
+        }
+        if index == 0 {
+            self.t_first_s = s.t_s;
+            self.t_last_s = s.t_s;
+            return;
+        }
+        let dt = s.t_s - self.t_last_s;
+        if !(dt > 0.0 && dt <= MAX_DT_S) {
+            self.fault = Some(AlignError::BadTimeStep { index });
+            return;
+        }
+        let mid = 0.5 * (s.t_s + self.t_last_s) - self.t_first_s;
+        let j = if self.length_s > 0.0 {
+            libm::floor(mid / self.length_s * SEGMENTS as f64)
+        } else {
+            0.0
+        };
+        // j >= 0 (mid > 0); a sample past the window lands in the last segment
+        let j = if j.is_finite() && j >= 0.0 {
+            (j as usize).min(SEGMENTS - 1)
+        } else {
+            0
+        };
+        if let Some(seg) = self.segs.get_mut(j) {
+            seg.add(dt, s);
+        }
+        self.t_last_s = s.t_s;
+    }
+
+    /// The alignment of the samples pushed so far at position `pos` (as [`coarse_align`]).
+    pub fn align(
+        &self,
+        pos: &Llh,
+        heading: HeadingSource,
+        cfg: &AlignConfig,
+    ) -> Result<Alignment, AlignError> {
+        if let Some(e) = self.fault {
+            return Err(e);
+        }
+        if self.samples == 0 {
+            return Err(AlignError::TooShort {
+                duration_s: 0.0,
+                samples: 0,
+                min_s: cfg.min_duration_s,
+            });
+        }
+        align_segments(
+            &self.segs,
+            self.samples,
+            self.t_first_s,
+            self.t_last_s,
+            pos,
+            heading,
+            cfg,
+        )
+    }
+}
+
+impl AlignConfig {
+    /// These settings with the assumed sensor biases taken from a filter configuration's
+    /// initial bias sigmas (largest axis) where those are set (> 0).
+    pub fn with_filter_biases(mut self, cfg: &FilterConfig) -> Self {
+        let max3 = |a: &[f64; 3]| a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let ab = max3(&cfg.accel.bias_init_sigma);
+        if ab > 0.0 {
+            self.accel_bias_mps2 = ab;
+        }
+        let gb = max3(&cfg.gyro.bias_init_sigma);
+        if gb > 0.0 {
+            self.gyro_bias_radps = gb;
+        }
+        self
+    }
+}
+
+/// The filter's start after a static alignment ([`static_start`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticStart {
+    /// Initial nominal state at the IMU reference point, at the end of the window (velocity
+    /// zero).
+    pub state: NavState,
+    /// Initial uncertainty of the core states.
+    pub unc: InitialUncertainty,
+    /// Gyro bias: the window's mean angular rate minus the earth rate resolved in the aligned
+    /// body axes, rad/s (the usual MEMS start-up calibration).
+    pub gyro_bias_radps: [f64; 3],
+    /// 1-sigma of that estimate from the angle random walk averaged over the window,
+    /// `sqrt(S_N / T)`, rad/s: the filter must not believe it better.
+    pub gyro_bias_sigma_floor_radps: [f64; 3],
+}
+
+/// The filter's start from an alignment `al`: the antenna position `antenna` (mean of the
+/// fixes in the window, with the mean of their NED 1-sigma `antenna_std_ned_m`, m) moved to the
+/// IMU point with the lever arm (body FRD, m), velocity zero with `vel_sigma_mps`, the
+/// alignment's attitude sigmas (roll and pitch replaced by `tilt_std_rad` when given, rad),
+/// the static gyro bias and its floor from the gyro white-noise PSD `gyro_s_n` (rad^2/s).
+pub fn static_start(
+    al: &Alignment,
+    antenna: &Llh,
+    antenna_std_ned_m: &[f64; 3],
+    lever_arm_body_m: &[f64; 3],
+    gyro_s_n: &[f64; 3],
+    vel_sigma_mps: f64,
+    tilt_std_rad: Option<f64>,
+) -> StaticStart {
+    let q = al.q_nb();
+    let c = crate::filter::dcm_f64(&q);
+    let pos = earth::displace(antenna, &(-(c * Vector3::from(*lever_arm_body_m))));
+    let state = NavState {
+        t_s: al.t_end_s,
+        pos,
+        vel_ned_mps: Vector3::zeros(),
+        q_nb: q,
+    };
+    let w_ie_b = c.transpose() * earth::earth_rate_ned_radps(pos.lat_rad);
+    let bias: [f64; 3] = (Vector3::from(al.mean_omega_body_radps) - w_ie_b).into();
+    let floor = gyro_s_n.map(|s| sqrt(s / al.duration_s.max(1e-9)));
+    let pos_sigma = antenna_std_ned_m.map(|s| s.max(0.005) + 0.01);
+    let mut att_sigma = al.att_std_rad;
+    if let Some(t) = tilt_std_rad {
+        att_sigma[0] = t;
+        att_sigma[1] = t;
+    }
+    StaticStart {
+        state,
+        unc: InitialUncertainty {
+            att_sigma_rad: att_sigma,
+            vel_sigma_mps: [vel_sigma_mps; 3],
+            pos_sigma_m: pos_sigma,
+        },
+        gyro_bias_radps: bias,
+        gyro_bias_sigma_floor_radps: floor,
+    }
 }

@@ -9,7 +9,7 @@
 //! Estimator: the **non-overlapping** Allan variance at the octave averaging times
 //! `tau_k = 2^k tau0`, `AVAR_k = sum_j (z_{j+1} - z_j)^2 / (2 (M_k - 1))` over the `M_k =
 //! floor(n / 2^k)` complete blocks seen so far (NIST SP1065 eq. 8 in frequency form). It equals
-//! the host's non-overlapping ADEV (`host_sim::allan::Deviation::Adev`) on the same samples up to
+//! the host's non-overlapping ADEV (`noise_id::Deviation::Adev`) on the same samples up to
 //! rounding. The first sample is kept as an offset and subtracted from all later ones, so a
 //! constant 9.81 m/s^2 does not cost precision.
 //!

@@ -31,6 +31,7 @@ pub mod filter;
 pub mod imu_guard;
 pub mod model;
 pub mod nav;
+pub mod navigator;
 pub mod scalar;
 pub mod selftest;
 pub mod types;

@@ -8,7 +8,7 @@
 
 use crate::attitude;
 use crate::earth::{self, Llh};
-use crate::types::ImuSample;
+use crate::types::{ImuSample, NavSolution};
 use libm::{cos, sin, sqrt};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
@@ -40,6 +40,54 @@ impl NavState {
             vel_ned_mps,
             q_nb: attitude::quat_from_euler_zyx(rpy_rad),
         }
+    }
+}
+
+impl NavState {
+    /// A nav-format record as a state (attitude from its ZYX Euler angles; the standard
+    /// deviations, week and status are dropped).
+    pub fn from_solution(s: &NavSolution) -> Self {
+        Self::from_rpy(
+            s.t_s,
+            Llh {
+                lat_rad: s.lat_rad,
+                lon_rad: s.lon_rad,
+                h_m: s.h_m,
+            },
+            Vector3::from(s.vel_ned_mps),
+            s.rpy_rad,
+        )
+    }
+
+    /// The state as a nav-format record: week 0 (unknown here), standard deviations NaN
+    /// (unknown), status 0. [`crate::filter::Filter::solution`] gives one with the filter's
+    /// standard deviations and status.
+    pub fn to_solution(&self) -> NavSolution {
+        NavSolution {
+            week: 0,
+            t_s: self.t_s,
+            lat_rad: self.pos.lat_rad,
+            lon_rad: self.pos.lon_rad,
+            h_m: self.pos.h_m,
+            vel_ned_mps: self.vel_ned_mps.into(),
+            rpy_rad: self.rpy_rad(),
+            pos_std_ned_m: [f64::NAN; 3],
+            vel_std_ned_mps: [f64::NAN; 3],
+            att_std_rad: [f64::NAN; 3],
+            status: 0,
+        }
+    }
+}
+
+impl From<&NavSolution> for NavState {
+    fn from(s: &NavSolution) -> Self {
+        Self::from_solution(s)
+    }
+}
+
+impl From<&NavState> for NavSolution {
+    fn from(s: &NavState) -> Self {
+        s.to_solution()
     }
 }
 

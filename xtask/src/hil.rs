@@ -9,9 +9,8 @@
 //!   (`firmware/src/app.rs`, compiled into xtask) run on the host on the same bytes.
 
 use crate::embedded;
-use crate::fwapp::NavApp;
-use crate::time::TimeBase;
 use anyhow::{bail, Context, Result};
+use nav_app::{NavApp, TimeBase};
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::model::Layout;
@@ -346,7 +345,7 @@ fn decode_all(bytes: &[u8]) -> Result<Vec<Payload>> {
 }
 
 /// The same application the firmware's `nav` binary runs (default model NBK, 18 states).
-fn host_app() -> NavApp<{ nav_core::model::LAYOUT_NBK.dim() }> {
+fn host_app() -> Result<NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>> {
     let layout: Layout = nav_core::model::LAYOUT_NBK;
     NavApp::new(
         layout,
@@ -354,6 +353,7 @@ fn host_app() -> NavApp<{ nav_core::model::LAYOUT_NBK.dim() }> {
         FW_NAV_DIVIDER,
         FW_HEALTH_EVERY,
     )
+    .map_err(|e| anyhow::anyhow!("host application: {e}"))
 }
 
 /// Frame link through the `nav` application, compared with the host. Returns the peak stack
@@ -361,7 +361,7 @@ fn host_app() -> NavApp<{ nav_core::model::LAYOUT_NBK.dim() }> {
 pub fn frame_link(elf: &Path) -> Result<u64> {
     let input = scenario();
     // the host: the same application code on the same bytes
-    let mut host = host_app();
+    let mut host = host_app()?;
     let mut host_out: Vec<u8> = Vec::new();
     let mut clk = HostClock(0);
     host.feed(&input, &mut host_out, &mut clk)
@@ -710,7 +710,7 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
 
     // the host: the same application code on the bytes `send` wrote
     let input = std::fs::read(&sent).with_context(|| format!("reading {}", sent.display()))?;
-    let mut host = host_app();
+    let mut host = host_app()?;
     let mut host_out: Vec<u8> = Vec::new();
     let mut clk = HostClock(0);
     host.feed(&input, &mut host_out, &mut clk)

@@ -31,14 +31,6 @@ mod vectors;
 #[path = "../../hw-bridge/src/capture.rs"]
 #[allow(dead_code)]
 mod capture;
-/// The firmware's board-independent application, compiled for the host too (HIL comparison).
-#[path = "../../firmware/src/app.rs"]
-#[allow(dead_code)]
-mod fwapp;
-/// The firmware's time-base trait (used by `fwapp`).
-#[path = "../../firmware/src/time.rs"]
-#[allow(dead_code)]
-mod time;
 
 use embedded::Board;
 

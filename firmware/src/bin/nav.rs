@@ -1,5 +1,5 @@
 //! The navigation application: the board supplies the frame link, the time base and (on a
-//! real board) the IMU; [`firmware::app::NavApp`] runs the filter of the compile-time model.
+//! real board) the IMU; [`firmware::app::NavApp`] (crate `nav-app`) runs the filter of the compile-time model.
 #![no_std]
 #![no_main]
 
@@ -16,7 +16,11 @@ const HEALTH_EVERY: u32 = 200;
 #[entry]
 fn main() -> ! {
     stack::paint();
-    let mut app: NavApp<{ model::N }> =
-        NavApp::new(model::LAYOUT, model::config(), NAV_DIVIDER, HEALTH_EVERY);
+    let Ok(mut app) =
+        NavApp::<{ model::N }>::new(model::LAYOUT, model::config(), NAV_DIVIDER, HEALTH_EVERY)
+    else {
+        // the compile-time model's configuration is refused: a build error in practice
+        panic!("nav: the filter refuses the model's configuration")
+    };
     board::run_nav(&mut app)
 }

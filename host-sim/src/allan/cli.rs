@@ -1,10 +1,10 @@
 //! `host-sim allan`: Allan statistics per axis of an IMU record, the noise-model fit, a
 //! parameter table like the source's Appendix V, `allan_params.toml`, plots and JSON.
-use super::fit::{self, Datasheet, FitOptions, FitResult, SensorKind, SlopeResult, Terms};
-use super::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit};
-use super::{deviation_curve_phase, edf, CurveOptions, DevPoint, Deviation, Phase, Taus};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use noise_id::fit::{self, Datasheet, FitOptions, FitResult, SensorKind, SlopeResult, Terms};
+use noise_id::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit};
+use noise_id::{deviation_curve_phase, edf, CurveOptions, DevPoint, Deviation, Phase, Taus};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;

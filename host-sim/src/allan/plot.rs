@@ -1,6 +1,6 @@
 //! Log-log Allan deviation plot with the confidence band and each fitted component.
-use super::fit::FitResult;
-use super::DevPoint;
+use noise_id::fit::FitResult;
+use noise_id::DevPoint;
 use plotters::coord::combinators::IntoLogRange;
 use plotters::prelude::*;
 use std::path::Path;

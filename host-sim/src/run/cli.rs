@@ -1,6 +1,6 @@
 //! `host-sim run --config FILE [--case DIR] ...`: the filter on files.
 //!
-//! The configuration is the project's run configuration (TOML, [`crate::io::RunConfig`]) or a
+//! The configuration is the project's run configuration (TOML, [`nav_io::RunConfig`]) or a
 //! KF-GINS YAML file (detected by the extension `.yaml`/`.yml`, or by content: a TOML parse
 //! failure followed by a successful KF-GINS parse). A KF-GINS file runs KF-GINS's 21 states as
 //! KF-GINS's code runs them (`kf-gins-feedback`, `KfGinsConfig::filter_config_feedback`; with
@@ -30,10 +30,6 @@ use super::init::{InitSpec, StaticAlign};
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::output;
 use super::{run_filter_with_progress, CaseData, Model, Precision, RunOptions, RunOutput};
-use crate::io::{
-    read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
-};
 use crate::metrics::{self, Metrics};
 use crate::sim::CaseFile;
 use anyhow::{bail, Context};
@@ -45,6 +41,10 @@ use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind, ImuCorrection};
 use nav_core::nav::NavState;
 use nav_core::types::NavSolution;
+use nav_io::{
+    read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
+    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
+};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `host-sim run`.
@@ -485,7 +485,7 @@ fn prepare_kf_gins(
         ),
     };
     let (imu_rec, imu_stream) = if stream {
-        (crate::io::ImuRecord::default(), Some(imu_p.clone()))
+        (nav_io::ImuRecord::default(), Some(imu_p.clone()))
     } else {
         (read_imu_text(&imu_p)?, None)
     };
@@ -572,7 +572,7 @@ fn prepare_run_config(
         Some(c) => (
             if stream {
                 imu_stream = Some(c.imu.clone());
-                crate::io::ImuRecord::default()
+                nav_io::ImuRecord::default()
             } else {
                 read_imu_text(&c.imu)?
             },

@@ -16,11 +16,8 @@
 //!   so it is a consistency check, not a baseline.
 
 use super::{position_innovation, CaseData, FixUse, InnovationRecord, RunOutput};
-use nalgebra::Vector3;
-use nav_core::attitude::quat_from_euler_zyx;
-use nav_core::earth::Llh;
 use nav_core::model::ImuCorrection;
-use nav_core::nav::{NavState, Strapdown};
+use nav_core::nav::Strapdown;
 use nav_core::types::NavSolution;
 
 /// The sensor-error correction applied while coasting (see the module notes).
@@ -44,37 +41,6 @@ pub struct CoastTrack {
     /// The withheld fixes of the outage against the coasting antenna position (same rules as
     /// the run: nearest IMU epoch, bridged with the velocity).
     pub fixes: Vec<InnovationRecord>,
-}
-
-/// A nav-format record as a mechanisation state (ZYX Euler angles).
-pub fn nav_state_of(s: &NavSolution) -> NavState {
-    NavState {
-        t_s: s.t_s,
-        pos: Llh {
-            lat_rad: s.lat_rad,
-            lon_rad: s.lon_rad,
-            h_m: s.h_m,
-        },
-        vel_ned_mps: Vector3::from(s.vel_ned_mps),
-        q_nb: quat_from_euler_zyx(s.rpy_rad),
-    }
-}
-
-/// A mechanisation state as a nav-format record (standard deviations NaN).
-pub fn solution_of(s: &NavState) -> NavSolution {
-    NavSolution {
-        week: 0,
-        t_s: s.t_s,
-        lat_rad: s.pos.lat_rad,
-        lon_rad: s.pos.lon_rad,
-        h_m: s.pos.h_m,
-        vel_ned_mps: s.vel_ned_mps.into(),
-        rpy_rad: s.rpy_rad(),
-        pos_std_ned_m: [f64::NAN; 3],
-        vel_std_ned_mps: [f64::NAN; 3],
-        att_std_rad: [f64::NAN; 3],
-        status: 0,
-    }
 }
 
 /// Coasts through every outage the run reached (one track per snapshot).
@@ -104,7 +70,7 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
             })
             .collect();
         let mut mech = Strapdown::new(snap.state);
-        let mut nav = vec![solution_of(&snap.state)];
+        let mut nav = vec![snap.state.to_solution()];
         let mut fixes = Vec::new();
         let mut fi = 0;
         let mut k = snap.next_imu;
@@ -117,7 +83,7 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
                 continue;
             }
             let st = *mech.state();
-            nav.push(solution_of(&st));
+            nav.push(st.to_solution());
             let dt_next = case.imu.get(k + 1).map_or(dt, |n| n.t_s - st.t_s);
             while let Some(f) = fixes_by_t.get(fi) {
                 if f.t_s >= st.t_s + 0.5 * dt_next {

@@ -19,7 +19,7 @@
 //! - An IMU time that does not increase is found when the engine reaches it (before: before
 //!   the run started): the run stops there with [`RunError::Options`] naming the sample.
 
-use super::coast::{solution_of, CoastMode, CoastTrack};
+use super::coast::{CoastMode, CoastTrack};
 use super::init::{self, InitData, InitReport};
 use super::{
     all_estimates, block_estimates, effect_estimates, filter_err, gating_report, outage,
@@ -54,7 +54,7 @@ pub struct ImuSourceInfo {
     /// The file (None for data in memory).
     pub path: Option<PathBuf>,
     /// True when each increment covers the whole interval since the previous sample even
-    /// across a time gap (see [`crate::io::ImuOrigin::increments_span_gaps`]).
+    /// across a time gap (see [`nav_io::ImuOrigin::increments_span_gaps`]).
     pub increments_span_gaps: bool,
 }
 
@@ -188,7 +188,7 @@ impl Coaster {
             end_s,
             corr,
             mech: Strapdown::new(state),
-            nav: vec![solution_of(&state)],
+            nav: vec![state.to_solution()],
             fixes,
             next_fix: 0,
             out_fixes: Vec::new(),
@@ -205,7 +205,7 @@ impl Coaster {
             return false;
         }
         let st = *self.mech.state();
-        self.nav.push(solution_of(&st));
+        self.nav.push(st.to_solution());
         let dt_next = next_t_s.map_or(dt, |n| n - st.t_s);
         while let Some(f) = self.fixes.get(self.next_fix) {
             if f.t_s >= st.t_s + 0.5 * dt_next {

@@ -17,11 +17,11 @@
 
 use super::{RunError, RunOptions};
 use nalgebra::Vector3;
-use nav_core::align::{coarse_align, AlignConfig, HeadingSource};
+use nav_core::align::{coarse_align, static_start, AlignConfig, HeadingSource};
 use nav_core::attitude::quat_from_rotvec;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
-use nav_core::filter::{dcm_f64, InitialUncertainty};
+use nav_core::filter::InitialUncertainty;
 use nav_core::model::BlockKind;
 use nav_core::nav::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
@@ -122,10 +122,6 @@ pub(crate) struct Start {
     pub report: InitReport,
 }
 
-fn max3(a: &[f64; 3]) -> f64 {
-    a.iter().fold(0.0f64, |m, v| m.max(v.abs()))
-}
-
 /// What the initialisation looks at: the first IMU samples (at least the static window), the
 /// GNSS fixes and the truth when there is one.
 #[derive(Debug, Clone, Copy)]
@@ -175,7 +171,7 @@ pub(crate) fn initialise(
                 .iter()
                 .find(|s| s.t_s >= start_s && s.t_s.is_finite())
                 .ok_or_else(|| RunError::Init("no truth record at or after the start".into()))?;
-            let s = super::coast::nav_state_of(tr);
+            let s = NavState::from_solution(tr);
             let pos = earth::displace(&s.pos, &Vector3::from(*pos_err_m));
             let vel = s.vel_ned_mps + Vector3::from(*vel_err_mps);
             // C_hat = (I - [phi x]) C  =>  q_hat = q(-phi) q
@@ -296,47 +292,26 @@ fn static_alignment(
             )
         }
     };
-    let mut acfg = sa.align;
-    let ab = max3(&cfg.accel.bias_init_sigma);
-    if ab > 0.0 {
-        acfg.accel_bias_mps2 = ab;
-    }
-    let gb = max3(&cfg.gyro.bias_init_sigma);
-    if gb > 0.0 {
-        acfg.gyro_bias_radps = gb;
-    }
+    let acfg = sa.align.with_filter_biases(cfg);
     let al = coarse_align(window, &ant, heading.0, &acfg)
         .map_err(|e| RunError::Init(format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}")))?;
-    let q = al.q_nb();
-    let c = dcm_f64(&q);
-    let pos = earth::displace(&ant, &(-(c * Vector3::from(opts.lever_arm_m))));
-    let state = NavState {
-        t_s: al.t_end_s,
-        pos,
-        vel_ned_mps: Vector3::zeros(),
-        q_nb: q,
-    };
-    let w_ie_b = c.transpose() * earth::earth_rate_ned_radps(pos.lat_rad);
-    let bias: [f64; 3] = (Vector3::from(al.mean_omega_body_radps) - w_ie_b).into();
+    let st = static_start(
+        &al,
+        &ant,
+        &mean_std,
+        &opts.lever_arm_m,
+        &cfg.gyro.s_n,
+        sa.vel_sigma_mps,
+        sa.tilt_std_rad,
+    );
+    let (state, unc, bias) = (st.state, st.unc, st.gyro_bias_radps);
+    let att_sigma = unc.att_sigma_rad;
     let mut estimates = Vec::new();
     let mut floor = None;
     if sa.gyro_bias_from_static {
         estimates.push((BlockKind::GyroBias, bias));
-        // the static mean carries the angle random walk averaged over the window:
-        // sigma = sqrt(S_N / T); the filter must not believe the estimate better than that
-        floor = Some(cfg.gyro.s_n.map(|s| (s / al.duration_s.max(1e-9)).sqrt()));
+        floor = Some(st.gyro_bias_sigma_floor_radps);
     }
-    let pos_sigma = mean_std.map(|s| s.max(0.005) + 0.01);
-    let mut att_sigma = al.att_std_rad;
-    if let Some(t) = sa.tilt_std_rad {
-        att_sigma[0] = t;
-        att_sigma[1] = t;
-    }
-    let unc = InitialUncertainty {
-        att_sigma_rad: att_sigma,
-        vel_sigma_mps: [sa.vel_sigma_mps; 3],
-        pos_sigma_m: pos_sigma,
-    };
     Ok(Start {
         gyro_bias_sigma_floor: floor,
         state,

@@ -37,7 +37,6 @@ pub use engine::{
 pub use init::{InitData, InitReport, InitSpec, StaticAlign};
 pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 
-use crate::io::ImuOrigin;
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
@@ -50,6 +49,7 @@ use nav_core::model::{
 use nav_core::nav::{NavState, MAX_DT_S};
 use nav_core::scalar::Scalar;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
+use nav_io::ImuOrigin;
 use serde::{Deserialize, Serialize};
 
 /// The measurements of a case, in memory (and the truth when there is one).
@@ -552,10 +552,10 @@ pub enum RunError {
     /// Reading the input failed in the middle of the run (the error names file, line and
     /// column).
     #[error("run: {0}")]
-    Input(#[source] crate::io::IoError),
+    Input(#[source] nav_io::IoError),
     /// Writing an output failed.
     #[error("run: writing the outputs: {0}")]
-    Output(#[source] crate::io::IoError),
+    Output(#[source] nav_io::IoError),
     /// The filter refused its construction or failed.
     #[error("run: filter at t = {t_s:.3} s: {msg}")]
     Filter {

@@ -2,8 +2,8 @@
 //! deviations), `bias.txt` (IMU error estimates) and `innovations.txt`.
 
 use super::{EpochRecord, FixUse, InnovationRecord, RunOutput};
-use crate::io::IoError;
 use nav_core::types::NavSolution;
+use nav_io::IoError;
 use std::io::Write;
 use std::path::Path;
 
@@ -28,21 +28,21 @@ pub fn write_nav(path: &Path, nav: &[NavSolution], week: u16) -> Result<(), IoEr
 }
 
 /// [`write_nav`] with `shift_s` added to every time (record by record: no copy of the
-/// solution). Same text as [`crate::io::write_nav_text`] (gzip when the name ends in `.gz`).
+/// solution). Same text as [`nav_io::write_nav_text`] (gzip when the name ends in `.gz`).
 pub fn write_nav_with(
     path: &Path,
     nav: &[NavSolution],
     week: u16,
     shift_s: f64,
 ) -> Result<(), IoError> {
-    crate::io::text::write_with(path, |w| {
+    nav_io::text::write_with(path, |w| {
         for s in nav {
             let t_s = if shift_s == 0.0 {
                 s.t_s
             } else {
                 s.t_s + shift_s
             };
-            crate::io::write_nav_line(w, &NavSolution { week, t_s, ..*s })?;
+            nav_io::write_nav_line(w, &NavSolution { week, t_s, ..*s })?;
         }
         Ok(())
     })

@@ -11,9 +11,9 @@ use super::coast::CoastTrack;
 use super::engine::{RunHead, RunSink};
 use super::output::{self, PARTIAL_SUFFIX};
 use super::{solution_is_finite, EpochRecord, FixUse, InnovationRecord, Outage, RunError};
-use crate::io::IoError;
 use crate::metrics::{self, Metrics, OutageMetrics, SampleAcc, TruthMatcher};
 use nav_core::types::NavSolution;
+use nav_io::IoError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -253,7 +253,7 @@ impl RunSink for FileSink<'_> {
             self.nav.cut = Some(self.nav.n);
         }
         self.line.clear();
-        crate::io::write_nav_line(
+        nav_io::write_nav_line(
             &mut self.line,
             &NavSolution {
                 week: self.week,

@@ -5,7 +5,7 @@
 use super::errors::{ErrorModel, ErrorModelError, Measurements, Outage, Realized};
 use super::scenario::{Scenario, ScenarioError};
 use super::trajectory::Trajectory;
-use crate::io::{write_gnss_text, write_imu_text, write_nav_text, IoError};
+use nav_io::{write_gnss_text, write_imu_text, write_nav_text, IoError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 

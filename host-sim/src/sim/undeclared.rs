@@ -33,7 +33,7 @@ use super::errors::{
     UG_MPS2,
 };
 use super::scenario::{ImuRate, Scenario, Segment, Start, Vehicle};
-use crate::io::{write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml};
+use nav_io::{write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml};
 use rand::Rng;
 use std::collections::BTreeMap;
 use std::path::Path;

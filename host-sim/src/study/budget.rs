@@ -158,7 +158,7 @@ impl Budget {
             model,
             t_eval_rel_s,
             total_pos_nees,
-            total_pos_nees_band: super::chi2::nees_band_95(r, 3),
+            total_pos_nees_band: noise_id::stats::nees_band_95(r, 3),
             runs: r,
             gyro_share: share(Source::is_gyro),
             accel_share: share(Source::is_accel),

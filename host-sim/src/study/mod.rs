@@ -24,7 +24,6 @@
 //! ([`report`], [`plots`]).
 
 pub mod budget;
-pub mod chi2;
 pub mod plots;
 pub mod report;
 pub mod setup;

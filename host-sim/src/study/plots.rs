@@ -3,9 +3,9 @@
 //! NEES against its 95 % band, and the error budget as bars.
 
 use super::budget::Budget;
-use super::chi2;
 use super::setup::Variant;
 use super::{Case, Cell, StudyResult};
+use noise_id::stats as chi2;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;

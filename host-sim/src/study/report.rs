@@ -2,12 +2,12 @@
 //! table, `study.json`, and `report.md` / `report.html` embedding the plots.
 
 use super::budget::Budget;
-use super::chi2;
 use super::setup::Variant;
 use super::setup::{self, Source};
 use super::stats::CellStats;
 use super::{plots, Case, Cell, StudyResult};
 use anyhow::Context;
+use noise_id::stats as chi2;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;

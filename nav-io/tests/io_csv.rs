@@ -1,7 +1,7 @@
 //! Generic IMU CSV logs: unit mapping, sample conventions checked on analytic signals, column
 //! names, fixed rate, RTKLIB time tags, malformed input; IMU mounting rotation.
 
-use host_sim::io::{
+use nav_io::{
     read_imu_csv, read_imu_csv_raw, read_time_tag, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, IoError, Mounting, RateUnit, SampleConvention,
 };

@@ -1,88 +1,56 @@
-//! The board-independent application: wire frames in, the navigation filter, solutions and
-//! health out. Generic over `embedded_io` (the frame link) and [`TimeBase`]; it knows nothing
-//! of registers, so the same code runs on every board (and could run on the host).
+//! The board-independent application: wire frames in, the navigator, solutions and health
+//! out. Generic over `embedded_io` (the frame link) and [`TimeBase`]; it knows nothing of
+//! registers, so the same code runs on every board and on the host.
 //!
 //! Frames in (`nav_core::wire`): IMU samples (one filter epoch each), GNSS fixes, a
 //! configuration (answered with a health frame). Frames out: a navigation solution every
 //! `nav_divider` IMU epochs once the filter runs, and a health frame every `health_every`
 //! epochs and on request.
 //!
-//! Initialisation (until a shared rule lands in nav-core, see the README): the first valid GNSS
-//! fix starts the filter at the fix's position and velocity (zero without one); roll and pitch
-//! come from levelling the mean specific force of the IMU samples received before it, yaw from
-//! the GNSS course when the fix has a velocity above [`COURSE_MIN_SPEED_MPS`], else 0 with a
-//! 180 deg sigma.
+//! Start-up, the IMU guard and the fix scheduling are `nav_core::navigator`'s
+//! ([`AlignMode::FirstFix`]): the first valid GNSS fix starts the filter at the fix's position
+//! and velocity (zero without one); roll and pitch come from levelling the mean specific force
+//! of the IMU samples received before it, yaw from the GNSS course when the fix has a velocity
+//! above [`COURSE_MIN_SPEED_MPS`], else 0 with a 180 deg sigma. Later fixes wait for the next
+//! IMU sample and are applied at the IMU epoch nearest to them, before that sample is
+//! integrated; every sample passes the IMU guard (gaps bridged, implausible samples
+//! rejected), whose nominal interval is the mean interval before the first fix.
 
 use crate::time::TimeBase;
 use embedded_io::{Read, Write};
-use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
-use nav_core::earth::Llh;
-use nav_core::filter::{Filter, InitialUncertainty};
+use nav_core::filter::Filter;
 use nav_core::model::Layout;
-use nav_core::nav::NavState;
+use nav_core::navigator::{
+    AlignMode, FirstFixAlign, FixEvent, GnssEvent, ImuEvent, Navigator, NavigatorConfig,
+    NavigatorError,
+};
 use nav_core::types::{GnssFix, ImuSample};
 use nav_core::wire::{self, Encoder, FrameDecoder, Health, Payload, MAX_FRAME_LEN};
 
 /// Smallest GNSS speed whose course initialises the yaw, m/s.
 pub const COURSE_MIN_SPEED_MPS: f64 = 2.0;
 
-/// Running mean of the specific force before the filter starts (levelling).
-#[derive(Debug, Clone, Copy, Default)]
-struct Leveller {
-    sum_dv_mps: [f64; 3],
-    sum_dt_s: f64,
-    last_t_s: Option<f64>,
-}
-
-impl Leveller {
-    fn add(&mut self, s: &ImuSample) {
-        if let Some(t0) = self.last_t_s {
-            let dt = s.t_s - t0;
-            if dt > 0.0 && dt <= nav_core::nav::MAX_DT_S {
-                for (a, d) in self.sum_dv_mps.iter_mut().zip(s.dv_mps) {
-                    *a += d;
-                }
-                self.sum_dt_s += dt;
-            }
-        }
-        self.last_t_s = Some(s.t_s);
-    }
-    /// Roll and pitch, rad, from the mean specific force (at rest f = -C_n^b g).
-    fn roll_pitch_rad(&self) -> [f64; 2] {
-        if self.sum_dt_s <= 0.0 {
-            return [0.0, 0.0];
-        }
-        let [fx, fy, fz] = self.sum_dv_mps.map(|v| v / self.sum_dt_s);
-        let roll = libm::atan2(-fy, -fz);
-        let pitch = libm::atan2(fx, libm::sqrt(fy * fy + fz * fz));
-        [roll, pitch]
-    }
-}
-
 /// Counters of the application (the content of health frames).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct AppCounters {
     /// IMU epochs run through the filter.
     pub imu_epochs: u32,
-    /// IMU samples the filter refused.
+    /// IMU samples not integrated once the filter runs (implausible, refused, guard faults).
     pub imu_rejected: u32,
     /// GNSS fixes used.
     pub gnss_updates: u32,
-    /// GNSS fixes refused (invalid, mistimed or gated).
+    /// GNSS fixes refused (invalid, mistimed, gated, or dropped on a full queue).
     pub gnss_rejected: u32,
-    /// Longest IMU epoch (filter propagate, plus a GNSS update when one came), ticks.
+    /// Longest IMU epoch (the fixes due before the sample, then its propagation), ticks.
     pub epoch_ticks_max: u32,
     /// Frames sent.
     pub tx_frames: u32,
 }
 
-/// The application state: filter, decoder, encoder, counters.
+/// The application state: navigator, decoder, encoder, counters.
 pub struct NavApp<const N: usize> {
-    layout: Layout,
-    cfg: FilterConfig,
-    filter: Option<Filter<f32, N>>,
-    leveller: Leveller,
+    nav: Navigator<f32, N>,
     last_imu: Option<ImuSample>,
     dec: FrameDecoder,
     enc: Encoder,
@@ -97,16 +65,26 @@ pub struct NavApp<const N: usize> {
     link_imu: bool,
 }
 
+fn first_fix(at_fix_time: bool) -> AlignMode {
+    AlignMode::FirstFix(FirstFixAlign {
+        course_min_speed_mps: COURSE_MIN_SPEED_MPS,
+        start_at_fix_time: at_fix_time,
+        ..FirstFixAlign::default()
+    })
+}
+
 impl<const N: usize> NavApp<N> {
     /// An application running the filter with `layout` (N states) and `cfg`; one solution per
     /// `nav_divider` IMU epochs (0 = none), one health frame per `health_every` epochs (0 = only
-    /// on request).
-    pub fn new(layout: Layout, cfg: FilterConfig, nav_divider: u16, health_every: u32) -> Self {
-        Self {
-            layout,
-            cfg,
-            filter: None,
-            leveller: Leveller::default(),
+    /// on request). Error: the filter refuses the layout or the configuration.
+    pub fn new(
+        layout: Layout,
+        cfg: FilterConfig,
+        nav_divider: u16,
+        health_every: u32,
+    ) -> Result<Self, NavigatorError> {
+        Ok(Self {
+            nav: Navigator::new(layout, NavigatorConfig::new(cfg, first_fix(false)))?,
             last_imu: None,
             dec: FrameDecoder::new(),
             enc: Encoder::new(),
@@ -119,7 +97,7 @@ impl<const N: usize> NavApp<N> {
             time_from_gnss: false,
             time_offset_s: 0.0,
             link_imu: true,
-        }
+        })
     }
 
     /// The counters so far.
@@ -129,7 +107,12 @@ impl<const N: usize> NavApp<N> {
 
     /// The filter, once started.
     pub fn filter(&self) -> Option<&Filter<f32, N>> {
-        self.filter.as_ref()
+        self.nav.filter()
+    }
+
+    /// The navigator (its own and the IMU guard's counters).
+    pub fn navigator(&self) -> &Navigator<f32, N> {
+        &self.nav
     }
 
     /// Sets the function that measures the peak stack use (bytes) for health frames (the
@@ -140,10 +123,12 @@ impl<const N: usize> NavApp<N> {
 
     /// For a board that stamps IMU samples with its own clock: the first GNSS fix sets the
     /// offset from board time to GPS time (fix time minus the latest IMU stamp; transport
-    /// latency is not corrected: a PPS input would be needed for that). The board adds
-    /// [`Self::time_offset_s`] to its stamps.
+    /// latency is not corrected: a PPS input would be needed for that) and the filter starts
+    /// at the fix's time. The board adds [`Self::time_offset_s`] to its stamps. Call before
+    /// the first fix.
     pub fn set_time_from_gnss(&mut self, on: bool) {
         self.time_from_gnss = on;
+        self.nav.set_align_mode(first_fix(on));
     }
 
     /// Whether IMU frames from the link are used (true by default; a board with its own IMU
@@ -172,7 +157,7 @@ impl<const N: usize> NavApp<N> {
             gnss_rejected: self.counters.gnss_rejected,
             epoch_ticks_max: self.counters.epoch_ticks_max,
             stack_peak_bytes: self.stack_probe.map_or(0, |p| p() as u32),
-            filter_status: self.filter.as_ref().map_or(u32::MAX, |f| f.status()),
+            filter_status: self.nav.status(),
         }
     }
 
@@ -206,17 +191,28 @@ impl<const N: usize> NavApp<N> {
                 Ok(())
             }
             Payload::Config(c) => {
+                // for the start to come; a running filter keeps its configuration
+                let mut cfg = self.nav.config().filter;
+                cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
+                cfg.lever_arm_body_m = c.lever_arm_frd_m;
+                self.nav.set_filter_config(cfg);
                 self.nav_divider = c.nav_divider;
-                self.cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
-                self.cfg.lever_arm_body_m = c.lever_arm_frd_m;
                 self.send_health(out, clock)
             }
             Payload::Nav(_) | Payload::Health(_) => self.send_health(out, clock),
         }
     }
 
-    /// One IMU epoch: levelling before the first fix, the filter after it; sends the solution
-    /// and health frames that are due.
+    fn count_fix(&mut self, e: &FixEvent) {
+        if e.used() {
+            self.counters.gnss_updates = self.counters.gnss_updates.wrapping_add(1);
+        } else {
+            self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1);
+        }
+    }
+
+    /// One IMU epoch: levelling before the first fix; after it the fixes due, then the
+    /// sample through the guard and the filter; sends the solution and health frames due.
     pub fn on_imu<W: Write, C: TimeBase>(
         &mut self,
         s: &ImuSample,
@@ -224,23 +220,35 @@ impl<const N: usize> NavApp<N> {
         clock: &mut C,
     ) -> Result<(), W::Error> {
         self.last_imu = Some(*s);
-        let Some(filter) = self.filter.as_mut() else {
-            self.leveller.add(s);
+        if !self.nav.is_aligned() {
+            // levelling; the result is `Aligning`
+            let _ = self.nav.push_imu(s);
             return Ok(());
-        };
+        }
         let t0 = clock.now_ticks();
-        let r = filter.propagate(s);
+        let r = self.nav.push_imu(s);
         let dt = clock.now_ticks().wrapping_sub(t0);
         self.counters.epoch_ticks_max = self.counters.epoch_ticks_max.max(dt as u32);
         match r {
-            Ok(()) => self.counters.imu_epochs = self.counters.imu_epochs.wrapping_add(1),
+            Ok(step) => {
+                for e in &step.fixes {
+                    self.count_fix(e);
+                }
+                match step.imu {
+                    ImuEvent::Propagated | ImuEvent::GapBridged { .. } => {
+                        self.counters.imu_epochs = self.counters.imu_epochs.wrapping_add(1)
+                    }
+                    _ => self.counters.imu_rejected = self.counters.imu_rejected.wrapping_add(1),
+                }
+            }
             Err(_) => self.counters.imu_rejected = self.counters.imu_rejected.wrapping_add(1),
         }
         self.since_nav = self.since_nav.saturating_add(1);
         if self.nav_divider > 0 && self.since_nav >= self.nav_divider {
             self.since_nav = 0;
-            let sol = filter.solution();
-            self.send(&Payload::Nav(sol), out)?;
+            if let Some(sol) = self.nav.solution() {
+                self.send(&Payload::Nav(sol), out)?;
+            }
         }
         self.since_health = self.since_health.saturating_add(1);
         if self.health_every > 0 && self.since_health >= self.health_every {
@@ -249,69 +257,20 @@ impl<const N: usize> NavApp<N> {
         Ok(())
     }
 
-    /// One GNSS fix: starts the filter (first valid fix) or updates it.
-    pub fn on_gnss<C: TimeBase>(&mut self, fix: &GnssFix, clock: &mut C) {
-        let Some(filter) = self.filter.as_mut() else {
-            self.start(fix);
-            return;
-        };
-        let t0 = clock.now_ticks();
-        let r = filter.update_gnss(fix);
-        let dt = clock.now_ticks().wrapping_sub(t0);
-        self.counters.epoch_ticks_max = self.counters.epoch_ticks_max.max(dt as u32);
-        match r {
-            Ok(o) if o.accepted => {
-                self.counters.gnss_updates = self.counters.gnss_updates.wrapping_add(1)
+    /// One GNSS fix: starts the filter (first valid fix) or waits for the nearest IMU epoch.
+    pub fn on_gnss<C: TimeBase>(&mut self, fix: &GnssFix, _clock: &mut C) {
+        match self.nav.push_gnss(fix) {
+            Ok(GnssEvent::Aligned(_)) => {
+                if self.time_from_gnss {
+                    if let Some(last) = self.last_imu {
+                        self.time_offset_s = fix.t_s - last.t_s;
+                    }
+                }
             }
-            _ => self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1),
-        }
-    }
-
-    fn start(&mut self, fix: &GnssFix) {
-        let Some(last) = self.last_imu else {
-            self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1);
-            return;
-        };
-        if !fix.is_valid() {
-            self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1);
-            return;
-        }
-        let mut t0_s = last.t_s;
-        if self.time_from_gnss {
-            self.time_offset_s = fix.t_s - last.t_s;
-            t0_s = fix.t_s;
-        }
-        let [roll, pitch] = self.leveller.roll_pitch_rad();
-        let (vel, vel_sigma) = if fix.has_velocity {
-            (fix.vel_ned_mps, fix.vel_std_ned_mps)
-        } else {
-            ([0.0; 3], [1.0; 3])
-        };
-        let speed = libm::sqrt(vel[0] * vel[0] + vel[1] * vel[1]);
-        let (yaw, yaw_sigma) = if fix.has_velocity && speed >= COURSE_MIN_SPEED_MPS {
-            (libm::atan2(vel[1], vel[0]), 5.0f64.to_radians())
-        } else {
-            (0.0, core::f64::consts::PI)
-        };
-        let init = NavState::from_rpy(
-            t0_s,
-            Llh {
-                lat_rad: fix.lat_rad,
-                lon_rad: fix.lon_rad,
-                h_m: fix.h_m,
-            },
-            Vector3::from(vel),
-            [roll, pitch, yaw],
-        );
-        let tilt = 1.0f64.to_radians();
-        let unc = InitialUncertainty {
-            att_sigma_rad: [tilt, tilt, yaw_sigma],
-            vel_sigma_mps: vel_sigma,
-            pos_sigma_m: fix.pos_std_ned_m,
-        };
-        match Filter::new(self.layout, &self.cfg, init, &unc) {
-            Ok(f) => self.filter = Some(f),
-            Err(_) => self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1),
+            Ok(GnssEvent::Queued) | Ok(GnssEvent::ForAlignment) => {}
+            Ok(GnssEvent::Dropped) | Err(_) => {
+                self.counters.gnss_rejected = self.counters.gnss_rejected.wrapping_add(1)
+            }
         }
     }
 

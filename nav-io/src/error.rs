@@ -1,4 +1,4 @@
-//! The error type of every reader and writer in [`crate::io`].
+//! The error type of every reader and writer in this crate.
 
 use std::path::PathBuf;
 

@@ -1,6 +1,6 @@
 //! Allan statistics against published references: the NBS14 test sets (NIST SP1065 values)
 //! and the Stable32 tables in `../shared/data/allan-reference/`.
-use host_sim::allan::{deviation_curve, edf, CurveOptions, Deviation, Taus};
+use noise_id::{deviation_curve, edf, CurveOptions, Deviation, Taus};
 use std::path::PathBuf;
 
 fn data_dir() -> Option<PathBuf> {

@@ -1,11 +1,11 @@
 //! The project's IMU/GNSS/nav text formats: round trips (plain and gzip) and malformed input
 //! (truncated line, text in a number column, NaN, non-monotonic time, IMU time gaps).
 
-use host_sim::io::{
+use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_io::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_text, write_imu_bin,
     write_imu_text, write_nav_text, IoError,
 };
-use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

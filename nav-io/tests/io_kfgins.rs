@@ -1,8 +1,8 @@
 //! KF-GINS YAML configuration: keys and units as KF-GINS reads them, SI conversions, defaults
 //! of the optional initial-std keys, errors with file and position, round trip.
 
-use host_sim::io::{parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, IoError};
 use nav_core::config::FilterConfig;
+use nav_io::{parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, IoError};
 use std::path::Path;
 
 /// A configuration in KF-GINS's layout (same keys, comments and flow-style vectors as its

@@ -1,11 +1,11 @@
 //! The TOML run configuration: configs/drive0708.toml parses to the README's figures in SI,
 //! loads the real drive through it, errors name the file and the problem, round trip.
 
-use host_sim::io::{
+use nav_core::types::{GnssFix, ImuSample};
+use nav_io::{
     read_run_config, write_gnss_text, write_imu_text, write_run_config, BiasModel, CsvTime,
     GnssFileKind, ImuFileKind, InitMode, IoError, RunConfig,
 };
-use nav_core::types::{GnssFix, ImuSample};
 use std::path::{Path, PathBuf};
 
 fn drive_cfg_path() -> PathBuf {

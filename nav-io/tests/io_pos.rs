@@ -1,10 +1,10 @@
 //! RTKLIB `.pos` reader: layouts (calendar/week-tow time, GPST/UTC, deg/dms/ECEF position,
 //! with and without velocities), quality filter, errors, and the real drive's solution file.
 
-use host_sim::io::{read_rtklib_pos, IoError, PosOptions, PosPositionFormat, PosTimeSystem};
 use nalgebra::{Matrix3, Vector3};
 use nav_core::earth::{ecef_to_ned_dcm, geodetic_to_ecef_m, Llh};
 use nav_core::types::FixQuality;
+use nav_io::{read_rtklib_pos, IoError, PosOptions, PosPositionFormat, PosTimeSystem};
 use std::path::{Path, PathBuf};
 
 fn data_dir() -> Option<PathBuf> {

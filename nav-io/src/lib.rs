@@ -1,5 +1,7 @@
-//! Readers and writers for the data formats users have (IMU/GNSS/nav text, RTKLIB .pos, generic
-//! IMU CSV, KF-GINS YAML), with errors that name file, line and column.
+//! `nav-io`: readers and writers for the data formats users have (IMU/GNSS/nav text, RTKLIB
+//! .pos, generic IMU CSV, KF-GINS YAML) and the run configuration (TOML), with errors that
+//! name file, line and column. It depends only on `nav-core` (for the sample, fix and solution
+//! types), so every tool (host-sim, hw-bridge, noise-id) shares one definition of each format.
 //!
 //! Common rules for every text reader here:
 //! - gzip-compressed input is detected by its magic bytes (`1f 8b`), whatever the file name;
@@ -9,6 +11,7 @@
 //! - no input makes a reader panic: every problem is an [`IoError`].
 //!
 //! Writers write gzip when the path ends in `.gz`.
+#![deny(missing_docs)]
 
 mod error;
 pub mod gpstime;

@@ -25,7 +25,7 @@
 //! neighbouring octave taus are treated as independent). Datasheet coefficients and their
 //! uncertainties follow by the delta method.
 use super::DevPoint;
-use crate::noise::gauss_markov_avar;
+use crate::gauss_markov_avar;
 use nalgebra::{DMatrix, DVector};
 use nav_core::config::units;
 use serde::{Deserialize, Serialize};

@@ -2,8 +2,8 @@
 //! so `nav.txt` stays byte-identical to the files written before: every kind of f64 (random
 //! bit patterns: subnormals, huge, tiny, integers, negative zero, NaN, infinities) and the
 //! values a navigation file holds.
-use host_sim::io::{write_f64, write_nav_line};
 use nav_core::types::NavSolution;
+use nav_io::{write_f64, write_nav_line};
 use proptest::prelude::*;
 
 fn ours(x: f64) -> String {

@@ -2,11 +2,11 @@
 //! with its RTKLIB time tag, the GPST CSV, the .pos solution) and an ADIS16405 static run.
 //! When the data folder is missing these tests print SKIPPED (and fail when CI=true).
 
-use host_sim::io::{
+use nav_core::earth::gravity_mps2;
+use nav_io::{
     read_imu_csv, read_imu_csv_raw, read_rtklib_pos, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, Mounting, PosOptions, RateUnit, RawImuSample, SampleConvention,
 };
-use nav_core::earth::gravity_mps2;
 use std::path::PathBuf;
 
 fn data_dir(test: &str) -> Option<PathBuf> {

@@ -1,7 +1,7 @@
 //! The time base a board supplies: a free-running monotonic tick counter.
 
 /// A monotonic tick counter (SysTick on the emulated board, the DWT cycle counter on a real
-/// Cortex-M4F).
+/// Cortex-M4F, the wall clock on the host).
 pub trait TimeBase {
     /// Tick rate, Hz.
     const HZ: u32;

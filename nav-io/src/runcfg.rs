@@ -63,9 +63,8 @@ pub struct ImuSource {
 }
 
 /// Sensor class names of `[imu.checks] class` (see `nav_core::imu_guard::ImuClass`).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum ImuClassName {
     /// Consumer / automotive MEMS: 4000 deg/s, 32 g.

@@ -1,21 +1,22 @@
-//! Input of `host-sim allan`: rate channels from an IMU file.
+//! Input of the noise identification (`host-sim allan`): rate channels from an IMU file.
 //!
 //! - The project's IMU text format (`t dtheta_xyz dv_xyz [temp]`, increments): rates are the
-//!   increments divided by the sample interval (read with `host_sim::io::read_imu_text`).
+//!   increments divided by the sample interval (read with `nav_io::read_imu_text`).
 //! - A generic CSV / white-space column file with a column mapping (`gx gy gz ax ay az`, `x` for
 //!   one generic channel, `t` for a time column in seconds, `_` to ignore a column), units and
 //!   either a fixed rate or the time column. When all six IMU columns are mapped, the project's
-//!   IMU CSV reader (`host_sim::io::read_imu_csv_raw`) does the reading; other mappings (e.g. a
+//!   IMU CSV reader (`nav_io::read_imu_csv_raw`) does the reading; other mappings (e.g. a
 //!   single column) are read by the small column reader here, on the same line reader (gzip
 //!   detected by magic bytes, `#`/`%` comment lines skipped, errors with file, line, column).
 use super::fit::SensorKind;
-use crate::io::{
-    self, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit, SampleConvention,
+use nav_io::{
+    self as io, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit, SampleConvention,
 };
 use std::path::Path;
 
 /// Unit of gyro columns on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum GyroUnit {
     /// deg/s.
     Dps,
@@ -38,7 +39,8 @@ impl GyroUnit {
 }
 
 /// Unit of accelerometer columns on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum AccelUnitArg {
     /// Standard gravity, 9.80665 m/s^2.
     G,
@@ -277,7 +279,7 @@ pub fn read_columns(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadErro
         data,
         tau0_s: tau0,
         notes: vec![format!(
-            "{}: {n} rows, tau0 = {tau0} s (column reader of host_sim::allan::reader)",
+            "{}: {n} rows, tau0 = {tau0} s (column reader of noise_id::reader)",
             path.display()
         )],
     })
@@ -334,7 +336,7 @@ fn read_with_io(path: &Path, spec: &ColumnSpec, cols: &[String]) -> Result<Chann
         }
     };
     let mut notes = vec![format!(
-        "{}: {} rows, tau0 = {tau0} s (host_sim::io::read_imu_csv_raw)",
+        "{}: {} rows, tau0 = {tau0} s (nav_io::read_imu_csv_raw)",
         path.display(),
         rec.samples.len()
     )];

@@ -1,8 +1,8 @@
 //! The model covariance of overlapping Allan variance estimates (used for the fit's
 //! uncertainties) against independent results: the exact variance of OAVAR(1) for white
 //! noise, and Greenhall's EDF for pure white and pure random-walk noise.
-use host_sim::allan::fit::oavar_covariance;
-use host_sim::allan::{edf, Deviation};
+use noise_id::fit::oavar_covariance;
+use noise_id::{edf, Deviation};
 
 const N: usize = 2_160_000;
 

@@ -2,8 +2,8 @@
 //! text, dates, separators), gzip and truncated gzip of them are fed to every reader. Whatever
 //! a reader accepts must satisfy its format's invariants (finite values, increasing time).
 
-use host_sim::io::tag::parse_time_tag;
-use host_sim::io::{
+use nav_io::tag::parse_time_tag;
+use nav_io::{
     parse_kf_gins_yaml, parse_run_config, read_gnss_text, read_imu_csv, read_imu_text,
     read_nav_text, read_rtklib_pos, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat,
     PosOptions, RateUnit, SampleConvention,
@@ -54,7 +54,7 @@ fn check_all(p: &Path, bytes: &[u8]) {
         assert!(r.samples.windows(2).all(|w| w[1].t_s > w[0].t_s));
         assert!(r.gaps.total_missing_s >= 0.0);
     }
-    if let Ok(r) = host_sim::io::read_imu_bin(p) {
+    if let Ok(r) = nav_io::read_imu_bin(p) {
         assert!(r.samples.iter().all(|s| s.is_finite()));
         assert!(r.samples.windows(2).all(|w| w[1].t_s > w[0].t_s));
     }
