@@ -854,27 +854,48 @@ pub fn coasting_track_metrics(
     m
 }
 
+/// [`ResidualStats`] accumulated fix by fix (identical to [`compute`]'s).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ResidualAcc {
+    h: StatAcc,
+    v: StatAcc,
+    rejected: usize,
+}
+
+impl ResidualAcc {
+    /// Adds one innovation record (time order).
+    pub fn push(&mut self, r: &InnovationRecord) {
+        if r.used == FixUse::Rejected {
+            self.rejected += 1;
+        }
+        let used = matches!(r.used, FixUse::Accepted | FixUse::Forced);
+        for e in errors_vs_fixes(std::iter::once(r), |_| used) {
+            self.h.push(e.horizontal_m());
+            self.v.push(e.height_m());
+        }
+    }
+
+    /// The statistics so far.
+    pub fn stats(&self) -> ResidualStats {
+        ResidualStats {
+            horizontal_m: self.h.stat(),
+            vertical_m: self.v.stat(),
+            rejected: self.rejected,
+        }
+    }
+}
+
 /// Metrics from their online parts: `samples` (against the truth, or the withheld fixes when
-/// `truth_reference` is false), the innovations (residuals) and the coasting metrics per
-/// mode (name, per-outage metrics in any order).
+/// `truth_reference` is false), the GNSS residuals and the coasting metrics per mode (name,
+/// per-outage metrics in any order).
 pub fn assemble(
     run: &RunOutput,
-    innovations: &[InnovationRecord],
+    residuals: &ResidualAcc,
     samples: &SampleAcc,
     truth_reference: bool,
     coasting: Vec<(String, Vec<OutageMetrics>)>,
 ) -> Metrics {
-    let used = errors_vs_fixes(innovations.iter(), |r| {
-        matches!(r.used, FixUse::Accepted | FixUse::Forced)
-    });
-    let residuals = ResidualStats {
-        horizontal_m: Stat::of(used.iter().map(|e| e.horizontal_m())),
-        vertical_m: Stat::of(used.iter().map(|e| e.height_m())),
-        rejected: innovations
-            .iter()
-            .filter(|r| r.used == FixUse::Rejected)
-            .count(),
-    };
+    let residuals = residuals.stats();
     let per_outage = samples.per_outage();
     Metrics {
         reference: if truth_reference {

@@ -260,7 +260,9 @@ impl<I: Iterator<Item = Result<ImuItem, RunError>>> Feed<I> {
         };
         // `index` counts the samples handed out; the buffered ones come first
         let idx = self.index + self.buf.len() + usize::from(self.peeked.is_some());
-        if !(it.sample.t_s > self.last_t) && self.last_t.is_finite() {
+        if self.last_t.is_finite()
+            && it.sample.t_s.partial_cmp(&self.last_t) != Some(std::cmp::Ordering::Greater)
+        {
             return Err(RunError::Options(format!(
                 "{}: IMU time {:.6} s is not after the previous sample's",
                 self.info.locate(idx, it.line),
@@ -523,10 +525,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     let mut coasters: Vec<Coaster> = Vec::new();
     let mut fault: Option<(String, f64, String)> = None;
     let mut done = 0usize;
-    'imu: loop {
-        let Some((k, it)) = feed.next()? else {
-            break;
-        };
+    'imu: while let Some((k, it)) = feed.next()? {
         let s = it.sample;
         if s.t_s > end_s {
             // not integrated; the coasters may still want it
@@ -547,7 +546,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             }
         }
         done += 1;
-        if done % 4096 == 0 {
+        if done.is_multiple_of(4096) {
             progress(done, 0);
         }
         let dt = s.t_s - filter.nav_state().t_s;

@@ -1,8 +1,8 @@
 //! The file sink of a streaming run: `nav.txt`, `std.txt`, `bias.txt` and `innovations.txt`
 //! written (as `NAME.partial`, see [`super::output::write_all`]) while the filter runs,
 //! and the metrics computed online ([`crate::metrics::SampleAcc`]): memory independent of
-//! the record's length. What it keeps: the innovation records (one per GNSS fix, for the
-//! residual statistics and the withheld-fix reference) and the per-outage statistics.
+//! the record's length. What it keeps: running sums (overall, outside the outages, per outage,
+//! GNSS residuals) and, while an outage's coasting track is open, that track.
 //!
 //! The text of every file is the one [`super::output`] writes from a [`super::RunOutput`]
 //! (same functions per line): `nav.txt` is byte-identical to the in-memory path.
@@ -80,8 +80,7 @@ pub struct FileSink<'a> {
     inn: Out,
     bias_head: bool,
     line: Vec<u8>,
-    /// Innovation records (one per fix).
-    pub innovations: Vec<InnovationRecord>,
+    residuals: metrics::ResidualAcc,
     truth: Option<&'a [NavSolution]>,
     matcher: Option<TruthMatcher<'a>>,
     samples: SampleAcc,
@@ -139,7 +138,7 @@ impl<'a> FileSink<'a> {
             inn,
             bias_head: false,
             line: Vec::with_capacity(256),
-            innovations: Vec::new(),
+            residuals: metrics::ResidualAcc::default(),
             truth,
             matcher: truth.map(TruthMatcher::new),
             samples: SampleAcc::new(&outages),
@@ -173,7 +172,7 @@ impl<'a> FileSink<'a> {
     ) -> anyhow::Result<Metrics> {
         let m = metrics::assemble(
             run,
-            &self.innovations,
+            &self.residuals,
             &self.samples,
             self.truth.is_some(),
             if fault.is_some() {
@@ -302,7 +301,7 @@ impl RunSink for FileSink<'_> {
         output::innovation_line(&mut l, r).map_err(|e| self.inn.err(e))?;
         self.inn.write(&l)?;
         self.line = l;
-        self.innovations.push(*r);
+        self.residuals.push(r);
         if self.truth.is_none() && r.used == FixUse::Withheld {
             for e in metrics::errors_vs_fixes(std::iter::once(r), |_| true) {
                 self.samples.push(&e);
