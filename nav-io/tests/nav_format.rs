@@ -74,7 +74,7 @@ fn nav_line_is_the_display_line() {
         lon_rad: 1.9959,
         h_m: -0.0,
         vel_ned_mps: [1e-9, -12.5, 0.0],
-        rpy_rad: [1e-7, -3.0, 2.718_281],
+        rpy_rad: [1e-7, -3.0, 2.5],
         ..NavSolution::default()
     };
     let mut v = Vec::new();
