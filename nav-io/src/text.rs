@@ -558,12 +558,14 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
 }
 
 /// One line of the KF-GINS nav format; shared by [`write_nav_text`] and streaming writers
-/// (hw-bridge). Numbers as `format!("{}")` writes them (shortest round-trip digits, no
-/// exponent), with the digits from `ryu` ([`write_f64`]): byte-identical, about 4x faster.
+/// (hw-bridge). Numbers in Rust's `Display` form (shortest round-trip digits). `ryu` was
+/// tried for speed and rejected: it picks other digits than `Display` for some values (e.g.
+/// -1514017065704403.2 vs .3), so nav.txt would not stay byte-identical.
 pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {
-    let mut b = ryu::Buffer::new();
-    write!(w, "{}", n.week)?;
-    for x in [
+    writeln!(
+        w,
+        "{} {} {} {} {} {} {} {} {} {} {}",
+        n.week,
         n.t_s,
         n.lat_rad.to_degrees(),
         n.lon_rad.to_degrees(),
@@ -573,79 +575,8 @@ pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io:
         n.vel_ned_mps[2],
         n.rpy_rad[0].to_degrees(),
         n.rpy_rad[1].to_degrees(),
-        n.rpy_rad[2].to_degrees(),
-    ] {
-        w.write_all(b" ")?;
-        write_f64(w, &mut b, x)?;
-    }
-    w.write_all(b"\n")
-}
-
-/// Writes `x` exactly as `write!(w, "{x}")` does (Rust's `Display` for f64: the shortest
-/// digits that read back to the same value, never an exponent; `NaN`, `inf`, `-inf`), with the
-/// digits computed by `ryu` (which gives the same shortest digits but its own layout:
-/// `1.0`, `1e-7`). `buf` is scratch space, reused across calls.
-pub fn write_f64<W: Write + ?Sized>(
-    w: &mut W,
-    buf: &mut ryu::Buffer,
-    x: f64,
-) -> std::io::Result<()> {
-    if !x.is_finite() {
-        return write!(w, "{x}");
-    }
-    let s = buf.format_finite(x).as_bytes();
-    let Some(e) = s.iter().position(|&c| c == b'e') else {
-        // plain decimal: "123.45", or "12.0" which Display writes "12"
-        return w.write_all(s.strip_suffix(b".0").unwrap_or(s));
-    };
-    let (mant, exp) = s.split_at(e);
-    let exp: i32 = std::str::from_utf8(exp.get(1..).unwrap_or(b"0"))
-        .ok()
-        .and_then(|t| t.parse().ok())
-        .unwrap_or(0);
-    let (neg, mant) = match mant.split_first() {
-        Some((b'-', rest)) => (true, rest),
-        _ => (false, mant),
-    };
-    // digits without the point; `int` digits before it
-    let mut digits = [0u8; 20];
-    let mut nd = 0;
-    let mut int = mant.len();
-    for (i, &c) in mant.iter().enumerate() {
-        if c == b'.' {
-            int = i;
-        } else if let Some(d) = digits.get_mut(nd) {
-            *d = c;
-            nd += 1;
-        }
-    }
-    let digits = digits.get(..nd).unwrap_or(&[]);
-    let point = int as i32 + exp; // digits before the decimal point
-    if neg {
-        w.write_all(b"-")?;
-    }
-    const ZEROS: [u8; 64] = [b'0'; 64];
-    let zeros = |w: &mut W, mut n: usize| -> std::io::Result<()> {
-        while n > 0 {
-            let k = n.min(ZEROS.len());
-            w.write_all(ZEROS.get(..k).unwrap_or(&[]))?;
-            n -= k;
-        }
-        Ok(())
-    };
-    if point <= 0 {
-        w.write_all(b"0.")?;
-        zeros(w, point.unsigned_abs() as usize)?;
-        w.write_all(digits)
-    } else if point as usize >= digits.len() {
-        w.write_all(digits)?;
-        zeros(w, point as usize - digits.len())
-    } else {
-        let (a, b) = digits.split_at(point as usize);
-        w.write_all(a)?;
-        w.write_all(b".")?;
-        w.write_all(b)
-    }
+        n.rpy_rad[2].to_degrees()
+    )
 }
 
 /// Bytes of one record of the binary IMU format (7 little-endian f64).
