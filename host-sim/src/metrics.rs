@@ -590,3 +590,342 @@ mod tests {
         assert!(Stat::of([]).rms.is_nan());
     }
 }
+
+/// [`Stat`] accumulated one value at a time (same sums in the same order: identical result).
+#[derive(Debug, Clone, Copy, Default)]
+struct StatAcc {
+    ss: f64,
+    mx: f64,
+    n: usize,
+}
+
+impl StatAcc {
+    fn push(&mut self, v: f64) {
+        if v.is_finite() {
+            self.ss += v * v;
+            self.mx = self.mx.max(v.abs());
+            self.n += 1;
+        }
+    }
+
+    fn stat(&self) -> Stat {
+        if self.n == 0 {
+            return Stat {
+                rms: f64::NAN,
+                max: f64::NAN,
+                n: 0,
+            };
+        }
+        Stat {
+            rms: (self.ss / self.n as f64).sqrt(),
+            max: self.mx,
+            n: self.n,
+        }
+    }
+}
+
+/// [`ErrorStats`] accumulated sample by sample.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ErrorStatsAcc {
+    c: [StatAcc; 11],
+}
+
+impl ErrorStatsAcc {
+    /// Adds one sample.
+    pub fn push(&mut self, e: &ErrSample) {
+        let v = [
+            e.pos_ned_m[0],
+            e.pos_ned_m[1],
+            e.pos_ned_m[2],
+            e.horizontal_m(),
+            e.d3_m(),
+            e.vel_ned_mps[0],
+            e.vel_ned_mps[1],
+            e.vel_ned_mps[2],
+            e.att_deg[0],
+            e.att_deg[1],
+            e.att_deg[2],
+        ];
+        for (c, x) in self.c.iter_mut().zip(v) {
+            c.push(x);
+        }
+    }
+
+    /// The statistics so far.
+    pub fn stats(&self) -> ErrorStats {
+        let [a, b, c, d, e, f, g, h, i, j, k] = self.c.map(|s| s.stat());
+        ErrorStats {
+            pos_n_m: a,
+            pos_e_m: b,
+            pos_d_m: c,
+            pos_horizontal_m: d,
+            pos_3d_m: e,
+            vel_n_mps: f,
+            vel_e_mps: g,
+            vel_d_mps: h,
+            roll_deg: i,
+            pitch_deg: j,
+            yaw_deg: k,
+        }
+    }
+}
+
+/// [`OutageMetrics`] of one outage accumulated sample by sample.
+#[derive(Debug, Clone, Copy)]
+struct OutageAcc {
+    last: Option<ErrSample>,
+    max: [f64; 4],
+    stats: ErrorStatsAcc,
+}
+
+impl OutageAcc {
+    fn new() -> Self {
+        Self {
+            last: None,
+            max: [f64::NAN; 4],
+            stats: ErrorStatsAcc::default(),
+        }
+    }
+
+    fn push(&mut self, e: &ErrSample) {
+        let v = [
+            e.horizontal_m(),
+            e.height_m().abs(),
+            e.d3_m(),
+            e.att_deg[2].abs(),
+        ];
+        for (m, x) in self.max.iter_mut().zip(v) {
+            if x.is_finite() {
+                *m = m.max(x);
+            }
+        }
+        self.stats.push(e);
+        self.last = Some(*e);
+    }
+
+    fn metrics(&self, index: usize, o: &Outage) -> Option<OutageMetrics> {
+        let last = self.last?;
+        let [h, v, d, y] = self.max;
+        Some(OutageMetrics {
+            index,
+            start_s: o.start_s,
+            duration_s: o.duration_s,
+            end_t_s: last.t_s,
+            end: Drift::of(&last),
+            max: Drift {
+                horizontal_m: h,
+                height_m: v,
+                d3_m: d,
+                heading_deg: y,
+            },
+            stats: self.stats.stats(),
+        })
+    }
+}
+
+/// Error samples accumulated into the overall, outside-outage and per-outage statistics as
+/// they come (the online form of [`compute`]'s statistics; identical numbers).
+#[derive(Debug, Clone)]
+pub struct SampleAcc {
+    outages: Vec<Outage>,
+    overall: ErrorStatsAcc,
+    outside: ErrorStatsAcc,
+    per: Vec<OutageAcc>,
+}
+
+impl SampleAcc {
+    /// For the (sorted) outages of a run.
+    pub fn new(outages: &[Outage]) -> Self {
+        Self {
+            outages: outages.to_vec(),
+            overall: ErrorStatsAcc::default(),
+            outside: ErrorStatsAcc::default(),
+            per: vec![OutageAcc::new(); outages.len()],
+        }
+    }
+
+    /// Adds one sample (in time order).
+    pub fn push(&mut self, e: &ErrSample) {
+        self.overall.push(e);
+        let mut inside = false;
+        for (o, acc) in self.outages.iter().zip(self.per.iter_mut()) {
+            if o.contains(e.t_s) {
+                inside = true;
+            }
+            if e.t_s >= o.start_s && e.t_s < o.end_s() {
+                acc.push(e);
+            }
+        }
+        if !inside {
+            self.outside.push(e);
+        }
+    }
+
+    /// Overall statistics.
+    pub fn overall(&self) -> ErrorStats {
+        self.overall.stats()
+    }
+
+    /// Statistics outside the outages.
+    pub fn outside(&self) -> ErrorStats {
+        self.outside.stats()
+    }
+
+    /// Per-outage metrics (outages with at least one sample).
+    pub fn per_outage(&self) -> Vec<OutageMetrics> {
+        self.outages
+            .iter()
+            .zip(&self.per)
+            .enumerate()
+            .filter_map(|(i, (o, a))| a.metrics(i, o))
+            .collect()
+    }
+}
+
+/// [`errors_vs_truth`] one solution record at a time: the truth epochs each new record
+/// decides are compared as it arrives (identical samples).
+#[derive(Debug, Clone)]
+pub struct TruthMatcher<'a> {
+    truth: &'a [NavSolution],
+    next: usize,
+    prev: Option<NavSolution>,
+}
+
+impl<'a> TruthMatcher<'a> {
+    /// Against `truth` (time order).
+    pub fn new(truth: &'a [NavSolution]) -> Self {
+        Self {
+            truth,
+            next: 0,
+            prev: None,
+        }
+    }
+
+    /// The next solution record (time order); `out` gets the samples it decides.
+    pub fn push(&mut self, b: &NavSolution, mut out: impl FnMut(ErrSample)) {
+        const TOL_S: f64 = 1e-4;
+        const MAX_GAP_S: f64 = 0.05;
+        while let Some(t) = self.truth.get(self.next) {
+            if t.t_s - TOL_S > b.t_s {
+                break;
+            }
+            self.next += 1;
+            if (b.t_s - t.t_s).abs() <= TOL_S {
+                out(error_vs_truth(b, t));
+                continue;
+            }
+            let Some(a) = &self.prev else {
+                continue;
+            };
+            if b.t_s - a.t_s > MAX_GAP_S {
+                continue;
+            }
+            out(error_vs_truth(&interpolate(a, b, t.t_s), t));
+        }
+        self.prev = Some(*b);
+    }
+}
+
+/// Metrics of one coasting track against its outage (as [`coasting_metrics`] does per
+/// track), for online use: the track can be dropped afterwards.
+pub fn coasting_track_metrics(
+    t: &CoastTrack,
+    outages: &[Outage],
+    truth: Option<&[NavSolution]>,
+) -> Vec<OutageMetrics> {
+    let samples = match truth {
+        Some(tr) => {
+            // only the truth around the track matters
+            let (a, b) = match (t.nav.first(), t.nav.last()) {
+                (Some(f), Some(l)) => (
+                    tr.partition_point(|s| s.t_s < f.t_s - 1e-3),
+                    tr.partition_point(|s| s.t_s <= l.t_s + 1e-3),
+                ),
+                _ => (0, 0),
+            };
+            errors_vs_truth(&t.nav, tr.get(a..b).unwrap_or(&[]))
+        }
+        None => errors_vs_fixes(t.fixes.iter(), |_| true),
+    };
+    let Some(o) = outages.get(t.outage) else {
+        return Vec::new();
+    };
+    let mut m = outage_metrics(&samples, std::slice::from_ref(o));
+    for x in &mut m {
+        x.index = t.outage;
+    }
+    m
+}
+
+/// [`ResidualStats`] accumulated fix by fix (identical to [`compute`]'s).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ResidualAcc {
+    h: StatAcc,
+    v: StatAcc,
+    rejected: usize,
+}
+
+impl ResidualAcc {
+    /// Adds one innovation record (time order).
+    pub fn push(&mut self, r: &InnovationRecord) {
+        if r.used == FixUse::Rejected {
+            self.rejected += 1;
+        }
+        let used = matches!(r.used, FixUse::Accepted | FixUse::Forced);
+        for e in errors_vs_fixes(std::iter::once(r), |_| used) {
+            self.h.push(e.horizontal_m());
+            self.v.push(e.height_m());
+        }
+    }
+
+    /// The statistics so far.
+    pub fn stats(&self) -> ResidualStats {
+        ResidualStats {
+            horizontal_m: self.h.stat(),
+            vertical_m: self.v.stat(),
+            rejected: self.rejected,
+        }
+    }
+}
+
+/// Metrics from their online parts: `samples` (against the truth, or the withheld fixes when
+/// `truth_reference` is false), the GNSS residuals and the coasting metrics per mode (name,
+/// per-outage metrics in any order).
+pub fn assemble(
+    run: &RunOutput,
+    residuals: &ResidualAcc,
+    samples: &SampleAcc,
+    truth_reference: bool,
+    coasting: Vec<(String, Vec<OutageMetrics>)>,
+) -> Metrics {
+    let residuals = residuals.stats();
+    let per_outage = samples.per_outage();
+    Metrics {
+        reference: if truth_reference {
+            "truth"
+        } else {
+            "withheld_gnss"
+        }
+        .into(),
+        model: run.model.name().into(),
+        overall: samples.overall(),
+        outside_outages: truth_reference.then(|| samples.outside()),
+        outages: run.outages.clone(),
+        outage_summary: OutageSummary::of(&per_outage),
+        per_outage,
+        gnss_residuals: residuals,
+        coasting: coasting
+            .into_iter()
+            .map(|(mode, mut per)| {
+                per.sort_by_key(|m| m.index);
+                CoastingMetrics {
+                    mode,
+                    summary: OutageSummary::of(&per),
+                    outages: per,
+                }
+            })
+            .collect(),
+        gating: run.gating.clone(),
+        aiding: run.aiding,
+    }
+}

@@ -6,9 +6,7 @@
 //! of what the updates fed back (read from the nominal-state jump); the observed and plain
 //! calls give bit-identical filters.
 
-mod common_filter;
-
-use common_filter::*;
+use test_support::filter_sim::*;
 use nav_core::config::FilterConfig;
 use nav_core::filter::observe::{CovObserver, PredictionRecord};
 use nav_core::filter::Filter;

@@ -281,6 +281,7 @@ fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
     IoError::Config {
         path: path.to_path_buf(),
         message: message.into(),
+        source: None,
     }
 }
 

@@ -861,6 +861,7 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
         return Err(IoError::Config {
             path: name.to_path_buf(),
             message,
+            source: None,
         });
     }
     cfg.validate().map_err(|message| IoError::Config {
@@ -885,6 +886,7 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
             return Err(IoError::Config {
                 path: name.to_path_buf(),
                 message: format!("{at}[{table}] {message}"),
+                source: None,
             });
         }
     }
@@ -974,6 +976,7 @@ impl RunConfig {
                 let fmt = self.gnss.csv.as_ref().ok_or_else(|| IoError::Config {
                     path: gnss_path.clone(),
                     message: "gnss.format = \"csv\" needs a [gnss.csv] mapping".into(),
+                    source: None,
                 })?;
                 let r = read_gnss_csv(&gnss_path, fmt)?;
                 warnings.extend(r.warnings);

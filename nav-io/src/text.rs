@@ -259,8 +259,59 @@ pub fn read_imu_text(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
     })
 }
 
+/// An IMU text file (plain or gzip) read one sample at a time: the streaming form of
+/// [`read_imu_text`] (same parsing, same errors with file, line and column, same time-order
+/// check), yielding each sample with its 1-based file line. Nothing is kept but the current
+/// line.
+pub struct ImuTextReader {
+    rd: super::lines::LineReader,
+    mono: MonotonicTime,
+    failed: bool,
+}
+
+impl ImuTextReader {
+    /// Opens `path`.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
+        Ok(Self {
+            rd: open_text(path.as_ref())?,
+            mono: MonotonicTime::new(),
+            failed: false,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        self.rd.path()
+    }
+
+    fn read(&mut self) -> Result<Option<(ImuSample, usize)>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
+        let s = parse_imu_line(&dl)?;
+        self.mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
+        Ok(Some((s, dl.line)))
+    }
+}
+
+impl Iterator for ImuTextReader {
+    type Item = Result<(ImuSample, usize), IoError>;
+
+    /// The next sample and its line; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
+}
+
 /// Opens `path` for writing (gzip when it ends in `.gz`) and runs `body` on a buffered writer.
-pub(crate) fn write_with(
+pub fn write_with(
     path: &Path,
     body: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), IoError> {
@@ -507,7 +558,9 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
 }
 
 /// One line of the KF-GINS nav format; shared by [`write_nav_text`] and streaming writers
-/// (hw-bridge).
+/// (hw-bridge). Numbers in Rust's `Display` form (shortest round-trip digits). `ryu` was
+/// tried for speed and rejected: it picks other digits than `Display` for some values (e.g.
+/// -1514017065704403.2 vs .3), so nav.txt would not stay byte-identical.
 pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {
     writeln!(
         w,

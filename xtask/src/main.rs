@@ -20,6 +20,7 @@
 //!   seconds (default 600), counters balancing exactly at the end;
 //! - `ci`: everything CI checks, each step named and timed.
 
+mod benchrun;
 mod budget;
 mod embedded;
 mod fuzz;
@@ -75,6 +76,26 @@ enum Cmd {
         /// Seconds of sending.
         #[arg(long, default_value_t = 600)]
         seconds: u32,
+    },
+    /// Benchmark: wall time, CPU time and peak RSS of `host-sim run` and `diagnose` on a
+    /// generated 200 Hz drive against a baseline `host-sim` built from git (issue 17).
+    BenchRun {
+        /// Length of the generated drive, hours (0.6667 = the 40-min case of issue 17; 4 for
+        /// the long case).
+        #[arg(long, default_value_t = 40.0 / 60.0)]
+        hours: f64,
+        /// Git revision of the baseline `host-sim`.
+        #[arg(long, default_value = "e9a1122")]
+        baseline: String,
+        /// Measurements per binary (median reported).
+        #[arg(long, default_value_t = 1)]
+        repeat: usize,
+        /// Keep the case and outputs (the directory is printed).
+        #[arg(long)]
+        keep: bool,
+        /// Measure `run` only.
+        #[arg(long)]
+        no_diagnose: bool,
     },
     /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
     /// capture (sent and recorded over a pty pair) against `host-sim run` on the same case.
@@ -146,6 +167,13 @@ fn main() -> std::process::ExitCode {
         Cmd::Fuzz { seconds } => fuzz::run(seconds).map(|_| ()),
         Cmd::Soak { seconds } => soak::run(seconds),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
+        Cmd::BenchRun {
+            hours,
+            baseline,
+            repeat,
+            keep,
+            no_diagnose,
+        } => benchrun::run(hours, &baseline, repeat, keep, no_diagnose),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -58,9 +58,10 @@ use anyhow::Context;
 use nav_core::model::Block;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::sync::Arc;
 
 use crate::metrics::{self, Metrics};
-use crate::run::cli::{execute, prepare, Prepared, RunArgs};
+use crate::run::cli::{execute, execute_case, prepare, Prepared, RunArgs};
 use crate::run::{output, run_filter, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
 pub use prior::{candidates, options_with};
@@ -293,11 +294,11 @@ pub struct Diagnosis {
 pub struct DiagnoseOutput {
     /// The diagnosis (diagnosis.json).
     pub diagnosis: Diagnosis,
-    /// The base run.
-    pub before: RunOutput,
+    /// The base run (shared: the search starts from it without a copy).
+    pub before: Arc<RunOutput>,
     /// The run of the final model (the base run again when nothing changed), on the IMU
     /// clock (`nav_after.txt` adds [`Diagnosis::output_clock_shift_s`]).
-    pub after: RunOutput,
+    pub after: Arc<RunOutput>,
 }
 
 /// The outage position error of a run: RMS over the outages of each outage's largest 3D
@@ -340,7 +341,7 @@ fn dim_of(o: &RunOptions) -> usize {
 }
 
 /// A run with its metrics and errors.
-type Eval = (RunOutput, Metrics, StepErrors);
+type Eval = (Arc<RunOutput>, Metrics, StepErrors);
 
 /// Navigation record rate of the search's runs, Hz: enough for the metrics' interpolation
 /// (records at most 0.05 s apart), an eighth of the memory of every epoch at 200 Hz.
@@ -363,12 +364,13 @@ fn evaluate(p: &Prepared, o: &RunOptions) -> Result<Eval, crate::run::RunError> 
     let out = run_filter(&p.case, &search_recording(o))?;
     let m = metrics::compute(&out, p.case.truth.as_deref());
     let e = validate::step_errors(&out, &m);
-    Ok((out, m, e))
+    Ok((Arc::new(out), m, e))
 }
 
 /// Diagnoses a prepared case (see the module notes).
 pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
     let (before, errors_before) = execute(p, &mut |_, _| {})?;
+    let before = Arc::new(before);
     let residuals_before = residual_stats(&before.innovations);
     let se_before = validate::step_errors(&before, &errors_before);
     let all = dopts
@@ -680,13 +682,9 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     }
     let changed = final_opts.filter != p.opts.filter || !added.is_empty();
     let (after, errors_after) = if changed {
-        let pa = Prepared {
-            case: p.case.clone(),
-            opts: final_opts.clone(),
-            week: p.week,
-            description: p.description.clone(),
-        };
-        execute(&pa, &mut |_, _| {}).unwrap_or((cur.0, cur.1))
+        execute_case(&p.case, &final_opts, &mut |_, _| {})
+            .map(|(r, m)| (Arc::new(r), m))
+            .unwrap_or((cur.0, cur.1))
     } else {
         (before.clone(), errors_before.clone())
     };
@@ -815,18 +813,10 @@ pub fn write_outputs(
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     output::write_nav(&dir.join("nav_before.txt"), &d.before.nav, p.week)?;
-    // the after solution on the GNSS clock when a time offset was added
+    // the after solution on the GNSS clock when a time offset was added (written record by
+    // record: no second copy of the solution)
     let shift = d.diagnosis.output_clock_shift_s;
-    let after: Vec<nav_core::types::NavSolution> = d
-        .after
-        .nav
-        .iter()
-        .map(|s| nav_core::types::NavSolution {
-            t_s: s.t_s + shift,
-            ..*s
-        })
-        .collect();
-    output::write_nav(&dir.join("nav_after.txt"), &after, p.week)?;
+    output::write_nav_with(&dir.join("nav_after.txt"), &d.after.nav, p.week, shift)?;
     let jp = dir.join("diagnosis.json");
     std::fs::write(&jp, serde_json::to_string_pretty(&d.diagnosis)?)
         .with_context(|| format!("writing {}", jp.display()))?;

@@ -43,7 +43,7 @@ use nav_core::nav::NavState;
 use nav_core::types::NavSolution;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
+    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use std::path::{Path, PathBuf};
 
@@ -303,8 +303,33 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     att_std_rad
 }
 
+struct ExecRef<'a> {
+    case: &'a CaseData,
+    opts: &'a RunOptions,
+}
+
+/// An IMU text file the run streams instead of loading ([`prepare_streaming`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuStream {
+    /// The IMU text file (plain or gzip).
+    pub path: PathBuf,
+    /// Offset added to every time stamp, s (`--imu-time-offset`).
+    pub time_offset_s: f64,
+}
+
 /// Loads everything a run needs from the arguments.
 pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
+    Ok(prepare_inner(args, false)?.0)
+}
+
+/// [`prepare`] without loading the IMU when it is a text file (KF-GINS configurations and
+/// case directories): the case's IMU list stays empty and the file is returned, to be read
+/// while the filter runs ([`execute_streaming`]). Other IMU formats are loaded as before.
+pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
+    prepare_inner(args, true)
+}
+
+fn prepare_inner(args: &RunArgs, stream: bool) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
     let kind = read_config(&args.config)
         .with_context(|| format!("reading the configuration {}", args.config.display()))?;
     let cfg_dir = args
@@ -320,10 +345,16 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         }
         None => None,
     };
-    let (mut case, mut opts, mut week, mut description) = match kind {
-        ConfigKind::KfGins(k) => prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model)?,
-        ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref())?,
+    let (mut case, mut opts, mut week, mut description, imu_stream) = match kind {
+        ConfigKind::KfGins(k) => {
+            prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
+        }
+        ConfigKind::Run(r) => prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream)?,
     };
+    let mut imu_stream = imu_stream.map(|path| ImuStream {
+        path,
+        time_offset_s: 0.0,
+    });
     if let Some(cd) = &case_dir {
         week = cd.week;
         if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
@@ -339,6 +370,9 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     if let Some(dt) = args.imu_time_offset {
         for s in &mut case.imu {
             s.t_s += dt;
+        }
+        if let Some(st) = &mut imu_stream {
+            st.time_offset_s = dt;
         }
         description.push_str(&format!("; IMU time offset {dt:+} s"));
     }
@@ -390,8 +424,13 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
         scale_white_noise(&mut opts.filter, k);
         description.push_str(&format!("; white-noise PSDs x{k}"));
     }
-    let (t0, t_end) = match (case.imu.first(), case.imu.last()) {
-        (Some(a), Some(b)) => (a.t_s, b.t_s),
+    let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
+    let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
+        (Some(st), _, _) => {
+            let (a, b) = imu_text_time_span(&st.path, periodic_wanted)?;
+            (a + st.time_offset_s, b + st.time_offset_s)
+        }
+        (None, Some(a), Some(b)) => (a.t_s, b.t_s),
         _ => bail!("no IMU samples in the data"),
     };
     let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
@@ -408,12 +447,32 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     opts.record.nav_rate_hz = None;
     opts.record.epoch_rate_hz = Some(args.std_rate);
     opts.smoother_history = args.smooth;
-    Ok(Prepared {
-        case,
-        opts,
-        week,
-        description,
-    })
+    Ok((
+        Prepared {
+            case,
+            opts,
+            week,
+            description,
+        },
+        imu_stream,
+    ))
+}
+
+/// Time of the first IMU sample of a text file and, when `last` is asked, of its last one
+/// (the whole file is read then; otherwise the second value is the first time too).
+fn imu_text_time_span(path: &Path, last: bool) -> anyhow::Result<(f64, f64)> {
+    let mut rd = ImuTextReader::open(path)?;
+    let Some(first) = rd.next().transpose()? else {
+        bail!("no IMU samples in {}", path.display());
+    };
+    let t0 = first.0.t_s;
+    let mut t1 = t0;
+    if last {
+        for r in rd {
+            t1 = r?.0.t_s;
+        }
+    }
+    Ok((t0, t1))
 }
 
 fn prepare_kf_gins(
@@ -421,7 +480,8 @@ fn prepare_kf_gins(
     dir: &Path,
     case_dir: Option<&CaseDir>,
     model: Option<Model>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    stream: bool,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
     k.validate()
         .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
     let (imu_p, gnss_p) = match case_dir {
@@ -431,7 +491,11 @@ fn prepare_kf_gins(
             k.resolve_path(&k.gnsspath, dir),
         ),
     };
-    let imu_rec = read_imu_text(&imu_p)?;
+    let (imu_rec, imu_stream) = if stream {
+        (nav_io::ImuRecord::default(), Some(imu_p.clone()))
+    } else {
+        (read_imu_text(&imu_p)?, None)
+    };
     let gnss = read_gnss_text(&gnss_p)?;
     // the model: what KF-GINS's code does unless the command line asks for another layout
     let model = model.unwrap_or(Model::KfGinsFeedback);
@@ -477,6 +541,7 @@ fn prepare_kf_gins(
         opts,
         week,
         d,
+        imu_stream,
     ))
 }
 
@@ -503,14 +568,21 @@ fn prepare_run_config(
     r: &RunConfig,
     dir: &Path,
     case_dir: Option<&CaseDir>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String)> {
+    stream: bool,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
     let mut week = 0u16;
+    let mut imu_stream = None;
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
     let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
-            read_imu_text(&c.imu)?,
+            if stream {
+                imu_stream = Some(c.imu.clone());
+                nav_io::ImuRecord::default()
+            } else {
+                read_imu_text(&c.imu)?
+            },
             read_gnss_text(&c.gnss)?,
             if c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
@@ -609,6 +681,10 @@ fn prepare_run_config(
             let t = r
                 .start_s
                 .or_else(|| imu.first().map(|s| s.t_s))
+                .or_else(|| {
+                    let p = imu_stream.as_ref()?;
+                    imu_text_time_span(p, false).ok().map(|(a, _)| a)
+                })
                 .unwrap_or(0.0);
             InitSpec::Given(
                 NavState::from_rpy(
@@ -668,6 +744,7 @@ fn prepare_run_config(
         opts,
         week,
         d,
+        imu_stream,
     ))
 }
 
@@ -676,11 +753,21 @@ pub fn execute(
     p: &Prepared,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
-    let out = run_filter_with_progress(&p.case, &p.opts, progress)?;
+    execute_case(&p.case, &p.opts, progress)
+}
+
+/// [`execute`] on a case and options apart (the case is not copied).
+pub fn execute_case(
+    case: &CaseData,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let p = ExecRef { case, opts };
+    let out = run_filter_with_progress(p.case, p.opts, progress)?;
     let truth = p.case.truth.as_deref();
     let mut m = metrics::compute(&out, truth);
     if !out.snapshots.is_empty() {
-        let raw = coast_outages(&p.case, &out, CoastMode::Raw);
+        let raw = coast_outages(p.case, &out, CoastMode::Raw);
         m.coasting.push(metrics::coasting_metrics(
             "raw: no sensor-error correction",
             &raw,
@@ -692,7 +779,7 @@ pub fn execute(
                 gyro_bias_radps: b,
                 ..ImuCorrection::default()
             };
-            let st = coast_outages(&p.case, &out, CoastMode::Fixed(Box::new(c)));
+            let st = coast_outages(p.case, &out, CoastMode::Fixed(Box::new(c)));
             m.coasting.push(metrics::coasting_metrics(
                 "static gyro bias only",
                 &st,
@@ -704,44 +791,193 @@ pub fn execute(
     Ok((out, m))
 }
 
-/// Runs `host-sim run`.
-pub fn run(args: RunArgs) -> anyhow::Result<()> {
+/// Runs the filter on a prepared case with the IMU streamed from `imu` (or from the case's
+/// samples in memory when `None`), writing the outputs in `dir` as it goes
+/// ([`super::sink::FileSink`]: `*.partial`, renamed when complete) and computing the metrics
+/// online, with the coasting baselines. `nav_rate_hz`: rate of `nav.txt` (None: every IMU
+/// epoch). A fault mid-run leaves the outputs up to it as `*.partial` and returns
+/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); other errors
+/// leave no output.
+pub fn execute_streaming(
+    p: &Prepared,
+    imu: Option<&ImuStream>,
+    dir: &Path,
+    nav_rate_hz: Option<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let opts = p.opts.clone();
+    let truth = p.case.truth.as_deref();
+    let mut sink = super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, truth)?;
+    let data = super::RunData {
+        gnss: &p.case.gnss,
+        truth,
+    };
+    let coast = super::CoastPlan {
+        raw: true,
+        static_gyro_bias: true,
+    };
+    let res = match imu {
+        Some(st) => {
+            let info = super::ImuSourceInfo {
+                path: Some(st.path.clone()),
+                increments_span_gaps: false,
+            };
+            let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+        None => {
+            let (mut it, info) = super::case_imu_stream(&p.case);
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+    };
+    match res {
+        Ok(out) => {
+            let m = sink
+                .finish(&out, None, |m| metrics_json(m, &out, None))
+                .with_context(|| {
+                    format!(
+                        "writing the outputs in {}: incomplete, left as *{} (no file under its \
+                         final name)",
+                        dir.display(),
+                        output::PARTIAL_SUFFIX
+                    )
+                })?;
+            Ok((out, m))
+        }
+        Err(super::RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial,
+        }) => {
+            let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+            let t_last = sink.last_nav_t();
+            let written = sink.finish(&partial, Some(&fault), |m| {
+                metrics_json(m, &partial, Some(&fault))
+            });
+            Err(match written {
+                Ok(_) => anyhow::anyhow!(
+                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                     {}/*{} (incomplete)",
+                    dir.display(),
+                    output::PARTIAL_SUFFIX
+                ),
+                Err(w) => anyhow::anyhow!(
+                    "{fault}; the run stopped there, and writing the partial outputs failed \
+                     too: {w:#}"
+                ),
+            })
+        }
+        Err(e @ super::RunError::Output(_)) => Err(anyhow::Error::new(e).context(format!(
+            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+            dir.display(),
+            output::PARTIAL_SUFFIX
+        ))),
+        Err(e) => {
+            drop(sink);
+            for n in output::OUTPUT_NAMES {
+                let _ = std::fs::remove_file(output::partial_path(dir, n));
+            }
+            Err(e.into())
+        }
+    }
+}
+
+/// Samples per message from the reader thread.
+const READ_CHUNK: usize = 2048;
+/// Messages in flight between the reader thread and the filter.
+const READ_QUEUE: usize = 4;
+
+/// The samples of an IMU text file read and parsed by a thread of their own and handed over
+/// in chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
+/// flight): reading and parsing overlap the filter. The thread stops at the first error
+/// (passed on) or when the receiver is dropped.
+pub fn threaded_imu_reader(
+    path: PathBuf,
+    time_offset_s: f64,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    type Msg = Result<Vec<super::ImuItem>, super::RunError>;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
+    std::thread::spawn(move || {
+        let rd = match ImuTextReader::open(&path) {
+            Ok(r) => r,
+            Err(e) => {
+                let _ = tx.send(Err(super::RunError::Input(e)));
+                return;
+            }
+        };
+        let mut chunk = Vec::with_capacity(READ_CHUNK);
+        for r in rd {
+            match r {
+                Ok((mut s, line)) => {
+                    s.t_s += time_offset_s;
+                    chunk.push(super::ImuItem { sample: s, line });
+                    if chunk.len() == READ_CHUNK {
+                        let full = std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
+                        if tx.send(Ok(full)).is_err() {
+                            return;
+                        }
+                    }
+                }
+                Err(e) => {
+                    if !chunk.is_empty() {
+                        let _ = tx.send(Ok(std::mem::take(&mut chunk)));
+                    }
+                    let _ = tx.send(Err(super::RunError::Input(e)));
+                    return;
+                }
+            }
+        }
+        if !chunk.is_empty() {
+            let _ = tx.send(Ok(chunk));
+        }
+    });
+    rx.into_iter().flat_map(|m| {
+        let (items, err) = match m {
+            Ok(v) => (v, None),
+            Err(e) => (Vec::new(), Some(Err(e))),
+        };
+        items.into_iter().map(Ok).chain(err)
+    })
+}
+
+/// `run --smooth`: the backward pass needs the whole forward run, so the case is run in memory
+/// ([`execute`]) and the smoother writes the outputs (`crate::smooth::apply::finish`).
+fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
-    let p = prepare(&args)?;
+    let p = prepare(args)?;
+    println!("{}", p.description);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let (out, m) = execute(&p, &mut |_, _| {})?;
+    let t_run = t.elapsed().as_secs_f64();
+    crate::smooth::apply::finish(args, &p, out, m, t_run)
+}
+
+/// Runs `host-sim run` (streaming: see [`execute_streaming`]).
+pub fn run(args: RunArgs) -> anyhow::Result<()> {
+    if args.smooth {
+        return run_smoothed(&args);
+    }
+    let t = std::time::Instant::now();
+    let (p, imu) = prepare_streaming(&args)?;
     println!("{}", p.description);
     let pb = if args.quiet {
         indicatif::ProgressBar::hidden()
     } else {
-        indicatif::ProgressBar::new(p.case.imu.len() as u64)
+        indicatif::ProgressBar::new_spinner()
     };
     pb.set_style(
-        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} IMU samples {elapsed}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template("{spinner} {pos} IMU samples {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
     );
-    let res = execute(&p, &mut |done, _| pb.set_position(done as u64));
+    let dir = &args.out;
+    let res = execute_streaming(&p, imu.as_ref(), dir, args.nav_rate, &mut |done, _| {
+        pb.set_position(done as u64)
+    });
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let (out, m) = match res {
-        Ok(x) => x,
-        Err(e) => return Err(write_after_fault(&args, &p, e)),
-    };
-    if args.smooth {
-        return crate::smooth::apply::finish(&args, &p, out, m, t_run);
-    }
-    let nav: Vec<NavSolution> = match args.nav_rate {
-        Some(r) if r > 0.0 => decimate(&out.nav, r),
-        _ => out.nav.clone(),
-    };
-    let json = metrics_json(&m, &out, None)?;
-    output::write_all(dir, &out, &nav, p.week, &json, true).with_context(|| {
-        format!(
-            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
-            dir.display(),
-            output::PARTIAL_SUFFIX
-        )
-    })?;
+    let (out, m) = res?;
     let c = &out.counters;
     println!(
         "model {} ({} states), init: {} ({})",
@@ -830,45 +1066,6 @@ pub fn imu_summary(out: &RunOutput) -> String {
         ));
     }
     s
-}
-
-/// After a failed run: a fault mid-run writes the outputs up to it as `*.partial` and
-/// returns the error with where they are; other errors are returned as they are.
-fn write_after_fault(args: &RunArgs, p: &Prepared, e: anyhow::Error) -> anyhow::Error {
-    let e = match e.downcast::<super::RunError>() {
-        Ok(super::RunError::Fault {
-            location,
-            t_s,
-            msg,
-            partial,
-        }) => (location, t_s, msg, partial),
-        Ok(other) => return other.into(),
-        Err(e) => return e,
-    };
-    let (location, t_s, msg, partial) = e;
-    let fault = format!("{location} (t = {t_s:.6} s): {msg}");
-    let m = metrics::compute(&partial, p.case.truth.as_deref());
-    let nav: Vec<NavSolution> = match args.nav_rate {
-        Some(r) if r > 0.0 => decimate(&partial.nav, r),
-        _ => partial.nav.clone(),
-    };
-    let written = metrics_json(&m, &partial, Some(&fault)).and_then(|json| {
-        Ok(output::write_all(
-            &args.out, &partial, &nav, p.week, &json, false,
-        )?)
-    });
-    let t_last = partial.nav.last().map_or(f64::NAN, |s| s.t_s);
-    match written {
-        Ok(_) => anyhow::anyhow!(
-            "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in {}/*{} \
-             (incomplete)",
-            args.out.display(),
-            output::PARTIAL_SUFFIX
-        ),
-        Err(w) => anyhow::anyhow!(
-            "{fault}; the run stopped there, and writing the partial outputs failed too: {w:#}"
-        ),
-    }
 }
 
 /// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.

@@ -15,7 +15,7 @@
 //! minus the earth rate (resolved with the aligned attitude): the usual MEMS start-up
 //! calibration. The filter starts at the last sample of the window.
 
-use super::{CaseData, RunError, RunOptions};
+use super::{RunError, RunOptions};
 use nalgebra::Vector3;
 use nav_core::align::{
     coarse_align, motion_align, static_start, AlignConfig, AlignError, HeadingSource,
@@ -24,10 +24,10 @@ use nav_core::align::{
 use nav_core::attitude::quat_from_rotvec;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
-use nav_core::filter::InitialUncertainty;
+use nav_core::filter::{dcm_f64, InitialUncertainty};
 use nav_core::model::BlockKind;
 use nav_core::nav::NavState;
-use nav_core::types::GnssFix;
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use serde::Serialize;
 
 /// How the filter's initial state is obtained.
@@ -125,8 +125,25 @@ pub(crate) struct Start {
     pub report: InitReport,
 }
 
+/// What the initialisation looks at: the first IMU samples (at least the static window), the
+/// GNSS fixes and the truth when there is one.
+#[derive(Debug, Clone, Copy)]
+pub struct InitData<'a> {
+    /// IMU samples from the start of the record (a bounded prefix is enough: the static
+    /// window plus one sample).
+    pub imu: &'a [ImuSample],
+    /// GNSS fixes in time order.
+    pub gnss: &'a [GnssFix],
+    /// Truth, when known.
+    pub truth: Option<&'a [NavSolution]>,
+}
+
+fn max3(a: &[f64; 3]) -> f64 {
+    a.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
 pub(crate) fn initialise(
-    case: &CaseData,
+    case: &InitData<'_>,
     opts: &RunOptions,
     cfg: &FilterConfig,
 ) -> Result<Start, RunError> {
@@ -154,7 +171,7 @@ pub(crate) fn initialise(
             att_err_rad,
             unc,
         } => {
-            let truth = case.truth.as_ref().ok_or_else(|| {
+            let truth = case.truth.ok_or_else(|| {
                 RunError::Init("initialisation from the truth needs a truth record".into())
             })?;
             let tr = truth
@@ -194,7 +211,7 @@ pub(crate) fn initialise(
 }
 
 fn static_alignment(
-    case: &CaseData,
+    case: &InitData<'_>,
     opts: &RunOptions,
     cfg: &FilterConfig,
     sa: &StaticAlign,
@@ -375,7 +392,7 @@ fn static_alignment(
 /// The course from `from` to the first fix after `t_after` at least `dist_m` away
 /// horizontally: (yaw rad, fix time, distance).
 fn gnss_course(
-    case: &CaseData,
+    case: &InitData<'_>,
     from: &Llh,
     t_after: f64,
     dist_m: f64,
@@ -401,7 +418,7 @@ fn gnss_course(
 /// The course of the first fix after `t_after` with a velocity of at least `min_speed_mps`
 /// horizontally: (yaw rad, fix time, speed).
 fn gnss_velocity_course(
-    case: &CaseData,
+    case: &InitData<'_>,
     t_after: f64,
     min_speed_mps: f64,
 ) -> Option<(f64, f64, f64)> {
@@ -427,7 +444,7 @@ fn llh_of(g: &GnssFix) -> Llh {
 }
 
 /// The first two valid fixes at or after `t_a` (within 5 s of each other).
-fn first_two_fixes(case: &CaseData, t_a: f64) -> Option<(&GnssFix, &GnssFix)> {
+fn first_two_fixes<'a>(case: &InitData<'a>, t_a: f64) -> Option<(&'a GnssFix, &'a GnssFix)> {
     let mut it = case
         .gnss
         .iter()
@@ -453,7 +470,7 @@ fn fix_velocity(a: &GnssFix, b: &GnssFix) -> (Vector3<f64>, f64) {
 }
 
 /// Horizontal GNSS speed at the start and the time of the fix it is from.
-fn start_speed(case: &CaseData, t_a: f64) -> Option<(f64, f64)> {
+fn start_speed(case: &InitData<'_>, t_a: f64) -> Option<(f64, f64)> {
     let (a, b) = first_two_fixes(case, t_a)?;
     let (v, _) = fix_velocity(a, b);
     Some((v.x.hypot(v.y), a.t_s))
@@ -463,7 +480,7 @@ fn start_speed(case: &CaseData, t_a: f64) -> Option<(f64, f64)> {
 /// from the climb, roll levelled with the mean specific force between the first two fixes
 /// against the GNSS acceleration; position and velocity from the first fix after the start.
 fn motion_alignment(
-    case: &CaseData,
+    case: &InitData<'_>,
     opts: &RunOptions,
     sa: &StaticAlign,
     t_a: f64,

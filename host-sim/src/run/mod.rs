@@ -24,27 +24,32 @@
 pub mod aiding;
 pub mod cli;
 pub mod coast;
+pub mod engine;
 pub mod gating_report;
 pub mod init;
 pub mod outage;
 pub mod output;
+pub mod sink;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};
-pub use init::{InitReport, InitSpec, StaticAlign};
+pub use engine::{
+    CoastPlan, Coaster, Collect, ImuItem, ImuSourceInfo, RunData, RunHead, RunSink, NOMINAL_WINDOW,
+};
+pub use init::{InitData, InitReport, InitSpec, StaticAlign};
 pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{dcm_f64, Counters, Filter, FilterError, UpdateOutcome};
-use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard, ImuLimits, Verdict};
+use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{
     BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N,
     LAYOUT_NBK, LAYOUT_NBK_SINGLE,
 };
 use nav_core::nav::{NavState, MAX_DT_S};
 use nav_core::scalar::Scalar;
-use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_io::ImuOrigin;
 use serde::{Deserialize, Serialize};
 
@@ -556,6 +561,13 @@ pub enum RunError {
         /// The outputs up to the fault.
         partial: Box<RunOutput>,
     },
+    /// Reading the input failed in the middle of the run (the error names file, line and
+    /// column).
+    #[error("run: {0}")]
+    Input(#[source] nav_io::IoError),
+    /// Writing an output failed.
+    #[error("run: writing the outputs: {0}")]
+    Output(#[source] nav_io::IoError),
     /// The filter refused its construction or failed.
     #[error("run: filter at t = {t_s:.3} s: {msg}")]
     Filter {
@@ -578,21 +590,121 @@ pub fn run_filter(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, RunEr
     run_filter_with_progress(case, opts, &mut |_, _| {})
 }
 
-/// [`run_filter`] calling `progress(done, total)` (IMU samples) about every 1 % of the data.
+/// The samples of a case in memory as the engine's IMU stream (with their file lines when the
+/// case has an origin of the same length).
+pub fn case_imu_stream(
+    case: &CaseData,
+) -> (
+    impl Iterator<Item = Result<ImuItem, RunError>> + '_,
+    ImuSourceInfo,
+) {
+    let lines = case
+        .imu_origin
+        .as_ref()
+        .filter(|o| o.lines.len() == case.imu.len())
+        .map(|o| o.lines.as_slice());
+    let info = ImuSourceInfo {
+        path: case.imu_origin.as_ref().map(|o| o.path.clone()),
+        increments_span_gaps: case
+            .imu_origin
+            .as_ref()
+            .is_some_and(|o| o.increments_span_gaps),
+    };
+    let it = case.imu.iter().enumerate().map(move |(i, s)| {
+        Ok(ImuItem {
+            sample: *s,
+            line: lines.and_then(|l| l.get(i)).copied().unwrap_or(0),
+        })
+    });
+    (it, info)
+}
+
+/// [`run_filter`] calling `progress(done, total)` (IMU samples; `total` 0 while unknown)
+/// now and then.
 pub fn run_filter_with_progress(
     case: &CaseData,
     opts: &RunOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RunOutput, RunError> {
+    let (mut it, info) = case_imu_stream(case);
+    let mut sink = Collect::default();
+    let data = RunData {
+        gnss: &case.gnss,
+        truth: case.truth.as_deref(),
+    };
+    let res = run_stream(
+        &mut it,
+        info,
+        data,
+        opts,
+        CoastPlan::default(),
+        &mut sink,
+        progress,
+    );
+    match res {
+        Ok(mut out) => {
+            sink.fill(&mut out);
+            Ok(out)
+        }
+        Err(RunError::Fault {
+            location,
+            t_s,
+            msg,
+            mut partial,
+        }) => {
+            sink.fill(&mut partial);
+            // a numerical failure is noticed after the fact: drop the records from the
+            // first non-finite one on
+            if let Some(i) = partial.nav.iter().position(|s| !solution_is_finite(s)) {
+                partial.nav.truncate(i);
+            }
+            if let Some(i) = partial
+                .epochs
+                .iter()
+                .position(|e| !solution_is_finite(&e.nav))
+            {
+                partial.epochs.truncate(i);
+            }
+            Err(RunError::Fault {
+                location,
+                t_s,
+                msg,
+                partial,
+            })
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// True when every navigation quantity of a record is finite.
+pub fn solution_is_finite(s: &NavSolution) -> bool {
+    s.lat_rad.is_finite()
+        && s.lon_rad.is_finite()
+        && s.h_m.is_finite()
+        && s.vel_ned_mps.iter().all(|v| v.is_finite())
+        && s.rpy_rad.iter().all(|v| v.is_finite())
+}
+
+/// Runs the filter on a stream of IMU samples, handing every record to `sink` as it is made
+/// (see [`engine`]). Returns the run's summary with empty record lists.
+pub fn run_stream(
+    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
+    info: ImuSourceInfo,
+    data: RunData<'_>,
+    opts: &RunOptions,
+    coast: CoastPlan,
+    sink: &mut dyn RunSink,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
     macro_rules! go {
         ($layout:expr) => {
             match opts.precision {
-                Precision::F64 => {
-                    run_layout::<f64, { $layout.dim() }>($layout, case, opts, progress)
-                }
-                Precision::F32 => {
-                    run_layout::<f32, { $layout.dim() }>($layout, case, opts, progress)
-                }
+                Precision::F64 => engine::run_layout_stream::<f64, { $layout.dim() }>(
+                    $layout, imu, info, data, opts, coast, sink, progress,
+                ),
+                Precision::F32 => engine::run_layout_stream::<f32, { $layout.dim() }>(
+                    $layout, imu, info, data, opts, coast, sink, progress,
+                ),
             }
         };
     }
@@ -624,7 +736,9 @@ pub fn run_filter_with_progress(
         macro_rules! dims {
             ($($n:literal)*) => {
                 match layout.dim() {
-                    $($n => run_layout::<f64, $n>(layout, case, opts, progress),)*
+                    $($n => engine::run_layout_stream::<f64, $n>(
+                        layout, imu, info, data, opts, coast, sink, progress,
+                    ),)*
                     d => Err(RunError::Options(format!(
                         "layout of {d} states: run supports {MIN_EXTRA_DIM} to {MAX_EXTRA_DIM} \
                          states with extra effect blocks"
@@ -808,357 +922,6 @@ fn record_of(out: &UpdateOutcome, fix: &GnssFix) -> InnovationRecord {
     }
 }
 
-fn run_layout<T: Scalar, const N: usize>(
-    layout: Layout,
-    case: &CaseData,
-    opts: &RunOptions,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<RunOutput, RunError> {
-    let mut cfg = opts.filter;
-    cfg.lever_arm_body_m = opts.lever_arm_m;
-    cfg.validate()
-        .map_err(|e| RunError::Options(format!("filter configuration: {e}")))?;
-    let mut outages = opts.outages.clone();
-    outage::normalise(&mut outages).map_err(RunError::Options)?;
-
-    // time order of the IMU
-    for (i, w) in case.imu.windows(2).enumerate() {
-        if let [a, b] = w {
-            if b.t_s <= a.t_s {
-                return Err(RunError::Options(format!(
-                    "{}: IMU time {:.6} s is not after the previous sample's",
-                    case.locate_imu(i + 1),
-                    b.t_s
-                )));
-            }
-        }
-    }
-    let start = init::initialise(case, opts, &cfg)?;
-    if let Some(fl) = start.gyro_bias_sigma_floor {
-        for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
-            *s = s.max(f);
-        }
-    }
-    let InitReport { t_s: t0, .. } = start.report;
-    let mut filter = Filter::<T, N>::new(layout, &cfg, start.state, &start.unc)
-        .map_err(|e| filter_err(t0, e))?;
-    for (kind, v) in start.estimates.iter().chain(opts.initial_estimates.iter()) {
-        if let Some((_, b)) = layout.find(*kind) {
-            let mut full = vec![0.0; b.dim()];
-            for (d, s) in full.iter_mut().zip(v.iter()) {
-                *d = *s;
-            }
-            filter
-                .set_block_estimate(*kind, &full)
-                .map_err(|e| filter_err(t0, e))?;
-        }
-    }
-
-    let end_s = opts.end_s.unwrap_or(f64::INFINITY);
-    let first = case.imu.partition_point(|s| s.t_s <= t0);
-    let last = case.imu.partition_point(|s| s.t_s <= end_s);
-    if first >= last {
-        return Err(RunError::NoImu);
-    }
-    let mut counters = RunCounters {
-        imu_before_start: first as u64,
-        gnss_total: case.gnss.len() as u64,
-        ..Default::default()
-    };
-    let mut nav = Vec::new();
-    let mut epochs = Vec::new();
-    let mut innovations = Vec::with_capacity(case.gnss.len());
-    let mut snapshots = Vec::new();
-    let mut nav_dec = Decimator::new(opts.record.nav_rate_hz, t0);
-    let mut ep_dec = Decimator::new(opts.record.epoch_rate_hz, t0);
-    let record = |f: &Filter<T, N>,
-                  nav: &mut Vec<NavSolution>,
-                  epochs: &mut Vec<EpochRecord>,
-                  nav_dec: &mut Decimator,
-                  ep_dec: &mut Decimator| {
-        let t = f.nav_state().t_s;
-        let take_nav = nav_dec.take(t);
-        let take_ep = ep_dec.take(t);
-        if take_nav || take_ep {
-            let s = f.solution();
-            if take_nav {
-                nav.push(s);
-            }
-            if take_ep {
-                epochs.push(EpochRecord {
-                    t_s: t,
-                    nav: s,
-                    state_std: f.state_std().to_vec(),
-                    estimates: all_estimates(f),
-                    blocks: block_estimates(f),
-                });
-            }
-        }
-    };
-    record(&filter, &mut nav, &mut epochs, &mut nav_dec, &mut ep_dec);
-
-    // fixes before the initial epoch are not used
-    let mut gi = case.gnss.partition_point(|g| g.t_s < t0 - 1e-9);
-    counters.gnss_outside_run = gi as u64;
-    let mut next_outage = outages.partition_point(|o| o.start_s < t0);
-    let mut status_seen = 0u32;
-    let total = last - first;
-    let step = (total / 100).max(1);
-    let mut guard = imu_guard(case, opts, first, t0)?;
-    let mut imu_report = ImuReport {
-        nominal_dt_s: guard.config().nominal_dt_s,
-        ..ImuReport::default()
-    };
-    let mut fault: Option<(String, f64, String)> = None;
-    let mut rec = if opts.smoother_history {
-        crate::smooth::Recorder::new(N)
-    } else {
-        crate::smooth::Recorder::disabled()
-    };
-    let mut aid = aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
-    'imu: for k in first..last {
-        let s = case.imu.get(k).copied().unwrap_or_default();
-        let dt = s.t_s - filter.nav_state().t_s;
-        let c = match guard.check(&s) {
-            Ok(Verdict::Use(c)) => c,
-            Ok(Verdict::Reject(why)) if opts.imu_checks.stop_on_implausible => {
-                fault = Some((
-                    case.locate_imu(k),
-                    s.t_s,
-                    format!("implausible IMU sample: {why}"),
-                ));
-                break;
-            }
-            Ok(Verdict::Reject(why)) => {
-                counters.imu_implausible += 1;
-                if imu_report.events.len() < MAX_IMU_EVENTS {
-                    imu_report.events.push(ImuEvent {
-                        t_s: s.t_s,
-                        location: case.locate_imu(k),
-                        what: format!("rejected: {why}"),
-                    });
-                }
-                continue;
-            }
-            Err(e) => {
-                fault = Some((case.locate_imu(k), s.t_s, e.to_string()));
-                break;
-            }
-        };
-        if c.missing > 0 && imu_report.events.len() < MAX_IMU_EVENTS {
-            imu_report.events.push(ImuEvent {
-                t_s: s.t_s,
-                location: case.locate_imu(k),
-                what: format!(
-                    "gap of {dt:.4} s ({} sample(s) missing): {}",
-                    c.missing,
-                    if c.spanned {
-                        "increment spans the gap"
-                    } else {
-                        "lost increments filled by interpolation"
-                    }
-                ),
-            });
-        }
-        for f in c.fill {
-            if let Err(e) = filter.propagate_observed(&f, &mut rec) {
-                fault = Some((
-                    case.locate_imu(k),
-                    s.t_s,
-                    format!("filling the gap before it: {e}"),
-                ));
-                break 'imu;
-            }
-        }
-        match filter.propagate_observed(&c.sample, &mut rec) {
-            Ok(()) => aid.after_imu(&mut filter, &mut rec),
-            Err(FilterError::NonFiniteImu) => {
-                counters.imu_rejected += 1;
-                continue;
-            }
-            Err(e) => {
-                fault = Some((case.locate_imu(k), s.t_s, e.to_string()));
-                break;
-            }
-        }
-        let t_k = s.t_s;
-        let dt_next = case
-            .imu
-            .get(k + 1)
-            .filter(|_| k + 1 < last)
-            .map_or(dt, |n| n.t_s - t_k);
-        let horizon = t_k + 0.5 * dt_next;
-        while let Some(fix) = case.gnss.get(gi) {
-            if fix.t_s >= horizon {
-                break;
-            }
-            gi += 1;
-            if let Some(oi) = outage::find(&outages, fix.t_s) {
-                counters.gnss_withheld += 1;
-                // the antenna as the filter models it: configured lever arm plus any
-                // lever-arm estimate, at IMU time t_fix + the estimated time offset
-                let st = filter.nav_state();
-                let shifted = GnssFix {
-                    t_s: fix.t_s + filter.time_offset_s(),
-                    ..*fix
-                };
-                let inn = position_innovation(st, &filter.lever_arm_body_m(), &shifted);
-                innovations.push(InnovationRecord {
-                    t_s: fix.t_s,
-                    used: FixUse::Withheld,
-                    outage: Some(oi),
-                    dim: 3,
-                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
-                    innovation_var: [f64::NAN; 6],
-                    nis: f64::NAN,
-                    nis_threshold: f64::NAN,
-                    quality: fix.quality.rtklib_q(),
-                });
-                continue;
-            }
-            if rec.is_enabled() {
-                // the update's own prediction, seen by the smoother's recorder (a failure is
-                // reported by the update)
-                let _ = filter.predict_covariance_observed(&mut rec);
-            }
-            aid.note_fix(fix);
-            match filter.update_gnss(fix) {
-                Ok(o) => {
-                    status_seen |= filter.status();
-                    let r = record_of(&o, fix);
-                    match r.used {
-                        FixUse::Accepted => counters.gnss_accepted += 1,
-                        FixUse::Forced => {
-                            counters.gnss_accepted += 1;
-                            counters.gnss_forced += 1
-                        }
-                        _ => counters.gnss_rejected += 1,
-                    }
-                    innovations.push(r);
-                }
-                Err(FilterError::InvalidGnss)
-                | Err(FilterError::GnssTime { .. })
-                | Err(FilterError::Numerical) => {
-                    counters.gnss_invalid += 1;
-                    innovations.push(InnovationRecord {
-                        t_s: fix.t_s,
-                        used: FixUse::Invalid,
-                        outage: None,
-                        dim: 0,
-                        innovation: [f64::NAN; 6],
-                        innovation_var: [f64::NAN; 6],
-                        nis: f64::NAN,
-                        nis_threshold: f64::NAN,
-                        quality: if fix.quality == FixQuality::NoFix {
-                            0
-                        } else {
-                            fix.quality.rtklib_q()
-                        },
-                    });
-                }
-                Err(e) => {
-                    fault = Some((
-                        format!("GNSS fix at t = {:.3} s", fix.t_s),
-                        fix.t_s,
-                        e.to_string(),
-                    ));
-                    break 'imu;
-                }
-            }
-        }
-        // snapshot at the first IMU epoch at or after an outage start
-        while let Some(o) = outages.get(next_outage) {
-            if t_k < o.start_s {
-                break;
-            }
-            if t_k < o.end_s() {
-                snapshots.push(OutageSnapshot {
-                    outage: next_outage,
-                    next_imu: k + 1,
-                    state: *filter.nav_state(),
-                    correction: filter.imu_correction(),
-                });
-            }
-            next_outage += 1;
-        }
-        record(&filter, &mut nav, &mut epochs, &mut nav_dec, &mut ep_dec);
-        if (k - first) % step == 0 {
-            progress(k - first, total);
-        }
-    }
-    progress(total, total);
-    counters.gnss_outside_run += (case.gnss.len() - gi.min(case.gnss.len())) as u64;
-    counters.absorb(filter.counters());
-    counters.imu_rejected = counters
-        .imu_rejected
-        .max(u64::from(filter.counters().imu_rejected));
-    let g = guard.counters();
-    counters.imu_gaps = g.gaps;
-    counters.imu_missing_samples = g.missing_samples;
-    counters.imu_gaps_filled = g.gaps_filled;
-    counters.imu_synthetic_samples = g.synthetic_samples;
-    imu_report.gaps = g.gaps;
-    imu_report.missing_samples = g.missing_samples;
-    imu_report.gaps_spanned = g.gaps_spanned;
-    imu_report.gaps_filled = g.gaps_filled;
-    imu_report.rejected = counters.imu_implausible;
-    let history = rec.finish(
-        filter.covariance(),
-        filter.pending_correction(),
-        u64::from(filter.counters().cov_predictions),
-    );
-    let out = RunOutput {
-        model: opts.model,
-        state_names: state_names(&layout),
-        nav,
-        epochs,
-        innovations,
-        counters,
-        outages,
-        snapshots,
-        init: start.report,
-        final_blocks: block_estimates(&filter),
-        final_effects: effect_estimates(&filter),
-        lever_arm_m: opts.lever_arm_m,
-        gating: gating_report::GatingReport::new(
-            &cfg.gating,
-            filter.counters(),
-            filter.robust_stats(),
-            status_seen,
-        ),
-        imu_report,
-        history,
-        aiding: aid.report(),
-    };
-    match fault {
-        None => Ok(out),
-        Some((location, t_s, msg)) => {
-            let mut out = out;
-            // a numerical failure is noticed after the fact: drop the records from the
-            // first non-finite one on
-            let bad = |s: &NavSolution| {
-                !(s.lat_rad.is_finite()
-                    && s.lon_rad.is_finite()
-                    && s.h_m.is_finite()
-                    && s.vel_ned_mps.iter().all(|v| v.is_finite())
-                    && s.rpy_rad.iter().all(|v| v.is_finite()))
-            };
-            if let Some(i) = out.nav.iter().position(bad) {
-                out.nav.truncate(i);
-            }
-            if let Some(i) = out.epochs.iter().position(|e| bad(&e.nav)) {
-                out.epochs.truncate(i);
-            }
-            Err(RunError::Fault {
-                location,
-                t_s,
-                msg,
-                partial: Box::new(out),
-            })
-        }
-    }
-}
-
 /// Median interval of the IMU record, s (None with fewer than two samples).
 pub fn median_imu_interval_s(imu: &[ImuSample]) -> Option<f64> {
     let mut d: Vec<f64> = imu
@@ -1175,32 +938,4 @@ pub fn median_imu_interval_s(imu: &[ImuSample]) -> Option<f64> {
     let m = d.len() / 2;
     let (_, v, _) = d.select_nth_unstable_by(m, f64::total_cmp);
     Some(*v)
-}
-
-/// The IMU guard of a run starting at sample `first` (the filter at `t0`).
-fn imu_guard(
-    case: &CaseData,
-    opts: &RunOptions,
-    first: usize,
-    t0: f64,
-) -> Result<ImuGuard, RunError> {
-    let nominal = median_imu_interval_s(&case.imu).unwrap_or(MAX_DT_S);
-    let ch = &opts.imu_checks;
-    let increments = ch.increments.unwrap_or(match &case.imu_origin {
-        Some(o) if o.increments_span_gaps => GapIncrements::Span,
-        _ => GapIncrements::Auto,
-    });
-    let cfg = GuardConfig {
-        increments,
-        limits: ch.limits,
-        max_gap_s: ch.max_gap_s,
-        ..GuardConfig::new(nominal)
-    };
-    // the sample ending at the initial epoch (with its interval), for the first fill
-    let prev = first
-        .checked_sub(1)
-        .and_then(|i| Some((case.imu.get(i)?, case.imu.get(i.checked_sub(1)?)?)))
-        .filter(|(p, _)| (p.t_s - t0).abs() < 1e-9)
-        .map(|(p, pp)| (*p, p.t_s - pp.t_s));
-    ImuGuard::new(cfg, t0, prev).map_err(|e| RunError::Options(e.to_string()))
 }

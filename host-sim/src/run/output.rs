@@ -3,7 +3,7 @@
 
 use super::{EpochRecord, FixUse, InnovationRecord, RunOutput};
 use nav_core::types::NavSolution;
-use nav_io::{write_nav_text, IoError};
+use nav_io::IoError;
 use std::io::Write;
 use std::path::Path;
 
@@ -24,27 +24,60 @@ fn werr(path: &Path) -> impl Fn(std::io::Error) -> IoError + '_ {
 
 /// Writes the navigation solution with the GPS week filled in.
 pub fn write_nav(path: &Path, nav: &[NavSolution], week: u16) -> Result<(), IoError> {
-    let v: Vec<NavSolution> = nav.iter().map(|s| NavSolution { week, ..*s }).collect();
-    write_nav_text(path, &v)
+    write_nav_with(path, nav, week, 0.0)
+}
+
+/// [`write_nav`] with `shift_s` added to every time (record by record: no copy of the
+/// solution). Same text as [`nav_io::write_nav_text`] (gzip when the name ends in `.gz`).
+pub fn write_nav_with(
+    path: &Path,
+    nav: &[NavSolution],
+    week: u16,
+    shift_s: f64,
+) -> Result<(), IoError> {
+    nav_io::text::write_with(path, |w| {
+        for s in nav {
+            let t_s = if shift_s == 0.0 {
+                s.t_s
+            } else {
+                s.t_s + shift_s
+            };
+            nav_io::write_nav_line(w, &NavSolution { week, t_s, ..*s })?;
+        }
+        Ok(())
+    })
+}
+
+/// The two header lines of `std.txt`.
+pub fn std_header<W: Write + ?Sized>(
+    w: &mut W,
+    model: super::Model,
+    state_names: &[String],
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "# host-sim run: 1-sigma of the error states (sqrt of the covariance diagonal), model {}",
+        model.name()
+    )?;
+    writeln!(w, "# t_s {}", state_names.join(" "))
+}
+
+/// One line of `std.txt`.
+pub fn std_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
+    write!(w, "{:.4}", r.t_s)?;
+    for s in &r.state_std {
+        write!(w, " {s:.6e}")?;
+    }
+    writeln!(w)
 }
 
 /// `std.txt`: `t_s` then the 1-sigma of every error state (SI units named in the header).
 pub fn write_std(path: &Path, run: &RunOutput) -> Result<(), IoError> {
     let mut w = create(path)?;
     let e = werr(path);
-    writeln!(
-        w,
-        "# host-sim run: 1-sigma of the error states (sqrt of the covariance diagonal), model {}",
-        run.model.name()
-    )
-    .map_err(&e)?;
-    writeln!(w, "# t_s {}", run.state_names.join(" ")).map_err(&e)?;
+    std_header(&mut w, run.model, &run.state_names).map_err(&e)?;
     for r in &run.epochs {
-        write!(w, "{:.4}", r.t_s).map_err(&e)?;
-        for s in &r.state_std {
-            write!(w, " {s:.6e}").map_err(&e)?;
-        }
-        writeln!(w).map_err(&e)?;
+        std_line(&mut w, r).map_err(&e)?;
     }
     w.flush().map_err(&e)
 }
@@ -58,17 +91,15 @@ fn unit_of(name: &str) -> (&'static str, f64) {
     }
 }
 
-/// `bias.txt`: `t_s` then per IMU error quantity the estimate (x, y, z) and its 1-sigma, in
-/// deg/h (gyro bias), mg (accelerometer bias, 1 mg = 9.80665e-3 m/s^2) and ppm (scale factors).
-pub fn write_bias(path: &Path, run: &RunOutput) -> Result<(), IoError> {
-    let mut w = create(path)?;
-    let e = werr(path);
+/// The two header lines of `bias.txt` (column names from the first epoch record).
+pub fn bias_header<W: Write + ?Sized>(
+    w: &mut W,
+    first: Option<&EpochRecord>,
+) -> std::io::Result<()> {
     writeln!(
         w,
         "# host-sim run: IMU error estimates (total over the block's processes) and 1-sigma"
-    )
-    .map_err(&e)?;
-    let first: Option<&EpochRecord> = run.epochs.first();
+    )?;
     let mut head = String::from("# t_s");
     if let Some(r) = first {
         for b in &r.blocks {
@@ -81,16 +112,29 @@ pub fn write_bias(path: &Path, run: &RunOutput) -> Result<(), IoError> {
             }
         }
     }
-    writeln!(w, "{head}").map_err(&e)?;
-    for r in &run.epochs {
-        write!(w, "{:.4}", r.t_s).map_err(&e)?;
-        for b in &r.blocks {
-            let (_, k) = unit_of(&b.name);
-            for v in b.value.iter().chain(b.std.iter()) {
-                write!(w, " {:.6}", v * k).map_err(&e)?;
-            }
+    writeln!(w, "{head}")
+}
+
+/// One line of `bias.txt`.
+pub fn bias_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
+    write!(w, "{:.4}", r.t_s)?;
+    for b in &r.blocks {
+        let (_, k) = unit_of(&b.name);
+        for v in b.value.iter().chain(b.std.iter()) {
+            write!(w, " {:.6}", v * k)?;
         }
-        writeln!(w).map_err(&e)?;
+    }
+    writeln!(w)
+}
+
+/// `bias.txt`: `t_s` then per IMU error quantity the estimate (x, y, z) and its 1-sigma, in
+/// deg/h (gyro bias), mg (accelerometer bias, 1 mg = 9.80665e-3 m/s^2) and ppm (scale factors).
+pub fn write_bias(path: &Path, run: &RunOutput) -> Result<(), IoError> {
+    let mut w = create(path)?;
+    let e = werr(path);
+    bias_header(&mut w, run.epochs.first()).map_err(&e)?;
+    for r in &run.epochs {
+        bias_line(&mut w, r).map_err(&e)?;
     }
     w.flush().map_err(&e)
 }
@@ -105,38 +149,45 @@ fn use_name(u: FixUse) -> &'static str {
     }
 }
 
-/// `innovations.txt`: one line per GNSS fix.
-pub fn write_innovations(path: &Path, recs: &[InnovationRecord]) -> Result<(), IoError> {
-    let mut w = create(path)?;
-    let e = werr(path);
+/// The two header lines of `innovations.txt`.
+pub fn innovations_header<W: Write + ?Sized>(w: &mut W) -> std::io::Result<()> {
     writeln!(
         w,
         "# host-sim run: GNSS fixes against the solution. innovation = measured - predicted \
          antenna position (NED, m) [and velocity, m/s]; var = diagonal of S = H P H^T + R; \
          withheld = inside an imposed outage (no update, var/NIS not computed)"
-    )
-    .map_err(&e)?;
+    )?;
     writeln!(
         w,
         "# t_s use outage dim q inn_n_m inn_e_m inn_d_m inn_vn_mps inn_ve_mps inn_vd_mps \
          var_n var_e var_d var_vn var_ve var_vd nis nis_threshold"
     )
-    .map_err(&e)?;
+}
+
+/// One line of `innovations.txt`.
+pub fn innovation_line<W: Write + ?Sized>(w: &mut W, r: &InnovationRecord) -> std::io::Result<()> {
+    write!(
+        w,
+        "{:.4} {} {} {} {}",
+        r.t_s,
+        use_name(r.used),
+        r.outage.map_or(-1, |o| o as i64),
+        r.dim,
+        r.quality
+    )?;
+    for v in r.innovation.iter().chain(r.innovation_var.iter()) {
+        write!(w, " {v:.6e}")?;
+    }
+    writeln!(w, " {:.4} {:.4}", r.nis, r.nis_threshold)
+}
+
+/// `innovations.txt`: one line per GNSS fix.
+pub fn write_innovations(path: &Path, recs: &[InnovationRecord]) -> Result<(), IoError> {
+    let mut w = create(path)?;
+    let e = werr(path);
+    innovations_header(&mut w).map_err(&e)?;
     for r in recs {
-        write!(
-            w,
-            "{:.4} {} {} {} {}",
-            r.t_s,
-            use_name(r.used),
-            r.outage.map_or(-1, |o| o as i64),
-            r.dim,
-            r.quality
-        )
-        .map_err(&e)?;
-        for v in r.innovation.iter().chain(r.innovation_var.iter()) {
-            write!(w, " {v:.6e}").map_err(&e)?;
-        }
-        writeln!(w, " {:.4} {:.4}", r.nis, r.nis_threshold).map_err(&e)?;
+        innovation_line(&mut w, r).map_err(&e)?;
     }
     w.flush().map_err(&e)
 }

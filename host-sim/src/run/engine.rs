@@ -1,0 +1,831 @@
+//! The streaming run engine: the filter consumes IMU samples as an iterator (a file reader,
+//! a generator, or a slice in memory) and hands every record to a [`RunSink`] as it is made.
+//!
+//! Memory does not grow with the record: the engine keeps a bounded buffer of the first
+//! samples ([`NOMINAL_WINDOW`] samples, or the static alignment window when longer), one
+//! sample of look-ahead (the nearest-epoch rule needs the next sample's time), the GNSS fixes
+//! (small: one per second) and, while an outage is open, a free-inertial coaster per coasting
+//! mode fed the same raw samples ([`Coaster`], the online form of
+//! [`super::coast::coast_outages`]). What the sink keeps is its business: the in-memory
+//! [`Collect`] sink keeps everything (tests, `diagnose`, the study), the file sink of
+//! `host-sim run` writes as it goes.
+//!
+//! # Differences from loading the record whole
+//!
+//! - The nominal IMU interval (gap detection) is the median interval of the first
+//!   [`NOMINAL_WINDOW`] samples of the record (the whole record before): identical on regular
+//!   data; on a record whose rate changes after the first 10 s at 200 Hz the nominal interval
+//!   follows the start.
+//! - An IMU time that does not increase is found when the engine reaches it (before: before
+//!   the run started): the run stops there with [`RunError::Options`] naming the sample.
+
+use super::coast::{CoastMode, CoastTrack};
+use super::init::{self, InitData, InitReport};
+use super::{
+    all_estimates, block_estimates, effect_estimates, filter_err, gating_report, outage,
+    position_innovation, record_of, state_names, Decimator, EpochRecord, FixUse, ImuEvent,
+    ImuReport, InnovationRecord, Model, OutageSnapshot, RunCounters, RunError, RunOptions,
+    RunOutput, MAX_IMU_EVENTS,
+};
+use nav_core::filter::{Filter, FilterError};
+use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard, Verdict};
+use nav_core::model::{ImuCorrection, Layout};
+use nav_core::nav::{NavState, Strapdown, MAX_DT_S};
+use nav_core::scalar::Scalar;
+use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use std::collections::VecDeque;
+use std::path::PathBuf;
+
+/// Samples from the start of the record whose median interval is the nominal IMU interval.
+pub const NOMINAL_WINDOW: usize = 2001;
+
+/// One IMU sample with the file line it came from (0 when unknown).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ImuItem {
+    /// The sample.
+    pub sample: ImuSample,
+    /// File line (1-based; 0 when unknown).
+    pub line: usize,
+}
+
+/// Where IMU samples come from (for messages and the gap rule).
+#[derive(Debug, Clone, Default)]
+pub struct ImuSourceInfo {
+    /// The file (None for data in memory).
+    pub path: Option<PathBuf>,
+    /// True when each increment covers the whole interval since the previous sample even
+    /// across a time gap (see [`nav_io::ImuOrigin::increments_span_gaps`]).
+    pub increments_span_gaps: bool,
+}
+
+impl ImuSourceInfo {
+    /// `file line N` of a sample (`IMU sample index` without a file or line), as
+    /// [`super::CaseData::locate_imu`] says it.
+    pub fn locate(&self, index: usize, line: usize) -> String {
+        match &self.path {
+            Some(p) if line > 0 => format!("{} line {line}", p.display()),
+            _ => format!("IMU sample {index}"),
+        }
+    }
+}
+
+/// The run's state-layout description, given to the sink before the first record.
+#[derive(Debug, Clone)]
+pub struct RunHead<'a> {
+    /// The model run.
+    pub model: Model,
+    /// Names (with units) of the error states.
+    pub state_names: &'a [String],
+}
+
+/// Receives the records of a run as they are made.
+pub trait RunSink {
+    /// Called once before the first record.
+    fn start(&mut self, _head: &RunHead<'_>) -> Result<(), RunError> {
+        Ok(())
+    }
+    /// A navigation record at the nav rate ([`super::RecordOptions::nav_rate_hz`]).
+    fn nav(&mut self, s: &NavSolution) -> Result<(), RunError>;
+    /// A record at the epoch rate (standard deviations and estimates).
+    fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError>;
+    /// A GNSS fix against the solution (every fix processed, in time order).
+    fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError>;
+    /// The filter state at the start of an outage.
+    fn snapshot(&mut self, _s: &OutageSnapshot) {}
+    /// A finished coasting track (`mode` indexes the coasting modes the run was given).
+    fn coast(&mut self, _mode: usize, _track: CoastTrack) {}
+    /// True when the sink wants [`Self::epoch`] records (building them costs).
+    fn wants_epochs(&self) -> bool {
+        true
+    }
+}
+
+/// The in-memory sink: keeps every record (what [`super::run_filter`] returns).
+#[derive(Debug, Default)]
+pub struct Collect {
+    /// Navigation records.
+    pub nav: Vec<NavSolution>,
+    /// Epoch records.
+    pub epochs: Vec<EpochRecord>,
+    /// GNSS fixes against the solution.
+    pub innovations: Vec<InnovationRecord>,
+    /// Outage snapshots.
+    pub snapshots: Vec<OutageSnapshot>,
+    /// Coasting tracks per mode.
+    pub coast: Vec<(usize, CoastTrack)>,
+}
+
+impl RunSink for Collect {
+    fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
+        self.nav.push(*s);
+        Ok(())
+    }
+    fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
+        self.epochs.push(r);
+        Ok(())
+    }
+    fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
+        self.innovations.push(*r);
+        Ok(())
+    }
+    fn snapshot(&mut self, s: &OutageSnapshot) {
+        self.snapshots.push(*s);
+    }
+    fn coast(&mut self, mode: usize, track: CoastTrack) {
+        self.coast.push((mode, track));
+    }
+}
+
+impl Collect {
+    /// Moves the records into a run output made by the engine (whose record lists are empty).
+    pub fn fill(self, out: &mut RunOutput) {
+        out.nav = self.nav;
+        out.epochs = self.epochs;
+        out.innovations = self.innovations;
+        out.snapshots = self.snapshots;
+    }
+}
+
+/// Which free-inertial coasting baselines the engine runs online through every outage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CoastPlan {
+    /// No sensor-error correction ([`CoastMode::Raw`], mode 0).
+    pub raw: bool,
+    /// The static start-up gyro bias only, when the initialisation measured one
+    /// ([`CoastMode::Fixed`], mode 1).
+    pub static_gyro_bias: bool,
+}
+
+/// Free-inertial integration from an outage snapshot, fed the same raw samples as the run
+/// (the online form of [`super::coast::coast_outages`]; identical tracks).
+#[derive(Debug)]
+pub struct Coaster {
+    mode: usize,
+    outage: usize,
+    end_s: f64,
+    corr: ImuCorrection,
+    mech: Strapdown,
+    nav: Vec<NavSolution>,
+    fixes: Vec<GnssFix>,
+    next_fix: usize,
+    out_fixes: Vec<InnovationRecord>,
+    lever_arm_m: [f64; 3],
+}
+
+impl Coaster {
+    fn new(
+        mode: usize,
+        outage: usize,
+        end_s: f64,
+        corr: ImuCorrection,
+        state: NavState,
+        fixes: Vec<GnssFix>,
+        lever_arm_m: [f64; 3],
+    ) -> Self {
+        Self {
+            mode,
+            outage,
+            end_s,
+            corr,
+            mech: Strapdown::new(state),
+            nav: vec![state.to_solution()],
+            fixes,
+            next_fix: 0,
+            out_fixes: Vec::new(),
+            lever_arm_m,
+        }
+    }
+
+    /// Integrates one raw sample (`next_t_s`: the next sample's time); true when done.
+    fn step(&mut self, raw: &ImuSample, next_t_s: Option<f64>) -> bool {
+        let mut s = *raw;
+        let dt = s.t_s - self.mech.state().t_s;
+        self.corr.apply(&mut s.dtheta_rad, &mut s.dv_mps, dt);
+        if self.mech.update(&s).is_err() {
+            return false;
+        }
+        let st = *self.mech.state();
+        self.nav.push(st.to_solution());
+        let dt_next = next_t_s.map_or(dt, |n| n - st.t_s);
+        while let Some(f) = self.fixes.get(self.next_fix) {
+            if f.t_s >= st.t_s + 0.5 * dt_next {
+                break;
+            }
+            self.next_fix += 1;
+            let inn = position_innovation(&st, &self.lever_arm_m, f);
+            self.out_fixes.push(InnovationRecord {
+                t_s: f.t_s,
+                used: FixUse::Withheld,
+                outage: Some(self.outage),
+                dim: 3,
+                innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
+                innovation_var: [f64::NAN; 6],
+                nis: f64::NAN,
+                nis_threshold: f64::NAN,
+                quality: f.quality.rtklib_q(),
+            });
+        }
+        st.t_s >= self.end_s && self.next_fix >= self.fixes.len()
+    }
+
+    fn finish(self) -> (usize, CoastTrack) {
+        (
+            self.mode,
+            CoastTrack {
+                outage: self.outage,
+                nav: self.nav,
+                fixes: self.out_fixes,
+            },
+        )
+    }
+}
+
+/// The IMU samples of a run: a bounded buffer of the first samples, then the source, with
+/// one sample of look-ahead.
+struct Feed<I> {
+    buf: VecDeque<ImuItem>,
+    src: I,
+    /// Index of the next sample in the record.
+    index: usize,
+    /// Time of the last sample read (time order check).
+    last_t: f64,
+    info: ImuSourceInfo,
+    peeked: Option<ImuItem>,
+}
+
+impl<I: Iterator<Item = Result<ImuItem, RunError>>> Feed<I> {
+    fn read(&mut self) -> Result<Option<ImuItem>, RunError> {
+        let Some(it) = self.src.next().transpose()? else {
+            return Ok(None);
+        };
+        // `index` counts the samples handed out; the buffered ones come first
+        let idx = self.index + self.buf.len() + usize::from(self.peeked.is_some());
+        if self.last_t.is_finite()
+            && it.sample.t_s.partial_cmp(&self.last_t) != Some(std::cmp::Ordering::Greater)
+        {
+            return Err(RunError::Options(format!(
+                "{}: IMU time {:.6} s is not after the previous sample's",
+                self.info.locate(idx, it.line),
+                it.sample.t_s
+            )));
+        }
+        self.last_t = it.sample.t_s;
+        Ok(Some(it))
+    }
+
+    /// Buffers samples until `enough(buffer)` or the end of the source.
+    fn fill(&mut self, enough: impl Fn(&VecDeque<ImuItem>) -> bool) -> Result<(), RunError> {
+        while !enough(&self.buf) {
+            match self.read()? {
+                Some(it) => self.buf.push_back(it),
+                None => break,
+            }
+        }
+        Ok(())
+    }
+
+    fn next(&mut self) -> Result<Option<(usize, ImuItem)>, RunError> {
+        let it = match self.peeked.take() {
+            Some(p) => Some(p),
+            None => match self.buf.pop_front() {
+                Some(b) => Some(b),
+                None => self.read()?,
+            },
+        };
+        Ok(it.map(|it| {
+            let i = self.index;
+            self.index += 1;
+            (i, it)
+        }))
+    }
+
+    fn peek(&mut self) -> Result<Option<&ImuItem>, RunError> {
+        if self.peeked.is_none() {
+            self.peeked = match self.buf.pop_front() {
+                Some(b) => Some(b),
+                None => self.read()?,
+            };
+        }
+        Ok(self.peeked.as_ref())
+    }
+}
+
+/// Median interval of the samples, s (None with fewer than two).
+fn median_interval(buf: &VecDeque<ImuItem>) -> Option<f64> {
+    let v: Vec<ImuSample> = buf.iter().take(NOMINAL_WINDOW).map(|i| i.sample).collect();
+    super::median_imu_interval_s(&v)
+}
+
+/// The data of a run besides the IMU stream.
+#[derive(Debug, Clone, Copy)]
+pub struct RunData<'a> {
+    /// GNSS fixes in time order.
+    pub gnss: &'a [GnssFix],
+    /// Truth (for the initialisation from the truth), when known.
+    pub truth: Option<&'a [NavSolution]>,
+}
+
+/// Runs the filter of `layout` on a stream of IMU samples (see the module notes).
+///
+/// Returns the run's summary as a [`RunOutput`] whose record lists are empty (the records
+/// went to `sink`); a fault mid-run returns [`RunError::Fault`] with that summary.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
+    layout: Layout,
+    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
+    info: ImuSourceInfo,
+    data: RunData<'_>,
+    opts: &RunOptions,
+    coast: CoastPlan,
+    sink: &mut dyn RunSink,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
+    let mut cfg = opts.filter;
+    cfg.lever_arm_body_m = opts.lever_arm_m;
+    cfg.validate()
+        .map_err(|e| RunError::Options(format!("filter configuration: {e}")))?;
+    let mut outages = opts.outages.clone();
+    outage::normalise(&mut outages).map_err(RunError::Options)?;
+
+    let mut feed = Feed {
+        buf: VecDeque::new(),
+        src: imu,
+        index: 0,
+        last_t: f64::NEG_INFINITY,
+        info,
+        peeked: None,
+    };
+    // the start-up buffer: the nominal-interval window, and the static window when longer
+    feed.fill(|b| b.len() >= NOMINAL_WINDOW)?;
+    if let init::InitSpec::StaticAlignment(sa) = &opts.init {
+        let start_s = opts.start_s.unwrap_or(f64::NEG_INFINITY);
+        let secs = sa.seconds;
+        let t_a = feed.buf.iter().find(|i| i.sample.t_s >= start_s);
+        match t_a.map(|i| i.sample.t_s) {
+            Some(t_a) => feed.fill(|b| b.back().is_some_and(|i| i.sample.t_s > t_a + secs))?,
+            None => {
+                // the start lies beyond the buffer: keep reading until it (drop what is before)
+                loop {
+                    if feed.buf.len() > NOMINAL_WINDOW {
+                        feed.buf.pop_front();
+                        feed.index += 1;
+                    }
+                    match feed.read()? {
+                        Some(it) => {
+                            let t = it.sample.t_s;
+                            feed.buf.push_back(it);
+                            if t >= start_s {
+                                feed.fill(|b| b.back().is_some_and(|i| i.sample.t_s > t + secs))?;
+                                break;
+                            }
+                        }
+                        None => break,
+                    }
+                }
+            }
+        }
+    }
+    let nominal = median_interval(&feed.buf).unwrap_or(MAX_DT_S);
+    let start = {
+        let prefix: Vec<ImuSample> = feed.buf.iter().map(|i| i.sample).collect();
+        init::initialise(
+            &InitData {
+                imu: &prefix,
+                gnss: data.gnss,
+                truth: data.truth,
+            },
+            opts,
+            &cfg,
+        )?
+    };
+    if let Some(fl) = start.gyro_bias_sigma_floor {
+        for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
+            *s = s.max(f);
+        }
+    }
+    let InitReport { t_s: t0, .. } = start.report;
+    let mut filter = Filter::<T, N>::new(layout, &cfg, start.state, &start.unc)
+        .map_err(|e| filter_err(t0, e))?;
+    for (kind, v) in start.estimates.iter().chain(opts.initial_estimates.iter()) {
+        if let Some((_, b)) = layout.find(*kind) {
+            let mut full = vec![0.0; b.dim()];
+            for (d, s) in full.iter_mut().zip(v.iter()) {
+                *d = *s;
+            }
+            filter
+                .set_block_estimate(*kind, &full)
+                .map_err(|e| filter_err(t0, e))?;
+        }
+    }
+    let coast_modes: Vec<CoastMode> = {
+        let mut v = Vec::new();
+        if coast.raw {
+            v.push(CoastMode::Raw);
+        }
+        if coast.static_gyro_bias {
+            if let Some(b) = start.report.static_gyro_bias_radps {
+                v.push(CoastMode::Fixed(Box::new(ImuCorrection {
+                    gyro_bias_radps: b,
+                    ..ImuCorrection::default()
+                })));
+            }
+        }
+        v
+    };
+
+    let end_s = opts.end_s.unwrap_or(f64::INFINITY);
+    // samples up to the initial epoch are not integrated (the last two kept for the guard)
+    let mut before: [Option<ImuSample>; 2] = [None, None];
+    while let Some(it) = feed.peek()? {
+        if it.sample.t_s > t0 {
+            break;
+        }
+        if let Some((_, it)) = feed.next()? {
+            before = [before[1], Some(it.sample)];
+        }
+    }
+    let first = feed.index;
+    let has_imu = feed.peek()?.is_some_and(|it| it.sample.t_s <= end_s);
+    if !has_imu {
+        return Err(RunError::NoImu);
+    }
+    let state_names = state_names(&layout);
+    sink.start(&RunHead {
+        model: opts.model,
+        state_names: &state_names,
+    })?;
+    let mut counters = RunCounters {
+        imu_before_start: first as u64,
+        gnss_total: data.gnss.len() as u64,
+        ..Default::default()
+    };
+    let mut nav_dec = Decimator::new(opts.record.nav_rate_hz, t0);
+    let mut ep_dec = Decimator::new(opts.record.epoch_rate_hz, t0);
+    let want_epochs = sink.wants_epochs();
+    let record = |f: &Filter<T, N>,
+                  sink: &mut dyn RunSink,
+                  nav_dec: &mut Decimator,
+                  ep_dec: &mut Decimator|
+     -> Result<(), RunError> {
+        let t = f.nav_state().t_s;
+        let take_nav = nav_dec.take(t);
+        let take_ep = ep_dec.take(t) && want_epochs;
+        if take_nav || take_ep {
+            let s = f.solution();
+            if take_nav {
+                sink.nav(&s)?;
+            }
+            if take_ep {
+                sink.epoch(EpochRecord {
+                    t_s: t,
+                    nav: s,
+                    state_std: f.state_std().to_vec(),
+                    estimates: all_estimates(f),
+                    blocks: block_estimates(f),
+                })?;
+            }
+        }
+        Ok(())
+    };
+    record(&filter, sink, &mut nav_dec, &mut ep_dec)?;
+
+    // fixes before the initial epoch are not used
+    let gnss = data.gnss;
+    let mut gi = gnss.partition_point(|g| g.t_s < t0 - 1e-9);
+    let gi0 = gi;
+    counters.gnss_outside_run = gi as u64;
+    let mut next_outage = outages.partition_point(|o| o.start_s < t0);
+    let mut status_seen = 0u32;
+    let mut guard = {
+        let increments = opts
+            .imu_checks
+            .increments
+            .unwrap_or(if feed.info.increments_span_gaps {
+                GapIncrements::Span
+            } else {
+                GapIncrements::Auto
+            });
+        let gcfg = GuardConfig {
+            increments,
+            limits: opts.imu_checks.limits,
+            max_gap_s: opts.imu_checks.max_gap_s,
+            ..GuardConfig::new(nominal)
+        };
+        // the sample ending at the initial epoch (with its interval), for the first fill
+        let prev = match before {
+            [Some(pp), Some(p)] if (p.t_s - t0).abs() < 1e-9 => Some((p, p.t_s - pp.t_s)),
+            _ => None,
+        };
+        ImuGuard::new(gcfg, t0, prev).map_err(|e| RunError::Options(e.to_string()))?
+    };
+    let mut imu_report = ImuReport {
+        nominal_dt_s: guard.config().nominal_dt_s,
+        ..ImuReport::default()
+    };
+    let mut coasters: Vec<Coaster> = Vec::new();
+    let mut fault: Option<(String, f64, String)> = None;
+    let mut done = 0usize;
+    let mut rec = if opts.smoother_history {
+        crate::smooth::Recorder::new(N)
+    } else {
+        crate::smooth::Recorder::disabled()
+    };
+    let mut aid = super::aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
+    'imu: while let Some((k, it)) = feed.next()? {
+        let s = it.sample;
+        if s.t_s > end_s {
+            // not integrated; the coasters may still want it
+            feed.peeked = Some(it);
+            feed.index -= 1;
+            break;
+        }
+        let next_t = feed.peek()?.map(|n| n.sample.t_s);
+        if !coasters.is_empty() {
+            let mut i = 0;
+            while let Some(c) = coasters.get_mut(i) {
+                if c.step(&s, next_t) {
+                    let (m, t) = coasters.swap_remove(i).finish();
+                    sink.coast(m, t);
+                } else {
+                    i += 1;
+                }
+            }
+        }
+        done += 1;
+        if done.is_multiple_of(4096) {
+            progress(done, 0);
+        }
+        let dt = s.t_s - filter.nav_state().t_s;
+        let c = match guard.check(&s) {
+            Ok(Verdict::Use(c)) => c,
+            Ok(Verdict::Reject(why)) if opts.imu_checks.stop_on_implausible => {
+                fault = Some((
+                    feed.info.locate(k, it.line),
+                    s.t_s,
+                    format!("implausible IMU sample: {why}"),
+                ));
+                break;
+            }
+            Ok(Verdict::Reject(why)) => {
+                counters.imu_implausible += 1;
+                if imu_report.events.len() < MAX_IMU_EVENTS {
+                    imu_report.events.push(ImuEvent {
+                        t_s: s.t_s,
+                        location: feed.info.locate(k, it.line),
+                        what: format!("rejected: {why}"),
+                    });
+                }
+                continue;
+            }
+            Err(e) => {
+                fault = Some((feed.info.locate(k, it.line), s.t_s, e.to_string()));
+                break;
+            }
+        };
+        if c.missing > 0 && imu_report.events.len() < MAX_IMU_EVENTS {
+            imu_report.events.push(ImuEvent {
+                t_s: s.t_s,
+                location: feed.info.locate(k, it.line),
+                what: format!(
+                    "gap of {dt:.4} s ({} sample(s) missing): {}",
+                    c.missing,
+                    if c.spanned {
+                        "increment spans the gap"
+                    } else {
+                        "lost increments filled by interpolation"
+                    }
+                ),
+            });
+        }
+        for f in c.fill {
+            if let Err(e) = filter.propagate_observed(&f, &mut rec) {
+                fault = Some((
+                    feed.info.locate(k, it.line),
+                    s.t_s,
+                    format!("filling the gap before it: {e}"),
+                ));
+                break 'imu;
+            }
+        }
+        match filter.propagate_observed(&c.sample, &mut rec) {
+            Ok(()) => aid.after_imu(&mut filter, &mut rec),
+            Err(FilterError::NonFiniteImu) => {
+                counters.imu_rejected += 1;
+                continue;
+            }
+            Err(e) => {
+                fault = Some((feed.info.locate(k, it.line), s.t_s, e.to_string()));
+                break;
+            }
+        }
+        let t_k = s.t_s;
+        let dt_next = next_t.filter(|n| *n <= end_s).map_or(dt, |n| n - t_k);
+        let horizon = t_k + 0.5 * dt_next;
+        while let Some(fix) = gnss.get(gi) {
+            if fix.t_s >= horizon {
+                break;
+            }
+            gi += 1;
+            if let Some(oi) = outage::find(&outages, fix.t_s) {
+                counters.gnss_withheld += 1;
+                // the antenna as the filter models it: configured lever arm plus any
+                // lever-arm estimate, at IMU time t_fix + the estimated time offset
+                let st = filter.nav_state();
+                let shifted = GnssFix {
+                    t_s: fix.t_s + filter.time_offset_s(),
+                    ..*fix
+                };
+                let inn = position_innovation(st, &filter.lever_arm_body_m(), &shifted);
+                sink.innovation(&InnovationRecord {
+                    t_s: fix.t_s,
+                    used: FixUse::Withheld,
+                    outage: Some(oi),
+                    dim: 3,
+                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
+                    innovation_var: [f64::NAN; 6],
+                    nis: f64::NAN,
+                    nis_threshold: f64::NAN,
+                    quality: fix.quality.rtklib_q(),
+                })?;
+                continue;
+            }
+            if rec.is_enabled() {
+                // the update's own prediction, seen by the smoother's recorder (a failure is
+                // reported by the update)
+                let _ = filter.predict_covariance_observed(&mut rec);
+            }
+            aid.note_fix(fix);
+            match filter.update_gnss(fix) {
+                Ok(o) => {
+                    status_seen |= filter.status();
+                    let r = record_of(&o, fix);
+                    match r.used {
+                        FixUse::Accepted => counters.gnss_accepted += 1,
+                        FixUse::Forced => {
+                            counters.gnss_accepted += 1;
+                            counters.gnss_forced += 1
+                        }
+                        _ => counters.gnss_rejected += 1,
+                    }
+                    sink.innovation(&r)?;
+                }
+                Err(FilterError::InvalidGnss)
+                | Err(FilterError::GnssTime { .. })
+                | Err(FilterError::Numerical) => {
+                    counters.gnss_invalid += 1;
+                    sink.innovation(&InnovationRecord {
+                        t_s: fix.t_s,
+                        used: FixUse::Invalid,
+                        outage: None,
+                        dim: 0,
+                        innovation: [f64::NAN; 6],
+                        innovation_var: [f64::NAN; 6],
+                        nis: f64::NAN,
+                        nis_threshold: f64::NAN,
+                        quality: if fix.quality == FixQuality::NoFix {
+                            0
+                        } else {
+                            fix.quality.rtklib_q()
+                        },
+                    })?;
+                }
+                Err(e) => {
+                    fault = Some((
+                        format!("GNSS fix at t = {:.3} s", fix.t_s),
+                        fix.t_s,
+                        e.to_string(),
+                    ));
+                    break 'imu;
+                }
+            }
+        }
+        // snapshot at the first IMU epoch at or after an outage start
+        while let Some(o) = outages.get(next_outage) {
+            if t_k < o.start_s {
+                break;
+            }
+            if t_k < o.end_s() {
+                let snap = OutageSnapshot {
+                    outage: next_outage,
+                    next_imu: k + 1,
+                    state: *filter.nav_state(),
+                    correction: filter.imu_correction(),
+                };
+                sink.snapshot(&snap);
+                if !coast_modes.is_empty() {
+                    // the fixes the run withholds in this outage (all reached so far or later)
+                    let fixes: Vec<GnssFix> = gnss
+                        .iter()
+                        .skip(gi0)
+                        .filter(|g| outage::find(&outages, g.t_s) == Some(next_outage))
+                        .copied()
+                        .collect();
+                    for (m, mode) in coast_modes.iter().enumerate() {
+                        let corr = match mode {
+                            CoastMode::Raw => ImuCorrection::default(),
+                            CoastMode::Held => snap.correction,
+                            CoastMode::Fixed(c) => **c,
+                        };
+                        coasters.push(Coaster::new(
+                            m,
+                            next_outage,
+                            o.end_s(),
+                            corr,
+                            snap.state,
+                            fixes.clone(),
+                            opts.lever_arm_m,
+                        ));
+                    }
+                }
+            }
+            next_outage += 1;
+        }
+        record(&filter, sink, &mut nav_dec, &mut ep_dec)?;
+    }
+    progress(done, done);
+    if fault.is_none() && !coasters.is_empty() {
+        // the run has ended: the coasters see only the fixes the run reached
+        let horizon_gi = gi;
+        for c in &mut coasters {
+            let reached = gnss.get(gi0..horizon_gi).map_or(0, |v| {
+                v.iter()
+                    .filter(|g| outage::find(&outages, g.t_s) == Some(c.outage))
+                    .count()
+            });
+            c.fixes.truncate(reached);
+        }
+        // and continue on the rest of the record until their outage ends
+        while !coasters.is_empty() {
+            let Some((_, it)) = feed.next()? else {
+                break;
+            };
+            let next_t = feed.peek()?.map(|n| n.sample.t_s);
+            let mut i = 0;
+            while let Some(c) = coasters.get_mut(i) {
+                if c.step(&it.sample, next_t) {
+                    let (m, t) = coasters.swap_remove(i).finish();
+                    sink.coast(m, t);
+                } else {
+                    i += 1;
+                }
+            }
+        }
+        // record ended before the outage did
+        for c in coasters.drain(..) {
+            let (m, t) = c.finish();
+            sink.coast(m, t);
+        }
+    }
+    counters.gnss_outside_run += (gnss.len() - gi.min(gnss.len())) as u64;
+    counters.absorb(filter.counters());
+    counters.imu_rejected = counters
+        .imu_rejected
+        .max(u64::from(filter.counters().imu_rejected));
+    let g = guard.counters();
+    counters.imu_gaps = g.gaps;
+    counters.imu_missing_samples = g.missing_samples;
+    counters.imu_gaps_filled = g.gaps_filled;
+    counters.imu_synthetic_samples = g.synthetic_samples;
+    imu_report.gaps = g.gaps;
+    imu_report.missing_samples = g.missing_samples;
+    imu_report.gaps_spanned = g.gaps_spanned;
+    imu_report.gaps_filled = g.gaps_filled;
+    imu_report.rejected = counters.imu_implausible;
+    let history = rec.finish(
+        filter.covariance(),
+        filter.pending_correction(),
+        u64::from(filter.counters().cov_predictions),
+    );
+    let out = RunOutput {
+        model: opts.model,
+        state_names,
+        nav: Vec::new(),
+        epochs: Vec::new(),
+        innovations: Vec::new(),
+        counters,
+        outages,
+        snapshots: Vec::new(),
+        init: start.report,
+        final_blocks: block_estimates(&filter),
+        final_effects: effect_estimates(&filter),
+        lever_arm_m: opts.lever_arm_m,
+        gating: gating_report::GatingReport::new(
+            &cfg.gating,
+            filter.counters(),
+            filter.robust_stats(),
+            status_seen,
+        ),
+        imu_report,
+        history,
+        aiding: aid.report(),
+    };
+    match fault {
+        None => Ok(out),
+        Some((location, t_s, msg)) => Err(RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial: Box::new(out),
+        }),
+    }
+}

@@ -1,0 +1,319 @@
+//! The file sink of a streaming run: `nav.txt`, `std.txt`, `bias.txt` and `innovations.txt`
+//! written (as `NAME.partial`, see [`super::output::write_all`]) while the filter runs,
+//! and the metrics computed online ([`crate::metrics::SampleAcc`]): memory independent of
+//! the record's length. What it keeps: running sums (overall, outside the outages, per outage,
+//! GNSS residuals) and, while an outage's coasting track is open, that track.
+//!
+//! The text of every file is the one [`super::output`] writes from a [`super::RunOutput`]
+//! (same functions per line): `nav.txt` is byte-identical to the in-memory path.
+
+use super::coast::CoastTrack;
+use super::engine::{RunHead, RunSink};
+use super::output::{self, PARTIAL_SUFFIX};
+use super::{solution_is_finite, EpochRecord, FixUse, InnovationRecord, Outage, RunError};
+use crate::metrics::{self, Metrics, OutageMetrics, SampleAcc, TruthMatcher};
+use nav_core::types::NavSolution;
+use nav_io::IoError;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// A buffered file that counts the bytes written (to cut it back after a fault).
+struct Out {
+    path: PathBuf,
+    w: BufWriter<File>,
+    n: u64,
+    /// Length before the first non-finite record (cut there after a fault).
+    cut: Option<u64>,
+}
+
+impl Out {
+    fn create(path: PathBuf) -> Result<Self, RunError> {
+        let f = File::create(&path).map_err(|source| {
+            RunError::Output(IoError::Open {
+                path: path.clone(),
+                source,
+            })
+        })?;
+        Ok(Self {
+            path,
+            w: BufWriter::with_capacity(1 << 16, f),
+            n: 0,
+            cut: None,
+        })
+    }
+
+    fn err(&self, source: std::io::Error) -> RunError {
+        RunError::Output(IoError::Write {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    fn write(&mut self, b: &[u8]) -> Result<(), RunError> {
+        self.w.write_all(b).map_err(|e| self.err(e))?;
+        self.n += b.len() as u64;
+        Ok(())
+    }
+
+    /// Flushes, cuts back to the first non-finite record when `cut`, syncs.
+    fn finish(mut self, cut: bool) -> Result<PathBuf, RunError> {
+        self.w.flush().map_err(|e| self.err(e))?;
+        let f = self.w.get_ref();
+        if cut {
+            if let Some(c) = self.cut {
+                f.set_len(c).map_err(|e| self.err(e))?;
+            }
+        }
+        f.sync_all().map_err(|e| self.err(e))?;
+        Ok(self.path)
+    }
+}
+
+/// Writes the outputs of a run as it goes and computes its metrics online.
+pub struct FileSink<'a> {
+    dir: PathBuf,
+    week: u16,
+    nav: Out,
+    std: Out,
+    bias: Out,
+    inn: Out,
+    bias_head: bool,
+    line: Vec<u8>,
+    residuals: metrics::ResidualAcc,
+    truth: Option<&'a [NavSolution]>,
+    matcher: Option<TruthMatcher<'a>>,
+    samples: SampleAcc,
+    outages: Vec<Outage>,
+    coasting: [Option<Vec<OutageMetrics>>; 2],
+    nav_count: u64,
+    last_nav_t: f64,
+    nav_rate_hz: Option<f64>,
+    nav_dec: Option<super::Decimator>,
+}
+
+/// Names of the coasting modes of [`super::engine::CoastPlan`] (index = mode).
+pub const COAST_MODE_NAMES: [&str; 2] =
+    ["raw: no sensor-error correction", "static gyro bias only"];
+
+impl<'a> FileSink<'a> {
+    /// Removes earlier outputs in `dir` and opens the `.partial` files. `outages` must be the
+    /// run's outages and `truth` the reference when there is one. `nav_rate_hz`: rate of
+    /// `nav.txt` (None: every record; the metrics always see every record).
+    pub fn create(
+        dir: &Path,
+        week: u16,
+        nav_rate_hz: Option<f64>,
+        outages: &[Outage],
+        truth: Option<&'a [NavSolution]>,
+    ) -> Result<Self, RunError> {
+        std::fs::create_dir_all(dir).map_err(|source| {
+            RunError::Output(IoError::Write {
+                path: dir.to_path_buf(),
+                source,
+            })
+        })?;
+        for name in output::OUTPUT_NAMES {
+            let p = dir.join(name);
+            match std::fs::remove_file(&p) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(source) => return Err(RunError::Output(IoError::Write { path: p, source })),
+            }
+        }
+        let [p_nav, p_std, p_bias, p_inn, _] =
+            output::OUTPUT_NAMES.map(|n| output::partial_path(dir, n));
+        let mut outages = outages.to_vec();
+        super::outage::normalise(&mut outages).map_err(RunError::Options)?;
+        let mut inn = Out::create(p_inn)?;
+        let mut head = Vec::new();
+        output::innovations_header(&mut head).map_err(|e| inn.err(e))?;
+        inn.write(&head)?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            week,
+            nav: Out::create(p_nav)?,
+            std: Out::create(p_std)?,
+            bias: Out::create(p_bias)?,
+            inn,
+            bias_head: false,
+            line: Vec::with_capacity(256),
+            residuals: metrics::ResidualAcc::default(),
+            truth,
+            matcher: truth.map(TruthMatcher::new),
+            samples: SampleAcc::new(&outages),
+            outages,
+            coasting: [None, None],
+            nav_count: 0,
+            last_nav_t: f64::NAN,
+            nav_rate_hz: nav_rate_hz.filter(|r| *r > 0.0),
+            nav_dec: None,
+        })
+    }
+
+    /// Navigation records written to `nav.txt`.
+    pub fn nav_count(&self) -> u64 {
+        self.nav_count
+    }
+
+    /// Time of the last navigation record, s (NaN before the first).
+    pub fn last_nav_t(&self) -> f64 {
+        self.last_nav_t
+    }
+
+    /// Closes the files (cut back to the first non-finite record when `fault`), computes the
+    /// metrics of `run` (the engine's summary) and writes `metrics.json` with `json` (which
+    /// turns the metrics into the file's text). Complete runs get their final names.
+    pub fn finish(
+        self,
+        run: &super::RunOutput,
+        fault: Option<&str>,
+        json: impl FnOnce(&Metrics) -> anyhow::Result<String>,
+    ) -> anyhow::Result<Metrics> {
+        let m = metrics::assemble(
+            run,
+            &self.residuals,
+            &self.samples,
+            self.truth.is_some(),
+            if fault.is_some() {
+                Vec::new()
+            } else {
+                self.coasting
+                    .into_iter()
+                    .zip(COAST_MODE_NAMES)
+                    .filter_map(|(v, n)| Some((n.to_string(), v?)))
+                    .collect()
+            },
+        );
+        let cut = fault.is_some();
+        let mut bias = self.bias;
+        if !self.bias_head {
+            let mut h = Vec::new();
+            output::bias_header(&mut h, None).map_err(|e| bias.err(e))?;
+            bias.write(&h)?;
+        }
+        let mut paths = vec![
+            self.nav.finish(cut)?,
+            self.std.finish(cut)?,
+            bias.finish(cut)?,
+            self.inn.finish(false)?,
+        ];
+        let p_met = output::partial_path(&self.dir, "metrics.json");
+        let text = json(&m)?;
+        std::fs::write(&p_met, text).map_err(|source| IoError::Write {
+            path: p_met.clone(),
+            source,
+        })?;
+        File::open(&p_met)
+            .and_then(|f| f.sync_all())
+            .map_err(|source| IoError::Write {
+                path: p_met.clone(),
+                source,
+            })?;
+        paths.push(p_met);
+        if fault.is_none() {
+            for p in &paths {
+                let s = p.to_string_lossy();
+                let fin = PathBuf::from(s.strip_suffix(PARTIAL_SUFFIX).unwrap_or(&s));
+                std::fs::rename(p, &fin).map_err(|source| IoError::Write {
+                    path: fin.clone(),
+                    source,
+                })?;
+            }
+        }
+        Ok(m)
+    }
+}
+
+impl RunSink for FileSink<'_> {
+    fn start(&mut self, head: &RunHead<'_>) -> Result<(), RunError> {
+        self.line.clear();
+        output::std_header(&mut self.line, head.model, head.state_names)
+            .map_err(|e| self.std.err(e))?;
+        let l = std::mem::take(&mut self.line);
+        self.std.write(&l)?;
+        self.line = l;
+        Ok(())
+    }
+
+    fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
+        if let Some(m) = &mut self.matcher {
+            let acc = &mut self.samples;
+            m.push(s, |e| acc.push(&e));
+        }
+        let rate = self.nav_rate_hz;
+        let dec = self
+            .nav_dec
+            .get_or_insert_with(|| super::Decimator::new(rate, s.t_s));
+        if !dec.take(s.t_s) {
+            return Ok(());
+        }
+        if self.nav.cut.is_none() && !solution_is_finite(s) {
+            self.nav.cut = Some(self.nav.n);
+        }
+        self.line.clear();
+        nav_io::write_nav_line(
+            &mut self.line,
+            &NavSolution {
+                week: self.week,
+                ..*s
+            },
+        )
+        .map_err(|e| self.nav.err(e))?;
+        let l = std::mem::take(&mut self.line);
+        let r = self.nav.write(&l);
+        self.line = l;
+        r?;
+        self.nav_count += 1;
+        self.last_nav_t = s.t_s;
+        Ok(())
+    }
+
+    fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
+        if !solution_is_finite(&r.nav) {
+            if self.std.cut.is_none() {
+                self.std.cut = Some(self.std.n);
+            }
+            if self.bias.cut.is_none() {
+                self.bias.cut = Some(self.bias.n);
+            }
+        }
+        let mut l = std::mem::take(&mut self.line);
+        l.clear();
+        if !self.bias_head {
+            output::bias_header(&mut l, Some(&r)).map_err(|e| self.bias.err(e))?;
+            self.bias.write(&l)?;
+            l.clear();
+            self.bias_head = true;
+        }
+        output::std_line(&mut l, &r).map_err(|e| self.std.err(e))?;
+        self.std.write(&l)?;
+        l.clear();
+        output::bias_line(&mut l, &r).map_err(|e| self.bias.err(e))?;
+        self.bias.write(&l)?;
+        self.line = l;
+        Ok(())
+    }
+
+    fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
+        let mut l = std::mem::take(&mut self.line);
+        l.clear();
+        output::innovation_line(&mut l, r).map_err(|e| self.inn.err(e))?;
+        self.inn.write(&l)?;
+        self.line = l;
+        self.residuals.push(r);
+        if self.truth.is_none() && r.used == FixUse::Withheld {
+            for e in metrics::errors_vs_fixes(std::iter::once(r), |_| true) {
+                self.samples.push(&e);
+            }
+        }
+        Ok(())
+    }
+
+    fn coast(&mut self, mode: usize, track: CoastTrack) {
+        let per = metrics::coasting_track_metrics(&track, &self.outages, self.truth);
+        if let Some(slot) = self.coasting.get_mut(mode) {
+            slot.get_or_insert_with(Vec::new).extend(per);
+        }
+    }
+}

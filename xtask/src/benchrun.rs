@@ -1,0 +1,335 @@
+//! `cargo xtask bench-run`: wall time, CPU time and peak RSS of `host-sim run` and
+//! `host-sim diagnose` on a generated 200 Hz drive (40 min by default, `--hours 4` for the
+//! long case), against a baseline binary measured in the same invocation (ratios, not
+//! absolute times), printed beside the peer figures of issue 17 (KF-GINS, C++, on the same
+//! case size and machine class: 12.6 s wall, at most 11 MiB).
+//!
+//! The baseline is `host-sim` built from git revision `--baseline` (default `e9a1122`, the
+//! main branch before the streaming engine) in `target/bench-base` (source from `git archive`,
+//! its own target directory: built once, kept). Each measurement is a whole process:
+//! `wait4` gives its CPU time (user + system) and peak resident set (`ru_maxrss`). The two
+//! binaries alternate, `--repeat` times each, and the median is reported. `nav.txt` of the
+//! two runs is compared byte for byte.
+//!
+//! The case is written by `host-sim simulate --kf-gins` (IMU text, GNSS text, KF-GINS YAML)
+//! and run as `host-sim run --config kf-gins.yaml`, as the peer was; its `truth.nav` is moved
+//! aside (the peer reads no truth; with it, metrics are against the truth, which both
+//! binaries hold in memory).
+
+use anyhow::{bail, Context, Result};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+/// KF-GINS on the 40-min 200 Hz case (issue 17): wall s, peak MiB.
+const PEER_WALL_S: f64 = 12.6;
+const PEER_RSS_MIB: f64 = 11.0;
+
+/// One whole-process measurement.
+#[derive(Debug, Clone, Copy)]
+struct Meas {
+    wall_s: f64,
+    cpu_s: f64,
+    rss_mib: f64,
+}
+
+/// Runs `cmd` to its end and measures it with `wait4`.
+fn measure(cmd: &mut Command) -> Result<Meas> {
+    eprintln!("  $ {}", crate::show(cmd));
+    let t = Instant::now();
+    let child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .with_context(|| format!("starting {}", crate::show(cmd)))?;
+    let pid = i32::try_from(child.id()).context("pid")?;
+    let mut status = 0i32;
+    // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child.
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: pid is our child, status and ru are valid for writes.
+    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut ru) };
+    let wall_s = t.elapsed().as_secs_f64();
+    if r != pid {
+        bail!("wait4 failed: {}", std::io::Error::last_os_error());
+    }
+    let mut err = String::new();
+    if let Some(mut e) = child.stderr {
+        use std::io::Read;
+        let _ = e.read_to_string(&mut err);
+    }
+    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
+        bail!("`{}` failed (status {status}): {err}", crate::show(cmd));
+    }
+    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    Ok(Meas {
+        wall_s,
+        cpu_s: tv(ru.ru_utime) + tv(ru.ru_stime),
+        // Linux: kilobytes
+        rss_mib: ru.ru_maxrss as f64 / 1024.0,
+    })
+}
+
+fn median(v: &mut [Meas]) -> Meas {
+    let m = |f: fn(&Meas) -> f64, v: &mut [Meas]| {
+        let mut x: Vec<f64> = v.iter().map(f).collect();
+        x.sort_by(f64::total_cmp);
+        x.get(x.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    Meas {
+        wall_s: m(|x| x.wall_s, v),
+        cpu_s: m(|x| x.cpu_s, v),
+        rss_mib: m(|x| x.rss_mib, v),
+    }
+}
+
+/// Builds `host-sim` in release from the current tree; returns the executable.
+fn build_current() -> Result<PathBuf> {
+    build_in(&crate::root(), None)
+}
+
+fn build_in(dir: &Path, target_dir: Option<&Path>) -> Result<PathBuf> {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.args([
+        "build",
+        "--release",
+        "-p",
+        "host-sim",
+        "--bin",
+        "host-sim",
+        "--message-format=json-render-diagnostics",
+    ])
+    .current_dir(dir)
+    .stderr(Stdio::inherit());
+    if let Some(t) = target_dir {
+        c.arg("--target-dir").arg(t);
+    }
+    eprintln!("  $ {}", crate::show(&c));
+    let out = c.output().context("running cargo build")?;
+    if !out.status.success() {
+        bail!(
+            "building host-sim in {} failed ({})",
+            dir.display(),
+            out.status
+        );
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    text.lines()
+        .filter(|l| l.contains("\"name\":\"host-sim\"") && l.contains("\"kind\":[\"bin\"]"))
+        .find_map(|l| {
+            let i = l.find("\"executable\":\"")? + "\"executable\":\"".len();
+            let j = l[i..].find('"')?;
+            Some(PathBuf::from(&l[i..i + j]))
+        })
+        .context("cargo reported no host-sim executable")
+}
+
+/// Builds the baseline `host-sim` from git revision `rev` in `target/bench-base`.
+fn build_baseline(rev: &str) -> Result<PathBuf> {
+    let base = crate::root().join("target").join("bench-base");
+    let src = base.join("src");
+    let stamp = base.join("src.rev");
+    let have = std::fs::read_to_string(&stamp).unwrap_or_default();
+    if have.trim() != rev || !src.join("Cargo.toml").exists() {
+        let _ = std::fs::remove_dir_all(&src);
+        std::fs::create_dir_all(&src)?;
+        let sh = format!(
+            "git -C {} archive {rev} | tar -x -C {}",
+            crate::root().display(),
+            src.display()
+        );
+        let st = Command::new("sh").args(["-c", &sh]).status()?;
+        if !st.success() {
+            let _ = std::fs::remove_dir_all(&src);
+            bail!("git archive {rev} failed");
+        }
+        std::fs::write(&stamp, rev)?;
+    }
+    build_in(&src, Some(&base.join("target")))
+}
+
+/// A drive of `seconds` at 200 Hz: 3 min static, then blocks of driving with turns, speed
+/// changes and stops, 2 min static at the end.
+fn scenario(seconds: f64) -> String {
+    let mut s = String::from(
+        "name = \"bench-run\"\ndescription = \"generated drive for cargo xtask bench-run\"\n\
+         [start]\nlat_deg = 48.199\nlon_deg = 16.37\nh_m = 220.0\nheading_deg = 120.0\n\
+         gps_week = 2227\nsow_s = 200000.0\n[imu]\nrate_hz = 200.0\n\
+         [[segment]]\nkind = \"static\"\nduration_s = 180.0\n",
+    );
+    // one block: 10 + 120 + ~6 + 15 + 200 + ~8 + 10 + 30 (stop) = ~400 s
+    let block = "[[segment]]\nkind = \"accelerate\"\nto_speed_mps = 15.0\nduration_s = 10.0\n\
+         [[segment]]\nkind = \"cruise\"\nduration_s = 120.0\n\
+         [[segment]]\nkind = \"turn\"\nangle_deg = 90.0\nradius_m = 80.0\n\
+         [[segment]]\nkind = \"accelerate\"\nto_speed_mps = 25.0\nduration_s = 15.0\n\
+         [[segment]]\nkind = \"cruise\"\nduration_s = 200.0\n\
+         [[segment]]\nkind = \"turn\"\nangle_deg = -90.0\nradius_m = 150.0\n\
+         [[segment]]\nkind = \"brake\"\nto_speed_mps = 0.0\nduration_s = 10.0\n\
+         [[segment]]\nkind = \"static\"\nduration_s = 30.0\n";
+    let block_s = 10.0 + 120.0 + 8.4 + 15.0 + 200.0 + 9.4 + 10.0 + 30.0;
+    let mut t = 180.0 + 120.0;
+    while t + block_s <= seconds {
+        s.push_str(block);
+        t += block_s;
+    }
+    s.push_str(&format!(
+        "[[segment]]\nkind = \"static\"\nduration_s = {:.1}\n",
+        (seconds - t + 120.0).max(120.0)
+    ));
+    s
+}
+
+/// Runs the benchmark.
+pub fn run(hours: f64, baseline: &str, repeat: usize, keep: bool, no_diagnose: bool) -> Result<()> {
+    if !(hours > 0.0 && hours <= 24.0) {
+        bail!("--hours {hours}: expected 0 < hours <= 24");
+    }
+    let cur = build_current()?;
+    let base = build_baseline(baseline)?;
+    let dir = std::env::temp_dir().join(format!("navcore-bench-run-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let r = run_in(
+        &dir,
+        &cur,
+        &base,
+        baseline,
+        hours,
+        repeat.max(1),
+        no_diagnose,
+    );
+    if keep {
+        eprintln!("  kept {}", dir.display());
+    } else {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    r
+}
+
+fn run_in(
+    dir: &Path,
+    cur: &Path,
+    base: &Path,
+    rev: &str,
+    hours: f64,
+    repeat: usize,
+    no_diagnose: bool,
+) -> Result<()> {
+    let sc = dir.join("scenario.toml");
+    std::fs::write(&sc, scenario(hours * 3600.0))?;
+    let case = dir.join("case");
+    let st = Command::new(cur)
+        .args(["simulate", "--scenario"])
+        .arg(&sc)
+        .args(["--errors", "tactical", "--seed", "1", "--kf-gins", "--out"])
+        .arg(&case)
+        .stdout(Stdio::null())
+        .status()?;
+    if !st.success() {
+        bail!("host-sim simulate failed");
+    }
+    let truth = case.join("truth.nav");
+    if truth.exists() {
+        std::fs::rename(&truth, dir.join("truth.nav.aside"))?;
+    }
+    let yaml = case.join("kf-gins.yaml");
+    let imu_lines = std::fs::metadata(case.join("imu.txt"))?.len();
+    eprintln!(
+        "case: {:.2} h at 200 Hz, imu.txt {:.0} MB",
+        hours,
+        imu_lines as f64 / 1e6
+    );
+    let run_cmd = |bin: &Path, out: &Path| {
+        let mut c = Command::new(bin);
+        c.arg("run")
+            .arg("--config")
+            .arg(&yaml)
+            .arg("--out")
+            .arg(out)
+            .arg("--quiet");
+        c
+    };
+    let diag_cmd = |bin: &Path, out: &Path| {
+        let mut c = Command::new(bin);
+        c.arg("diagnose")
+            .arg("--config")
+            .arg(&yaml)
+            .arg("--out")
+            .arg(out)
+            .arg("--quiet");
+        c
+    };
+    let (mut rb, mut rc, mut db, mut dc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..repeat {
+        rb.push(measure(&mut run_cmd(base, &dir.join("out-base")))?);
+        rc.push(measure(&mut run_cmd(cur, &dir.join("out-cur")))?);
+    }
+    let same =
+        std::fs::read(dir.join("out-base/nav.txt"))? == std::fs::read(dir.join("out-cur/nav.txt"))?;
+    if !no_diagnose {
+        for _ in 0..repeat {
+            db.push(measure(&mut diag_cmd(base, &dir.join("diag-base")))?);
+            dc.push(measure(&mut diag_cmd(cur, &dir.join("diag-cur")))?);
+        }
+    }
+    let row = |name: &str, b: &mut [Meas], c: &mut [Meas]| {
+        let (b, c) = (median(b), median(c));
+        println!(
+            "{name:<10} {:>9.2} {:>9.2} {:>7.3} | {:>8.2} {:>8.2} {:>7.3} | {:>9.1} {:>9.1} {:>7.3}",
+            b.wall_s,
+            c.wall_s,
+            c.wall_s / b.wall_s,
+            b.cpu_s,
+            c.cpu_s,
+            c.cpu_s / b.cpu_s,
+            b.rss_mib,
+            c.rss_mib,
+            c.rss_mib / b.rss_mib
+        );
+        c
+    };
+    println!(
+        "\nbench-run: {hours} h at 200 Hz, median of {repeat}; baseline = host-sim at {rev}\n\
+         {:<10} {:>9} {:>9} {:>7} | {:>8} {:>8} {:>7} | {:>9} {:>9} {:>7}",
+        "",
+        "wall base",
+        "wall now",
+        "ratio",
+        "cpu base",
+        "cpu now",
+        "ratio",
+        "MiB base",
+        "MiB now",
+        "ratio"
+    );
+    let c = row("run", &mut rb, &mut rc);
+    if !no_diagnose {
+        row("diagnose", &mut db, &mut dc);
+    }
+    println!(
+        "nav.txt of run: {}",
+        if same {
+            "byte-identical to the baseline's"
+        } else {
+            "DIFFERS from the baseline's"
+        }
+    );
+    let scale = hours / (40.0 / 60.0);
+    println!(
+        "peer (KF-GINS, issue 17, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
+         wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
+        if (scale - 1.0).abs() > 1e-9 {
+            format!(
+                "; scaled x{scale:.1} by length: {:.1} s",
+                PEER_WALL_S * scale
+            )
+        } else {
+            String::new()
+        },
+        c.wall_s / (PEER_WALL_S * scale),
+        c.rss_mib
+    );
+    if !same {
+        bail!("nav.txt differs from the baseline's");
+    }
+    Ok(())
+}
