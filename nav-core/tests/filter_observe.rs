@@ -6,12 +6,12 @@
 //! of what the updates fed back (read from the nominal-state jump); the observed and plain
 //! calls give bit-identical filters.
 
-use test_support::filter_sim::*;
 use nav_core::config::FilterConfig;
 use nav_core::filter::observe::{CovObserver, PredictionRecord};
 use nav_core::filter::Filter;
 use nav_core::model::discrete::Cov;
 use nav_core::model::LAYOUT_NBK;
+use test_support::filter_sim::*;
 
 const N: usize = LAYOUT_NBK.dim();
 
