@@ -14,7 +14,7 @@ use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::InitialUncertainty;
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};

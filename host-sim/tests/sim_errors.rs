@@ -559,7 +559,11 @@ fn gyro_g_sensitivity_measured_back_by_regression_on_specific_force() {
 }
 
 /// Position of a fix as the NED offset from the truth at the IMU reference point at `t`.
-fn fix_offset(tr: &Trajectory, f: &GnssFix, t: f64) -> (Vector3<f64>, nav_core::nav::NavState) {
+fn fix_offset(
+    tr: &Trajectory,
+    f: &GnssFix,
+    t: f64,
+) -> (Vector3<f64>, nav_core::strapdown::NavState) {
     let s = tr.truth_at(t).unwrap();
     let d = ned_offset_m(
         &s.pos,

@@ -25,10 +25,10 @@ use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::model::LAYOUT_NBK;
-use nav_core::nav::{NavState, Strapdown};
 use nav_core::navigator::{
     AlignMode, FirstFixAlign, FixEvent, GnssEvent, NavigatorConfig, NavigatorNbk,
 };
+use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::error::Error;
 

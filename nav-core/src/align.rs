@@ -30,7 +30,7 @@
 use crate::config::FilterConfig;
 use crate::earth::{self, Llh};
 use crate::filter::InitialUncertainty;
-use crate::nav::{NavState, MAX_DT_S};
+use crate::strapdown::{NavState, MAX_DT_S};
 use crate::types::ImuSample;
 use libm::{atan2, cos, sin, sqrt};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -244,7 +244,7 @@ impl Alignment {
     }
 
     /// A navigation state at rest at `pos` at the end of the window, to start
-    /// [`crate::nav::Strapdown`] from.
+    /// [`crate::strapdown::Strapdown`] from.
     pub fn nav_state(&self, pos: Llh) -> NavState {
         NavState::from_rpy(self.t_end_s, pos, Vector3::zeros(), self.rpy_rad)
     }

@@ -29,7 +29,7 @@
 //! Allocation-free and panic-free: [`ImuGuard::check`] returns a [`Conditioned`] holding the
 //! fill (an iterator of synthetic samples) and the sample to integrate after it.
 
-use crate::nav::MAX_DT_S;
+use crate::strapdown::MAX_DT_S;
 use crate::types::ImuSample;
 
 /// What the increment of the first sample after a time gap covers (see the module notes).

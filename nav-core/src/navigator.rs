@@ -59,8 +59,8 @@ use crate::earth::{self, Llh};
 use crate::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use crate::imu_guard::{GuardConfig, GuardCounters, GuardError, Implausible, ImuGuard, Verdict};
 use crate::model::{BlockKind, Layout};
-use crate::nav::{NavState, MAX_DT_S};
 use crate::scalar::Scalar;
+use crate::strapdown::{NavState, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use nalgebra::Vector3;
 

@@ -1,5 +1,5 @@
 //! The scalar type of the filter's covariance, gains and error-state matrices: `f32` on the
-//! MCU, `f64` on the host. The nominal navigation state is always `f64` (see [`crate::nav`]).
+//! MCU, `f64` on the host. The nominal navigation state is always `f64` (see [`crate::strapdown`]).
 //!
 //! Every operation the filter needs beyond `+ - * /` goes through this trait and is computed
 //! with `libm` (or is correctly rounded by IEEE 754), so the host and the MCU builds of the same

@@ -9,8 +9,8 @@ use crate::config::{units, FilterConfig};
 use crate::earth;
 use crate::filter::{Filter, InitialUncertainty};
 use crate::model::{Block, BlockKind, Layout, LAYOUT_KF_GINS, LAYOUT_NBK};
-use crate::nav::NavState;
 use crate::scalar::Scalar;
+use crate::strapdown::NavState;
 use crate::types::{FixQuality, GnssFix, ImuSample};
 
 /// Names of the self-test cases and how many `f64` outputs each produces, in output order.

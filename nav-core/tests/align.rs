@@ -5,7 +5,7 @@ use test_support::trajectory;
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::align::{coarse_align, AlignConfig, AlignError, HeadingSource, MotionCue};
 use nav_core::earth::{self, Llh};
-use nav_core::nav::Strapdown;
+use nav_core::strapdown::Strapdown;
 use nav_core::types::ImuSample;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -14,7 +14,7 @@ use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, ScaleFactorNoise, SensorNoise};
 use nav_core::filter::{dcm_f64, Filter, InitialUncertainty};
 use nav_core::model::{Block, BlockKind, Layout, LAYOUT_N};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::ImuSample;
 use test_support::filter_sim::*;
 use test_support::transition::{err9, TransitionRun};

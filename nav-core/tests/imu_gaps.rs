@@ -5,7 +5,7 @@ use nav_core::imu_guard::{
     GapIncrements, GuardConfig, GuardError, Implausible, ImuClass, ImuGuard, ImuLimits, Verdict,
     SLOPE_WINDOW_S,
 };
-use nav_core::nav::{NavState, Strapdown};
+use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::ImuSample;
 
 const DT: f64 = 0.01;

@@ -7,7 +7,7 @@ use test_support::trajectory;
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::attitude;
 use nav_core::earth::{self, Llh};
-use nav_core::nav::{NavState, Strapdown};
+use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::ImuSample;
 use trajectory::{Generator, Motion};
 

@@ -9,11 +9,11 @@ use nav_core::config::FilterConfig;
 use nav_core::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use nav_core::imu_guard::{GuardConfig, ImuGuard, Verdict};
 use nav_core::model::{LAYOUT_KF_GINS, LAYOUT_NBK};
-use nav_core::nav::NavState;
 use nav_core::navigator::{
     AlignMode, FirstFixAlign, FixEvent, GnssEvent, ImuEvent, Navigator, NavigatorConfig,
     NavigatorError, NavigatorKfGins, NavigatorNbk, StaticAlignSettings,
 };
+use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample};
 
 const NBK: usize = LAYOUT_NBK.dim();

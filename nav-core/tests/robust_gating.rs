@@ -17,7 +17,7 @@ use nav_core::filter::{
     STATUS_MODEL_MISMATCH, STATUS_RESET,
 };
 use nav_core::model::{IDX_POS, IDX_VEL, LAYOUT_KF_GINS, LAYOUT_NBK};
-use nav_core::nav::{NavState, Strapdown};
+use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::{FixQuality, GnssFix, ImuSample};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

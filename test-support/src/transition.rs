@@ -10,7 +10,7 @@ use nav_core::earth;
 use nav_core::filter::{dcm_f64, Filter, InitialUncertainty};
 use nav_core::model::discrete::{discretize, Accumulator};
 use nav_core::model::{BlockKind, Layout, Regressors};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::ImuSample;
 
 /// Error-state coordinates of `est` relative to `reference`: phi (rad), dv (m/s), dr (NED m).

@@ -2,7 +2,7 @@
 //! strapdown algorithm on the error-free increments of the default scenario follows the truth.
 use host_sim::sim::{Scenario, Trajectory};
 use nav_core::earth::{ned_offset_m, Llh};
-use nav_core::nav::Strapdown;
+use nav_core::strapdown::Strapdown;
 use std::path::Path;
 
 fn default_trajectory() -> Trajectory {

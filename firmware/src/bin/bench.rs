@@ -21,7 +21,7 @@ use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::filter::{Filter, InitialUncertainty};
 use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK};
-use nav_core::nav::{NavState, Strapdown};
+use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::{FixQuality, GnssFix};
 
 /// IMU rate of the scenario, Hz.

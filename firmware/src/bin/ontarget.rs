@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::filter::{Filter, InitialUncertainty, STATUS_LAST_FIX_REJECTED};
 use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_NBK};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::{FixQuality, GnssFix};
 
 const IMU_HZ: f64 = 200.0;

@@ -39,7 +39,7 @@ use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
 use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind, ImuCorrection};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::NavSolution;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,

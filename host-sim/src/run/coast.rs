@@ -17,7 +17,7 @@
 
 use super::{position_innovation, CaseData, FixUse, InnovationRecord, RunOutput};
 use nav_core::model::ImuCorrection;
-use nav_core::nav::Strapdown;
+use nav_core::strapdown::Strapdown;
 use nav_core::types::NavSolution;
 
 /// The sensor-error correction applied while coasting (see the module notes).

@@ -30,8 +30,8 @@ use super::{
 use nav_core::filter::{Filter, FilterError};
 use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard, Verdict};
 use nav_core::model::{ImuCorrection, Layout};
-use nav_core::nav::{NavState, Strapdown, MAX_DT_S};
 use nav_core::scalar::Scalar;
+use nav_core::strapdown::{NavState, Strapdown, MAX_DT_S};
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use std::collections::VecDeque;
 use std::path::PathBuf;

@@ -26,7 +26,7 @@ use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{dcm_f64, InitialUncertainty};
 use nav_core::model::BlockKind;
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use serde::Serialize;
 

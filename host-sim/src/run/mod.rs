@@ -47,8 +47,8 @@ use nav_core::model::{
     BiasModel, Block, BlockKind, ImuCorrection, Layout, EFFECT_BLOCKS, LAYOUT_KF_GINS, LAYOUT_N,
     LAYOUT_NBK, LAYOUT_NBK_SINGLE,
 };
-use nav_core::nav::{NavState, MAX_DT_S};
 use nav_core::scalar::Scalar;
+use nav_core::strapdown::{NavState, MAX_DT_S};
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_io::ImuOrigin;
 use serde::{Deserialize, Serialize};

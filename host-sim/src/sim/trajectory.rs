@@ -15,7 +15,7 @@
 use super::scenario::{Kinematics, Profile, Scenario, ScenarioError};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use nav_core::earth::{self, Llh};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::{ImuSample, NavSolution};
 
 /// The error-free result of a scenario: truth at every IMU epoch and the ideal increments.

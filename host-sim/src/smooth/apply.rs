@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude;
 use nav_core::earth::{self, Llh};
 use nav_core::model::{CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL};
-use nav_core::nav::NavState;
+use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, NavSolution};
 use serde::Serialize;
 

@@ -13,8 +13,8 @@
 use crate::attitude::dcm_from_euler_zyx;
 use crate::filter::dcm_f64;
 use crate::model::{Block, Layout, IDX_ATT, IDX_VEL};
-use crate::nav::{NavState, StepInfo};
 use crate::scalar::Scalar;
+use crate::strapdown::{NavState, StepInfo};
 use nalgebra::{Matrix3, Vector3};
 
 /// Settings of the non-holonomic constraint (SI units).

@@ -11,8 +11,8 @@ use super::nhc::put;
 use crate::earth;
 use crate::filter::dcm_f64;
 use crate::model::{Block, Layout, IDX_VEL};
-use crate::nav::NavState;
 use crate::scalar::Scalar;
+use crate::strapdown::NavState;
 use nalgebra::Vector3;
 
 /// Settings of the zero-velocity update (SI units).

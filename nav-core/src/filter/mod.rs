@@ -30,8 +30,8 @@ use crate::model::{
     BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, MeasContext, Regressors,
     CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
 };
-use crate::nav::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::scalar::Scalar;
+use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -66,7 +66,7 @@ pub enum FilterError {
     InitialState,
     /// IMU sample with a NaN/Inf time or increment.
     NonFiniteImu,
-    /// IMU sample time not after the filter time, or a gap over `nav::MAX_DT_S`.
+    /// IMU sample time not after the filter time, or a gap over `strapdown::MAX_DT_S`.
     ImuTimeStep {
         /// Sample time minus filter time, s.
         dt_s: f64,

@@ -29,8 +29,8 @@
 
 use super::{core_f::core_f, Layout, Regressors, CORE_DIM, IDX_ATT, IDX_VEL};
 use crate::config::FilterConfig;
-use crate::nav::NavState;
 use crate::scalar::Scalar;
+use crate::strapdown::NavState;
 
 /// A covariance matrix, row-major.
 pub type Cov<T, const N: usize> = [[T; N]; N];
