@@ -439,3 +439,30 @@ fn run_configuration_reads_nmea_and_ubx_logs() {
     let e = parse_run_config(&cfg_path, &text).unwrap_err();
     assert!(e.to_string().contains("default_sigma"), "{e}");
 }
+
+#[test]
+fn ubx_log_of_an_hour_at_10_hz_reads_every_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 36_000usize;
+    let mut bytes = Vec::with_capacity(n * 100);
+    for k in 0..n {
+        bytes.extend(nav_pvt(&Pvt {
+            itow_ms: 200_000_000 + k as u32 * 100,
+            ..pvt(0)
+        }));
+    }
+    let p = write(dir.path(), "hour.ubx", &bytes);
+    let t0 = std::time::Instant::now();
+    let r = read_ubx_log(&p, &GnssLogOptions::default(), 6).unwrap();
+    let dt = t0.elapsed().as_secs_f64();
+    println!(
+        "{} bytes, {} fixes read in {dt:.3} s",
+        bytes.len(),
+        r.fixes.len()
+    );
+    assert_eq!(r.fixes.len(), n);
+    assert!(r
+        .fixes
+        .windows(2)
+        .all(|w| (w[1].t_s - w[0].t_s - 0.1).abs() < 1e-9));
+}
