@@ -244,7 +244,7 @@ pub fn read_nmea_log(
                                 return Err(fmt_err(
                                     path,
                                     line,
-                                    "epoch without GST (position sigmas): state default_sigma_ned_m = [n, e, d] (m) or hdop_uere_m in [gnss.log]",
+                                    format!("NMEA epoch at GPS {:.3} s of week (ended here) has no GST (position sigmas): state default_sigma_ned_m = [n, e, d] (m) or hdop_uere_m in [gnss.log]", f.t_s),
                                 ))
                             }
                         }

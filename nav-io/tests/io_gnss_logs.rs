@@ -129,6 +129,10 @@ fn nmea_log_without_gst_needs_a_default_sigma_and_warns_once() {
     );
     // the first epoch ends when the second starts (line 3)
     assert_eq!(e.line(), Some(3), "{msg}");
+    assert!(
+        msg.contains(&format!("GPS {SOW_10_20_30:.3} s of week")),
+        "{msg}"
+    );
     let opts = GnssLogOptions {
         default_sigma_ned_m: Some([1.5, 1.5, 3.0]),
         ..GnssLogOptions::default()
