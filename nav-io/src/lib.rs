@@ -16,6 +16,7 @@ pub mod aidingcfg;
 mod error;
 pub mod gnss;
 pub mod gnsscsv;
+pub mod gnsslog;
 pub mod gpstime;
 pub mod imucsv;
 pub mod kfgins;
@@ -32,6 +33,7 @@ pub use gnsscsv::{
     read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
     QualityMap, SpeedUnit, TimeScale,
 };
+pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,

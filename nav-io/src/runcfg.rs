@@ -20,6 +20,7 @@
 //! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
 
 use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
+use super::gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions};
 use super::imucsv::{read_imu_csv, ImuCsvFormat};
 use super::mount::Mounting;
 use super::pos::{read_rtklib_pos, PosOptions};
@@ -122,6 +123,10 @@ pub enum GnssFileKind {
     RtklibPos,
     /// A generic CSV/text log, mapped by `[gnss.csv]`.
     Csv,
+    /// An NMEA 0183 log (GGA, RMC, GST, VTG), options in `[gnss.log]`.
+    Nmea,
+    /// A u-blox UBX log (NAV-PVT), options in `[gnss.log]`.
+    Ubx,
 }
 
 fn default_max_q() -> u8 {
@@ -143,6 +148,9 @@ pub struct GnssSource {
     /// Column/time/quality mapping, required for `format = "csv"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub csv: Option<GnssCsvFormat>,
+    /// Options of `format = "nmea"` / `"ubx"` (sigmas when absent, leap seconds, strictness).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub log: Option<GnssLogOptions>,
     /// Keep RTKLIB records with quality 1 <= Q <= max_q (1 fixed .. 6 PPP); default 6.
     #[serde(default = "default_max_q")]
     pub max_q: u8,
@@ -591,6 +599,11 @@ impl RunConfig {
         if (self.gnss.format == GnssFileKind::Csv) != self.gnss.csv.is_some() {
             bad.push("gnss.format = \"csv\" and a [gnss.csv] mapping go together".into());
         }
+        if self.gnss.log.is_some()
+            && !matches!(self.gnss.format, GnssFileKind::Nmea | GnssFileKind::Ubx)
+        {
+            bad.push("[gnss.log] goes with gnss.format = \"nmea\" or \"ubx\"".into());
+        }
         if !self.imu.mounting.is_finite() {
             bad.push("imu.mounting angles must be finite".into());
         }
@@ -932,7 +945,8 @@ pub struct RunInputs {
     /// GNSS fixes after the quality filter, time offset applied (standard deviations and
     /// velocities as in the file: `sigma_scale` and `use_velocity` are for the filter).
     pub gnss: Vec<GnssFix>,
-    /// GPS week of the GNSS times when the file states it (RTKLIB .pos).
+    /// GPS week of the GNSS times when the file states it (RTKLIB .pos, CSV with a week or an
+    /// absolute time, NMEA with its RMC date; not UBX NAV-PVT).
     pub gnss_week: Option<i64>,
     /// GNSS records dropped by the quality filter.
     pub gnss_dropped_by_quality: usize,
@@ -979,6 +993,16 @@ impl RunConfig {
                     source: None,
                 })?;
                 let r = read_gnss_csv(&gnss_path, fmt)?;
+                warnings.extend(r.warnings);
+                (r.fixes, r.week, r.dropped_by_quality)
+            }
+            GnssFileKind::Nmea | GnssFileKind::Ubx => {
+                let opts = self.gnss.log.clone().unwrap_or_default();
+                let r = if self.gnss.format == GnssFileKind::Nmea {
+                    read_nmea_log(&gnss_path, &opts, self.gnss.max_q)?
+                } else {
+                    read_ubx_log(&gnss_path, &opts, self.gnss.max_q)?
+                };
                 warnings.extend(r.warnings);
                 (r.fixes, r.week, r.dropped_by_quality)
             }
