@@ -111,13 +111,13 @@ pub struct Vehicle {
     /// m/s^2: the velocity points `slip` to the outside of the body x axis, so the
     /// non-holonomic constraint is violated by `speed * sin(slip)` in turns (0: none; a
     /// passenger car: about 0.2 to 0.5).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub slip_deg_per_mps2: f64,
     /// Bounce: amplitude of a vertical velocity oscillation of the body while it moves, m/s
     /// (sum of three incommensurate sines 1.1 / 1.9 / 3.3 Hz of relative amplitudes
     /// 1 / 0.6 / 0.3, faded in with speed up to 5 m/s; 0: none; a car on a normal road: about
     /// 0.02 to 0.05).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub bounce_mps: f64,
 }
 
@@ -755,4 +755,10 @@ mod tests {
         }
         assert!((h - 10.0).abs() < 1e-6, "{h}");
     }
+}
+
+/// Whether a value is exactly zero (a vehicle effect that is off is not written, so a
+/// scenario without it reads in earlier versions of the tools).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
