@@ -725,6 +725,12 @@ impl Profile {
     }
 }
 
+/// Whether a value is exactly zero (a vehicle effect that is off is not written, so a
+/// scenario without it reads in earlier versions of the tools).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -755,10 +761,4 @@ mod tests {
         }
         assert!((h - 10.0).abs() < 1e-6, "{h}");
     }
-}
-
-/// Whether a value is exactly zero (a vehicle effect that is off is not written, so a
-/// scenario without it reads in earlier versions of the tools).
-fn is_zero(v: &f64) -> bool {
-    *v == 0.0
 }
