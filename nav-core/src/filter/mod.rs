@@ -16,6 +16,7 @@
 
 mod access;
 mod aiding_update;
+mod gated;
 pub(crate) mod linalg;
 pub mod observe;
 pub mod robust;
@@ -33,10 +34,10 @@ use crate::model::{
 use crate::scalar::Scalar;
 use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
-use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
+use linalg::{all_finite, cholesky_in_place, dot};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use observe::{CovObserver, PredictionRecord};
-use robust::{igg3_weight, GateState, RejectedFix, RobustStats, MIN_WEIGHT};
+use robust::{GateState, RejectedFix, RobustStats};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
 pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
@@ -700,102 +701,37 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         t_s: f64,
     ) -> Result<UpdateOutcome, FilterError> {
         let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
-        let z = z64.map(T::of_f64);
-        let mut r = r64.map(T::of_f64);
-        let (pht, s, l) = self.innovation_cov(h, &r);
+        let normal_reject = th.normal_reject;
+        let g = self.gated_update(
+            z64,
+            h,
+            r64,
+            gated::Gate {
+                downweight: th.downweight,
+                reject: th.reject,
+            },
+            |f, nis| f.gate.last_within_normal_gate = nis <= normal_reject,
+        )?;
         let mut out = UpdateOutcome {
             t_s,
             dim: M,
             innovation: [0.0; 6],
             innovation_var: [0.0; 6],
-            nis: f64::NAN,
+            nis: g.nis,
             nis_threshold: th.reject,
-            accepted: false,
+            accepted: g.accepted,
             forced: false,
-            weight: 0.0,
+            weight: g.weight,
         };
-        for (i, zi) in z64.iter().enumerate() {
+        for (i, (zi, si)) in z64.iter().zip(g.s_diag.iter()).enumerate() {
             if let Some(o) = out.innovation.get_mut(i) {
                 *o = -*zi;
             }
             if let Some(o) = out.innovation_var.get_mut(i) {
-                *o = get2(&s, i, i).to_f64();
+                *o = *si;
             }
         }
-        let Some(mut l) = l else {
-            return Err(self.numerical_failure());
-        };
-        let y = forward_solve(&l, &z);
-        let nis = dot(&y, &y).to_f64();
-        out.nis = nis;
-        if !nis.is_finite() {
-            return Err(self.numerical_failure());
-        }
-        self.gate.last_within_normal_gate = nis <= th.normal_reject;
-        let weight = if nis <= th.downweight {
-            1.0
-        } else {
-            igg3_weight(nis, th.downweight, th.reject)
-        };
-        if !(nis <= th.reject && weight >= MIN_WEIGHT) {
-            out.forced = force;
-            return Ok(out);
-        }
-        if weight < 1.0 {
-            // R / w: only the diagonal of S changes (P H^T does not)
-            let k = T::of_f64(1.0 / weight);
-            let mut s2 = s;
-            for (i, rv) in r.iter_mut().enumerate() {
-                let extra = *rv * k - *rv;
-                *rv *= k;
-                if let Some(x) = s2.get_mut(i).and_then(|row| row.get_mut(i)) {
-                    *x += extra;
-                }
-            }
-            if !cholesky_in_place(&mut s2) {
-                return Err(self.numerical_failure());
-            }
-            l = s2;
-        }
-        // K = P H^T S^-1 (row i solves S k_i = (P H^T)_i)
-        let mut k = [[T::ZERO; M]; N];
-        for (krow, phtrow) in k.iter_mut().zip(pht.iter()) {
-            *krow = cholesky_solve(&l, phtrow);
-        }
-        let mut dx = [T::ZERO; N];
-        for (d, krow) in dx.iter_mut().zip(k.iter()) {
-            *d = dot(krow, &z);
-        }
-        if !all_finite(&k) || !dx.iter().all(|v| v.finite()) {
-            return Err(self.numerical_failure());
-        }
-        // Joseph form P = (I - K H) P (I - K H)^T + K R K^T, in place:
-        // AP = P - K (P H^T)^T;  P = AP - (AP H^T - K R) K^T  (upper triangle, mirrored)
-        let mut p = self.p;
-        for (prow, krow) in p.iter_mut().zip(k.iter()) {
-            for (pij, phtj) in prow.iter_mut().zip(pht.iter()) {
-                *pij -= dot(krow, phtj);
-            }
-        }
-        let mut y_mat = [[T::ZERO; M]; N];
-        for ((yrow, prow), krow) in y_mat.iter_mut().zip(p.iter()).zip(k.iter()) {
-            for (((yv, hrow), kv), rv) in yrow.iter_mut().zip(h).zip(krow).zip(r.iter()) {
-                *yv = dot(prow, hrow) - *kv * *rv;
-            }
-        }
-        for (i, (prow, yrow)) in p.iter_mut().zip(y_mat.iter()).enumerate() {
-            for (pij, kj) in prow.iter_mut().zip(k.iter()).skip(i) {
-                *pij -= dot(yrow, kj);
-            }
-        }
-        discrete::mirror_upper(&mut p);
-        if !all_finite(&p) || !diag_nonneg(&p) {
-            return Err(self.numerical_failure());
-        }
-        self.p = p;
-        self.feedback(&dx);
-        out.accepted = true;
-        out.weight = weight;
+        out.forced = !g.accepted && force;
         Ok(out)
     }
 
