@@ -354,6 +354,55 @@ pub struct Gating {
     pub reset_heading_min_speed_mps: f64,
     /// Robust re-weighting and the model-mismatch monitor; `None` = hard gate.
     pub robust: Option<RobustGating>,
+    /// GNSS velocity with its own gate: `Some` updates a fix's velocity separately, after its
+    /// position (3 + 3 dimensions, each gated on its own: a bad Doppler velocity does not
+    /// throw away a good position, nor the reverse); `None` (the default) uses position and
+    /// velocity in one 6-dimensional update gated together.
+    pub velocity: Option<VelocityGating>,
+}
+
+/// The GNSS velocity's own gate ([`Gating::velocity`]): chi-square thresholds on the 3-dof
+/// NIS of the velocity update. At or below `downweight_nis` full weight; between it and
+/// `reject_nis` R is divided by the IGG-III weight (robust); beyond `reject_nis` the velocity
+/// is not used (counted in [`crate::filter::Counters::gnss_vel_rejected`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityGating {
+    /// NIS (3 degrees of freedom) above which the velocity is down-weighted (dimensionless).
+    pub downweight_nis: f64,
+    /// NIS above which it is rejected (dimensionless; infinite: never).
+    pub reject_nis: f64,
+}
+
+impl VelocityGating {
+    /// Robust: down-weighting from the 0.99 chi-square quantile, rejection beyond 0.9999.
+    pub const ROBUST: Self = Self {
+        downweight_nis: chi2::DIM3_P99,
+        reject_nis: chi2::DIM3_P9999,
+    };
+
+    /// No gate: every velocity is used with full weight.
+    pub const OFF: Self = Self {
+        downweight_nis: f64::INFINITY,
+        reject_nis: f64::INFINITY,
+    };
+
+    /// A hard gate (no down-weighting) at the given probability.
+    pub const fn hard(p: GateProbability) -> Self {
+        let t = match p {
+            GateProbability::P95 => chi2::DIM3_P95,
+            GateProbability::P99 => chi2::DIM3_P99,
+            GateProbability::P999 => chi2::DIM3_P999,
+            GateProbability::P9999 => chi2::DIM3_P9999,
+        };
+        Self {
+            downweight_nis: t,
+            reject_nis: t,
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.downweight_nis > 0.0 && self.reject_nis >= self.downweight_nis
+    }
 }
 
 /// Default [`Gating::reset_heading_min_speed_mps`], m/s.
@@ -465,6 +514,7 @@ impl Gating {
             max_consecutive_rejections,
             reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
+            velocity: None,
         }
     }
 
@@ -486,6 +536,7 @@ impl Gating {
             max_consecutive_rejections: 0,
             reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
+            velocity: None,
         }
     }
 }
@@ -685,6 +736,7 @@ impl FilterConfig {
         if !(g.nis_threshold_pos > 0.0
             && g.nis_threshold_pos_vel > 0.0
             && g.robust.is_none_or(|r| r.is_valid())
+            && g.velocity.is_none_or(|v| v.is_valid())
             && !g.reset_heading_min_speed_mps.is_nan()
             && g.reset_heading_min_speed_mps >= 0.0
             && self.max_gnss_time_offset_s.is_finite()

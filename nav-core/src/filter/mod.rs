@@ -17,6 +17,7 @@
 mod access;
 mod aiding_update;
 mod gated;
+mod gnss_vel;
 pub(crate) mod linalg;
 pub mod observe;
 pub mod robust;
@@ -28,8 +29,8 @@ use crate::config::{ConfigError, FilterConfig};
 use crate::earth;
 use crate::model::discrete::{self, Accumulator, Cov};
 use crate::model::{
-    BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, MeasContext, Regressors,
-    CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
+    BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, Regressors, CORE_DIM, IDX_ATT,
+    IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
 };
 use crate::scalar::Scalar;
 use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
@@ -153,6 +154,12 @@ pub struct Counters {
     pub gnss_invalid: u32,
     /// Numerical failures (prediction or update skipped).
     pub numerical_failures: u32,
+    /// GNSS velocities used by their own update ([`crate::config::Gating::velocity`]).
+    pub gnss_vel_accepted: u32,
+    /// Of those, used with an inflated R (IGG-III down-weighting).
+    pub gnss_vel_downweighted: u32,
+    /// GNSS velocities rejected by their own gate.
+    pub gnss_vel_rejected: u32,
 }
 
 /// What a GNSS update did. Vectors hold `dim` valid entries: north, east, down position (m),
@@ -433,102 +440,38 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(FilterError::GnssTime { offset_s: dt_fix });
         }
         self.predict_covariance()?;
-
-        let c = dcm_f64(&nav.q_nb);
-        let l = Vector3::from(self.lever_arm_body_m());
-        let w = self.last_step.omega_ib_body_radps;
-        let c_l = c * l;
-        let c_w_x_l = c * w.cross(&l);
-        let c_lx = c * l.cross_matrix();
-        // time offset: the fix is the antenna at IMU time t_fix + dt_hat, tau after this epoch
-        let time_offset = self.layout.contains(BlockKind::TimeOffset);
-        let tau = dt_fix + self.time_offset_s();
-        let lat = nav.pos.lat_rad;
-        let v_ant0 = nav.vel_ned_mps + c_w_x_l;
-        let acc_n = if time_offset {
-            self.last_step.f_ned_mps2 + earth::gravity_ned_mps2(lat, nav.pos.h_m)
-        } else {
-            Vector3::zeros()
-        };
-        // local curvilinear map (that of `earth::displace` and of the position error; it
-        // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
-        let (sl, cl) = (libm::sin(lat), libm::cos(lat));
-        let d = 1.0 - earth::E2 * sl * sl;
-        let sd = libm::sqrt(d);
-        let rn = earth::A_M / sd + nav.pos.h_m;
-        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
-        let w_in = {
-            let v = &nav.vel_ned_mps;
-            let w = earth::OMEGA_IE_RADPS;
-            Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn))
-        };
-        let ctx = MeasContext {
-            c_l: c_l.into(),
-            c_w_x_l: c_w_x_l.into(),
-            c_lx: c_lx.transpose().into(),
-            omega_b_radps: w.into(),
-            c_nb: c.transpose().into(),
-            f_b_mps2: self.last_step.f_body_mps2.into(),
-            temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
-            // d/d(dt) of the predicted antenna position v_ant tau + a tau^2 / 2
-            v_ant_ned_mps: (v_ant0 + acc_n * tau).into(),
-            acc_ned_mps2: acc_n.into(),
-            bridge_s: tau,
-            lever_bridge_s: if time_offset { tau } else { 0.0 },
-            w_in_ned_radps: w_in.into(),
-            f_ned_mps2: self.last_step.f_ned_mps2.into(),
-        };
-        let mut h_pos = [[T::ZERO; N]; 3];
-        let mut h_vel = [[T::ZERO; N]; 3];
-        for (off, b) in self.layout.iter() {
-            b.gnss_jacobian(off, &ctx, &mut h_pos, &mut h_vel);
-        }
-        // predicted antenna position at the fix time minus the measured one, NED m
-        let mut dlon = fix.lon_rad - nav.pos.lon_rad;
-        if dlon > core::f64::consts::PI {
-            dlon -= 2.0 * core::f64::consts::PI;
-        } else if dlon < -core::f64::consts::PI {
-            dlon += 2.0 * core::f64::consts::PI;
-        }
-        let meas_off = Vector3::new(
-            (fix.lat_rad - lat) * rm,
-            dlon * rn * cl,
-            nav.pos.h_m - fix.h_m,
-        );
-        let zp = if time_offset {
-            // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
-            c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
-        } else {
-            c_l + nav.vel_ned_mps * dt_fix - meas_off
-        };
+        let m = self.gnss_model(fix, dt_fix);
         let rp = fix.pos_std_ned_m.map(|s| s * s);
         let force = self.cfg.gating.max_consecutive_rejections > 0
             && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
-        let zp_a = [zp.x, zp.y, zp.z];
+        if let (true, true, Some(vg)) = (
+            self.cfg.use_gnss_velocity,
+            fix.has_velocity,
+            self.cfg.gating.velocity,
+        ) {
+            return self.update_gnss_separate(fix, dt_fix, &m, &rp, force, vg);
+        }
         let (out, zv) = if self.cfg.use_gnss_velocity && fix.has_velocity {
-            let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
-            if time_offset {
-                v_ant += acc_n * tau;
-            }
-            let zv = v_ant - Vector3::from(fix.vel_ned_mps);
             let rv = fix.vel_std_ned_mps.map(|s| s * s);
             let [rv0, rv1, rv2] = rv;
             let [rp0, rp1, rp2] = rp;
-            let [a, b, cc] = h_pos;
-            let [d, e, f] = h_vel;
+            let [zp0, zp1, zp2] = m.zp;
+            let [zv0, zv1, zv2] = m.zv;
+            let [a, b, cc] = m.h_pos;
+            let [d, e, f] = m.h_vel;
             let out = self.kalman_update::<6>(
-                &[zp.x, zp.y, zp.z, zv.x, zv.y, zv.z],
+                &[zp0, zp1, zp2, zv0, zv1, zv2],
                 &[a, b, cc, d, e, f],
                 &[rp0, rp1, rp2, rv0, rv1, rv2],
                 force,
                 fix.t_s,
             )?;
-            (out, Some(([zv.x, zv.y, zv.z], rv)))
+            (out, Some((m.zv, rv)))
         } else {
-            let out = self.kalman_update::<3>(&zp_a, &h_pos, &rp, force, fix.t_s)?;
+            let out = self.kalman_update::<3>(&m.zp, &m.h_pos, &rp, force, fix.t_s)?;
             (out, None)
         };
-        Ok(self.after_update(out, &zp_a, &rp, zv))
+        Ok(self.after_update(out, &m.zp, &rp, zv))
     }
 
     /// Bookkeeping after the gate decided: counters, status bits, the NIS monitor, and the
