@@ -252,6 +252,8 @@ pub struct EffectsConfig {
     pub gyro_temperature: EffectNoise,
     /// `gyro_g_sensitivity`: diagonal g-dependent gyro bias, rad/s per m/s^2.
     pub gyro_g_sensitivity: EffectNoise,
+    /// `odometer_scale`: wheel-speed odometer scale-factor error (dimensionless).
+    pub odometer_scale: EffectNoise,
     /// Reference temperature T_ref of the temperature coefficients, degC; `None` = the first
     /// IMU sample that carries a temperature.
     pub temperature_ref_c: Option<f64>,
@@ -260,7 +262,8 @@ pub struct EffectsConfig {
 impl Default for EffectsConfig {
     /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, accelerometer temperature
     /// coefficient 100 ug/degC, gyro temperature coefficient 0.1 deg/h/degC, g-sensitivity
-    /// 1 deg/h/g; all random constants; T_ref = the first temperature.
+    /// 1 deg/h/g, odometer scale factor 5 %; all random constants; T_ref = the first
+    /// temperature.
     fn default() -> Self {
         Self {
             accel_misalignment: EffectNoise::constant(1e-3),
@@ -270,6 +273,7 @@ impl Default for EffectsConfig {
             accel_temperature: EffectNoise::constant(100.0 * units::UG_MPS2),
             gyro_temperature: EffectNoise::constant(units::radps_from_deg_per_h(0.1)),
             gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(1.0) / G0_MPS2),
+            odometer_scale: EffectNoise::constant(0.05),
             temperature_ref_c: None,
         }
     }
@@ -285,6 +289,7 @@ impl EffectsConfig {
             self.accel_temperature,
             self.gyro_temperature,
             self.gyro_g_sensitivity,
+            self.odometer_scale,
         ]
         .iter()
         .all(EffectNoise::is_valid)
