@@ -88,6 +88,25 @@ impl AidingConfig {
         odometer: OdometerConfig::DEFAULT,
     };
 
+    /// Land-vehicle aiding with the default settings: the non-holonomic constraint and the
+    /// zero-velocity and zero-rate updates on, the odometer off (the firmware's
+    /// `wire::CONFIG_LAND_AIDING`).
+    pub const LAND: Self = Self {
+        nhc: NhcConfig {
+            enabled: true,
+            ..NhcConfig::DEFAULT
+        },
+        zupt: ZuptConfig {
+            enabled: true,
+            ..ZuptConfig::DEFAULT
+        },
+        zaru: ZaruConfig {
+            enabled: true,
+            ..ZaruConfig::DEFAULT
+        },
+        ..Self::OFF
+    };
+
     /// Whether any source is on.
     pub fn any_enabled(&self) -> bool {
         self.nhc.enabled || self.zupt.enabled || self.zaru.enabled || self.odometer.enabled
