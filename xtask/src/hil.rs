@@ -247,8 +247,8 @@ const NAV_DIVIDER: u16 = 20;
 const FW_NAV_DIVIDER: u16 = 20;
 const FW_HEALTH_EVERY: u32 = 200;
 
-/// The bytes the host sends: a configuration, 600 IMU frames (3 s at 200 Hz, at rest with
-/// noise), a GNSS fix after every 200th, and a health request at the end.
+/// The bytes the host sends: a configuration (land-vehicle aiding on), 600 IMU frames (3 s at
+/// 200 Hz, at rest with noise), a GNSS fix after every 200th, and a health request at the end.
 fn scenario() -> Vec<u8> {
     let p = Llh::from_deg(48.0, 11.0, 500.0);
     let g = earth::gravity_mps2(p.lat_rad, p.h_m);
@@ -270,7 +270,8 @@ fn scenario() -> Vec<u8> {
     push(
         Payload::Config(wire::Config {
             model: wire::model::NBK,
-            flags: 0,
+            // the board runs the land-vehicle aiding (at rest: ZUPT and ZARU at 10 Hz)
+            flags: wire::CONFIG_LAND_AIDING,
             nav_divider: NAV_DIVIDER,
             imu_rate_hz: IMU_HZ as f32,
             gnss_rate_hz: 1.0,

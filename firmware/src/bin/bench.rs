@@ -189,7 +189,7 @@ fn aiding_case(
             return false;
         }
     };
-    let Ok(mut aid) = Aiding::<f32, 100>::new(&cfg) else {
+    let Ok(mut aid) = Aiding::<f32, { firmware::app::AID_WINDOW }>::new(&cfg) else {
         error!("bench {}: aiding configuration refused", case);
         return false;
     };
@@ -265,8 +265,9 @@ fn aiding_case(
         c.nhc.failed + c.zupt.failed + c.zaru.failed
     );
     info!(
-        "BENCH size what=Aiding<f32,100> bytes={}",
-        core::mem::size_of::<Aiding<f32, 100>>()
+        "BENCH size what=Aiding<f32,{}> bytes={}",
+        firmware::app::AID_WINDOW,
+        core::mem::size_of::<Aiding<f32, { firmware::app::AID_WINDOW }>>()
     );
     update.calls > 0 && f.covariance_is_positive_definite()
 }
