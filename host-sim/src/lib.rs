@@ -10,10 +10,10 @@
 
 pub mod allan;
 pub mod diagnose;
-pub mod metrics;
 pub mod mounting;
 pub mod noise;
 pub mod run;
+// The run engine's metrics and smoother live in `nav-engine`.
+pub use nav_engine::{metrics, smooth};
 pub mod sim;
-pub mod smooth;
 pub mod study;

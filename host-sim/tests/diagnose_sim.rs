@@ -93,7 +93,7 @@ fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u
         start += 100.0;
     }
     Prepared {
-        case: CaseData::from_sim(&case),
+        case: CaseData::from(&case),
         opts,
         week: 2227,
         description: "diagnose test".into(),
