@@ -537,9 +537,27 @@ pub enum RunError {
     /// Initialisation failed.
     #[error("run: initialisation: {0}")]
     Init(String),
+    /// The alignment refused the start-up data (`msg` says where and what to do).
+    #[error("run: initialisation: {msg}")]
+    Align {
+        /// What failed, with the way out.
+        msg: String,
+        /// The alignment's error.
+        #[source]
+        source: nav_core::align::AlignError,
+    },
     /// Invalid options.
     #[error("run: {0}")]
     Options(String),
+    /// The filter configuration is invalid.
+    #[error("run: filter configuration: {0}")]
+    FilterConfig(#[source] nav_core::config::ConfigError),
+    /// The state layout (model plus effect blocks) is invalid.
+    #[error("run: {0}")]
+    Layout(#[source] nav_core::model::LayoutError),
+    /// The IMU guard refused its configuration.
+    #[error("run: {0}")]
+    Guard(#[source] nav_core::imu_guard::GuardError),
     /// A fault in the middle of the data ended the run; `partial` holds everything up to it.
     #[error("run: {location} (t = {t_s:.6} s): {msg}; the run stopped there")]
     Fault {
@@ -560,20 +578,18 @@ pub enum RunError {
     #[error("run: writing the outputs: {0}")]
     Output(#[source] nav_io::IoError),
     /// The filter refused its construction or failed.
-    #[error("run: filter at t = {t_s:.3} s: {msg}")]
+    #[error("run: filter at t = {t_s:.3} s: {source}")]
     Filter {
         /// Time, s.
         t_s: f64,
-        /// The filter's message.
-        msg: String,
+        /// The filter's error.
+        #[source]
+        source: FilterError,
     },
 }
 
-fn filter_err(t_s: f64, e: FilterError) -> RunError {
-    RunError::Filter {
-        t_s,
-        msg: e.to_string(),
-    }
+fn filter_err(t_s: f64, source: FilterError) -> RunError {
+    RunError::Filter { t_s, source }
 }
 
 /// Runs the filter on a case (see the module notes).
@@ -721,9 +737,7 @@ pub fn run_stream(
             }
             layout = layout.with(*b);
         }
-        layout
-            .validate(layout.dim())
-            .map_err(|e| RunError::Options(e.to_string()))?;
+        layout.validate(layout.dim()).map_err(RunError::Layout)?;
         macro_rules! dims {
             ($($n:literal)*) => {
                 match layout.dim() {
