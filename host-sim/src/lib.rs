@@ -1,9 +1,9 @@
 #![doc = include_str!("../README.md")]
 //!
 //! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
-//! the run engine, the source document's bias-model study, model diagnosis, metrics, plots,
-//! reports and the command line (the `allan` command over the `noise-id` crate). The data
-//! formats are read and written by the `nav-io` crate.
+//! the source document's bias-model study, model diagnosis, plots, reports and the command
+//! line (`run` over the `nav-engine` crate's run engine and metrics, `allan` over the
+//! `noise-id` crate). The data formats are read and written by the `nav-io` crate.
 //!
 //! Every computation that also runs on the MCU lives in `nav-core`; this crate only drives it.
 #![deny(missing_docs)]

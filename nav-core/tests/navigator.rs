@@ -1,5 +1,5 @@
 //! `nav_core::navigator`: the push-form loop gives, bit for bit, the results of the host's run
-//! loop (`nav-engine/src/run/mod.rs`: guard, integrate, then every pending fix with
+//! loop (`nav-engine/src/run/engine.rs`: guard, integrate, then every pending fix with
 //! `t_f < t_k + dt_next / 2`) on the same data; the alignment modes start where they should;
 //! the fix queue reports overflow.
 
