@@ -343,7 +343,7 @@ fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
 pub(crate) fn header_names(line: &str) -> Vec<String> {
     let body = line.trim_start().trim_start_matches(['#', '%']);
     split_fields(body)
-        .into_iter()
+        .iter()
         .map(|f| f.split_whitespace().next().unwrap_or("").to_string())
         .collect()
 }
