@@ -22,6 +22,7 @@ pub mod imucsv;
 pub mod kfgins;
 mod lines;
 pub mod mount;
+mod numfmt;
 pub mod pos;
 pub mod runcfg;
 pub mod tag;
@@ -53,6 +54,6 @@ pub use runcfg::{
 pub use tag::{read_time_tag, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_line, write_gnss_text,
-    write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_text, ImuBinReader,
-    ImuGap, ImuOrigin, ImuRecord, ImuTextReader, TimeGapReport,
+    write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_line_display,
+    write_nav_text, ImuBinReader, ImuGap, ImuOrigin, ImuRecord, ImuTextReader, TimeGapReport,
 };

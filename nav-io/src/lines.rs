@@ -291,12 +291,15 @@ impl<'a> DataLine<'a> {
     /// Checks the field count is in `min..=max`; `names[i]` is the meaning of column i+1 (used
     /// to name the first missing column).
     pub fn require(&self, min: usize, max: usize, names: &[&str]) -> Result<(), IoError> {
-        let expected = if min == max {
-            format!("{min}")
-        } else if max == usize::MAX {
-            format!("at least {min}")
-        } else {
-            format!("{min} to {max}")
+        // built only for an error: nothing is allocated for a good line
+        let expected = || {
+            if min == max {
+                format!("{min}")
+            } else if max == usize::MAX {
+                format!("at least {min}")
+            } else {
+                format!("{min} to {max}")
+            }
         };
         if self.fields.len() < min {
             let col = self.fields.len();
@@ -306,7 +309,7 @@ impl<'a> DataLine<'a> {
                 column: col + 1,
                 name: names.get(col).copied().unwrap_or("?").to_string(),
                 found: self.fields.len(),
-                expected,
+                expected: expected(),
             });
         }
         if self.fields.len() > max {
@@ -315,7 +318,7 @@ impl<'a> DataLine<'a> {
                 line: self.line,
                 column: max + 1,
                 found: self.fields.len(),
-                expected,
+                expected: expected(),
             });
         }
         Ok(())
