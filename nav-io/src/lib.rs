@@ -37,7 +37,8 @@ pub use gnsscsv::{
 pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
-    ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,
+    ImuCsvFormat, ImuCsvIncrements, ImuCsvReader, RateUnit, RawImuRecord, RawImuSample,
+    SampleConvention,
 };
 pub use kfgins::{
     parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml,

@@ -108,11 +108,22 @@ fn maybe_tie(x: f64) -> bool {
     // x = m / 2^k = m * 5^k / 10^k: the significant digits are those of m * 5^k (odd, so no
     // trailing zero). 5^27 > 10^18, so for k >= 27 there are more than 18 digits.
     let k = -e;
-    if k >= 27 {
-        return false;
+    match POW5.get(k as usize) {
+        Some(&p5) => u128::from(m) * u128::from(p5) < 1_000_000_000_000_000_000u128,
+        None => false,
     }
-    (m as u128) * 5u128.pow(k as u32) < 1_000_000_000_000_000_000u128
 }
+
+/// 5^k for k = 0..=26 (5^27 > 10^18: beyond, a value has more than 18 significant digits).
+const POW5: [u64; 27] = {
+    let mut t = [1u64; 27];
+    let mut i = 1;
+    while i < 27 {
+        t[i] = t[i - 1] * 5;
+        i += 1;
+    }
+    t
+};
 
 /// Writes `x` as `format!("{x}")` would into `out`; `None` when the fast path does not apply
 /// (non-finite, possible tie, or longer than `out`): the caller uses `Display` then.
@@ -130,6 +141,13 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     }
     let mut rb = ryu::Buffer::new();
     let s = rb.format_finite(x).as_bytes();
+    // For 1e-5 <= |x| < 1e16 ryu writes positional notation, as `Display` does, except that
+    // an integer gets ".0" ("12.0" where `Display` writes "12").
+    if !s.contains(&b'e') {
+        let s = s.strip_suffix(b".0").unwrap_or(s);
+        out.get_mut(..s.len())?.copy_from_slice(s);
+        return Some(s.len());
+    }
     // Split ryu's text into sign, significant digits and the decimal exponent `p` such that
     // |x| = 0.d1 d2 ... dn * 10^p.
     let (neg, body) = match s.split_first() {

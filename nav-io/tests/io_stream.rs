@@ -346,3 +346,106 @@ fn parse_f64_special_spellings_match_std() {
         );
     }
 }
+
+fn tag_bytes(start_s: u32, frac: f64, pairs: &[(u32, u32)]) -> Vec<u8> {
+    let mut b = vec![0u8; 60];
+    b[..20].copy_from_slice(b"TIMETAG RTKLIB demo5");
+    b.extend_from_slice(&123456u32.to_le_bytes());
+    b.extend_from_slice(&start_s.to_le_bytes());
+    b.extend_from_slice(&frac.to_le_bytes());
+    for (t, p) in pairs {
+        b.extend_from_slice(&t.to_le_bytes());
+        b.extend_from_slice(&p.to_le_bytes());
+    }
+    b
+}
+
+#[test]
+fn csv_streaming_rows_and_increments_equal_the_whole_file_readers() {
+    use nav_io::{
+        read_imu_csv, read_imu_csv_raw, Column, CsvTime, ImuCsvFormat, ImuCsvIncrements,
+        ImuCsvReader, SampleConvention,
+    };
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("log.csv.tag"),
+        tag_bytes(1_752_003_261, 0.5, &[(15, 40), (1005, 900), (2002, 1800)]),
+    )
+    .unwrap();
+    // a header with names, 201 rows of ticks (the sensor clock 0.1 % fast vs the tag)
+    let mut s = String::from("ax,ay,az,gx,gy,gz,tick\n");
+    for k in 0..=200 {
+        let x = k as f64;
+        writeln!(
+            s,
+            "{},{},{},{},{},{},{}",
+            0.01 * (x * 0.1).sin(),
+            -0.02,
+            1.0 + 1e-3 * x,
+            0.5 * (x * 0.05).cos(),
+            -0.1,
+            0.2,
+            5000 + 10 * k
+        )
+        .unwrap();
+    }
+    let p = dir.path().join("log.csv");
+    std::fs::write(&p, &s).unwrap();
+    let mut fmt = ImuCsvFormat::rtklib_demo5_icm("log.csv.tag");
+    fmt.skip_lines = 1;
+    fmt.skip_last_rows = 1;
+    fmt.columns.time = Some(Column::Name("tick".into()));
+    for (conv, stretch) in [
+        (SampleConvention::Trapezoid, true),
+        (SampleConvention::IntervalMean, false),
+    ] {
+        fmt.convention = conv;
+        fmt.time = CsvTime::TicksMs {
+            tag_file: Some("log.csv.tag".into()),
+            stretch_to_tag_end: stretch,
+        };
+        let raw = read_imu_csv_raw(&p, &fmt).unwrap();
+        assert_eq!(raw.samples.len(), 201 - 1);
+        assert_eq!(*raw.lines.last().unwrap(), 2 + 199);
+        let rows: Vec<_> = ImuCsvReader::open(&p, &fmt)
+            .unwrap()
+            .map(Result::unwrap)
+            .collect();
+        assert_eq!(rows.len(), raw.samples.len());
+        for ((r, line), (a, l)) in rows.iter().zip(raw.samples.iter().zip(&raw.lines)) {
+            // Debug prints shortest round-trip digits: equal texts are equal bits (NaN too)
+            assert_eq!(format!("{r:?}"), format!("{a:?}"));
+            assert_eq!(line, l);
+        }
+        // the stretch places the last USED row at the tag's last tick only with the stretch
+        let t_last = raw.samples.last().unwrap().t_s - raw.samples[0].t_s;
+        if stretch {
+            assert!((t_last - 2.002).abs() < 1e-9, "{t_last}");
+        } else {
+            assert!((t_last - 1.99).abs() < 1e-9, "{t_last}");
+        }
+        let inc = read_imu_csv(&p, &fmt).unwrap();
+        let streamed: Vec<_> = ImuCsvIncrements::open(&p, &fmt)
+            .unwrap()
+            .map(Result::unwrap)
+            .collect();
+        assert_eq!(streamed.len(), inc.samples.len());
+        assert_eq!(inc.samples.len(), 199);
+        let lines = &inc.origin.as_ref().unwrap().lines;
+        for ((a, line), (b, l)) in streamed.iter().zip(inc.samples.iter().zip(lines)) {
+            assert_eq!(a.t_s.to_bits(), b.t_s.to_bits());
+            assert_eq!(a.dtheta_rad, b.dtheta_rad);
+            assert_eq!(a.dv_mps, b.dv_mps);
+            assert_eq!(line, l);
+        }
+    }
+    // an error in a row held back as one of the last rows is still an error, with its line
+    let bad = s.replace(",7000\n", ",x\n");
+    std::fs::write(&p, bad).unwrap();
+    let e = ImuCsvReader::open(&p, &fmt)
+        .and_then(|r| r.collect::<Result<Vec<_>, _>>())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 202") && e.contains("column 7"), "{e}");
+}
