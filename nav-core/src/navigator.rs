@@ -591,6 +591,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         for f in c.fill {
             filter.propagate(&f)?;
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate(&c.sample) {
             Ok(()) => {}
             Err(e @ FilterError::NonFiniteImu) => {
