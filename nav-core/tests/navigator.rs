@@ -186,6 +186,7 @@ fn host_rule<const N: usize>(
         for f in c.fill {
             filter.propagate(&f).unwrap();
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate(&c.sample) {
             Ok(()) => {}
             Err(FilterError::NonFiniteImu) => {

@@ -16,6 +16,7 @@
 
 mod access;
 mod aiding_update;
+mod gapnoise;
 pub(crate) mod linalg;
 pub mod observe;
 pub mod robust;
@@ -206,6 +207,9 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// Error-state corrections fed back since the last covariance prediction (summed), for
     /// [`observe::PredictionRecord::correction`].
     fed_back: [T; N],
+    /// Fill noise waiting for the next prediction (body-axis variances of attitude, velocity,
+    /// position; [`Filter::widen_for_fill`]).
+    fill_var: [f64; 9],
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -289,6 +293,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
+            fill_var: [0.0; 9],
         })
     }
 
@@ -399,6 +404,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         let mut p = self.p;
         discrete::predict_covariance(&mut p, &d);
+        self.add_fill_noise(&mut p);
         if !all_finite(&p) || !diag_nonneg(&p) {
             return Err(self.numerical_failure());
         }

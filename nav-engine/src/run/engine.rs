@@ -606,6 +606,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 break 'imu;
             }
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate_observed(&c.sample, &mut rec) {
             Ok(()) => aid.after_imu(&mut filter, &mut rec),
             Err(FilterError::NonFiniteImu) => {
