@@ -8,6 +8,7 @@
 pub mod case;
 pub mod cli;
 pub mod errors;
+pub mod odometer;
 pub mod plot;
 pub mod scenario;
 pub mod trajectory;
