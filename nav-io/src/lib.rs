@@ -22,6 +22,7 @@ pub mod imucsv;
 pub mod kfgins;
 mod lines;
 pub mod mount;
+pub mod noisecfg;
 pub mod pos;
 pub mod runcfg;
 pub mod tag;
@@ -43,6 +44,7 @@ pub use kfgins::{
 };
 pub use lines::{open_text, DataLine, LineReader};
 pub use mount::Mounting;
+pub use noisecfg::AxisValue;
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,
