@@ -145,6 +145,9 @@ pub struct AxisResult {
     pub slope: Option<SlopeResult>,
     /// The candidate models of the term selection (empty without selection).
     pub candidates: Vec<fit::Candidate>,
+    /// Whether the fitted model follows the curve within its confidence band, and the
+    /// better-fitting alternative when it does not ([`fit::check_model`]).
+    pub check: Option<fit::ModelCheck>,
 }
 
 /// The whole analysis.
@@ -212,6 +215,10 @@ pub fn analyse(
                 )
             };
             let slope = fit::slope_method(&fit_curve);
+            let check = f
+                .as_ref()
+                .ok()
+                .and_then(|r| fit::check_model(&fit_curve, r, fit_opt).ok());
             AxisResult {
                 name: name.clone(),
                 kind: *kind,
@@ -220,6 +227,7 @@ pub fn analyse(
                 fit: f,
                 slope,
                 candidates,
+                check,
             }
         })
         .collect();
@@ -391,6 +399,8 @@ struct JsonAxis<'a> {
     fit: Option<JsonFit>,
     slope_method: Option<&'a SlopeResult>,
     candidates: &'a [fit::Candidate],
+    model_check: Option<&'a fit::ModelCheck>,
+    model_warning: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -443,6 +453,8 @@ pub fn to_json(an: &Analysis) -> anyhow::Result<String> {
             }),
             slope_method: a.slope.as_ref(),
             candidates: &a.candidates,
+            model_check: a.check.as_ref(),
+            model_warning: a.model_warning(),
         };
         map.insert(a.name.clone(), serde_json::to_value(ja)?);
     }
@@ -597,6 +609,9 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         if let Err(e) = &a.fit {
             eprintln!("{}: {e}", a.name);
         }
+        if let Some(w) = a.model_warning() {
+            eprintln!("warning: {w}");
+        }
     }
     if !args.no_select {
         println!("Term selection (BIC = chi2 + p ln n with the model-error floor; * = selected):");
@@ -689,6 +704,12 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
 }
 
 impl AxisResult {
+    /// The warning when the fitted model misses the curve beyond its confidence band.
+    pub fn model_warning(&self) -> Option<String> {
+        let f = self.fit.as_ref().ok()?;
+        self.check.as_ref()?.warning(&self.name, &f.terms)
+    }
+
     fn curve_title(&self, dev: Deviation) -> &'static str {
         match dev {
             Deviation::Adev => "Allan deviation",
