@@ -27,6 +27,7 @@ fn spec() -> ColumnSpec {
         rate_hz: Some(100.0),
         skip_lines: 2,
         x_scale: 1.0,
+        x_unit: noise_id::reader::XUnit::Si,
     }
 }
 
@@ -110,6 +111,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         rate_hz: Some(100.0),
         skip_lines: 2,
         x_scale: 1.0,
+        x_unit: noise_id::reader::XUnit::Si,
         dev: Deviation::Oadev,
         taus: TauArg::Octave,
         terms: vec![TermArg::Quant, TermArg::White, TermArg::Gm, TermArg::Rw],

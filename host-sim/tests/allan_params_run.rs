@@ -185,3 +185,116 @@ fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
         "{out_i} vs {out_t}"
     );
 }
+
+/// Deterministic standard normal samples (xorshift64* + Box-Muller).
+fn normals(n: usize, mut s: u64) -> Vec<f64> {
+    let mut u = || {
+        s ^= s >> 12;
+        s ^= s << 25;
+        s ^= s >> 27;
+        ((s.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        })
+        .collect()
+}
+
+/// Issue 15: a single generic channel (`--columns x`) is reported in SI under SI headings,
+/// or, with `--x-unit`, as the sensor that unit names (datasheet units, a `[noise.gyro]`
+/// section with the channel for all three axes).
+#[test]
+fn a_single_channel_takes_its_unit_or_prints_si_with_si_headings() {
+    let dir = tempfile::tempdir().unwrap();
+    // a gyro in deg/s at 100 Hz: white noise 0.01 deg/s/sqrt(Hz) = 0.6 deg/sqrt(h)
+    let (rate, n_dps) = (100.0, 0.01);
+    let sigma = n_dps * rate_sqrt(rate);
+    let text: String = normals(200_000, 99)
+        .iter()
+        .map(|v| format!("{:.6}\n", 0.2 + sigma * v))
+        .collect();
+    let file = dir.path().join("one.txt");
+    std::fs::write(&file, text).unwrap();
+    let allan = |unit: &str, out: &str| {
+        let o = dir.path().join(out);
+        let so = run_ok(host_sim().args([
+            "allan",
+            file.to_str().unwrap(),
+            "--columns",
+            "x",
+            "--rate-hz",
+            "100",
+            "--x-unit",
+            unit,
+            "--out-dir",
+            o.to_str().unwrap(),
+            "--no-plot",
+            "--quiet",
+        ]));
+        let params = std::fs::read_to_string(o.join("allan_params.toml")).unwrap();
+        println!("--x-unit {unit}:\n{so}\n{params}");
+        (so, params)
+    };
+    // no unit: SI, SI headings, no gyro/accel units anywhere in the table
+    let (so, params) = allan("si", "si");
+    let row = |so: &str, head: &str| -> String {
+        so.lines()
+            .find(|l| l.contains(head))
+            .unwrap_or_else(|| panic!("no row {head:?} in\n{so}"))
+            .to_string()
+    };
+    let n_row = row(&so, "              N [");
+    assert!(n_row.contains("N [U sqrt(s)]"), "{n_row}");
+    assert!(
+        !so.contains("deg/sqrt(h)") && !so.contains("ug/sqrt(Hz)"),
+        "{so}"
+    );
+    let n_si: f64 = n_row
+        .split('|')
+        .nth(1)
+        .unwrap()
+        .split('±')
+        .next()
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(
+        (n_si / n_dps - 1.0).abs() < 0.03,
+        "N {n_si} in the column's unit"
+    );
+    assert!(so.contains("U: the unit of the generic channel"), "{so}");
+    assert!(!params.lines().any(|l| l.starts_with("[noise")), "{params}");
+    assert!(params.contains("channel x has no unit"), "{params}");
+
+    // deg/s: a gyro, ARW in deg/sqrt(h), a [noise.gyro] section a run accepts
+    let (so, params) = allan("dps", "dps");
+    let n_row = row(&so, "              N [");
+    assert!(n_row.contains("N [deg/sqrt(h)]"), "{n_row}");
+    assert!(!n_row.contains("ug/sqrt(Hz)"), "{n_row}");
+    let arw: f64 = n_row
+        .split('|')
+        .nth(1)
+        .unwrap()
+        .split('±')
+        .next()
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    assert!((arw / 0.6 - 1.0).abs() < 0.03, "ARW {arw} deg/sqrt(h)");
+    let t: toml::Table = toml::from_str(&params).unwrap();
+    let noise: nav_io::NoiseConfig = t["noise"].clone().try_into().unwrap();
+    let g = noise.gyro.to_sensor_noise().unwrap();
+    let arw_cfg = nav_core::config::units::gyro_deg_per_sqrt_h_from_psd(g.s_n[0]);
+    assert!((arw_cfg / arw - 1.0).abs() < 1e-3, "{arw_cfg} vs {arw}");
+    assert!(g.s_n[0] == g.s_n[1] && g.s_n[1] == g.s_n[2]);
+    assert!(params.contains("the single channel x stands for all three axes"));
+    assert!(noise.accel.s_n.is_none());
+}
+
+fn rate_sqrt(rate_hz: f64) -> f64 {
+    rate_hz.sqrt()
+}

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use noise_id::fit::{self, Datasheet, FitOptions, FitResult, SensorKind, SlopeResult, Terms};
-use noise_id::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit};
+use noise_id::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit, XUnit};
 use noise_id::{deviation_curve_phase, edf, CurveOptions, DevPoint, Deviation, Phase, Taus};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -73,9 +73,14 @@ pub struct AllanArgs {
     /// Lines skipped at the start of a generic file.
     #[arg(long, default_value_t = 0)]
     pub skip_lines: usize,
-    /// Scale of an `x` column to its SI unit.
+    /// Scale of an `x` column (applied on top of `--x-unit`).
     #[arg(long, default_value_t = 1.0)]
     pub x_scale: f64,
+    /// Unit of an `x` column: a gyro (radps, dps, dph) or accelerometer (mps2, g, ug) unit
+    /// makes it that sensor (datasheet units, a `[noise.gyro]`/`[noise.accel]` section);
+    /// `si` reports it in SI with SI headings.
+    #[arg(long, value_enum, default_value = "si")]
+    pub x_unit: XUnit,
     /// Deviation to compute and plot (the fit always uses the overlapping Allan variance).
     #[arg(long, value_enum, default_value = "oadev")]
     pub dev: Deviation,
@@ -332,6 +337,10 @@ pub fn table(an: &Analysis) -> String {
         "              K [ug/sqrt(h)],[deg/h/sqrt(h)]".into(),
         an.axes.iter().map(|a| slope_fmt(a, 'K')).collect(),
     ));
+    let kinds: Vec<SensorKind> = an.axes.iter().map(|a| a.kind).collect();
+    for r in &mut rows {
+        r.0 = heading_units(&r.0, &kinds);
+    }
     let w0 = rows.iter().map(|r| r.0.chars().count()).max().unwrap_or(0);
     let wc: Vec<usize> = (0..an.axes.len())
         .map(|j| {
@@ -357,7 +366,46 @@ pub fn table(an: &Analysis) -> String {
         }
         s.push('\n');
     }
+    if kinds.contains(&SensorKind::Other) {
+        s.push_str(
+            "U: the unit of the generic channel (its column times --x-scale), read as SI; \
+             --x-unit radps|dps|dph|mps2|g|ug makes it a gyro or an accelerometer\n",
+        );
+    }
     s
+}
+
+/// A heading's units for the sensors in the table: `name [accel],[gyro]` keeps the unit of
+/// each kind present, in that order, and adds the SI form (`U` = the channel's unit) for a
+/// channel of unknown quantity (`--columns x` without a sensor `--x-unit`).
+fn heading_units(label: &str, kinds: &[SensorKind]) -> String {
+    let Some((name, units)) = label.split_once(" [") else {
+        return label.to_string();
+    };
+    let Some((a, g)) = units.trim_end_matches(']').split_once("],[") else {
+        return label.to_string();
+    };
+    let si = match a {
+        "m^2/s^2" => "U^2 s^2",
+        "m/s" => "U s",
+        "m^2/s^3" => "U^2 s",
+        "ug/sqrt(Hz)" => "U sqrt(s)",
+        "m^2/s^5" => "U^2/s",
+        "ug" => "U",
+        "m/s^2.5" | "ug/sqrt(h)" => "U/sqrt(s)",
+        _ => "SI",
+    };
+    let mut parts = Vec::new();
+    for (k, u) in [
+        (SensorKind::Accel, a),
+        (SensorKind::Gyro, g),
+        (SensorKind::Other, si),
+    ] {
+        if kinds.contains(&k) {
+            parts.push(format!("[{u}]"));
+        }
+    }
+    format!("{name} {}", parts.join(","))
 }
 
 fn slope_fmt(a: &AxisResult, which: char) -> String {
@@ -492,6 +540,7 @@ pub fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
                     rate_hz: args.rate_hz,
                     skip_lines: args.skip_lines,
                     x_scale: args.x_scale,
+                    x_unit: args.x_unit,
                 },
             )?
         }
