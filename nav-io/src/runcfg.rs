@@ -549,7 +549,7 @@ pub struct RunInputs {
     /// velocities as in the file: `sigma_scale` and `use_velocity` are for the filter).
     pub gnss: Vec<GnssFix>,
     /// GPS week of the GNSS times when the file states it (RTKLIB .pos, CSV with a week or an
-    /// absolute time, NMEA with its RMC date; not UBX NAV-PVT).
+    /// absolute time, NMEA with its RMC date, UBX NAV-PVT with a valid UTC date).
     pub gnss_week: Option<i64>,
     /// GNSS records dropped by the quality filter.
     pub gnss_dropped_by_quality: usize,
