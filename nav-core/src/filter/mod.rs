@@ -16,6 +16,7 @@
 
 mod access;
 mod aiding_update;
+mod gapnoise;
 mod gated;
 mod gnss_vel;
 pub(crate) mod linalg;
@@ -214,6 +215,9 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// Error-state corrections fed back since the last covariance prediction (summed), for
     /// [`observe::PredictionRecord::correction`].
     fed_back: [T; N],
+    /// Fill noise waiting for the next prediction (body-axis variances of attitude, velocity,
+    /// position; [`Filter::widen_for_fill`]).
+    fill_var: [f64; 9],
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -297,6 +301,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
+            fill_var: [0.0; 9],
         })
     }
 
@@ -407,6 +412,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         let mut p = self.p;
         discrete::predict_covariance(&mut p, &d);
+        self.add_fill_noise(&mut p);
         if !all_finite(&p) || !diag_nonneg(&p) {
             return Err(self.numerical_failure());
         }
