@@ -1060,3 +1060,24 @@ fn written_solution_metric_uses_the_estimated_lever_arm() {
         }
     }
 }
+
+/// The `diagnose` command line parses (its arguments and `run`'s flattened ones must not
+/// collide: a duplicated `--smooth` made every `host-sim diagnose` call fail) and offers
+/// `--smooth`.
+#[test]
+fn diagnose_command_line_parses() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["diagnose", "--help"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("--smooth") && text.contains("--max-effects"),
+        "{text}"
+    );
+}

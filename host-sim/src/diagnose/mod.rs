@@ -71,7 +71,10 @@ pub use validate::StepErrors;
 #[derive(clap::Args, Debug)]
 pub struct DiagnoseArgs {
     /// Inputs as for `run`; `--out` receives diagnosis.json, nav_before.txt, nav_after.txt,
-    /// report.md with its PNG plots, and the augmented configuration.
+    /// report.md with its PNG plots, and the augmented configuration. `--smooth` scores the
+    /// held-out check on the Rauch-Tung-Striebel smoothed solution of every candidate run (the
+    /// outage fixes stay withheld from the filter and so from the smoother) instead of the
+    /// forward one; the evidence stays the forward innovations' ([`DiagnoseOptions::smooth`]).
     #[command(flatten)]
     pub run: RunArgs,
     /// Largest number of effects to add.
@@ -87,11 +90,6 @@ pub struct DiagnoseArgs {
     /// Evidence margin, nats, below which two eligible candidates are reported as ambiguous.
     #[arg(long, default_value_t = 3.0)]
     pub ambiguity_margin: f64,
-    /// Score the held-out check on the Rauch-Tung-Striebel smoothed solution of every
-    /// candidate run (the outage fixes stay withheld from the filter and so from the
-    /// smoother) instead of the forward one; the evidence stays the forward innovations'.
-    #[arg(long)]
-    pub smooth: bool,
 }
 
 /// Options of [`diagnose`].
@@ -853,7 +851,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         candidates: None,
         tune_noise: !args.no_tune_noise,
         ambiguity_margin: args.ambiguity_margin,
-        smooth: args.smooth,
+        smooth: args.run.smooth,
     };
     let d = diagnose(&p, &dopts)?;
     let dir: &PathBuf = &args.run.out;
