@@ -612,7 +612,8 @@ fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f6
 /// even the exact effect raises the held-out error on that drive; measured: 2 of the 40, the
 /// KF-GINS accel seed 95000 and gyro seed 95122, see
 /// [`refused_scale_factors_help_over_noise_seeds`]). The 30 % improvement per case is counted
-/// and printed. `DIAGNOSE_SWEEP_SEEDS=95000,95122` runs only those seeds. Run with
+/// and printed. `DIAGNOSE_SWEEP_SEEDS=95000,95122` runs only those seeds;
+/// `DIAGNOSE_SWEEP_SMOOTH=1` scores on the smoothed solutions (`diagnose --smooth`). Run with
 /// `--ignored` (measured numbers in the README's diagnose section).
 #[test]
 #[ignore]
@@ -697,7 +698,12 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
             } else {
                 prepared(v, &e, [0.0; 3], seed)
             };
-            let d = diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis;
+            // DIAGNOSE_SWEEP_SMOOTH=1: the held-out check scored on the smoothed solutions
+            let o = DiagnoseOptions {
+                smooth: std::env::var("DIAGNOSE_SWEEP_SMOOTH").is_ok_and(|v| v == "1"),
+                ..DiagnoseOptions::default()
+            };
+            let d = diagnose(&p, &o).unwrap().diagnosis;
             let (n, eo, imp, b, a) = grade(&d, &name, &truth);
             let right = n && eo;
             let refusal = (!right).then(|| refusal_is_right(&p, &d, &name, &truth));
@@ -1053,4 +1059,25 @@ fn written_solution_metric_uses_the_estimated_lever_arm() {
             assert!(cfg > 5.0 * est, "configured arm {cfg} vs estimate {est}");
         }
     }
+}
+
+/// The `diagnose` command line parses (its arguments and `run`'s flattened ones must not
+/// collide: a duplicated `--smooth` made every `host-sim diagnose` call fail) and offers
+/// `--smooth`.
+#[test]
+fn diagnose_command_line_parses() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["diagnose", "--help"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("--smooth") && text.contains("--max-effects"),
+        "{text}"
+    );
 }

@@ -71,7 +71,10 @@ pub use validate::StepErrors;
 #[derive(clap::Args, Debug)]
 pub struct DiagnoseArgs {
     /// Inputs as for `run`; `--out` receives diagnosis.json, nav_before.txt, nav_after.txt,
-    /// report.md with its PNG plots, and the augmented configuration.
+    /// report.md with its PNG plots, and the augmented configuration. `--smooth` scores the
+    /// held-out check on the Rauch-Tung-Striebel smoothed solution of every candidate run (the
+    /// outage fixes stay withheld from the filter and so from the smoother) instead of the
+    /// forward one; the evidence stays the forward innovations' ([`DiagnoseOptions::smooth`]).
     #[command(flatten)]
     pub run: RunArgs,
     /// Largest number of effects to add.
@@ -100,16 +103,20 @@ pub struct DiagnoseOptions {
     pub tune_noise: bool,
     /// Evidence margin below which two eligible candidates are ambiguous, nats.
     pub ambiguity_margin: f64,
+    /// Score the held-out check on the smoothed solutions (`--smooth`).
+    pub smooth: bool,
 }
 
 impl Default for DiagnoseOptions {
-    /// At most 4 effects, all applicable candidates, noise tuning on, margin 3 nats.
+    /// At most 4 effects, all applicable candidates, noise tuning on, margin 3 nats, scored
+    /// on the forward solution.
     fn default() -> Self {
         Self {
             max_effects: 4,
             candidates: None,
             tune_noise: true,
             ambiguity_margin: 3.0,
+            smooth: false,
         }
     }
 }
@@ -360,11 +367,20 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
     o
 }
 
-fn evaluate(p: &Prepared, o: &RunOptions) -> Result<Eval, crate::run::RunError> {
-    let out = run_filter(&p.case, &search_recording(o))?;
+fn evaluate(p: &Prepared, o: &RunOptions, smooth: bool) -> Result<Eval, crate::run::RunError> {
+    let mut ro = search_recording(o);
+    ro.smoother_history |= smooth;
+    let mut out = run_filter(&p.case, &ro)?;
     let m = metrics::compute(&out, p.case.truth.as_deref());
     let mut e = validate::step_errors(&out, &m);
     e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &p.case.gnss);
+    if smooth {
+        // a run the smoother refuses keeps None: scored on the forward solution
+        if let Ok((so, _, _)) = crate::smooth::apply::smooth_run(&p.case, &out) {
+            e.heldout_outage_smoothed_m = validate::heldout_outage_error_m(&so);
+        }
+        out.history = None;
+    }
     Ok((Arc::new(out), m, e))
 }
 
@@ -375,6 +391,11 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let residuals_before = residual_stats(&before.innovations);
     let mut se_before = validate::step_errors(&before, &errors_before);
     se_before.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&before, &p.case.gnss);
+    if dopts.smooth {
+        // the base model's smoothed held-out error (one more run with the smoother's history)
+        se_before.heldout_outage_smoothed_m =
+            evaluate(p, &p.opts, true)?.2.heldout_outage_smoothed_m;
+    }
     let all = dopts
         .candidates
         .clone()
@@ -454,7 +475,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                     note: None,
                 };
                 let opts = options_with(&cur_opts, &[b]);
-                match evaluate(p, &opts) {
+                match evaluate(p, &opts, dopts.smooth) {
                     Ok(r) => {
                         let d = r.2.log_likelihood - cur_ll;
                         ev.delta_log_likelihood = Some(d);
@@ -523,7 +544,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                 .filter(|x| **x != 1.0)
                 .count();
             let label = format!("noise tuned: {}", k.describe());
-            match evaluate(p, &o) {
+            match evaluate(p, &o, dopts.smooth) {
                 Ok(ev) => {
                     let pen = 0.5 * params as f64 * n_meas.ln();
                     let evidence = ev.2.log_likelihood - cur_ll - pen;
@@ -582,7 +603,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                     results[i]
                         .1
                         .as_ref()
-                        .and_then(|r| r.2.heldout_outage_m)
+                        .and_then(|r| r.2.scored_heldout_m())
                         .unwrap_or(f64::INFINITY)
                 };
                 if h(second) < h(top) {
@@ -654,7 +675,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             let label = format!("noise re-tuned with the effects: {}", t2.chosen.describe());
             let same = o.filter == final_opts.filter;
             if !same {
-                match evaluate(p, &o) {
+                match evaluate(p, &o, dopts.smooth) {
                     Ok(ev) => match validate::check_heldout(&ev.2, &cur.2) {
                         Ok(()) => {
                             steps.push(Step {
@@ -830,6 +851,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         candidates: None,
         tune_noise: !args.no_tune_noise,
         ambiguity_margin: args.ambiguity_margin,
+        smooth: args.run.smooth,
     };
     let d = diagnose(&p, &dopts)?;
     let dir: &PathBuf = &args.run.out;

@@ -46,6 +46,9 @@ pub fn heldout_outage_error_m(run: &RunOutput) -> Option<f64> {
 pub struct StepErrors {
     /// Held-out outage error against the withheld fixes, m ([`heldout_outage_error_m`]).
     pub heldout_outage_m: Option<f64>,
+    /// The same for the smoothed solution (`diagnose --smooth`; the fixes in the outages are
+    /// withheld from the forward filter and so from the smoother too), m.
+    pub heldout_outage_smoothed_m: Option<f64>,
     /// Error with GNSS: horizontal RMS of the prior residuals of the used fixes, m.
     pub gnss_prior_horizontal_rms_m: f64,
     /// Outage error against the truth (RMS over outages of the max 3D error), m.
@@ -68,6 +71,7 @@ pub fn step_errors(run: &RunOutput, m: &Metrics) -> StepErrors {
     let truth = m.reference == "truth";
     StepErrors {
         heldout_outage_m: heldout_outage_error_m(run),
+        heldout_outage_smoothed_m: None,
         gnss_prior_horizontal_rms_m: m.gnss_residuals.horizontal_m.rms,
         truth_outage_m: (truth && m.outage_summary.count > 0)
             .then_some(m.outage_summary.max_3d_m.rms),
@@ -82,13 +86,30 @@ pub fn step_errors(run: &RunOutput, m: &Metrics) -> StepErrors {
     }
 }
 
+impl StepErrors {
+    /// The held-out outage error the diagnosis scores with: the smoothed solution's when
+    /// both were computed with `--smooth`, else the forward one's, m.
+    pub fn scored_heldout_m(&self) -> Option<f64> {
+        self.heldout_outage_smoothed_m.or(self.heldout_outage_m)
+    }
+}
+
 /// Whether `new` passes the held-out check against `cur`: a lower held-out outage error
-/// (when there are outages) and a GNSS prior residual not above the current one. Err: why not.
+/// (when there are outages; the smoothed one with `--smooth`) and a GNSS prior residual not
+/// above the current one. Err: why not.
 pub fn check_heldout(new: &StepErrors, cur: &StepErrors) -> Result<(), String> {
-    if let (Some(n), Some(c)) = (new.heldout_outage_m, cur.heldout_outage_m) {
+    let smoothed =
+        new.heldout_outage_smoothed_m.is_some() && cur.heldout_outage_smoothed_m.is_some();
+    let (n, c) = if smoothed {
+        (new.heldout_outage_smoothed_m, cur.heldout_outage_smoothed_m)
+    } else {
+        (new.heldout_outage_m, cur.heldout_outage_m)
+    };
+    if let (Some(n), Some(c)) = (n, c) {
         if n.partial_cmp(&c) != Some(std::cmp::Ordering::Less) {
             return Err(format!(
-                "held-out outage error not lowered ({n:.3} m vs {c:.3} m)"
+                "{}held-out outage error not lowered ({n:.3} m vs {c:.3} m)",
+                if smoothed { "smoothed " } else { "" }
             ));
         }
     }
