@@ -88,7 +88,7 @@ fn main() {
         start += 100.0;
     }
     let p = Prepared {
-        case: CaseData::from_sim(&case),
+        case: CaseData::from(&case),
         opts,
         week: 2227,
         description: "diagnose benchmark".into(),
