@@ -4,21 +4,22 @@
 //! is as accurate as with the simulator's true noise figures.
 use std::path::Path;
 use std::process::Command;
-use test_support::scenario::ScenarioToml;
+use test_support::cli::{self, Bin};
+use test_support::scenario::{four_minute_drive, ScenarioToml};
 
 fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+    Bin::new(env!("CARGO_BIN_EXE_host-sim")).command()
 }
 
+/// Runs `cmd`, which must succeed; its standard output and error.
 fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    let so = String::from_utf8_lossy(&out.stdout).to_string();
-    let se = String::from_utf8_lossy(&out.stderr).to_string();
+    let r = cli::run(cmd);
     assert!(
-        out.status.success(),
-        "{cmd:?}\nstdout:\n{so}\nstderr:\n{se}"
+        r.ok,
+        "{cmd:?}\nstdout:\n{}\nstderr:\n{}",
+        r.stdout, r.stderr
     );
-    so + &se
+    r.stdout + &r.stderr
 }
 
 fn simulate(dir: &Path, name: &str, scenario: &str, seed: u32) -> std::path::PathBuf {
@@ -141,21 +142,7 @@ fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
     let drive = simulate(
         dir.path(),
         "drive",
-        &ScenarioToml::new("allan-params-drive")
-            .start(30.5, 114.3, 20.0, 120.0)
-            .gps_time(2300, 200000.0)
-            .imu_rate_hz(100.0)
-            .stationary(30.0)
-            .accelerate(10.0, 10.0)
-            .turn(90.0, 30.0)
-            .cruise(30.0)
-            .turn(-180.0, 25.0)
-            .accelerate(15.0, 10.0)
-            .cruise(120.0)
-            .turn(45.0, 50.0)
-            .brake(0.0, 10.0)
-            .stationary(10.0)
-            .build(),
+        &four_minute_drive("allan-params-drive").build(),
         4,
     );
     let identified = run_metrics(dir.path(), "identified", &config(&drive, &params));

@@ -6,19 +6,10 @@
 //! the outage errors must be lower than the base filter's.
 
 use nav_core::config::{units, FilterConfig, ScaleFactorNoise};
-use nav_core::model::{Block, BlockKind, Layout, EFFECT_BLOCKS, LAYOUT_NBK};
+use nav_core::model::{Block, BlockKind, Layout, EFFECT_BLOCKS};
 use test_support::filter_sim::*;
 
-const fn all_effects() -> Layout {
-    let mut l = LAYOUT_NBK;
-    let mut i = 0;
-    while i < EFFECT_BLOCKS.len() {
-        l = l.with(EFFECT_BLOCKS[i]);
-        i += 1;
-    }
-    l
-}
-const L_ALL: Layout = all_effects();
+const L_ALL: Layout = nbk_with_all_effects();
 
 #[test]
 fn all_effect_blocks_together_find_the_four_present_effects_and_leave_the_others_at_zero() {

@@ -7,19 +7,10 @@
 
 use nav_core::config::{units, FilterConfig, ScaleFactorNoise};
 use nav_core::filter::Filter;
-use nav_core::model::{Layout, EFFECT_BLOCKS, LAYOUT_NBK};
+use nav_core::model::{Layout, EFFECT_BLOCKS};
 use test_support::filter_sim::*;
 
-const fn all_effects() -> Layout {
-    let mut l = LAYOUT_NBK;
-    let mut i = 0;
-    while i < EFFECT_BLOCKS.len() {
-        l = l.with(EFFECT_BLOCKS[i]);
-        i += 1;
-    }
-    l
-}
-const L_ALL: Layout = all_effects();
+const L_ALL: Layout = nbk_with_all_effects();
 const N: usize = L_ALL.dim();
 
 #[test]

@@ -405,7 +405,14 @@ fn static_alignment_on_a_stream() {
         "{:?}",
         a.rpy_rad
     );
-    assert_eq!(a.rpy_rad[2].to_bits(), yaw.to_bits());
+    // the given heading, through the Euler -> quaternion -> Euler round trip of the start
+    // state (its rounding depends on roll and pitch: 1 ulp here since the filter-test data
+    // come from nav_sim's integrator, bit-equal with the earlier generator's data)
+    assert!(
+        (a.rpy_rad[2] - yaw).abs() <= 2.0 * f64::EPSILON * yaw,
+        "{:?}",
+        a.rpy_rad
+    );
     let (_, dv, dr) = nav_errors(nav.state().unwrap(), sim.truth());
     assert!(dr.iter().all(|e| e.abs() < 0.1), "position error {dr:?}");
     assert!(dv.iter().all(|e| e.abs() < 0.02), "velocity error {dv:?}");

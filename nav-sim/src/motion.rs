@@ -43,11 +43,13 @@ pub trait Motion {
     /// The kinematics at `t_s` seconds after the start, given the integrated heading
     /// `heading_rad` (rad; a motion whose heading is closed-form ignores it).
     fn at(&self, t_s: f64, heading_rad: f64) -> BodyKinematics;
-}
 
-impl<M: Motion + ?Sized> Motion for &M {
-    fn at(&self, t_s: f64, heading_rad: f64) -> BodyKinematics {
-        (**self).at(t_s, heading_rad)
+    /// Called before the integrator enters the IMU interval from `t0_s` to `t1_s` (s after
+    /// the start). A motion whose controls are held over each IMU interval (a discrete-time
+    /// vehicle model: every change of manoeuvre on an IMU epoch, smooth inside the interval)
+    /// sets them here; the default does nothing.
+    fn begin_interval(&mut self, t0_s: f64, t1_s: f64) {
+        let _ = (t0_s, t1_s);
     }
 }
 
@@ -191,6 +193,7 @@ impl<M: Motion> Integrator<M> {
         let dt = self.dt_s;
         let h = dt / self.n_sub as f64;
         let tk = self.k as f64 * dt;
+        self.motion.begin_interval(tk, (self.k + 1) as f64 * dt);
         let mut y = self.y;
         for j in 0..self.n_sub {
             let t = tk + j as f64 * h;

@@ -119,10 +119,25 @@ pub struct Vehicle {
     /// 0.02 to 0.05).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub bounce_mps: f64,
-    /// A wheel-speed odometer (`[vehicle.odometer]`): the case gets `odometer.txt`
-    /// (simulated by `host-sim`'s `sim::odometer`); none when absent.
+    /// A wheel-speed odometer (`[vehicle.odometer]`): a case simulated by `host-sim` gets
+    /// `odometer.txt` (`host_sim::sim::odometer`); none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer: Option<WheelSpeedSpec>,
+}
+
+/// What the simulated odometer measures (`[vehicle.odometer]` of a scenario).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WheelSpeedSpec {
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// Scale-factor error: measured = (1 + scale) true.
+    pub scale: f64,
+    /// White-noise 1-sigma, m/s.
+    pub sigma_mps: f64,
+    /// The measured point (rear-axle centre) from the IMU, body FRD, m.
+    #[serde(default)]
+    pub lever_arm_m: [f64; 3],
 }
 
 fn default_roll_per_g() -> f64 {
@@ -749,21 +764,6 @@ impl Profile {
 /// scenario without it reads in earlier versions of the tools).
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
-}
-
-/// What the simulated odometer measures (`[vehicle.odometer]` of a scenario).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WheelSpeedSpec {
-    /// Sample rate, Hz.
-    pub rate_hz: f64,
-    /// Scale-factor error: measured = (1 + scale) true.
-    pub scale: f64,
-    /// White-noise 1-sigma, m/s.
-    pub sigma_mps: f64,
-    /// The measured point (rear-axle centre) from the IMU, body FRD, m.
-    #[serde(default)]
-    pub lever_arm_m: [f64; 3],
 }
 
 #[cfg(test)]

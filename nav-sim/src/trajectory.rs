@@ -15,7 +15,7 @@
 
 use crate::motion::{BodyKinematics, Integrator, Motion};
 use crate::scenario::{Kinematics, Profile, Scenario, ScenarioError};
-use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use nav_core::earth::{self, Llh};
 use nav_core::strapdown::NavState;
 use nav_core::types::{ImuSample, NavSolution};
@@ -39,22 +39,10 @@ pub struct Trajectory {
     pub imu: Vec<ImuSample>,
 }
 
-/// Body-to-NED rotation matrix C_b^n of ZYX Euler angles.
+/// Body-to-NED rotation matrix C_b^n of ZYX Euler angles (rad):
+/// `nav_core::attitude::dcm_from_euler_zyx`.
 pub fn dcm_from_euler(roll: f64, pitch: f64, yaw: f64) -> Matrix3<f64> {
-    let (sf, cf) = roll.sin_cos();
-    let (st, ct) = pitch.sin_cos();
-    let (sp, cp) = yaw.sin_cos();
-    Matrix3::new(
-        ct * cp,
-        sf * st * cp - cf * sp,
-        cf * st * cp + sf * sp,
-        ct * sp,
-        sf * st * sp + cf * cp,
-        cf * st * sp - sf * cp,
-        -st,
-        sf * ct,
-        cf * ct,
-    )
+    nav_core::attitude::dcm_from_euler_zyx([roll, pitch, yaw])
 }
 
 /// Wraps an angle to (-pi, pi].
@@ -293,16 +281,7 @@ impl Trajectory {
     }
 }
 
-/// A nav-format record as a mechanization state.
+/// A nav-format record as a mechanization state (`NavState::from_solution`).
 pub fn nav_state_of(s: &NavSolution) -> NavState {
-    NavState {
-        t_s: s.t_s,
-        pos: Llh {
-            lat_rad: s.lat_rad,
-            lon_rad: s.lon_rad,
-            h_m: s.h_m,
-        },
-        vel_ned_mps: Vector3::from(s.vel_ned_mps),
-        q_nb: UnitQuaternion::from_euler_angles(s.rpy_rad[0], s.rpy_rad[1], s.rpy_rad[2]),
-    }
+    NavState::from_solution(s)
 }

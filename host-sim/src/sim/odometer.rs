@@ -11,6 +11,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+/// What the simulated odometer measures (`[vehicle.odometer]` of a scenario; in `nav-sim`).
 pub use nav_sim::scenario::WheelSpeedSpec;
 
 /// The wheel-speed samples of a trajectory (truth epochs nearest the sample times; the rate
