@@ -7,7 +7,9 @@
 //! - blank lines and lines whose first non-blank character is `#` or `%` are skipped;
 //! - fields are separated by commas when the line contains a comma, otherwise by white space;
 //! - lines and columns in errors are 1-based (column = field index on the line);
-//! - no input makes a reader panic: every problem is an [`IoError`].
+//! - no input makes a reader panic: every problem is an [`IoError`];
+//! - IMU inputs have streaming readers ([`ImuTextReader`], [`ImuBinReader`], [`ImuCsvReader`],
+//!   [`ImuCsvIncrements`]) that allocate nothing per line; the whole-file readers collect them.
 //!
 //! Writers write gzip when the path ends in `.gz`.
 #![deny(missing_docs)]

@@ -441,8 +441,10 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
         let dn = (ours[0] - theirs[0]).to_radians() * r;
         let de = (ours[1] - theirs[1]).to_radians() * r * ours[0].to_radians().cos();
         println!(
-            "last epoch, ours - peer: north {dn:.3} m, east {de:.3} m, height {:.3} m",
-            ours[2] - theirs[2]
+            "last epoch, ours - peer: north {:.2} mm, east {:.2} mm, height {:.2} mm",
+            dn * 1e3,
+            de * 1e3,
+            (ours[2] - theirs[2]) * 1e3
         );
     } else {
         let scale = hours / (40.0 / 60.0);
