@@ -19,6 +19,7 @@ mod aiding_update;
 mod gapnoise;
 pub(crate) mod linalg;
 pub mod observe;
+mod reacq;
 pub mod robust;
 
 pub use aiding_update::AidingOutcome;
@@ -210,6 +211,10 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// Fill noise waiting for the next prediction (body-axis variances of attitude, velocity,
     /// position; [`Filter::widen_for_fill`]).
     fill_var: [f64; 9],
+    /// The first fix after an outage, used on probation ([`reacq`]).
+    tentative: Option<reacq::Tentative<T, N>>,
+    /// The current fix must be processed again (its probation check undid the previous one).
+    redo: bool,
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -294,6 +299,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
             fill_var: [0.0; 9],
+            tentative: None,
+            redo: false,
         })
     }
 
@@ -426,7 +433,19 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// Uses one GNSS fix (antenna position, and velocity when configured and present). Call it
     /// at the IMU epoch nearest the fix time (within `max_gnss_time_offset_s`; the offset is
     /// bridged with the velocity). Returns the innovation and whether the gate accepted it.
+    ///
+    /// With robust gating, a first fix after an outage that needs the re-acquisition widening
+    /// is used on probation: when the next fix disagrees with it (beyond the normal gate), it
+    /// is taken back and the next fix is used as the first one ([`reacq`]).
     pub fn update_gnss(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
+        let out = self.update_gnss_once(fix)?;
+        if core::mem::take(&mut self.redo) {
+            return self.update_gnss_once(fix);
+        }
+        Ok(out)
+    }
+
+    fn update_gnss_once(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
         if !fix.is_valid() {
             self.counters.gnss_invalid = self.counters.gnss_invalid.saturating_add(1);
             return Err(FilterError::InvalidGnss);
@@ -533,6 +552,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             let out = self.kalman_update::<3>(&zp_a, &h_pos, &rp, force, fix.t_s)?;
             (out, None)
         };
+        if self.redo {
+            return Ok(out);
+        }
         Ok(self.after_update(out, &zp_a, &rp, zv))
     }
 
@@ -738,6 +760,12 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(self.numerical_failure());
         }
         self.gate.last_within_normal_gate = nis <= th.normal_reject;
+        let z_pos = [0, 1, 2].map(|i| z64.get(i).copied().unwrap_or(0.0));
+        if self.settle_tentative(nis, &th, t_s, z_pos) {
+            self.redo = true;
+            return Ok(out);
+        }
+        let p0 = (th.after_outage && nis > th.normal_reject).then_some(self.p);
         let weight = if nis <= th.downweight {
             1.0
         } else {
@@ -800,6 +828,14 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         self.p = p;
         self.feedback(&dx);
+        if let Some(p0) = p0 {
+            self.tentative = Some(reacq::Tentative {
+                p0,
+                dx,
+                t_s,
+                z_pos_m: z_pos,
+            });
+        }
         out.accepted = true;
         out.weight = weight;
         Ok(out)
