@@ -27,6 +27,7 @@ fn spec() -> ColumnSpec {
         rate_hz: Some(100.0),
         skip_lines: 2,
         x_scale: 1.0,
+        x_unit: noise_id::reader::XUnit::Si,
     }
 }
 
@@ -110,6 +111,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         rate_hz: Some(100.0),
         skip_lines: 2,
         x_scale: 1.0,
+        x_unit: noise_id::reader::XUnit::Si,
         dev: Deviation::Oadev,
         taus: TauArg::Octave,
         terms: vec![TermArg::Quant, TermArg::White, TermArg::Gm, TermArg::Rw],
@@ -121,6 +123,8 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         no_plot: false,
         quiet: true,
         exclude_outliers: false,
+        accel_bias_init_ug: None,
+        gyro_bias_init_deg_per_h: None,
     })
     .expect("allan run");
     let v: serde_json::Value =
@@ -155,8 +159,16 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
     let s_n = v["gx"]["fit"]["s_n"]["value"].as_f64().expect("s_n");
     let arw = s_n.sqrt() * 60.0 * 180.0 / std::f64::consts::PI;
     assert!((arw / 2.4 - 1.0).abs() < 0.4, "gx ARW {arw} deg/sqrt(h)");
-    // The parameter file parses as the simulator's sensor error model.
+    // allan_params.toml is a [noise] section a run configuration accepts (per-axis values)
     let text = std::fs::read_to_string(dir.path().join("allan_params.toml")).expect("toml");
+    let t: toml::Table = toml::from_str(&text).expect("toml parse");
+    let noise: nav_io::NoiseConfig = t["noise"].clone().try_into().expect("[noise]");
+    let g = noise.gyro.to_sensor_noise().expect("noise.gyro");
+    assert!(g.s_n.iter().all(|v| *v > 0.0), "{g:?}");
+    assert!(noise.problems().is_empty(), "{:?}", noise.problems());
+    assert!(noise.located_problems().is_empty());
+    // allan_sim_errors.toml parses as the simulator's sensor error model.
+    let text = std::fs::read_to_string(dir.path().join("allan_sim_errors.toml")).expect("toml");
     let t: toml::Table = toml::from_str(&text).expect("toml parse");
     for group in ["accel", "gyro"] {
         let e: host_sim::sim::errors::SensorErrors = t[group]

@@ -15,26 +15,11 @@ use nav_io::{
     SampleConvention,
 };
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use test_support::scenario::ScenarioToml;
+use test_support::cli::{self, Bin, Ran};
+use test_support::scenario::four_minute_drive;
 
 fn scenario_toml() -> String {
-    ScenarioToml::new("run-faults-test")
-        .description("4 min test drive")
-        .start(30.5, 114.3, 20.0, 120.0)
-        .gps_time(2300, 200000.0)
-        .imu_rate_hz(100.0)
-        .stationary(30.0)
-        .accelerate(10.0, 10.0)
-        .turn(90.0, 30.0)
-        .cruise(30.0)
-        .turn(-180.0, 25.0)
-        .accelerate(15.0, 10.0)
-        .cruise(120.0)
-        .turn(45.0, 50.0)
-        .brake(0.0, 10.0)
-        .stationary(10.0)
-        .build()
+    four_minute_drive("run-faults-test").build()
 }
 
 /// Where the gaps go (first missing sample index, IMU at 100 Hz from t0 = 200000 s) and how
@@ -296,30 +281,16 @@ fn rate_files_with_missing_rows_integrate_over_the_true_interval() {
 
 // ---------------------------------------------------------------- the binary on files
 
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-struct Ran {
-    ok: bool,
-    stdout: String,
-    stderr: String,
-}
-
 fn run_bin(yaml: &Path, out: &Path, extra: &[&str]) -> Ran {
-    let o = host_sim()
-        .args(["run", "--quiet", "--config"])
-        .arg(yaml)
-        .arg("--out")
-        .arg(out)
-        .args(extra)
-        .output()
-        .unwrap();
-    Ran {
-        ok: o.status.success(),
-        stdout: String::from_utf8_lossy(&o.stdout).into(),
-        stderr: String::from_utf8_lossy(&o.stderr).into(),
-    }
+    cli::run(
+        Bin::new(env!("CARGO_BIN_EXE_host-sim"))
+            .command()
+            .args(["run", "--quiet", "--config"])
+            .arg(yaml)
+            .arg("--out")
+            .arg(out)
+            .args(extra),
+    )
 }
 
 /// Edits the case's `imu.txt` lines (1-based numbering in `f`'s index + 1).

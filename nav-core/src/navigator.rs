@@ -6,7 +6,7 @@
 //! # Fix scheduling: the nearest IMU epoch
 //!
 //! A fix tagged `t_f` is used at the IMU epoch nearest to it (the rule of the host's run loop,
-//! `host-sim/src/run/mod.rs`): after integrating the sample ending at `t_k`, every pending fix
+//! `nav-engine/src/run/engine.rs`): after integrating the sample ending at `t_k`, every pending fix
 //! with `t_f < t_k + dt_next / 2` is applied, where `dt_next` is the interval to the next
 //! sample. In push form the navigator does not know `dt_next` until the next sample arrives,
 //! so fixes wait in a fixed-capacity queue (`Q` fixes, [`NavigatorError::FixQueueFull`] when

@@ -19,7 +19,10 @@
 //! The file's bytes go through the bridge's stream splitter (UBX, NMEA and RTCM interleaved);
 //! NAV-PVT packets become fixes (`iTOW`, lat/lon/height above the ellipsoid, `hAcc`/`vAcc`,
 //! `velN/E/D`, `sAcc`); NMEA sentences in a UBX log are ignored (counted, warned). Times are
-//! GPS seconds of week (`iTOW`), continued past 604800 across a week rollover; no week.
+//! GPS seconds of week (`iTOW`), continued past 604800 across a week rollover. NAV-PVT has no
+//! GPS week: it comes from the first packet whose UTC date and time are flagged valid,
+//! converted to GPS time with the leap seconds (table or `leap_seconds`); without one the week
+//! is unknown (warned).
 //!
 //! # Both
 //! Fixes without a position fix (`NoFix`) and with an RTKLIB-numbered quality above
@@ -68,7 +71,8 @@ pub struct GnssLogRecord {
     /// Where each fix ended: 1-based line (NMEA) or 0-based byte offset of the packet's last
     /// byte (UBX).
     pub places: Vec<usize>,
-    /// GPS week of the first fix (NMEA; `None` for UBX).
+    /// GPS week of the first fix (NMEA: from the RMC date; UBX: from the first NAV-PVT with
+    /// a valid UTC date and time; `None` when there is none).
     pub week: Option<i64>,
     /// Fixes dropped as no fix or by `max_q`.
     pub dropped_by_quality: usize,
@@ -329,6 +333,19 @@ pub fn read_nmea_log(
     Ok(out)
 }
 
+/// The GPS week of the first fix of a UBX log from a NAV-PVT's UTC date and time: the GPST
+/// of the UTC time (leap seconds from the table at that date, or `leap`) gives the week of
+/// that packet's iTOW (the nearest week boundary decides, so a UTC/iTOW pair straddling a
+/// week boundary lands right), and the unwrapped time `t_u` of that fix counts the weeks
+/// back to the first fix.
+fn ubx_week(t_u: f64, itow: f64, utc: super::gnss::ubx::UtcTime, leap: Option<i64>) -> i64 {
+    let (y, mo, d, h, mi, sec) = utc;
+    let leap = leap.unwrap_or_else(|| i64::from(gpst_minus_utc_s(i64::from(y), mo, d)));
+    let (w, sow) = gpst_week_sow(i64::from(y), mo, d, h, mi, sec + leap as f64);
+    let w_pkt = w + ((sow - itow) / SECONDS_PER_WEEK).round() as i64;
+    w_pkt - ((t_u - itow) / SECONDS_PER_WEEK).round() as i64
+}
+
 /// Reads a u-blox UBX log (see the module notes); `max_q` as `[gnss] max_q`.
 pub fn read_ubx_log(
     path: impl AsRef<Path>,
@@ -367,7 +384,13 @@ pub fn read_ubx_log(
     let mut unwrap = Unwrap::new();
     let mut first_bad: Option<(usize, String)> = None;
     let mut nmea_fixes = 0usize;
-    let mut push = |ev: Vec<GnssEvent>, off: usize, from_ubx: bool, out: &mut GnssLogRecord| {
+    // (unwrapped time, iTOW, UTC) of the first kept fix with a valid UTC date and time
+    let mut anchor: Option<(f64, f64, super::gnss::ubx::UtcTime)> = None;
+    let mut push = |ev: Vec<GnssEvent>,
+                    off: usize,
+                    from_ubx: bool,
+                    utc: Option<super::gnss::ubx::UtcTime>,
+                    out: &mut GnssLogRecord| {
         for e in ev {
             match e {
                 GnssEvent::Fix(mut f) => {
@@ -378,7 +401,11 @@ pub fn read_ubx_log(
                     if !keep(&f, max_q, &mut out.dropped_by_quality) {
                         continue;
                     }
+                    let itow = f.t_s;
                     f.t_s = unwrap.apply(f.t_s);
+                    if let (None, Some(u)) = (anchor, utc) {
+                        anchor = Some((f.t_s, itow, u));
+                    }
                     out.fixes.push(f);
                     out.places.push(off);
                 }
@@ -406,10 +433,24 @@ pub fn read_ubx_log(
         let ev = s.feed(std::slice::from_ref(b));
         if !ev.is_empty() {
             let from_ubx = s.stats().ubx_packets > before;
-            push(ev, off, from_ubx, &mut out)?;
+            let utc = if from_ubx { s.take_nav_pvt_utc() } else { None };
+            push(ev, off, from_ubx, utc, &mut out)?;
         }
     }
-    push(s.finish(), raw.len(), false, &mut out)?;
+    push(s.finish(), raw.len(), false, None, &mut out)?;
+    if let Some((t_u, itow, (y, mo, d, h, mi, sec))) = anchor {
+        out.week = Some(ubx_week(
+            t_u,
+            itow,
+            (y, mo, d, h, mi, sec),
+            opts.leap_seconds,
+        ));
+    } else if !out.fixes.is_empty() {
+        out.warnings.push(format!(
+            "{}: no NAV-PVT with a valid UTC date: the GPS week is unknown (times are GPS seconds of week)",
+            path.display()
+        ));
+    }
     if let Some((off, reason)) = first_bad {
         out.warnings.push(format!(
             "{}: {} bad UBX packets skipped (first ending at byte offset {off}: {reason})",

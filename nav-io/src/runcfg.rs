@@ -6,28 +6,19 @@
 //! ([`RunConfig::resolve`]); `configs/drive0708.toml` therefore names the shared data as
 //! `../../shared/data/...` (configs/ -> repository -> its parent, where `shared/` lives).
 //!
-//! Noise values are given either in SI (the `s_n`, `s_b`, `s_k`, `bias_init_sigma` keys, units
-//! below) or in datasheet units (keys named after their unit), never both for one quantity:
-//!
-//! | quantity | SI key (accel / gyro unit) | datasheet alternatives |
-//! |---|---|---|
-//! | white noise | `s_n` (m^2/s^3 / rad^2/s) | accel `n_ug_per_sqrt_hz`, `vrw_mps_per_sqrt_h`; gyro `arw_deg_per_sqrt_h`, `n_deg_per_s_per_sqrt_hz` |
-//! | Gauss-Markov bias | `s_b` (m^2/s^5 / rad^2/s^3) with `t_b_s` | accel `gm_sigma_ug`; gyro `gm_sigma_deg_per_h` (stationary sigma; S_B = 2 sigma^2 / T_B) |
-//! | bias random walk | `s_k` (m^2/s^5 / rad^2/s^3) | accel `k_ug_per_sqrt_h`, `k_ug_per_sqrt_hz`; gyro `k_deg_per_h_per_sqrt_h`, `k_deg_per_s_per_sqrt_hz` |
-//! | initial bias sigma | `bias_init_sigma` (m/s^2 / rad/s) | accel `bias_init_ug`; gyro `bias_init_deg_per_h`, `bias_init_deg_per_s` |
-//!
-//! (`k_..._per_sqrt_hz` is the bias random walk written as a rate PSD per sqrt(Hz), the way
-//! rtklibexplorer's GNSS_IMU states `accel_bias_PSD` / `gyro_bias_PSD`: S_K = K^2.)
+//! The `[noise]` section and its keys (SI or datasheet units, one value or one per axis) are
+//! documented in [`super::noisecfg`].
 
 use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
 use super::gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions};
 use super::imucsv::{read_imu_csv, ImuCsvFormat};
 use super::mount::Mounting;
+pub use super::noisecfg::{
+    AccelNoiseConfig, AxisValue, BiasModel, GyroNoiseConfig, NoiseConfig, ScaleNoiseConfig,
+};
 use super::pos::{read_rtklib_pos, PosOptions};
 use super::text::{read_gnss_text, read_imu_text, read_nav_text, ImuRecord};
 use super::IoError;
-use nav_core::config::units;
-use nav_core::config::SensorNoise;
 use nav_core::types::{GnssFix, NavSolution};
 use std::path::{Path, PathBuf};
 
@@ -271,272 +262,6 @@ impl InitConfig {
     }
 }
 
-/// Accelerometer noise (see the module table; exactly one key per quantity, absent = 0).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AccelNoiseConfig {
-    /// White-noise PSD, m^2/s^3.
-    pub s_n: Option<f64>,
-    /// White noise as a density, ug/sqrt(Hz).
-    pub n_ug_per_sqrt_hz: Option<f64>,
-    /// White noise as a velocity random walk, m/s/sqrt(h).
-    pub vrw_mps_per_sqrt_h: Option<f64>,
-    /// Gauss-Markov driving PSD, m^2/s^5.
-    pub s_b: Option<f64>,
-    /// Gauss-Markov stationary sigma, ug.
-    pub gm_sigma_ug: Option<f64>,
-    /// Gauss-Markov correlation time, s (required with a Gauss-Markov term).
-    pub t_b_s: Option<f64>,
-    /// Bias random-walk PSD, m^2/s^5.
-    pub s_k: Option<f64>,
-    /// Bias random walk, ug/sqrt(h).
-    pub k_ug_per_sqrt_h: Option<f64>,
-    /// Bias random walk as a rate PSD, ug/sqrt(Hz) (= ug/s/sqrt(1/s)).
-    pub k_ug_per_sqrt_hz: Option<f64>,
-    /// Initial bias sigma, m/s^2.
-    pub bias_init_sigma: Option<f64>,
-    /// Initial bias sigma, ug.
-    pub bias_init_ug: Option<f64>,
-}
-
-/// Gyro noise (see the module table; exactly one key per quantity, absent = 0).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GyroNoiseConfig {
-    /// White-noise PSD, rad^2/s.
-    pub s_n: Option<f64>,
-    /// White noise as an angle random walk, deg/sqrt(h).
-    pub arw_deg_per_sqrt_h: Option<f64>,
-    /// White noise as a density, deg/s/sqrt(Hz).
-    pub n_deg_per_s_per_sqrt_hz: Option<f64>,
-    /// Gauss-Markov driving PSD, rad^2/s^3.
-    pub s_b: Option<f64>,
-    /// Gauss-Markov stationary sigma, deg/h.
-    pub gm_sigma_deg_per_h: Option<f64>,
-    /// Gauss-Markov correlation time, s (required with a Gauss-Markov term).
-    pub t_b_s: Option<f64>,
-    /// Bias random-walk PSD, rad^2/s^3.
-    pub s_k: Option<f64>,
-    /// Bias random walk, deg/h/sqrt(h).
-    pub k_deg_per_h_per_sqrt_h: Option<f64>,
-    /// Bias random walk as a rate PSD, deg/s/sqrt(Hz).
-    pub k_deg_per_s_per_sqrt_hz: Option<f64>,
-    /// Initial bias sigma, rad/s.
-    pub bias_init_sigma: Option<f64>,
-    /// Initial bias sigma, deg/h.
-    pub bias_init_deg_per_h: Option<f64>,
-    /// Initial bias sigma, deg/s.
-    pub bias_init_deg_per_s: Option<f64>,
-}
-
-/// A scale-factor error as a first-order Gauss-Markov process.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ScaleNoiseConfig {
-    /// Stationary (and initial) sigma, ppm.
-    pub sigma_ppm: f64,
-    /// Correlation time, s.
-    pub t_s: f64,
-}
-
-/// Which bias model the filter uses (the source document's two, plus its single-state
-/// approximation of the detailed one; DESIGN.md).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum BiasModel {
-    /// N: white noise + constant (random-constant) biases.
-    N,
-    /// NBK: white noise + Gauss-Markov + random walk, separate states.
-    #[default]
-    Nbk,
-    /// NBK with the seed's single bias state (GM and RW noise in one decaying state).
-    NbkSingleState,
-}
-
-/// The IMU noise model.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct NoiseConfig {
-    /// Bias model.
-    #[serde(default)]
-    pub model: BiasModel,
-    /// Accelerometer noise.
-    #[serde(default)]
-    pub accel: AccelNoiseConfig,
-    /// Gyro noise.
-    #[serde(default)]
-    pub gyro: GyroNoiseConfig,
-    /// Accelerometer scale-factor states (absent: none).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub accel_scale: Option<ScaleNoiseConfig>,
-    /// Gyro scale-factor states (absent: none).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gyro_scale: Option<ScaleNoiseConfig>,
-    /// Factor on the accelerometer and gyro white-noise PSDs (absent: 1), e.g. the
-    /// maximum-likelihood factor found by `host-sim diagnose --tune-noise` (vibration in a
-    /// vehicle raises the in-run noise above the datasheet's static figure).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub white_noise_scale: Option<f64>,
-}
-
-/// Picks the one given alternative (each already converted to SI); 0 when none.
-fn one_of(what: &str, alts: &[(&str, Option<f64>)]) -> Result<f64, String> {
-    let given: Vec<&(&str, Option<f64>)> = alts.iter().filter(|(_, v)| v.is_some()).collect();
-    match given.as_slice() {
-        [] => Ok(0.0),
-        [(k, Some(v))] => {
-            if v.is_finite() && *v >= 0.0 {
-                Ok(*v)
-            } else {
-                Err(format!("{what}: {k} must be finite and >= 0, got {v}"))
-            }
-        }
-        many => Err(format!(
-            "{what}: give only one of {:?}",
-            many.iter().map(|(k, _)| *k).collect::<Vec<_>>()
-        )),
-    }
-}
-
-fn t_b(what: &str, s_b: f64, t_b_s: Option<f64>) -> Result<f64, String> {
-    match t_b_s {
-        Some(t) if t.is_finite() && t > 0.0 => Ok(t),
-        Some(t) => Err(format!("{what}.t_b_s must be > 0 s, got {t}")),
-        None if s_b > 0.0 => Err(format!("{what}: a Gauss-Markov term needs t_b_s")),
-        // no Gauss-Markov term: any positive placeholder (unused)
-        None => Ok(3600.0),
-    }
-}
-
-impl AccelNoiseConfig {
-    /// The SI parameters (nav-core's [`SensorNoise`], isotropic).
-    pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
-        let w = "noise.accel";
-        let s_n = one_of(
-            w,
-            &[
-                ("s_n", self.s_n),
-                (
-                    "n_ug_per_sqrt_hz",
-                    self.n_ug_per_sqrt_hz
-                        .map(units::accel_psd_from_ug_per_sqrt_hz),
-                ),
-                (
-                    "vrw_mps_per_sqrt_h",
-                    self.vrw_mps_per_sqrt_h
-                        .map(units::accel_psd_from_mps_per_sqrt_h),
-                ),
-            ],
-        )?;
-        let t_raw = self.t_b_s;
-        let sig = self.gm_sigma_ug.map(units::mps2_from_ug);
-        let s_b = match (self.s_b, sig) {
-            (Some(_), Some(_)) => return Err(format!("{w}: give only one of s_b, gm_sigma_ug")),
-            (Some(v), None) => one_of(w, &[("s_b", Some(v))])?,
-            (None, Some(sg)) => {
-                let t = t_b(w, 1.0, t_raw)?;
-                one_of(w, &[("gm_sigma_ug", Some(units::gm_psd_from_sigma(sg, t)))])?
-            }
-            (None, None) => 0.0,
-        };
-        let t_b_s = t_b(w, s_b, t_raw)?;
-        let s_k = one_of(
-            w,
-            &[
-                ("s_k", self.s_k),
-                (
-                    "k_ug_per_sqrt_h",
-                    self.k_ug_per_sqrt_h
-                        .map(units::accel_rw_psd_from_ug_per_sqrt_h),
-                ),
-                (
-                    "k_ug_per_sqrt_hz",
-                    self.k_ug_per_sqrt_hz
-                        .map(|k| units::mps2_from_ug(k).powi(2)),
-                ),
-            ],
-        )?;
-        let b0 = one_of(
-            w,
-            &[
-                ("bias_init_sigma", self.bias_init_sigma),
-                ("bias_init_ug", self.bias_init_ug.map(units::mps2_from_ug)),
-            ],
-        )?;
-        Ok(SensorNoise::isotropic(s_n, s_b, t_b_s, s_k, b0))
-    }
-}
-
-impl GyroNoiseConfig {
-    /// The SI parameters (nav-core's [`SensorNoise`], isotropic).
-    pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
-        let w = "noise.gyro";
-        let deg = units::DEG;
-        let s_n = one_of(
-            w,
-            &[
-                ("s_n", self.s_n),
-                (
-                    "arw_deg_per_sqrt_h",
-                    self.arw_deg_per_sqrt_h
-                        .map(units::gyro_psd_from_deg_per_sqrt_h),
-                ),
-                (
-                    "n_deg_per_s_per_sqrt_hz",
-                    self.n_deg_per_s_per_sqrt_hz.map(|n| (n * deg).powi(2)),
-                ),
-            ],
-        )?;
-        let t_raw = self.t_b_s;
-        let sig = self.gm_sigma_deg_per_h.map(units::radps_from_deg_per_h);
-        let s_b = match (self.s_b, sig) {
-            (Some(_), Some(_)) => {
-                return Err(format!("{w}: give only one of s_b, gm_sigma_deg_per_h"))
-            }
-            (Some(v), None) => one_of(w, &[("s_b", Some(v))])?,
-            (None, Some(sg)) => {
-                let t = t_b(w, 1.0, t_raw)?;
-                one_of(
-                    w,
-                    &[("gm_sigma_deg_per_h", Some(units::gm_psd_from_sigma(sg, t)))],
-                )?
-            }
-            (None, None) => 0.0,
-        };
-        let t_b_s = t_b(w, s_b, t_raw)?;
-        let s_k = one_of(
-            w,
-            &[
-                ("s_k", self.s_k),
-                (
-                    "k_deg_per_h_per_sqrt_h",
-                    self.k_deg_per_h_per_sqrt_h
-                        .map(units::gyro_rw_psd_from_deg_per_h_per_sqrt_h),
-                ),
-                (
-                    "k_deg_per_s_per_sqrt_hz",
-                    self.k_deg_per_s_per_sqrt_hz.map(|k| (k * deg).powi(2)),
-                ),
-            ],
-        )?;
-        let b0 = one_of(
-            w,
-            &[
-                ("bias_init_sigma", self.bias_init_sigma),
-                (
-                    "bias_init_deg_per_h",
-                    self.bias_init_deg_per_h.map(units::radps_from_deg_per_h),
-                ),
-                (
-                    "bias_init_deg_per_s",
-                    self.bias_init_deg_per_s.map(|v| v * deg),
-                ),
-            ],
-        )?;
-        Ok(SensorNoise::isotropic(s_n, s_b, t_b_s, s_k, b0))
-    }
-}
-
 /// A run of the navigation filter on recorded (or simulated) files.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -659,41 +384,7 @@ impl RunConfig {
                 bad.push(format!("end_s {b} must be after start_s {a}"));
             }
         }
-        // an absent key means 0, but a sensor without white noise is a filter that trusts the
-        // IMU absolutely: an empty `[noise]` section ran silently with zero noise (26 m
-        // residuals on a rover); say it instead
-        match self.noise.accel.to_sensor_noise() {
-            Err(e) => bad.push(e),
-            Ok(n) if n.s_n.iter().all(|v| *v <= 0.0) => bad.push(
-                "noise.accel: no white noise given (one of s_n, n_ug_per_sqrt_hz, \
-                 vrw_mps_per_sqrt_h is required; `host-sim allan` identifies it)"
-                    .into(),
-            ),
-            Ok(_) => {}
-        }
-        match self.noise.gyro.to_sensor_noise() {
-            Err(e) => bad.push(e),
-            Ok(n) if n.s_n.iter().all(|v| *v <= 0.0) => bad.push(
-                "noise.gyro: no white noise given (one of s_n, arw_deg_per_sqrt_h, \
-                 n_deg_per_s_per_sqrt_hz is required; `host-sim allan` identifies it)"
-                    .into(),
-            ),
-            Ok(_) => {}
-        }
-        for (n, s) in [
-            ("accel_scale", &self.noise.accel_scale),
-            ("gyro_scale", &self.noise.gyro_scale),
-        ] {
-            if let Some(s) = s {
-                if !(s.sigma_ppm.is_finite()
-                    && s.sigma_ppm >= 0.0
-                    && s.t_s.is_finite()
-                    && s.t_s > 0.0)
-                {
-                    bad.push(format!("noise.{n}: sigma_ppm >= 0 and t_s > 0 required"));
-                }
-            }
-        }
+        bad.extend(self.noise.problems());
         if bad.is_empty() {
             Ok(())
         } else {
@@ -710,101 +401,13 @@ fn dotted(table: &str) -> String {
     }
 }
 
-impl AccelNoiseConfig {
-    /// Every key with its value (absent: None).
-    fn entries(&self) -> [(&'static str, Option<f64>); 11] {
-        [
-            ("s_n", self.s_n),
-            ("n_ug_per_sqrt_hz", self.n_ug_per_sqrt_hz),
-            ("vrw_mps_per_sqrt_h", self.vrw_mps_per_sqrt_h),
-            ("s_b", self.s_b),
-            ("gm_sigma_ug", self.gm_sigma_ug),
-            ("t_b_s", self.t_b_s),
-            ("s_k", self.s_k),
-            ("k_ug_per_sqrt_h", self.k_ug_per_sqrt_h),
-            ("k_ug_per_sqrt_hz", self.k_ug_per_sqrt_hz),
-            ("bias_init_sigma", self.bias_init_sigma),
-            ("bias_init_ug", self.bias_init_ug),
-        ]
-    }
-}
-
-impl GyroNoiseConfig {
-    /// Every key with its value (absent: None).
-    fn entries(&self) -> [(&'static str, Option<f64>); 12] {
-        [
-            ("s_n", self.s_n),
-            ("arw_deg_per_sqrt_h", self.arw_deg_per_sqrt_h),
-            ("n_deg_per_s_per_sqrt_hz", self.n_deg_per_s_per_sqrt_hz),
-            ("s_b", self.s_b),
-            ("gm_sigma_deg_per_h", self.gm_sigma_deg_per_h),
-            ("t_b_s", self.t_b_s),
-            ("s_k", self.s_k),
-            ("k_deg_per_h_per_sqrt_h", self.k_deg_per_h_per_sqrt_h),
-            ("k_deg_per_s_per_sqrt_hz", self.k_deg_per_s_per_sqrt_hz),
-            ("bias_init_sigma", self.bias_init_sigma),
-            ("bias_init_deg_per_h", self.bias_init_deg_per_h),
-            ("bias_init_deg_per_s", self.bias_init_deg_per_s),
-        ]
-    }
-}
-
-/// White-noise keys: a density of zero there is a sensor trusted absolutely.
-const WHITE_KEYS: [&str; 6] = [
-    "s_n",
-    "n_ug_per_sqrt_hz",
-    "vrw_mps_per_sqrt_h",
-    "arw_deg_per_sqrt_h",
-    "n_deg_per_s_per_sqrt_hz",
-    "t_b_s",
-];
-
 impl RunConfig {
     /// Problems tied to one key, as (table, key, message): noise values that are not finite,
     /// negative (the TOML keys are densities or sigmas that are squared: a sign would vanish
     /// silently), or zero where zero is meaningless (white noise, correlation time); effect
     /// names that are not effects.
     pub fn located_problems(&self) -> Vec<(&'static str, String, String)> {
-        let mut out = Vec::new();
-        let noise = self
-            .noise
-            .accel
-            .entries()
-            .into_iter()
-            .map(|e| ("noise.accel", e))
-            .chain(
-                self.noise
-                    .gyro
-                    .entries()
-                    .into_iter()
-                    .map(|e| ("noise.gyro", e)),
-            );
-        for (table, (key, v)) in noise {
-            let Some(v) = v else { continue };
-            if !v.is_finite() || v < 0.0 {
-                out.push((
-                    table,
-                    key.to_string(),
-                    format!(
-                        "{v} is not allowed: noise values are densities or sigmas and must be \
-                         finite and >= 0 (the sign would be squared away)"
-                    ),
-                ));
-            } else if v == 0.0 && WHITE_KEYS.contains(&key) {
-                out.push((
-                    table,
-                    key.to_string(),
-                    if key == "t_b_s" {
-                        "0 is not a correlation time: give t_b_s > 0 or drop the Gauss-Markov term"
-                            .to_string()
-                    } else {
-                        "a white-noise density of 0 makes the filter trust the sensor absolutely: \
-                         give the datasheet or `host-sim allan` value"
-                            .to_string()
-                    },
-                ));
-            }
-        }
+        let mut out = self.noise.located_problems();
         for name in &self.effects {
             if nav_core::model::Block::effect_from_name(name.trim()).is_none() {
                 let known: Vec<&str> = nav_core::model::EFFECT_BLOCKS
@@ -946,7 +549,7 @@ pub struct RunInputs {
     /// velocities as in the file: `sigma_scale` and `use_velocity` are for the filter).
     pub gnss: Vec<GnssFix>,
     /// GPS week of the GNSS times when the file states it (RTKLIB .pos, CSV with a week or an
-    /// absolute time, NMEA with its RMC date; not UBX NAV-PVT).
+    /// absolute time, NMEA with its RMC date, UBX NAV-PVT with a valid UTC date).
     pub gnss_week: Option<i64>,
     /// GNSS records dropped by the quality filter.
     pub gnss_dropped_by_quality: usize,

@@ -298,7 +298,13 @@ fn ubx_log_round_trip_within_the_format_resolution() {
     let r = read_ubx_log(&p, &GnssLogOptions::default(), 6).unwrap();
     assert_eq!(r.fixes.len(), 4, "{r:?}");
     assert_eq!(r.dropped_by_quality, 1);
-    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    // these packets do not flag their UTC date valid: the week is unknown, and said so
+    assert_eq!(r.warnings.len(), 1, "{:?}", r.warnings);
+    assert!(
+        r.warnings[0].contains("GPS week is unknown"),
+        "{:?}",
+        r.warnings
+    );
     assert_eq!(r.week, None);
     for (k, f) in r.fixes.iter().enumerate() {
         let want = pvt(k);

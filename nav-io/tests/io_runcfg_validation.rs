@@ -115,3 +115,46 @@ fn key_line_follows_tables() {
     assert_eq!(key_line(BASE, "noise.accel", "arw_deg_per_sqrt_h"), None);
     assert_eq!(key_line(BASE, "init.align", "static_s"), Some(18));
 }
+
+/// Noise values may be given per axis `[x, y, z]` (as `host-sim allan` writes them); a wrong
+/// length or a negative element is an error naming the line.
+#[test]
+fn per_axis_noise_values_are_read_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("axes.toml");
+    let text = BASE
+        .replace(
+            "vrw_mps_per_sqrt_h = 0.03",
+            "s_n = [1.0e-6, 2.0e-6, 3.0e-6]",
+        )
+        .replace(
+            "gm_sigma_ug = 50.0",
+            "s_b = [1.0e-10, 0.0, 4.0e-10]\nbias_init_ug = 2000",
+        );
+    std::fs::write(&p, &text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    let a = c.noise.accel.to_sensor_noise().unwrap();
+    assert_eq!(a.s_n, [1.0e-6, 2.0e-6, 3.0e-6]);
+    assert_eq!(a.s_b, [1.0e-10, 0.0, 4.0e-10]);
+    assert_eq!(a.t_b_s, 300.0);
+    let b0 = 2000.0 * nav_core::config::units::UG_MPS2;
+    assert!(
+        a.bias_init_sigma.iter().all(|v| (v - b0).abs() < 1e-15),
+        "{a:?}"
+    );
+    // the gyro's single number still means all three axes
+    let g = c.noise.gyro.to_sensor_noise().unwrap();
+    assert!(g.s_n[0] > 0.0 && g.s_n[0] == g.s_n[1] && g.s_n[1] == g.s_n[2]);
+
+    let e = err_of(&text.replace("[1.0e-6, 2.0e-6, 3.0e-6]", "[1.0e-6, 2.0e-6]"));
+    assert!(e.to_string().contains("array of three numbers"), "{e}");
+    assert!(e.to_string().contains("line 21"), "{e}");
+    let e = err_of(&text.replace("[1.0e-6, 2.0e-6, 3.0e-6]", "[1.0e-6, -2.0e-6, 3.0e-6]"));
+    assert!(
+        e.to_string()
+            .contains("line 21: noise.accel.s_n: -0.000002 is not allowed"),
+        "{e}"
+    );
+    let e = err_of(&text.replace("[1.0e-6, 2.0e-6, 3.0e-6]", "[1.0e-6, 0.0, 3.0e-6]"));
+    assert!(e.to_string().contains("trust the sensor absolutely"), "{e}");
+}

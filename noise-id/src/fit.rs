@@ -30,8 +30,10 @@ use nalgebra::{DMatrix, DVector};
 use nav_core::config::units;
 use serde::{Deserialize, Serialize};
 
+mod check;
 mod select;
 mod slope;
+pub use check::{check_model, Alternative, Miss, ModelCheck, MIN_RUN, Z95};
 pub use select::{fit_select, Candidate, Selection};
 pub use slope::{slope_method, SlopeResult};
 

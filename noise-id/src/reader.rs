@@ -61,6 +61,45 @@ impl AccelUnitArg {
     }
 }
 
+/// Unit of a single generic `x` column on the command line: a gyro or accelerometer unit
+/// makes the channel that sensor (datasheet units in the table, a `[noise.gyro]` or
+/// `[noise.accel]` section in `allan_params.toml`); `si` keeps it a channel of unknown
+/// quantity, reported in SI (its own unit times `--x-scale`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum XUnit {
+    /// Unknown quantity: SI, the column's unit times `--x-scale`.
+    #[default]
+    Si,
+    /// Gyro, rad/s.
+    Radps,
+    /// Gyro, deg/s.
+    Dps,
+    /// Gyro, deg/h.
+    Dph,
+    /// Accelerometer, m/s^2.
+    Mps2,
+    /// Accelerometer, standard gravity.
+    G,
+    /// Accelerometer, micro-g.
+    Ug,
+}
+
+impl XUnit {
+    /// The sensor kind and the factor to its SI unit.
+    pub fn kind_and_scale(self) -> (SensorKind, f64) {
+        match self {
+            XUnit::Si => (SensorKind::Other, 1.0),
+            XUnit::Radps => (SensorKind::Gyro, GyroUnit::Radps.to_radps()),
+            XUnit::Dps => (SensorKind::Gyro, GyroUnit::Dps.to_radps()),
+            XUnit::Dph => (SensorKind::Gyro, GyroUnit::Dph.to_radps()),
+            XUnit::Mps2 => (SensorKind::Accel, AccelUnitArg::Mps2.to_mps2()),
+            XUnit::G => (SensorKind::Accel, AccelUnitArg::G.to_mps2()),
+            XUnit::Ug => (SensorKind::Accel, AccelUnitArg::Ug.to_mps2()),
+        }
+    }
+}
+
 /// Column mapping of a generic file.
 #[derive(Clone, Debug)]
 pub struct ColumnSpec {
@@ -74,8 +113,10 @@ pub struct ColumnSpec {
     pub rate_hz: Option<f64>,
     /// Physical lines skipped at the start (headers).
     pub skip_lines: usize,
-    /// Scale applied to an `x` column (default 1).
+    /// Scale applied to an `x` column (default 1), on top of `x_unit`.
     pub x_scale: f64,
+    /// Unit (and so sensor kind) of an `x` column.
+    pub x_unit: XUnit,
 }
 
 /// Rate channels read from a file (SI: rad/s, m/s^2; `x` in its own unit times `x_scale`).
@@ -233,7 +274,7 @@ pub fn read_columns(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadErro
         .map(|(k, _)| match kind_of(k) {
             SensorKind::Gyro => spec.gyro_unit.to_radps(),
             SensorKind::Accel => spec.accel_unit.to_mps2(),
-            SensorKind::Other => spec.x_scale,
+            SensorKind::Other => spec.x_unit.kind_and_scale().1 * spec.x_scale,
         })
         .collect();
     let need = cols.len();
@@ -275,7 +316,13 @@ pub fn read_columns(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadErro
     let n = data.first().map_or(0, Vec::len);
     Ok(Channels {
         names: keys.iter().map(|(k, _)| k.clone()).collect(),
-        kinds: keys.iter().map(|(k, _)| kind_of(k)).collect(),
+        kinds: keys
+            .iter()
+            .map(|(k, _)| match kind_of(k) {
+                SensorKind::Other => spec.x_unit.kind_and_scale().0,
+                kd => kd,
+            })
+            .collect(),
         data,
         tau0_s: tau0,
         notes: vec![format!(

@@ -1,15 +1,16 @@
 //! `host-sim allan`: Allan statistics per axis of an IMU record, the noise-model fit, a
-//! parameter table like the source's Appendix V, `allan_params.toml`, plots and JSON.
+//! parameter table like the source's Appendix V, `allan_params.toml` (a run configuration's
+//! `[noise]` section) and `allan_sim_errors.toml` (`super::params`), plots and JSON.
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use noise_id::fit::{self, Datasheet, FitOptions, FitResult, SensorKind, SlopeResult, Terms};
-use noise_id::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit};
+use noise_id::reader::{self, AccelUnitArg, Channels, ColumnSpec, GyroUnit, XUnit};
 use noise_id::{deviation_curve_phase, edf, CurveOptions, DevPoint, Deviation, Phase, Taus};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Input format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -72,9 +73,14 @@ pub struct AllanArgs {
     /// Lines skipped at the start of a generic file.
     #[arg(long, default_value_t = 0)]
     pub skip_lines: usize,
-    /// Scale of an `x` column to its SI unit.
+    /// Scale of an `x` column (applied on top of `--x-unit`).
     #[arg(long, default_value_t = 1.0)]
     pub x_scale: f64,
+    /// Unit of an `x` column: a gyro (radps, dps, dph) or accelerometer (mps2, g, ug) unit
+    /// makes it that sensor (datasheet units, a `[noise.gyro]`/`[noise.accel]` section);
+    /// `si` reports it in SI with SI headings.
+    #[arg(long, value_enum, default_value = "si")]
+    pub x_unit: XUnit,
     /// Deviation to compute and plot (the fit always uses the overlapping Allan variance).
     #[arg(long, value_enum, default_value = "oadev")]
     pub dev: Deviation,
@@ -100,7 +106,16 @@ pub struct AllanArgs {
     /// (smallest BIC with a common model-error floor; see `allan::fit::fit_select`).
     #[arg(long)]
     pub no_select: bool,
-    /// Output folder for allan_params.toml and the plots.
+    /// Accelerometer turn-on bias sigma (ug) written into the `[noise]` section
+    /// (`bias_init_ug`); a static record cannot tell it.
+    #[arg(long)]
+    pub accel_bias_init_ug: Option<f64>,
+    /// Gyro turn-on bias sigma (deg/h) written into the `[noise]` section
+    /// (`bias_init_deg_per_h`); a static record cannot tell it.
+    #[arg(long)]
+    pub gyro_bias_init_deg_per_h: Option<f64>,
+    /// Output folder for allan_params.toml (a run configuration's `[noise]` section),
+    /// allan_sim_errors.toml (the simulator's error model) and the plots.
     #[arg(long, short = 'o', default_value = ".")]
     pub out_dir: PathBuf,
     /// Also write the curves and fits as JSON to this file.
@@ -135,6 +150,9 @@ pub struct AxisResult {
     pub slope: Option<SlopeResult>,
     /// The candidate models of the term selection (empty without selection).
     pub candidates: Vec<fit::Candidate>,
+    /// Whether the fitted model follows the curve within its confidence band, and the
+    /// better-fitting alternative when it does not ([`fit::check_model`]).
+    pub check: Option<fit::ModelCheck>,
 }
 
 /// The whole analysis.
@@ -202,6 +220,10 @@ pub fn analyse(
                 )
             };
             let slope = fit::slope_method(&fit_curve);
+            let check = f
+                .as_ref()
+                .ok()
+                .and_then(|r| fit::check_model(&fit_curve, r, fit_opt).ok());
             AxisResult {
                 name: name.clone(),
                 kind: *kind,
@@ -210,6 +232,7 @@ pub fn analyse(
                 fit: f,
                 slope,
                 candidates,
+                check,
             }
         })
         .collect();
@@ -314,6 +337,10 @@ pub fn table(an: &Analysis) -> String {
         "              K [ug/sqrt(h)],[deg/h/sqrt(h)]".into(),
         an.axes.iter().map(|a| slope_fmt(a, 'K')).collect(),
     ));
+    let kinds: Vec<SensorKind> = an.axes.iter().map(|a| a.kind).collect();
+    for r in &mut rows {
+        r.0 = heading_units(&r.0, &kinds);
+    }
     let w0 = rows.iter().map(|r| r.0.chars().count()).max().unwrap_or(0);
     let wc: Vec<usize> = (0..an.axes.len())
         .map(|j| {
@@ -339,7 +366,46 @@ pub fn table(an: &Analysis) -> String {
         }
         s.push('\n');
     }
+    if kinds.contains(&SensorKind::Other) {
+        s.push_str(
+            "U: the unit of the generic channel (its column times --x-scale), read as SI; \
+             --x-unit radps|dps|dph|mps2|g|ug makes it a gyro or an accelerometer\n",
+        );
+    }
     s
+}
+
+/// A heading's units for the sensors in the table: `name [accel],[gyro]` keeps the unit of
+/// each kind present, in that order, and adds the SI form (`U` = the channel's unit) for a
+/// channel of unknown quantity (`--columns x` without a sensor `--x-unit`).
+fn heading_units(label: &str, kinds: &[SensorKind]) -> String {
+    let Some((name, units)) = label.split_once(" [") else {
+        return label.to_string();
+    };
+    let Some((a, g)) = units.trim_end_matches(']').split_once("],[") else {
+        return label.to_string();
+    };
+    let si = match a {
+        "m^2/s^2" => "U^2 s^2",
+        "m/s" => "U s",
+        "m^2/s^3" => "U^2 s",
+        "ug/sqrt(Hz)" => "U sqrt(s)",
+        "m^2/s^5" => "U^2/s",
+        "ug" => "U",
+        "m/s^2.5" | "ug/sqrt(h)" => "U/sqrt(s)",
+        _ => "SI",
+    };
+    let mut parts = Vec::new();
+    for (k, u) in [
+        (SensorKind::Accel, a),
+        (SensorKind::Gyro, g),
+        (SensorKind::Other, si),
+    ] {
+        if kinds.contains(&k) {
+            parts.push(format!("[{u}]"));
+        }
+    }
+    format!("{name} {}", parts.join(","))
 }
 
 fn slope_fmt(a: &AxisResult, which: char) -> String {
@@ -368,122 +434,6 @@ fn slope_fmt(a: &AxisResult, which: char) -> String {
     }
 }
 
-/// `allan_params.toml`: `[accel]` / `[gyro]` in the layout of the simulator's sensor error
-/// model (`white_psd`, `gm_psd`, `gm_tau_s`, `rw_psd`, `flicker_b`, `quantization_step`, per axis x y z,
-/// SI, two-sided PSDs), `[x]` for a single generic channel, and `[uncertainty.*]` with the
-/// 1-sigma of every value.
-pub fn params_toml(an: &Analysis, source: &Path) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# Noise parameters identified by `host-sim allan` from {} ({} samples, tau0 = {} s).\n\
-         # Fit of the overlapping Allan variance (corrected model of docs/DESIGN.md), SI units,\n\
-         # two-sided PSDs (IEEE 952): white_psd S_N [m^2/s^3 | rad^2/s], gm_psd S_B [m^2/s^5 |\n\
-         # rad^2/s^3], gm_tau_s T_B [s], rw_psd S_K [m^2/s^5 | rad^2/s^3], flicker_b B (IEEE 952,\n\
-         # Allan floor 0.664 B) [m/s^2 | rad/s], quantization_step = sqrt(12) Q [m/s | rad].\n\
-         # [accel] and [gyro] have the layout of the simulator's sensor error model; a term the\n\
-         # fit set to zero (or term selection dropped) is 0 (gm_tau_s then 1 as a placeholder).",
-        source.display(),
-        an.n_samples,
-        an.tau0_s
-    );
-    let groups: [(&str, [&str; 3]); 2] =
-        [("accel", ["ax", "ay", "az"]), ("gyro", ["gx", "gy", "gz"])];
-    let get = |name: &str| {
-        an.axes
-            .iter()
-            .find(|a| a.name == name)
-            .and_then(|a| a.fit.as_ref().ok())
-    };
-    let fmt_arr = |v: [f64; 3]| {
-        format!(
-            "[{}]",
-            v.iter()
-                .map(|x| if x.is_finite() {
-                    format!("{x:e}")
-                } else {
-                    "nan".into()
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    };
-    type Field = (&'static str, fn(&FitResult) -> fit::Est);
-    let fields: [Field; 6] = [
-        ("white_psd", |f| f.s_n),
-        ("gm_psd", |f| f.s_b),
-        ("gm_tau_s", |f| f.t_b_s),
-        ("rw_psd", |f| f.s_k),
-        ("flicker_b", |f| {
-            let b = f.flicker_b2.value.max(0.0).sqrt();
-            fit::Est {
-                value: b,
-                sigma: if b > 0.0 {
-                    f.flicker_b2.sigma / (2.0 * b)
-                } else {
-                    f64::NAN
-                },
-            }
-        }),
-        ("quantization_step", |f| {
-            let q = f.q2.value.max(0.0).sqrt();
-            fit::Est {
-                value: 12f64.sqrt() * q,
-                sigma: if q > 0.0 {
-                    12f64.sqrt() * f.q2.sigma / (2.0 * q)
-                } else {
-                    f64::NAN
-                },
-            }
-        }),
-    ];
-    let value = |name: &str, f: &FitResult, e: fit::Est| {
-        if name == "gm_tau_s" && (f.s_b.value.is_nan() || f.s_b.value <= 0.0) {
-            1.0
-        } else {
-            e.value
-        }
-    };
-    let mut unc = String::new();
-    for (group, keys) in groups {
-        if !keys.iter().any(|k| get(k).is_some()) {
-            continue;
-        }
-        let _ = writeln!(s, "\n[{group}]");
-        let _ = writeln!(unc, "\n[uncertainty.{group}]");
-        for (fname, fget) in fields {
-            let mut v = [f64::NAN; 3];
-            let mut u = [f64::NAN; 3];
-            for (i, k) in keys.iter().enumerate() {
-                if let Some(f) = get(k) {
-                    v[i] = value(fname, f, fget(f));
-                    u[i] = fget(f).sigma;
-                }
-            }
-            let _ = writeln!(s, "{fname} = {}", fmt_arr(v));
-            let _ = writeln!(unc, "{fname} = {}", fmt_arr(u));
-        }
-    }
-    if let Some(f) = get("x") {
-        let _ = writeln!(s, "\n[x]");
-        let _ = writeln!(unc, "\n[uncertainty.x]");
-        for (fname, fget) in fields {
-            let e = fget(f);
-            let fmt1 = |x: f64| {
-                if x.is_finite() {
-                    format!("{x:e}")
-                } else {
-                    "nan".into()
-                }
-            };
-            let _ = writeln!(s, "{fname} = {}", fmt1(value(fname, f, e)));
-            let _ = writeln!(unc, "{fname} = {}", fmt1(e.sigma));
-        }
-    }
-    s.push_str(&unc);
-    s
-}
-
 #[derive(Serialize)]
 struct JsonAxis<'a> {
     deviation: &'a str,
@@ -497,6 +447,8 @@ struct JsonAxis<'a> {
     fit: Option<JsonFit>,
     slope_method: Option<&'a SlopeResult>,
     candidates: &'a [fit::Candidate],
+    model_check: Option<&'a fit::ModelCheck>,
+    model_warning: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -549,6 +501,8 @@ pub fn to_json(an: &Analysis) -> anyhow::Result<String> {
             }),
             slope_method: a.slope.as_ref(),
             candidates: &a.candidates,
+            model_check: a.check.as_ref(),
+            model_warning: a.model_warning(),
         };
         map.insert(a.name.clone(), serde_json::to_value(ja)?);
     }
@@ -586,6 +540,7 @@ pub fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
                     rate_hz: args.rate_hz,
                     skip_lines: args.skip_lines,
                     x_scale: args.x_scale,
+                    x_unit: args.x_unit,
                 },
             )?
         }
@@ -703,6 +658,9 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         if let Err(e) = &a.fit {
             eprintln!("{}: {e}", a.name);
         }
+        if let Some(w) = a.model_warning() {
+            eprintln!("warning: {w}");
+        }
     }
     if !args.no_select {
         println!("Term selection (BIC = chi2 + p ln n with the model-error floor; * = selected):");
@@ -724,10 +682,24 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating {}", args.out_dir.display()))?;
-    let toml_path = args.out_dir.join("allan_params.toml");
-    std::fs::write(&toml_path, params_toml(&an, &args.input))
-        .with_context(|| format!("writing {}", toml_path.display()))?;
-    println!("wrote {}", toml_path.display());
+    let bias = super::params::BiasInit {
+        accel_ug: args.accel_bias_init_ug,
+        gyro_deg_per_h: args.gyro_bias_init_deg_per_h,
+    };
+    for (name, text) in [
+        (
+            "allan_params.toml",
+            super::params::noise_section_toml(&an, &args.input, &bias),
+        ),
+        (
+            "allan_sim_errors.toml",
+            super::params::sim_errors_toml(&an, &args.input),
+        ),
+    ] {
+        let path = args.out_dir.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
     if let Some(j) = &args.json {
         let mut v: serde_json::Value = serde_json::from_str(&to_json(&an)?)?;
         if let Some(obj) = v.as_object_mut() {
@@ -781,6 +753,12 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
 }
 
 impl AxisResult {
+    /// The warning when the fitted model misses the curve beyond its confidence band.
+    pub fn model_warning(&self) -> Option<String> {
+        let f = self.fit.as_ref().ok()?;
+        self.check.as_ref()?.warning(&self.name, &f.terms)
+    }
+
     fn curve_title(&self, dev: Deviation) -> &'static str {
         match dev {
             Deviation::Adev => "Allan deviation",

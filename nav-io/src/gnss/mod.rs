@@ -3,6 +3,7 @@
 //! (UBX, NMEA, RTCM interleaved, any chunking) with the `ublox` crate's parser, parses NMEA
 //! sentences with the `nmea` crate and NAV-PVT with `ublox`.
 
+pub mod encode;
 pub mod nmea_epoch;
 pub mod ubx;
 
@@ -79,6 +80,7 @@ pub struct GnssStream {
     parser: ublox::Parser<ublox::FixedBuffer<4096>>,
     nmea: NmeaAssembler,
     stats: GnssStats,
+    last_utc: Option<ubx::UtcTime>,
 }
 
 impl GnssStream {
@@ -88,6 +90,7 @@ impl GnssStream {
             parser: ublox::ParserBuilder::new().with_fixed_buffer::<4096>(),
             nmea: NmeaAssembler::new(opts),
             stats: GnssStats::default(),
+            last_utc: None,
         }
     }
 
@@ -98,6 +101,12 @@ impl GnssStream {
         s.nmea_errors = self.nmea.errors();
         s.nmea_ignored = self.nmea.ignored();
         s
+    }
+
+    /// The UTC date and time of the last NAV-PVT packet (when flagged valid), taken: a
+    /// NAV-PVT's iTOW has no GPS week, its UTC date gives it.
+    pub fn take_nav_pvt_utc(&mut self) -> Option<ubx::UtcTime> {
+        self.last_utc.take()
     }
 
     /// Feeds bytes; returns the fixes and errors they completed.
@@ -113,6 +122,9 @@ impl GnssStream {
                 }
                 Ok(ublox::AnyPacketRef::Ubx(p)) => {
                     self.stats.ubx_packets += 1;
+                    if let ublox::UbxPacket::Proto23(ublox::proto23::PacketRef::NavPvt(pvt)) = &p {
+                        self.last_utc = ubx::utc_of_nav_pvt(pvt);
+                    }
                     if let Some(fix) = ubx::fix_from_packet(&p) {
                         out.push(GnssEvent::Fix(fix));
                     }

@@ -9,7 +9,7 @@
 //! fixed -> `RtkFixed`, carrier float -> `RtkFloat`, differential -> `Dgnss`, else `Single`.
 
 use nav_core::types::{FixQuality, GnssFix};
-use ublox::nav_pvt::common::NavPvtFlags;
+use ublox::nav_pvt::common::{NavPvtFlags, NavPvtValidFlags};
 use ublox::nav_pvt::proto23::NavPvtRef;
 use ublox::proto23::PacketRef;
 use ublox::{GnssFixType, UbxPacket};
@@ -20,6 +20,26 @@ pub fn fix_from_packet(p: &UbxPacket<'_>) -> Option<GnssFix> {
         UbxPacket::Proto23(PacketRef::NavPvt(pvt)) => Some(fix_from_nav_pvt(pvt)),
         _ => None,
     }
+}
+
+/// A UTC calendar time: (year, month, day, hour, minute, second with the fraction).
+pub type UtcTime = (i32, u32, u32, u32, u32, f64);
+
+/// The UTC date and time of a NAV-PVT packet, (year, month, day, hour, minute, second with
+/// the fraction), when the receiver flags both the date and the time valid.
+pub fn utc_of_nav_pvt(p: &NavPvtRef<'_>) -> Option<UtcTime> {
+    let v = p.valid();
+    if !(v.contains(NavPvtValidFlags::VALID_DATE) && v.contains(NavPvtValidFlags::VALID_TIME)) {
+        return None;
+    }
+    Some((
+        i32::from(p.year()),
+        u32::from(p.month()),
+        u32::from(p.day()),
+        u32::from(p.hour()),
+        u32::from(p.min()),
+        f64::from(p.sec()) + f64::from(p.nanosec()) * 1e-9,
+    ))
 }
 
 /// Maps a NAV-PVT packet (see the module doc).

@@ -77,7 +77,7 @@ impl Terms {
 /// Relative model error `eps` that makes the weighted residuals of `f` consistent with their
 /// variances: `sum r_i^2 / (m_i^2 (2 / EDF_i + eps^2)) = n - p` (0 if the statistical scatter
 /// alone already explains them).
-fn model_error_for(f: &FitResult, edf: &[f64]) -> f64 {
+pub(super) fn model_error_for(f: &FitResult, edf: &[f64]) -> f64 {
     let dof = f.n_points as f64 - f.n_free as f64;
     if dof < 1.0 {
         return 0.0;
