@@ -88,6 +88,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(self.numerical_failure());
         }
         seen(self, nis);
+        if self.redo {
+            // the fix's probation check undid the previous fix: the caller processes it again
+            return Ok(out);
+        }
         let weight = if nis <= gate.downweight {
             1.0
         } else {

@@ -21,6 +21,7 @@ mod gated;
 mod gnss_vel;
 pub(crate) mod linalg;
 pub mod observe;
+mod reacq;
 pub mod robust;
 
 pub use aiding_update::AidingOutcome;
@@ -218,6 +219,10 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// Fill noise waiting for the next prediction (body-axis variances of attitude, velocity,
     /// position; [`Filter::widen_for_fill`]).
     fill_var: [f64; 9],
+    /// The first fix after an outage, used on probation ([`reacq`]).
+    tentative: Option<reacq::Tentative<T, N>>,
+    /// The current fix must be processed again (its probation check undid the previous one).
+    redo: bool,
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -302,6 +307,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
             fill_var: [0.0; 9],
+            tentative: None,
+            redo: false,
         })
     }
 
@@ -434,7 +441,19 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// Uses one GNSS fix (antenna position, and velocity when configured and present). Call it
     /// at the IMU epoch nearest the fix time (within `max_gnss_time_offset_s`; the offset is
     /// bridged with the velocity). Returns the innovation and whether the gate accepted it.
+    ///
+    /// With robust gating, a first fix after an outage that needs the re-acquisition widening
+    /// is used on probation: when the next fix disagrees with it (beyond the normal gate), it
+    /// is taken back and the next fix is used as the first one ([`reacq`]).
     pub fn update_gnss(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
+        let out = self.update_gnss_once(fix)?;
+        if core::mem::take(&mut self.redo) {
+            return self.update_gnss_once(fix);
+        }
+        Ok(out)
+    }
+
+    fn update_gnss_once(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
         if !fix.is_valid() {
             self.counters.gnss_invalid = self.counters.gnss_invalid.saturating_add(1);
             return Err(FilterError::InvalidGnss);
@@ -477,6 +496,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             let out = self.kalman_update::<3>(&m.zp, &m.h_pos, &rp, force, fix.t_s)?;
             (out, None)
         };
+        if self.redo {
+            return Ok(out);
+        }
         Ok(self.after_update(out, &m.zp, &rp, zv))
     }
 
@@ -651,6 +673,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     ) -> Result<UpdateOutcome, FilterError> {
         let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
         let normal_reject = th.normal_reject;
+        let z_pos = [0, 1, 2].map(|i| z64.get(i).copied().unwrap_or(0.0));
+        // a first fix after an outage may go on probation: the covariance before it, and the
+        // correction it feeds back (what `fed_back` gains)
+        let before = th.after_outage.then_some((self.p, self.fed_back));
         let g = self.gated_update(
             z64,
             h,
@@ -659,8 +685,25 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 downweight: th.downweight,
                 reject: th.reject,
             },
-            |f, nis| f.gate.last_within_normal_gate = nis <= normal_reject,
+            |f, nis| {
+                f.gate.last_within_normal_gate = nis <= normal_reject;
+                // the next fix decides a fix on probation (undone: this fix is processed
+                // again, `gated_update` stops here)
+                f.redo = f.settle_tentative(nis, &th, t_s, z_pos);
+            },
         )?;
+        if let Some((p0, fb0)) = before.filter(|_| g.accepted && g.nis > normal_reject) {
+            let mut dx = self.fed_back;
+            for (d, b) in dx.iter_mut().zip(fb0) {
+                *d -= b;
+            }
+            self.tentative = Some(reacq::Tentative {
+                p0,
+                dx,
+                t_s,
+                z_pos_m: z_pos,
+            });
+        }
         let mut out = UpdateOutcome {
             t_s,
             dim: M,

@@ -79,6 +79,9 @@ pub struct RobustStats {
     pub gate_widening: f64,
     /// Whether a mismatch is declared now.
     pub mismatch: bool,
+    /// First fixes after an outage that were used on probation and taken back because the
+    /// next fix disagreed with them (outliers; see `Filter::update_gnss`).
+    pub reacquisitions_undone: u32,
 }
 
 impl Default for RobustStats {
@@ -99,6 +102,7 @@ impl Default for RobustStats {
             q_inflation: 1.0,
             gate_widening: 1.0,
             mismatch: false,
+            reacquisitions_undone: 0,
         }
     }
 }
@@ -195,6 +199,9 @@ pub(super) struct Thresholds {
     pub reject: f64,
     /// The rejection threshold without the re-acquisition widening.
     pub normal_reject: f64,
+    /// The fix is the first after an outage (no fix at all for longer than the
+    /// re-acquisition gap) and gets the re-acquisition widening.
+    pub after_outage: bool,
 }
 
 impl GateState {
@@ -213,6 +220,7 @@ impl GateState {
                 downweight: base,
                 reject: base,
                 normal_reject: base,
+                after_outage: false,
             },
             Some(r) => {
                 let dw = if dim == 3 {
@@ -220,15 +228,13 @@ impl GateState {
                 } else {
                     r.downweight_nis_pos_vel
                 };
-                let widening = if self.is_reacquisition(r, t_s) {
+                let reacq = self.is_reacquisition(r, t_s);
+                let after_outage = reacq && t_s - self.last_seen_t_s > r.reacquisition_min_gap_s;
+                let widening = if reacq {
                     // after an outage (no fix at all, not a run of rejections) times the
                     // remembered level of a persistent mismatch: unaided, what the model
                     // leaves out grows beyond the level seen at the fix rate
-                    let lvl = if t_s - self.last_seen_t_s > r.reacquisition_min_gap_s {
-                        self.level
-                    } else {
-                        1.0
-                    };
+                    let lvl = if after_outage { self.level } else { 1.0 };
                     (r.max_gate_widening * lvl).max(self.stats.gate_widening)
                 } else {
                     self.stats.gate_widening
@@ -238,6 +244,7 @@ impl GateState {
                     downweight: (dw * widening).min(reject),
                     reject,
                     normal_reject: base * self.stats.gate_widening,
+                    after_outage,
                 }
             }
         }
