@@ -14,81 +14,34 @@ use host_sim::sim::errors::{Axes3, Temperature};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_sim::ScenarioBuilder;
 
 fn scenario() -> Scenario {
-    let mut s = String::from(
-        r#"
-name = "diagnose-bench"
-description = "40 min at 200 Hz"
-[start]
-lat_deg = 48.2
-lon_deg = 16.37
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 200.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-"#,
-    );
+    let mut b = ScenarioBuilder::new("diagnose-bench")
+        .description("40 min at 200 Hz")
+        .start(48.2, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(200.0)
+        .stationary(30.0);
     // one lap is about 3.6 minutes; 11 laps
     for lap in 0..11 {
         let sp = 12.0 + f64::from(lap % 3) * 3.0;
-        s.push_str(&format!(
-            r#"
-[[segment]]
-kind = "accelerate"
-to_speed_mps = {sp}
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 35.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = -135.0
-radius_m = 30.0
-[[segment]]
-kind = "hill"
-height_m = 6.0
-length_m = 400.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = 180.0
-radius_m = 45.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 4.0
-duration_s = 6.0
-[[segment]]
-kind = "turn"
-angle_deg = -135.0
-radius_m = 12.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = {sp}
-duration_s = 7.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "stop"
-[[segment]]
-kind = "static"
-duration_s = 10.0
-"#
-        ));
+        b = b
+            .accelerate(sp, 8.0)
+            .turn(90.0, 35.0)
+            .cruise(40.0)
+            .turn(-135.0, 30.0)
+            .hill(6.0, 400.0)
+            .cruise(40.0)
+            .turn(180.0, 45.0)
+            .brake(4.0, 6.0)
+            .turn(-135.0, 12.0)
+            .accelerate(sp, 7.0)
+            .cruise(30.0)
+            .stop()
+            .stationary(10.0);
     }
-    Scenario::from_toml_str(&s, "diagnose-bench").expect("scenario")
+    b.scenario()
 }
 
 fn main() {
@@ -135,7 +88,7 @@ fn main() {
         start += 100.0;
     }
     let p = Prepared {
-        case: CaseData::from_sim(&case),
+        case: CaseData::from(&case),
         opts,
         week: 2227,
         description: "diagnose benchmark".into(),

@@ -1,19 +1,19 @@
 #![doc = include_str!("../README.md")]
 //!
 //! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
-//! the run engine, the source document's bias-model study, model diagnosis, metrics, plots,
-//! reports and the command line (the `allan` command over the `noise-id` crate). The data
-//! formats are read and written by the `nav-io` crate.
+//! the source document's bias-model study, model diagnosis, plots, reports and the command
+//! line (`run` over the `nav-engine` crate's run engine and metrics, `allan` over the
+//! `noise-id` crate). The data formats are read and written by the `nav-io` crate.
 //!
 //! Every computation that also runs on the MCU lives in `nav-core`; this crate only drives it.
 #![deny(missing_docs)]
 
 pub mod allan;
 pub mod diagnose;
-pub mod metrics;
 pub mod mounting;
 pub mod noise;
 pub mod run;
+// The run engine's metrics and smoother live in `nav-engine`.
+pub use nav_engine::{metrics, smooth};
 pub mod sim;
-pub mod smooth;
 pub mod study;

@@ -94,7 +94,7 @@ fn nhc_at_least_halves_the_60s_outage_drift_on_a_simulated_land_drive() {
     let (mut sum_b, mut sum_a) = (0.0, 0.0);
     for seed in 1u64..=6 {
         let c = case(seed);
-        let data = CaseData::from_sim(&c);
+        let data = CaseData::from(&c);
         let t0 = c.trajectory.t0_s;
         let truth = &c.trajectory.truth;
         let base = run_filter(&data, &options(AidingConfig::OFF, driving_outages(t0)))
@@ -148,7 +148,7 @@ fn nhc_at_least_halves_the_60s_outage_drift_on_a_simulated_land_drive() {
 #[test]
 fn zupt_holds_the_position_to_centimetres_during_stops() {
     let c = case(4);
-    let data = CaseData::from_sim(&c);
+    let data = CaseData::from(&c);
     let t0 = c.trajectory.t0_s;
     let truth = &c.trajectory.truth;
     // the GNSS withheld over the two long stops (static 183-213 s and 306-346 s)

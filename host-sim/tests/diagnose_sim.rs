@@ -93,7 +93,7 @@ fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u
         start += 100.0;
     }
     Prepared {
-        case: CaseData::from_sim(&case),
+        case: CaseData::from(&case),
         opts,
         week: 2227,
         description: "diagnose test".into(),
@@ -605,10 +605,15 @@ fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f6
 
 /// 40 more drives (8 effects x 4 seeds, magnitudes x0.6 to x1.33 of the per-effect tests'
 /// sizes, other trajectories and seeds, plus the two scale factors x 4 seeds configured from a
-/// KF-GINS YAML with frozen scale-factor states): the effect must be named first with its
-/// estimate within 20 % / 3 sigma in every one, the median outage-error ratio after/before at
-/// most 0.7 and no case worse than before (issue 14); the 30 % improvement per case is counted
-/// and printed. Run with `--ignored` (measured numbers in the README's diagnose section).
+/// KF-GINS YAML with frozen scale-factor states): the median outage-error ratio after/before
+/// at most 0.7 and no case worse than before (issue 14); in every case the effect is named
+/// first with its estimate within 20 % / 3 sigma, or its refusal is right
+/// ([`refusal_is_right`]: it was the strongest candidate, estimated within those limits, and
+/// even the exact effect raises the held-out error on that drive; measured: 2 of the 40, the
+/// KF-GINS accel seed 95000 and gyro seed 95122, see
+/// [`refused_scale_factors_help_over_noise_seeds`]). The 30 % improvement per case is counted
+/// and printed. `DIAGNOSE_SWEEP_SEEDS=95000,95122` runs only those seeds. Run with
+/// `--ignored` (measured numbers in the README's diagnose section).
 #[test]
 #[ignore]
 fn robustness_sweep_over_seeds_and_magnitudes() {
@@ -668,9 +673,17 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
     let jobs: Vec<(usize, u64, bool)> = (0..cases.len())
         .flat_map(|c| (0..4u64).map(move |s| (c, s, false)))
         .chain((0..2usize).flat_map(|c| (0..4u64).map(move |s| (c, s, true))))
+        .filter(|&(c, s, kf)| {
+            // DIAGNOSE_SWEEP_SEEDS=95000,95122: only those drives (to study a case)
+            std::env::var("DIAGNOSE_SWEEP_SEEDS").map_or(true, |v| {
+                let seed = 90000 + 101 * c as u64 + 7 * s + if kf { 5000 } else { 0 };
+                v.split(',').any(|x| x.trim().parse() == Ok(seed))
+            })
+        })
         .collect();
     let n_jobs = jobs.len();
-    let res: Vec<(String, bool, bool, bool, f64)> = jobs
+    #[allow(clippy::type_complexity)]
+    let res: Vec<(String, bool, bool, bool, f64, bool)> = jobs
         .par_iter()
         .map(|&(c, s, kf)| {
             let mut e = base_errors();
@@ -678,16 +691,21 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
             let (name, truth) = cases[c](&mut e, k);
             let seed = 90000 + 101 * c as u64 + 7 * s + if kf { 5000 } else { 0 };
             let v = (s + c as u64) as u32 % 4;
-            let d = if kf {
-                let dir = tempfile::tempdir().unwrap();
-                let p = kf_gins_prepared(v, &e, seed, dir.path());
-                diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis
+            let dir = tempfile::tempdir().unwrap();
+            let p = if kf {
+                kf_gins_prepared(v, &e, seed, dir.path())
             } else {
-                run(v, &e, [0.0; 3], seed)
+                prepared(v, &e, [0.0; 3], seed)
             };
+            let d = diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis;
             let (n, eo, imp, b, a) = grade(&d, &name, &truth);
-            if !(n && eo) {
-                println!("MISS {name} seed {seed}:\n{}", summary(&d));
+            let right = n && eo;
+            let refusal = (!right).then(|| refusal_is_right(&p, &d, &name, &truth));
+            if !right || std::env::var("DIAGNOSE_SWEEP_SEEDS").is_ok() {
+                println!(
+                    "NOT NAMED FIRST {name} seed {seed}: {refusal:?}\n{}",
+                    summary(&d)
+                );
             }
             let line = format!(
                 "{}{name} seed {seed} k {k:.2}: named {n} est {eo} improved30 {imp} \
@@ -696,7 +714,7 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
                 a / b,
                 d.verdict
             );
-            (line, n, eo, imp, a / b)
+            (line, n, eo, imp, a / b, refusal.is_some_and(|r| r.is_ok()))
         })
         .collect();
     for r in &res {
@@ -715,7 +733,86 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
     );
     assert!(median <= 0.7, "median ratio {median}");
     assert!(worst <= 1.0, "a case worse than before: {worst}");
-    assert!(res.iter().all(|r| r.1 && r.2));
+    let right_refusals = res.iter().filter(|r| !(r.1 && r.2) && r.5).count();
+    println!(
+        "not named first but refused rightly (the exact effect raises the held-out error): \
+         {right_refusals}"
+    );
+    assert!(res.iter().all(|r| (r.1 && r.2) || r.5));
+}
+
+/// Whether a sweep case whose effect was not added was refused rightly: the true effect was
+/// the strongest candidate of the first round, its estimate within 20 % / 3 sigma of the truth,
+/// refused by the held-out check; and the oracle agrees: the diagnosis's final model run on
+/// the data with the true effect removed exactly (a scale factor divided out of the
+/// increments: the model then has the effect right with no estimation error) predicts the
+/// withheld fixes no better than the final model on the data as they are. Then adding the
+/// effect, however well estimated, would make the outage error worse on this drive, and the
+/// issue's "never worse" forbids it. Err: why not (other effects have no exact correction
+/// here).
+fn refusal_is_right(
+    p: &Prepared,
+    d: &Diagnosis,
+    name: &str,
+    truth: &[f64],
+) -> Result<String, String> {
+    let gyro = match name {
+        "gyro_scale_factor" => true,
+        "accel_scale_factor" => false,
+        _ => return Err(format!("no exact correction of {name} in the oracle")),
+    };
+    let r0 = d.rounds.first().ok_or("no round")?;
+    let top = r0
+        .candidates
+        .iter()
+        .max_by(|a, b| {
+            a.evidence
+                .unwrap_or(f64::NEG_INFINITY)
+                .total_cmp(&b.evidence.unwrap_or(f64::NEG_INFINITY))
+        })
+        .ok_or("no candidate")?;
+    if top.name != name {
+        return Err(format!("strongest candidate {} not {name}", top.name));
+    }
+    let within = top.estimate.len() == truth.len()
+        && top
+            .estimate
+            .iter()
+            .zip(&top.sigma)
+            .zip(truth)
+            .all(|((e, s), t)| (e - t).abs() <= (0.2 * t.abs()).max(3.0 * s));
+    if !within {
+        return Err(format!("estimate {:?} vs truth {truth:?}", top.estimate));
+    }
+    let why = top.refused.clone().unwrap_or_default();
+    if !why.starts_with("held-out") {
+        return Err(format!("refused for another reason: {why}"));
+    }
+    let corrected = without_scale_factor(&p.case, gyro, truth);
+    let mut o = p.opts.clone();
+    if let Some(t) = d.noise_tuning.as_ref().filter(|t| t.adopted) {
+        t.chosen.apply(&mut o.filter);
+    }
+    let out = host_sim::run::run_filter(&corrected, &o).map_err(|e| e.to_string())?;
+    let m = host_sim::metrics::compute(&out, p.case.truth.as_deref());
+    let exact = host_sim::diagnose::validate::step_errors(&out, &m)
+        .heldout_outage_m
+        .ok_or("no held-out error")?;
+    let fin = d
+        .steps
+        .iter()
+        .rev()
+        .find(|s| s.accepted)
+        .and_then(|s| s.errors.heldout_outage_m)
+        .ok_or("no final held-out error")?;
+    if exact < fin {
+        return Err(format!(
+            "the exact effect would lower the held-out error ({fin:.3} -> {exact:.3} m)"
+        ));
+    }
+    Ok(format!(
+        "{why}; the exact effect also raises it ({fin:.3} -> {exact:.3} m)"
+    ))
 }
 
 #[test]
@@ -807,4 +904,153 @@ fn tune_noise_recovers_an_understated_white_noise_and_keeps_a_right_one() {
     let first = c.added_effects.first().expect("time offset found");
     assert_eq!(first.name, "time_offset");
     assert!((first.estimate[0] + 0.05).abs() <= 0.01_f64.max(3.0 * first.sigma[0]));
+}
+
+/// The case with a scale factor divided out of the increments exactly (`truth`: per axis,
+/// dimensionless): the data a model with that effect known exactly sees.
+fn without_scale_factor(case: &CaseData, gyro: bool, truth: &[f64]) -> CaseData {
+    let mut c = case.clone();
+    for smp in &mut c.imu {
+        for (i, t) in truth.iter().enumerate().take(3) {
+            if gyro {
+                smp.dtheta_rad[i] /= 1.0 + t;
+            } else {
+                smp.dv_mps[i] /= 1.0 + t;
+            }
+        }
+    }
+    c
+}
+
+/// The sweep's two KF-GINS drives where the true scale factor is refused (accel seed 95000,
+/// gyro seed 95122), over 12 noise seeds each on the same trajectory with the same scale
+/// factor: freeing the block lowers the held-out outage error in most seeds, and in every seed
+/// it lands near the exact model (the data with the scale factor divided out); the two sweep
+/// seeds are realisations where the model WITHOUT the scale factor predicts the three
+/// outages better than the exact one (the unmodelled error happens to cancel the others).
+/// Measured: accel 9 of 12 better, geometric means base 0.914, freed 0.615, exact 0.592 m;
+/// gyro 10 of 12, 0.985, 0.677, 0.651 m. Run with `--ignored` (about 20 s).
+#[test]
+#[ignore]
+fn refused_scale_factors_help_over_noise_seeds() {
+    use host_sim::diagnose::{options_with, validate};
+    use nav_core::model::Block;
+    let cases: Vec<(&str, [f64; 3], u32, u64)> = vec![
+        ("accel_scale_factor", [1200.0, -700.0, 900.0], 0, 95000),
+        ("gyro_scale_factor", [600.0, -540.0, 900.0], 0, 95122),
+    ];
+    for (name, ppm, v, seed0) in cases {
+        let rows: Vec<[f64; 4]> = (0..12u64)
+            .into_par_iter()
+            .map(|i| {
+                let seed = seed0 + 1000 * i;
+                let mut e = base_errors();
+                let b = if name == "gyro_scale_factor" {
+                    e.gyro.scale_factor_ppm = Axes3(ppm);
+                    Block::GyroScaleFactor
+                } else {
+                    e.accel.scale_factor_ppm = Axes3(ppm);
+                    Block::AccelScaleFactor
+                };
+                let dir = tempfile::tempdir().unwrap();
+                let p = kf_gins_prepared(v, &e, seed, dir.path());
+                let corrected = without_scale_factor(
+                    &p.case,
+                    b == Block::GyroScaleFactor,
+                    &ppm.map(|x| x * 1e-6),
+                );
+                let h = |case: &host_sim::run::CaseData, o: &RunOptions| {
+                    let out = host_sim::run::run_filter(case, o).unwrap();
+                    let m = host_sim::metrics::compute(&out, p.case.truth.as_deref());
+                    validate::step_errors(&out, &m).heldout_outage_m.unwrap()
+                };
+                let r = [
+                    h(&p.case, &p.opts),
+                    h(&p.case, &options_with(&p.opts, &[b])),
+                    h(&corrected, &p.opts),
+                    p.opts.outages.len() as f64,
+                ];
+                println!(
+                    "{name} seed {seed}: base {:.3} freed {:.3} corrected-data base {:.3} ({} outages)",
+                    r[0], r[1], r[2], r[3]
+                );
+                r
+            })
+            .collect();
+        let better = rows.iter().filter(|r| r[1] < r[0]).count();
+        let g = |k: usize| (rows.iter().map(|r| r[k].ln()).sum::<f64>() / rows.len() as f64).exp();
+        println!(
+            "{name}: freed better than base in {better} of {}; geometric means base {:.3} freed {:.3} corrected {:.3}",
+            rows.len(),
+            g(0),
+            g(1),
+            g(2)
+        );
+        assert!(better >= 9, "{name}: freed better in only {better} of 12");
+        assert!(
+            g(1) < 0.75 * g(0),
+            "{name}: geometric means {} vs {}",
+            g(1),
+            g(0)
+        );
+        // the sweep's seed: the exact model predicts worse than the model without the block
+        assert!(
+            rows[0][2] > 0.95 * rows[0][0],
+            "{name} seed {seed0}: {:?}",
+            rows[0]
+        );
+    }
+}
+
+/// The written solution against the fixes ([`host_sim::diagnose::ErrorSummary`]'s
+/// `output_vs_fixes_horizontal_rms_m`) places the antenna as the after model does: with an
+/// undeclared lever arm, a time offset, or both, the after solution (GNSS clock, configured +
+/// estimated lever arm) lies on the fixes within a few cm, and the configured arm alone would
+/// not (measured: 0.011 m vs 0.764 m for the 0.86 m lever arm).
+#[test]
+fn written_solution_metric_uses_the_estimated_lever_arm() {
+    for (lever, dt) in [
+        ([0.7, 0.3, -0.5], 0.0),
+        ([0.0; 3], -0.05),
+        ([0.3, 0.1, -0.2], -0.05),
+    ] {
+        let mut e = base_errors();
+        e.gnss.lever_arm_b_m = Axes3(lever);
+        e.gnss.time_offset_s = dt;
+        let p = prepared(1, &e, [0.0; 3], 4242);
+        let out = diagnose(&p, &DiagnoseOptions::default()).unwrap();
+        let d = &out.diagnosis;
+        let la = d
+            .added_effects
+            .iter()
+            .find(|e| e.name == "lever_arm")
+            .map_or([0.0; 3], |e| [e.estimate[0], e.estimate[1], e.estimate[2]]);
+        let f = |run: &host_sim::run::RunOutput, shift: f64, l: [f64; 3]| {
+            host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
+                &run.nav,
+                shift,
+                l,
+                &p.case.gnss,
+                &run.outages,
+            )
+        };
+        let sh = d.output_clock_shift_s;
+        let (before, cfg, est) = (
+            f(&out.before, 0.0, [0.0; 3]),
+            f(&out.after, sh, [0.0; 3]),
+            f(&out.after, sh, la),
+        );
+        println!(
+            "lever {lever:?} dt {dt}: {} est {la:?} shift {sh:+.4}: before {before:.4} after \
+             configured arm {cfg:.4} after configured + estimate {est:.4}",
+            d.verdict
+        );
+        assert_eq!(d.error_before.output_vs_fixes_horizontal_rms_m, before);
+        assert_eq!(d.error_after.output_vs_fixes_horizontal_rms_m, est);
+        assert!(est < 0.05, "{est}");
+        assert!(est < before);
+        if lever != [0.0; 3] {
+            assert!(cfg > 5.0 * est, "configured arm {cfg} vs estimate {est}");
+        }
+    }
 }

@@ -41,7 +41,7 @@ duration_s = 10.0
         "mount-check",
     )
     .unwrap();
-    CaseData::from_sim(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
+    CaseData::from(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
 }
 
 #[test]

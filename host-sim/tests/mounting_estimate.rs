@@ -89,7 +89,7 @@ duration_s = 10.0
 #[test]
 fn every_axis_layout_with_misalignment_is_found() {
     let case = simulate(&drive(), &ErrorModel::preset("tactical").unwrap(), 11).unwrap();
-    let body = CaseData::from_sim(&case);
+    let body = CaseData::from(&case);
     let dur = body.imu.last().unwrap().t_s - body.imu[0].t_s;
     assert!(dur > 300.0, "{dur}");
     let layouts = axis_layouts();

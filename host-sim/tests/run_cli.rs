@@ -4,40 +4,15 @@ use host_sim::metrics::errors_vs_truth;
 use nav_io::read_nav_text;
 use std::path::Path;
 use std::process::Command;
-use test_support::scenario::ScenarioToml;
+use test_support::cli::{run_ok, Bin};
+use test_support::scenario::four_minute_drive;
 
 fn scenario_toml() -> String {
-    ScenarioToml::new("run-cli-test")
-        .description("4 min test drive")
-        .start(30.5, 114.3, 20.0, 120.0)
-        .gps_time(2300, 200000.0)
-        .imu_rate_hz(100.0)
-        .stationary(30.0)
-        .accelerate(10.0, 10.0)
-        .turn(90.0, 30.0)
-        .cruise(30.0)
-        .turn(-180.0, 25.0)
-        .accelerate(15.0, 10.0)
-        .cruise(120.0)
-        .turn(45.0, 50.0)
-        .brake(0.0, 10.0)
-        .stationary(10.0)
-        .build()
+    four_minute_drive("run-cli-test").build()
 }
 
 fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    let so = String::from_utf8_lossy(&out.stdout).to_string();
-    let se = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        out.status.success(),
-        "{cmd:?}\nstdout:\n{so}\nstderr:\n{se}"
-    );
-    so
+    Bin::new(env!("CARGO_BIN_EXE_host-sim")).command()
 }
 
 fn count_data_lines(p: &Path) -> usize {

@@ -56,7 +56,7 @@ duration_s = 20.0
 
 fn check_moving_start(errors: &ErrorModel, label: &str) {
     let case = simulate(&scenario(), errors, 3).unwrap();
-    let data = CaseData::from_sim(&case);
+    let data = CaseData::from(&case);
     let t0 = case.trajectory.t0_s;
     let start = t0 + 12.0;
     // what `[init.align] static_s = 10` in a run configuration gives: nothing hand-given
@@ -148,7 +148,7 @@ duration_s = 10.0
     )
     .unwrap();
     let case = simulate(&sc, &ErrorModel::preset("tactical").unwrap(), 4).unwrap();
-    let mut data = CaseData::from_sim(&case);
+    let mut data = CaseData::from(&case);
     // real logs are not on a grid: +-1.5 ms of time-stamp jitter
     for (k, s) in data.imu.iter_mut().enumerate().skip(1) {
         s.t_s += 0.0015 * (k as f64 * 0.7).sin();

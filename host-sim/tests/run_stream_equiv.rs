@@ -9,70 +9,15 @@ use host_sim::run::Outage;
 use host_sim::run::PeriodicOutages;
 use std::path::Path;
 use std::process::Command;
+use test_support::cli::{run_ok, Bin};
+use test_support::scenario::four_minute_drive;
 
-const SCENARIO: &str = r#"
-name = "run-cli-test"
-description = "4 min test drive"
-[start]
-lat_deg = 30.5
-lon_deg = 114.3
-h_m = 20.0
-heading_deg = 120.0
-gps_week = 2300
-sow_s = 200000.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 30.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = -180.0
-radius_m = 25.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 15.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 120.0
-[[segment]]
-kind = "turn"
-angle_deg = 45.0
-radius_m = 50.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-"#;
-
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+fn scenario_toml() -> String {
+    four_minute_drive("run-cli-test").build()
 }
 
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    let so = String::from_utf8_lossy(&out.stdout).to_string();
-    let se = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        out.status.success(),
-        "{cmd:?}\nstdout:\n{so}\nstderr:\n{se}"
-    );
-    so
+fn host_sim() -> Command {
+    Bin::new(env!("CARGO_BIN_EXE_host-sim")).command()
 }
 
 fn in_memory(yaml: &Path, out: &Path, nav_rate: Option<f64>) {
@@ -101,7 +46,7 @@ fn in_memory(yaml: &Path, out: &Path, nav_rate: Option<f64>) {
 fn streaming_run_writes_the_in_memory_engines_files() {
     let dir = tempfile::tempdir().unwrap();
     let sc = dir.path().join("scenario.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario_toml()).unwrap();
     let case = dir.path().join("case");
     run_ok(host_sim().args([
         "simulate",

@@ -112,7 +112,7 @@ fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
     let mut ratios = Vec::new();
     for seed in 1..=RUNS as u64 {
         let case = simulate(&sc, &truth_errors(), seed).unwrap();
-        let data = CaseData::from_sim(&case);
+        let data = CaseData::from(&case);
         let t0 = case.trajectory.t0_s;
         let mut opts = RunOptions::new(
             Variant::Nbk.model(),
@@ -230,7 +230,7 @@ fn forty_minute_drive_with_three_minute_outages() {
     )))
     .unwrap();
     let case = simulate(&sc, &truth_errors(), 11).unwrap();
-    let data = CaseData::from_sim(&case);
+    let data = CaseData::from(&case);
     let t0 = case.trajectory.t0_s;
     let mut opts = RunOptions::new(
         Variant::Nbk.model(),
@@ -285,7 +285,7 @@ fn every_layout_is_smoothed() {
     use nav_core::model::Block;
     let sc = Scenario::from_toml_str(SCENARIO, "smooth-test").unwrap();
     let case = simulate(&sc, &truth_errors(), 21).unwrap();
-    let data = CaseData::from_sim(&case);
+    let data = CaseData::from(&case);
     let t0 = case.trajectory.t0_s;
     let base = Variant::Nbk.config();
     let mut variants: Vec<(String, RunOptions)> = Vec::new();

@@ -111,7 +111,7 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
                     f.output.outages.len(),
                     f.wall_s
                 );
-                print!("{}", host_sim::metrics::summary_table(&f.metrics));
+                print!("{}", nav_engine::metrics::summary_table(&f.metrics));
             }
         }
         Cmd::Send(a) => {

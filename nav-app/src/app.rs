@@ -15,9 +15,15 @@
 //! IMU sample and are applied at the IMU epoch nearest to them, before that sample is
 //! integrated; every sample passes the IMU guard (gaps bridged, implausible samples
 //! rejected), whose nominal interval is the mean interval before the first fix.
+//!
+//! Land-vehicle aiding (`nav_core::aiding`: non-holonomic constraint, zero-velocity and
+//! zero-rate updates at stops) runs after every integrated sample when the configuration
+//! frame sets [`wire::CONFIG_LAND_AIDING`] (off until then); its counts are
+//! [`NavApp::aiding_counters`].
 
 use crate::time::TimeBase;
 use embedded_io::{Read, Write};
+use nav_core::aiding::{Aiding, AidingConfig, AidingCounters};
 use nav_core::config::FilterConfig;
 use nav_core::filter::Filter;
 use nav_core::model::Layout;
@@ -30,6 +36,10 @@ use nav_core::wire::{self, Encoder, FrameDecoder, Health, Payload, MAX_FRAME_LEN
 
 /// Smallest GNSS speed whose course initialises the yaw, m/s.
 pub const COURSE_MIN_SPEED_MPS: f64 = 2.0;
+
+/// Largest stationarity-detector window of the land-vehicle aiding, IMU samples (0.5 s at
+/// 200 Hz; 2.4 KB of f32).
+pub const AID_WINDOW: usize = 100;
 
 /// Counters of the application (the content of health frames).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -51,6 +61,10 @@ pub struct AppCounters {
 /// The application state: navigator, decoder, encoder, counters.
 pub struct NavApp<const N: usize> {
     nav: Navigator<f32, N>,
+    /// Land-vehicle aiding, when configured.
+    aid: Option<Aiding<f32, AID_WINDOW>>,
+    /// `(fix time s, speed m/s)` of the latest GNSS velocity (the stationarity detector's).
+    gnss_speed: Option<(f64, f64)>,
     last_imu: Option<ImuSample>,
     dec: FrameDecoder,
     enc: Encoder,
@@ -86,6 +100,8 @@ impl<const N: usize> NavApp<N> {
         let nav = Navigator::new(layout, NavigatorConfig::new(cfg, first_fix(false)))?;
         Ok(Self {
             nav,
+            aid: None,
+            gnss_speed: None,
             last_imu: None,
             dec: FrameDecoder::new(),
             enc: Encoder::new(),
@@ -114,6 +130,24 @@ impl<const N: usize> NavApp<N> {
     /// The navigator (its own and the IMU guard's counters).
     pub fn navigator(&self) -> &Navigator<f32, N> {
         &self.nav
+    }
+
+    /// Switches the land-vehicle aiding on (`Some`, validated) or off (`None`); a running
+    /// aiding restarts (empty detector window, zero counts).
+    pub fn set_aiding(
+        &mut self,
+        cfg: Option<&AidingConfig>,
+    ) -> Result<(), nav_core::aiding::AidingConfigError> {
+        self.aid = match cfg {
+            Some(c) => Some(Aiding::new(c)?),
+            None => None,
+        };
+        Ok(())
+    }
+
+    /// What the aiding did (None when off).
+    pub fn aiding_counters(&self) -> Option<&AidingCounters> {
+        self.aid.as_ref().map(|a| a.counters())
     }
 
     /// Sets the function that measures the peak stack use (bytes) for health frames (the
@@ -197,6 +231,11 @@ impl<const N: usize> NavApp<N> {
                 cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
                 cfg.lever_arm_body_m = c.lever_arm_frd_m;
                 self.nav.set_filter_config(cfg);
+                let land = c.flags & wire::CONFIG_LAND_AIDING != 0;
+                if land != self.aid.is_some() {
+                    // LAND is valid by construction: a refusal leaves the aiding off
+                    let _ = self.set_aiding(land.then_some(&AidingConfig::LAND));
+                }
                 self.nav_divider = c.nav_divider;
                 self.send_health(out, clock)
             }
@@ -228,6 +267,11 @@ impl<const N: usize> NavApp<N> {
         }
         let t0 = clock.now_ticks();
         let r = self.nav.push_imu(s);
+        if let (Ok(step), Some(a), Some(f)) = (&r, self.aid.as_mut(), self.nav.filter_mut()) {
+            if matches!(step.imu, ImuEvent::Propagated | ImuEvent::GapBridged { .. }) {
+                a.on_imu(f, self.gnss_speed);
+            }
+        }
         let dt = clock.now_ticks().wrapping_sub(t0);
         self.counters.epoch_ticks_max = self.counters.epoch_ticks_max.max(dt as u32);
         match r {
@@ -260,6 +304,10 @@ impl<const N: usize> NavApp<N> {
 
     /// One GNSS fix: starts the filter (first valid fix) or waits for the nearest IMU epoch.
     pub fn on_gnss<C: TimeBase>(&mut self, fix: &GnssFix, _clock: &mut C) {
+        if fix.has_velocity && fix.vel_ned_mps.iter().all(|v| v.is_finite()) {
+            let [n, e, d] = fix.vel_ned_mps;
+            self.gnss_speed = Some((fix.t_s, libm::sqrt(n * n + e * e + d * d)));
+        }
         match self.nav.push_gnss(fix) {
             Ok(GnssEvent::Aligned(_)) => {
                 if self.time_from_gnss {

@@ -252,6 +252,8 @@ pub struct EffectsConfig {
     pub gyro_temperature: EffectNoise,
     /// `gyro_g_sensitivity`: diagonal g-dependent gyro bias, rad/s per m/s^2.
     pub gyro_g_sensitivity: EffectNoise,
+    /// `odometer_scale`: wheel-speed odometer scale-factor error (dimensionless).
+    pub odometer_scale: EffectNoise,
     /// Reference temperature T_ref of the temperature coefficients, degC; `None` = the first
     /// IMU sample that carries a temperature.
     pub temperature_ref_c: Option<f64>,
@@ -260,7 +262,8 @@ pub struct EffectsConfig {
 impl Default for EffectsConfig {
     /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, accelerometer temperature
     /// coefficient 100 ug/degC, gyro temperature coefficient 0.1 deg/h/degC, g-sensitivity
-    /// 1 deg/h/g; all random constants; T_ref = the first temperature.
+    /// 1 deg/h/g, odometer scale factor 5 %; all random constants; T_ref = the first
+    /// temperature.
     fn default() -> Self {
         Self {
             accel_misalignment: EffectNoise::constant(1e-3),
@@ -270,6 +273,7 @@ impl Default for EffectsConfig {
             accel_temperature: EffectNoise::constant(100.0 * units::UG_MPS2),
             gyro_temperature: EffectNoise::constant(units::radps_from_deg_per_h(0.1)),
             gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(1.0) / G0_MPS2),
+            odometer_scale: EffectNoise::constant(0.05),
             temperature_ref_c: None,
         }
     }
@@ -285,6 +289,7 @@ impl EffectsConfig {
             self.accel_temperature,
             self.gyro_temperature,
             self.gyro_g_sensitivity,
+            self.odometer_scale,
         ]
         .iter()
         .all(EffectNoise::is_valid)
@@ -354,6 +359,55 @@ pub struct Gating {
     pub reset_heading_min_speed_mps: f64,
     /// Robust re-weighting and the model-mismatch monitor; `None` = hard gate.
     pub robust: Option<RobustGating>,
+    /// GNSS velocity with its own gate: `Some` updates a fix's velocity separately, after its
+    /// position (3 + 3 dimensions, each gated on its own: a bad Doppler velocity does not
+    /// throw away a good position, nor the reverse); `None` (the default) uses position and
+    /// velocity in one 6-dimensional update gated together.
+    pub velocity: Option<VelocityGating>,
+}
+
+/// The GNSS velocity's own gate ([`Gating::velocity`]): chi-square thresholds on the 3-dof
+/// NIS of the velocity update. At or below `downweight_nis` full weight; between it and
+/// `reject_nis` R is divided by the IGG-III weight (robust); beyond `reject_nis` the velocity
+/// is not used (counted in [`crate::filter::Counters::gnss_vel_rejected`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityGating {
+    /// NIS (3 degrees of freedom) above which the velocity is down-weighted (dimensionless).
+    pub downweight_nis: f64,
+    /// NIS above which it is rejected (dimensionless; infinite: never).
+    pub reject_nis: f64,
+}
+
+impl VelocityGating {
+    /// Robust: down-weighting from the 0.99 chi-square quantile, rejection beyond 0.9999.
+    pub const ROBUST: Self = Self {
+        downweight_nis: chi2::DIM3_P99,
+        reject_nis: chi2::DIM3_P9999,
+    };
+
+    /// No gate: every velocity is used with full weight.
+    pub const OFF: Self = Self {
+        downweight_nis: f64::INFINITY,
+        reject_nis: f64::INFINITY,
+    };
+
+    /// A hard gate (no down-weighting) at the given probability.
+    pub const fn hard(p: GateProbability) -> Self {
+        let t = match p {
+            GateProbability::P95 => chi2::DIM3_P95,
+            GateProbability::P99 => chi2::DIM3_P99,
+            GateProbability::P999 => chi2::DIM3_P999,
+            GateProbability::P9999 => chi2::DIM3_P9999,
+        };
+        Self {
+            downweight_nis: t,
+            reject_nis: t,
+        }
+    }
+
+    fn is_valid(&self) -> bool {
+        self.downweight_nis > 0.0 && self.reject_nis >= self.downweight_nis
+    }
 }
 
 /// Default [`Gating::reset_heading_min_speed_mps`], m/s.
@@ -465,6 +519,7 @@ impl Gating {
             max_consecutive_rejections,
             reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
+            velocity: None,
         }
     }
 
@@ -486,6 +541,7 @@ impl Gating {
             max_consecutive_rejections: 0,
             reset_heading_min_speed_mps: DEFAULT_RESET_HEADING_MIN_SPEED_MPS,
             robust: None,
+            velocity: None,
         }
     }
 }
@@ -685,6 +741,7 @@ impl FilterConfig {
         if !(g.nis_threshold_pos > 0.0
             && g.nis_threshold_pos_vel > 0.0
             && g.robust.is_none_or(|r| r.is_valid())
+            && g.velocity.is_none_or(|v| v.is_valid())
             && !g.reset_heading_min_speed_mps.is_nan()
             && g.reset_heading_min_speed_mps >= 0.0
             && self.max_gnss_time_offset_s.is_finite()

@@ -6,7 +6,7 @@
 //! # Fix scheduling: the nearest IMU epoch
 //!
 //! A fix tagged `t_f` is used at the IMU epoch nearest to it (the rule of the host's run loop,
-//! `host-sim/src/run/mod.rs`): after integrating the sample ending at `t_k`, every pending fix
+//! `nav-engine/src/run/engine.rs`): after integrating the sample ending at `t_k`, every pending fix
 //! with `t_f < t_k + dt_next / 2` is applied, where `dt_next` is the interval to the next
 //! sample. In push form the navigator does not know `dt_next` until the next sample arrives,
 //! so fixes wait in a fixed-capacity queue (`Q` fixes, [`NavigatorError::FixQueueFull`] when
@@ -55,7 +55,7 @@
 
 use crate::align::{static_start, AlignConfig, AlignError, HeadingSource, StaticWindow};
 use crate::config::FilterConfig;
-use crate::earth::{self, Llh};
+use crate::earth::Llh;
 use crate::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use crate::imu_guard::{GuardConfig, GuardCounters, GuardError, Implausible, ImuGuard, Verdict};
 use crate::model::{BlockKind, Layout};
@@ -63,6 +63,9 @@ use crate::scalar::Scalar;
 use crate::strapdown::{NavState, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use nalgebra::Vector3;
+
+mod startup;
+use startup::{check_config, FixMean, Leveller};
 
 /// Default capacity of the fix queue (fixes waiting for the next IMU sample).
 pub const DEFAULT_FIX_QUEUE: usize = 4;
@@ -385,81 +388,6 @@ pub struct NavigatorCounters {
     pub align_failures: u32,
 }
 
-/// Running mean of the specific force before a first-fix start (levelling).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Leveller {
-    sum_dv_mps: [f64; 3],
-    sum_dt_s: f64,
-    intervals: u32,
-}
-
-impl Leveller {
-    fn add(&mut self, s: &ImuSample, last_t_s: Option<f64>) {
-        if let Some(t0) = last_t_s {
-            let dt = s.t_s - t0;
-            if dt > 0.0 && dt <= MAX_DT_S {
-                for (a, d) in self.sum_dv_mps.iter_mut().zip(s.dv_mps) {
-                    *a += d;
-                }
-                self.sum_dt_s += dt;
-                self.intervals = self.intervals.saturating_add(1);
-            }
-        }
-    }
-
-    /// Roll and pitch, rad, from the mean specific force (at rest f = -C_n^b g).
-    fn roll_pitch_rad(&self) -> [f64; 2] {
-        if self.sum_dt_s <= 0.0 {
-            return [0.0, 0.0];
-        }
-        let [fx, fy, fz] = self.sum_dv_mps.map(|v| v / self.sum_dt_s);
-        let roll = libm::atan2(-fy, -fz);
-        let pitch = libm::atan2(fx, libm::sqrt(fy * fy + fz * fz));
-        [roll, pitch]
-    }
-
-    /// Mean interval, s.
-    fn mean_dt_s(&self) -> Option<f64> {
-        (self.intervals > 0).then(|| self.sum_dt_s / f64::from(self.intervals))
-    }
-}
-
-/// Mean antenna position of the fixes of a static window.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct FixMean {
-    ref0: Option<Llh>,
-    sum_off_m: [f64; 3],
-    sum_std_m: [f64; 3],
-    n: u32,
-}
-
-impl FixMean {
-    fn add(&mut self, g: &GnssFix) {
-        let p = Llh {
-            lat_rad: g.lat_rad,
-            lon_rad: g.lon_rad,
-            h_m: g.h_m,
-        };
-        let r = *self.ref0.get_or_insert(p);
-        let d = earth::ned_offset_m(&r, &p);
-        for (s, v) in self.sum_off_m.iter_mut().zip(d.iter()) {
-            *s += v;
-        }
-        for (s, v) in self.sum_std_m.iter_mut().zip(g.pos_std_ned_m) {
-            *s += v;
-        }
-        self.n = self.n.saturating_add(1);
-    }
-
-    /// Mean position and mean NED 1-sigma.
-    fn mean(&self) -> Option<(Llh, [f64; 3])> {
-        let r = self.ref0?;
-        let n = f64::from(self.n);
-        let off = Vector3::from(self.sum_off_m) / n;
-        Some((earth::displace(&r, &off), self.sum_std_m.map(|s| s / n)))
-    }
-}
-
 /// Start-up, IMU guard and fix scheduling over a [`Filter`] with N states and covariance
 /// scalar T; up to `Q` fixes wait for the next IMU sample. See the module notes.
 #[derive(Debug, Clone)]
@@ -663,6 +591,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         for f in c.fill {
             filter.propagate(&f)?;
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate(&c.sample) {
             Ok(()) => {}
             Err(e @ FilterError::NonFiniteImu) => {
@@ -998,31 +927,6 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     pub fn set_filter_config(&mut self, cfg: FilterConfig) {
         self.cfg.filter = cfg;
     }
-}
-
-/// Whether a filter accepts `layout` and `cfg` (built at a neutral state and dropped; its own
-/// frame, so the caller's stack does not hold the filter).
-#[inline(never)]
-fn check_config<T: Scalar, const N: usize>(
-    layout: Layout,
-    cfg: &FilterConfig,
-) -> Result<(), FilterError> {
-    let probe = NavState::from_rpy(
-        0.0,
-        Llh {
-            lat_rad: 0.0,
-            lon_rad: 0.0,
-            h_m: 0.0,
-        },
-        Vector3::zeros(),
-        [0.0; 3],
-    );
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1.0; 3],
-        vel_sigma_mps: [1.0; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    Filter::<T, N>::new(layout, cfg, probe, &unc).map(|_| ())
 }
 
 /// The classical 15-state model with the f32 covariance of the MCU; its layout is

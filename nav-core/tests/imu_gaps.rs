@@ -2,8 +2,8 @@
 //! rejected, faults reported; and the strapdown on a gapped record against the gapless one.
 use nav_core::earth::Llh;
 use nav_core::imu_guard::{
-    GapIncrements, GuardConfig, GuardError, Implausible, ImuClass, ImuGuard, ImuLimits, Verdict,
-    SLOPE_WINDOW_S,
+    FillUncertainty, GapIncrements, GuardConfig, GuardError, Implausible, ImuClass, ImuGuard,
+    ImuLimits, Verdict, SLOPE_WINDOW_S,
 };
 use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::ImuSample;
@@ -284,5 +284,98 @@ fn strapdown_on_a_filled_record_stays_with_the_gapless_one() {
         // the fill keeps it to the interpolation error of the rates (1e-3 of that at 50)
         assert!(dvd(&filled) < 1e-2 * dvd(&naive), "{missing}");
         assert!(dh(&filled) < 1e-2 * dh(&naive), "{missing}");
+    }
+}
+
+/// Runs the guard over `imu` with `lost` samples removed at `at`; returns the fill's
+/// uncertainty and its error (fill minus the lost increments, summed) per axis.
+fn fill_error(imu: &[ImuSample], at: usize, lost: usize) -> (FillUncertainty, [f64; 6]) {
+    let mut g = guard(GapIncrements::Sample);
+    let mut unc = None;
+    let mut err = [0.0; 6];
+    for (k, s) in imu.iter().enumerate() {
+        if (at..at + lost).contains(&k) {
+            for i in 0..3 {
+                err[i] -= s.dtheta_rad[i];
+                err[3 + i] -= s.dv_mps[i];
+            }
+            continue;
+        }
+        if let Verdict::Use(c) = g.check(s).unwrap() {
+            if k == at + lost {
+                unc = Some(c.fill.uncertainty());
+                for f in c.fill {
+                    for i in 0..3 {
+                        err[i] += f.dtheta_rad[i];
+                        err[3 + i] += f.dv_mps[i];
+                    }
+                }
+            }
+        }
+    }
+    (unc.unwrap(), err)
+}
+
+#[test]
+fn the_fill_uncertainty_covers_a_rate_that_bends_inside_the_gap_and_not_a_steady_ramp() {
+    // yaw rate and lateral force: a steady ramp (the fill is exact), then a turn that ends
+    // inside the gap (rate 0.3 rad/s easing to 0 with a 0.1 s time constant at the gap's middle)
+    let ramp = |t: f64| ([0.0, 0.0, 0.05 * t], [0.0, 0.2 * t, -9.81]);
+    let bend = |t: f64| {
+        let x = 0.5 * (1.0 - ((t - 1.25) / 0.1).tanh());
+        ([0.0, 0.0, 0.3 * x], [0.0, 3.0 * x, -9.81])
+    };
+    for (name, f, bends) in [
+        ("ramp", &ramp as &dyn Fn(f64) -> ([f64; 3], [f64; 3]), false),
+        ("bend", &bend, true),
+    ] {
+        // exact integrals by a fine Simpson sum
+        let imu: Vec<ImuSample> = (1..=200)
+            .map(|k| {
+                let (t0, t1) = ((k - 1) as f64 * DT, k as f64 * DT);
+                let h = (t1 - t0) / 20.0;
+                let mut a = [0.0; 6];
+                for j in 0..20 {
+                    let (u0, um, u1) = (
+                        t0 + j as f64 * h,
+                        t0 + (j as f64 + 0.5) * h,
+                        t0 + (j + 1) as f64 * h,
+                    );
+                    let (wa, fa) = f(u0);
+                    let (wm, fm) = f(um);
+                    let (wb, fb) = f(u1);
+                    for i in 0..3 {
+                        a[i] += h / 6.0 * (wa[i] + 4.0 * wm[i] + wb[i]);
+                        a[3 + i] += h / 6.0 * (fa[i] + 4.0 * fm[i] + fb[i]);
+                    }
+                }
+                ImuSample {
+                    t_s: T0 + t1,
+                    dtheta_rad: [a[0], a[1], a[2]],
+                    dv_mps: [a[3], a[4], a[5]],
+                    temperature_c: 20.0,
+                }
+            })
+            .collect();
+        // 50 samples (0.5 s) lost from t = 1.0 s
+        let (u, e) = fill_error(&imu, 100, 50);
+        println!(
+            "{name}: yaw error {:.3e} rad, sigma {:.3e}; lateral dv error {:.3e} m/s, sigma {:.3e}",
+            e[2], u.dtheta_rad[2], e[4], u.dv_mps[1]
+        );
+        assert!((u.span_s - 0.5).abs() < 1e-9, "{}", u.span_s);
+        if bends {
+            // the error is real (the fill does not know the turn ended) and within 2 sigma,
+            // and the sigma is not more than 5x the error (no blanket widening)
+            assert!(e[2].abs() > 1e-3, "{}", e[2]);
+            assert!(e[2].abs() <= 2.0 * u.dtheta_rad[2]);
+            assert!(u.dtheta_rad[2] <= 5.0 * e[2].abs());
+            assert!(e[4].abs() <= 2.0 * u.dv_mps[1]);
+        } else {
+            // a steady ramp: the fill is exact and nothing is widened
+            assert!(e[2].abs() < 1e-9 && e[4].abs() < 1e-9, "{e:?}");
+            assert!(u.dtheta_rad[2] < 1e-9, "{:?}", u.dtheta_rad);
+            assert!(u.dv_mps[1] < 1e-9, "{:?}", u.dv_mps);
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! `nav_core::navigator`: the push-form loop gives, bit for bit, the results of the host's run
-//! loop (`host-sim/src/run/mod.rs`: guard, integrate, then every pending fix with
+//! loop (`nav-engine/src/run/engine.rs`: guard, integrate, then every pending fix with
 //! `t_f < t_k + dt_next / 2`) on the same data; the alignment modes start where they should;
 //! the fix queue reports overflow.
 
@@ -145,7 +145,7 @@ struct Record {
     refused: u64,
 }
 
-/// A direct copy of the host's run loop (`run_layout` in host-sim/src/run/mod.rs, without
+/// A direct copy of the host's run loop (`run_layout` in nav-engine/src/run/engine.rs, without
 /// outages and records): start at the given state, skip samples up to it, guard, integrate,
 /// then apply every pending fix with `t_f < t_k + dt_next / 2`.
 fn host_rule<const N: usize>(
@@ -186,6 +186,7 @@ fn host_rule<const N: usize>(
         for f in c.fill {
             filter.propagate(&f).unwrap();
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate(&c.sample) {
             Ok(()) => {}
             Err(FilterError::NonFiniteImu) => {

@@ -54,13 +54,43 @@ fn nbk_cfg(sc: &SimConfig) -> FilterConfig {
     }
 }
 
+/// The hard gate: chi-square 0.9999, a reset after 10 rejections.
+fn hard_gate() -> Gating {
+    Gating::with_probability(GateProbability::P9999, 10)
+}
+
+/// The robust default and the hard gate, by name.
+fn robust_and_hard() -> [(&'static str, Gating); 2] {
+    [("robust", Gating::robust()), ("hard", hard_gate())]
+}
+
+/// The NBK drive at 100 Hz (seed `seed`) and the NBK filter configuration for it with
+/// `gating`.
+fn nbk_drive(seed: u64, gating: Gating) -> (Sim, FilterConfig) {
+    let sc = SimConfig::nbk(100.0);
+    let mut cfg = nbk_cfg(&sc);
+    cfg.gating = gating;
+    (Sim::new(sc, seed), cfg)
+}
+
+/// The NBK drive at 100 Hz (seed `seed`) with GNSS sigmas of `sigma` m (N, E) and `2 sigma`
+/// (D), and an NBK filter with the default gating started from a perturbed truth.
+fn nbk_drive_with_fix_sigma(sigma: f64, seed: u64) -> (Sim, Filter<f64, N18>) {
+    let mut sc = SimConfig::nbk(100.0);
+    sc.gnss_pos_sigma_m = [sigma, sigma, 2.0 * sigma];
+    let cfg = nbk_cfg(&sc);
+    let mut sim = Sim::new(sc, seed);
+    let f = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+    (sim, f)
+}
+
 #[test]
 fn the_default_gating_is_robust_and_the_hard_gate_stays_selectable() {
     let g = FilterConfig::source_nbk_model().gating;
     assert_eq!(g, Gating::robust());
     assert!(g.robust.is_some());
     assert_eq!(g.max_consecutive_rejections, 10);
-    let hard = Gating::with_probability(GateProbability::P9999, 10);
+    let hard = hard_gate();
     assert!(hard.robust.is_none());
     assert_eq!(hard.nis_threshold_pos, g.nis_threshold_pos);
 }
@@ -70,11 +100,7 @@ fn the_default_gating_is_robust_and_the_hard_gate_stays_selectable() {
 #[test]
 fn isolated_5_m_and_30_m_outliers_are_rejected_with_the_state_untouched() {
     for (sigma, seed) in [(0.02, 31u64), (0.5, 32)] {
-        let mut sc = SimConfig::nbk(100.0);
-        sc.gnss_pos_sigma_m = [sigma, sigma, 2.0 * sigma];
-        let cfg = nbk_cfg(&sc);
-        let mut sim = Sim::new(sc, seed);
-        let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+        let (mut sim, mut f) = nbk_drive_with_fix_sigma(sigma, seed);
         let mut fixes = 0;
         let mut checked = 0;
         while fixes < 200 {
@@ -164,14 +190,8 @@ fn run_with<const N: usize>(
 /// used again (robust default and the hard gate).
 #[test]
 fn a_150_m_jump_of_all_fixes_is_followed() {
-    for (name, gating) in [
-        ("robust", Gating::robust()),
-        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
-    ] {
-        let sc = SimConfig::nbk(100.0);
-        let mut cfg = nbk_cfg(&sc);
-        cfg.gating = gating;
-        let mut sim = Sim::new(sc, 41);
+    for (name, gating) in robust_and_hard() {
+        let (mut sim, cfg) = nbk_drive(41, gating);
         let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
         let jump = |k: usize| if k > 60 { [150.0, 0.0, 0.0] } else { [0.0; 3] };
         let res = run_with(&mut sim, &mut f, 120, |k, fix| shifted(&fix, jump(k)), jump);
@@ -220,14 +240,8 @@ fn a_150_m_jump_of_all_fixes_is_followed() {
 /// forced update moved the position only and kept the diverged velocity).
 #[test]
 fn a_reset_re_initialises_a_diverged_velocity_from_the_fixes() {
-    for (name, gating) in [
-        ("robust", Gating::robust()),
-        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
-    ] {
-        let sc = SimConfig::nbk(100.0);
-        let mut cfg = nbk_cfg(&sc);
-        cfg.gating = gating;
-        let mut sim = Sim::new(sc, 43);
+    for (name, gating) in robust_and_hard() {
+        let (mut sim, cfg) = nbk_drive(43, gating);
         let unc = InitialUncertainty {
             vel_sigma_mps: [0.01; 3],
             pos_sigma_m: [0.05; 3],
@@ -475,10 +489,7 @@ fn rover_run(gating: Gating, minutes: f64) -> RoverRun {
 fn a_slow_rover_with_stops_and_fixes_every_3_s_does_not_diverge() {
     for (name, gating) in [
         ("robust", Gating::robust()),
-        (
-            "hard 0.9999",
-            Gating::with_probability(GateProbability::P9999, 10),
-        ),
+        ("hard 0.9999", hard_gate()),
         ("off", Gating::disabled()),
     ] {
         let r = rover_run(gating, 10.0);
@@ -590,12 +601,7 @@ fn mismatch_run(sc: SimConfig, seed: u64, gating: Gating, minutes: f64) -> Misma
 fn check_mismatch(label: &str, sc: SimConfig, seed: u64, minutes: f64) {
     let robust = mismatch_run(sc, seed, Gating::robust(), minutes);
     let off = mismatch_run(sc, seed, Gating::disabled(), minutes);
-    let hard = mismatch_run(
-        sc,
-        seed,
-        Gating::with_probability(GateProbability::P9999, 10),
-        minutes,
-    );
+    let hard = mismatch_run(sc, seed, hard_gate(), minutes);
     for (name, r) in [("robust", &robust), ("hard 0.9999", &hard), ("off", &off)] {
         println!(
             "{label}, {name}: {} of {} fixes rejected ({:.1} %), {} down-weighted, horizontal RMS \
@@ -665,14 +671,11 @@ fn an_undeclared_1_5_m_lever_arm_is_not_rejected_and_stays_within_1_2x_of_gate_o
 #[test]
 fn a_reset_at_speed_re_initialises_the_heading_from_the_gnss_course() {
     for (name, gating) in [
-        ("hard", Gating::with_probability(GateProbability::P9999, 10)),
+        ("hard", hard_gate()),
         ("robust", Gating::robust()),
         ("off", Gating::disabled()),
     ] {
-        let sc = SimConfig::nbk(100.0);
-        let mut cfg = nbk_cfg(&sc);
-        cfg.gating = gating;
-        let mut sim = Sim::new(sc, 47);
+        let (mut sim, cfg) = nbk_drive(47, gating);
         let unc = InitialUncertainty {
             att_sigma_rad: [0.05f64.to_radians(); 3],
             vel_sigma_mps: [0.02; 3],
@@ -731,11 +734,7 @@ fn a_reset_at_speed_re_initialises_the_heading_from_the_gnss_course() {
 #[test]
 fn an_outlier_as_the_first_fix_after_an_outage_does_not_derail_the_filter() {
     for (sigma, seed) in [(0.02, 61u64), (1.0, 62)] {
-        let mut sc = SimConfig::nbk(100.0);
-        sc.gnss_pos_sigma_m = [sigma, sigma, 2.0 * sigma];
-        let cfg = nbk_cfg(&sc);
-        let mut sim = Sim::new(sc, seed);
-        let mut f: Filter<f64, N18> = start_filter(&mut sim, LAYOUT_NBK, &cfg, &test_uncertainty());
+        let (mut sim, mut f) = nbk_drive_with_fix_sigma(sigma, seed);
         let mut k = 0;
         let mut errs = Vec::new();
         let mut first = None;

@@ -31,7 +31,18 @@
 //! enabled = true
 //! sigma_deg_per_s = 0.01
 //! nis_gate = 21.11
+//! [aiding.odometer]                # wheel speed (nav_io::odometer format: time speed)
+//! enabled = true
+//! file = "odometer.txt"            # relative to the configuration file's folder
+//! sigma_mps = 0.05
+//! lever_arm_m = [0.0, 0.0, 0.0]    # measured point (rear axle) from the IMU, body FRD
+//! scale_factor = true              # estimate the scale-factor state (odometer_scale)
+//! scale_sigma = 0.05               # its prior 1-sigma (fraction)
+//! max_gap_s = 0.5                  # no interpolation across longer gaps
+//! nis_gate = 15.14
 //! ```
+//!
+//! The odometer's vehicle frame is `[aiding.nhc] mount_rpy_deg`.
 
 use nav_core::aiding::AidingConfig;
 
@@ -54,6 +65,50 @@ pub struct AidingSection {
     /// `[aiding.zaru]`.
     #[serde(default)]
     pub zaru: ZaruSection,
+    /// `[aiding.odometer]`.
+    #[serde(default)]
+    pub odometer: OdometerSection,
+}
+
+/// `[aiding.odometer]`: the file and the host-side settings (`file`, `scale_factor`,
+/// `scale_sigma`, `max_gap_s`) besides the filter's ([`AidingSection::to_config`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdometerSection {
+    /// Use the odometer.
+    #[serde(default)]
+    pub enabled: bool,
+    /// The speed file (`nav_io::odometer` format), relative to the configuration's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<std::path::PathBuf>,
+    /// Speed sigma, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_mps: Option<f64>,
+    /// Measured point from the IMU, body FRD, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lever_arm_m: Option<[f64; 3]>,
+    /// Estimate the scale factor (adds the `odometer_scale` state); default true.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_factor: Option<bool>,
+    /// Prior 1-sigma of the scale factor (fraction, e.g. 0.05 = 5 %).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale_sigma: Option<f64>,
+    /// Longest interval between samples interpolated across, s (default 0.5).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_gap_s: Option<f64>,
+    /// Chi-square gate (1 dof).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nis_gate: Option<f64>,
+}
+
+impl OdometerSection {
+    /// Default [`OdometerSection::max_gap_s`], s.
+    pub const DEFAULT_MAX_GAP_S: f64 = 0.5;
+
+    /// Whether the scale-factor state is estimated (on and `scale_factor` not false).
+    pub fn estimates_scale(&self) -> bool {
+        self.enabled && self.scale_factor.unwrap_or(true)
+    }
 }
 
 /// `[aiding.stationarity]`.
@@ -189,7 +244,22 @@ impl AidingSection {
         c.zaru.enabled = self.zaru.enabled;
         set(&mut c.zaru.sigma_radps, deg(self.zaru.sigma_deg_per_s));
         set(&mut c.zaru.nis_gate, self.zaru.nis_gate);
+        let o = &self.odometer;
+        c.odometer.enabled = o.enabled;
+        set(&mut c.odometer.sigma_mps, o.sigma_mps);
+        if let Some(l) = o.lever_arm_m {
+            c.odometer.lever_arm_m = l;
+        }
+        set(&mut c.odometer.nis_gate, o.nis_gate);
         c.validate().map_err(|e| e.to_string())?;
+        if o.enabled && o.file.is_none() {
+            return Err("aiding: odometer.file is needed when the odometer is enabled".into());
+        }
+        for (v, n) in [(o.scale_sigma, "scale_sigma"), (o.max_gap_s, "max_gap_s")] {
+            if v.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return Err(format!("aiding: odometer.{n} must be finite and > 0"));
+            }
+        }
         Ok(c)
     }
 }
@@ -217,4 +287,31 @@ pub fn line_of_key(text: &str, table: &str, key: &str) -> Option<usize> {
         }
     }
     table_line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odometer_section_reaches_the_filter_config_and_checks_its_keys() {
+        let a: AidingSection = toml::from_str(
+            "[odometer]\nenabled = true\nfile = \"odo.txt\"\nsigma_mps = 0.03\n\
+             lever_arm_m = [-1.2, 0.0, 0.8]\nscale_factor = false\n",
+        )
+        .unwrap();
+        let c = a.to_config().unwrap();
+        assert!(c.odometer.enabled && c.any_enabled());
+        assert_eq!(c.odometer.sigma_mps, 0.03);
+        assert_eq!(c.odometer.lever_arm_m, [-1.2, 0.0, 0.8]);
+        assert!(!a.odometer.estimates_scale());
+        let no_file: AidingSection = toml::from_str("[odometer]\nenabled = true\n").unwrap();
+        let e = no_file.to_config().unwrap_err();
+        assert!(e.starts_with("aiding: odometer.file"), "{e}");
+        let bad: AidingSection =
+            toml::from_str("[odometer]\nenabled = true\nfile = \"o\"\nsigma_mps = -1\n").unwrap();
+        let e = bad.to_config().unwrap_err();
+        assert!(e.contains("odometer.sigma_mps"), "{e}");
+        assert!(toml::from_str::<AidingSection>("[odometer]\nspeed_file = \"o\"\n").is_err());
+    }
 }

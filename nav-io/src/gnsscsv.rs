@@ -28,7 +28,7 @@
 //! across a week rollover), with that week in [`GnssCsvRecord::week`] when the file gives it.
 
 use super::gpstime::{gpst_minus_utc_s, SECONDS_PER_WEEK};
-use super::imucsv::{header_names, resolve, Column};
+use super::imucsv::{read_header, resolve, Column};
 use super::lines::{open_text, DataLine, MonotonicTime};
 use super::IoError;
 use nalgebra::Vector3;
@@ -569,24 +569,7 @@ pub fn read_gnss_csv(
         }
     }
     let mut rd = open_text(path)?;
-    let names_line = fmt.names_line.unwrap_or(fmt.skip_lines);
-    let mut names: Option<Vec<String>> = None;
-    for _ in 0..fmt.skip_lines {
-        match rd.next_raw()? {
-            Some((n, text)) if n == names_line => names = Some(header_names(text)),
-            Some(_) => {}
-            None => break,
-        }
-    }
-    if fmt.names_line.is_some() && names.is_none() {
-        return Err(cfg_err(
-            path,
-            format!(
-                "names_line {names_line} is not among the {} skipped lines",
-                fmt.skip_lines
-            ),
-        ));
-    }
+    let names = read_header(&mut rd, path, fmt.skip_lines, fmt.names_line)?;
     let cols = resolve_cols(path, fmt, names.as_deref())?;
     let accept: Vec<String> = fmt
         .quality

@@ -37,7 +37,7 @@
 //! increment spans the whole gap (nothing is invented); gaps are reported in the record.
 //! The temperature of an increment is that of its end row.
 
-use super::lines::{open_text, split_fields, MonotonicTime};
+use super::lines::{open_text, split_fields, LineReader, MonotonicTime};
 use super::tag::{read_time_tag, TimeTag};
 use super::text::{ImuRecord, TimeGapReport};
 use super::IoError;
@@ -305,29 +305,31 @@ impl RawImuRecord {
 /// give `n - 1` increments.
 pub fn rates_to_increments(raw: &[RawImuSample], conv: SampleConvention) -> Vec<ImuSample> {
     raw.windows(2)
-        .map(|w| {
-            let (a, b) = (&w[0], &w[1]);
-            let dt = b.t_s - a.t_s;
-            let inc = |ya: f64, yb: f64| match conv {
-                SampleConvention::Trapezoid => 0.5 * (ya + yb) * dt,
-                SampleConvention::IntervalMean => yb * dt,
-            };
-            ImuSample {
-                t_s: b.t_s,
-                dtheta_rad: [
-                    inc(a.gyro_radps[0], b.gyro_radps[0]),
-                    inc(a.gyro_radps[1], b.gyro_radps[1]),
-                    inc(a.gyro_radps[2], b.gyro_radps[2]),
-                ],
-                dv_mps: [
-                    inc(a.accel_mps2[0], b.accel_mps2[0]),
-                    inc(a.accel_mps2[1], b.accel_mps2[1]),
-                    inc(a.accel_mps2[2], b.accel_mps2[2]),
-                ],
-                temperature_c: b.temperature_c,
-            }
-        })
+        .map(|w| increment(&w[0], &w[1], conv))
         .collect()
+}
+
+/// The increment over the interval (a.t, b.t] of rows `a` and `b` (see the module notes).
+fn increment(a: &RawImuSample, b: &RawImuSample, conv: SampleConvention) -> ImuSample {
+    let dt = b.t_s - a.t_s;
+    let inc = |ya: f64, yb: f64| match conv {
+        SampleConvention::Trapezoid => 0.5 * (ya + yb) * dt,
+        SampleConvention::IntervalMean => yb * dt,
+    };
+    ImuSample {
+        t_s: b.t_s,
+        dtheta_rad: [
+            inc(a.gyro_radps[0], b.gyro_radps[0]),
+            inc(a.gyro_radps[1], b.gyro_radps[1]),
+            inc(a.gyro_radps[2], b.gyro_radps[2]),
+        ],
+        dv_mps: [
+            inc(a.accel_mps2[0], b.accel_mps2[0]),
+            inc(a.accel_mps2[1], b.accel_mps2[1]),
+            inc(a.accel_mps2[2], b.accel_mps2[2]),
+        ],
+        temperature_c: b.temperature_c,
+    }
 }
 
 fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
@@ -343,7 +345,7 @@ fn cfg_err(path: &Path, message: impl Into<String>) -> IoError {
 pub(crate) fn header_names(line: &str) -> Vec<String> {
     let body = line.trim_start().trim_start_matches(['#', '%']);
     split_fields(body)
-        .into_iter()
+        .iter()
         .map(|f| f.split_whitespace().next().unwrap_or("").to_string())
         .collect()
 }
@@ -380,13 +382,119 @@ pub(crate) fn resolve(
     }
 }
 
-/// Reads an IMU CSV log into SI rates and specific forces (sensor axes, no mounting rotation,
-/// no conversion to increments). This is what the Allan-variance tool wants.
-pub fn read_imu_csv_raw(
-    path: impl AsRef<Path>,
+/// Skips the first `skip_lines` physical lines of `rd`, returning the names of the names line
+/// (`names_line`, default the last skipped line; see the module notes). Shared by the IMU and
+/// GNSS CSV readers.
+pub(crate) fn read_header(
+    rd: &mut LineReader,
+    path: &Path,
+    skip_lines: usize,
+    names_line: Option<usize>,
+) -> Result<Option<Vec<String>>, IoError> {
+    let wanted = names_line.unwrap_or(skip_lines);
+    let mut names: Option<Vec<String>> = None;
+    for _ in 0..skip_lines {
+        match rd.next_raw()? {
+            Some((n, text)) if n == wanted => names = Some(header_names(text)),
+            Some(_) => {}
+            None => break,
+        }
+    }
+    if names_line.is_some() && names.is_none() {
+        return Err(cfg_err(
+            path,
+            format!("names_line {wanted} is not among the {skip_lines} skipped lines"),
+        ));
+    }
+    Ok(names)
+}
+
+/// The columns of an IMU CSV mapping resolved to 0-based field indices, with the meaning of
+/// each used field for error messages.
+struct CsvCols {
+    gyro: [usize; 3],
+    accel: [usize; 3],
+    time: Option<usize>,
+    temp: Option<usize>,
+    /// Meaning of field i (0-based), for errors ("(unused)" for the others).
+    names: Vec<String>,
+    max_idx: usize,
+}
+
+fn resolve_imu_cols(
+    path: &Path,
     fmt: &ImuCsvFormat,
-) -> Result<RawImuRecord, IoError> {
-    let path = path.as_ref();
+    nm: Option<&[String]>,
+) -> Result<CsvCols, IoError> {
+    let c = &fmt.columns;
+    let r3 = |cols: &[Column; 3], what: [&str; 3]| -> Result<[usize; 3], IoError> {
+        Ok([
+            resolve(path, &cols[0], nm, what[0])?,
+            resolve(path, &cols[1], nm, what[1])?,
+            resolve(path, &cols[2], nm, what[2])?,
+        ])
+    };
+    let gyro = r3(&c.gyro, ["gyro x", "gyro y", "gyro z"])?;
+    let accel = r3(&c.accel, ["accel x", "accel y", "accel z"])?;
+    let time = match (&fmt.time, &c.time) {
+        (CsvTime::FixedRate { .. }, _) | (_, None) => None,
+        (_, Some(tc)) => Some(resolve(path, tc, nm, "time")?),
+    };
+    let temp = c
+        .temperature
+        .as_ref()
+        .map(|tc| resolve(path, tc, nm, "temperature"))
+        .transpose()?;
+    let max_idx = gyro
+        .iter()
+        .chain(accel.iter())
+        .chain(time.iter())
+        .chain(temp.iter())
+        .copied()
+        .max()
+        .unwrap_or(0);
+    let mut names = vec!["(unused)".to_string(); max_idx + 1];
+    let label = |i: usize, unit: &str, what: &str| -> String {
+        match nm.and_then(|n| n.get(i)) {
+            Some(h) if !h.is_empty() => format!("{what} [{unit}] \"{h}\""),
+            _ => format!("{what} [{unit}]"),
+        }
+    };
+    let gu = match fmt.gyro_unit {
+        RateUnit::DegPerS => "deg/s",
+        RateUnit::RadPerS => "rad/s",
+    };
+    let au = match fmt.accel_unit {
+        AccelUnit::G => "g",
+        AccelUnit::Mps2 => "m/s^2",
+    };
+    for (k, &i) in gyro.iter().enumerate() {
+        names[i] = label(i, gu, ["gyro_x", "gyro_y", "gyro_z"][k]);
+    }
+    for (k, &i) in accel.iter().enumerate() {
+        names[i] = label(i, au, ["accel_x", "accel_y", "accel_z"][k]);
+    }
+    let tunit = match fmt.time {
+        CsvTime::TicksMs { .. } => "ms",
+        _ => "s",
+    };
+    if let Some(i) = time {
+        names[i] = label(i, tunit, "time");
+    }
+    if let Some(i) = temp {
+        names[i] = label(i, "deg C", "temperature");
+    }
+    Ok(CsvCols {
+        gyro,
+        accel,
+        time,
+        temp,
+        names,
+        max_idx,
+    })
+}
+
+fn check_format(path: &Path, fmt: &ImuCsvFormat) -> Result<(), IoError> {
     if !fmt.time_offset_s.is_finite() {
         return Err(cfg_err(path, "time_offset_s must be finite"));
     }
@@ -405,152 +513,86 @@ pub fn read_imu_csv_raw(
             "a time column is required unless time.kind = \"fixed_rate\"",
         ));
     }
-    let mut rd = open_text(path)?;
-    // Skipped lines, keeping the names line.
-    let names_line = fmt.names_line.unwrap_or(fmt.skip_lines);
-    let mut names: Option<Vec<String>> = None;
-    for _ in 0..fmt.skip_lines {
-        match rd.next_raw()? {
-            Some((n, text)) => {
-                if n == names_line {
-                    names = Some(header_names(text));
+    Ok(())
+}
+
+/// How a row's time column (or its index) becomes its time stamp.
+#[derive(Debug, Clone, Copy)]
+enum TimeMap {
+    /// The column in seconds (or raw ticks, for the tag pre-pass).
+    Column,
+    /// Ticks in ms without a tag: t = tick / 1000.
+    Ticks,
+    /// Ticks placed by a tag: t = t0 + (tick - tick0) * stretch / 1000.
+    Tagged { t0: f64, tick0: f64, stretch: f64 },
+    /// Row k at start + k / rate.
+    Fixed { rate_hz: f64, start_s: f64 },
+}
+
+/// An IMU CSV log read one row at a time, in SI units (sensor axes), with the final time
+/// stamps (see the module notes): the one row parser ([`read_imu_csv_raw`] collects it).
+/// Yields each row with its 1-based file line. Memory is constant: a line buffer and the last
+/// `skip_last_rows` rows (held back until it is known they are not among the last). With a
+/// tag file and `stretch_to_tag_end`, the first and last used ticks are needed first: the file
+/// is read twice (a first pass parses the rows for their ticks only).
+pub struct ImuCsvReader {
+    rd: LineReader,
+    path: PathBuf,
+    cols: CsvCols,
+    kg: f64,
+    ka: f64,
+    mono: MonotonicTime,
+    map: TimeMap,
+    offset_s: f64,
+    row: usize,
+    held: std::collections::VecDeque<(RawImuSample, usize)>,
+    skip_last: usize,
+    tag: Option<TimeTag>,
+    stretch: f64,
+    failed: bool,
+}
+
+impl ImuCsvReader {
+    /// Opens `path` with the mapping `fmt` (reads the tag file, and makes the first pass over
+    /// the rows when the ticks are stretched to the tag's end).
+    pub fn open(path: impl AsRef<Path>, fmt: &ImuCsvFormat) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let mut r = Self::open_mapped(path, fmt, TimeMap::Column)?;
+        match &fmt.time {
+            CsvTime::Seconds => {}
+            CsvTime::FixedRate { rate_hz, start_s } => {
+                r.map = TimeMap::Fixed {
+                    rate_hz: *rate_hz,
+                    start_s: *start_s,
                 }
             }
-            None => break,
-        }
-    }
-    if fmt.names_line.is_some() && names.is_none() {
-        return Err(cfg_err(
-            path,
-            format!(
-                "names_line {names_line} is not among the {} skipped lines",
-                fmt.skip_lines
-            ),
-        ));
-    }
-    let nm = names.as_deref();
-    let c = &fmt.columns;
-    let gyro = [
-        resolve(path, &c.gyro[0], nm, "gyro x")?,
-        resolve(path, &c.gyro[1], nm, "gyro y")?,
-        resolve(path, &c.gyro[2], nm, "gyro z")?,
-    ];
-    let accel = [
-        resolve(path, &c.accel[0], nm, "accel x")?,
-        resolve(path, &c.accel[1], nm, "accel y")?,
-        resolve(path, &c.accel[2], nm, "accel z")?,
-    ];
-    let time_col = match (&fmt.time, &c.time) {
-        (CsvTime::FixedRate { .. }, _) => None,
-        (_, Some(tc)) => Some(resolve(path, tc, nm, "time")?),
-        (_, None) => None,
-    };
-    let temp_col = match &c.temperature {
-        Some(tc) => Some(resolve(path, tc, nm, "temperature")?),
-        None => None,
-    };
-    // Names for error messages, by 0-based field index.
-    let max_idx = gyro
-        .iter()
-        .chain(accel.iter())
-        .chain(time_col.iter())
-        .chain(temp_col.iter())
-        .copied()
-        .max()
-        .unwrap_or(0);
-    let mut col_names = vec!["(unused)".to_string(); max_idx + 1];
-    let label = |i: usize, unit: &str, what: &str| -> String {
-        match nm.and_then(|n| n.get(i)) {
-            Some(h) if !h.is_empty() => format!("{what} [{unit}] \"{h}\""),
-            _ => format!("{what} [{unit}]"),
-        }
-    };
-    let gu = match fmt.gyro_unit {
-        RateUnit::DegPerS => "deg/s",
-        RateUnit::RadPerS => "rad/s",
-    };
-    let au = match fmt.accel_unit {
-        AccelUnit::G => "g",
-        AccelUnit::Mps2 => "m/s^2",
-    };
-    for (k, &i) in gyro.iter().enumerate() {
-        col_names[i] = label(i, gu, ["gyro_x", "gyro_y", "gyro_z"][k]);
-    }
-    for (k, &i) in accel.iter().enumerate() {
-        col_names[i] = label(i, au, ["accel_x", "accel_y", "accel_z"][k]);
-    }
-    let tunit = match fmt.time {
-        CsvTime::TicksMs { .. } => "ms",
-        _ => "s",
-    };
-    if let Some(i) = time_col {
-        col_names[i] = label(i, tunit, "time");
-    }
-    if let Some(i) = temp_col {
-        col_names[i] = label(i, "deg C", "temperature");
-    }
-    let names_ref: Vec<&str> = col_names.iter().map(String::as_str).collect();
-
-    let (kg, ka) = (fmt.gyro_unit.to_radps(), fmt.accel_unit.to_mps2());
-    let mut samples = Vec::new();
-    let mut lines = Vec::new();
-    let mut mono = MonotonicTime::new();
-    while let Some(dl) = rd.next_data()? {
-        dl.require(max_idx + 1, usize::MAX, &names_ref)?;
-        let mut s = RawImuSample {
-            temperature_c: f64::NAN,
-            ..RawImuSample::default()
-        };
-        for k in 0..3 {
-            s.gyro_radps[k] = dl.num(gyro[k], names_ref[gyro[k]])? * kg;
-            s.accel_mps2[k] = dl.num(accel[k], names_ref[accel[k]])? * ka;
-        }
-        if let Some(i) = temp_col {
-            s.temperature_c = dl.num_allow_nan(i, names_ref[i])?;
-        }
-        if let Some(i) = time_col {
-            s.t_s = dl.num(i, names_ref[i])?;
-            mono.check(&dl, i, names_ref[i], s.t_s)?;
-        }
-        lines.push(dl.line);
-        samples.push(s);
-    }
-    let keep = samples.len().saturating_sub(fmt.skip_last_rows);
-    samples.truncate(keep);
-    lines.truncate(keep);
-
-    // Time stamps.
-    let mut tag = None;
-    let mut stretch = 1.0;
-    match &fmt.time {
-        CsvTime::Seconds => {}
-        CsvTime::FixedRate { rate_hz, start_s } => {
-            for (k, s) in samples.iter_mut().enumerate() {
-                s.t_s = start_s + k as f64 / rate_hz;
-            }
-        }
-        CsvTime::TicksMs {
-            tag_file,
-            stretch_to_tag_end,
-        } => match tag_file {
-            None => {
-                for s in &mut samples {
-                    s.t_s *= 1e-3;
-                }
-            }
-            Some(tf) => {
+            CsvTime::TicksMs { tag_file: None, .. } => r.map = TimeMap::Ticks,
+            CsvTime::TicksMs {
+                tag_file: Some(tf),
+                stretch_to_tag_end,
+            } => {
                 let tf = if tf.is_relative() {
                     path.parent().unwrap_or(Path::new(".")).join(tf)
                 } else {
                     tf.clone()
                 };
+                // first and last used ticks (first pass, ticks as they are)
+                let mut first = None;
+                let mut last = None;
+                let mut n = 0usize;
+                for row in Self::open_mapped(path, fmt, TimeMap::Column)? {
+                    let (s, _) = row?;
+                    first.get_or_insert(s.t_s);
+                    last = Some(s.t_s);
+                    n += 1;
+                }
                 let tg = read_time_tag(&tf)?;
-                if let (Some(first), Some(last)) = (samples.first(), samples.last()) {
-                    let (tick0, tick1) = (first.t_s, last.t_s);
+                if let (Some(tick0), Some(tick1)) = (first, last) {
+                    let mut stretch = 1.0;
                     if *stretch_to_tag_end {
                         let span_ms = tick1 - tick0;
                         let tag_ms = f64::from(tg.last_tick_ms());
-                        if samples.len() < 2 || span_ms <= 0.0 || tag_ms <= 0.0 {
+                        if n < 2 || span_ms <= 0.0 || tag_ms <= 0.0 {
                             return Err(IoError::Format {
                                 path: tf.clone(),
                                 line: 0,
@@ -571,19 +613,151 @@ pub fn read_imu_csv_raw(
                             });
                         }
                     }
-                    let t0 = tg.start_sow_s;
-                    for s in &mut samples {
-                        s.t_s = t0 + (s.t_s - tick0) * stretch * 1e-3;
+                    r.stretch = stretch;
+                    r.map = TimeMap::Tagged {
+                        t0: tg.start_sow_s,
+                        tick0,
+                        stretch,
+                    };
+                } else if !*stretch_to_tag_end {
+                    // no rows: nothing to place
+                    r.map = TimeMap::Ticks;
+                }
+                r.tag = Some(tg);
+            }
+        }
+        Ok(r)
+    }
+
+    /// Opens the rows with time map `map` (no tag handling).
+    fn open_mapped(path: &Path, fmt: &ImuCsvFormat, map: TimeMap) -> Result<Self, IoError> {
+        check_format(path, fmt)?;
+        let mut rd = open_text(path)?;
+        let names = read_header(&mut rd, path, fmt.skip_lines, fmt.names_line)?;
+        let cols = resolve_imu_cols(path, fmt, names.as_deref())?;
+        Ok(Self {
+            rd,
+            path: path.to_path_buf(),
+            cols,
+            kg: fmt.gyro_unit.to_radps(),
+            ka: fmt.accel_unit.to_mps2(),
+            mono: MonotonicTime::new(),
+            map,
+            offset_s: fmt.time_offset_s,
+            row: 0,
+            held: std::collections::VecDeque::with_capacity(fmt.skip_last_rows + 1),
+            skip_last: fmt.skip_last_rows,
+            tag: None,
+            stretch: 1.0,
+            failed: false,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The time tag used, when there is one.
+    pub fn tag(&self) -> Option<&TimeTag> {
+        self.tag.as_ref()
+    }
+
+    /// Tick-to-time stretch factor applied (1 without a tag).
+    pub fn stretch(&self) -> f64 {
+        self.stretch
+    }
+
+    /// The next parsed row (time column as written), before holding back the last rows.
+    fn parse_row(&mut self) -> Result<Option<(RawImuSample, usize)>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
+        let c = &self.cols;
+        let nm = |i: usize| c.names.get(i).map_or("?", String::as_str);
+        if dl.len() < c.max_idx + 1 {
+            let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
+            dl.require(c.max_idx + 1, usize::MAX, &names)?;
+        }
+        let mut s = RawImuSample {
+            temperature_c: f64::NAN,
+            ..RawImuSample::default()
+        };
+        for k in 0..3 {
+            s.gyro_radps[k] = dl.num(c.gyro[k], nm(c.gyro[k]))? * self.kg;
+            s.accel_mps2[k] = dl.num(c.accel[k], nm(c.accel[k]))? * self.ka;
+        }
+        if let Some(i) = c.temp {
+            s.temperature_c = dl.num_allow_nan(i, nm(i))?;
+        }
+        if let Some(i) = c.time {
+            s.t_s = dl.num(i, nm(i))?;
+            self.mono.check(&dl, i, nm(i), s.t_s)?;
+        }
+        Ok(Some((s, dl.line)))
+    }
+
+    fn read(&mut self) -> Result<Option<(RawImuSample, usize)>, IoError> {
+        loop {
+            match self.parse_row()? {
+                Some(r) => {
+                    self.held.push_back(r);
+                    if self.held.len() > self.skip_last {
+                        break;
                     }
                 }
-                tag = Some(tg);
+                // the rows still held are the last `skip_last_rows`: dropped
+                None => return Ok(None),
             }
-        },
-    }
-    if fmt.time_offset_s != 0.0 {
-        for s in &mut samples {
-            s.t_s += fmt.time_offset_s;
         }
+        let Some((mut s, line)) = self.held.pop_front() else {
+            return Ok(None);
+        };
+        s.t_s = match self.map {
+            TimeMap::Column => s.t_s,
+            TimeMap::Ticks => s.t_s * 1e-3,
+            TimeMap::Tagged { t0, tick0, stretch } => t0 + (s.t_s - tick0) * stretch * 1e-3,
+            TimeMap::Fixed { rate_hz, start_s } => start_s + self.row as f64 / rate_hz,
+        };
+        if self.offset_s != 0.0 {
+            s.t_s += self.offset_s;
+        }
+        self.row += 1;
+        Ok(Some((s, line)))
+    }
+}
+
+impl Iterator for ImuCsvReader {
+    type Item = Result<(RawImuSample, usize), IoError>;
+
+    /// The next row and its line; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
+}
+
+/// Reads an IMU CSV log into SI rates and specific forces (sensor axes, no mounting rotation,
+/// no conversion to increments). This is what the Allan-variance tool wants. The whole-file
+/// form of [`ImuCsvReader`].
+pub fn read_imu_csv_raw(
+    path: impl AsRef<Path>,
+    fmt: &ImuCsvFormat,
+) -> Result<RawImuRecord, IoError> {
+    let path = path.as_ref();
+    let mut rd = ImuCsvReader::open(path, fmt)?;
+    let mut samples = Vec::new();
+    let mut lines = Vec::new();
+    for r in &mut rd {
+        let (s, line) = r?;
+        samples.push(s);
+        lines.push(line);
     }
     let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
     let gaps = TimeGapReport::detect(&t, &lines);
@@ -592,9 +766,45 @@ pub fn read_imu_csv_raw(
         lines,
         path: path.to_path_buf(),
         gaps,
-        tag,
-        stretch,
+        tag: rd.tag,
+        stretch: rd.stretch,
     })
+}
+
+/// An IMU CSV log read as increments one at a time (the streaming form of [`read_imu_csv`]):
+/// each row after the first gives the increment over the interval it closes (see the module
+/// notes), yielded with the row's line.
+pub struct ImuCsvIncrements {
+    rows: ImuCsvReader,
+    conv: SampleConvention,
+    prev: Option<RawImuSample>,
+}
+
+impl ImuCsvIncrements {
+    /// Opens `path` with the mapping `fmt` and its sample convention.
+    pub fn open(path: impl AsRef<Path>, fmt: &ImuCsvFormat) -> Result<Self, IoError> {
+        Ok(Self {
+            rows: ImuCsvReader::open(path, fmt)?,
+            conv: fmt.convention,
+            prev: None,
+        })
+    }
+}
+
+impl Iterator for ImuCsvIncrements {
+    type Item = Result<(ImuSample, usize), IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            let (b, line) = match self.rows.next()? {
+                Ok(r) => r,
+                Err(e) => return Some(Err(e)),
+            };
+            if let Some(a) = self.prev.replace(b) {
+                return Some(Ok((increment(&a, &b, self.conv), line)));
+            }
+        }
+    }
 }
 
 /// Reads an IMU CSV log and converts it to increments with the format's sample convention

@@ -22,6 +22,8 @@ pub mod imucsv;
 pub mod kfgins;
 mod lines;
 pub mod mount;
+mod numfmt;
+pub mod odometer;
 pub mod noisecfg;
 pub mod pos;
 pub mod runcfg;
@@ -37,13 +39,15 @@ pub use gnsscsv::{
 pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
-    ImuCsvFormat, RateUnit, RawImuRecord, RawImuSample, SampleConvention,
+    ImuCsvFormat, ImuCsvIncrements, ImuCsvReader, RateUnit, RawImuRecord, RawImuSample,
+    SampleConvention,
 };
 pub use kfgins::{
     parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml,
 };
-pub use lines::{open_text, DataLine, LineReader};
+pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
 pub use mount::Mounting;
+pub use odometer::{read_odometer, write_odometer, OdometerSample, OdometerTrack};
 pub use noisecfg::AxisValue;
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
@@ -55,6 +59,6 @@ pub use runcfg::{
 pub use tag::{read_time_tag, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_line, write_gnss_text,
-    write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_text, ImuGap,
-    ImuOrigin, ImuRecord, ImuTextReader, TimeGapReport,
+    write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_line_display,
+    write_nav_text, ImuBinReader, ImuGap, ImuOrigin, ImuRecord, ImuTextReader, TimeGapReport,
 };

@@ -1,5 +1,11 @@
 //! Line-oriented text input shared by the readers: gzip detection, comment skipping, field
 //! splitting and number parsing with errors that name file, line and column.
+//!
+//! Nothing is allocated per line: the reader keeps one line buffer, a line's fields are
+//! `&str` slices of it held in a fixed array ([`Fields`], a heap vector only for lines of more
+//! than [`Fields::INLINE`] fields), and numbers are parsed with `fast-float2` (correctly
+//! rounded: bit-identical to `str::parse::<f64>`, checked by a property test), falling back to
+//! the standard library for the spellings it leaves out (`nan`, `inf`, ...).
 
 use super::IoError;
 use flate2::read::MultiGzDecoder;
@@ -16,7 +22,6 @@ pub struct LineReader {
     inner: Box<dyn BufRead>,
     line: usize,
     buf: Vec<u8>,
-    text: String,
 }
 
 /// Opens `path` for line reading; gzip is detected from the magic bytes `1f 8b`.
@@ -48,8 +53,7 @@ impl LineReader {
             path: name.to_path_buf(),
             inner,
             line: 0,
-            buf: Vec::new(),
-            text: String::new(),
+            buf: Vec::with_capacity(256),
         })
     }
 
@@ -90,17 +94,13 @@ impl LineReader {
         while matches!(self.buf.last(), Some(b'\n' | b'\r')) {
             self.buf.pop();
         }
-        self.text.clear();
         match std::str::from_utf8(&self.buf) {
-            Ok(s) => self.text.push_str(s),
-            Err(_) => {
-                return Err(IoError::NotText {
-                    path: self.path.clone(),
-                    line: self.line,
-                })
-            }
+            Ok(s) => Ok(Some((self.line, s))),
+            Err(_) => Err(IoError::NotText {
+                path: self.path.clone(),
+                line: self.line,
+            }),
         }
-        Ok(Some((self.line, self.text.as_str())))
     }
 
     /// The next data line: blank lines and comment lines (first non-blank character `#` or
@@ -113,7 +113,13 @@ impl LineReader {
                 Some(_) => break,
             }
         }
-        Ok(Some(DataLine::new(&self.path, self.line, &self.text)))
+        // The line was validated as UTF-8 by `next_raw`; validate again rather than keep an
+        // unsafe unchecked conversion (a few ns per line).
+        let text = std::str::from_utf8(&self.buf).map_err(|_| IoError::NotText {
+            path: self.path.clone(),
+            line: self.line,
+        })?;
+        Ok(Some(DataLine::new(&self.path, self.line, text)))
     }
 }
 
@@ -125,16 +131,125 @@ pub(crate) fn is_skippable(line: &str) -> bool {
 
 /// Splits a line into fields: on commas when it holds one (fields trimmed, one trailing empty
 /// field dropped), otherwise on white space.
-pub(crate) fn split_fields(line: &str) -> Vec<&str> {
-    if line.contains(',') {
-        let mut v: Vec<&str> = line.split(',').map(str::trim).collect();
-        if v.len() > 1 && v.last().is_some_and(|s| s.is_empty()) {
-            v.pop();
+pub(crate) fn split_fields(line: &str) -> Fields<'_> {
+    let mut f = Fields::new();
+    if line.as_bytes().contains(&b',') {
+        for x in line.split(',') {
+            f.push(x.trim());
         }
-        v
+        if f.len() > 1 && f.last().is_some_and(|s| s.is_empty()) {
+            f.pop();
+        }
+    } else if line.is_ascii() {
+        for x in line.split_ascii_whitespace() {
+            f.push(x);
+        }
     } else {
-        line.split_whitespace().collect()
+        for x in line.split_whitespace() {
+            f.push(x);
+        }
     }
+    f
+}
+
+/// The fields of one line, as `&str` slices of it: up to [`Fields::INLINE`] in a fixed array
+/// (no allocation), more in a vector. Dereferences to `[&str]`.
+#[derive(Debug, Clone)]
+pub struct Fields<'a> {
+    inline: [&'a str; Fields::INLINE],
+    len: usize,
+    spill: Vec<&'a str>,
+}
+
+impl Fields<'_> {
+    /// Fields held without allocation.
+    pub const INLINE: usize = 24;
+}
+
+impl<'a> Fields<'a> {
+    /// No fields.
+    pub fn new() -> Self {
+        Self {
+            inline: [""; Fields::INLINE],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+
+    /// Appends a field.
+    pub fn push(&mut self, f: &'a str) {
+        if !self.spill.is_empty() {
+            self.spill.push(f);
+        } else if let Some(slot) = self.inline.get_mut(self.len) {
+            *slot = f;
+            self.len += 1;
+        } else {
+            self.spill.reserve(2 * Fields::INLINE);
+            self.spill.extend_from_slice(&self.inline);
+            self.spill.push(f);
+        }
+    }
+
+    /// Removes the last field.
+    pub fn pop(&mut self) -> Option<&'a str> {
+        if self.spill.is_empty() {
+            let last = self.len.checked_sub(1)?;
+            self.len = last;
+            self.inline.get(last).copied()
+        } else {
+            self.spill.pop()
+        }
+    }
+}
+
+impl Default for Fields<'_> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<'a> std::ops::Deref for Fields<'a> {
+    type Target = [&'a str];
+
+    fn deref(&self) -> &[&'a str] {
+        if self.spill.is_empty() {
+            self.inline.get(..self.len).unwrap_or(&[])
+        } else {
+            &self.spill
+        }
+    }
+}
+
+impl<'a> FromIterator<&'a str> for Fields<'a> {
+    fn from_iter<I: IntoIterator<Item = &'a str>>(iter: I) -> Self {
+        let mut f = Fields::new();
+        for x in iter {
+            f.push(x);
+        }
+        f
+    }
+}
+
+impl<'a> From<Vec<&'a str>> for Fields<'a> {
+    fn from(v: Vec<&'a str>) -> Self {
+        v.into_iter().collect()
+    }
+}
+
+/// Parses a decimal number exactly as `str::parse::<f64>` does (same accepted texts, same
+/// bits): `fast-float2` for texts made of digits, signs, `.` and `e`/`E` (correctly rounded,
+/// as the standard library), the standard library for everything else (`nan`, `inf`, errors).
+pub fn parse_f64(s: &str) -> Option<f64> {
+    let b = s.as_bytes();
+    let plain = b
+        .iter()
+        .all(|c| matches!(c, b'0'..=b'9' | b'.' | b'-' | b'+' | b'e' | b'E'));
+    if plain {
+        if let Ok(v) = fast_float2::parse::<f64, _>(b) {
+            return Some(v);
+        }
+    }
+    s.parse().ok()
 }
 
 /// One data line split into fields, with helpers that parse a field and report errors with
@@ -144,8 +259,9 @@ pub struct DataLine<'a> {
     pub path: &'a Path,
     /// 1-based line number.
     pub line: usize,
-    /// The fields (see [`split_fields`]).
-    pub fields: Vec<&'a str>,
+    /// The fields (see `split_fields`): `&str` slices of the line, no allocation for up to
+    /// [`Fields::INLINE`] fields.
+    pub fields: Fields<'a>,
 }
 
 fn clip(s: &str) -> String {
@@ -175,12 +291,15 @@ impl<'a> DataLine<'a> {
     /// Checks the field count is in `min..=max`; `names[i]` is the meaning of column i+1 (used
     /// to name the first missing column).
     pub fn require(&self, min: usize, max: usize, names: &[&str]) -> Result<(), IoError> {
-        let expected = if min == max {
-            format!("{min}")
-        } else if max == usize::MAX {
-            format!("at least {min}")
-        } else {
-            format!("{min} to {max}")
+        // built only for an error: nothing is allocated for a good line
+        let expected = || {
+            if min == max {
+                format!("{min}")
+            } else if max == usize::MAX {
+                format!("at least {min}")
+            } else {
+                format!("{min} to {max}")
+            }
         };
         if self.fields.len() < min {
             let col = self.fields.len();
@@ -190,7 +309,7 @@ impl<'a> DataLine<'a> {
                 column: col + 1,
                 name: names.get(col).copied().unwrap_or("?").to_string(),
                 found: self.fields.len(),
-                expected,
+                expected: expected(),
             });
         }
         if self.fields.len() > max {
@@ -199,7 +318,7 @@ impl<'a> DataLine<'a> {
                 line: self.line,
                 column: max + 1,
                 found: self.fields.len(),
-                expected,
+                expected: expected(),
             });
         }
         Ok(())
@@ -235,7 +354,7 @@ impl<'a> DataLine<'a> {
             .fields
             .get(idx)
             .ok_or_else(|| self.missing(idx, name))?;
-        let v: f64 = s.parse().map_err(|_| IoError::NotANumber {
+        let v: f64 = parse_f64(s).ok_or_else(|| IoError::NotANumber {
             path: self.path.to_path_buf(),
             line: self.line,
             column: idx + 1,

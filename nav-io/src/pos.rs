@@ -498,7 +498,7 @@ pub fn read_rtklib_pos(path: impl AsRef<Path>, opts: &PosOptions) -> Result<PosR
             continue;
         }
         // .pos: split on commas and white space alike (the date and time are two fields).
-        let fields: Vec<&str> = text
+        let fields = text
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|s| !s.is_empty())
             .collect();

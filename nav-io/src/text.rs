@@ -233,17 +233,23 @@ fn parse_imu_line(dl: &DataLine<'_>) -> Result<ImuSample, IoError> {
 }
 
 /// Reads an IMU text file (plain or gzip). Errors name file, line and column; time gaps are
-/// reported in the record, not filled.
+/// reported in the record, not filled. The whole-file form of [`ImuTextReader`] (one parser).
 pub fn read_imu_text(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
     let path = path.as_ref();
-    let mut rd = open_text(path)?;
+    collect_record(path, ImuTextReader::open(path)?)
+}
+
+/// Collects a stream of `(sample, line)` into an [`ImuRecord`] of `path` (gaps detected,
+/// increments not spanning gaps).
+fn collect_record(
+    path: &Path,
+    rd: impl Iterator<Item = Result<(ImuSample, usize), IoError>>,
+) -> Result<ImuRecord, IoError> {
     let mut samples = Vec::new();
     let mut lines = Vec::new();
-    let mut mono = MonotonicTime::new();
-    while let Some(dl) = rd.next_data()? {
-        let s = parse_imu_line(&dl)?;
-        mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
-        lines.push(dl.line);
+    for r in rd {
+        let (s, line) = r?;
+        lines.push(line);
         samples.push(s);
     }
     let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
@@ -259,10 +265,10 @@ pub fn read_imu_text(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
     })
 }
 
-/// An IMU text file (plain or gzip) read one sample at a time: the streaming form of
-/// [`read_imu_text`] (same parsing, same errors with file, line and column, same time-order
-/// check), yielding each sample with its 1-based file line. Nothing is kept but the current
-/// line.
+/// An IMU text file (plain or gzip) read one sample at a time, yielding each sample with its
+/// 1-based file line: the one parser of the format ([`read_imu_text`] collects it). Errors
+/// name file, line and column; time must increase strictly. Nothing is kept but the current
+/// line (one reused buffer; fields are slices of it; no allocation per line).
 pub struct ImuTextReader {
     rd: super::lines::LineReader,
     mono: MonotonicTime,
@@ -272,11 +278,22 @@ pub struct ImuTextReader {
 impl ImuTextReader {
     /// Opens `path`.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
-        Ok(Self {
-            rd: open_text(path.as_ref())?,
+        Ok(Self::from_lines(open_text(path.as_ref())?))
+    }
+
+    /// Reads from any byte source (gzip detected); `name` is the file name used in errors.
+    pub fn from_reader<R: std::io::Read + 'static>(name: &Path, src: R) -> Result<Self, IoError> {
+        Ok(Self::from_lines(super::lines::LineReader::from_reader(
+            name, src,
+        )?))
+    }
+
+    fn from_lines(rd: super::lines::LineReader) -> Self {
+        Self {
+            rd,
             mono: MonotonicTime::new(),
             failed: false,
-        })
+        }
     }
 
     /// The file.
@@ -558,10 +575,38 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
 }
 
 /// One line of the KF-GINS nav format; shared by [`write_nav_text`] and streaming writers
-/// (hw-bridge). Numbers in Rust's `Display` form (shortest round-trip digits). `ryu` was
-/// tried for speed and rejected: it picks other digits than `Display` for some values (e.g.
-/// -1514017065704403.2 vs .3), so nav.txt would not stay byte-identical.
+/// (hw-bridge). Numbers in Rust's `Display` form (shortest round-trip digits), byte for byte:
+/// the digits come from `ryu` where it agrees with `Display` (everything but exact ties, which
+/// go to `Display`; see `numfmt`), about 3x faster than `write!`. The line is assembled on
+/// the stack and written with one `write_all`.
 pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {
+    let mut lb = super::numfmt::LineBuf::new();
+    lb.push_u64(w, u64::from(n.week))?;
+    for x in [
+        n.t_s,
+        n.lat_rad.to_degrees(),
+        n.lon_rad.to_degrees(),
+        n.h_m,
+        n.vel_ned_mps[0],
+        n.vel_ned_mps[1],
+        n.vel_ned_mps[2],
+        n.rpy_rad[0].to_degrees(),
+        n.rpy_rad[1].to_degrees(),
+        n.rpy_rad[2].to_degrees(),
+    ] {
+        lb.push_bytes(w, b" ")?;
+        lb.push_f64(w, x)?;
+    }
+    lb.push_bytes(w, b"\n")?;
+    lb.flush(w)
+}
+
+/// [`write_nav_line`] with `write!` and `Display` (the reference the fast form must equal;
+/// kept for the tests and for measuring).
+pub fn write_nav_line_display<W: Write + ?Sized>(
+    w: &mut W,
+    n: &NavSolution,
+) -> std::io::Result<()> {
     writeln!(
         w,
         "{} {} {} {} {} {} {} {} {} {} {}",
@@ -585,53 +630,111 @@ pub const IMU_BIN_RECORD_BYTES: usize = 56;
 /// Reads the binary IMU format of awesome-gins-datasets (`*.bin`): records of 7 little-endian
 /// f64 `t dtheta_x dtheta_y dtheta_z dv_x dv_y dv_z` (same meaning and units as the text
 /// format), gzip accepted. In errors, "line" is the 1-based RECORD number and "column" the
-/// 1-based field. A trailing partial record is an error.
+/// 1-based field. A trailing partial record is an error. The whole-file form of
+/// [`ImuBinReader`].
 pub fn read_imu_bin(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
-    use std::io::Read;
     let path = path.as_ref();
-    let f = File::open(path).map_err(|source| IoError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let mut raw = Vec::new();
-    std::io::BufReader::new(f)
-        .read_to_end(&mut raw)
-        .map_err(|source| IoError::Read {
+    collect_record(path, ImuBinReader::open(path)?)
+}
+
+/// The binary IMU format (see [`read_imu_bin`]) read one record at a time (gzip detected from
+/// the magic bytes), yielding each sample with its 1-based record number; a fixed 56-byte
+/// record buffer, nothing else kept. After an error, `None`.
+pub struct ImuBinReader {
+    path: PathBuf,
+    inner: Box<dyn std::io::BufRead>,
+    record: usize,
+    prev_t_s: Option<f64>,
+    failed: bool,
+}
+
+impl ImuBinReader {
+    /// Opens `path`.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let f = File::open(path).map_err(|source| IoError::Open {
             path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_reader(path, f)
+    }
+
+    /// Reads from any byte source (gzip detected); `name` is the file name used in errors.
+    pub fn from_reader<R: std::io::Read + 'static>(name: &Path, src: R) -> Result<Self, IoError> {
+        use std::io::BufRead;
+        let mut br = std::io::BufReader::with_capacity(1 << 16, src);
+        let head = br.fill_buf().map_err(|source| IoError::Read {
+            path: name.to_path_buf(),
             line: 0,
             source,
         })?;
-    if raw.len() >= 2 && raw[0] == 0x1f && raw[1] == 0x8b {
-        let mut out = Vec::new();
-        flate2::read::MultiGzDecoder::new(raw.as_slice())
-            .read_to_end(&mut out)
-            .map_err(|source| IoError::Read {
-                path: path.to_path_buf(),
-                line: 0,
-                source,
-            })?;
-        raw = out;
+        let gz = head.len() >= 2 && head[0] == 0x1f && head[1] == 0x8b;
+        let inner: Box<dyn BufRead> = if gz {
+            Box::new(std::io::BufReader::with_capacity(
+                1 << 16,
+                flate2::read::MultiGzDecoder::new(br),
+            ))
+        } else {
+            Box::new(br)
+        };
+        Ok(Self {
+            path: name.to_path_buf(),
+            inner,
+            record: 0,
+            prev_t_s: None,
+            failed: false,
+        })
     }
-    if raw.len() % IMU_BIN_RECORD_BYTES != 0 {
-        return Err(IoError::Format {
-            path: path.to_path_buf(),
-            line: raw.len() / IMU_BIN_RECORD_BYTES + 1,
-            message: format!(
-                "truncated record: {} bytes is not a whole number of {IMU_BIN_RECORD_BYTES}-byte records",
-                raw.len()
-            ),
-        });
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
-    let mut samples = Vec::with_capacity(raw.len() / IMU_BIN_RECORD_BYTES);
-    let mut lines = Vec::with_capacity(samples.capacity());
-    for (k, rec) in raw.chunks_exact(IMU_BIN_RECORD_BYTES).enumerate() {
+
+    /// Fills `rec` from the source: Ok(n) with n < len only at the end of the input.
+    fn fill(&mut self, rec: &mut [u8]) -> Result<usize, IoError> {
+        let mut got = 0;
+        while let Some(dst) = rec.get_mut(got..).filter(|d| !d.is_empty()) {
+            match self.inner.read(dst) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(source) => {
+                    return Err(IoError::Read {
+                        path: self.path.clone(),
+                        line: self.record + 1,
+                        source,
+                    })
+                }
+            }
+        }
+        Ok(got)
+    }
+
+    fn read(&mut self) -> Result<Option<(ImuSample, usize)>, IoError> {
+        let mut rec = [0u8; IMU_BIN_RECORD_BYTES];
+        let got = self.fill(&mut rec)?;
+        if got == 0 {
+            return Ok(None);
+        }
+        let k = self.record;
+        if got < IMU_BIN_RECORD_BYTES {
+            let total = k * IMU_BIN_RECORD_BYTES + got;
+            return Err(IoError::Format {
+                path: self.path.clone(),
+                line: k + 1,
+                message: format!(
+                    "truncated record: {total} bytes is not a whole number of {IMU_BIN_RECORD_BYTES}-byte records"
+                ),
+            });
+        }
         let mut v = [0.0; 7];
         for (i, (x, b)) in v.iter_mut().zip(rec.chunks_exact(8)).enumerate() {
             let bytes: [u8; 8] = b.try_into().unwrap_or([0; 8]);
             *x = f64::from_le_bytes(bytes);
             if !x.is_finite() {
                 return Err(IoError::NonFinite {
-                    path: path.to_path_buf(),
+                    path: self.path.clone(),
                     line: k + 1,
                     column: i + 1,
                     name: IMU_NAMES[i].to_string(),
@@ -639,10 +742,10 @@ pub fn read_imu_bin(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
                 });
             }
         }
-        if let Some(prev) = samples.last().map(|s: &ImuSample| s.t_s) {
+        if let Some(prev) = self.prev_t_s {
             if v[0] <= prev {
                 return Err(IoError::NonMonotonicTime {
-                    path: path.to_path_buf(),
+                    path: self.path.clone(),
                     line: k + 1,
                     column: 1,
                     name: IMU_NAMES[0].to_string(),
@@ -652,25 +755,34 @@ pub fn read_imu_bin(path: impl AsRef<Path>) -> Result<ImuRecord, IoError> {
                 });
             }
         }
-        lines.push(k + 1);
-        samples.push(ImuSample {
-            t_s: v[0],
-            dtheta_rad: [v[1], v[2], v[3]],
-            dv_mps: [v[4], v[5], v[6]],
-            temperature_c: f64::NAN,
-        });
+        self.prev_t_s = Some(v[0]);
+        self.record = k + 1;
+        Ok(Some((
+            ImuSample {
+                t_s: v[0],
+                dtheta_rad: [v[1], v[2], v[3]],
+                dv_mps: [v[4], v[5], v[6]],
+                temperature_c: f64::NAN,
+            },
+            k + 1,
+        )))
     }
-    let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
-    let gaps = TimeGapReport::detect(&t, &lines);
-    Ok(ImuRecord {
-        samples,
-        gaps,
-        origin: Some(ImuOrigin {
-            path: path.to_path_buf(),
-            lines,
-            increments_span_gaps: false,
-        }),
-    })
+}
+
+impl Iterator for ImuBinReader {
+    type Item = Result<(ImuSample, usize), IoError>;
+
+    /// The next sample and its record number; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
 }
 
 /// Writes IMU samples in the binary format of [`read_imu_bin`] (temperature not written;

@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod cli;
 pub mod filter_sim;
 pub mod scenario;
 pub mod trajectory;

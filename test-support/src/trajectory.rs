@@ -1,7 +1,8 @@
-//! An independent truth generator for the mechanization and alignment tests.
+//! Analytic motions for the mechanization and alignment tests, integrated by the
+//! workspace's one truth generator (`nav_sim::Integrator`).
 //!
 //! A motion is given by smooth analytic functions of time: NED velocity and its time
-//! derivative, the attitude C_b^n and the body rate relative to NED omega_nb^b. The generator
+//! derivative, the attitude C_b^n and the body rate relative to NED omega_nb^b. `nav_sim`
 //! integrates the geodetic position from the velocity and, over each IMU interval, the ideal
 //! sensor outputs
 //!
@@ -12,14 +13,13 @@
 //!
 //! (what a perfect rate-integrating IMU outputs), all with one classical fourth-order
 //! Runge-Kutta pass over `n_sub` sub-steps per IMU interval (position is the ODE state, the two
-//! integrals are quadratures along it). It uses `nav_core::earth` for the WGS84 radii, normal
-//! gravity and rates (tested on their own), and nothing of the mechanization or of
-//! `nav_core::attitude`: Euler angles go through nalgebra, Euler rates through the formula
-//! written out here.
+//! integrals are quadratures along it). It uses `nav_core::earth`'s WGS84 formulas (tested on
+//! their own), and nothing of the mechanization or of `nav_core::attitude`: Euler angles go
+//! through nalgebra, Euler rates through the formula written out here.
 #![allow(dead_code)]
 
 use nalgebra::{UnitQuaternion, Vector3};
-use nav_core::earth::{self, Llh};
+use nav_core::earth::Llh;
 use nav_core::types::ImuSample;
 use std::f64::consts::TAU;
 
@@ -192,67 +192,53 @@ pub struct Truth {
     pub q_nb: UnitQuaternion<f64>,
 }
 
-/// Steps a motion through IMU intervals, producing ideal increments and the truth.
-pub struct Generator<M: Motion> {
-    /// The motion.
-    pub motion: M,
-    /// GPS time of the start, s.
-    pub t0_s: f64,
-    /// IMU interval, s.
-    pub dt_s: f64,
-    /// RK4 sub-steps per IMU interval.
-    pub n_sub: usize,
-    /// Number of IMU intervals done.
-    pub k: u64,
-    /// Current position.
-    pub pos: Llh,
-}
+/// An analytic [`Motion`] as a `nav_sim` motion (closed-form attitude; the integrator's
+/// heading state is not used).
+#[derive(Debug, Clone)]
+pub struct Analytic<M>(pub M);
 
-/// Derivatives at one instant: (lat, lon, h) rate, omega_ib^b, f^b.
-fn derivs(kin: &Kinematics, pos: &Llh) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
-    let v = kin.vel_ned_mps;
-    let w_ie = earth::earth_rate_ned_radps(pos.lat_rad);
-    let w_en = earth::transport_rate_ned_radps(pos.lat_rad, pos.h_m, &v);
-    let g = earth::gravity_ned_mps2(pos.lat_rad, pos.h_m);
-    let q_bn = kin.q_nb.inverse();
-    let w_ib = kin.omega_nb_b_radps + q_bn * (w_ie + w_en);
-    let f_b = q_bn * (kin.acc_ned_mps2 + (w_ie * 2.0 + w_en).cross(&v) - g);
-    (earth::llh_rate(pos, &v), w_ib, f_b)
-}
-
-fn add(p: &Llh, d: &Vector3<f64>, h: f64) -> Llh {
-    Llh {
-        lat_rad: p.lat_rad + d.x * h,
-        lon_rad: p.lon_rad + d.y * h,
-        h_m: p.h_m + d.z * h,
+impl<M: Motion> nav_sim::Motion for Analytic<M> {
+    fn at(&self, t_s: f64, _heading_rad: f64) -> nav_sim::BodyKinematics {
+        let k = self.0.at(t_s);
+        nav_sim::BodyKinematics {
+            vel_ned_mps: k.vel_ned_mps,
+            acc_ned_mps2: k.acc_ned_mps2,
+            c_bn: k.q_nb.to_rotation_matrix().into_inner(),
+            omega_nb_b_radps: k.omega_nb_b_radps,
+            heading_rate_radps: 0.0,
+        }
     }
+}
+
+/// Steps a motion through IMU intervals, producing ideal increments and the truth: the
+/// workspace's one integrator ([`nav_sim::Integrator`]) with the truth attitude and velocity
+/// taken from the motion's closed form.
+pub struct Generator<M: Motion> {
+    integ: nav_sim::Integrator<Analytic<M>>,
 }
 
 impl<M: Motion> Generator<M> {
-    /// A generator starting at `pos` at GPS time `t0_s`.
+    /// A generator starting at `pos` at GPS time `t0_s` (s), IMU interval `dt_s` (s), `n_sub`
+    /// RK4 sub-steps per interval.
     pub fn new(motion: M, pos: Llh, t0_s: f64, dt_s: f64, n_sub: usize) -> Self {
+        let n_sub = u32::try_from(n_sub).unwrap_or(u32::MAX);
         Self {
-            motion,
-            t0_s,
-            dt_s,
-            n_sub,
-            k: 0,
-            pos,
+            integ: nav_sim::Integrator::new(Analytic(motion), pos, 0.0, t0_s, dt_s, n_sub),
         }
     }
 
-    /// Seconds since the start after `k` intervals.
-    fn rel_t(&self, k: u64) -> f64 {
-        k as f64 * self.dt_s
+    /// The motion.
+    pub fn motion(&self) -> &M {
+        &self.integ.motion().0
     }
 
     /// The current truth.
     pub fn truth(&self) -> Truth {
-        let t = self.rel_t(self.k);
-        let kin = self.motion.at(t);
+        let t = self.integ.t_rel_s();
+        let kin = self.motion().at(t);
         Truth {
-            t_s: self.t0_s + t,
-            pos: self.pos,
+            t_s: self.integ.t0_s() + t,
+            pos: self.integ.pos(),
             vel_ned_mps: kin.vel_ned_mps,
             q_nb: kin.q_nb,
         }
@@ -260,34 +246,7 @@ impl<M: Motion> Generator<M> {
 
     /// Integrates one IMU interval: the ideal sample for it and the truth at its end.
     pub fn step(&mut self) -> (ImuSample, Truth) {
-        let ta = self.rel_t(self.k);
-        let tb = self.rel_t(self.k + 1);
-        let h = (tb - ta) / self.n_sub as f64;
-        let mut pos = self.pos;
-        let mut th = Vector3::zeros();
-        let mut dv = Vector3::zeros();
-        let mut kin_a = self.motion.at(ta);
-        for i in 0..self.n_sub {
-            let t = ta + i as f64 * h;
-            let kin_m = self.motion.at(t + 0.5 * h);
-            let kin_b = self.motion.at(if i + 1 == self.n_sub { tb } else { t + h });
-            let (p1, w1, f1) = derivs(&kin_a, &pos);
-            let (p2, w2, f2) = derivs(&kin_m, &add(&pos, &p1, 0.5 * h));
-            let (p3, w3, f3) = derivs(&kin_m, &add(&pos, &p2, 0.5 * h));
-            let (p4, w4, f4) = derivs(&kin_b, &add(&pos, &p3, h));
-            pos = add(&pos, &(p1 + (p2 + p3) * 2.0 + p4), h / 6.0);
-            th += (w1 + (w2 + w3) * 2.0 + w4) * (h / 6.0);
-            dv += (f1 + (f2 + f3) * 2.0 + f4) * (h / 6.0);
-            kin_a = kin_b;
-        }
-        self.pos = pos;
-        self.k += 1;
-        let imu = ImuSample {
-            t_s: self.t0_s + tb,
-            dtheta_rad: th.into(),
-            dv_mps: dv.into(),
-            temperature_c: f64::NAN,
-        };
+        let imu = self.integ.step();
         (imu, self.truth())
     }
 }

@@ -14,7 +14,15 @@
 //! The case is written by `host-sim simulate --kf-gins` (IMU text, GNSS text, KF-GINS YAML)
 //! and run as `host-sim run --config kf-gins.yaml`, as the peer was; its `truth.nav` is moved
 //! aside (the peer reads no truth; with it, metrics are against the truth, which both
-//! binaries hold in memory).
+//! binaries hold in memory). `run --smooth` is measured too (skipped with `--no-smooth`;
+//! "n/a" for a baseline without it).
+//!
+//! `--baseline-bin PATH` uses an already built baseline executable instead of building one
+//! from git. `--peer-kfgins PATH` also runs KF-GINS (C++, built from its public source outside
+//! the repository; see docs/benchmarks.md) on the same files in the same invocation,
+//! alternating with ours, and reports the ratios: its YAML is the case's with `starttime` set
+//! to the first IMU time (KF-GINS rejects a start before the first IMU line) and `outputpath`
+//! in the bench directory. The last navigation epoch of both is compared (positions in m).
 
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -179,25 +187,41 @@ fn scenario(seconds: f64) -> String {
     s
 }
 
+/// What to measure (the command line of `cargo xtask bench-run`).
+pub struct Opts {
+    /// Length of the drive, hours.
+    pub hours: f64,
+    /// Git revision of the baseline.
+    pub baseline: String,
+    /// A prebuilt baseline executable (instead of building `baseline`).
+    pub baseline_bin: Option<PathBuf>,
+    /// Measurements per binary (median reported).
+    pub repeat: usize,
+    /// Keep the bench directory.
+    pub keep: bool,
+    /// Skip `diagnose`.
+    pub no_diagnose: bool,
+    /// Skip `run --smooth`.
+    pub no_smooth: bool,
+    /// KF-GINS executable for a paired peer run.
+    pub peer_kfgins: Option<PathBuf>,
+}
+
 /// Runs the benchmark.
-pub fn run(hours: f64, baseline: &str, repeat: usize, keep: bool, no_diagnose: bool) -> Result<()> {
+pub fn run(o: &Opts) -> Result<()> {
+    let hours = o.hours;
     if !(hours > 0.0 && hours <= 24.0) {
         bail!("--hours {hours}: expected 0 < hours <= 24");
     }
     let cur = build_current()?;
-    let base = build_baseline(baseline)?;
+    let (base, rev) = match &o.baseline_bin {
+        Some(b) => (b.clone(), b.display().to_string()),
+        None => (build_baseline(&o.baseline)?, o.baseline.clone()),
+    };
     let dir = std::env::temp_dir().join(format!("navcore-bench-run-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let r = run_in(
-        &dir,
-        &cur,
-        &base,
-        baseline,
-        hours,
-        repeat.max(1),
-        no_diagnose,
-    );
-    if keep {
+    let r = run_in(&dir, &cur, &base, &rev, o);
+    if o.keep {
         eprintln!("  kept {}", dir.display());
     } else {
         let _ = std::fs::remove_dir_all(&dir);
@@ -205,15 +229,52 @@ pub fn run(hours: f64, baseline: &str, repeat: usize, keep: bool, no_diagnose: b
     r
 }
 
-fn run_in(
-    dir: &Path,
-    cur: &Path,
-    base: &Path,
-    rev: &str,
-    hours: f64,
-    repeat: usize,
-    no_diagnose: bool,
-) -> Result<()> {
+/// The peer's YAML: the case's with `starttime` at the first IMU time and `outputpath` `out`.
+fn peer_yaml(case: &Path, out: &Path) -> Result<PathBuf> {
+    use std::io::BufRead;
+    let imu = std::fs::File::open(case.join("imu.txt"))?;
+    let mut first = String::new();
+    std::io::BufReader::new(imu).read_line(&mut first)?;
+    let t0 = first
+        .split_whitespace()
+        .next()
+        .context("empty imu.txt")?
+        .to_string();
+    let yaml = std::fs::read_to_string(case.join("kf-gins.yaml"))?;
+    let mut text = String::new();
+    for line in yaml.lines() {
+        if line.starts_with("starttime:") {
+            text.push_str(&format!("starttime: {t0}\n"));
+        } else if line.starts_with("outputpath:") {
+            text.push_str(&format!("outputpath: \"{}\"\n", out.display()));
+        } else {
+            text.push_str(line);
+            text.push('\n');
+        }
+    }
+    let p = case.join("kf-gins-peer.yaml");
+    std::fs::write(&p, text)?;
+    std::fs::create_dir_all(out)?;
+    Ok(p)
+}
+
+/// lat, lon (deg) and h (m) of the last line of a nav file (KF-GINS or ours: columns 3-5).
+fn last_llh(p: &Path) -> Result<[f64; 3]> {
+    let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+    let line = text.lines().last().context("empty nav file")?;
+    let v: Vec<f64> = line
+        .split_whitespace()
+        .map(|x| x.parse::<f64>())
+        .collect::<Result<_, _>>()
+        .context("nav line")?;
+    match v.get(2..5) {
+        Some(&[a, b, c]) => Ok([a, b, c]),
+        _ => bail!("short nav line in {}", p.display()),
+    }
+}
+
+fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()> {
+    let (hours, repeat) = (o.hours, o.repeat.max(1));
     let sc = dir.join("scenario.toml");
     std::fs::write(&sc, scenario(hours * 3600.0))?;
     let case = dir.join("case");
@@ -238,41 +299,87 @@ fn run_in(
         hours,
         imu_lines as f64 / 1e6
     );
-    let run_cmd = |bin: &Path, out: &Path| {
+    let cmd = |bin: &Path, sub: &str, out: &Path, smooth: bool| {
         let mut c = Command::new(bin);
-        c.arg("run")
+        c.arg(sub)
             .arg("--config")
             .arg(&yaml)
             .arg("--out")
             .arg(out)
             .arg("--quiet");
+        if smooth {
+            c.arg("--smooth");
+        }
         c
     };
-    let diag_cmd = |bin: &Path, out: &Path| {
-        let mut c = Command::new(bin);
-        c.arg("diagnose")
-            .arg("--config")
-            .arg(&yaml)
-            .arg("--out")
-            .arg(out)
-            .arg("--quiet");
-        c
+    let peer = match &o.peer_kfgins {
+        Some(p) => Some((p.clone(), peer_yaml(&case, &dir.join("peer-out"))?)),
+        None => None,
     };
-    let (mut rb, mut rc, mut db, mut dc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut rb, mut rc, mut pk) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..repeat {
-        rb.push(measure(&mut run_cmd(base, &dir.join("out-base")))?);
-        rc.push(measure(&mut run_cmd(cur, &dir.join("out-cur")))?);
+        rb.push(measure(&mut cmd(
+            base,
+            "run",
+            &dir.join("out-base"),
+            false,
+        ))?);
+        rc.push(measure(&mut cmd(cur, "run", &dir.join("out-cur"), false))?);
+        if let Some((bin, y)) = &peer {
+            pk.push(measure(Command::new(bin).arg(y))?);
+        }
     }
     let same =
         std::fs::read(dir.join("out-base/nav.txt"))? == std::fs::read(dir.join("out-cur/nav.txt"))?;
-    if !no_diagnose {
+    let (mut db, mut dc) = (Vec::new(), Vec::new());
+    if !o.no_diagnose {
         for _ in 0..repeat {
-            db.push(measure(&mut diag_cmd(base, &dir.join("diag-base")))?);
-            dc.push(measure(&mut diag_cmd(cur, &dir.join("diag-cur")))?);
+            db.push(measure(&mut cmd(
+                base,
+                "diagnose",
+                &dir.join("diag-base"),
+                false,
+            ))?);
+            dc.push(measure(&mut cmd(
+                cur,
+                "diagnose",
+                &dir.join("diag-cur"),
+                false,
+            ))?);
+        }
+    }
+    // run --smooth: the baseline may predate it (then n/a)
+    let (mut sb, mut scur) = (Vec::new(), Vec::new());
+    let mut smooth_base_ok = true;
+    if !o.no_smooth {
+        for _ in 0..repeat {
+            if smooth_base_ok {
+                match measure(&mut cmd(base, "run", &dir.join("smooth-base"), true)) {
+                    Ok(m) => sb.push(m),
+                    Err(e) => {
+                        eprintln!("  baseline run --smooth: {e:#} (n/a)");
+                        smooth_base_ok = false;
+                    }
+                }
+            }
+            scur.push(measure(&mut cmd(
+                cur,
+                "run",
+                &dir.join("smooth-cur"),
+                true,
+            ))?);
         }
     }
     let row = |name: &str, b: &mut [Meas], c: &mut [Meas]| {
-        let (b, c) = (median(b), median(c));
+        let c = median(c);
+        if b.is_empty() {
+            println!(
+                "{name:<10} {:>9} {:>9.2} {:>7} | {:>8} {:>8.2} {:>7} | {:>9} {:>9.1} {:>7}",
+                "n/a", c.wall_s, "", "n/a", c.cpu_s, "", "n/a", c.rss_mib, ""
+            );
+            return c;
+        }
+        let b = median(b);
         println!(
             "{name:<10} {:>9.2} {:>9.2} {:>7.3} | {:>8.2} {:>8.2} {:>7.3} | {:>9.1} {:>9.1} {:>7.3}",
             b.wall_s,
@@ -302,8 +409,11 @@ fn run_in(
         "ratio"
     );
     let c = row("run", &mut rb, &mut rc);
-    if !no_diagnose {
+    if !o.no_diagnose {
         row("diagnose", &mut db, &mut dc);
+    }
+    if !o.no_smooth {
+        row("run-smooth", &mut sb, &mut scur);
     }
     println!(
         "nav.txt of run: {}",
@@ -313,21 +423,44 @@ fn run_in(
             "DIFFERS from the baseline's"
         }
     );
-    let scale = hours / (40.0 / 60.0);
-    println!(
-        "peer (KF-GINS, issue 17, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
-         wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
-        if (scale - 1.0).abs() > 1e-9 {
-            format!(
-                "; scaled x{scale:.1} by length: {:.1} s",
-                PEER_WALL_S * scale
-            )
-        } else {
-            String::new()
-        },
-        c.wall_s / (PEER_WALL_S * scale),
-        c.rss_mib
-    );
+    if peer.is_some() {
+        let p = median(&mut pk);
+        println!(
+            "peer (KF-GINS, same files, this invocation): wall {:.2} s, cpu {:.2} s, peak {:.1} MiB; \
+             run/peer: wall {:.3} (target <= 1/15 = 0.067), cpu {:.3}, peak {:.2}",
+            p.wall_s,
+            p.cpu_s,
+            p.rss_mib,
+            c.wall_s / p.wall_s,
+            c.cpu_s / p.cpu_s,
+            c.rss_mib / p.rss_mib
+        );
+        let ours = last_llh(&dir.join("out-cur/nav.txt"))?;
+        let theirs = last_llh(&dir.join("peer-out/KF_GINS_Navresult.nav"))?;
+        let r = 6_371_000.0_f64;
+        let dn = (ours[0] - theirs[0]).to_radians() * r;
+        let de = (ours[1] - theirs[1]).to_radians() * r * ours[0].to_radians().cos();
+        println!(
+            "last epoch, ours - peer: north {dn:.3} m, east {de:.3} m, height {:.3} m",
+            ours[2] - theirs[2]
+        );
+    } else {
+        let scale = hours / (40.0 / 60.0);
+        println!(
+            "peer (KF-GINS, issue 17, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
+             wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
+            if (scale - 1.0).abs() > 1e-9 {
+                format!(
+                    "; scaled x{scale:.1} by length: {:.1} s",
+                    PEER_WALL_S * scale
+                )
+            } else {
+                String::new()
+            },
+            c.wall_s / (PEER_WALL_S * scale),
+            c.rss_mib
+        );
+    }
     if !same {
         bail!("nav.txt differs from the baseline's");
     }

@@ -491,51 +491,23 @@ fn nav_bits(n: &nav_core::types::NavSolution) -> Vec<u64> {
 
 /// The drive of the bridge HIL test: 10 s static (levelling, first fix), then driving with
 /// turns and speed changes at 100 Hz; `host-sim simulate` adds two GNSS outages.
-const BRIDGE_SCENARIO: &str = r#"
-name = "hil-bridge"
-description = "70 s drive for the hw-bridge HIL test"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 12.0
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 15.0
-[[segment]]
-kind = "turn"
-angle_deg = -120.0
-radius_m = 35.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 18.0
-duration_s = 6.0
-[[segment]]
-kind = "cruise"
-duration_s = 10.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 8.0
-[[segment]]
-kind = "static"
-duration_s = 3.0
-"#;
+fn bridge_scenario() -> String {
+    nav_sim::ScenarioBuilder::new("hil-bridge")
+        .description("70 s drive for the hw-bridge HIL test")
+        .start(48.1990, 16.3700, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(10.0)
+        .accelerate(12.0, 8.0)
+        .turn(90.0, 40.0)
+        .cruise(15.0)
+        .turn(-120.0, 35.0)
+        .accelerate(18.0, 6.0)
+        .cruise(10.0)
+        .brake(0.0, 8.0)
+        .stationary(3.0)
+        .build()
+}
 /// The drive's GNSS outages, START:DURATION s after the first IMU epoch.
 const BRIDGE_OUTAGES: [&str; 2] = ["25:8", "48:10"];
 
@@ -632,7 +604,7 @@ pub fn bridge_drive(elf: &Path, bins: &HostBins) -> Result<u64> {
 
 fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     let sc = dir.join("drive.toml");
-    std::fs::write(&sc, BRIDGE_SCENARIO)?;
+    std::fs::write(&sc, bridge_scenario())?;
     let case = dir.join("case");
     let mut sim = Command::new(&bins.host_sim);
     sim.arg("simulate")

@@ -93,9 +93,19 @@ enum Cmd {
         /// Keep the case and outputs (the directory is printed).
         #[arg(long)]
         keep: bool,
-        /// Measure `run` only.
+        /// Skip `diagnose`.
         #[arg(long)]
         no_diagnose: bool,
+        /// Skip `run --smooth`.
+        #[arg(long)]
+        no_smooth: bool,
+        /// A prebuilt baseline `host-sim` (instead of building `--baseline` from git).
+        #[arg(long)]
+        baseline_bin: Option<std::path::PathBuf>,
+        /// KF-GINS executable: run it on the same files in the same invocation and report the
+        /// ratios (see docs/benchmarks.md for building it outside the repository).
+        #[arg(long)]
+        peer_kfgins: Option<std::path::PathBuf>,
     },
     /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
     /// capture (sent and recorded over a pty pair) against `host-sim run` on the same case.
@@ -173,7 +183,19 @@ fn main() -> std::process::ExitCode {
             repeat,
             keep,
             no_diagnose,
-        } => benchrun::run(hours, &baseline, repeat, keep, no_diagnose),
+            no_smooth,
+            baseline_bin,
+            peer_kfgins,
+        } => benchrun::run(&benchrun::Opts {
+            hours,
+            baseline,
+            baseline_bin,
+            repeat,
+            keep,
+            no_diagnose,
+            no_smooth,
+            peer_kfgins,
+        }),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,

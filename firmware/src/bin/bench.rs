@@ -11,8 +11,13 @@
 //! - `BENCH done`.
 //!
 //! Adding a case is one line in [`CASES`].
+//!
+//! With the cargo feature `bench-aiding` the binary is a variant that runs only the
+//! land-vehicle aiding cases (`nav_core::aiding`, 18 states f32): the default bench binary's
+//! flash stays within its budget, and `cargo xtask fw bench` keeps measuring it.
 #![no_std]
 #![no_main]
+#![cfg_attr(feature = "bench-aiding", allow(dead_code))]
 
 use cortex_m_rt::entry;
 use firmware::scenario::{imu_sample, start_pos, Lcg};
@@ -20,7 +25,9 @@ use firmware::{board, error, info, stack, time::TimeBase};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::filter::{Filter, InitialUncertainty};
-use nav_core::model::{Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK};
+use nav_core::model::{Layout, LAYOUT_NBK};
+#[cfg(not(feature = "bench-aiding"))]
+use nav_core::model::{LAYOUT_KF_GINS, LAYOUT_N};
 use nav_core::strapdown::{NavState, Strapdown};
 use nav_core::types::{FixQuality, GnssFix};
 
@@ -78,6 +85,7 @@ struct Case {
 }
 
 /// The cases, in order. One line each.
+#[cfg(not(feature = "bench-aiding"))]
 const CASES: &[Case] = &[
     Case {
         name: "strapdown",
@@ -113,6 +121,155 @@ const CASES: &[Case] = &[
         },
     },
 ];
+
+/// The aiding variant's cases: the aiding of an 18-state f32 filter at 200 Hz; moving (the
+/// filter told it moves at 10 m/s: never still, the NHC runs) or still (ZUPT or ZARU alone).
+#[cfg(feature = "bench-aiding")]
+const CASES: &[Case] = &[
+    Case {
+        name: "aiding18_nhc",
+        run: |m, n| aiding_case(m, n, 10.0, land_only(true, false, false)),
+    },
+    Case {
+        name: "aiding18_zupt",
+        run: |m, n| aiding_case(m, n, 0.0, land_only(false, true, false)),
+    },
+    Case {
+        name: "aiding18_zaru",
+        run: |m, n| aiding_case(m, n, 0.0, land_only(false, false, true)),
+    },
+    Case {
+        name: "aiding18_land_still",
+        run: |m, n| aiding_case(m, n, 0.0, nav_core::aiding::AidingConfig::LAND),
+    },
+];
+
+/// `AidingConfig::LAND` with only the chosen sources on.
+#[cfg(feature = "bench-aiding")]
+fn land_only(nhc: bool, zupt: bool, zaru: bool) -> nav_core::aiding::AidingConfig {
+    let mut c = nav_core::aiding::AidingConfig::LAND;
+    c.nhc.enabled = nhc;
+    c.zupt.enabled = zupt;
+    c.zaru.enabled = zaru;
+    c
+}
+
+/// Times `Aiding::on_imu` after every propagation of an NBK-18 f32 filter (200 Hz, 1 Hz fixes
+/// without velocity), `speed_mps` the filter's initial northward speed; rows: every epoch
+/// (`on_imu_per_epoch`), epochs that only feed the detector (`detector_push`), decision epochs
+/// without an update (`decision_only`) and decision epochs with the enabled updates
+/// (`decision_with_updates`, 10 Hz), and the whole epoch: propagation, aiding and the 1 Hz
+/// GNSS update (`epoch_incl_aiding_1Hz_gnss`, to compare with `filter18_NBK_f32`'s
+/// `epoch_incl_1Hz_gnss`: an aiding update predicts the covariance first, which the next
+/// propagation then need not do).
+#[cfg(feature = "bench-aiding")]
+fn aiding_case(
+    m: &mut Meter,
+    case: &'static str,
+    speed_mps: f64,
+    cfg: nav_core::aiding::AidingConfig,
+) -> bool {
+    use nav_core::aiding::Aiding;
+    let unc = InitialUncertainty {
+        att_sigma_rad: [0.01, 0.01, 0.05],
+        vel_sigma_mps: [0.1; 3],
+        pos_sigma_m: [1.0; 3],
+    };
+    let mut init = init_state();
+    init.vel_ned_mps = Vector3::new(speed_mps, 0.0, 0.0);
+    let mut f = match Filter::<f32, { LAYOUT_NBK.dim() }>::new(
+        LAYOUT_NBK,
+        &FilterConfig::source_nbk_model(),
+        init,
+        &unc,
+    ) {
+        Ok(f) => f,
+        Err(_) => {
+            error!("bench {}: filter construction failed", case);
+            return false;
+        }
+    };
+    let Ok(mut aid) = Aiding::<f32, 100>::new(&cfg) else {
+        error!("bench {}: aiding configuration refused", case);
+        return false;
+    };
+    let mut rng = Lcg(5);
+    let (mut all, mut push, mut decide, mut update, mut epoch) = (
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+        Acc::default(),
+    );
+    for k in 1..=EPOCHS {
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
+        let (r, t_prop) = m.time(|| f.propagate(&s));
+        if r.is_err() {
+            error!("bench {}: propagate failed at epoch {}", case, k);
+            return false;
+        }
+        let mut t_epoch = t_prop;
+        let before = *aid.counters();
+        let ((), t) = m.time(|| aid.on_imu(&mut f, None));
+        all.add(t);
+        t_epoch += t;
+        let after = aid.counters();
+        let updates = |c: &nav_core::aiding::AidingCounters| {
+            c.nhc.used
+                + c.nhc.rejected
+                + c.zupt.used
+                + c.zupt.rejected
+                + c.zaru.used
+                + c.zaru.rejected
+        };
+        if after.epochs == before.epochs {
+            push.add(t);
+        } else if updates(after) == updates(&before) {
+            decide.add(t);
+        } else {
+            update.add(t);
+        }
+        if k % GNSS_EVERY == 0 {
+            let p0 = start_pos();
+            let fix = GnssFix {
+                t_s: s.t_s,
+                lat_rad: p0.lat_rad,
+                lon_rad: p0.lon_rad,
+                h_m: p0.h_m,
+                pos_std_ned_m: [0.5, 0.5, 1.0],
+                vel_ned_mps: [0.0; 3],
+                vel_std_ned_mps: [0.1; 3],
+                has_velocity: false,
+                quality: FixQuality::Single,
+                num_sats: 12,
+            };
+            let (_, t) = m.time(|| f.update_gnss(&fix));
+            t_epoch += t;
+        }
+        epoch.add(t_epoch);
+    }
+    all.print(case, "on_imu_per_epoch");
+    push.print(case, "detector_push");
+    decide.print(case, "decision_only");
+    update.print(case, "decision_with_updates");
+    epoch.print(case, "epoch_incl_aiding_1Hz_gnss");
+    let c = aid.counters();
+    info!(
+        "BENCH counts case={} epochs={} stationary={} nhc={} zupt={} zaru={} failed={}",
+        case,
+        c.epochs,
+        c.stationary_epochs,
+        c.nhc.used,
+        c.zupt.used,
+        c.zaru.used,
+        c.nhc.failed + c.zupt.failed + c.zaru.failed
+    );
+    info!(
+        "BENCH size what=Aiding<f32,100> bytes={}",
+        core::mem::size_of::<Aiding<f32, 100>>()
+    );
+    update.calls > 0 && f.covariance_is_positive_definite()
+}
 
 const T0_S: f64 = 1000.0;
 

@@ -243,9 +243,9 @@ pub struct ErrorSummary {
     /// Horizontal RMS of the prior residuals of the used fixes, m.
     pub gnss_residual_horizontal_rms_m: f64,
     /// Horizontal RMS of the written solution (nav_before.txt / nav_after.txt, on their
-    /// clocks), moved to the antenna by the CONFIGURED lever arm, against the GNSS fixes
-    /// outside the outages, m (a posterior comparison: it checks the output clock; on the
-    /// real drive adding the lever-arm estimate to the arm raises it, see the README).
+    /// clocks), moved to the antenna as the model places it (configured lever arm plus any
+    /// estimate, [`validate::written_solution_vs_fixes_m`]), against the GNSS fixes outside
+    /// the outages, m.
     pub output_vs_fixes_horizontal_rms_m: f64,
 }
 
@@ -363,7 +363,8 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
 fn evaluate(p: &Prepared, o: &RunOptions) -> Result<Eval, crate::run::RunError> {
     let out = run_filter(&p.case, &search_recording(o))?;
     let m = metrics::compute(&out, p.case.truth.as_deref());
-    let e = validate::step_errors(&out, &m);
+    let mut e = validate::step_errors(&out, &m);
+    e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &p.case.gnss);
     Ok((Arc::new(out), m, e))
 }
 
@@ -372,7 +373,8 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let (before, errors_before) = execute(p, &mut |_, _| {})?;
     let before = Arc::new(before);
     let residuals_before = residual_stats(&before.innovations);
-    let se_before = validate::step_errors(&before, &errors_before);
+    let mut se_before = validate::step_errors(&before, &errors_before);
+    se_before.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&before, &p.case.gnss);
     let all = dopts
         .candidates
         .clone()
@@ -702,17 +704,9 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         .find(|e| e.name == Block::TimeOffset.name())
         .and_then(|e| e.estimate.first())
         .map_or(0.0, |dt| -dt);
-    let ovf = |run: &RunOutput, shift: f64| {
-        validate::output_vs_fixes_horizontal_rms_m(
-            &run.nav,
-            shift,
-            run.lever_arm_m,
-            &p.case.gnss,
-            &run.outages,
-        )
-    };
-    let error_before = error_summary(&errors_before, ovf(&before, 0.0));
-    let error_after = error_summary(&errors_after, ovf(&after, output_clock_shift_s));
+    let ovf = |run: &RunOutput| validate::written_solution_vs_fixes_m(run, &p.case.gnss);
+    let error_before = error_summary(&errors_before, ovf(&before));
+    let error_after = error_summary(&errors_after, ovf(&after));
 
     // what was not added, and what could have been seen
     let mut undetected = Vec::new();
@@ -860,11 +854,12 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     for st in &dg.steps {
         let e = &st.errors;
         println!(
-            "step {}{}: held-out outage error {} m, GNSS prior residual {:.3} m, NIS {:.2}{}",
+            "step {}{}: held-out outage error {} m, GNSS prior residual {:.3} m, written solution vs fixes {:.3} m, NIS {:.2}{}",
             st.label,
             if st.accepted { "" } else { " (refused)" },
             e.heldout_outage_m.map_or("-".into(), |x| format!("{x:.3}")),
             e.gnss_prior_horizontal_rms_m,
+            e.written_vs_fixes_m,
             e.nis_mean,
             st.reason
                 .as_ref()

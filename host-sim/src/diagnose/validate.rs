@@ -52,6 +52,10 @@ pub struct StepErrors {
     pub truth_outage_m: Option<f64>,
     /// Error with GNSS against the truth: 3D RMS outside the outages, m.
     pub truth_with_gnss_3d_rms_m: Option<f64>,
+    /// The written solution against the GNSS fixes outside the outages, horizontal RMS, m
+    /// ([`written_solution_vs_fixes_m`]: on the GNSS clock, at the model's antenna; NaN when
+    /// not computed).
+    pub written_vs_fixes_m: f64,
     /// NIS mean.
     pub nis_mean: f64,
     /// Innovation log-likelihood, nats.
@@ -72,6 +76,7 @@ pub fn step_errors(run: &RunOutput, m: &Metrics) -> StepErrors {
             .as_ref()
             .filter(|_| truth)
             .map(|s| s.pos_3d_m.rms),
+        written_vs_fixes_m: f64::NAN,
         nis_mean: rs.nis_mean,
         log_likelihood: rs.log_likelihood,
     }
@@ -96,6 +101,9 @@ pub fn check_heldout(new: &StepErrors, cur: &StepErrors) -> Result<(), String> {
             "error with GNSS raised (prior residual horizontal RMS {n:.4} m vs {c:.4} m)"
         ));
     }
+    // the written solution against the fixes is reported, not checked: it is a posterior
+    // comparison with the fixes the filter used (the base run is pulled onto them), so on the
+    // real drive it refused the time offset that lowers the held-out outage error 15.6 -> 12.8 m
     Ok(())
 }
 
@@ -185,6 +193,30 @@ pub fn output_vs_fixes_horizontal_rms_m(
     } else {
         (sum / n as f64).sqrt()
     }
+}
+
+/// The written solution of a run against the GNSS fixes outside the outages (horizontal RMS,
+/// m), as the run's model places the antenna: the configured lever arm plus any lever-arm
+/// estimate, and the solution on the GNSS clock (IMU time minus any time-offset estimate), as
+/// `nav_after.txt` is written. Measured on simulated drives with an undeclared 0.86 m lever
+/// arm: 0.011 m with the estimate added, 0.764 m with the configured arm alone.
+pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
+    let est = |name: &str| {
+        run.final_effects
+            .iter()
+            .find(|e| e.name == name)
+            .map(|e| e.value.clone())
+    };
+    let mut arm = run.lever_arm_m;
+    if let Some(v) = est(Block::LeverArm.name()) {
+        for (a, d) in arm.iter_mut().zip(&v) {
+            *a += d;
+        }
+    }
+    let shift = est(Block::TimeOffset.name())
+        .and_then(|v| v.first().copied())
+        .map_or(0.0, |dt| -dt);
+    output_vs_fixes_horizontal_rms_m(&run.nav, shift, arm, gnss, &run.outages)
 }
 
 /// The names of the blocks, for messages.

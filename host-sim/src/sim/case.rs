@@ -82,6 +82,9 @@ pub struct CaseFiles {
     /// KF-GINS configuration, when written.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kf_gins: Option<String>,
+    /// Wheel speed (`nav_io::odometer` format), when the scenario's vehicle has an odometer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odometer: Option<String>,
 }
 
 /// Summary numbers of a case.
@@ -186,6 +189,12 @@ impl Case {
                 gnss: "gnss.txt".into(),
                 truth: "truth.nav".into(),
                 kf_gins: kf_gins.then(|| "kf-gins.yaml".into()),
+                odometer: tr
+                    .scenario
+                    .vehicle
+                    .odometer
+                    .is_some()
+                    .then(|| "odometer.txt".into()),
             },
             summary: CaseSummary {
                 gps_week: tr.week,
@@ -221,6 +230,10 @@ impl Case {
         })?;
         let p = dir.join("case.toml");
         std::fs::write(&p, format!("{CASE_HEADER}{body}")).map_err(ferr(&p))?;
+        if let Some(spec) = &self.trajectory.scenario.vehicle.odometer {
+            let odo = super::odometer::wheel_speed(&self.trajectory, spec, self.seed);
+            nav_io::write_odometer(dir.join("odometer.txt"), &odo)?;
+        }
         if kf_gins {
             let p = dir.join("kf-gins.yaml");
             let abs = std::path::absolute(dir).map_err(ferr(dir))?;

@@ -1,5 +1,6 @@
-//! Motion scenarios, truth and ideal IMU increments by inverse mechanization, sensor and GNSS
-//! error generation, and `host-sim simulate`.
+//! `host-sim simulate`: motion scenarios and their truth and ideal IMU increments (the crate
+//! `nav-sim`, re-exported here as `scenario` and `trajectory`), sensor and GNSS error
+//! generation, case files.
 //!
 //! The split is explicit so Monte Carlo studies pay for the trajectory once:
 //! [`Trajectory::generate`] integrates a [`Scenario`] (error-free truth and increments), then
@@ -8,9 +9,12 @@
 pub mod case;
 pub mod cli;
 pub mod errors;
+pub mod odometer;
 pub mod plot;
-pub mod scenario;
-pub mod trajectory;
+/// The scenario format and its kinematic profiles (in `nav-sim`).
+pub use nav_sim::scenario;
+/// The truth generator (in `nav-sim`).
+pub use nav_sim::trajectory;
 pub mod undeclared;
 
 pub use case::{simulate, Case, CaseFile, SimError};

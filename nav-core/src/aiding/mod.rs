@@ -5,20 +5,24 @@
 //! * [`stationarity`]: the stationarity detector (window of IMU specific force and rate, GNSS
 //!   speed when present);
 //! * [`nhc`]: the non-holonomic constraint (lateral and vertical vehicle velocity ~ 0);
-//! * [`zupt`]: zero-velocity and zero-angular-rate updates at stops.
+//! * [`zupt`]: zero-velocity and zero-angular-rate updates at stops;
+//! * [`odometer`]: wheel speed, with an optional scale-factor state.
 //!
-//! [`Aiding`] runs them at IMU epochs: call [`Aiding::on_imu`] after every successful
-//! [`crate::filter::Filter::propagate`]. Every source is off by default ([`AidingConfig`]);
+//! [`Aiding`] runs them at IMU epochs: call [`Aiding::on_imu_with`] (or [`Aiding::on_imu`]
+//! without an odometer) after every successful [`crate::filter::Filter::propagate`]. Every source is off by default ([`AidingConfig`]);
 //! what each did is counted in [`AidingCounters`]. No allocation, no panics, fixed sizes.
 
 pub mod nhc;
+pub mod odometer;
 pub mod stationarity;
 pub mod zupt;
 
 use crate::earth;
 use crate::filter::{Filter, FilterError};
+use crate::model::BlockKind;
 use crate::scalar::Scalar;
 pub use nhc::NhcConfig;
+pub use odometer::OdometerConfig;
 pub use stationarity::{StationarityConfig, StationarityDetector, WindowStats};
 pub use zupt::{ZaruConfig, ZuptConfig};
 
@@ -36,6 +40,17 @@ pub struct AidingConfig {
     pub zupt: ZuptConfig,
     /// Zero-angular-rate update.
     pub zaru: ZaruConfig,
+    /// Odometer (wheel speed).
+    pub odometer: OdometerConfig,
+}
+
+/// What the caller knows at an IMU epoch besides the IMU ([`Aiding::on_imu_with`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AidingInputs {
+    /// `(fix time s, speed m/s)` of the latest GNSS velocity, if any.
+    pub gnss_speed: Option<(f64, f64)>,
+    /// The odometer's speed at this epoch (interpolated to it by the caller), m/s, if any.
+    pub odometer_speed_mps: Option<f64>,
 }
 
 /// An invalid aiding setting (names the field).
@@ -70,11 +85,31 @@ impl AidingConfig {
         nhc: NhcConfig::DEFAULT,
         zupt: ZuptConfig::DEFAULT,
         zaru: ZaruConfig::DEFAULT,
+        odometer: OdometerConfig::DEFAULT,
+    };
+
+    /// Land-vehicle aiding with the default settings: the non-holonomic constraint and the
+    /// zero-velocity and zero-rate updates on, the odometer off (the firmware's
+    /// `wire::CONFIG_LAND_AIDING`).
+    pub const LAND: Self = Self {
+        nhc: NhcConfig {
+            enabled: true,
+            ..NhcConfig::DEFAULT
+        },
+        zupt: ZuptConfig {
+            enabled: true,
+            ..ZuptConfig::DEFAULT
+        },
+        zaru: ZaruConfig {
+            enabled: true,
+            ..ZaruConfig::DEFAULT
+        },
+        ..Self::OFF
     };
 
     /// Whether any source is on.
     pub fn any_enabled(&self) -> bool {
-        self.nhc.enabled || self.zupt.enabled || self.zaru.enabled
+        self.nhc.enabled || self.zupt.enabled || self.zaru.enabled || self.odometer.enabled
     }
 
     /// Checks every threshold and sigma; the error names the first bad field.
@@ -132,6 +167,11 @@ impl AidingConfig {
         gate(self.zupt.nis_gate, "zupt.nis_gate")?;
         pos(self.zaru.sigma_radps, "zaru.sigma")?;
         gate(self.zaru.nis_gate, "zaru.nis_gate")?;
+        pos(self.odometer.sigma_mps, "odometer.sigma_mps")?;
+        if !self.odometer.lever_arm_m.iter().all(|v| v.is_finite()) {
+            return Err(NotFinite("odometer.lever_arm_m"));
+        }
+        gate(self.odometer.nis_gate, "odometer.nis_gate")?;
         Ok(())
     }
 }
@@ -162,6 +202,8 @@ pub struct AidingCounters {
     pub zupt: SourceCounters,
     /// Zero-angular-rate update.
     pub zaru: SourceCounters,
+    /// Odometer.
+    pub odometer: SourceCounters,
 }
 
 /// The aiding runner: the stationarity detector (window of at most `W` IMU samples), the
@@ -210,6 +252,19 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
     /// A numerical failure of one update is counted (`failed`) and the others go on; the
     /// filter stays usable, so this never fails for a numerical reason.
     pub fn on_imu<const N: usize>(&mut self, f: &mut Filter<T, N>, gnss_speed: Option<(f64, f64)>) {
+        self.on_imu_with(
+            f,
+            &AidingInputs {
+                gnss_speed,
+                odometer_speed_mps: None,
+            },
+        );
+    }
+
+    /// [`Self::on_imu`] with every input: also applies the odometer update at the aiding
+    /// epochs when a speed is given (moving or still).
+    pub fn on_imu_with<const N: usize>(&mut self, f: &mut Filter<T, N>, inputs: &AidingInputs) {
+        let gnss_speed = inputs.gnss_speed;
         if !self.cfg.any_enabled() {
             return;
         }
@@ -245,6 +300,23 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
             nav.vel_ned_mps.norm(),
         );
         let layout = *f.layout();
+        if let (true, Some(speed)) = (self.cfg.odometer.enabled, inputs.odometer_speed_mps) {
+            let k = f
+                .block_estimate(BlockKind::OdometerScale)
+                .and_then(|e| e.first().copied())
+                .unwrap_or(0.0);
+            let m = odometer::odometer_measurement::<T, N>(
+                &self.cfg.odometer,
+                &self.cfg.nhc.c_vb(),
+                &layout,
+                k,
+                f.nav_state(),
+                &step,
+                speed,
+            );
+            let res = f.update_aiding(&m.z_mps, &m.h, &m.r, self.cfg.odometer.nis_gate);
+            count(&mut self.counters.odometer, res);
+        }
         if self.stationary {
             self.counters.stationary_epochs = self.counters.stationary_epochs.saturating_add(1);
             if self.cfg.zupt.enabled {

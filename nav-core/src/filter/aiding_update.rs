@@ -1,15 +1,16 @@
 //! A generic gated vector measurement update for the aiding sources of [`crate::aiding`]
 //! (non-holonomic constraint, zero-velocity and zero-rate updates, ...): the caller gives the
 //! residual `z` = predicted minus measured, the Jacobian `H` (`z = H dx + v`, dx = estimate -
-//! truth) and a diagonal `R`; the update is gated by a chi-square threshold on the NIS, done in
-//! Joseph form, fed back into the nominal state (closed loop).
+//! truth) and a diagonal `R`; the update is gated by a hard chi-square threshold on the NIS and
+//! done by the filter's one gated Joseph-form update ([`super::gated`]), fed back into the
+//! nominal state (closed loop).
 //!
 //! Unlike [`Filter::update_gnss`] it does not touch the GNSS gate's state (consecutive
 //! rejections, the NIS monitor, resets) nor the GNSS counters: the aiding sources keep their own
 //! counts ([`crate::aiding::AidingCounters`]).
 
-use super::linalg::{all_finite, cholesky_solve, dot, forward_solve};
-use super::{diag_nonneg, discrete, get2, Filter, FilterError};
+use super::gated::Gate;
+use super::{get2, Filter, FilterError};
 use crate::scalar::Scalar;
 
 /// What an aiding update did.
@@ -45,63 +46,12 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(self.numerical_failure());
         }
         self.predict_covariance()?;
-        let z = z64.map(T::of_f64);
-        let r = r64.map(T::of_f64);
-        let (pht, _s, l) = self.innovation_cov(h, &r);
-        let Some(l) = l else {
-            return Err(self.numerical_failure());
-        };
-        let y = forward_solve(&l, &z);
-        let nis = dot(&y, &y).to_f64();
-        if !nis.is_finite() {
-            return Err(self.numerical_failure());
-        }
-        let mut out = AidingOutcome {
-            nis,
+        let g = self.gated_update(z64, h, r64, Gate::hard(nis_threshold), |_, _| {})?;
+        Ok(AidingOutcome {
+            nis: g.nis,
             threshold: nis_threshold,
-            accepted: false,
-        };
-        if nis > nis_threshold {
-            return Ok(out);
-        }
-        // K = P H^T S^-1
-        let mut k = [[T::ZERO; M]; N];
-        for (krow, phtrow) in k.iter_mut().zip(pht.iter()) {
-            *krow = cholesky_solve(&l, phtrow);
-        }
-        let mut dx = [T::ZERO; N];
-        for (d, krow) in dx.iter_mut().zip(k.iter()) {
-            *d = dot(krow, &z);
-        }
-        if !all_finite(&k) || !dx.iter().all(|v| v.finite()) {
-            return Err(self.numerical_failure());
-        }
-        // Joseph form, as in the GNSS update: AP = P - K (P H^T)^T; P = AP - (AP H^T - K R) K^T
-        let mut p = self.p;
-        for (prow, krow) in p.iter_mut().zip(k.iter()) {
-            for (pij, phtj) in prow.iter_mut().zip(pht.iter()) {
-                *pij -= dot(krow, phtj);
-            }
-        }
-        let mut y_mat = [[T::ZERO; M]; N];
-        for ((yrow, prow), krow) in y_mat.iter_mut().zip(p.iter()).zip(k.iter()) {
-            for (((yv, hrow), kv), rv) in yrow.iter_mut().zip(h).zip(krow).zip(r.iter()) {
-                *yv = dot(prow, hrow) - *kv * *rv;
-            }
-        }
-        for (i, (prow, yrow)) in p.iter_mut().zip(y_mat.iter()).enumerate() {
-            for (pij, kj) in prow.iter_mut().zip(k.iter()).skip(i) {
-                *pij -= dot(yrow, kj);
-            }
-        }
-        discrete::mirror_upper(&mut p);
-        if !all_finite(&p) || !diag_nonneg(&p) {
-            return Err(self.numerical_failure());
-        }
-        self.p = p;
-        self.feedback(&dx);
-        out.accepted = true;
-        Ok(out)
+            accepted: g.accepted,
+        })
     }
 
     /// Variance of error state `i` (units^2 of the state; 0 outside the layout).

@@ -16,6 +16,9 @@
 
 mod access;
 mod aiding_update;
+mod gapnoise;
+mod gated;
+mod gnss_vel;
 pub(crate) mod linalg;
 pub mod observe;
 pub mod robust;
@@ -27,16 +30,16 @@ use crate::config::{ConfigError, FilterConfig};
 use crate::earth;
 use crate::model::discrete::{self, Accumulator, Cov};
 use crate::model::{
-    BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, MeasContext, Regressors,
-    CORE_DIM, IDX_ATT, IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
+    BlockKind, ImuCorrection, InverseScales, Layout, LayoutError, Regressors, CORE_DIM, IDX_ATT,
+    IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
 };
 use crate::scalar::Scalar;
 use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
-use linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
+use linalg::{all_finite, cholesky_in_place, dot};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use observe::{CovObserver, PredictionRecord};
-use robust::{igg3_weight, GateState, RejectedFix, RobustStats, MIN_WEIGHT};
+use robust::{GateState, RejectedFix, RobustStats};
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
 pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
@@ -152,6 +155,12 @@ pub struct Counters {
     pub gnss_invalid: u32,
     /// Numerical failures (prediction or update skipped).
     pub numerical_failures: u32,
+    /// GNSS velocities used by their own update ([`crate::config::Gating::velocity`]).
+    pub gnss_vel_accepted: u32,
+    /// Of those, used with an inflated R (IGG-III down-weighting).
+    pub gnss_vel_downweighted: u32,
+    /// GNSS velocities rejected by their own gate.
+    pub gnss_vel_rejected: u32,
 }
 
 /// What a GNSS update did. Vectors hold `dim` valid entries: north, east, down position (m),
@@ -206,6 +215,9 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// Error-state corrections fed back since the last covariance prediction (summed), for
     /// [`observe::PredictionRecord::correction`].
     fed_back: [T; N],
+    /// Fill noise waiting for the next prediction (body-axis variances of attitude, velocity,
+    /// position; [`Filter::widen_for_fill`]).
+    fill_var: [f64; 9],
 }
 
 /// A block's estimate and 1-sigma ([`Filter::block_value`]): `dim` valid entries, SI units of
@@ -289,6 +301,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
+            fill_var: [0.0; 9],
         })
     }
 
@@ -399,6 +412,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         let mut p = self.p;
         discrete::predict_covariance(&mut p, &d);
+        self.add_fill_noise(&mut p);
         if !all_finite(&p) || !diag_nonneg(&p) {
             return Err(self.numerical_failure());
         }
@@ -432,102 +446,38 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(FilterError::GnssTime { offset_s: dt_fix });
         }
         self.predict_covariance()?;
-
-        let c = dcm_f64(&nav.q_nb);
-        let l = Vector3::from(self.lever_arm_body_m());
-        let w = self.last_step.omega_ib_body_radps;
-        let c_l = c * l;
-        let c_w_x_l = c * w.cross(&l);
-        let c_lx = c * l.cross_matrix();
-        // time offset: the fix is the antenna at IMU time t_fix + dt_hat, tau after this epoch
-        let time_offset = self.layout.contains(BlockKind::TimeOffset);
-        let tau = dt_fix + self.time_offset_s();
-        let lat = nav.pos.lat_rad;
-        let v_ant0 = nav.vel_ned_mps + c_w_x_l;
-        let acc_n = if time_offset {
-            self.last_step.f_ned_mps2 + earth::gravity_ned_mps2(lat, nav.pos.h_m)
-        } else {
-            Vector3::zeros()
-        };
-        // local curvilinear map (that of `earth::displace` and of the position error; it
-        // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
-        let (sl, cl) = (libm::sin(lat), libm::cos(lat));
-        let d = 1.0 - earth::E2 * sl * sl;
-        let sd = libm::sqrt(d);
-        let rn = earth::A_M / sd + nav.pos.h_m;
-        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
-        let w_in = {
-            let v = &nav.vel_ned_mps;
-            let w = earth::OMEGA_IE_RADPS;
-            Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn))
-        };
-        let ctx = MeasContext {
-            c_l: c_l.into(),
-            c_w_x_l: c_w_x_l.into(),
-            c_lx: c_lx.transpose().into(),
-            omega_b_radps: w.into(),
-            c_nb: c.transpose().into(),
-            f_b_mps2: self.last_step.f_body_mps2.into(),
-            temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
-            // d/d(dt) of the predicted antenna position v_ant tau + a tau^2 / 2
-            v_ant_ned_mps: (v_ant0 + acc_n * tau).into(),
-            acc_ned_mps2: acc_n.into(),
-            bridge_s: tau,
-            lever_bridge_s: if time_offset { tau } else { 0.0 },
-            w_in_ned_radps: w_in.into(),
-            f_ned_mps2: self.last_step.f_ned_mps2.into(),
-        };
-        let mut h_pos = [[T::ZERO; N]; 3];
-        let mut h_vel = [[T::ZERO; N]; 3];
-        for (off, b) in self.layout.iter() {
-            b.gnss_jacobian(off, &ctx, &mut h_pos, &mut h_vel);
-        }
-        // predicted antenna position at the fix time minus the measured one, NED m
-        let mut dlon = fix.lon_rad - nav.pos.lon_rad;
-        if dlon > core::f64::consts::PI {
-            dlon -= 2.0 * core::f64::consts::PI;
-        } else if dlon < -core::f64::consts::PI {
-            dlon += 2.0 * core::f64::consts::PI;
-        }
-        let meas_off = Vector3::new(
-            (fix.lat_rad - lat) * rm,
-            dlon * rn * cl,
-            nav.pos.h_m - fix.h_m,
-        );
-        let zp = if time_offset {
-            // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
-            c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
-        } else {
-            c_l + nav.vel_ned_mps * dt_fix - meas_off
-        };
+        let m = self.gnss_model(fix, dt_fix);
         let rp = fix.pos_std_ned_m.map(|s| s * s);
         let force = self.cfg.gating.max_consecutive_rejections > 0
             && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
-        let zp_a = [zp.x, zp.y, zp.z];
+        if let (true, true, Some(vg)) = (
+            self.cfg.use_gnss_velocity,
+            fix.has_velocity,
+            self.cfg.gating.velocity,
+        ) {
+            return self.update_gnss_separate(fix, dt_fix, &m, &rp, force, vg);
+        }
         let (out, zv) = if self.cfg.use_gnss_velocity && fix.has_velocity {
-            let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
-            if time_offset {
-                v_ant += acc_n * tau;
-            }
-            let zv = v_ant - Vector3::from(fix.vel_ned_mps);
             let rv = fix.vel_std_ned_mps.map(|s| s * s);
             let [rv0, rv1, rv2] = rv;
             let [rp0, rp1, rp2] = rp;
-            let [a, b, cc] = h_pos;
-            let [d, e, f] = h_vel;
+            let [zp0, zp1, zp2] = m.zp;
+            let [zv0, zv1, zv2] = m.zv;
+            let [a, b, cc] = m.h_pos;
+            let [d, e, f] = m.h_vel;
             let out = self.kalman_update::<6>(
-                &[zp.x, zp.y, zp.z, zv.x, zv.y, zv.z],
+                &[zp0, zp1, zp2, zv0, zv1, zv2],
                 &[a, b, cc, d, e, f],
                 &[rp0, rp1, rp2, rv0, rv1, rv2],
                 force,
                 fix.t_s,
             )?;
-            (out, Some(([zv.x, zv.y, zv.z], rv)))
+            (out, Some((m.zv, rv)))
         } else {
-            let out = self.kalman_update::<3>(&zp_a, &h_pos, &rp, force, fix.t_s)?;
+            let out = self.kalman_update::<3>(&m.zp, &m.h_pos, &rp, force, fix.t_s)?;
             (out, None)
         };
-        Ok(self.after_update(out, &zp_a, &rp, zv))
+        Ok(self.after_update(out, &m.zp, &rp, zv))
     }
 
     /// Bookkeeping after the gate decided: counters, status bits, the NIS monitor, and the
@@ -700,102 +650,37 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         t_s: f64,
     ) -> Result<UpdateOutcome, FilterError> {
         let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
-        let z = z64.map(T::of_f64);
-        let mut r = r64.map(T::of_f64);
-        let (pht, s, l) = self.innovation_cov(h, &r);
+        let normal_reject = th.normal_reject;
+        let g = self.gated_update(
+            z64,
+            h,
+            r64,
+            gated::Gate {
+                downweight: th.downweight,
+                reject: th.reject,
+            },
+            |f, nis| f.gate.last_within_normal_gate = nis <= normal_reject,
+        )?;
         let mut out = UpdateOutcome {
             t_s,
             dim: M,
             innovation: [0.0; 6],
             innovation_var: [0.0; 6],
-            nis: f64::NAN,
+            nis: g.nis,
             nis_threshold: th.reject,
-            accepted: false,
+            accepted: g.accepted,
             forced: false,
-            weight: 0.0,
+            weight: g.weight,
         };
-        for (i, zi) in z64.iter().enumerate() {
+        for (i, (zi, si)) in z64.iter().zip(g.s_diag.iter()).enumerate() {
             if let Some(o) = out.innovation.get_mut(i) {
                 *o = -*zi;
             }
             if let Some(o) = out.innovation_var.get_mut(i) {
-                *o = get2(&s, i, i).to_f64();
+                *o = *si;
             }
         }
-        let Some(mut l) = l else {
-            return Err(self.numerical_failure());
-        };
-        let y = forward_solve(&l, &z);
-        let nis = dot(&y, &y).to_f64();
-        out.nis = nis;
-        if !nis.is_finite() {
-            return Err(self.numerical_failure());
-        }
-        self.gate.last_within_normal_gate = nis <= th.normal_reject;
-        let weight = if nis <= th.downweight {
-            1.0
-        } else {
-            igg3_weight(nis, th.downweight, th.reject)
-        };
-        if !(nis <= th.reject && weight >= MIN_WEIGHT) {
-            out.forced = force;
-            return Ok(out);
-        }
-        if weight < 1.0 {
-            // R / w: only the diagonal of S changes (P H^T does not)
-            let k = T::of_f64(1.0 / weight);
-            let mut s2 = s;
-            for (i, rv) in r.iter_mut().enumerate() {
-                let extra = *rv * k - *rv;
-                *rv *= k;
-                if let Some(x) = s2.get_mut(i).and_then(|row| row.get_mut(i)) {
-                    *x += extra;
-                }
-            }
-            if !cholesky_in_place(&mut s2) {
-                return Err(self.numerical_failure());
-            }
-            l = s2;
-        }
-        // K = P H^T S^-1 (row i solves S k_i = (P H^T)_i)
-        let mut k = [[T::ZERO; M]; N];
-        for (krow, phtrow) in k.iter_mut().zip(pht.iter()) {
-            *krow = cholesky_solve(&l, phtrow);
-        }
-        let mut dx = [T::ZERO; N];
-        for (d, krow) in dx.iter_mut().zip(k.iter()) {
-            *d = dot(krow, &z);
-        }
-        if !all_finite(&k) || !dx.iter().all(|v| v.finite()) {
-            return Err(self.numerical_failure());
-        }
-        // Joseph form P = (I - K H) P (I - K H)^T + K R K^T, in place:
-        // AP = P - K (P H^T)^T;  P = AP - (AP H^T - K R) K^T  (upper triangle, mirrored)
-        let mut p = self.p;
-        for (prow, krow) in p.iter_mut().zip(k.iter()) {
-            for (pij, phtj) in prow.iter_mut().zip(pht.iter()) {
-                *pij -= dot(krow, phtj);
-            }
-        }
-        let mut y_mat = [[T::ZERO; M]; N];
-        for ((yrow, prow), krow) in y_mat.iter_mut().zip(p.iter()).zip(k.iter()) {
-            for (((yv, hrow), kv), rv) in yrow.iter_mut().zip(h).zip(krow).zip(r.iter()) {
-                *yv = dot(prow, hrow) - *kv * *rv;
-            }
-        }
-        for (i, (prow, yrow)) in p.iter_mut().zip(y_mat.iter()).enumerate() {
-            for (pij, kj) in prow.iter_mut().zip(k.iter()).skip(i) {
-                *pij -= dot(yrow, kj);
-            }
-        }
-        discrete::mirror_upper(&mut p);
-        if !all_finite(&p) || !diag_nonneg(&p) {
-            return Err(self.numerical_failure());
-        }
-        self.p = p;
-        self.feedback(&dx);
-        out.accepted = true;
-        out.weight = weight;
+        out.forced = !g.accepted && force;
         Ok(out)
     }
 

@@ -85,6 +85,11 @@ pub enum Block {
     /// modelled: on a land vehicle they are driven almost only by gravity (f ~ (0, 0, -g)),
     /// i.e. they act as a constant gyro bias and are absorbed by the gyro-bias states.
     GyroGSensitivity,
+    /// `odometer_scale`: 1 state, the scale-factor error `k` of a wheel-speed odometer
+    /// (dimensionless): measured speed = `(1 + k)` true speed ([`crate::aiding::odometer`]).
+    /// Measurement-only (no IMU coupling); not in [`EFFECT_BLOCKS`] (an aiding sensor, not an
+    /// IMU effect). Prior and process noise: `EffectsConfig::odometer_scale`.
+    OdometerScale,
 }
 
 /// What a block estimates, independent of its model (for accessors).
@@ -115,6 +120,8 @@ pub enum BlockKind {
     GyroTemperatureBias,
     /// [`Block::GyroGSensitivity`].
     GyroGSensitivity,
+    /// [`Block::OdometerScale`].
+    OdometerScale,
 }
 
 /// Every effect block (issue 7's vocabulary), in the order of their names in the
@@ -145,7 +152,7 @@ impl Block {
             | Self::GyroTemperatureBias
             | Self::GyroGSensitivity => 3,
             Self::AccelMisalignment | Self::GyroMisalignment => 6,
-            Self::TimeOffset => 1,
+            Self::TimeOffset | Self::OdometerScale => 1,
         }
     }
 
@@ -164,6 +171,7 @@ impl Block {
             Self::AccelTemperatureBias => BlockKind::AccelTemperatureBias,
             Self::GyroTemperatureBias => BlockKind::GyroTemperatureBias,
             Self::GyroGSensitivity => BlockKind::GyroGSensitivity,
+            Self::OdometerScale => BlockKind::OdometerScale,
         }
     }
 
@@ -182,6 +190,7 @@ impl Block {
             Self::AccelTemperatureBias => "accel_temperature_bias",
             Self::GyroTemperatureBias => "gyro_temperature_bias",
             Self::GyroGSensitivity => "gyro_g_sensitivity",
+            Self::OdometerScale => "odometer_scale",
         }
     }
 
@@ -197,7 +206,7 @@ impl Block {
             Self::Core => "rad, m/s, m",
             Self::GyroBias(_) => "rad/s",
             Self::AccelBias(_) => "m/s^2",
-            Self::GyroScaleFactor | Self::AccelScaleFactor => "1",
+            Self::GyroScaleFactor | Self::AccelScaleFactor | Self::OdometerScale => "1",
             Self::AccelMisalignment | Self::GyroMisalignment => "rad",
             Self::LeverArm => "m",
             Self::TimeOffset => "s",
@@ -219,6 +228,7 @@ impl Block {
             Self::AccelTemperatureBias => Some(e.accel_temperature),
             Self::GyroTemperatureBias => Some(e.gyro_temperature),
             Self::GyroGSensitivity => Some(e.gyro_g_sensitivity),
+            Self::OdometerScale => Some(e.odometer_scale),
             Self::Core
             | Self::GyroBias(_)
             | Self::AccelBias(_)
@@ -290,7 +300,7 @@ impl Block {
                 add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.f_b));
             }
             // measurement-only blocks
-            Self::LeverArm | Self::TimeOffset => {}
+            Self::LeverArm | Self::TimeOffset | Self::OdometerScale => {}
         }
     }
 
@@ -406,7 +416,7 @@ impl Block {
                     *a += *e;
                 }
             }
-            Self::LeverArm | Self::TimeOffset => {}
+            Self::LeverArm | Self::TimeOffset | Self::OdometerScale => {}
         }
     }
 
@@ -420,7 +430,8 @@ impl Block {
             | Self::AccelMisalignment
             | Self::GyroMisalignment
             | Self::LeverArm
-            | Self::TimeOffset => None,
+            | Self::TimeOffset
+            | Self::OdometerScale => None,
             other => Some(other.kind()),
         }
     }
@@ -528,7 +539,8 @@ impl Block {
             Self::AccelBias(_)
             | Self::AccelScaleFactor
             | Self::AccelMisalignment
-            | Self::AccelTemperatureBias => {}
+            | Self::AccelTemperatureBias
+            | Self::OdometerScale => {}
         }
     }
 
@@ -548,7 +560,8 @@ impl Block {
             | Self::TimeOffset
             | Self::AccelTemperatureBias
             | Self::GyroTemperatureBias
-            | Self::GyroGSensitivity => {
+            | Self::GyroGSensitivity
+            | Self::OdometerScale => {
                 for (e, d) in est.iter_mut().zip(dx) {
                     *e -= *d;
                 }

@@ -193,7 +193,8 @@ pub mod model {
 pub struct Config {
     /// Filter model id (see [`model`]).
     pub model: u8,
-    /// Option bits: bit 0 = use GNSS velocity when a fix carries one; other bits 0.
+    /// Option bits: bit 0 = use GNSS velocity when a fix carries one ([`CONFIG_USE_GNSS_VELOCITY`]);
+    /// bit 1 = land-vehicle aiding ([`CONFIG_LAND_AIDING`]); other bits 0.
     pub flags: u8,
     /// Send one navigation solution every `nav_divider` IMU epochs (0 = none).
     pub nav_divider: u16,
@@ -207,6 +208,10 @@ pub struct Config {
 
 /// Config flag: use GNSS velocity measurements when present.
 pub const CONFIG_USE_GNSS_VELOCITY: u8 = 0x01;
+
+/// Config flag: land-vehicle aiding on the board: the non-holonomic constraint and the
+/// zero-velocity / zero-rate updates at stops, with `nav_core::aiding`'s default settings.
+pub const CONFIG_LAND_AIDING: u8 = 0x02;
 
 /// Health and counters of a board. Fixed layout, 44 bytes, all u32.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -350,9 +350,10 @@ fn static_alignment(
             ),
             _ => "check the IMU time stamps of the window, or give [init.given]".into(),
         };
-        RunError::Init(format!(
-            "static alignment on {t_a:.3} .. {t_b:.3} s: {e}; {way_out}"
-        ))
+        RunError::Align {
+            msg: format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}; {way_out}"),
+            source: e,
+        }
     })?;
     let st = static_start(
         &al,
@@ -533,12 +534,14 @@ fn motion_alignment(
         gravity_mps2: earth::gravity_mps2(p0.lat_rad, p0.h_m),
     });
     let mcfg = MotionAlignConfig::default();
-    let mut al = motion_align(v0.into(), v_std, level.as_ref(), &mcfg).map_err(|e| {
-        RunError::Init(format!(
-            "in-motion alignment ({why}): {e}; give [init.given] or start where the vehicle \
-             stands still or drives faster"
-        ))
-    })?;
+    let mut al =
+        motion_align(v0.into(), v_std, level.as_ref(), &mcfg).map_err(|e| RunError::Align {
+            msg: format!(
+                "in-motion alignment ({why}): {e}; give [init.given] or start where the \
+                 vehicle stands still or drives faster"
+            ),
+            source: e,
+        })?;
     let heading = match sa.heading_rad {
         Some(y) => {
             al.rpy_rad[2] = y;

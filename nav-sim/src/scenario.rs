@@ -119,6 +119,10 @@ pub struct Vehicle {
     /// 0.02 to 0.05).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub bounce_mps: f64,
+    /// A wheel-speed odometer (`[vehicle.odometer]`): the case gets `odometer.txt`
+    /// ([`super::odometer`]); none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odometer: Option<super::odometer::WheelSpeedSpec>,
 }
 
 fn default_roll_per_g() -> f64 {
@@ -135,6 +139,7 @@ impl Default for Vehicle {
             turn_ramp_s: default_turn_ramp(),
             slip_deg_per_mps2: 0.0,
             bounce_mps: 0.0,
+            odometer: None,
         }
     }
 }
@@ -315,6 +320,21 @@ impl Scenario {
                 "vehicle.roll_per_g_deg = {} or turn_ramp_s = {} out of range",
                 v.roll_per_g_deg, v.turn_ramp_s
             )));
+        }
+        if let Some(o) = &v.odometer {
+            if !(o.rate_hz.is_finite()
+                && o.rate_hz > 0.0
+                && o.scale.is_finite()
+                && o.sigma_mps.is_finite()
+                && o.sigma_mps >= 0.0
+                && o.lever_arm_m.iter().all(|x| x.is_finite()))
+            {
+                return Err(ScenarioError::Invalid(format!(
+                    "vehicle.odometer: rate_hz = {} (> 0), scale = {}, sigma_mps = {} (>= 0) \
+                     or lever_arm_m out of range",
+                    o.rate_hz, o.scale, o.sigma_mps
+                )));
+            }
         }
         if self.segments.is_empty() {
             return Err(ScenarioError::Invalid("no [[segment]]".into()));

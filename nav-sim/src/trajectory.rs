@@ -1,18 +1,20 @@
-//! Truth trajectory and ideal IMU increments by inverse mechanization.
+//! A scenario integrated into its truth trajectory and ideal IMU increments.
 //!
-//! The vehicle's position (latitude, longitude, height) and heading are integrated with RK4
-//! at `imu.rate_hz * imu.substeps` from the smooth scenario kinematics; speed, pitch and roll
-//! are closed-form. At every internal stage the simulator evaluates, with `nav_core::earth`,
+//! The compiled scenario ([`Profile`]: speed, pitch, roll, yaw rate, side slip and bounce as
+//! closed-form functions of time) is the [`Motion`] [`ProfileMotion`]; the one integrator
+//! ([`Integrator`]) carries position and the heading of the velocity (course) with RK4 at
+//! `imu.rate_hz * imu.substeps` and integrates, in the same RK4 scheme,
 //!
 //! - `omega_ib^b = omega_nb^b + C_n^b (omega_ie^n + omega_en^n)` (omega_nb^b from the Euler
 //!   angle rates), and
 //! - `f^b = C_n^b (dv^n/dt + (2 omega_ie^n + omega_en^n) x v^n - g^n)`,
 //!
-//! and integrates them in the same RK4 scheme, so the increments `dtheta = int omega_ib^b dt`
-//! and `dv = int f^b dt` over each IMU interval are those a real IMU outputs, exact to the
-//! RK4 truncation error (far below any sensor noise, see the convergence test).
+//! so the increments `dtheta = int omega_ib^b dt` and `dv = int f^b dt` over each IMU interval
+//! are those a real IMU outputs, exact to the RK4 truncation error (far below any sensor
+//! noise, see host-sim's convergence test).
 
-use super::scenario::{Kinematics, Profile, Scenario, ScenarioError};
+use crate::motion::{BodyKinematics, Integrator, Motion};
+use crate::scenario::{Kinematics, Profile, Scenario, ScenarioError};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use nav_core::earth::{self, Llh};
 use nav_core::strapdown::NavState;
@@ -66,121 +68,59 @@ pub fn wrap_pi(a: f64) -> f64 {
     x
 }
 
-/// ODE state: lat, lon, h, yaw, int omega_ib^b, int f^b.
-type State = [f64; 10];
-
-/// Everything the inverse mechanization computes at one instant.
+/// A compiled scenario as a [`Motion`]: the integrator's heading state is the heading of the
+/// velocity (course); the body yaw is the course minus the side slip.
 #[derive(Debug, Clone, Copy)]
-pub struct Instant {
-    /// Kinematics from the profile.
-    pub kin: Kinematics,
-    /// Yaw, rad.
-    pub yaw_rad: f64,
-    /// NED velocity, m/s.
-    pub vel_ned_mps: Vector3<f64>,
-    /// Angular rate of the body w.r.t. inertial space in body axes, rad/s.
-    pub omega_ib_b_radps: Vector3<f64>,
-    /// Specific force in body axes, m/s^2.
-    pub f_b_mps2: Vector3<f64>,
-    /// Rate of (lat rad/s, lon rad/s, height m/s).
-    pub llh_rate: Vector3<f64>,
+pub struct ProfileMotion<'a>(pub &'a Profile);
+
+impl ProfileMotion<'_> {
+    /// The profile's kinematics at `t` (s after the start) and the NED velocity (m/s) for
+    /// course `course_rad` (rad).
+    pub fn velocity(&self, t: f64, course_rad: f64) -> (Kinematics, Vector3<f64>) {
+        let kin = self.0.eval(t);
+        let (st, ct) = kin.pitch_rad.sin_cos();
+        let (sp, cp) = course_rad.sin_cos();
+        let u = Vector3::new(ct * cp, ct * sp, -st);
+        let v = u * kin.speed_mps + Vector3::new(0.0, 0.0, kin.bounce_vel_mps);
+        (kin, v)
+    }
 }
 
-/// Earth terms at one position and velocity: the formulas of `nav_core::earth` (earth rate,
-/// transport rate, llh rate from the same WGS84 radii; gravity by `earth::gravity_ned_mps2`)
-/// evaluated with one sine/cosine of latitude (the test `earth_terms_match_nav_core` checks
-/// them against `nav_core::earth` to 1e-15 relative).
-struct EarthTerms {
-    w_ie: Vector3<f64>,
-    w_en: Vector3<f64>,
-    g: Vector3<f64>,
-    llh_rate: Vector3<f64>,
-}
-
-impl EarthTerms {
-    fn new(lat: f64, h: f64, v: &Vector3<f64>) -> Self {
-        let (sl, cl) = lat.sin_cos();
-        let d = 1.0 - earth::E2 * sl * sl;
-        let sd = d.sqrt();
-        let rn = earth::A_M / sd + h;
-        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + h;
-        Self {
-            w_ie: Vector3::new(earth::OMEGA_IE_RADPS * cl, 0.0, -earth::OMEGA_IE_RADPS * sl),
-            w_en: Vector3::new(v.y / rn, -v.x / rm, -v.y * sl / (cl * rn)),
-            g: earth::gravity_ned_mps2(lat, h),
-            llh_rate: Vector3::new(v.x / rm, v.y / (rn * cl), -v.z),
+impl Motion for ProfileMotion<'_> {
+    fn at(&self, t: f64, course_rad: f64) -> BodyKinematics {
+        let kin = self.0.eval(t);
+        let (st, ct) = kin.pitch_rad.sin_cos();
+        let (sp, cp) = course_rad.sin_cos();
+        let (sf, cf) = kin.roll_rad.sin_cos();
+        let u = Vector3::new(ct * cp, ct * sp, -st);
+        let s = kin.speed_mps;
+        let v = u * s;
+        let (qd, rd, pd) = (
+            kin.pitch_rate_radps,
+            kin.yaw_rate_radps,
+            kin.roll_rate_radps,
+        );
+        let du = Vector3::new(
+            -st * qd * cp - ct * sp * rd,
+            -st * qd * sp + ct * cp * rd,
+            -ct * qd,
+        );
+        let a_n = u * kin.speed_dot_mps2 + du * s + Vector3::new(0.0, 0.0, kin.bounce_acc_mps2);
+        let v = v + Vector3::new(0.0, 0.0, kin.bounce_vel_mps);
+        let yaw_b = course_rad - kin.slip_rad;
+        let rd_b = rd - kin.slip_rate_radps;
+        BodyKinematics {
+            vel_ned_mps: v,
+            acc_ned_mps2: a_n,
+            c_bn: dcm_from_euler(kin.roll_rad, kin.pitch_rad, yaw_b),
+            omega_nb_b_radps: Vector3::new(
+                pd - rd_b * st,
+                qd * cf + rd_b * sf * ct,
+                -qd * sf + rd_b * cf * ct,
+            ),
+            heading_rate_radps: kin.yaw_rate_radps,
         }
     }
-}
-
-/// The inverse mechanization at relative time `t` for position/yaw `y`.
-fn instant(prof: &Profile, t: f64, y: &State) -> Instant {
-    let kin = prof.eval(t);
-    // y[3] is the heading of the velocity (course); the body yaw is the course minus the side
-    // slip (zero without slip)
-    let (lat, h, yaw) = (y[0], y[2], y[3]);
-    let (st, ct) = kin.pitch_rad.sin_cos();
-    let (sp, cp) = yaw.sin_cos();
-    let (sf, cf) = kin.roll_rad.sin_cos();
-    let u = Vector3::new(ct * cp, ct * sp, -st);
-    let s = kin.speed_mps;
-    let v = u * s;
-    let (qd, rd, pd) = (
-        kin.pitch_rate_radps,
-        kin.yaw_rate_radps,
-        kin.roll_rate_radps,
-    );
-    let du = Vector3::new(
-        -st * qd * cp - ct * sp * rd,
-        -st * qd * sp + ct * cp * rd,
-        -ct * qd,
-    );
-    let a_n = u * kin.speed_dot_mps2 + du * s + Vector3::new(0.0, 0.0, kin.bounce_acc_mps2);
-    let v = v + Vector3::new(0.0, 0.0, kin.bounce_vel_mps);
-    let e = EarthTerms::new(lat, h, &v);
-    let (w_ie, w_en, g) = (e.w_ie, e.w_en, e.g);
-    let f_n = a_n + (2.0 * w_ie + w_en).cross(&v) - g;
-    let yaw_b = yaw - kin.slip_rad;
-    let rd = rd - kin.slip_rate_radps;
-    let c_bn = dcm_from_euler(kin.roll_rad, kin.pitch_rad, yaw_b);
-    let c_nb = c_bn.transpose();
-    let w_nb_b = Vector3::new(
-        pd - rd * st,
-        qd * cf + rd * sf * ct,
-        -qd * sf + rd * cf * ct,
-    );
-    Instant {
-        kin,
-        yaw_rad: yaw,
-        vel_ned_mps: v,
-        omega_ib_b_radps: w_nb_b + c_nb * (w_ie + w_en),
-        f_b_mps2: c_nb * f_n,
-        llh_rate: e.llh_rate,
-    }
-}
-
-fn deriv(prof: &Profile, t: f64, y: &State) -> State {
-    let i = instant(prof, t, y);
-    [
-        i.llh_rate.x,
-        i.llh_rate.y,
-        i.llh_rate.z,
-        i.kin.yaw_rate_radps,
-        i.omega_ib_b_radps.x,
-        i.omega_ib_b_radps.y,
-        i.omega_ib_b_radps.z,
-        i.f_b_mps2.x,
-        i.f_b_mps2.y,
-        i.f_b_mps2.z,
-    ]
-}
-
-fn axpy(y: &State, a: f64, k: &State) -> State {
-    let mut o = *y;
-    for (oi, ki) in o.iter_mut().zip(k) {
-        *oi += a * ki;
-    }
-    o
 }
 
 impl Trajectory {
@@ -189,41 +129,28 @@ impl Trajectory {
         let prof = scenario.compile()?;
         let dt = scenario.dt_s();
         let n = (prof.duration_s / dt).round() as usize;
-        let sub = scenario.imu.substeps as usize;
-        let h = dt / sub as f64;
         let st = &scenario.start;
         let t0 = st.sow_s;
-        let mut y: State = [0.0; 10];
-        y[0] = st.lat_deg.to_radians();
-        y[1] = st.lon_deg.to_radians();
-        y[2] = st.h_m;
-        y[3] = st.heading_deg.to_radians();
+        let start = Llh {
+            lat_rad: st.lat_deg.to_radians(),
+            lon_rad: st.lon_deg.to_radians(),
+            h_m: st.h_m,
+        };
+        let motion = ProfileMotion(&prof);
+        let mut integ = Integrator::new(
+            motion,
+            start,
+            st.heading_deg.to_radians(),
+            t0,
+            dt,
+            scenario.imu.substeps,
+        );
         let mut truth = Vec::with_capacity(n + 1);
         let mut imu = Vec::with_capacity(n);
-        truth.push(Self::record(&prof, st.gps_week, t0, 0.0, &y));
-        for k in 0..n {
-            let tk = k as f64 * dt;
-            for j in 0..sub {
-                let t = tk + j as f64 * h;
-                let k1 = deriv(&prof, t, &y);
-                let k2 = deriv(&prof, t + 0.5 * h, &axpy(&y, 0.5 * h, &k1));
-                let k3 = deriv(&prof, t + 0.5 * h, &axpy(&y, 0.5 * h, &k2));
-                let k4 = deriv(&prof, t + h, &axpy(&y, h, &k3));
-                for i in 0..10 {
-                    y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-                }
-            }
-            let t_rel = (k + 1) as f64 * dt;
-            imu.push(ImuSample {
-                t_s: t0 + t_rel,
-                dtheta_rad: [y[4], y[5], y[6]],
-                dv_mps: [y[7], y[8], y[9]],
-                temperature_c: f64::NAN,
-            });
-            for v in &mut y[4..10] {
-                *v = 0.0;
-            }
-            truth.push(Self::record(&prof, st.gps_week, t0, t_rel, &y));
+        truth.push(Self::record(&integ, st.gps_week));
+        for _ in 0..n {
+            imu.push(integ.step());
+            truth.push(Self::record(&integ, st.gps_week));
         }
         Ok(Self {
             scenario: scenario.clone(),
@@ -235,20 +162,20 @@ impl Trajectory {
         })
     }
 
-    fn record(prof: &Profile, week: u16, t0: f64, t_rel: f64, y: &State) -> NavSolution {
-        let i = instant(prof, t_rel, y);
+    /// The truth record of the integrator's current epoch.
+    fn record(integ: &Integrator<ProfileMotion<'_>>, week: u16) -> NavSolution {
+        let t_rel = integ.t_rel_s();
+        let course = integ.heading_rad();
+        let (kin, v) = integ.motion().velocity(t_rel, course);
+        let p = integ.pos();
         NavSolution {
             week,
-            t_s: t0 + t_rel,
-            lat_rad: y[0],
-            lon_rad: y[1],
-            h_m: y[2],
-            vel_ned_mps: [i.vel_ned_mps.x, i.vel_ned_mps.y, i.vel_ned_mps.z],
-            rpy_rad: [
-                i.kin.roll_rad,
-                i.kin.pitch_rad,
-                wrap_pi(y[3] - i.kin.slip_rad),
-            ],
+            t_s: integ.t0_s() + t_rel,
+            lat_rad: p.lat_rad,
+            lon_rad: p.lon_rad,
+            h_m: p.h_m,
+            vel_ned_mps: [v.x, v.y, v.z],
+            rpy_rad: [kin.roll_rad, kin.pitch_rad, wrap_pi(course - kin.slip_rad)],
             pos_std_ned_m: [f64::NAN; 3],
             vel_std_ned_mps: [f64::NAN; 3],
             att_std_rad: [f64::NAN; 3],
@@ -377,38 +304,5 @@ pub fn nav_state_of(s: &NavSolution) -> NavState {
         },
         vel_ned_mps: Vector3::from(s.vel_ned_mps),
         q_nb: UnitQuaternion::from_euler_angles(s.rpy_rad[0], s.rpy_rad[1], s.rpy_rad[2]),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn earth_terms_match_nav_core() {
-        for &(lat_deg, h, vn, ve, vd) in &[
-            (48.2, 220.0, 10.0, -3.0, 0.5),
-            (-33.9, -20.0, -25.0, 12.0, -1.0),
-            (70.0, 3000.0, 0.0, 30.0, 0.0),
-        ] {
-            let lat = f64::to_radians(lat_deg);
-            let v = Vector3::new(vn, ve, vd);
-            let e = EarthTerms::new(lat, h, &v);
-            let pos = Llh {
-                lat_rad: lat,
-                lon_rad: 0.3,
-                h_m: h,
-            };
-            let close = |a: Vector3<f64>, b: Vector3<f64>| {
-                assert!(
-                    (a - b).norm() <= 1e-15 * b.norm().max(1e-300),
-                    "{a:?} {b:?}"
-                )
-            };
-            close(e.w_ie, earth::earth_rate_ned_radps(lat));
-            close(e.w_en, earth::transport_rate_ned_radps(lat, h, &v));
-            close(e.g, earth::gravity_ned_mps2(lat, h));
-            close(e.llh_rate, earth::llh_rate(&pos, &v));
-        }
     }
 }

@@ -342,8 +342,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
 ) -> Result<RunOutput, RunError> {
     let mut cfg = opts.filter;
     cfg.lever_arm_body_m = opts.lever_arm_m;
-    cfg.validate()
-        .map_err(|e| RunError::Options(format!("filter configuration: {e}")))?;
+    cfg.validate().map_err(RunError::FilterConfig)?;
     let mut outages = opts.outages.clone();
     outage::normalise(&mut outages).map_err(RunError::Options)?;
 
@@ -516,7 +515,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             [Some(pp), Some(p)] if (p.t_s - t0).abs() < 1e-9 => Some((p, p.t_s - pp.t_s)),
             _ => None,
         };
-        ImuGuard::new(gcfg, t0, prev).map_err(|e| RunError::Options(e.to_string()))?
+        ImuGuard::new(gcfg, t0, prev).map_err(RunError::Guard)?
     };
     let mut imu_report = ImuReport {
         nominal_dt_s: guard.config().nominal_dt_s,
@@ -607,6 +606,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 break 'imu;
             }
         }
+        filter.widen_for_fill(&c.fill.uncertainty());
         match filter.propagate_observed(&c.sample, &mut rec) {
             Ok(()) => aid.after_imu(&mut filter, &mut rec),
             Err(FilterError::NonFiniteImu) => {

@@ -1,0 +1,225 @@
+//! `record`: raw bytes from a port into a capture file.
+
+use super::*;
+use crate::capture::{CaptureHeader, CaptureWriter, Record};
+use crate::serial;
+use crate::status::{decoder_summary, StatusLine};
+use anyhow::{bail, Context};
+use nav_core::wire::{DecoderStats, FrameDecoder};
+use std::io::{BufWriter, Read};
+use std::path::PathBuf;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// `record` options.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RecordArgs {
+    /// Serial port (device path; pseudo-terminals by path).
+    #[arg(long)]
+    pub port: String,
+    /// Baud rate.
+    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    pub baud: u32,
+    /// Capture file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Stop after this many seconds.
+    #[arg(long, value_parser = parse_seconds)]
+    pub duration: Option<f64>,
+    /// Stop when no byte arrived for this many seconds after the first byte (before it, only
+    /// `--duration` and `--first-byte-timeout` stop the recording).
+    #[arg(long, value_parser = parse_timeout)]
+    pub idle_exit: Option<f64>,
+    /// Fail (exit 1) when no byte at all arrived within this many seconds of the start.
+    #[arg(long, value_parser = parse_timeout)]
+    pub first_byte_timeout: Option<f64>,
+    /// When the port is lost, try to reopen it for at most this many seconds, then stop and
+    /// report the capture incomplete (exit 2); without it, retry until another stop condition.
+    #[arg(long, value_parser = parse_timeout)]
+    pub reopen_timeout: Option<f64>,
+    /// The recording starts before the sender: every stream begins at sequence number 0, so
+    /// frames lost before a stream's first delivered frame are counted too (stored in the
+    /// capture header, used by `replay`).
+    #[arg(long)]
+    pub streams_from_start: bool,
+    /// Do not decode frames for the status line (e.g. when recording a GNSS receiver).
+    #[arg(long)]
+    pub raw: bool,
+    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge send`
+    /// on the same emulated board's pty) can use it at the same time.
+    #[arg(long)]
+    pub shared: bool,
+    /// No live status line.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl RecordArgs {
+    /// Recording `port` into `out` with the defaults of the command line (no stop condition
+    /// set: set `duration` or `idle_exit`).
+    pub fn new(port: impl Into<String>, out: impl Into<PathBuf>) -> Self {
+        Self {
+            port: port.into(),
+            baud: DEFAULT_BAUD,
+            out: out.into(),
+            duration: None,
+            idle_exit: None,
+            first_byte_timeout: None,
+            reopen_timeout: None,
+            streams_from_start: false,
+            raw: false,
+            shared: false,
+            quiet: true,
+        }
+    }
+}
+
+fn now_unix_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+}
+
+/// What `record` captured.
+#[derive(Debug, Clone, Default)]
+pub struct RecordOutcome {
+    /// Live decoder counters (zero with `--raw`).
+    pub stats: DecoderStats,
+    /// Data records written.
+    pub records: u64,
+    /// Data bytes written.
+    pub bytes: u64,
+    /// Link-reset events written (port lost).
+    pub link_resets: u64,
+    /// Why the capture is incomplete (the port vanished and did not come back within
+    /// `--reopen-timeout`); `None` when the recording ended by a stop condition.
+    pub incomplete: Option<String>,
+}
+
+/// `record`: raw bytes with receive timestamps into a capture file, live status on stderr.
+/// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
+/// reopened until it comes back or a stop condition is met.
+pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
+    let file = std::fs::File::create(&a.out)
+        .with_context(|| format!("creating capture {}", a.out.display()))?;
+    let header = CaptureHeader {
+        port: a.port.clone(),
+        baud: a.baud,
+        start_unix_ns: now_unix_ns(),
+        tool: format!("hw-bridge {}", env!("CARGO_PKG_VERSION")),
+        streams_from_start: a.streams_from_start,
+    };
+    let werr =
+        |e: std::io::Error| anyhow::Error::new(e).context(format!("writing {}", a.out.display()));
+    let mut w = CaptureWriter::new(BufWriter::new(file), &header).map_err(werr)?;
+    let timeout = Duration::from_millis(50);
+    let mut port = Some(serial::open_with(&a.port, a.baud, timeout, a.shared)?);
+    // One line, even with --quiet: scripts (and the pty test) wait for it before sending.
+    eprintln!("recording {} -> {}", a.port, a.out.display());
+    let start = Instant::now();
+    let mut last_data: Option<Instant> = None;
+    let mut lost_at: Option<Instant> = None;
+    let mut dec = FrameDecoder::new();
+    if a.streams_from_start {
+        dec.expect_stream_starts();
+    }
+    let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
+    let mut buf = vec![0u8; 8192];
+    let mut out = RecordOutcome::default();
+    let duration = a.duration.map(secs);
+    let idle = a.idle_exit.map(secs);
+    let first_byte = a.first_byte_timeout.map(secs);
+    let reopen = a.reopen_timeout.map(secs);
+    let t_ns = |start: Instant| u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
+    loop {
+        let now = Instant::now();
+        let elapsed = now.saturating_duration_since(start);
+        if duration.is_some_and(|d| elapsed >= d) {
+            break;
+        }
+        if let (Some(d), Some(last)) = (idle, last_data) {
+            if now.saturating_duration_since(last) >= d {
+                break;
+            }
+        }
+        if let (Some(d), None) = (first_byte, last_data) {
+            if elapsed >= d {
+                w.flush().map_err(werr)?;
+                bail!(
+                    "no byte from {} within --first-byte-timeout {} s (the capture {} holds no data)",
+                    a.port,
+                    d.as_secs_f64(),
+                    a.out.display()
+                );
+            }
+        }
+        let Some(p) = port.as_mut() else {
+            if let (Some(d), Some(t)) = (reopen, lost_at) {
+                if now.saturating_duration_since(t) >= d {
+                    out.incomplete = Some(format!(
+                        "port {} lost and not back within --reopen-timeout {} s",
+                        a.port,
+                        d.as_secs_f64()
+                    ));
+                    break;
+                }
+            }
+            std::thread::sleep(Duration::from_millis(100));
+            port = serial::open_with(&a.port, a.baud, timeout, a.shared).ok();
+            if port.is_some() {
+                lost_at = None;
+            }
+            continue;
+        };
+        // A read of 0 bytes after the port polled readable is an end of file: the other side
+        // hung up (a pty whose master closed). It is a lost link, like an error.
+        let read = match p.read(&mut buf) {
+            Ok(0) => Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "end of file (the other side hung up)",
+            )),
+            r => r,
+        };
+        match read {
+            Ok(n) => {
+                let data = buf.get(..n).unwrap_or_default();
+                last_data = Some(Instant::now());
+                w.write(&Record::Data {
+                    t_ns: t_ns(start),
+                    bytes: data.to_vec(),
+                })
+                .map_err(werr)?;
+                w.flush().map_err(werr)?;
+                out.records += 1;
+                out.bytes += n as u64;
+                if !a.raw {
+                    dec.feed(data).for_each(drop);
+                }
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => {
+                if !a.quiet {
+                    eprintln!("\nport {}: {e}; reopening", a.port);
+                }
+                port = None;
+                lost_at = Some(Instant::now());
+                w.write(&Record::LinkReset { t_ns: t_ns(start) })
+                    .map_err(werr)?;
+                w.flush().map_err(werr)?;
+                out.link_resets += 1;
+                dec.reset_link();
+            }
+        }
+        let s = *dec.stats();
+        let el = start.elapsed().as_secs_f64();
+        status.update(u64::from(s.frames_ok), false, || {
+            format!("{el:7.1} s  {}", decoder_summary(&s))
+        });
+    }
+    let s = *dec.stats();
+    status.update(u64::from(s.frames_ok), true, || decoder_summary(&s));
+    status.finish();
+    w.flush().map_err(werr)?;
+    out.stats = s;
+    Ok(out)
+}

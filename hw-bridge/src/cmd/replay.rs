@@ -1,0 +1,448 @@
+//! `replay`: a capture decoded into text files, or streamed back out to a port.
+
+use super::*;
+use crate::capture::{CaptureError, CaptureReader, Record};
+use crate::frames::FrameLog;
+use crate::outputs::{partial_name, rename, write_atomically, FrameFiles};
+use crate::serial;
+use crate::status::decoder_report;
+use anyhow::{bail, Context};
+use nav_core::types::GnssFix;
+use nav_core::wire::{DecoderStats, FrameDecoder, Payload};
+use nav_io::gnss::{GnssEvent, GnssStream, NmeaOptions};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Default of `replay --max-gap`, s.
+pub const DEFAULT_MAX_GAP_S: f64 = 10.0;
+
+/// What `replay` decodes the capture as.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InputKind {
+    /// Wire-protocol frames (a navigation board or `hw-bridge send`).
+    #[default]
+    Frames,
+    /// A GNSS receiver's NMEA and/or UBX output.
+    Gnss,
+}
+
+/// `replay` options.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReplayArgs {
+    /// Capture file written by `record`.
+    pub capture: PathBuf,
+    /// Replay at this multiple of the recorded timing, in [0.001, 1e6] (default: 1 with
+    /// `--to-port`, else as fast as possible).
+    #[arg(long, conflicts_with = "as_fast_as_possible", value_parser = parse_speed)]
+    pub speed: Option<f64>,
+    /// Longest pause between two records when pacing, in recorded seconds: a larger jump of
+    /// the recorded time (a link down for minutes, a damaged timestamp) is paced as this long
+    /// and counted. Timestamps going backwards are counted and not waited for.
+    #[arg(long, default_value_t = DEFAULT_MAX_GAP_S, value_parser = parse_timeout)]
+    pub max_gap: f64,
+    /// Ignore the recorded timing.
+    #[arg(long)]
+    pub as_fast_as_possible: bool,
+    /// Also write the recorded bytes, in the recorded chunks, to this port.
+    #[arg(long)]
+    pub to_port: Option<String>,
+    /// Baud rate of `--to-port`.
+    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    pub baud: u32,
+    /// Directory for imu.txt, gnss.txt, nav.txt, health.txt and replay-summary.txt.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// What the capture contains.
+    #[arg(long, value_enum, default_value_t = InputKind::Frames)]
+    pub input: InputKind,
+    /// GPS - UTC leap seconds for NMEA input.
+    #[arg(long, default_value_t = 18)]
+    pub leap_seconds: i64,
+    /// Print every rejected chunk with its byte offset.
+    #[arg(long)]
+    pub verbose: bool,
+    /// Run the host filter on the decoded IMU and GNSS frames as `host-sim run --config`
+    /// does on files (same model, noise, initialisation, outages), writing its `nav.txt`,
+    /// `std.txt`, `bias.txt`, `innovations.txt` and `metrics.json` into `--out`. The
+    /// configuration's own data files (or `--case`'s) are read for the truth, week and
+    /// outages; the IMU samples and GNSS fixes come from the capture.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// A case directory written by `host-sim simulate` (truth, outages, GPS week), as in
+    /// `host-sim run --case`.
+    #[arg(long, requires = "config")]
+    pub case: Option<PathBuf>,
+    /// Error-state model for `--config` (default: the configuration's).
+    #[arg(long, value_enum, requires = "config")]
+    pub model: Option<nav_engine::run::Model>,
+    /// f32 covariance (as on the MCU) for `--config`.
+    #[arg(long, requires = "config")]
+    pub f32: bool,
+}
+
+impl ReplayArgs {
+    /// Arguments for decoding `capture` as fast as possible, without a port or outputs.
+    pub fn new(capture: impl Into<PathBuf>) -> Self {
+        Self {
+            capture: capture.into(),
+            speed: None,
+            max_gap: DEFAULT_MAX_GAP_S,
+            as_fast_as_possible: true,
+            to_port: None,
+            baud: DEFAULT_BAUD,
+            out: None,
+            input: InputKind::Frames,
+            leap_seconds: 18,
+            verbose: false,
+            config: None,
+            case: None,
+            model: None,
+            f32: false,
+        }
+    }
+}
+
+/// The result of a replay.
+#[derive(Debug, Default)]
+pub struct ReplayOutcome {
+    /// Decoded frames (frame input).
+    pub log: FrameLog,
+    /// Decoder counters (frame input).
+    pub stats: DecoderStats,
+    /// GNSS fixes (GNSS receiver input).
+    pub gnss_fixes: Vec<GnssFix>,
+    /// Bytes in the capture.
+    pub bytes: u64,
+    /// Records in the capture.
+    pub records: u64,
+    /// Recorded duration (last record time), s.
+    pub recorded_s: f64,
+    /// A truncated last record, if any (every complete record was replayed).
+    pub truncated: Option<String>,
+    /// Why the replay is incomplete (a truncated or corrupt record ended it: every record
+    /// before it was replayed); `None` when the whole capture was replayed.
+    pub incomplete: Option<String>,
+    /// Bytes of garbage skipped before the capture's magic.
+    pub skipped_bytes: u64,
+    /// Records identical to the previous one (same time and bytes, which a recorder cannot
+    /// write): skipped, not replayed.
+    pub duplicate_records: u64,
+    /// Pacing: timestamps at or before the previous record's (replayed without waiting) and
+    /// jumps longer than `--max-gap` (paced as `--max-gap`).
+    pub timing: TimingStats,
+    /// IMU samples left out of the host filter's input (`--config`) and of `imu.txt` because
+    /// their time is not after the previous sample's (duplicated or reordered frames).
+    pub imu_out_of_order: u64,
+    /// GNSS fixes left out of the filter's input and `gnss.txt` for the same reason.
+    pub gnss_out_of_order: u64,
+    /// Wall time of the replay (decoding, and the filter run with `--config`), s.
+    pub wall_s: f64,
+    /// The host filter's run on the decoded frames (`--config`).
+    pub filter: Option<FilterRun>,
+}
+
+/// Irregular timestamps met while replaying.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct TimingStats {
+    /// Records whose time is before the previous record's.
+    pub backwards: u64,
+    /// Gaps longer than `--max-gap` (each paced as `--max-gap`).
+    pub clamped_gaps: u64,
+    /// Recorded time the pacing followed (gaps clamped, backward steps ignored), ns.
+    pub paced_ns: u64,
+}
+
+/// Paces a replay: recorded record times in, the (recorded-time) instant each record is due
+/// at out, with saturating arithmetic and validated steps.
+#[derive(Debug, Clone)]
+pub struct Pacer {
+    max_gap_ns: u64,
+    prev: u64,
+    /// Counters.
+    pub stats: TimingStats,
+}
+
+impl Pacer {
+    /// A pacer allowing gaps up to `max_gap_s` (recorded seconds).
+    pub fn new(max_gap_s: f64) -> Self {
+        Self {
+            max_gap_ns: u64::try_from(secs(max_gap_s).as_nanos()).unwrap_or(u64::MAX),
+            prev: 0,
+            stats: TimingStats::default(),
+        }
+    }
+
+    /// The paced time of a record recorded at `t_ns`, ns since the capture start (the first
+    /// record is measured from 0, the capture's start).
+    pub fn advance(&mut self, t_ns: u64) -> u64 {
+        match t_ns.checked_sub(self.prev) {
+            None => self.stats.backwards += 1,
+            Some(gap) if gap > self.max_gap_ns => {
+                self.stats.clamped_gaps += 1;
+                self.stats.paced_ns = self.stats.paced_ns.saturating_add(self.max_gap_ns);
+            }
+            Some(gap) => self.stats.paced_ns = self.stats.paced_ns.saturating_add(gap),
+        }
+        self.prev = t_ns;
+        self.stats.paced_ns
+    }
+}
+
+/// Longest time `replay --to-port` waits for the port to take a byte.
+pub const TO_PORT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How often a replay flushes its `.partial` outputs.
+pub const CHECKPOINT: Duration = Duration::from_secs(1);
+
+/// Whether `t` can follow `last` in a time series (finite and strictly after it).
+fn in_order(t: f64, last: Option<f64>) -> bool {
+    t.is_finite() && last.is_none_or(|l| t > l)
+}
+
+/// `replay`: decode a capture (reproducing its chunking, and its timing with `--speed`), write
+/// the frames it contains in the project's text formats as they are decoded (under `.partial`
+/// names, renamed at the end), optionally stream it to a port. A truncated or corrupt record
+/// ends the replay early: every record before it is replayed and the outcome says
+/// [`ReplayOutcome::incomplete`].
+pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
+    let cap = a.capture.display();
+    let file = std::fs::File::open(&a.capture).with_context(|| format!("opening capture {cap}"))?;
+    let mut rd = CaptureReader::new(std::io::BufReader::new(file))
+        .with_context(|| format!("reading capture {cap}"))?;
+    if rd.skipped_bytes() > 0 {
+        eprintln!(
+            "warning: {cap}: skipped {} bytes before the capture header",
+            rd.skipped_bytes()
+        );
+    }
+    let speed = match (a.as_fast_as_possible, a.speed, &a.to_port) {
+        (true, _, _) => None,
+        (false, Some(s), _) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Some(s),
+        (false, Some(s), _) => bail!("--speed {s} is outside [{MIN_SPEED}, {MAX_SPEED}]"),
+        (false, None, Some(_)) => Some(1.0),
+        (false, None, None) => None,
+    };
+    let mut port = match &a.to_port {
+        Some(p) => Some(serial::open_for_writing(p, a.baud, TO_PORT_TIMEOUT, false)?),
+        None => None,
+    };
+    let mut out = ReplayOutcome {
+        skipped_bytes: rd.skipped_bytes(),
+        ..ReplayOutcome::default()
+    };
+    let mut files = match &a.out {
+        Some(dir) if a.input == InputKind::Frames => Some(FrameFiles::new(dir, CHECKPOINT)?),
+        _ => None,
+    };
+    let mut dec = FrameDecoder::new();
+    if rd.header().streams_from_start {
+        dec.expect_stream_starts();
+    }
+    let mut gnss = GnssStream::new(NmeaOptions {
+        leap_seconds: a.leap_seconds,
+        ..NmeaOptions::default()
+    });
+    let mut pacer = Pacer::new(a.max_gap);
+    let mut prev_data: Option<(u64, Vec<u8>)> = None;
+    let (mut last_imu_t, mut last_gnss_t) = (None, None);
+    let start = Instant::now();
+    loop {
+        let rec = match rd.next_record() {
+            Ok(Some(r)) => r,
+            Ok(None) => break,
+            Err(e) => {
+                let what = format!("{e}; replayed every record before it");
+                eprintln!("warning: {cap}: {what}");
+                if matches!(e, CaptureError::TruncatedRecord { .. }) {
+                    out.truncated = Some(e.to_string());
+                }
+                out.incomplete = Some(what);
+                break;
+            }
+        };
+        if let Record::Data { t_ns, bytes } = &rec {
+            if prev_data
+                .as_ref()
+                .is_some_and(|(t, b)| t == t_ns && b == bytes)
+            {
+                out.duplicate_records += 1;
+                continue;
+            }
+            prev_data = Some((*t_ns, bytes.clone()));
+        }
+        out.records += 1;
+        out.recorded_s = rec.t_ns() as f64 * 1e-9;
+        let paced_ns = pacer.advance(rec.t_ns());
+        if let Some(s) = speed {
+            let due = secs(paced_ns as f64 * 1e-9 / s);
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
+        match rec {
+            Record::LinkReset { .. } => dec.reset_link(),
+            Record::Data { bytes, .. } => {
+                out.bytes += bytes.len() as u64;
+                if let Some(p) = port.as_mut() {
+                    serial::write_all_within(p.as_mut(), &bytes, TO_PORT_TIMEOUT).with_context(
+                        || format!("writing to --to-port (no byte taken for {TO_PORT_TIMEOUT:?}?)"),
+                    )?;
+                }
+                match a.input {
+                    InputKind::Frames => {
+                        for r in dec.feed(&bytes) {
+                            let f = match r {
+                                Ok(f) => f,
+                                Err(e) => {
+                                    if a.verbose {
+                                        eprintln!("rejected chunk: {e}");
+                                    }
+                                    continue;
+                                }
+                            };
+                            out.log.frames.push(f);
+                            match f.payload {
+                                Payload::Imu(i) => {
+                                    if !in_order(i.sample.t_s, last_imu_t) {
+                                        out.imu_out_of_order += 1;
+                                        continue;
+                                    }
+                                    last_imu_t = Some(i.sample.t_s);
+                                    out.log.imu.push(i.sample);
+                                    out.log.imu_status.push(i.status);
+                                    if let Some(w) = files.as_mut() {
+                                        w.imu(&i.sample)?;
+                                    }
+                                }
+                                Payload::Gnss(g) => {
+                                    if !in_order(g.t_s, last_gnss_t) {
+                                        out.gnss_out_of_order += 1;
+                                        continue;
+                                    }
+                                    last_gnss_t = Some(g.t_s);
+                                    out.log.gnss.push(g);
+                                    if let Some(w) = files.as_mut() {
+                                        w.gnss(&g)?;
+                                    }
+                                }
+                                Payload::Nav(n) => {
+                                    out.log.nav.push(n);
+                                    if let Some(w) = files.as_mut() {
+                                        w.nav(&n)?;
+                                    }
+                                }
+                                Payload::Health(h) => {
+                                    out.log.health.push(h);
+                                    if let Some(w) = files.as_mut() {
+                                        w.health(&h)?;
+                                    }
+                                }
+                                Payload::Config(c) => out.log.config.push(c),
+                            }
+                        }
+                    }
+                    InputKind::Gnss => {
+                        for ev in gnss.feed(&bytes) {
+                            match ev {
+                                GnssEvent::Fix(f) => out.gnss_fixes.push(f),
+                                GnssEvent::Error(e) if a.verbose => eprintln!("{e}"),
+                                GnssEvent::Error(_) => {}
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    if a.input == InputKind::Gnss {
+        out.gnss_fixes
+            .extend(gnss.finish().into_iter().filter_map(|e| match e {
+                GnssEvent::Fix(f) => Some(f),
+                GnssEvent::Error(_) => None,
+            }));
+    }
+    out.stats = *dec.stats();
+    out.timing = pacer.stats;
+    if out.timing.backwards + out.timing.clamped_gaps > 0 {
+        eprintln!(
+            "warning: {cap}: {} record time(s) went backwards, {} gap(s) over --max-gap {} s (paced as --max-gap)",
+            out.timing.backwards, out.timing.clamped_gaps, a.max_gap
+        );
+    }
+    if out.imu_out_of_order + out.gnss_out_of_order > 0 {
+        eprintln!(
+            "warning: {cap}: left out {} IMU sample(s) and {} GNSS fix(es) whose time is not after the previous one (duplicated or reordered frames)",
+            out.imu_out_of_order, out.gnss_out_of_order
+        );
+    }
+    out.wall_s = start.elapsed().as_secs_f64();
+    // The decoded files and the summary first: a filter run that fails leaves them in place.
+    if let Some(dir) = &a.out {
+        if let Some(w) = files.take() {
+            w.finish(&out.log.imu)?;
+        }
+        write_outputs(dir, &out, a.input, &gnss)?;
+    }
+    if let Some(cfg) = &a.config {
+        if a.input != InputKind::Frames {
+            bail!("--config runs the filter on wire frames: not with --input gnss");
+        }
+        out.filter = Some(run_filter_on_frames(
+            &out.log,
+            cfg,
+            a.case.as_deref(),
+            a.model,
+            a.f32,
+        )?);
+        out.wall_s = start.elapsed().as_secs_f64();
+        if let (Some(dir), Some(f)) = (&a.out, &out.filter) {
+            write_filter_outputs(dir, f)?;
+        }
+    }
+    Ok(out)
+}
+
+/// Writes `replay-summary.txt` (and, for GNSS input, `gnss.txt`), each through a `.partial`
+/// name and a rename.
+fn write_outputs(
+    dir: &Path,
+    o: &ReplayOutcome,
+    input: InputKind,
+    gnss: &GnssStream,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let mut summary = format!(
+        "status {}\ncapture records {}\ncapture bytes {}\nrecorded duration {:.3} s\n",
+        match &o.incomplete {
+            None => "complete".to_string(),
+            Some(why) => format!("incomplete: {why}"),
+        },
+        o.records,
+        o.bytes,
+        o.recorded_s
+    );
+    summary.push_str(&format!(
+        "skipped bytes before header {}\nduplicate records skipped {}\nrecord times backwards {}\ngaps over --max-gap {}\n",
+        o.skipped_bytes, o.duplicate_records, o.timing.backwards, o.timing.clamped_gaps
+    ));
+    if let Some(t) = &o.truncated {
+        summary.push_str(&format!("warning: {t}\n"));
+    }
+    match input {
+        InputKind::Frames => {
+            summary.push_str(&format!(
+                "imu samples out of order (left out) {}\ngnss fixes out of order (left out) {}\n",
+                o.imu_out_of_order, o.gnss_out_of_order
+            ));
+            summary.push_str(&decoder_report(&o.stats));
+        }
+        InputKind::Gnss => {
+            let p = dir.join("gnss.txt");
+            let tmp = partial_name(&p);
+            nav_io::write_gnss_text(&tmp, &o.gnss_fixes)?;
+            rename(&tmp, &p)?;
+            summary.push_str(&format!("{:?}\n", gnss.stats()));
+        }
+    }
+    write_atomically(&dir.join("replay-summary.txt"), summary.as_bytes())
+}

@@ -1,0 +1,12 @@
+#![doc = include_str!("../README.md")]
+#![deny(missing_docs)]
+
+pub mod metrics;
+pub mod mounting;
+pub mod run;
+pub mod smooth;
+
+pub use metrics::Metrics;
+pub use run::execute::{execute, execute_case, execute_streaming};
+pub use run::prepare::{load, Loaded, Prepared, RunSpec};
+pub use run::{run_filter, run_stream, CaseData, RunError, RunOptions, RunOutput};

@@ -1,0 +1,415 @@
+//! Checks of the configured IMU mounting against the data (issue 15). The body frame is FRD
+//! (x forward, y right, z down); after the configured mounting rotation the increments are in
+//! body axes. Two cues:
+//!
+//! * **turns**: while the vehicle moves (GNSS horizontal speed >= [`MIN_SPEED_MPS`]) the body z
+//!   gyro must turn WITH the GNSS course: over GNSS intervals with a course rate of at least
+//!   [`MIN_TURN_RATE_DEG_S`] the least-squares slope of the mean z rate against the course
+//!   rate is close to +1 for a correct mounting (cos of the tilt), near -1 for an upside-down
+//!   z axis and near 0 for a horizontal one;
+//! * **gravity at rest**: while the GNSS speed stays below [`REST_SPEED_MPS`], the mean
+//!   specific force points along body -z (about (0, 0, -g)).
+//!
+//! Either cue that contradicts the mounting gives a warning naming it and the way out.
+//!
+//! # Estimating the mounting ([`estimate_mounting`], `host-sim mounting --config FILE`)
+//!
+//! From IMU increments in SENSOR axes (the configured mounting ignored) and the GNSS fixes:
+//! 1. the data are reduced to pairs (measured mean specific force and z rate over an interval,
+//!    expected body values): at rest the specific force is (0, 0, -g); while moving (GNSS
+//!    speed >= [`MIN_SPEED_MPS`]) the GNSS acceleration between consecutive interval
+//!    velocities, minus gravity, turned by the course and the climb angle into a level-roll
+//!    vehicle frame, gives the expected (along-track, lateral, vertical) specific force, and
+//!    the course rate the expected body z rate;
+//! 2. each of the 24 axis layouts (signed permutations with determinant +1) is scored by the
+//!    RMS of (layout x measured - expected) over all pairs (rates weighted by the speed, so
+//!    that both are m/s^2); the best layout and the runner-up's residual are reported;
+//! 3. the fine angles: the rotation that best maps the measured specific forces onto the
+//!    expected ones (Wahba's problem, solved by SVD), started from the best layout: roll and
+//!    pitch come mostly from gravity, yaw from the along-track vs lateral acceleration;
+//! 4. one-sigma of the angles from the residual scatter: roll/pitch ~ rms / (g sqrt(n)),
+//!    yaw ~ rms / (rms horizontal acceleration sqrt(n_moving)).
+
+use nalgebra::{Matrix3, Vector3};
+use nav_core::attitude::euler_zyx_from_dcm;
+use nav_core::earth::{self, Llh};
+use nav_core::types::{GnssFix, ImuSample};
+
+/// Lowest GNSS horizontal speed for the course to be used, m/s.
+pub const MIN_SPEED_MPS: f64 = 3.0;
+/// Lowest course rate of an interval used in the turn test, deg/s.
+pub const MIN_TURN_RATE_DEG_S: f64 = 3.0;
+/// Highest GNSS speed counted as rest, m/s.
+pub const REST_SPEED_MPS: f64 = 0.1;
+/// Fewest turning intervals for a verdict from the turns.
+pub const MIN_TURN_INTERVALS: usize = 5;
+
+/// What the data say about the configured mounting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MountingCheck {
+    /// Least-squares slope of the body z rate against the GNSS course rate (+1 expected), and
+    /// the number of turning intervals it is from; None with too few turns.
+    pub turn_slope: Option<(f64, usize)>,
+    /// Mean specific force at rest, body axes, m/s^2, and the seconds of rest it is from.
+    pub rest_f_body_mps2: Option<([f64; 3], f64)>,
+    /// Warnings (empty when the data agree with the mounting).
+    pub warnings: Vec<String>,
+}
+
+fn llh(g: &GnssFix) -> Llh {
+    Llh {
+        lat_rad: g.lat_rad,
+        lon_rad: g.lon_rad,
+        h_m: g.h_m,
+    }
+}
+
+/// Horizontal NED velocity of the interval a -> b: the fixes' own velocities averaged when
+/// both have one, otherwise the position difference.
+fn interval_velocity(a: &GnssFix, b: &GnssFix) -> [f64; 2] {
+    if a.has_velocity && b.has_velocity {
+        [
+            0.5 * (a.vel_ned_mps[0] + b.vel_ned_mps[0]),
+            0.5 * (a.vel_ned_mps[1] + b.vel_ned_mps[1]),
+        ]
+    } else {
+        let d = earth::ned_offset_m(&llh(a), &llh(b));
+        let dt = b.t_s - a.t_s;
+        [d.x / dt, d.y / dt]
+    }
+}
+
+fn wrap_pi(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}
+
+/// Sum of increments of `imu` (time order) with times in (t0, t1], and the time they span.
+fn sums(imu: &[ImuSample], t0: f64, t1: f64) -> ([f64; 3], [f64; 3], f64) {
+    let i0 = imu.partition_point(|s| s.t_s <= t0);
+    let i1 = imu.partition_point(|s| s.t_s <= t1);
+    let (mut th, mut dv) = ([0.0; 3], [0.0; 3]);
+    let mut prev = imu.get(i0.wrapping_sub(1)).map(|s| s.t_s);
+    let mut span = 0.0;
+    for s in imu.get(i0..i1).unwrap_or(&[]) {
+        for k in 0..3 {
+            th[k] += s.dtheta_rad[k];
+            dv[k] += s.dv_mps[k];
+        }
+        if let Some(p) = prev {
+            span += s.t_s - p;
+        }
+        prev = Some(s.t_s);
+    }
+    (th, dv, span)
+}
+
+/// Checks body-axis increments `imu` against the GNSS fixes `gnss` (see the module notes).
+pub fn check_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
+    let fixes: Vec<&GnssFix> = gnss.iter().filter(|g| g.is_valid()).collect();
+    let (mut sxy, mut sxx, mut n_turn) = (0.0, 0.0, 0usize);
+    let (mut f_rest, mut t_rest) = ([0.0; 3], 0.0);
+    // course of the previous interval: (mid time, course rad)
+    let mut prev_course: Option<(f64, f64)> = None;
+    for w in fixes.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let dt = b.t_s - a.t_s;
+        if !(dt > 0.0 && dt <= 5.0) {
+            prev_course = None;
+            continue;
+        }
+        let [vn, ve] = interval_velocity(a, b);
+        let speed = vn.hypot(ve);
+        let mid = 0.5 * (a.t_s + b.t_s);
+        if speed <= REST_SPEED_MPS {
+            let (_, dv, span) = sums(imu, a.t_s, b.t_s);
+            if span > 0.0 {
+                for k in 0..3 {
+                    f_rest[k] += dv[k];
+                }
+                t_rest += span;
+            }
+        }
+        if speed < MIN_SPEED_MPS {
+            prev_course = None;
+            continue;
+        }
+        let course = ve.atan2(vn);
+        if let Some((tp, cp)) = prev_course {
+            let rate = wrap_pi(course - cp) / (mid - tp);
+            if rate.abs() >= MIN_TURN_RATE_DEG_S.to_radians() {
+                let (th, _, span) = sums(imu, tp, mid);
+                if span > 0.0 {
+                    let wz = th[2] / span;
+                    sxy += wz * rate;
+                    sxx += rate * rate;
+                    n_turn += 1;
+                }
+            }
+        }
+        prev_course = Some((mid, course));
+    }
+    let turn_slope = (n_turn >= MIN_TURN_INTERVALS && sxx > 0.0).then(|| (sxy / sxx, n_turn));
+    let rest = (t_rest >= 1.0).then(|| (f_rest.map(|v| v / t_rest), t_rest));
+    let mut warnings = Vec::new();
+    if let Some((s, n)) = turn_slope {
+        if s < -0.5 {
+            warnings.push(format!(
+                "the body z gyro turns AGAINST the GNSS course (slope {s:.2} over {n} turning \
+                 intervals, +1 expected): the IMU z axis points up in the configured mounting; \
+                 fix [imu.mounting] rpy_deg (for example add 180 deg of roll)"
+            ));
+        } else if s < 0.5 {
+            warnings.push(format!(
+                "the body z gyro hardly follows the GNSS course (slope {s:.2} over {n} turning \
+                 intervals, +1 expected): the configured [imu.mounting] does not put an IMU \
+                 axis vertical"
+            ));
+        }
+    }
+    if let Some((f, t)) = rest {
+        let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+        if norm > 0.0 && -f[2] / norm < 0.9 {
+            warnings.push(format!(
+                "at rest ({t:.1} s) the mean specific force in body axes is [{:.2}, {:.2}, \
+                 {:.2}] m/s^2, not along -z: the configured [imu.mounting] tilts the body by \
+                 {:.0} deg",
+                f[0],
+                f[1],
+                f[2],
+                (-f[2] / norm).clamp(-1.0, 1.0).acos().to_degrees()
+            ));
+        }
+    }
+    MountingCheck {
+        turn_slope,
+        rest_f_body_mps2: rest,
+        warnings,
+    }
+}
+
+/// The 24 axis layouts: signed permutation matrices with determinant +1 (x_body = L x_imu).
+pub fn axis_layouts() -> Vec<Matrix3<f64>> {
+    let perms = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    let mut out = Vec::with_capacity(24);
+    for p in perms {
+        for signs in 0..8u8 {
+            let mut m = Matrix3::zeros();
+            for (row, &col) in p.iter().enumerate() {
+                m[(row, col)] = if signs & (1 << row) != 0 { -1.0 } else { 1.0 };
+            }
+            if m.determinant() > 0.0 {
+                out.push(m);
+            }
+        }
+    }
+    out
+}
+
+/// One reduced observation: measured (sensor axes) vs expected (body axes).
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    f_meas: Vector3<f64>,
+    f_exp: Vector3<f64>,
+    w_meas: Vector3<f64>,
+    /// Expected body z rate (course rate), rad/s; None at rest (rate expected 0 there too
+    /// but not used).
+    wz_exp: Option<f64>,
+    speed: f64,
+    moving: bool,
+}
+
+/// The `[imu.mounting]` estimated from the data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MountingEstimate {
+    /// Roll, pitch, yaw to paste into `[imu.mounting] rpy_deg`, deg.
+    pub rpy_deg: [f64; 3],
+    /// One-sigma of the three angles, deg.
+    pub sigma_deg: [f64; 3],
+    /// Best axis layout (x_body = L x_imu).
+    pub layout: Matrix3<f64>,
+    /// RMS residual of the best layout (before the fine angles), m/s^2.
+    pub best_residual_mps2: f64,
+    /// RMS residual of the runner-up layout, m/s^2.
+    pub runner_up_residual_mps2: f64,
+    /// RMS residual after the fine angles, m/s^2.
+    pub final_residual_mps2: f64,
+    /// Intervals used at rest and while moving.
+    pub rest_intervals: usize,
+    /// Intervals used while moving.
+    pub moving_intervals: usize,
+}
+
+fn pairs(imu: &[ImuSample], gnss: &[GnssFix]) -> Vec<Pair> {
+    let fixes: Vec<&GnssFix> = gnss.iter().filter(|g| g.is_valid()).collect();
+    let mut out = Vec::new();
+    // previous moving interval: (mid time, NED velocity, mid height rate) for the acceleration
+    let mut prev: Option<(f64, Vector3<f64>)> = None;
+    for w in fixes.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let dt = b.t_s - a.t_s;
+        if !(dt > 0.0 && dt <= 5.0) {
+            prev = None;
+            continue;
+        }
+        let v = if a.has_velocity && b.has_velocity {
+            0.5 * (Vector3::from(a.vel_ned_mps) + Vector3::from(b.vel_ned_mps))
+        } else {
+            earth::ned_offset_m(&llh(a), &llh(b)) / dt
+        };
+        let speed = v.x.hypot(v.y);
+        let mid = 0.5 * (a.t_s + b.t_s);
+        let g = earth::gravity_mps2(a.lat_rad, a.h_m);
+        if speed <= REST_SPEED_MPS {
+            let (th, dv, span) = sums(imu, a.t_s, b.t_s);
+            if span > 0.0 {
+                out.push(Pair {
+                    f_meas: Vector3::from(dv) / span,
+                    f_exp: Vector3::new(0.0, 0.0, -g),
+                    w_meas: Vector3::from(th) / span,
+                    wz_exp: None,
+                    speed,
+                    moving: false,
+                });
+            }
+            prev = None;
+            continue;
+        }
+        if speed < MIN_SPEED_MPS {
+            prev = None;
+            continue;
+        }
+        if let Some((tp, vp)) = prev {
+            let dtm = mid - tp;
+            let acc = (v - vp) / dtm;
+            let vm = 0.5 * (v + vp);
+            let course = vm.y.atan2(vm.x);
+            let course_rate = wrap_pi(v.y.atan2(v.x) - vp.y.atan2(vp.x)) / dtm;
+            let climb = (-vm.z).atan2(vm.x.hypot(vm.y));
+            // f^n = a^n - g^n, turned by yaw = course and pitch = climb (roll 0)
+            let (n, e, d) = (acc.x, acc.y, acc.z - g);
+            let (sy, cy) = course.sin_cos();
+            let (sp, cp) = climb.sin_cos();
+            let x1 = cy * n + sy * e;
+            let y1 = -sy * n + cy * e;
+            let f_exp = Vector3::new(cp * x1 - sp * d, y1, sp * x1 + cp * d);
+            let (th, dv, span) = sums(imu, tp, mid);
+            if span > 0.0 {
+                out.push(Pair {
+                    f_meas: Vector3::from(dv) / span,
+                    f_exp,
+                    w_meas: Vector3::from(th) / span,
+                    wz_exp: Some(course_rate),
+                    speed: vm.x.hypot(vm.y),
+                    moving: true,
+                });
+            }
+        }
+        prev = Some((mid, v));
+    }
+    out
+}
+
+/// RMS residual (m/s^2) of the rotation `m` (x_body = m x_imu) over `ps`.
+fn residual(m: &Matrix3<f64>, ps: &[Pair]) -> f64 {
+    let mut ss = 0.0;
+    let mut n = 0usize;
+    for p in ps {
+        ss += (m * p.f_meas - p.f_exp).norm_squared();
+        n += 3;
+        if let Some(wz) = p.wz_exp {
+            let r = p.speed * ((m * p.w_meas).z - wz);
+            ss += r * r;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        f64::INFINITY
+    } else {
+        (ss / n as f64).sqrt()
+    }
+}
+
+/// Estimates the IMU-to-body rotation from increments in SENSOR axes and GNSS fixes (see the
+/// module notes). Errors say what the data lack.
+pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<MountingEstimate, String> {
+    let ps = pairs(imu, gnss);
+    let rest = ps.iter().filter(|p| !p.moving).count();
+    let moving = ps.len() - rest;
+    if moving < 10 {
+        return Err(format!(
+            "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
+             needs a drive with accelerations and turns (a few minutes)"
+        ));
+    }
+    let mut scored: Vec<(f64, Matrix3<f64>)> = axis_layouts()
+        .into_iter()
+        .map(|l| (residual(&l, &ps), l))
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (best_res, layout) = scored[0];
+    let runner_up = scored[1].0;
+    // fine angles: Wahba on the specific forces, from the layout
+    let mut b = Matrix3::zeros();
+    for p in &ps {
+        b += p.f_exp * (layout * p.f_meas).transpose();
+    }
+    let svd = b.svd(true, true);
+    let (u, vt) = match (svd.u, svd.v_t) {
+        (Some(u), Some(vt)) => (u, vt),
+        _ => return Err("the specific forces do not determine a rotation".into()),
+    };
+    let d = (u.determinant() * vt.determinant()).signum();
+    let c = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * vt;
+    let m = c * layout;
+    let final_res = residual(&m, &ps);
+    let rpy = euler_zyx_from_dcm(&m.transpose());
+    let g = 9.8;
+    let h_acc: f64 = {
+        let (s, n) = ps
+            .iter()
+            .filter(|p| p.moving)
+            .fold((0.0, 0usize), |(s, n), p| {
+                (s + p.f_exp.x.powi(2) + p.f_exp.y.powi(2), n + 1)
+            });
+        (s / n.max(1) as f64).sqrt()
+    };
+    let tilt = final_res / (g * (ps.len() as f64).sqrt());
+    let yaw = final_res / (h_acc.max(1e-3) * (moving as f64).sqrt());
+    Ok(MountingEstimate {
+        rpy_deg: rpy.map(f64::to_degrees),
+        sigma_deg: [tilt, tilt, yaw].map(f64::to_degrees),
+        layout,
+        best_residual_mps2: best_res,
+        runner_up_residual_mps2: runner_up,
+        final_residual_mps2: final_res,
+        rest_intervals: rest,
+        moving_intervals: moving,
+    })
+}
+
+impl MountingEstimate {
+    /// The `[imu.mounting]` section to paste, with the uncertainty and the runner-up as
+    /// comments.
+    pub fn toml_section(&self) -> String {
+        let [r, p, y] = self.rpy_deg;
+        let [sr, sp, sy] = self.sigma_deg;
+        format!(
+            "# estimated by `host-sim mounting` from {} rest and {} moving GNSS intervals\n\
+             # 1-sigma roll {sr:.2}, pitch {sp:.2}, yaw {sy:.2} deg; residual {:.3} m/s^2 \
+             (best axis layout {:.3}, runner-up layout {:.3})\n\
+             [imu.mounting]\nrpy_deg = [{r:.2}, {p:.2}, {y:.2}]\n",
+            self.rest_intervals,
+            self.moving_intervals,
+            self.final_residual_mps2,
+            self.best_residual_mps2,
+            self.runner_up_residual_mps2
+        )
+    }
+}

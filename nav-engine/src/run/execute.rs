@@ -1,0 +1,286 @@
+//! Running a prepared case ([`super::prepare::Prepared`]): in memory ([`execute`]) or
+//! streaming the IMU with the outputs written as the filter goes ([`execute_streaming`]).
+//!
+//! Outputs in the output directory: `nav.txt`, `std.txt`, `bias.txt`, `innovations.txt`,
+//! `metrics.json` (against the truth when there is one, else against the withheld fixes; with
+//! outages also free-inertial coasting baselines, see [`super::coast`]; and the IMU report:
+//! gaps bridged, samples rejected, with file and line).
+//!
+//! Every output is written as `NAME.partial`, synced, and renamed to `NAME` only when all of
+//! them are written: after a full disk or any write error no file under a final name
+//! exists (outputs of an earlier run in the folder are removed first). A fault in the middle
+//! of the data (a gap longer than the allowed one, a numerical failure, an implausible
+//! sample when those stop the run) stops the run: the error names the file and line of the
+//! sample, the outputs up to it stay as `*.partial` (metrics.json.partial says
+//! `"complete": false` and the fault).
+
+use super::coast::{coast_outages, CoastMode};
+use super::output;
+use super::prepare::{ImuStream, Prepared};
+use super::{run_filter_with_progress, CaseData, RunOptions, RunOutput};
+use crate::metrics::{self, Metrics};
+use anyhow::Context;
+use nav_core::model::ImuCorrection;
+use nav_core::types::NavSolution;
+use nav_io::ImuTextReader;
+use std::path::{Path, PathBuf};
+
+/// Runs the filter and computes the metrics (with coasting baselines when there are outages).
+pub fn execute(
+    p: &Prepared,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    execute_case(&p.case, &p.opts, progress)
+}
+
+/// [`execute`] on a case and options apart (the case is not copied).
+pub fn execute_case(
+    case: &CaseData,
+    opts: &RunOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let out = run_filter_with_progress(case, opts, progress)?;
+    let truth = case.truth.as_deref();
+    let mut m = metrics::compute(&out, truth);
+    if !out.snapshots.is_empty() {
+        let raw = coast_outages(case, &out, CoastMode::Raw);
+        m.coasting.push(metrics::coasting_metrics(
+            "raw: no sensor-error correction",
+            &raw,
+            &out.outages,
+            truth,
+        ));
+        if let Some(b) = out.init.static_gyro_bias_radps {
+            let c = ImuCorrection {
+                gyro_bias_radps: b,
+                ..ImuCorrection::default()
+            };
+            let st = coast_outages(case, &out, CoastMode::Fixed(Box::new(c)));
+            m.coasting.push(metrics::coasting_metrics(
+                "static gyro bias only",
+                &st,
+                &out.outages,
+                truth,
+            ));
+        }
+    }
+    Ok((out, m))
+}
+
+/// Runs the filter on a prepared case with the IMU streamed from `imu` (or from the case's
+/// samples in memory when `None`), writing the outputs in `dir` as it goes
+/// ([`super::sink::FileSink`]: `*.partial`, renamed when complete) and computing the metrics
+/// online, with the coasting baselines. `nav_rate_hz`: rate of `nav.txt` (None: every IMU
+/// epoch). A fault mid-run leaves the outputs up to it as `*.partial` and returns
+/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); other errors
+/// leave no output.
+pub fn execute_streaming(
+    p: &Prepared,
+    imu: Option<&ImuStream>,
+    dir: &Path,
+    nav_rate_hz: Option<f64>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
+    let opts = p.opts.clone();
+    let truth = p.case.truth.as_deref();
+    let mut sink = super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, truth)?;
+    let data = super::RunData {
+        gnss: &p.case.gnss,
+        truth,
+    };
+    let coast = super::CoastPlan {
+        raw: true,
+        static_gyro_bias: true,
+    };
+    let res = match imu {
+        Some(st) => {
+            let info = super::ImuSourceInfo {
+                path: Some(st.path.clone()),
+                increments_span_gaps: false,
+            };
+            let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+        None => {
+            let (mut it, info) = super::case_imu_stream(&p.case);
+            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+        }
+    };
+    match res {
+        Ok(out) => {
+            let m = sink
+                .finish(&out, None, |m| metrics_json(m, &out, None))
+                .with_context(|| {
+                    format!(
+                        "writing the outputs in {}: incomplete, left as *{} (no file under its \
+                         final name)",
+                        dir.display(),
+                        output::PARTIAL_SUFFIX
+                    )
+                })?;
+            Ok((out, m))
+        }
+        Err(super::RunError::Fault {
+            location,
+            t_s,
+            msg,
+            partial,
+        }) => {
+            let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+            let t_last = sink.last_nav_t();
+            let written = sink.finish(&partial, Some(&fault), |m| {
+                metrics_json(m, &partial, Some(&fault))
+            });
+            Err(match written {
+                Ok(_) => anyhow::anyhow!(
+                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                     {}/*{} (incomplete)",
+                    dir.display(),
+                    output::PARTIAL_SUFFIX
+                ),
+                Err(w) => anyhow::anyhow!(
+                    "{fault}; the run stopped there, and writing the partial outputs failed \
+                     too: {w:#}"
+                ),
+            })
+        }
+        Err(e @ super::RunError::Output(_)) => Err(anyhow::Error::new(e).context(format!(
+            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+            dir.display(),
+            output::PARTIAL_SUFFIX
+        ))),
+        Err(e) => {
+            drop(sink);
+            for n in output::OUTPUT_NAMES {
+                let _ = std::fs::remove_file(output::partial_path(dir, n));
+            }
+            Err(e.into())
+        }
+    }
+}
+
+/// Samples per message from the reader thread.
+const READ_CHUNK: usize = 2048;
+/// Messages in flight between the reader thread and the filter.
+const READ_QUEUE: usize = 4;
+
+/// The samples of an IMU text file read and parsed by a thread of their own and handed over
+/// in chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
+/// flight): reading and parsing overlap the filter. The thread stops at the first error
+/// (passed on) or when the receiver is dropped.
+pub fn threaded_imu_reader(
+    path: PathBuf,
+    time_offset_s: f64,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    type Msg = Result<Vec<super::ImuItem>, super::RunError>;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
+    std::thread::spawn(move || {
+        let rd = match ImuTextReader::open(&path) {
+            Ok(r) => r,
+            Err(e) => {
+                let _ = tx.send(Err(super::RunError::Input(e)));
+                return;
+            }
+        };
+        let mut chunk = Vec::with_capacity(READ_CHUNK);
+        for r in rd {
+            match r {
+                Ok((mut s, line)) => {
+                    s.t_s += time_offset_s;
+                    chunk.push(super::ImuItem { sample: s, line });
+                    if chunk.len() == READ_CHUNK {
+                        let full = std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
+                        if tx.send(Ok(full)).is_err() {
+                            return;
+                        }
+                    }
+                }
+                Err(e) => {
+                    if !chunk.is_empty() {
+                        let _ = tx.send(Ok(std::mem::take(&mut chunk)));
+                    }
+                    let _ = tx.send(Err(super::RunError::Input(e)));
+                    return;
+                }
+            }
+        }
+        if !chunk.is_empty() {
+            let _ = tx.send(Ok(chunk));
+        }
+    });
+    rx.into_iter().flat_map(|m| {
+        let (items, err) = match m {
+            Ok(v) => (v, None),
+            Err(e) => (Vec::new(), Some(Err(e))),
+        };
+        items.into_iter().map(Ok).chain(err)
+    })
+}
+
+/// `metrics.json`: the metrics, the IMU report (gaps, rejected samples) and, after a fault,
+/// `"complete": false` with the fault.
+pub fn metrics_json(m: &Metrics, out: &RunOutput, fault: Option<&str>) -> anyhow::Result<String> {
+    #[derive(serde::Serialize)]
+    struct File<'a> {
+        #[serde(flatten)]
+        metrics: &'a Metrics,
+        imu: &'a super::ImuReport,
+        complete: bool,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        fault: Option<&'a str>,
+    }
+    Ok(serde_json::to_string_pretty(&File {
+        metrics: m,
+        imu: &out.imu_report,
+        complete: fault.is_none(),
+        fault,
+    })?)
+}
+
+/// Lines of the run summary about the IMU data (empty when nothing happened).
+pub fn imu_summary(out: &RunOutput) -> String {
+    let r = &out.imu_report;
+    let mut s = String::new();
+    if r.gaps > 0 {
+        s.push_str(&format!(
+            "IMU: {} time gap(s) bridged ({} sample(s) missing at {:.4} s nominal; {} filled by \
+             interpolation, {} spanned by the next increment)\n",
+            r.gaps, r.missing_samples, r.nominal_dt_s, r.gaps_filled, r.gaps_spanned
+        ));
+    }
+    if r.rejected > 0 {
+        s.push_str(&format!(
+            "IMU: {} sample(s) rejected as physically implausible\n",
+            r.rejected
+        ));
+    }
+    for e in r.events.iter().take(10) {
+        s.push_str(&format!("  {}: {}\n", e.location, e.what));
+    }
+    if r.events.len() > 10 {
+        s.push_str(&format!(
+            "  ... {} more in metrics.json\n",
+            r.events.len() - 10
+        ));
+    }
+    s
+}
+
+/// Keeps the first record at or after each multiple of `1 / rate_hz` from the first record.
+pub fn decimate(nav: &[NavSolution], rate_hz: f64) -> Vec<NavSolution> {
+    let Some(first) = nav.first() else {
+        return Vec::new();
+    };
+    let p = 1.0 / rate_hz;
+    let mut next = first.t_s;
+    let mut out = Vec::new();
+    for s in nav {
+        if s.t_s + 1e-6 * p >= next {
+            out.push(*s);
+            while next <= s.t_s + 1e-6 * p {
+                next += p;
+            }
+        }
+    }
+    out
+}

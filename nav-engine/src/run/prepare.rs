@@ -1,0 +1,744 @@
+//! A run from files: a configuration plus overrides ([`RunSpec`]) loaded into the data and
+//! options the engine runs ([`load`] -> [`Prepared`]).
+//!
+//! The configuration is the project's run configuration (TOML, [`nav_io::RunConfig`]) or a
+//! KF-GINS YAML file (detected by the extension `.yaml`/`.yml`, or by content: a TOML parse
+//! failure followed by a successful KF-GINS parse). A KF-GINS file runs KF-GINS's 21 states as
+//! KF-GINS's code runs them (`kf-gins-feedback`, `KfGinsConfig::filter_config_feedback`; with
+//! the model `kf-gins` the textbook Gauss-Markov reading), its initial state (`initpos` is the
+//! IMU position at `starttime`), initial sensor errors and lever arm.
+//!
+//! [`RunSpec::case`] names a case directory written by `host-sim simulate` (`case.toml` names
+//! the files; its outages are added to the outage list so the metrics cover them). A KF-GINS
+//! file inside such a case directory also picks up the case's `truth.nav`, outages and GPS
+//! week.
+//!
+//! IMU gaps and plausibility: [`nav_core::imu_guard`], [`RunSpec`]'s `imu_*` fields and
+//! `[imu.checks]`. Running a prepared case and writing its outputs: [`super::execute`].
+
+use super::init::{InitSpec, StaticAlign};
+use super::outage::{Outage, PeriodicOutages};
+use super::{CaseData, Model, Precision, RunOptions};
+use anyhow::{bail, Context};
+use nalgebra::Vector3;
+use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
+use nav_core::earth::Llh;
+use nav_core::filter::InitialUncertainty;
+use nav_core::imu_guard::{GapIncrements, ImuLimits};
+use nav_core::model::{Block, BlockKind};
+use nav_core::strapdown::NavState;
+use nav_core::types::NavSolution;
+use nav_io::{
+    read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
+    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
+};
+use std::path::{Path, PathBuf};
+
+/// What to run: a configuration file and the overrides a front end (a command line, a serial
+/// bridge, a test) applies to it. [`RunSpec::new`] gives the configuration as it is.
+#[derive(Debug, Clone)]
+pub struct RunSpec {
+    /// Run configuration: the project's TOML, or a KF-GINS YAML file.
+    pub config: PathBuf,
+    /// A case directory written by `host-sim simulate` (its files replace the
+    /// configuration's).
+    pub case: Option<PathBuf>,
+    /// Reference trajectory in the nav format (overrides the configuration's).
+    pub truth: Option<PathBuf>,
+    /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
+    pub model: Option<Model>,
+    /// GNSS outages, start in s after the first IMU epoch (after the start time).
+    pub outages: Vec<Outage>,
+    /// Repeating outages, first start in s after the first IMU epoch.
+    pub periodic_outages: Vec<PeriodicOutages>,
+    /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
+    pub kf_gins_outages: bool,
+    /// Rate of the standard deviations and block estimates (std.txt, bias.txt), Hz.
+    pub std_rate_hz: f64,
+    /// f32 covariance (as on the MCU) instead of f64.
+    pub f32: bool,
+    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
+    pub imu_time_offset_s: Option<f64>,
+    /// Innovation gate (default: the configuration's).
+    pub gate: Option<Gating>,
+    /// Use the GNSS velocities (default: the configuration's).
+    pub gnss_velocity: Option<bool>,
+    /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
+    pub noise_scale: Option<f64>,
+    /// Effect blocks to append to the model (names of the effect vocabulary).
+    pub effects: Vec<String>,
+    /// IMU class giving the plausibility limits (its full-scale range + 10 %).
+    pub imu_class: Option<ImuClassName>,
+    /// Largest plausible angular rate, deg/s on any axis (overrides the class).
+    pub imu_max_rate_dps: Option<f64>,
+    /// Largest plausible specific force, g on any axis (overrides the class).
+    pub imu_max_accel_g: Option<f64>,
+    /// No plausibility limits (only non-finite samples are rejected).
+    pub no_imu_limits: bool,
+    /// Longest IMU time gap bridged, s (a longer gap ends the run with an error).
+    pub imu_max_gap_s: Option<f64>,
+    /// What the IMU increment after a time gap covers (default: from the data's origin).
+    pub imu_gaps: Option<GapIncrements>,
+    /// Stop at the first implausible IMU sample instead of skipping it.
+    pub imu_strict: bool,
+    /// Record what the Rauch-Tung-Striebel smoother needs ([`RunOptions::smoother_history`]).
+    pub smoother_history: bool,
+}
+
+impl RunSpec {
+    /// The configuration `config` as it is: no overrides, standard deviations at 10 Hz.
+    pub fn new(config: impl Into<PathBuf>) -> Self {
+        Self {
+            config: config.into(),
+            case: None,
+            truth: None,
+            model: None,
+            outages: Vec::new(),
+            periodic_outages: Vec::new(),
+            kf_gins_outages: false,
+            std_rate_hz: 10.0,
+            f32: false,
+            imu_time_offset_s: None,
+            gate: None,
+            gnss_velocity: None,
+            noise_scale: None,
+            effects: Vec::new(),
+            imu_class: None,
+            imu_max_rate_dps: None,
+            imu_max_accel_g: None,
+            no_imu_limits: false,
+            imu_max_gap_s: None,
+            imu_gaps: None,
+            imu_strict: false,
+            smoother_history: false,
+        }
+    }
+}
+
+/// A run loaded by [`load`]: the case and options, the IMU file to stream (when asked and
+/// possible) and the warnings about the data (for the user).
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The data and options.
+    pub prepared: Prepared,
+    /// The IMU text file the run streams instead of loading (then `prepared.case.imu` is
+    /// empty).
+    pub imu_stream: Option<ImuStream>,
+    /// Warnings about the data (e.g. the mounting check); the front end shows them.
+    pub warnings: Vec<String>,
+}
+
+/// Parses `--imu-gaps`.
+pub fn parse_gap_increments(s: &str) -> anyhow::Result<GapIncrements> {
+    Ok(match s.trim() {
+        "auto" => GapIncrements::Auto,
+        "span" => GapIncrements::Span,
+        "sample" => GapIncrements::Sample,
+        other => bail!("--imu-gaps {other}: expected auto, span or sample"),
+    })
+}
+
+/// Applies `[imu.checks]` of a run configuration to the run options.
+fn apply_imu_checks(ch: &ImuChecksConfig, opts: &mut RunOptions) -> anyhow::Result<()> {
+    if let Some(c) = ch.class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(&mut opts.imu_checks, ch.max_rate_deg_s, ch.max_accel_g)?;
+    if let Some(g) = ch.max_gap_s {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("imu.checks.max_gap_s = {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    opts.imu_checks.stop_on_implausible |= ch.stop_on_implausible;
+    Ok(())
+}
+
+fn set_limits(
+    c: &mut super::ImuChecks,
+    rate_dps: Option<f64>,
+    accel_g: Option<f64>,
+) -> anyhow::Result<()> {
+    if let Some(r) = rate_dps {
+        if !(r.is_finite() && r > 0.0) {
+            bail!("IMU rate limit {r} deg/s: must be positive");
+        }
+        c.limits.max_rate_radps = r.to_radians();
+    }
+    if let Some(a) = accel_g {
+        if !(a.is_finite() && a > 0.0) {
+            bail!("IMU specific-force limit {a} g: must be positive");
+        }
+        c.limits.max_accel_mps2 = a * 9.806_65;
+    }
+    Ok(())
+}
+
+/// Parses a `--gate` value.
+pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
+    let max_rej = Gating::default().max_consecutive_rejections;
+    Ok(match s.trim() {
+        "robust" | "default" => Gating::robust(),
+        "off" | "none" => Gating::disabled(),
+        "0.95" | "95" => Gating::with_probability(GateProbability::P95, max_rej),
+        "0.99" | "99" => Gating::with_probability(GateProbability::P99, max_rej),
+        "0.999" | "99.9" => Gating::with_probability(GateProbability::P999, max_rej),
+        "0.9999" | "99.99" => Gating::with_probability(GateProbability::P9999, max_rej),
+        other => bail!("--gate {other}: expected robust, off, 0.95, 0.99, 0.999 or 0.9999"),
+    })
+}
+
+/// A case loaded from files, ready to run.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// The data.
+    pub case: CaseData,
+    /// The options.
+    pub opts: RunOptions,
+    /// GPS week of the data (0 when unknown).
+    pub week: u16,
+    /// What was loaded (for the report).
+    pub description: String,
+}
+
+/// Which kind of configuration a file is.
+pub enum ConfigKind {
+    /// The project's TOML.
+    Run(Box<RunConfig>),
+    /// A KF-GINS YAML file.
+    KfGins(Box<KfGinsConfig>),
+}
+
+/// Reads a configuration: `.yaml`/`.yml` as KF-GINS, otherwise the project's TOML (and a TOML
+/// that does not parse is tried as KF-GINS YAML before its error is reported).
+pub fn read_config(path: &Path) -> anyhow::Result<ConfigKind> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    if ext == "yaml" || ext == "yml" {
+        return Ok(ConfigKind::KfGins(Box::new(read_kf_gins_yaml(path)?)));
+    }
+    match read_run_config(path) {
+        Ok(c) => Ok(ConfigKind::Run(Box::new(c))),
+        Err(e) => match read_kf_gins_yaml(path) {
+            Ok(k) => Ok(ConfigKind::KfGins(Box::new(k))),
+            Err(_) => Err(e.into()),
+        },
+    }
+}
+
+struct CaseDir {
+    imu: PathBuf,
+    gnss: PathBuf,
+    truth: PathBuf,
+    outages: Vec<Outage>,
+    week: u16,
+}
+
+fn read_case_dir(dir: &Path) -> anyhow::Result<CaseDir> {
+    let cf = CaseIndex::from_file(&dir.join("case.toml"))?;
+    Ok(CaseDir {
+        imu: dir.join(&cf.files.imu),
+        gnss: dir.join(&cf.files.gnss),
+        truth: dir.join(&cf.files.truth),
+        outages: cf
+            .outages
+            .iter()
+            .map(|o| Outage {
+                start_s: o.start_sow,
+                duration_s: o.duration_s,
+            })
+            .collect(),
+        week: cf.summary.gps_week,
+    })
+}
+
+fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
+    // small angles: roll/pitch/yaw sigmas as phi N/E/D sigmas (exact at zero roll/pitch)
+    att_std_rad
+}
+
+/// An IMU text file the run streams instead of loading ([`load`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuStream {
+    /// The IMU text file (plain or gzip).
+    pub path: PathBuf,
+    /// Offset added to every time stamp, s ([`RunSpec::imu_time_offset_s`]).
+    pub time_offset_s: f64,
+}
+
+/// Loads everything a run needs. With `stream_imu`, an IMU text file (KF-GINS configurations
+/// and case directories) is not loaded: the case's IMU list stays empty and the file is
+/// returned in [`Loaded::imu_stream`], to be read while the filter runs
+/// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way.
+pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
+    let stream = stream_imu;
+    let mut warnings = Vec::new();
+    let kind = read_config(&args.config)
+        .with_context(|| format!("reading the configuration {}", args.config.display()))?;
+    let cfg_dir = args
+        .config
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    // a case directory: given, or the configuration's own folder when it holds a case.toml
+    let case_dir = match &args.case {
+        Some(d) => Some(read_case_dir(d)?),
+        None if cfg_dir.join("case.toml").exists() && matches!(kind, ConfigKind::KfGins(_)) => {
+            Some(read_case_dir(&cfg_dir)?)
+        }
+        None => None,
+    };
+    let (mut case, mut opts, mut week, mut description, imu_stream) = match kind {
+        ConfigKind::KfGins(k) => {
+            prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
+        }
+        ConfigKind::Run(r) => {
+            prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream, &mut warnings)?
+        }
+    };
+    let mut imu_stream = imu_stream.map(|path| ImuStream {
+        path,
+        time_offset_s: 0.0,
+    });
+    if let Some(cd) = &case_dir {
+        week = cd.week;
+        if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
+            case.truth = Some(read_nav_text(&cd.truth)?);
+            description.push_str(&format!("; truth {}", cd.truth.display()));
+        }
+        opts.outages.extend(cd.outages.iter().copied());
+    }
+    if let Some(t) = &args.truth {
+        case.truth = Some(read_nav_text(t)?);
+        description.push_str(&format!("; truth {}", t.display()));
+    }
+    if let Some(dt) = args.imu_time_offset_s {
+        for s in &mut case.imu {
+            s.t_s += dt;
+        }
+        if let Some(st) = &mut imu_stream {
+            st.time_offset_s = dt;
+        }
+        description.push_str(&format!("; IMU time offset {dt:+} s"));
+    }
+    if let Some(m) = args.model {
+        opts.model = m;
+    }
+    for name in &args.effects {
+        add_effect(&mut opts, name).with_context(|| {
+            format!("--effects {name}: not an effect name (see host-sim diagnose)")
+        })?;
+    }
+    if !args.effects.is_empty() {
+        description.push_str(&format!("; effects {}", args.effects.join(",")));
+    }
+    if args.f32 {
+        opts.precision = Precision::F32;
+    }
+    if let Some(g) = args.gate {
+        opts.filter.gating = g;
+    }
+    if let Some(c) = args.imu_class {
+        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+    }
+    set_limits(
+        &mut opts.imu_checks,
+        args.imu_max_rate_dps,
+        args.imu_max_accel_g,
+    )?;
+    if args.no_imu_limits {
+        opts.imu_checks.limits = ImuLimits::none();
+    }
+    if let Some(g) = args.imu_max_gap_s {
+        if !(g.is_finite() && g > 0.0) {
+            bail!("--imu-max-gap {g}: must be positive");
+        }
+        opts.imu_checks.max_gap_s = g;
+    }
+    if args.imu_gaps.is_some() {
+        opts.imu_checks.increments = args.imu_gaps;
+    }
+    opts.imu_checks.stop_on_implausible |= args.imu_strict;
+    if let Some(v) = args.gnss_velocity {
+        opts.filter.use_gnss_velocity = v;
+    }
+    if let Some(k) = args.noise_scale {
+        if !(k.is_finite() && k > 0.0) {
+            bail!("--noise-scale {k}: must be positive");
+        }
+        scale_white_noise(&mut opts.filter, k);
+        description.push_str(&format!("; white-noise PSDs x{k}"));
+    }
+    let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
+    let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
+        (Some(st), _, _) => {
+            let (a, b) = imu_text_time_span(&st.path, periodic_wanted)?;
+            (a + st.time_offset_s, b + st.time_offset_s)
+        }
+        (None, Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => bail!("no IMU samples in the data"),
+    };
+    let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
+    let t_end = opts.end_s.map_or(t_end, |e| e.min(t_end));
+    opts.outages
+        .extend(args.outages.iter().map(|o| o.shifted(t0)));
+    let mut periodic = args.periodic_outages.clone();
+    if args.kf_gins_outages {
+        periodic.push(PeriodicOutages::KF_GINS);
+    }
+    for p in &periodic {
+        opts.outages.extend(p.expand(t0, t_end));
+    }
+    opts.record.nav_rate_hz = None;
+    opts.record.epoch_rate_hz = Some(args.std_rate_hz);
+    opts.smoother_history = args.smoother_history;
+    Ok(Loaded {
+        prepared: Prepared {
+            case,
+            opts,
+            week,
+            description,
+        },
+        imu_stream,
+        warnings,
+    })
+}
+
+/// Time of the first IMU sample of a text file and, when `last` is asked, of its last one
+/// (the whole file is read then; otherwise the second value is the first time too).
+fn imu_text_time_span(path: &Path, last: bool) -> anyhow::Result<(f64, f64)> {
+    let mut rd = ImuTextReader::open(path)?;
+    let Some(first) = rd.next().transpose()? else {
+        bail!("no IMU samples in {}", path.display());
+    };
+    let t0 = first.0.t_s;
+    let mut t1 = t0;
+    if last {
+        for r in rd {
+            t1 = r?.0.t_s;
+        }
+    }
+    Ok((t0, t1))
+}
+
+fn prepare_kf_gins(
+    k: &KfGinsConfig,
+    dir: &Path,
+    case_dir: Option<&CaseDir>,
+    model: Option<Model>,
+    stream: bool,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
+    k.validate()
+        .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
+    let (imu_p, gnss_p) = match case_dir {
+        Some(c) => (c.imu.clone(), c.gnss.clone()),
+        None => (
+            k.resolve_path(&k.imupath, dir),
+            k.resolve_path(&k.gnsspath, dir),
+        ),
+    };
+    let (imu_rec, imu_stream) = if stream {
+        (nav_io::ImuRecord::default(), Some(imu_p.clone()))
+    } else {
+        (read_imu_text(&imu_p)?, None)
+    };
+    let gnss = read_gnss_text(&gnss_p)?;
+    // the model: what KF-GINS's code does unless the command line asks for another layout
+    let model = model.unwrap_or(Model::KfGinsFeedback);
+    let filter = match model {
+        Model::KfGinsFeedback => k.filter_config_feedback(),
+        _ => k.filter_config_gauss_markov(),
+    };
+    let [lat, lon, h] = k.initpos;
+    let state = NavState::from_rpy(
+        k.starttime,
+        Llh::from_deg(lat, lon, h),
+        Vector3::from(k.initvel),
+        k.init_rpy_rad(),
+    );
+    let unc = InitialUncertainty {
+        att_sigma_rad: rpy_sigma_to_phi(k.init_att_std_rad()),
+        vel_sigma_mps: k.initvelstd,
+        pos_sigma_m: k.initposstd,
+    };
+    let mut opts = RunOptions::new(model, filter, InitSpec::Given(state, unc));
+    opts.lever_arm_m = k.antlever;
+    opts.start_s = Some(k.starttime);
+    opts.end_s = k.end_time_s();
+    opts.initial_estimates = vec![
+        (BlockKind::GyroBias, k.init_gyr_bias_radps()),
+        (BlockKind::AccelBias, k.init_acc_bias_mps2()),
+        (BlockKind::GyroScaleFactor, k.init_gyr_scale()),
+        (BlockKind::AccelScaleFactor, k.init_acc_scale()),
+    ];
+    let week = case_dir.map_or(0, |c| c.week);
+    let d = format!(
+        "KF-GINS configuration: IMU {}, GNSS {}",
+        imu_p.display(),
+        gnss_p.display()
+    );
+    Ok((
+        CaseData {
+            imu: imu_rec.samples,
+            gnss,
+            truth: None,
+            imu_origin: imu_rec.origin,
+        },
+        opts,
+        week,
+        d,
+        imu_stream,
+    ))
+}
+
+/// Multiplies the accelerometer and gyro white-noise PSDs (`s_n`) of `filter` by `k`.
+pub fn scale_white_noise(filter: &mut FilterConfig, k: f64) {
+    for s in filter
+        .accel
+        .s_n
+        .iter_mut()
+        .chain(filter.gyro.s_n.iter_mut())
+    {
+        *s *= k;
+    }
+}
+
+/// Appends the effect block named `name` (vocabulary name) with
+/// [`RunOptions::add_effect_block`]. None: not an effect name.
+fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
+    opts.add_effect_block(Block::effect_from_name(name.trim())?);
+    Some(())
+}
+
+fn prepare_run_config(
+    r: &RunConfig,
+    dir: &Path,
+    case_dir: Option<&CaseDir>,
+    stream: bool,
+    warnings: &mut Vec<String>,
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
+    let mut week = 0u16;
+    let mut imu_stream = None;
+    let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
+    let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
+    let mut gaps = String::new();
+    let (imu_rec, mut gnss, truth) = match case_dir {
+        Some(c) => (
+            if stream {
+                imu_stream = Some(c.imu.clone());
+                nav_io::ImuRecord::default()
+            } else {
+                read_imu_text(&c.imu)?
+            },
+            read_gnss_text(&c.gnss)?,
+            if c.truth.exists() {
+                Some(read_nav_text(&c.truth)?)
+            } else {
+                None
+            },
+        ),
+        None => {
+            let inp = r.load_inputs(dir)?;
+            warnings.extend(inp.warnings.iter().map(ToString::to_string));
+            if let Some(w) = inp.gnss_week {
+                week = u16::try_from(w).unwrap_or(0);
+            }
+            if inp.imu.gaps.count() > 0 {
+                gaps = format!("; IMU time gaps: {}", inp.imu.gaps);
+            }
+            let truth = inp.truth.map(|t| match t {
+                TruthData::Nav(v) => v,
+                TruthData::Positions(f) => f
+                    .iter()
+                    .map(|f| NavSolution {
+                        t_s: f.t_s,
+                        lat_rad: f.lat_rad,
+                        lon_rad: f.lon_rad,
+                        h_m: f.h_m,
+                        vel_ned_mps: if f.has_velocity {
+                            f.vel_ned_mps
+                        } else {
+                            [f64::NAN; 3]
+                        },
+                        rpy_rad: [f64::NAN; 3],
+                        ..NavSolution::default()
+                    })
+                    .collect(),
+            });
+            (inp.imu, inp.gnss, truth)
+        }
+    };
+    let imu = imu_rec.samples;
+    // the data against the configured [imu.mounting] (z gyro vs GNSS course, gravity at rest)
+    warnings.extend(crate::mounting::check_mounting(&imu, &gnss).warnings);
+    for g in &mut gnss {
+        for s in &mut g.pos_std_ned_m {
+            *s *= r.gnss.sigma_scale;
+        }
+        for s in &mut g.vel_std_ned_mps {
+            *s *= r.gnss.sigma_scale;
+        }
+    }
+    let accel = r
+        .noise
+        .accel
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let gyro = r
+        .noise
+        .gyro
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let mut filter = FilterConfig::with_noise(accel, gyro);
+    if let Some(k) = r.noise.white_noise_scale {
+        if !(k.is_finite() && k > 0.0) {
+            bail!("noise.white_noise_scale = {k}: must be positive");
+        }
+        scale_white_noise(&mut filter, k);
+    }
+    if let Some(s) = &r.noise.accel_scale {
+        filter.accel_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    if let Some(s) = &r.noise.gyro_scale {
+        filter.gyro_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    filter.use_gnss_velocity = r.gnss.use_velocity;
+    if let Some(g) = &r.gnss.gate {
+        filter.gating = parse_gate(g).context("gnss.gate")?;
+    }
+    let model = match r.noise.model {
+        BiasModel::N => Model::N,
+        BiasModel::Nbk => Model::Nbk,
+        BiasModel::NbkSingleState => Model::NbkSingle,
+    };
+    let ic = &r.init;
+    let att_std = ic.att_std_deg.map(f64::to_radians);
+    let unc = InitialUncertainty {
+        att_sigma_rad: rpy_sigma_to_phi(att_std),
+        vel_sigma_mps: ic.vel_std_mps,
+        pos_sigma_m: ic.pos_std_m,
+    };
+    let init = match ic.mode().map_err(|e| anyhow::anyhow!(e))? {
+        InitMode::Given(g) => {
+            let [lat, lon, h] = g.pos_deg_deg_m;
+            let t = r
+                .start_s
+                .or_else(|| imu.first().map(|s| s.t_s))
+                .or_else(|| {
+                    let p = imu_stream.as_ref()?;
+                    imu_text_time_span(p, false).ok().map(|(a, _)| a)
+                })
+                .unwrap_or(0.0);
+            InitSpec::Given(
+                NavState::from_rpy(
+                    t,
+                    Llh::from_deg(lat, lon, h),
+                    Vector3::from(g.vel_ned_mps),
+                    g.rpy_deg.map(f64::to_radians),
+                ),
+                unc,
+            )
+        }
+        InitMode::Align(a) => {
+            let mut sa = StaticAlign::new(a.static_s);
+            sa.heading_rad = a.yaw_deg.map(f64::to_radians);
+            sa.heading_std_rad = att_std[2];
+            sa.course_min_speed_mps = Some(a.yaw_from_gnss_min_speed_mps);
+            sa.align.max_gravity_mismatch_mps2 = a.max_gravity_mismatch_mps2;
+            sa.vel_sigma_mps = ic.vel_std_mps.iter().fold(0.0, |m, v| m.max(*v));
+            sa.tilt_std_rad = Some(att_std[0].max(att_std[1]));
+            InitSpec::StaticAlignment(sa)
+        }
+    };
+    let mut opts = RunOptions::new(model, filter, init);
+    if let Some(ch) = &r.imu.checks {
+        apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
+    }
+    opts.lever_arm_m = r.gnss.lever_arm_m;
+    if let Some(a) = &r.aiding {
+        opts.aiding = a
+            .to_config()
+            .map_err(|e| anyhow::anyhow!(e))
+            .context("[aiding]")?;
+    }
+    opts.start_s = r.start_s;
+    opts.end_s = r.end_s;
+    for name in &r.effects {
+        add_effect(&mut opts, name).with_context(|| {
+            format!("effects: `{name}` is not an effect name (see host-sim diagnose --help)")
+        })?;
+    }
+    let mut d = format!(
+        "run configuration `{}`: IMU {}, GNSS {}{gaps}",
+        r.name,
+        imu_p.display(),
+        gnss_p.display()
+    );
+    if !r.effects.is_empty() {
+        d.push_str(&format!("; effects {}", r.effects.join(",")));
+    }
+    Ok((
+        CaseData {
+            imu,
+            gnss,
+            truth,
+            imu_origin: imu_rec.origin,
+        },
+        opts,
+        week,
+        d,
+        imu_stream,
+    ))
+}
+
+/// What a run reads of a case directory's `case.toml` (written by `host-sim simulate`): the
+/// data files, the GPS week and the outages. Other tables of the file are not read here.
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct CaseIndex {
+    /// Data files, relative to the case directory.
+    pub files: CaseIndexFiles,
+    /// Summary numbers (the GPS week).
+    pub summary: CaseIndexSummary,
+    /// All GNSS outages of the case (explicit and periodic).
+    #[serde(default)]
+    pub outages: Vec<CaseIndexOutage>,
+}
+
+/// The data files of a case ([`CaseIndex::files`]).
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct CaseIndexFiles {
+    /// IMU text file.
+    pub imu: String,
+    /// GNSS text file.
+    pub gnss: String,
+    /// Truth in the nav format at the IMU rate.
+    pub truth: String,
+}
+
+/// The summary of a case ([`CaseIndex::summary`]).
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct CaseIndexSummary {
+    /// GPS week.
+    pub gps_week: u16,
+}
+
+/// One outage of a case ([`CaseIndex::outages`]).
+#[derive(Debug, Clone, serde::Deserialize)]
+pub struct CaseIndexOutage {
+    /// Start, GPS seconds of week.
+    pub start_sow: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+}
+
+impl CaseIndex {
+    /// Reads the index of a `case.toml`.
+    pub fn from_file(path: &Path) -> anyhow::Result<Self> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    }
+}
