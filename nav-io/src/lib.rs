@@ -22,9 +22,9 @@ pub mod imucsv;
 pub mod kfgins;
 mod lines;
 pub mod mount;
+pub mod noisecfg;
 mod numfmt;
 pub mod odometer;
-pub mod noisecfg;
 pub mod pos;
 pub mod runcfg;
 pub mod tag;
@@ -47,8 +47,8 @@ pub use kfgins::{
 };
 pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
 pub use mount::Mounting;
-pub use odometer::{read_odometer, write_odometer, OdometerSample, OdometerTrack};
 pub use noisecfg::AxisValue;
+pub use odometer::{read_odometer, write_odometer, OdometerSample, OdometerTrack};
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,

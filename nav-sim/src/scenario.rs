@@ -120,9 +120,9 @@ pub struct Vehicle {
     #[serde(default, skip_serializing_if = "is_zero")]
     pub bounce_mps: f64,
     /// A wheel-speed odometer (`[vehicle.odometer]`): the case gets `odometer.txt`
-    /// ([`super::odometer`]); none when absent.
+    /// (simulated by `host-sim`'s `sim::odometer`); none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub odometer: Option<super::odometer::WheelSpeedSpec>,
+    pub odometer: Option<WheelSpeedSpec>,
 }
 
 fn default_roll_per_g() -> f64 {
@@ -749,6 +749,21 @@ impl Profile {
 /// scenario without it reads in earlier versions of the tools).
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+/// What the simulated odometer measures (`[vehicle.odometer]` of a scenario).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WheelSpeedSpec {
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// Scale-factor error: measured = (1 + scale) true.
+    pub scale: f64,
+    /// White-noise 1-sigma, m/s.
+    pub sigma_mps: f64,
+    /// The measured point (rear-axle centre) from the IMU, body FRD, m.
+    #[serde(default)]
+    pub lever_arm_m: [f64; 3],
 }
 
 #[cfg(test)]

@@ -11,20 +11,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-/// What the simulated odometer measures (`[vehicle.odometer]` of a scenario).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct WheelSpeedSpec {
-    /// Sample rate, Hz.
-    pub rate_hz: f64,
-    /// Scale-factor error: measured = (1 + scale) true.
-    pub scale: f64,
-    /// White-noise 1-sigma, m/s.
-    pub sigma_mps: f64,
-    /// The measured point (rear-axle centre) from the IMU, body FRD, m.
-    #[serde(default)]
-    pub lever_arm_m: [f64; 3],
-}
+pub use nav_sim::scenario::WheelSpeedSpec;
 
 /// The wheel-speed samples of a trajectory (truth epochs nearest the sample times; the rate
 /// is rounded to a whole number of IMU intervals), seeded.
