@@ -63,7 +63,8 @@ fn gga_quality(q: FixQuality) -> u8 {
     }
 }
 
-/// One NMEA epoch for `fix`: RMC (date, speed over ground, course), GGA (position,
+/// One NMEA epoch for `fix`: RMC (date, speed over ground and course when the fix has a
+/// velocity), GGA (position,
 /// quality, satellites) and GST (latitude/longitude/altitude sigmas), with checksums,
 /// without line ends.
 pub fn nmea_epoch(fix: &GnssFix, week: i64, leap_s: i32) -> [String; 3] {
@@ -83,8 +84,14 @@ pub fn nmea_epoch(fix: &GnssFix, week: i64, leap_s: i32) -> [String; 3] {
     } else {
         'A'
     };
+    // a fix without a velocity leaves speed and course empty
+    let (speed, course) = if fix.has_velocity {
+        (format!("{speed_kn:.3}"), format!("{course:.2}"))
+    } else {
+        (String::new(), String::new())
+    };
     let rmc = checksum(&format!(
-        "GPRMC,{time},{status},{lat},{lon},{speed_kn:.3},{course:.2},{date},,,D"
+        "GPRMC,{time},{status},{lat},{lon},{speed},{course},{date},,,D"
     ));
     let gga = checksum(&format!(
         "GPGGA,{time},{lat},{lon},{},{:02},0.8,{:.3},M,0.000,M,1.0,0001",
@@ -119,7 +126,8 @@ pub fn ubx_frame(class: u8, id: u8, payload: &[u8]) -> Vec<u8> {
 /// A UBX NAV-PVT frame (class 0x01, id 0x07, 92-byte payload) for `fix`: iTOW, the UTC date
 /// and time (flagged valid and fully resolved), fix type 3-D with `gnssFixOK` and the
 /// carrier/differential flags of the quality, position, `hAcc` = the larger horizontal
-/// sigma, `vAcc`, NED velocity and `sAcc` = the largest velocity sigma.
+/// sigma, `vAcc`, NED velocity and `sAcc` = the largest velocity sigma (1000 m/s for a fix
+/// without a velocity).
 pub fn ubx_nav_pvt(fix: &GnssFix, week: i64, leap_s: i32) -> Vec<u8> {
     let (y, mo, d, h, mi, s) = utc_of_gps(week, fix.t_s, leap_s);
     let mut b = vec![0u8; 92];
@@ -160,7 +168,12 @@ pub fn ubx_nav_pvt(fix: &GnssFix, week: i64, leap_s: i32) -> Vec<u8> {
     }
     let [vn, ve, _] = fix.vel_ned_mps;
     b[60..64].copy_from_slice(&mm(vn.hypot(ve)));
-    let s_acc = fix.vel_std_ned_mps.iter().fold(0.0f64, |a, v| a.max(*v));
+    // NAV-PVT always has a velocity: a fix without one gets sAcc = 1000 m/s (no information)
+    let s_acc = if fix.has_velocity {
+        fix.vel_std_ned_mps.iter().fold(0.0f64, |a, v| a.max(*v))
+    } else {
+        1000.0
+    };
     b[68..72].copy_from_slice(&umm(s_acc));
     ubx_frame(0x01, 0x07, &b)
 }
