@@ -104,7 +104,7 @@ fn runs_from_nmea_and_ubx_logs_match_the_run_from_the_gnss_text() {
         &sc,
         ScenarioToml::new("gnss-logs-drive")
             .start(47.6, -122.3, 40.0, 30.0)
-            .gps_time(WEEK as u32, 200_000.0)
+            .gps_time(WEEK as u16, 200_000.0)
             .imu_rate_hz(100.0)
             .stationary(30.0)
             .accelerate(10.0, 10.0)
