@@ -27,6 +27,8 @@ pub(super) struct Tentative<T: Scalar, const N: usize> {
     pub t_s: f64,
     /// Its position innovation (predicted minus measured antenna, NED m).
     pub z_pos_m: [f64; 3],
+    /// A fix is on probation (the fields above describe it).
+    pub armed: bool,
 }
 
 impl<T: Scalar, const N: usize> Filter<T, N> {
@@ -45,9 +47,11 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         t_s: f64,
         z_pos_m: [f64; 3],
     ) -> bool {
-        let Some(tv) = self.tentative.take() else {
+        if !self.tentative.armed {
             return false;
-        };
+        }
+        self.tentative.armed = false;
+        let tv = &self.tentative;
         if nis <= th.normal_reject {
             return false;
         }
@@ -73,7 +77,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return false;
         }
         self.feedback(&undo);
-        self.p = tv.p0;
+        self.p = self.tentative.p0;
         self.gate.stats.reacquisitions_undone =
             self.gate.stats.reacquisitions_undone.saturating_add(1);
         true
