@@ -220,7 +220,7 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// position; [`Filter::widen_for_fill`]).
     fill_var: [f64; 9],
     /// The first fix after an outage, used on probation ([`reacq`]).
-    tentative: reacq::Tentative<T, N>,
+    tentative: Option<reacq::Tentative<T, N>>,
     /// The current fix must be processed again (its probation check undid the previous one).
     redo: bool,
 }
@@ -307,13 +307,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
             fill_var: [0.0; 9],
-            tentative: reacq::Tentative {
-                p0: [[T::ZERO; N]; N],
-                dx: [T::ZERO; N],
-                t_s: 0.0,
-                z_pos_m: [0.0; 3],
-                armed: false,
-            },
+            tentative: None,
             redo: false,
         })
     }
@@ -682,13 +676,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let z_pos = [0, 1, 2].map(|i| z64.get(i).copied().unwrap_or(0.0));
         // a first fix after an outage may go on probation: the covariance before it, and the
         // correction it feeds back (what `fed_back` gains)
-        // (saved in place, not copied on the stack: the nav app's RAM + stack budget; a fix
-        // after an outage while an earlier one is still on probation is not put on probation)
-        let saving = th.after_outage && !self.tentative.armed;
-        if saving {
-            self.tentative.p0 = self.p;
-            self.tentative.dx = self.fed_back;
-        }
+        let before = th.after_outage.then_some((self.p, self.fed_back));
         let g = self.gated_update(
             z64,
             h,
@@ -704,14 +692,17 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 f.redo = f.settle_tentative(nis, &th, t_s, z_pos);
             },
         )?;
-        if saving && g.accepted && g.nis > normal_reject {
-            // the correction this fix fed back (after - before)
-            for (d, b) in self.tentative.dx.iter_mut().zip(self.fed_back.iter()) {
-                *d = *b - *d;
+        if let Some((p0, fb0)) = before.filter(|_| g.accepted && g.nis > normal_reject) {
+            let mut dx = self.fed_back;
+            for (d, b) in dx.iter_mut().zip(fb0) {
+                *d -= b;
             }
-            self.tentative.t_s = t_s;
-            self.tentative.z_pos_m = z_pos;
-            self.tentative.armed = true;
+            self.tentative = Some(reacq::Tentative {
+                p0,
+                dx,
+                t_s,
+                z_pos_m: z_pos,
+            });
         }
         let mut out = UpdateOutcome {
             t_s,

@@ -27,8 +27,6 @@ pub(super) struct Tentative<T: Scalar, const N: usize> {
     pub t_s: f64,
     /// Its position innovation (predicted minus measured antenna, NED m).
     pub z_pos_m: [f64; 3],
-    /// A fix is on probation (the fields above describe it).
-    pub armed: bool,
 }
 
 impl<T: Scalar, const N: usize> Filter<T, N> {
@@ -47,11 +45,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         t_s: f64,
         z_pos_m: [f64; 3],
     ) -> bool {
-        if !self.tentative.armed {
+        let Some(tv) = self.tentative.take() else {
             return false;
-        }
-        self.tentative.armed = false;
-        let tv = &self.tentative;
+        };
         if nis <= th.normal_reject {
             return false;
         }
@@ -77,7 +73,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return false;
         }
         self.feedback(&undo);
-        self.p = self.tentative.p0;
+        self.p = tv.p0;
         self.gate.stats.reacquisitions_undone =
             self.gate.stats.reacquisitions_undone.saturating_add(1);
         true
