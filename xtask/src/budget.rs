@@ -27,8 +27,13 @@ pub const FLASH_BUDGET: u64 = 128 * 1024;
 /// budget. The self-test (`firmware`) carries the reference outputs and five filter
 /// instantiations (up to the 34-state effects model) that no shipped binary contains.
 pub const FLASH_EXEMPT: &[&str] = &["firmware"];
-/// Static RAM plus peak stack budget, bytes.
-pub const RAM_STACK_BUDGET: u64 = 32 * 1024;
+/// Static RAM plus peak stack budget of the nav application, bytes. It was 32 KiB until the
+/// land-vehicle aiding (NHC/ZUPT/ZARU with a 64-sample stationarity window, in static RAM
+/// whether switched on or not) and the probation of the first fix after an outage (a kept
+/// covariance) came in together: the HIL frame link with the aiding on then measured
+/// 14,240 B static + 22,068 B peak stack = 36,308 B. Raised to 40 KiB as a recorded decision
+/// (the STM32F407 board has 192 KiB of SRAM); bringing it back under 32 KiB is an open item.
+pub const RAM_STACK_BUDGET: u64 = 40 * 1024;
 /// The 21-state f32 filter's budget, instructions per 200 Hz IMU epoch on average including a
 /// 1 Hz GNSS update (5 % of a 168 MHz Cortex-M4F).
 pub const FILTER21_EPOCH_BUDGET_INSTR: f64 = 42_000.0;
