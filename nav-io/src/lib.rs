@@ -50,7 +50,9 @@ pub use kfgins::{
 pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;
-pub use odometer::{read_odometer, write_odometer, OdometerSample, OdometerTrack};
+pub use odometer::{
+    read_odometer, write_odometer, OdometerReader, OdometerSample, OdometerStream, OdometerTrack,
+};
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,

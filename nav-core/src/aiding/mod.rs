@@ -6,21 +6,26 @@
 //!   speed when present);
 //! * [`nhc`]: the non-holonomic constraint (lateral and vertical vehicle velocity ~ 0);
 //! * [`zupt`]: zero-velocity and zero-angular-rate updates at stops;
-//! * [`odometer`]: wheel speed, with an optional scale-factor state.
+//! * [`odometer`]: wheel speed, with an optional scale-factor state;
+//! * [`heading`]: dual-antenna GNSS heading (azimuth of a baseline fixed in the body frame).
 //!
 //! [`Aiding`] runs them at IMU epochs: call [`Aiding::on_imu_with`] (or [`Aiding::on_imu`]
-//! without an odometer) after every successful [`crate::filter::Filter::propagate`]. Every source is off by default ([`AidingConfig`]);
+//! without an odometer) after every successful [`crate::filter::Filter::propagate`], and
+//! [`Aiding::on_heading`] at the IMU epoch nearest each heading sample. Every source is off by
+//! default ([`AidingConfig`]);
 //! what each did is counted in [`AidingCounters`]. No allocation, no panics, fixed sizes.
 
+pub mod heading;
 pub mod nhc;
 pub mod odometer;
 pub mod stationarity;
 pub mod zupt;
 
 use crate::earth;
-use crate::filter::{Filter, FilterError};
+use crate::filter::{AidingOutcome, Filter, FilterError};
 use crate::model::BlockKind;
 use crate::scalar::Scalar;
+pub use heading::HeadingConfig;
 pub use nhc::NhcConfig;
 pub use odometer::OdometerConfig;
 pub use stationarity::{StationarityConfig, StationarityDetector, WindowStats};
@@ -42,6 +47,8 @@ pub struct AidingConfig {
     pub zaru: ZaruConfig,
     /// Odometer (wheel speed).
     pub odometer: OdometerConfig,
+    /// Dual-antenna GNSS heading.
+    pub heading: HeadingConfig,
 }
 
 /// What the caller knows at an IMU epoch besides the IMU ([`Aiding::on_imu_with`]).
@@ -86,6 +93,7 @@ impl AidingConfig {
         zupt: ZuptConfig::DEFAULT,
         zaru: ZaruConfig::DEFAULT,
         odometer: OdometerConfig::DEFAULT,
+        heading: HeadingConfig::DEFAULT,
     };
 
     /// Land-vehicle aiding with the default settings: the non-holonomic constraint and the
@@ -109,6 +117,11 @@ impl AidingConfig {
 
     /// Whether any source is on.
     pub fn any_enabled(&self) -> bool {
+        self.imu_epoch_sources() || self.heading.enabled
+    }
+
+    /// Whether any source that runs at the IMU epochs ([`Aiding::on_imu_with`]) is on.
+    pub fn imu_epoch_sources(&self) -> bool {
         self.nhc.enabled || self.zupt.enabled || self.zaru.enabled || self.odometer.enabled
     }
 
@@ -172,6 +185,14 @@ impl AidingConfig {
             return Err(NotFinite("odometer.lever_arm_m"));
         }
         gate(self.odometer.nis_gate, "odometer.nis_gate")?;
+        pos(self.heading.sigma_rad, "heading.sigma_deg")?;
+        let b = self.heading.baseline_m;
+        if !(b.iter().all(|v| v.is_finite()) && libm::hypot(b[0], b[1]) > 0.0) {
+            return Err(NotFinite(
+                "heading.baseline_m (finite, with a horizontal part)",
+            ));
+        }
+        gate(self.heading.nis_gate, "heading.nis_gate")?;
         Ok(())
     }
 }
@@ -204,6 +225,9 @@ pub struct AidingCounters {
     pub zaru: SourceCounters,
     /// Odometer.
     pub odometer: SourceCounters,
+    /// Dual-antenna heading (`failed` also counts samples refused for a nearly vertical
+    /// baseline or a bad sigma).
+    pub heading: SourceCounters,
 }
 
 /// The aiding runner: the stationarity detector (window of at most `W` IMU samples), the
@@ -265,7 +289,7 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
     /// epochs when a speed is given (moving or still).
     pub fn on_imu_with<const N: usize>(&mut self, f: &mut Filter<T, N>, inputs: &AidingInputs) {
         let gnss_speed = inputs.gnss_speed;
-        if !self.cfg.any_enabled() {
+        if !self.cfg.imu_epoch_sources() {
             return;
         }
         let step = *f.last_step();
@@ -340,6 +364,39 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
             let res = f.update_aiding(&m.z_mps, &m.h, &m.r, self.cfg.nhc.nis_gate);
             count(&mut self.counters.nhc, res);
         }
+    }
+}
+
+impl<T: Scalar, const W: usize> Aiding<T, W> {
+    /// Applies a dual-antenna heading sample (azimuth of the configured baseline from north,
+    /// clockwise, rad; its 1-sigma, rad, or the configured one): call it at the IMU epoch
+    /// nearest the sample's time, after [`Filter::propagate`]. Gated by the source's
+    /// chi-square gate (an outlier is rejected and counted). `None` (and nothing done) when
+    /// the source is off; a refused sample (nearly vertical baseline, bad sigma) or a
+    /// numerical failure is counted as `failed` and also gives `None`.
+    pub fn on_heading<const N: usize>(
+        &mut self,
+        f: &mut Filter<T, N>,
+        heading_rad: f64,
+        sigma_rad: Option<f64>,
+    ) -> Option<AidingOutcome> {
+        if !self.cfg.heading.enabled {
+            return None;
+        }
+        let c = &mut self.counters.heading;
+        let Some(m) = heading::heading_measurement::<T, N>(
+            &self.cfg.heading,
+            f.nav_state(),
+            heading_rad,
+            sigma_rad,
+        ) else {
+            c.failed = c.failed.saturating_add(1);
+            return None;
+        };
+        let res = f.update_aiding(&m.z_rad, &m.h, &m.r, self.cfg.heading.nis_gate);
+        let out = res.as_ref().ok().copied();
+        count(c, res);
+        out
     }
 }
 
