@@ -6,9 +6,10 @@
 //! # NMEA
 //! One sentence per line (gzip accepted; blank lines and lines not starting with `$` or `!`
 //! are skipped). Time: UTC time of day of each epoch with the RMC date (carried over between
-//! epochs) converted to GPS time with the leap seconds of [`super::gpstime`] at the first RMC
-//! date (or `leap_seconds`); returned as GPS seconds of the week of the first fix, with that
-//! week. Epochs before the first RMC date cannot be timed and are skipped (counted, warned).
+//! epochs) converted to GPS time with the leap seconds of [`super::gpstime`] at each epoch's
+//! UTC date (a log crossing a leap second stays on GPS time; the 23:59:60 epoch itself is
+//! skipped as a bad sentence), or with `leap_seconds` throughout; returned as GPS seconds of
+//! the week of the first fix, with that week. Epochs before the first RMC date cannot be timed and are skipped (counted, warned).
 //! Position sigmas: GST latitude/longitude/altitude sigmas; an epoch without GST gets
 //! `hdop_uere_m` x HDOP when stated, else `default_sigma_ned_m` (warned once), else the read
 //! fails naming the line. Velocity: RMC (or VTG) speed over ground and course, down velocity 0,
@@ -31,7 +32,9 @@
 //! offset (UBX); with `strict = true` the first one is an error instead.
 
 use super::gnss::{GnssEvent, GnssStream, NmeaAssembler, NmeaOptions};
-use super::gpstime::{gpst_minus_utc_s, gpst_week_sow, SECONDS_PER_WEEK};
+use super::gpstime::{
+    gpst_minus_utc_at_utc_week_sow, gpst_minus_utc_s, gpst_week_sow, SECONDS_PER_WEEK,
+};
 use super::lines::open_text;
 use super::IoError;
 use chrono::{Datelike, Timelike};
@@ -55,7 +58,8 @@ pub struct GnssLogOptions {
     /// velocity is not used.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vel_sigma_mps: Option<[f64; 2]>,
-    /// NMEA: GPS - UTC in s (default: from the leap-second table at the first RMC date).
+    /// NMEA: GPS - UTC in s for the whole log (default: from the leap-second table at each
+    /// epoch's UTC date).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub leap_seconds: Option<i64>,
     /// Stop at the first bad sentence or packet instead of skipping it.
@@ -330,7 +334,40 @@ pub fn read_nmea_log(
     if out.fixes[0].t_s < sow0 - SECONDS_PER_WEEK / 2.0 {
         out.week = Some(week0 + 1);
     }
+    if opts.leap_seconds.is_none() {
+        leap_seconds_per_fix(&mut out, week0, leap);
+    }
     Ok(out)
+}
+
+/// Times converted with GPST - UTC = `leap` (the first RMC date's) moved by the leap seconds
+/// inserted since: each fix's UTC time gets the table's offset at its own date, so a log
+/// crossing a leap second (2016-12-31 23:59:60) stays on GPS time after it. The
+/// 23:59:60 epoch itself has no valid NMEA time (the parser refuses second 60) and is skipped
+/// as a bad sentence.
+fn leap_seconds_per_fix(out: &mut GnssLogRecord, week0: i64, leap: i64) {
+    let week = out.week.unwrap_or(week0);
+    let mut first_change: Option<(f64, i64)> = None;
+    for f in &mut out.fixes {
+        let utc = f.t_s - leap as f64;
+        let w = (utc / SECONDS_PER_WEEK).floor();
+        let here = i64::from(gpst_minus_utc_at_utc_week_sow(
+            week + w as i64,
+            utc - w * SECONDS_PER_WEEK,
+        ));
+        if here != leap {
+            f.t_s += (here - leap) as f64;
+            first_change.get_or_insert((f.t_s, here));
+        }
+    }
+    if let Some((t, here)) = first_change {
+        out.warnings.push(format!(
+            "{}: a leap second inside the log: GPS - UTC is {leap} s at the first RMC date \
+             and {here} s from the fix at GPS {t:.3} s on (times follow it; set \
+             [gnss.log] leap_seconds to use one value throughout)",
+            out.path.display()
+        ));
+    }
 }
 
 /// The GPS week of the first fix of a UBX log from a NAV-PVT's UTC date and time: the GPST

@@ -74,6 +74,20 @@ pub fn gpst_minus_utc_s(y: i64, m: u32, d: u32) -> i32 {
         .map_or(0, |e| e.3)
 }
 
+/// GPST - UTC in seconds at a UTC time given on the GPS week count: `week` and `utc_sow`
+/// are the UTC calendar time counted like GPS weeks and seconds of week from 1980-01-06
+/// 00:00:00 (86,400 s a day, no leap seconds; what a UTC time of day plus a date, converted
+/// without leap seconds, gives). The offset changes at 00:00:00 UTC of the table's dates.
+pub fn gpst_minus_utc_at_utc_week_sow(week: i64, utc_sow: f64) -> i32 {
+    let day_in_week = (utc_sow / 86_400.0).floor() as i64;
+    let day = GPS_EPOCH_DAYS + week * 7 + day_in_week;
+    LEAP_TABLE
+        .iter()
+        .rev()
+        .find(|(ly, lm, ld, _)| day >= days_from_civil(*ly, *lm, *ld))
+        .map_or(0, |e| e.3)
+}
+
 /// GPS week and seconds of week of a GPST time given as seconds since 1970-01-01 00:00:00 in
 /// the GPST time scale (RTKLIB's `gtime_t` convention: `time` + `sec`).
 pub fn gpst_week_sow_from_epoch_s(secs: f64) -> (i64, f64) {
@@ -100,6 +114,12 @@ mod tests {
         assert_eq!(gpst_minus_utc_s(2025, 7, 8), 18);
         assert_eq!(gpst_minus_utc_s(2016, 12, 31), 17);
         assert_eq!(gpst_minus_utc_s(1980, 1, 6), 0);
+        // the UTC week count of 2016-12-31 23:59:59 and 2017-01-01 00:00:00 (week 1929 began
+        // on Sunday 2016-12-25: Saturday 23:59:59 is 604,799 s, the next midnight week 1930)
+        assert_eq!(gpst_minus_utc_at_utc_week_sow(1929, 604_799.5), 17);
+        assert_eq!(gpst_minus_utc_at_utc_week_sow(1930, 0.0), 18);
+        assert_eq!(gpst_minus_utc_at_utc_week_sow(1929, 0.0), 17);
+        assert_eq!(gpst_minus_utc_at_utc_week_sow(0, 0.0), 0);
         assert_eq!(days_in_month(2024, 2), 29);
         assert_eq!(days_in_month(1900, 2), 28);
         // 1752003261.854 s = 2025-07-08 19:34:21.854 (the drive's tag start)
