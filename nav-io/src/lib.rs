@@ -20,6 +20,7 @@ pub mod gnss;
 pub mod gnsscsv;
 pub mod gnsslog;
 pub mod gpstime;
+pub mod heading;
 pub mod imucsv;
 pub mod kfgins;
 mod lines;
@@ -37,6 +38,9 @@ pub use error::IoError;
 pub use gnsscsv::{
     read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
     QualityMap, SpeedUnit, TimeScale,
+};
+pub use heading::{
+    read_heading, write_heading, HeadingReader, HeadingSample, HeadingStream,
 };
 pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
 pub use imucsv::{
