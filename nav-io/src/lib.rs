@@ -39,10 +39,8 @@ pub use gnsscsv::{
     read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
     QualityMap, SpeedUnit, TimeScale,
 };
-pub use heading::{
-    read_heading, write_heading, HeadingReader, HeadingSample, HeadingStream,
-};
 pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
+pub use heading::{read_heading, write_heading, HeadingReader, HeadingSample, HeadingStream};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, ImuCsvIncrements, ImuCsvReader, RateUnit, RawImuRecord, RawImuSample,

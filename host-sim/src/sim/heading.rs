@@ -15,7 +15,11 @@ pub use nav_sim::scenario::HeadingSpec;
 
 /// The heading samples of a trajectory (truth epochs nearest the sample times; the rate is
 /// rounded to a whole number of IMU intervals), seeded, headings in [0, 360) deg.
-pub fn dual_antenna_heading(traj: &Trajectory, spec: &HeadingSpec, seed: u64) -> Vec<HeadingSample> {
+pub fn dual_antenna_heading(
+    traj: &Trajectory,
+    spec: &HeadingSpec,
+    seed: u64,
+) -> Vec<HeadingSample> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4ead_1e55);
     let step = ((1.0 / spec.rate_hz) / traj.dt_s).round().max(1.0) as usize;
     let b = Vector3::from(spec.baseline_m);

@@ -49,7 +49,10 @@ impl Default for RunAidingConfig {
 impl From<AidingConfig> for RunAidingConfig {
     /// Filter-side settings without input files (the odometer and heading need files).
     fn from(filter: AidingConfig) -> Self {
-        Self { filter, ..Self::OFF }
+        Self {
+            filter,
+            ..Self::OFF
+        }
     }
 }
 
