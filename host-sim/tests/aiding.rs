@@ -56,7 +56,7 @@ fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
         },
     );
     o.outages = outages;
-    o.aiding = aiding;
+    o.aiding = aiding.into();
     o
 }
 

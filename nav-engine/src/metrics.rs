@@ -437,7 +437,7 @@ pub fn compute(run: &RunOutput, truth: Option<&[NavSolution]>) -> Metrics {
         gnss_residuals: residuals,
         coasting: Vec::new(),
         gating: run.gating.clone(),
-        aiding: run.aiding,
+        aiding: run.aiding.clone(),
     }
 }
 
@@ -926,6 +926,6 @@ pub fn assemble(
             })
             .collect(),
         gating: run.gating.clone(),
-        aiding: run.aiding,
+        aiding: run.aiding.clone(),
     }
 }

@@ -40,9 +40,17 @@
 //! scale_sigma = 0.05               # its prior 1-sigma (fraction)
 //! max_gap_s = 0.5                  # no interpolation across longer gaps
 //! nis_gate = 15.14
+//! [aiding.heading]                 # dual-antenna GNSS heading (nav_io::heading format)
+//! enabled = true
+//! file = "heading.txt"             # relative to the configuration file's folder
+//! baseline_m = [1.0, 0.0, 0.0]     # primary -> secondary antenna, body FRD (direction only)
+//! sigma_deg = 0.5                  # for samples without their own sigma
+//! nis_gate = 15.14
 //! ```
 //!
-//! The odometer's vehicle frame is `[aiding.nhc] mount_rpy_deg`.
+//! The odometer's vehicle frame is `[aiding.nhc] mount_rpy_deg`. With a case directory
+//! (`host-sim run --case`), the case's own `odometer.txt` / `heading.txt` replace the files
+//! named here.
 
 use nav_core::aiding::AidingConfig;
 
@@ -68,6 +76,30 @@ pub struct AidingSection {
     /// `[aiding.odometer]`.
     #[serde(default)]
     pub odometer: OdometerSection,
+    /// `[aiding.heading]`.
+    #[serde(default)]
+    pub heading: HeadingSection,
+}
+
+/// `[aiding.heading]`: dual-antenna GNSS heading.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadingSection {
+    /// Use the heading.
+    #[serde(default)]
+    pub enabled: bool,
+    /// The heading file (`nav_io::heading` format), relative to the configuration's folder.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<std::path::PathBuf>,
+    /// Baseline from the primary to the secondary antenna, body FRD, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline_m: Option<[f64; 3]>,
+    /// Sigma of samples without their own, deg.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_deg: Option<f64>,
+    /// Chi-square gate (1 dof).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nis_gate: Option<f64>,
 }
 
 /// `[aiding.odometer]`: the file and the host-side settings (`file`, `scale_factor`,
@@ -251,7 +283,17 @@ impl AidingSection {
             c.odometer.lever_arm_m = l;
         }
         set(&mut c.odometer.nis_gate, o.nis_gate);
+        let h = &self.heading;
+        c.heading.enabled = h.enabled;
+        if let Some(b) = h.baseline_m {
+            c.heading.baseline_m = b;
+        }
+        set(&mut c.heading.sigma_rad, deg(h.sigma_deg));
+        set(&mut c.heading.nis_gate, h.nis_gate);
         c.validate().map_err(|e| e.to_string())?;
+        if h.enabled && h.file.is_none() {
+            return Err("aiding: heading.file is needed when the heading is enabled".into());
+        }
         if o.enabled && o.file.is_none() {
             return Err("aiding: odometer.file is needed when the odometer is enabled".into());
         }
@@ -313,5 +355,33 @@ mod tests {
         let e = bad.to_config().unwrap_err();
         assert!(e.contains("odometer.sigma_mps"), "{e}");
         assert!(toml::from_str::<AidingSection>("[odometer]\nspeed_file = \"o\"\n").is_err());
+    }
+
+    #[test]
+    fn heading_section_reaches_the_filter_config_and_checks_its_keys() {
+        let a: AidingSection = toml::from_str(
+            "[heading]\nenabled = true\nfile = \"h.txt\"\nbaseline_m = [0.0, 1.5, 0.0]\n\
+             sigma_deg = 0.2\nnis_gate = 10.83\n",
+        )
+        .unwrap();
+        let c = a.to_config().unwrap();
+        assert!(c.heading.enabled && c.any_enabled() && !c.imu_epoch_sources());
+        assert_eq!(c.heading.baseline_m, [0.0, 1.5, 0.0]);
+        assert!((c.heading.sigma_rad - 0.2f64.to_radians()).abs() < 1e-15);
+        assert_eq!(c.heading.nis_gate, 10.83);
+        let no_file: AidingSection = toml::from_str("[heading]\nenabled = true\n").unwrap();
+        assert!(no_file
+            .to_config()
+            .unwrap_err()
+            .starts_with("aiding: heading.file"));
+        let vertical: AidingSection = toml::from_str(
+            "[heading]\nenabled = true\nfile = \"h\"\nbaseline_m = [0.0, 0.0, 1.0]\n",
+        )
+        .unwrap();
+        let e = vertical.to_config().unwrap_err();
+        assert!(e.contains("heading.baseline_m"), "{e}");
+        let bad: AidingSection =
+            toml::from_str("[heading]\nenabled = true\nfile = \"h\"\nsigma_deg = 0\n").unwrap();
+        assert!(bad.to_config().unwrap_err().contains("heading.sigma_deg"));
     }
 }

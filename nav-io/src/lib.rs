@@ -20,6 +20,7 @@ pub mod gnss;
 pub mod gnsscsv;
 pub mod gnsslog;
 pub mod gpstime;
+pub mod heading;
 pub mod imucsv;
 pub mod kfgins;
 mod lines;
@@ -39,6 +40,7 @@ pub use gnsscsv::{
     QualityMap, SpeedUnit, TimeScale,
 };
 pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
+pub use heading::{read_heading, write_heading, HeadingReader, HeadingSample, HeadingStream};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
     ImuCsvFormat, ImuCsvIncrements, ImuCsvReader, RateUnit, RawImuRecord, RawImuSample,

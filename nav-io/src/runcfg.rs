@@ -161,6 +161,13 @@ pub struct GnssSource {
     /// "0.999", "0.9999" (default: the filter's, 0.9999).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gate: Option<String>,
+    /// The GNSS velocity's own gate (with `use_velocity`): "joint" (default: position and
+    /// velocity in one update under `gate`), or a separate velocity update gated "robust"
+    /// (IGG-III down-weighting from the 0.99 chi-square quantile, rejection beyond 0.9999),
+    /// "hard" (rejection beyond 0.9999, or a probability "0.95", "0.99", "0.999", "0.9999")
+    /// or "off" (no gate).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_gate: Option<String>,
 }
 
 /// Reference trajectory file kinds.

@@ -19,7 +19,7 @@
 //! assert_eq!(back.segments.len(), 4);
 //! assert_eq!(back.start.gps_week, 2300);
 //! ```
-use crate::scenario::{ImuRate, Scenario, Segment, Start, Vehicle};
+use crate::scenario::{HeadingSpec, ImuRate, Scenario, Segment, Start, Vehicle, WheelSpeedSpec};
 
 /// Builder of a [`Scenario`] and its TOML text. Without
 /// [`start`](Self::start) / [`gps_time`](Self::gps_time) the start is 0 deg, 0 deg, 0 m,
@@ -75,6 +75,18 @@ impl ScenarioBuilder {
     /// `[imu] rate_hz`, Hz.
     pub fn imu_rate_hz(mut self, hz: f64) -> Self {
         self.scenario.imu.rate_hz = hz;
+        self
+    }
+
+    /// `[vehicle.odometer]`: a wheel-speed odometer.
+    pub fn odometer(mut self, spec: WheelSpeedSpec) -> Self {
+        self.scenario.vehicle.odometer = Some(spec);
+        self
+    }
+
+    /// `[vehicle.heading]`: a dual-antenna GNSS heading.
+    pub fn heading(mut self, spec: HeadingSpec) -> Self {
+        self.scenario.vehicle.heading = Some(spec);
         self
     }
 

@@ -123,6 +123,29 @@ pub struct Vehicle {
     /// `odometer.txt` (`host_sim::sim::odometer`); none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer: Option<WheelSpeedSpec>,
+    /// A dual-antenna GNSS heading (`[vehicle.heading]`): a case simulated by `host-sim` gets
+    /// `heading.txt` (`host_sim::sim::heading`); none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading: Option<HeadingSpec>,
+}
+
+/// What the simulated dual-antenna heading measures (`[vehicle.heading]` of a scenario): the
+/// azimuth of the antenna baseline (fixed in the body frame) from the true attitude, plus
+/// white noise, at its own rate, with the sigma written in each line.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadingSpec {
+    /// Sample rate, Hz.
+    pub rate_hz: f64,
+    /// White-noise 1-sigma, deg (also written as the sample's sigma).
+    pub sigma_deg: f64,
+    /// Baseline from the primary to the secondary antenna, body FRD, m.
+    #[serde(default = "default_baseline")]
+    pub baseline_m: [f64; 3],
+}
+
+fn default_baseline() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
 }
 
 /// What the simulated odometer measures (`[vehicle.odometer]` of a scenario).
@@ -155,6 +178,7 @@ impl Default for Vehicle {
             slip_deg_per_mps2: 0.0,
             bounce_mps: 0.0,
             odometer: None,
+            heading: None,
         }
     }
 }
@@ -348,6 +372,22 @@ impl Scenario {
                     "vehicle.odometer: rate_hz = {} (> 0), scale = {}, sigma_mps = {} (>= 0) \
                      or lever_arm_m out of range",
                     o.rate_hz, o.scale, o.sigma_mps
+                )));
+            }
+        }
+        if let Some(h) = &v.heading {
+            let b = h.baseline_m;
+            if !(h.rate_hz.is_finite()
+                && h.rate_hz > 0.0
+                && h.sigma_deg.is_finite()
+                && h.sigma_deg > 0.0
+                && b.iter().all(|x| x.is_finite())
+                && b[0].hypot(b[1]) > 0.0)
+            {
+                return Err(ScenarioError::Invalid(format!(
+                    "vehicle.heading: rate_hz = {} (> 0), sigma_deg = {} (> 0) or baseline_m \
+                     {b:?} (finite, with a horizontal part) out of range",
+                    h.rate_hz, h.sigma_deg
                 )));
             }
         }

@@ -72,6 +72,12 @@ pub struct RunArgs {
     /// 0.95, 0.99, 0.999, 0.9999.
     #[arg(long)]
     pub gate: Option<String>,
+    /// The GNSS velocity's own gate (with GNSS velocities): joint (position and velocity in
+    /// one update under --gate), or a separate velocity update gated robust, hard (0.9999),
+    /// 0.95, 0.99, 0.999, 0.9999, or off (no gate). Default: the configuration's
+    /// `[gnss] velocity_gate`, else joint.
+    #[arg(long)]
+    pub velocity_gate: Option<String>,
     /// Use the GNSS velocities: on/off (default: the configuration's).
     #[arg(long)]
     pub gnss_velocity: Option<bool>,
@@ -135,6 +141,7 @@ impl RunArgs {
             f32: false,
             imu_time_offset: None,
             gate: None,
+            velocity_gate: None,
             gnss_velocity: None,
             noise_scale: None,
             quiet: true,
@@ -165,6 +172,11 @@ impl RunArgs {
             f32: self.f32,
             imu_time_offset_s: self.imu_time_offset,
             gate: self.gate.as_deref().map(parse_gate).transpose()?,
+            velocity_gate: self
+                .velocity_gate
+                .as_deref()
+                .map(nav_engine::run::prepare::parse_velocity_gate)
+                .transpose()?,
             gnss_velocity: self.gnss_velocity,
             noise_scale: self.noise_scale,
             effects: self.effects.clone(),
@@ -267,6 +279,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         t_run
     );
     println!("gate ({}): {}", out.gating.mode, out.gating.message);
+    if c.gnss_vel_rejected > 0 {
+        println!(
+            "GNSS velocity gate: {} velocit(ies) rejected",
+            c.gnss_vel_rejected
+        );
+    }
     let ir = &out.imu_report;
     if ir.rejected > 0 || ir.gaps > 0 {
         eprintln!(

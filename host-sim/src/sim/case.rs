@@ -85,6 +85,9 @@ pub struct CaseFiles {
     /// Wheel speed (`nav_io::odometer` format), when the scenario's vehicle has an odometer.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer: Option<String>,
+    /// Dual-antenna heading (`nav_io::heading` format), when the scenario's vehicle has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading: Option<String>,
 }
 
 /// Summary numbers of a case.
@@ -195,6 +198,12 @@ impl Case {
                     .odometer
                     .is_some()
                     .then(|| "odometer.txt".into()),
+                heading: tr
+                    .scenario
+                    .vehicle
+                    .heading
+                    .is_some()
+                    .then(|| "heading.txt".into()),
             },
             summary: CaseSummary {
                 gps_week: tr.week,
@@ -233,6 +242,10 @@ impl Case {
         if let Some(spec) = &self.trajectory.scenario.vehicle.odometer {
             let odo = super::odometer::wheel_speed(&self.trajectory, spec, self.seed);
             nav_io::write_odometer(dir.join("odometer.txt"), &odo)?;
+        }
+        if let Some(spec) = &self.trajectory.scenario.vehicle.heading {
+            let h = super::heading::dual_antenna_heading(&self.trajectory, spec, self.seed);
+            nav_io::write_heading(dir.join("heading.txt"), &h)?;
         }
         if kf_gins {
             let p = dir.join("kf-gins.yaml");

@@ -9,6 +9,7 @@
 pub mod case;
 pub mod cli;
 pub mod errors;
+pub mod heading;
 pub mod odometer;
 pub mod plot;
 /// The scenario format and its kinematic profiles (in `nav-sim`).

@@ -228,9 +228,9 @@ pub struct RunOptions {
     pub imu_checks: ImuChecks,
     /// Record what the smoother needs ([`RunOutput::history`], `crate::smooth`).
     pub smoother_history: bool,
-    /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates; all off by
-    /// default), see [`aiding`].
-    pub aiding: nav_core::aiding::AidingConfig,
+    /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates, odometer,
+    /// dual-antenna heading; all off by default), see [`aiding`].
+    pub aiding: aiding::RunAidingConfig,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -270,7 +270,7 @@ impl RunOptions {
             extra_blocks: Vec::new(),
             imu_checks: ImuChecks::default(),
             smoother_history: false,
-            aiding: nav_core::aiding::AidingConfig::OFF,
+            aiding: aiding::RunAidingConfig::OFF,
         }
     }
 }
@@ -414,6 +414,8 @@ pub struct RunCounters {
     pub imu_synthetic_samples: u64,
     /// IMU samples rejected as physically implausible (beyond the configured range).
     pub imu_implausible: u64,
+    /// GNSS velocities rejected by their own gate (`Gating::velocity`).
+    pub gnss_vel_rejected: u64,
 }
 
 impl RunCounters {
@@ -421,6 +423,7 @@ impl RunCounters {
         self.imu_epochs = c.imu_epochs;
         self.cov_predictions = u64::from(c.cov_predictions);
         self.numerical_failures = u64::from(c.numerical_failures);
+        self.gnss_vel_rejected = u64::from(c.gnss_vel_rejected);
     }
 }
 
@@ -723,7 +726,8 @@ pub fn run_stream(
         }
         let mut layout = opts.model.layout();
         for b in &opts.extra_blocks {
-            if !EFFECT_BLOCKS.contains(b) {
+            // the odometer's scale factor: an aiding state, appended like an effect block
+            if !EFFECT_BLOCKS.contains(b) && *b != Block::OdometerScale {
                 return Err(RunError::Options(format!(
                     "{} is not an effect block",
                     b.name()

@@ -21,7 +21,7 @@ use super::outage::{Outage, PeriodicOutages};
 use super::{CaseData, Model, Precision, RunOptions};
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
-use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise};
+use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise, VelocityGating};
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
 use nav_core::imu_guard::{GapIncrements, ImuLimits};
@@ -59,8 +59,13 @@ pub struct RunSpec {
     pub f32: bool,
     /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
     pub imu_time_offset_s: Option<f64>,
-    /// Innovation gate (default: the configuration's).
+    /// Innovation gate (default: the configuration's; the configuration's velocity gate is
+    /// kept).
     pub gate: Option<Gating>,
+    /// The GNSS velocity's own gate (default: the configuration's): `Some(None)` joint
+    /// position + velocity updates, `Some(Some(g))` a separate velocity update gated by `g`
+    /// ([`parse_velocity_gate`]).
+    pub velocity_gate: Option<Option<VelocityGating>>,
     /// Use the GNSS velocities (default: the configuration's).
     pub gnss_velocity: Option<bool>,
     /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
@@ -100,6 +105,7 @@ impl RunSpec {
             f32: false,
             imu_time_offset_s: None,
             gate: None,
+            velocity_gate: None,
             gnss_velocity: None,
             noise_scale: None,
             effects: Vec::new(),
@@ -188,6 +194,24 @@ pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
     })
 }
 
+/// Parses a `--velocity-gate` value (`[gnss] velocity_gate`): `joint` (None: position and
+/// velocity in one update), `robust`, `hard` (= 0.9999), `0.95`, `0.99`, `0.999`, `0.9999`,
+/// `off` (a separate velocity update without a gate).
+pub fn parse_velocity_gate(s: &str) -> anyhow::Result<Option<VelocityGating>> {
+    Ok(Some(match s.trim() {
+        "joint" => return Ok(None),
+        "robust" => VelocityGating::ROBUST,
+        "off" | "none" => VelocityGating::OFF,
+        "hard" | "0.9999" | "99.99" => VelocityGating::hard(GateProbability::P9999),
+        "0.95" | "95" => VelocityGating::hard(GateProbability::P95),
+        "0.99" | "99" => VelocityGating::hard(GateProbability::P99),
+        "0.999" | "99.9" => VelocityGating::hard(GateProbability::P999),
+        other => bail!(
+            "velocity gate {other}: expected joint, robust, hard, off, 0.95, 0.99, 0.999 or 0.9999"
+        ),
+    }))
+}
+
 /// A case loaded from files, ready to run.
 #[derive(Debug, Clone)]
 pub struct Prepared {
@@ -233,6 +257,8 @@ struct CaseDir {
     imu: PathBuf,
     gnss: PathBuf,
     truth: PathBuf,
+    odometer: Option<PathBuf>,
+    heading: Option<PathBuf>,
     outages: Vec<Outage>,
     week: u16,
 }
@@ -243,6 +269,8 @@ fn read_case_dir(dir: &Path) -> anyhow::Result<CaseDir> {
         imu: dir.join(&cf.files.imu),
         gnss: dir.join(&cf.files.gnss),
         truth: dir.join(&cf.files.truth),
+        odometer: cf.files.odometer.as_ref().map(|p| dir.join(p)),
+        heading: cf.files.heading.as_ref().map(|p| dir.join(p)),
         outages: cf
             .outages
             .iter()
@@ -339,7 +367,12 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         opts.precision = Precision::F32;
     }
     if let Some(g) = args.gate {
+        let v = opts.filter.gating.velocity;
         opts.filter.gating = g;
+        opts.filter.gating.velocity = v;
+    }
+    if let Some(v) = args.velocity_gate {
+        opts.filter.gating.velocity = v;
     }
     if let Some(c) = args.imu_class {
         opts.imu_checks.limits = ImuLimits::for_class(c.class());
@@ -609,6 +642,9 @@ fn prepare_run_config(
     if let Some(g) = &r.gnss.gate {
         filter.gating = parse_gate(g).context("gnss.gate")?;
     }
+    if let Some(v) = &r.gnss.velocity_gate {
+        filter.gating.velocity = parse_velocity_gate(v).context("gnss.velocity_gate")?;
+    }
     let model = match r.noise.model {
         BiasModel::N => Model::N,
         BiasModel::Nbk => Model::Nbk,
@@ -659,10 +695,7 @@ fn prepare_run_config(
     }
     opts.lever_arm_m = r.gnss.lever_arm_m;
     if let Some(a) = &r.aiding {
-        opts.aiding = a
-            .to_config()
-            .map_err(|e| anyhow::anyhow!(e))
-            .context("[aiding]")?;
+        apply_aiding(a, dir, case_dir, &mut opts)?;
     }
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
@@ -694,6 +727,41 @@ fn prepare_run_config(
     ))
 }
 
+/// `[aiding]` into the run options: the filter side, the input files (a case directory's own
+/// files first), the odometer's scale-factor state and its prior.
+fn apply_aiding(
+    a: &nav_io::AidingSection,
+    dir: &Path,
+    case_dir: Option<&CaseDir>,
+    opts: &mut RunOptions,
+) -> anyhow::Result<()> {
+    let filter = a
+        .to_config()
+        .map_err(|e| anyhow::anyhow!(e))
+        .context("[aiding]")?;
+    let file = |case_file: Option<&PathBuf>, cfg_file: &Option<PathBuf>| {
+        case_file
+            .cloned()
+            .or_else(|| cfg_file.as_ref().map(|p| RunConfig::resolve(dir, p)))
+    };
+    let o = &a.odometer;
+    opts.aiding = super::aiding::RunAidingConfig {
+        filter,
+        odometer_file: file(case_dir.and_then(|c| c.odometer.as_ref()), &o.file),
+        odometer_max_gap_s: o
+            .max_gap_s
+            .unwrap_or(nav_io::aidingcfg::OdometerSection::DEFAULT_MAX_GAP_S),
+        heading_file: file(case_dir.and_then(|c| c.heading.as_ref()), &a.heading.file),
+    };
+    if o.estimates_scale() {
+        opts.add_effect_block(Block::OdometerScale);
+        if let Some(s) = o.scale_sigma {
+            opts.filter.effects.odometer_scale.init_sigma = s;
+        }
+    }
+    Ok(())
+}
+
 /// What a run reads of a case directory's `case.toml` (written by `host-sim simulate`): the
 /// data files, the GPS week and the outages. Other tables of the file are not read here.
 #[derive(Debug, Clone, serde::Deserialize)]
@@ -716,6 +784,12 @@ pub struct CaseIndexFiles {
     pub gnss: String,
     /// Truth in the nav format at the IMU rate.
     pub truth: String,
+    /// Wheel speed, when simulated.
+    #[serde(default)]
+    pub odometer: Option<String>,
+    /// Dual-antenna heading, when simulated.
+    #[serde(default)]
+    pub heading: Option<String>,
 }
 
 /// The summary of a case ([`CaseIndex::summary`]).
