@@ -25,7 +25,7 @@ pub mod kfgins;
 mod lines;
 pub mod mount;
 pub mod noisecfg;
-mod numfmt;
+pub mod numfmt;
 pub mod odometer;
 pub mod pos;
 pub mod runcfg;
@@ -50,6 +50,7 @@ pub use kfgins::{
 pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;
+pub use numfmt::LineBuf;
 pub use odometer::{read_odometer, write_odometer, OdometerSample, OdometerTrack};
 pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
 pub use runcfg::{
