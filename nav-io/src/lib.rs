@@ -26,7 +26,7 @@ pub mod kfgins;
 mod lines;
 pub mod mount;
 pub mod noisecfg;
-mod numfmt;
+pub mod numfmt;
 pub mod odometer;
 pub mod pos;
 pub mod runcfg;
@@ -52,6 +52,7 @@ pub use kfgins::{
 pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;
+pub use numfmt::LineBuf;
 pub use odometer::{
     read_odometer, write_odometer, OdometerReader, OdometerSample, OdometerStream, OdometerTrack,
 };

@@ -1,27 +1,47 @@
-//! Fast float formatting that writes exactly what Rust's `Display` writes (`format!("{x}")`:
-//! the shortest digits that read back to the same bits, in positional notation, no exponent).
+//! Fast float formatting that writes exactly what Rust's `core::fmt` writes, byte for byte.
 //!
-//! The digits come from `ryu` (shortest round-trip, like `Display`). The two pick different
-//! digits in one case only: an exact tie, when the value lies exactly halfway between the two
-//! closest shortest candidates (e.g. -1514017065704403.25: `Display` writes `.2`, `ryu` `.3`).
-//! A tie needs an exact decimal expansion of at most 18 significant digits; such values (and
-//! integers from 2^53 up) are sent to `Display` itself, so the text is always `Display`'s
-//! (checked against `format!("{x}")` over random bit patterns and tie-prone values in the
-//! tests).
+//! * Shortest form, `format!("{x}")` ([`LineBuf::push_f64`]): the shortest digits that read
+//!   back to the same bits, in positional notation, no exponent. The digits come from `zmij`
+//!   (shortest round-trip, closest to the value, like `Display`; about twice as fast as
+//!   `ryu`). The two pick different digits in one case only: an exact tie, when the value lies
+//!   exactly halfway between the two closest shortest candidates (e.g. -1514017065704403.25:
+//!   `Display` writes `.2`, the shortest-digit crates `.3`). A tie needs an exact decimal
+//!   expansion of at most 18 significant digits; such values (and integers from 2^53 up) are
+//!   sent to `Display` itself, so the text is always `Display`'s.
+//! * Fixed precision, `format!("{x:.P}")` ([`LineBuf::push_fixed`]), and exponent form with
+//!   precision, `format!("{x:.Pe}")` ([`LineBuf::push_exp`]): `core::fmt` rounds the EXACT
+//!   binary value to P decimals (P + 1 significant digits). Here `|x| 10^k` is computed with
+//!   ONE correctly rounded multiplication or division by an exactly representable power of
+//!   ten (10^0..10^22), so the computed `y` is within half an ulp of the exact product; when
+//!   `y`'s fraction is farther than one ulp from one half, the exact product rounds to the same
+//!   integer as `y`, which gives the digits. Otherwise (a possible tie, a magnitude beyond the
+//!   exact powers, more than 2^52, zero in exponent form, non-finite) the number is written by
+//!   `core::fmt` itself. So the text is always `core::fmt`'s.
+//!
+//! All three are checked against `format!` over random bit patterns, tie-prone values and the
+//! value ranges of the run outputs in the tests (`tests/numfmt.rs`).
 
 use std::io::Write;
 
 /// Longest text written through the fast path (longer numbers go through `Display`).
 const FAST_MAX: usize = 48;
 
-/// A line assembled on the stack and written with one `write_all`.
-pub(crate) struct LineBuf {
+/// A line assembled on the stack and written with one `write_all` (at most 512 bytes are
+/// held; a longer line is written in pieces).
+pub struct LineBuf {
     buf: [u8; 512],
     len: usize,
 }
 
+impl Default for LineBuf {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl LineBuf {
-    pub(crate) fn new() -> Self {
+    /// An empty line.
+    pub fn new() -> Self {
         Self {
             buf: [0; 512],
             len: 0,
@@ -29,11 +49,7 @@ impl LineBuf {
     }
 
     /// Appends raw bytes (flushing to `w` first when they would not fit).
-    pub(crate) fn push_bytes<W: Write + ?Sized>(
-        &mut self,
-        w: &mut W,
-        b: &[u8],
-    ) -> std::io::Result<()> {
+    pub fn push_bytes<W: Write + ?Sized>(&mut self, w: &mut W, b: &[u8]) -> std::io::Result<()> {
         if self.len + b.len() > self.buf.len() {
             self.flush(w)?;
             if b.len() > self.buf.len() {
@@ -48,7 +64,7 @@ impl LineBuf {
     }
 
     /// Appends `x` as `Display` writes it.
-    pub(crate) fn push_f64<W: Write + ?Sized>(&mut self, w: &mut W, x: f64) -> std::io::Result<()> {
+    pub fn push_f64<W: Write + ?Sized>(&mut self, w: &mut W, x: f64) -> std::io::Result<()> {
         let mut tmp = [0u8; FAST_MAX];
         match display_f64(x, &mut tmp) {
             Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
@@ -60,7 +76,7 @@ impl LineBuf {
     }
 
     /// Appends an unsigned integer.
-    pub(crate) fn push_u64<W: Write + ?Sized>(&mut self, w: &mut W, v: u64) -> std::io::Result<()> {
+    pub fn push_u64<W: Write + ?Sized>(&mut self, w: &mut W, v: u64) -> std::io::Result<()> {
         let mut tmp = [0u8; 20];
         let mut i = tmp.len();
         let mut v = v;
@@ -77,8 +93,44 @@ impl LineBuf {
         self.push_bytes(w, tmp.get(i..).unwrap_or(&[]))
     }
 
+    /// Appends `x` as `format!("{x:.prec$}")` writes it (`prec` decimals, rounded from the
+    /// exact value).
+    pub fn push_fixed<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        x: f64,
+        prec: usize,
+    ) -> std::io::Result<()> {
+        let mut tmp = [0u8; FAST_MAX];
+        match fixed_f64(x, prec, &mut tmp) {
+            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
+            None => {
+                self.flush(w)?;
+                write!(w, "{x:.prec$}")
+            }
+        }
+    }
+
+    /// Appends `x` as `format!("{x:.prec$e}")` writes it (`prec + 1` significant digits,
+    /// rounded from the exact value; exponent without sign for >= 0, e.g. `1.745329e-4`).
+    pub fn push_exp<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        x: f64,
+        prec: usize,
+    ) -> std::io::Result<()> {
+        let mut tmp = [0u8; FAST_MAX];
+        match exp_f64(x, prec, &mut tmp) {
+            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
+            None => {
+                self.flush(w)?;
+                write!(w, "{x:.prec$e}")
+            }
+        }
+    }
+
     /// Writes the buffered bytes to `w`.
-    pub(crate) fn flush<W: Write + ?Sized>(&mut self, w: &mut W) -> std::io::Result<()> {
+    pub fn flush<W: Write + ?Sized>(&mut self, w: &mut W) -> std::io::Result<()> {
         let r = w.write_all(self.buf.get(..self.len).unwrap_or(&[]));
         self.len = 0;
         r
@@ -86,8 +138,8 @@ impl LineBuf {
 }
 
 /// Whether `x` (finite, non-zero) may be an exact tie between two shortest candidates, where
-/// `ryu` and `Display` may pick different digits: its exact decimal expansion has at most 18
-/// significant digits, or it is an integer of 2^53 or more.
+/// the shortest-digit crates and `Display` may pick different digits: its exact decimal
+/// expansion has at most 18 significant digits, or it is an integer of 2^53 or more.
 fn maybe_tie(x: f64) -> bool {
     let bits = x.to_bits();
     let biased = ((bits >> 52) & 0x7ff) as i32;
@@ -139,16 +191,16 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     if maybe_tie(x) {
         return None;
     }
-    let mut rb = ryu::Buffer::new();
+    let mut rb = zmij::Buffer::new();
     let s = rb.format_finite(x).as_bytes();
-    // For 1e-5 <= |x| < 1e16 ryu writes positional notation, as `Display` does, except that
-    // an integer gets ".0" ("12.0" where `Display` writes "12").
+    // Within its positional range zmij writes what `Display` does, except that an integer
+    // gets ".0" ("12.0" where `Display` writes "12"); outside it, an exponent.
     if !s.contains(&b'e') {
         let s = s.strip_suffix(b".0").unwrap_or(s);
         out.get_mut(..s.len())?.copy_from_slice(s);
         return Some(s.len());
     }
-    // Split ryu's text into sign, significant digits and the decimal exponent `p` such that
+    // Split zmij's text into sign, significant digits and the decimal exponent `p` such that
     // |x| = 0.d1 d2 ... dn * 10^p.
     let (neg, body) = match s.split_first() {
         Some((b'-', rest)) => (true, rest),
@@ -240,6 +292,150 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     Some(len)
 }
 
+/// Exact powers of ten representable in f64: 10^0 ..= 10^22.
+const POW10: [f64; 23] = {
+    let mut t = [1.0f64; 23];
+    let mut i = 1;
+    while i < 23 {
+        t[i] = t[i - 1] * 10.0;
+        i += 1;
+    }
+    t
+};
+
+/// 10^0 ..= 10^19 as integers.
+const POW10_U64: [u64; 20] = {
+    let mut t = [1u64; 20];
+    let mut i = 1;
+    while i < 20 {
+        t[i] = t[i - 1] * 10;
+        i += 1;
+    }
+    t
+};
+
+/// Largest precision handled by the fast paths (`10^(prec + 1)` stays far below 2^52).
+const PREC_MAX: usize = 15;
+
+/// The integer nearest to the exact value that `y` (>= 0) approximates within half an ulp
+/// (`y` is the correctly rounded result of one operation), or `None` when that value may lie
+/// too close to a half-integer to tell from `y` (or `y >= 2^52`).
+fn round_exact(y: f64) -> Option<u64> {
+    if !(0.0..4_503_599_627_370_496.0).contains(&y) {
+        return None;
+    }
+    let f = y.floor();
+    // exact: f and y share the binade or f is smaller with coarser-or-equal spacing
+    let r = y - f;
+    let ulp = f64::from_bits(y.to_bits() + 1) - y;
+    if (r - 0.5).abs() <= ulp {
+        return None;
+    }
+    let n = f as u64;
+    Some(if r > 0.5 { n + 1 } else { n })
+}
+
+/// Writes `v` in decimal, left-padded with zeros to `width` digits, at `out[*len..]`.
+fn put_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<()> {
+    let mut tmp = [b'0'; 20];
+    let mut i = tmp.len();
+    let mut v = v;
+    while v > 0 {
+        i = i.checked_sub(1)?;
+        *tmp.get_mut(i)? = b'0' + (v % 10) as u8;
+        v /= 10;
+    }
+    let start = i.min(tmp.len().checked_sub(width)?);
+    let s = tmp.get(start..)?;
+    out.get_mut(*len..*len + s.len())?.copy_from_slice(s);
+    *len += s.len();
+    Some(())
+}
+
+/// `|x| * 10^k` with one correctly rounded operation (`k` in -22..=22), else `None`.
+fn scale10(a: f64, k: i32) -> Option<f64> {
+    let p = *POW10.get(k.unsigned_abs() as usize)?;
+    Some(if k >= 0 { a * p } else { a / p })
+}
+
+/// Writes `x` as `format!("{x:.prec$}")` would into `out`; `None` when the fast path does not
+/// apply (see the module docs): the caller uses `core::fmt` then.
+pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    if !x.is_finite() || prec > PREC_MAX {
+        return None;
+    }
+    let n = round_exact(scale10(x.abs(), prec as i32)?)?;
+    let p10 = *POW10_U64.get(prec)?;
+    let mut len = 0usize;
+    if x.is_sign_negative() {
+        *out.get_mut(len)? = b'-';
+        len += 1;
+    }
+    put_digits(out, &mut len, n / p10, 1)?;
+    if prec > 0 {
+        *out.get_mut(len)? = b'.';
+        len += 1;
+        put_digits(out, &mut len, n % p10, prec)?;
+    }
+    Some(len)
+}
+
+/// Writes `x` as `format!("{x:.prec$e}")` would into `out`; `None` when the fast path does
+/// not apply (see the module docs): the caller uses `core::fmt` then.
+pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    if !x.is_finite() || x == 0.0 || prec > PREC_MAX {
+        return None;
+    }
+    let a = x.abs();
+    let lo = *POW10.get(prec)?;
+    let hi = *POW10.get(prec + 1)?;
+    // decimal exponent: the estimate from log10 is off by at most one
+    let mut e = a.log10().floor() as i32;
+    let mut y = scale10(a, prec as i32 - e)?;
+    if y < lo {
+        e -= 1;
+        y = scale10(a, prec as i32 - e)?;
+    } else if y >= hi {
+        e += 1;
+        y = scale10(a, prec as i32 - e)?;
+    }
+    if !(lo * 0.5..hi * 2.0).contains(&y) {
+        return None;
+    }
+    let mut n = round_exact(y)?;
+    let p10 = *POW10_U64.get(prec)?;
+    let p10_next = *POW10_U64.get(prec + 1)?;
+    // y within an ulp of a power of ten: carry (9.9999995 -> 10.00000) or borrow
+    if n >= p10_next {
+        if n != p10_next {
+            return None;
+        }
+        n = p10;
+        e += 1;
+    } else if n < p10 {
+        return None;
+    }
+    let mut len = 0usize;
+    if x.is_sign_negative() {
+        *out.get_mut(len)? = b'-';
+        len += 1;
+    }
+    put_digits(out, &mut len, n / p10, 1)?;
+    if prec > 0 {
+        *out.get_mut(len)? = b'.';
+        len += 1;
+        put_digits(out, &mut len, n % p10, prec)?;
+    }
+    *out.get_mut(len)? = b'e';
+    len += 1;
+    if e < 0 {
+        *out.get_mut(len)? = b'-';
+        len += 1;
+    }
+    put_digits(out, &mut len, u64::from(e.unsigned_abs()), 1)?;
+    Some(len)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -285,6 +481,39 @@ mod tests {
         for x in vals {
             assert_eq!(via_fast(x), format!("{x}"), "{x:e}");
         }
+    }
+
+    /// The fast paths are taken for the values of the run outputs (a fallback to `core::fmt`
+    /// is rare: only near-ties), and agree with `core::fmt` there.
+    #[test]
+    fn fixed_and_exp_take_the_fast_path_on_typical_values() {
+        let mut buf = [0u8; FAST_MAX];
+        let (mut fast_fixed, mut fast_exp, mut n) = (0, 0, 0);
+        let mut x = 1.234_567_890_123e-9_f64;
+        while x < 1e4 {
+            for v in [x, -x * 1.000_123] {
+                n += 1;
+                if let Some(k) = fixed_f64(v, 6, &mut buf) {
+                    fast_fixed += 1;
+                    assert_eq!(&buf[..k], format!("{v:.6}").as_bytes());
+                }
+                if let Some(k) = exp_f64(v, 6, &mut buf) {
+                    fast_exp += 1;
+                    assert_eq!(&buf[..k], format!("{v:.6e}").as_bytes());
+                }
+            }
+            x *= 1.001_713;
+        }
+        assert!(n > 20_000, "{n}");
+        assert_eq!(fast_fixed, n, "fixed: {fast_fixed} of {n} on the fast path");
+        assert!(
+            fast_exp * 1000 >= n * 999,
+            "exp: {fast_exp} of {n} on the fast path"
+        );
+        // exact decimal halves go to core::fmt (its tie rule)
+        assert_eq!(fixed_f64(0.5, 0, &mut buf), None);
+        assert_eq!(fixed_f64(2.5, 0, &mut buf), None);
+        assert_eq!(exp_f64(0.125, 1, &mut buf), None);
     }
 
     #[test]

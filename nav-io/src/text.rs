@@ -576,7 +576,7 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
 
 /// One line of the KF-GINS nav format; shared by [`write_nav_text`] and streaming writers
 /// (hw-bridge). Numbers in Rust's `Display` form (shortest round-trip digits), byte for byte:
-/// the digits come from `ryu` where it agrees with `Display` (everything but exact ties, which
+/// the digits come from `zmij` where it agrees with `Display` (everything but exact ties, which
 /// go to `Display`; see `numfmt`), about 3x faster than `write!`. The line is assembled on
 /// the stack and written with one `write_all`.
 pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {

@@ -62,8 +62,21 @@ pub fn std_header<W: Write + ?Sized>(
     writeln!(w, "# t_s {}", state_names.join(" "))
 }
 
-/// One line of `std.txt`.
+/// One line of `std.txt`: `{:.4}` time and `{:.6e}` values, written by
+/// [`nav_io::LineBuf`] (the same bytes as `core::fmt`, without its float machinery).
 pub fn std_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
+    let mut lb = nav_io::LineBuf::new();
+    lb.push_fixed(w, r.t_s, 4)?;
+    for s in &r.state_std {
+        lb.push_bytes(w, b" ")?;
+        lb.push_exp(w, *s, 6)?;
+    }
+    lb.push_bytes(w, b"\n")?;
+    lb.flush(w)
+}
+
+/// [`std_line`] with `write!` (the reference it must equal; tests).
+pub fn std_line_fmt<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
     write!(w, "{:.4}", r.t_s)?;
     for s in &r.state_std {
         write!(w, " {s:.6e}")?;
@@ -115,8 +128,24 @@ pub fn bias_header<W: Write + ?Sized>(
     writeln!(w, "{head}")
 }
 
-/// One line of `bias.txt`.
+/// One line of `bias.txt`: `{:.4}` time and `{:.6}` values, written by
+/// [`nav_io::LineBuf`] (the same bytes as `core::fmt`, without its float machinery).
 pub fn bias_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
+    let mut lb = nav_io::LineBuf::new();
+    lb.push_fixed(w, r.t_s, 4)?;
+    for b in &r.blocks {
+        let (_, k) = unit_of(&b.name);
+        for v in b.value.iter().chain(b.std.iter()) {
+            lb.push_bytes(w, b" ")?;
+            lb.push_fixed(w, v * k, 6)?;
+        }
+    }
+    lb.push_bytes(w, b"\n")?;
+    lb.flush(w)
+}
+
+/// [`bias_line`] with `write!` (the reference it must equal; tests).
+pub fn bias_line_fmt<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
     write!(w, "{:.4}", r.t_s)?;
     for b in &r.blocks {
         let (_, k) = unit_of(&b.name);
@@ -262,4 +291,87 @@ pub fn write_all(
         done.push(fin);
     }
     Ok(done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::run::BlockEstimate;
+
+    /// splitmix64: a fixed pseudo-random sequence.
+    fn next(s: &mut u64) -> u64 {
+        *s = s.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = *s;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// A value of the kind `std.txt` / `bias.txt` hold (1e-10 .. 1e3, either sign, some
+    /// exact decimal halves and exact zeros), or a random bit pattern.
+    fn value(s: &mut u64) -> f64 {
+        let r = next(s);
+        match r % 8 {
+            0 => f64::from_bits(next(s)),
+            1 => 0.0,
+            2 => ((next(s) % 2_000_000) as f64 + 0.5) / 1e7,
+            _ => {
+                let u = (next(s) >> 11) as f64 / (1u64 << 53) as f64;
+                let x = 10f64.powf(-10.0 + 13.0 * u);
+                if r & 16 == 0 {
+                    x
+                } else {
+                    -x
+                }
+            }
+        }
+    }
+
+    /// `std.txt` and `bias.txt` lines without `core::fmt` floats are `core::fmt`'s, byte for
+    /// byte, over 20,000 pseudo-random records (times on the 10 Hz grid and off it).
+    #[test]
+    fn std_and_bias_lines_equal_core_fmt() {
+        let mut s = 17u64;
+        let names = ["gyro_bias", "accel_bias", "gyro_scale_factor", "other"];
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for k in 0..20_000u32 {
+            let t_s = if k % 2 == 0 {
+                200_000.0 + f64::from(k) * 0.1
+            } else {
+                200_000.0 + value(&mut s).abs()
+            };
+            let r = EpochRecord {
+                t_s,
+                nav: NavSolution::default(),
+                state_std: (0..21).map(|_| value(&mut s)).collect(),
+                estimates: Vec::new(),
+                blocks: names
+                    .iter()
+                    .map(|n| BlockEstimate {
+                        name: (*n).to_string(),
+                        value: [value(&mut s), value(&mut s), value(&mut s)],
+                        std: [value(&mut s), value(&mut s), value(&mut s)],
+                    })
+                    .collect(),
+            };
+            a.clear();
+            b.clear();
+            std_line(&mut a, &r).unwrap();
+            std_line_fmt(&mut b, &r).unwrap();
+            assert_eq!(
+                String::from_utf8_lossy(&a),
+                String::from_utf8_lossy(&b),
+                "std line {k}"
+            );
+            a.clear();
+            b.clear();
+            bias_line(&mut a, &r).unwrap();
+            bias_line_fmt(&mut b, &r).unwrap();
+            assert_eq!(
+                String::from_utf8_lossy(&a),
+                String::from_utf8_lossy(&b),
+                "bias line {k}"
+            );
+        }
+    }
 }

@@ -6,6 +6,11 @@
 //!
 //! The text of every file is the one [`super::output`] writes from a [`super::RunOutput`]
 //! (same functions per line): `nav.txt` is byte-identical to the in-memory path.
+//!
+//! The formatting and writing run on a writer thread of their own: the records go to it in
+//! batches of [`BATCH`] through a bounded channel (at most [`QUEUE`] batches in flight, so the
+//! memory stays bounded), and the filter thread only computes the metrics. A write error stops
+//! the writer; the filter thread sees it at its next batch (or at [`FileSink::finish`]).
 
 use super::coast::CoastTrack;
 use super::engine::{RunHead, RunSink};
@@ -17,6 +22,13 @@ use nav_io::IoError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, SyncSender};
+use std::thread::JoinHandle;
+
+/// Records per message to the writer thread.
+pub const BATCH: usize = 512;
+/// Batches in flight between the filter thread and the writer thread.
+pub const QUEUE: usize = 4;
 
 /// A buffered file that counts the bytes written (to cut it back after a fault).
 struct Out {
@@ -70,9 +82,20 @@ impl Out {
     }
 }
 
-/// Writes the outputs of a run as it goes and computes its metrics online.
-pub struct FileSink<'a> {
-    dir: PathBuf,
+/// A record for the writer thread.
+enum Rec {
+    /// A line of `nav.txt`.
+    Nav(NavSolution),
+    /// A line of `std.txt` and of `bias.txt` (the header of `bias.txt` before the first).
+    Epoch(EpochRecord),
+    /// A line of `innovations.txt`.
+    Inn(InnovationRecord),
+    /// Raw bytes for `std.txt` (its header).
+    StdRaw(Vec<u8>),
+}
+
+/// The files and their formatting, owned by the writer thread.
+struct Writer {
     week: u16,
     nav: Out,
     std: Out,
@@ -80,6 +103,70 @@ pub struct FileSink<'a> {
     inn: Out,
     bias_head: bool,
     line: Vec<u8>,
+}
+
+impl Writer {
+    fn rec(&mut self, r: Rec) -> Result<(), RunError> {
+        let mut l = std::mem::take(&mut self.line);
+        l.clear();
+        let res = match r {
+            Rec::Nav(s) => self.nav_line(&mut l, &s),
+            Rec::Epoch(e) => self.epoch_lines(&mut l, &e),
+            Rec::Inn(i) => output::innovation_line(&mut l, &i)
+                .map_err(|e| self.inn.err(e))
+                .and_then(|()| self.inn.write(&l)),
+            Rec::StdRaw(b) => self.std.write(&b),
+        };
+        self.line = l;
+        res
+    }
+
+    fn nav_line(&mut self, l: &mut Vec<u8>, s: &NavSolution) -> Result<(), RunError> {
+        if self.nav.cut.is_none() && !solution_is_finite(s) {
+            self.nav.cut = Some(self.nav.n);
+        }
+        nav_io::write_nav_line(
+            l,
+            &NavSolution {
+                week: self.week,
+                ..*s
+            },
+        )
+        .map_err(|e| self.nav.err(e))?;
+        self.nav.write(l)
+    }
+
+    fn epoch_lines(&mut self, l: &mut Vec<u8>, r: &EpochRecord) -> Result<(), RunError> {
+        if !solution_is_finite(&r.nav) {
+            if self.std.cut.is_none() {
+                self.std.cut = Some(self.std.n);
+            }
+            if self.bias.cut.is_none() {
+                self.bias.cut = Some(self.bias.n);
+            }
+        }
+        if !self.bias_head {
+            output::bias_header(l, Some(r)).map_err(|e| self.bias.err(e))?;
+            self.bias.write(l)?;
+            l.clear();
+            self.bias_head = true;
+        }
+        output::std_line(l, r).map_err(|e| self.std.err(e))?;
+        self.std.write(l)?;
+        l.clear();
+        output::bias_line(l, r).map_err(|e| self.bias.err(e))?;
+        self.bias.write(l)
+    }
+}
+
+/// Writes the outputs of a run as it goes (on a writer thread) and computes its metrics
+/// online (on the caller's thread).
+pub struct FileSink<'a> {
+    dir: PathBuf,
+    /// Records not yet sent to the writer.
+    batch: Vec<Rec>,
+    tx: Option<SyncSender<Vec<Rec>>>,
+    writer: Option<JoinHandle<Result<Writer, RunError>>>,
     residuals: metrics::ResidualAcc,
     truth: Option<&'a [NavSolution]>,
     matcher: Option<TruthMatcher<'a>>,
@@ -129,8 +216,7 @@ impl<'a> FileSink<'a> {
         let mut head = Vec::new();
         output::innovations_header(&mut head).map_err(|e| inn.err(e))?;
         inn.write(&head)?;
-        Ok(Self {
-            dir: dir.to_path_buf(),
+        let mut w = Writer {
             week,
             nav: Out::create(p_nav)?,
             std: Out::create(p_std)?,
@@ -138,6 +224,29 @@ impl<'a> FileSink<'a> {
             inn,
             bias_head: false,
             line: Vec::with_capacity(256),
+        };
+        let (tx, rx) = sync_channel::<Vec<Rec>>(QUEUE);
+        let writer = std::thread::Builder::new()
+            .name("run-writer".into())
+            .spawn(move || {
+                for batch in rx {
+                    for r in batch {
+                        w.rec(r)?;
+                    }
+                }
+                Ok(w)
+            })
+            .map_err(|source| {
+                RunError::Output(IoError::Write {
+                    path: dir.to_path_buf(),
+                    source,
+                })
+            })?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            batch: Vec::with_capacity(BATCH),
+            tx: Some(tx),
+            writer: Some(writer),
             residuals: metrics::ResidualAcc::default(),
             truth,
             matcher: truth.map(TruthMatcher::new),
@@ -149,6 +258,49 @@ impl<'a> FileSink<'a> {
             nav_rate_hz: nav_rate_hz.filter(|r| *r > 0.0),
             nav_dec: None,
         })
+    }
+
+    /// Queues `r` for the writer (sends the batch when full).
+    fn push(&mut self, r: Rec) -> Result<(), RunError> {
+        self.batch.push(r);
+        if self.batch.len() >= BATCH {
+            self.send()?;
+        }
+        Ok(())
+    }
+
+    /// Sends the pending records to the writer; its error if it has stopped.
+    fn send(&mut self) -> Result<(), RunError> {
+        if self.batch.is_empty() {
+            return Ok(());
+        }
+        let b = std::mem::replace(&mut self.batch, Vec::with_capacity(BATCH));
+        let sent = match &self.tx {
+            Some(tx) => tx.send(b).is_ok(),
+            None => false,
+        };
+        if sent {
+            Ok(())
+        } else {
+            // the writer stopped: its error
+            self.join().map(|_| ())
+        }
+    }
+
+    /// Closes the channel and waits for the writer: the files (flushed by nothing yet) or the
+    /// writer's error.
+    fn join(&mut self) -> Result<Writer, RunError> {
+        self.tx = None;
+        let gone = || {
+            RunError::Output(IoError::Write {
+                path: self.dir.clone(),
+                source: std::io::Error::other("the output writer thread stopped"),
+            })
+        };
+        match self.writer.take() {
+            Some(h) => h.join().map_err(|_| gone())?,
+            None => Err(gone()),
+        }
     }
 
     /// Navigation records written to `nav.txt`.
@@ -165,11 +317,14 @@ impl<'a> FileSink<'a> {
     /// metrics of `run` (the engine's summary) and writes `metrics.json` with `json` (which
     /// turns the metrics into the file's text). Complete runs get their final names.
     pub fn finish(
-        self,
+        mut self,
         run: &super::RunOutput,
         fault: Option<&str>,
         json: impl FnOnce(&Metrics) -> anyhow::Result<String>,
     ) -> anyhow::Result<Metrics> {
+        self.send()?;
+        let w = self.join()?;
+        let coasting = std::mem::take(&mut self.coasting);
         let m = metrics::assemble(
             run,
             &self.residuals,
@@ -178,7 +333,7 @@ impl<'a> FileSink<'a> {
             if fault.is_some() {
                 Vec::new()
             } else {
-                self.coasting
+                coasting
                     .into_iter()
                     .zip(COAST_MODE_NAMES)
                     .filter_map(|(v, n)| Some((n.to_string(), v?)))
@@ -186,17 +341,17 @@ impl<'a> FileSink<'a> {
             },
         );
         let cut = fault.is_some();
-        let mut bias = self.bias;
-        if !self.bias_head {
+        let mut bias = w.bias;
+        if !w.bias_head {
             let mut h = Vec::new();
             output::bias_header(&mut h, None).map_err(|e| bias.err(e))?;
             bias.write(&h)?;
         }
         let mut paths = vec![
-            self.nav.finish(cut)?,
-            self.std.finish(cut)?,
+            w.nav.finish(cut)?,
+            w.std.finish(cut)?,
             bias.finish(cut)?,
-            self.inn.finish(false)?,
+            w.inn.finish(false)?,
         ];
         let p_met = output::partial_path(&self.dir, "metrics.json");
         let text = json(&m)?;
@@ -225,15 +380,26 @@ impl<'a> FileSink<'a> {
     }
 }
 
+impl Drop for FileSink<'_> {
+    /// Stops the writer (if [`FileSink::finish`] did not) and waits for it.
+    fn drop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.writer.take() {
+            let _ = h.join();
+        }
+    }
+}
+
 impl RunSink for FileSink<'_> {
     fn start(&mut self, head: &RunHead<'_>) -> Result<(), RunError> {
-        self.line.clear();
-        output::std_header(&mut self.line, head.model, head.state_names)
-            .map_err(|e| self.std.err(e))?;
-        let l = std::mem::take(&mut self.line);
-        self.std.write(&l)?;
-        self.line = l;
-        Ok(())
+        let mut l = Vec::new();
+        output::std_header(&mut l, head.model, head.state_names).map_err(|source| {
+            RunError::Output(IoError::Write {
+                path: self.dir.clone(),
+                source,
+            })
+        })?;
+        self.push(Rec::StdRaw(l))
     }
 
     fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
@@ -248,59 +414,18 @@ impl RunSink for FileSink<'_> {
         if !dec.take(s.t_s) {
             return Ok(());
         }
-        if self.nav.cut.is_none() && !solution_is_finite(s) {
-            self.nav.cut = Some(self.nav.n);
-        }
-        self.line.clear();
-        nav_io::write_nav_line(
-            &mut self.line,
-            &NavSolution {
-                week: self.week,
-                ..*s
-            },
-        )
-        .map_err(|e| self.nav.err(e))?;
-        let l = std::mem::take(&mut self.line);
-        let r = self.nav.write(&l);
-        self.line = l;
-        r?;
+        self.push(Rec::Nav(*s))?;
         self.nav_count += 1;
         self.last_nav_t = s.t_s;
         Ok(())
     }
 
     fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
-        if !solution_is_finite(&r.nav) {
-            if self.std.cut.is_none() {
-                self.std.cut = Some(self.std.n);
-            }
-            if self.bias.cut.is_none() {
-                self.bias.cut = Some(self.bias.n);
-            }
-        }
-        let mut l = std::mem::take(&mut self.line);
-        l.clear();
-        if !self.bias_head {
-            output::bias_header(&mut l, Some(&r)).map_err(|e| self.bias.err(e))?;
-            self.bias.write(&l)?;
-            l.clear();
-            self.bias_head = true;
-        }
-        output::std_line(&mut l, &r).map_err(|e| self.std.err(e))?;
-        self.std.write(&l)?;
-        l.clear();
-        output::bias_line(&mut l, &r).map_err(|e| self.bias.err(e))?;
-        self.bias.write(&l)?;
-        self.line = l;
-        Ok(())
+        self.push(Rec::Epoch(r))
     }
 
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
-        let mut l = std::mem::take(&mut self.line);
-        l.clear();
-        output::innovation_line(&mut l, r).map_err(|e| self.inn.err(e))?;
-        self.inn.write(&l)?;
-        self.line = l;
+        self.push(Rec::Inn(*r))?;
         self.residuals.push(r);
         if self.truth.is_none() && r.used == FixUse::Withheld {
             for e in metrics::errors_vs_fixes(std::iter::once(r), |_| true) {

@@ -1,0 +1,148 @@
+//! The fast float writers of `nav_io::numfmt` against `core::fmt`, byte for byte: the shortest
+//! form (`{}`), fixed precision (`{:.P}`) and the exponent form with precision (`{:.Pe}`), over
+//! random bit patterns, tie-prone values (exact binary fractions, exact decimal halves), values
+//! next to powers of ten and the value ranges of `std.txt` / `bias.txt`.
+
+use nav_io::LineBuf;
+use proptest::prelude::*;
+
+#[derive(Clone, Copy, Debug)]
+enum Form {
+    Shortest,
+    Fixed(usize),
+    Exp(usize),
+}
+
+fn fast(x: f64, f: Form) -> String {
+    let mut v = Vec::new();
+    let mut lb = LineBuf::new();
+    match f {
+        Form::Shortest => lb.push_f64(&mut v, x),
+        Form::Fixed(p) => lb.push_fixed(&mut v, x, p),
+        Form::Exp(p) => lb.push_exp(&mut v, x, p),
+    }
+    .unwrap();
+    lb.flush(&mut v).unwrap();
+    String::from_utf8(v).unwrap()
+}
+
+fn reference(x: f64, f: Form) -> String {
+    match f {
+        Form::Shortest => format!("{x}"),
+        Form::Fixed(p) => format!("{x:.p$}"),
+        Form::Exp(p) => format!("{x:.p$e}"),
+    }
+}
+
+/// The forms the run outputs use, and a few more precisions.
+const FORMS: [Form; 9] = [
+    Form::Shortest,
+    Form::Fixed(4),
+    Form::Fixed(6),
+    Form::Fixed(0),
+    Form::Fixed(1),
+    Form::Fixed(9),
+    Form::Exp(6),
+    Form::Exp(0),
+    Form::Exp(3),
+];
+
+fn check(x: f64) -> Result<(), TestCaseError> {
+    for f in FORMS {
+        prop_assert_eq!(
+            fast(x, f),
+            reference(x, f),
+            "{:?} of {:e} ({:#x})",
+            f,
+            x,
+            x.to_bits()
+        );
+    }
+    Ok(())
+}
+
+#[test]
+fn edge_values_match_core_fmt() {
+    let mut vals = vec![
+        0.0,
+        -0.0,
+        1.0,
+        -1.0,
+        0.5,
+        1.5,
+        2.5,
+        -2.5,
+        0.125,
+        0.00005,
+        0.000_000_5,
+        0.000_001_5,
+        1.745_329_251_994_33e-4,
+        9.999_999_5e-5,
+        9.999_999_4e-5,
+        9.999_999_6e-5,
+        0.999_999_95,
+        9_999_999.5,
+        99_999.999_995,
+        1e-7,
+        1e22,
+        1e23,
+        4_503_599_627_370_495.5,
+        4_503_599_627_370_496.0,
+        9_007_199_254_740_993.0,
+        f64::MAX,
+        f64::MIN_POSITIVE,
+        5e-324,
+        f64::EPSILON,
+        std::f64::consts::PI,
+        200_000.000_05,
+        200_000.000_15,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for k in -30..=30 {
+        let p = 10f64.powi(k);
+        for x in [
+            p,
+            f64::from_bits(p.to_bits() + 1),
+            f64::from_bits(p.to_bits() - 1),
+        ] {
+            vals.push(x);
+            vals.push(-x);
+        }
+    }
+    for x in vals {
+        check(x).unwrap();
+    }
+}
+
+/// Random bits, exact binary fractions (where decimal halves live), decimal halves at the
+/// precisions used, and the magnitudes of std.txt (1e-9..1e2) and bias.txt (1e-3..1e4).
+fn values() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        any::<u64>().prop_map(f64::from_bits),
+        (any::<i64>(), 0i32..40).prop_map(|(m, s)| (m >> 11) as f64 / 2f64.powi(s)),
+        (any::<i32>(), 0u32..10).prop_map(|(m, p)| (f64::from(m) + 0.5) / 10f64.powi(p as i32)),
+        (0u32..1_000_000, 0i32..30).prop_map(|(m, s)| 200000.0 + m as f64 / 2f64.powi(s)),
+        (-1e6f64..1e6),
+        (-9.0f64..3.0, any::<bool>()).prop_map(|(e, neg)| {
+            let x = 10f64.powf(e);
+            if neg {
+                -x
+            } else {
+                x
+            }
+        }),
+        (-1.0f64..1.0).prop_map(|x| x * 1e-9),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 50_000, ..ProptestConfig::default() })]
+
+    /// Every form is `core::fmt`'s, byte for byte.
+    #[test]
+    fn fast_forms_are_byte_identical_to_core_fmt(x in values()) {
+        check(x)?;
+    }
+}
