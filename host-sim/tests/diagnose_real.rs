@@ -1,15 +1,18 @@
 //! `diagnose` on the real drive (`../shared/data/rtklibexplorer-drive0708`, consumer MEMS IMU +
-//! RTK, `configs/drive0708.toml`) with seven 20 s outages every 60 s from 120 s: the withheld
-//! RTK fixes are the reference. Checks: an IMU-GNSS time offset is found first, of the size of
-//! the logging delay the data's source corrects (0.125 s, applied there to the IMU time; not
-//! applied by our configuration), every added effect is finite and significant, after is not
-//! worse than before in the outages (withheld fixes) and with GNSS (prior residuals of the
-//! used fixes, and the written solution against the fixes on the GNSS clock), and the
-//! augmented configuration (time offset as `imu.time_offset_s`, IMU effects in `effects`, the
-//! tuned noise) loads and runs with a lower outage error.
+//! RTK, `configs/drive0708.toml`, IMU ticks at face value from the tag start) with the issue's
+//! protocol: seven 20 s outages every 60 s, the first 120 s after the first GNSS fix
+//! (`116.645:20:60` from the first IMU sample); the withheld RTK fixes are the reference.
+//! Checks (issue 14's done-when): an IMU-GNSS time offset is named first, of the size the RTK
+//! fixes' prior residuals point to (0.095-0.141 s per minute of the drive, docs/diagnose.md;
+//! the data's source corrects 0.125 s), every added effect is finite and significant, and
+//! after is not worse than before in the outages and with GNSS against the RTK fixes on the
+//! GNSS clock: the prior residuals (run without outages, the README's "with GNSS") and the
+//! written solution against fixes it did not use (every fourth fix withheld), the after
+//! model being the augmented configuration (time offset as `imu.time_offset_s`, so its
+//! solution is on the GNSS clock).
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions};
 use host_sim::run::cli::{execute, prepare, RunArgs};
-use host_sim::run::parse_periodic;
+use host_sim::run::{parse_periodic, Outage};
 use std::path::Path;
 
 fn data_dir() -> Option<&'static Path> {
@@ -25,14 +28,14 @@ fn data_dir() -> Option<&'static Path> {
 }
 
 #[test]
-fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
+fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     if data_dir().is_none() {
         println!("SKIPPED real_drive_diagnosis: ../shared/data not found");
         return;
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
     let mut a = RunArgs::new(config);
-    a.periodic_outages = vec![parse_periodic("120:20:60").unwrap()];
+    a.periodic_outages = vec![parse_periodic("116.645:20:60").unwrap()];
     let p = prepare(&a).expect("loading the drive");
     let out = diagnose(&p, &DiagnoseOptions::default()).expect("diagnose");
     let d = &out.diagnosis;
@@ -49,9 +52,10 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     assert_eq!(d.error_before.outages, 7);
     let first = d.added_effects.first().expect("effects on the real drive");
     assert_eq!(first.name, "time_offset");
-    // the source's logging delay is 0.125 s; ours is estimated with the datasheet noise
+    // the prior residuals' minimum over a grid of --imu-time-offset: 0.095-0.141 s per minute
+    // (0.12 s over the drive); measured +0.1023 +- 0.0005 s
     assert!(
-        (first.estimate[0] - 0.125).abs() < 0.1,
+        (0.08..0.15).contains(&first.estimate[0]),
         "{:?}",
         first.estimate
     );
@@ -109,13 +113,12 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     );
     println!("with GNSS: prior residual horizontal RMS {gb:.3} -> {ga:.3} m; written solution vs RTK fixes {ob:.3} -> {oa:.3} m (after on the GNSS clock, shift {:+.4} s)", d.output_clock_shift_s);
     assert!(ga <= gb, "GNSS prior residual {gb} -> {ga}");
-    // The written solution at the model's antenna (configured + estimated lever arm): on the
-    // GNSS clock it must be closer to the fixes than the same solution left on the IMU clock.
-    // It is NOT asserted to be closer than before: it is a posterior comparison with the fixes
-    // the filter used, and on this drive the IMU tick stretch of the configuration
-    // (`stretch_to_tag_end`, x1.00029) leaves a clock drift (the after solution's along-track
-    // error goes from +0.13 s to +0.015 s over the 9 minutes) that one constant time offset
-    // cannot follow: measured 0.366 -> 0.473 m (see docs/diagnose.md).
+    // The written solution against the fixes the filter USED (on its clock, at the model's
+    // antenna) is reported but is no test of a time offset: the base solution is compared at
+    // the epoch its own update pulled it onto the fix, the after solution 0.10 s of
+    // propagation later (measured 0.102 -> 0.128 m). The fair comparisons follow, with fixes
+    // the filter did not use. Still, on the GNSS clock it must be closer than left on the
+    // IMU clock.
     let la = d
         .added_effects
         .iter()
@@ -157,4 +160,48 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_lowers_the_outage_error() {
     let e2 = host_sim::diagnose::outage_error_m(&m2);
     println!("run with the augmented configuration: outage error {e2:.3} m");
     assert!(e2.is_finite() && e2 < b, "augmented {e2} vs before {b}");
+
+    // with GNSS, against the RTK fixes, on the GNSS clock: the configuration (before) and the
+    // augmented configuration (after), (1) without outages, the prior residuals of the fixes;
+    // (2) every fourth fix withheld (absolute windows of 0.1 s around it, the same fixes for
+    // both runs), the written solution at the withheld fixes
+    let with_gnss = |config: &Path, thin: bool| {
+        let mut p = prepare(&RunArgs::new(config)).expect("loads");
+        if thin {
+            p.opts.outages = p
+                .case
+                .gnss
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| k % 4 == 2)
+                .map(|(_, f)| Outage {
+                    start_s: f.t_s - 0.05,
+                    duration_s: 0.1,
+                })
+                .collect();
+        }
+        let (o, m) = execute(&p, &mut |_, _| {}).expect("runs");
+        if thin {
+            assert!(m.outage_summary.count > 500, "{}", m.outage_summary.count);
+            assert!(o.counters.gnss_accepted > 1500);
+            m.outage_summary.end_horizontal_m.rms
+        } else {
+            m.gnss_residuals.horizontal_m.rms
+        }
+    };
+    let aug_path = dir.path().join("augmented.toml");
+    let (pr_b, pr_a) = (
+        with_gnss(Path::new(config), false),
+        with_gnss(&aug_path, false),
+    );
+    let (ho_b, ho_a) = (
+        with_gnss(Path::new(config), true),
+        with_gnss(&aug_path, true),
+    );
+    println!(
+        "with GNSS (no outages): prior residual horizontal RMS {pr_b:.3} -> {pr_a:.3} m; \
+         written solution at withheld fixes (1 in 4) {ho_b:.3} -> {ho_a:.3} m"
+    );
+    assert!(pr_a <= pr_b, "prior residuals {pr_b} -> {pr_a}");
+    assert!(ho_a <= ho_b, "withheld fixes {ho_b} -> {ho_a}");
 }

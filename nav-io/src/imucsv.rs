@@ -24,6 +24,17 @@
 //! last tag; the stretch factor must be within 1 % of 1 or the tag file is rejected as not
 //! belonging to the log.
 //!
+//! That assumption can be wrong, and was on the one real log we have (rtklibexplorer
+//! drive_0708): the tag start is when the logger OPENED the file, and the first row reached it
+//! 131 ms later, while every row arrives 130-149 ms after its tick all along (the tag's
+//! pairs against the rows' ticks: 12.6 ppm between the two clocks). The stretch (x1.00029)
+//! then adds a clock ramp of 0 -> +0.160 s over the 9 minutes that the GNSS confirms (the
+//! best IMU time correction goes -0.106 -> -0.300 s with it, -0.095 -> -0.141 s without it).
+//! `stretch_to_tag_end = false` places the first used row at the tag start and takes the ticks
+//! at face value; the constant offset that remains (the logging delay) is for
+//! `time_offset_s` or `host-sim diagnose` to find. See docs/diagnose.md ("The drive0708
+//! clock").
+//!
 //! # Sample convention ([`SampleConvention`])
 //! - `trapezoid` (default): each row is the instantaneous rate / specific force AT its time
 //!   stamp. The increment over (t_{k-1}, t_k] is `(y_{k-1} + y_k) / 2 * (t_k - t_{k-1})`: exact
@@ -111,7 +122,8 @@ pub enum CsvTime {
         /// CSV file's folder).
         #[serde(default)]
         tag_file: Option<PathBuf>,
-        /// Stretch the tick span to the tag span (see the module notes); default true.
+        /// Stretch the tick span to the tag span (see the module notes: check it on your log
+        /// before trusting it); default true, as the source's converter does.
         #[serde(default = "yes")]
         stretch_to_tag_end: bool,
     },

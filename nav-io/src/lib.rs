@@ -63,7 +63,7 @@ pub use runcfg::{
     ImuFileKind, ImuSource, InitConfig, InitMode, NoiseConfig, RunConfig, RunInputs,
     ScaleNoiseConfig, TruthData, TruthFileKind, TruthSource,
 };
-pub use tag::{read_time_tag, TimeTag};
+pub use tag::{read_time_tag, tick_clock_fit, TickClockFit, TimeTag};
 pub use text::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_line, write_gnss_text,
     write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_line_display,

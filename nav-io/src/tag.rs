@@ -155,3 +155,91 @@ pub fn read_time_tag(path: impl AsRef<Path>) -> Result<TimeTag, IoError> {
     })?;
     parse_time_tag(path, &b)
 }
+
+/// The rows' tick clock against the logger's clock, from the tag pairs (see
+/// [`tick_clock_fit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TickClockFit {
+    /// Arrival lag of the first row: logger time since the file was opened minus the row's
+    /// tick since the first row's tick, at the first row, ms (lower envelope).
+    pub lag_ms: f64,
+    /// Rate of the lag's lower envelope: how much faster the logger's clock runs than the
+    /// rows' ticks, parts per million.
+    pub rate_ppm: f64,
+    /// RMS of the envelope points about the fitted line, ms.
+    pub rms_ms: f64,
+    /// Largest lag seen (envelope plus buffering), ms.
+    pub max_lag_ms: f64,
+    /// Tag pairs matched to a row.
+    pub pairs_used: usize,
+    /// Envelope points fitted (one per window).
+    pub windows: usize,
+}
+
+/// Fits the rows' ticks against the tag's arrival times: each tag pair (ms since open, bytes
+/// logged) is matched to the last row complete at that byte count; its lag is the pair's time
+/// minus the row's tick (both from the first row); the smallest lag per `window_ms` of ticks
+/// (the rows that waited least in buffers) is fitted with a straight line. `rows` holds each
+/// row's end position in the LOGGED byte stream (count the line ends as they were logged) and
+/// its tick, ms, in file order. `None` with fewer than two windows.
+///
+/// A rate near 0 says the ticks run at the logger's rate: stretching the tick span to the tag
+/// span is then wrong by (tag span / tick span - 1) whenever the first row did not arrive
+/// when the file was opened.
+pub fn tick_clock_fit(tag: &TimeTag, rows: &[(u64, f64)], window_ms: f64) -> Option<TickClockFit> {
+    let tick0 = rows.first()?.1;
+    let mut env: Vec<(f64, f64)> = Vec::new();
+    let (mut used, mut max_lag, mut k) = (0usize, f64::NEG_INFINITY, 0usize);
+    for &(ms, pos) in &tag.pairs {
+        // advance to the last row ending at or before `pos`
+        while rows.get(k + 1).is_some_and(|r| r.0 <= u64::from(pos)) {
+            k += 1;
+        }
+        let Some(&(end, tick)) = rows.get(k) else {
+            break;
+        };
+        if end > u64::from(pos) {
+            continue;
+        }
+        let t = tick - tick0;
+        let lag = f64::from(ms) - t;
+        used += 1;
+        max_lag = max_lag.max(lag);
+        let w = (t / window_ms).floor();
+        match env.last_mut() {
+            Some(last) if (last.0 / window_ms).floor() == w => {
+                if lag < last.1 {
+                    *last = (t, lag);
+                }
+            }
+            _ => env.push((t, lag)),
+        }
+    }
+    if env.len() < 2 {
+        return None;
+    }
+    let n = env.len() as f64;
+    let mx = env.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = env.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = env.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = env.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = sxy / sxx;
+    let lag0 = my - slope * mx;
+    let rms = (env
+        .iter()
+        .map(|p| (p.1 - lag0 - slope * p.0).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    Some(TickClockFit {
+        lag_ms: lag0,
+        rate_ppm: slope * 1e6,
+        rms_ms: rms,
+        max_lag_ms: max_lag,
+        pairs_used: used,
+        windows: env.len(),
+    })
+}

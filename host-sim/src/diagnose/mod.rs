@@ -889,10 +889,12 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         );
     }
     println!(
-        "outage position error ({}): before {:.3} m, after {:.3} m; output vs fixes (horizontal): before {:.3} m, after {:.3} m{}",
+        "outage position error ({}): before {:.3} m, after {:.3} m; GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, posterior: favours no time offset): before {:.3} m, after {:.3} m{}",
         dg.error_before.reference,
         dg.error_before.outage_max_3d_rms_m,
         dg.error_after.outage_max_3d_rms_m,
+        dg.error_before.gnss_residual_horizontal_rms_m,
+        dg.error_after.gnss_residual_horizontal_rms_m,
         dg.error_before.output_vs_fixes_horizontal_rms_m,
         dg.error_after.output_vs_fixes_horizontal_rms_m,
         if dg.output_clock_shift_s != 0.0 {

@@ -461,7 +461,7 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     let (b, a) = (&dg.error_before, &dg.error_after);
     let _ = writeln!(
         s,
-        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n| written solution vs GNSS fixes outside outages, horizontal RMS [m] | {:.3} | {:.3} |\n",
+        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n| written solution vs the USED GNSS fixes outside outages, horizontal RMS [m] (posterior: favours no time offset, see docs/diagnose.md) | {:.3} | {:.3} |\n",
         b.outages,
         a.outages,
         b.outage_max_3d_rms_m,
