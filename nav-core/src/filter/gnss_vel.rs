@@ -142,7 +142,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 downweight: vg.downweight_nis,
                 reject: vg.reject_nis,
             },
-            |_, _| {},
+            None,
         )?;
         let c = &mut self.counters;
         if g.accepted {
