@@ -226,20 +226,7 @@ impl<const N: usize> NavApp<N> {
                 self.on_gnss(fix, clock);
                 Ok(())
             }
-            Payload::Config(c) => {
-                // for the start to come; a running filter keeps its configuration
-                let mut cfg = self.nav.config().filter;
-                cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
-                cfg.lever_arm_body_m = c.lever_arm_frd_m;
-                self.nav.set_filter_config(cfg);
-                let land = c.flags & wire::CONFIG_LAND_AIDING != 0;
-                if land != self.aid.is_some() {
-                    // LAND is valid by construction: a refusal leaves the aiding off
-                    let _ = self.set_aiding(land.then_some(&AidingConfig::LAND));
-                }
-                self.nav_divider = c.nav_divider;
-                self.send_health(out, clock)
-            }
+            Payload::Config(c) => self.on_config(c, out, clock),
             Payload::Nav(_) | Payload::Health(_) => self.send_health(out, clock),
         }
     }
@@ -268,9 +255,9 @@ impl<const N: usize> NavApp<N> {
         }
         let t0 = clock.now_ticks();
         let r = self.nav.push_imu(s);
-        if let (Ok(step), Some(a), Some(f)) = (&r, self.aid.as_mut(), self.nav.filter_mut()) {
+        if let Ok(step) = &r {
             if matches!(step.imu, ImuEvent::Propagated | ImuEvent::GapBridged { .. }) {
-                a.on_imu(f, self.gnss_speed);
+                self.run_aiding();
             }
         }
         let dt = clock.now_ticks().wrapping_sub(t0);
@@ -292,9 +279,7 @@ impl<const N: usize> NavApp<N> {
         self.since_nav = self.since_nav.saturating_add(1);
         if self.nav_divider > 0 && self.since_nav >= self.nav_divider {
             self.since_nav = 0;
-            if let Some(sol) = self.nav.solution() {
-                self.send(&Payload::Nav(sol), out)?;
-            }
+            self.send_solution(out)?;
         }
         self.since_health = self.since_health.saturating_add(1);
         if self.health_every > 0 && self.since_health >= self.health_every {
@@ -303,7 +288,49 @@ impl<const N: usize> NavApp<N> {
         Ok(())
     }
 
+    /// The land-vehicle aiding after an integrated sample (when on and the filter runs).
+    // out of line, like the other calls below that are not on every epoch's path: their
+    // locals stay out of the frame that calls the navigator (MCU stack)
+    #[inline(never)]
+    fn run_aiding(&mut self) {
+        if let (Some(a), Some(f)) = (self.aid.as_mut(), self.nav.filter_mut()) {
+            a.on_imu(f, self.gnss_speed);
+        }
+    }
+
+    /// Sends the navigation solution now (none before the filter runs).
+    #[inline(never)]
+    fn send_solution<W: Write>(&mut self, out: &mut W) -> Result<(), W::Error> {
+        match self.nav.solution() {
+            Some(sol) => self.send(&Payload::Nav(sol), out),
+            None => Ok(()),
+        }
+    }
+
+    /// Applies a configuration frame (for the start to come; a running filter keeps its
+    /// configuration) and answers it with a health frame.
+    #[inline(never)]
+    fn on_config<W: Write, C: TimeBase>(
+        &mut self,
+        c: &wire::Config,
+        out: &mut W,
+        clock: &mut C,
+    ) -> Result<(), W::Error> {
+        let mut cfg = self.nav.config().filter;
+        cfg.use_gnss_velocity = c.flags & wire::CONFIG_USE_GNSS_VELOCITY != 0;
+        cfg.lever_arm_body_m = c.lever_arm_frd_m;
+        self.nav.set_filter_config(cfg);
+        let land = c.flags & wire::CONFIG_LAND_AIDING != 0;
+        if land != self.aid.is_some() {
+            // LAND is valid by construction: a refusal leaves the aiding off
+            let _ = self.set_aiding(land.then_some(&AidingConfig::LAND));
+        }
+        self.nav_divider = c.nav_divider;
+        self.send_health(out, clock)
+    }
+
     /// One GNSS fix: starts the filter (first valid fix) or waits for the nearest IMU epoch.
+    #[inline(never)]
     pub fn on_gnss<C: TimeBase>(&mut self, fix: &GnssFix, _clock: &mut C) {
         if fix.has_velocity && fix.vel_ned_mps.iter().all(|v| v.is_finite()) {
             let [n, e, d] = fix.vel_ned_mps;
@@ -325,6 +352,7 @@ impl<const N: usize> NavApp<N> {
     }
 
     /// Sends a health frame now.
+    #[inline(never)]
     pub fn send_health<W: Write, C: TimeBase>(
         &mut self,
         out: &mut W,

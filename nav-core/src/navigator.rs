@@ -462,8 +462,10 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         cfg: &FilterConfig,
         heading_known: bool,
     ) -> Result<Aligned, FilterError> {
-        let f = Filter::<T, N>::new(self.layout, cfg, state, unc)?;
-        self.filter = Some(f);
+        // checked first, then built without a `Result` around it: one copy of the filter in
+        // this frame instead of two (MCU stack)
+        Filter::<T, N>::check_new(&self.layout, cfg, &state, unc)?;
+        self.filter = Some(Filter::<T, N>::new_checked(self.layout, cfg, state, unc));
         self.guard = None;
         self.epoch_s = None;
         let a = Aligned {

@@ -46,7 +46,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return Err(self.numerical_failure());
         }
         self.predict_covariance()?;
-        let g = self.gated_update(z64, h, r64, Gate::hard(nis_threshold), |_, _| {})?;
+        let g = self.gated_update(z64, h, r64, Gate::hard(nis_threshold), None)?;
         Ok(AidingOutcome {
             nis: g.nis,
             threshold: nis_threshold,

@@ -13,6 +13,7 @@
 //! No allocation (const generic sizes), no panics, no unchecked indexing.
 
 use super::linalg::{all_finite, cholesky_in_place, cholesky_solve, dot, forward_solve};
+use super::reacq::FixCheck;
 use super::robust::{igg3_weight, MIN_WEIGHT};
 use super::{diag_nonneg, discrete, get2, Filter, FilterError};
 use crate::scalar::Scalar;
@@ -52,19 +53,26 @@ pub(crate) struct Gated<const M: usize> {
 impl<T: Scalar, const N: usize> Filter<T, N> {
     /// The gated Joseph-form update (see the module documentation) for the current
     /// covariance (the caller predicts it first). `z64` = predicted minus measured, `h` the
-    /// Jacobian rows, `r64` the diagonal variances of the measurement. `seen` is called with
-    /// the NIS as soon as it is known (before the decision, also when a later numerical
-    /// failure returns an error).
+    /// Jacobian rows, `r64` the diagonal variances of the measurement. `fix`: a GNSS position
+    /// fix's bookkeeping, done as soon as the NIS is known (before the decision, also when a
+    /// later numerical failure returns an error): whether it is within the normal gate, the
+    /// probation of the previous fix it decides (undone: the caller processes the fix again
+    /// and this update stops there), and, for a first fix after an outage, its own probation
+    /// with the covariance before it when it is accepted beyond the normal gate
+    /// ([`super::reacq`]).
     ///
     /// Errors: [`FilterError::Numerical`] (counted) when `S` is not positive definite, the
     /// NIS or the result is not finite; the state and covariance are then unchanged.
-    pub(crate) fn gated_update<const M: usize>(
+    // one instance per (N, M) whatever the caller (flash: the bench carries three filter
+    // sizes), and its N x N temporaries in its own frame (MCU stack)
+    #[inline(never)]
+    pub(super) fn gated_update<const M: usize>(
         &mut self,
         z64: &[f64; M],
         h: &[[T; N]; M],
         r64: &[f64; M],
         gate: Gate,
-        seen: impl FnOnce(&mut Self, f64),
+        fix: Option<&FixCheck<T, N>>,
     ) -> Result<Gated<M>, FilterError> {
         let z = z64.map(T::of_f64);
         let mut r = r64.map(T::of_f64);
@@ -87,7 +95,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !nis.is_finite() {
             return Err(self.numerical_failure());
         }
-        seen(self, nis);
+        if let Some(c) = fix {
+            self.gate.last_within_normal_gate = nis <= c.normal_reject;
+            self.redo = self.settle_tentative(nis, c);
+        }
         if self.redo {
             // the fix's probation check undid the previous fix: the caller processes it again
             return Ok(out);
@@ -151,8 +162,18 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !all_finite(&p) || !diag_nonneg(&p) {
             return Err(self.numerical_failure());
         }
-        self.p = p;
-        self.feedback(&dx);
+        match fix.filter(|c| c.fed_back_before.is_some()) {
+            Some(c) => {
+                // the covariance before the update stays in `p` for the probation
+                core::mem::swap(&mut self.p, &mut p);
+                self.feedback(&dx);
+                self.put_on_probation(c, &p, nis);
+            }
+            None => {
+                self.p = p;
+                self.feedback(&dx);
+            }
+        }
         out.accepted = true;
         out.weight = weight;
         Ok(out)

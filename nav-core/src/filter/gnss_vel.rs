@@ -14,6 +14,7 @@ use crate::config::VelocityGating;
 use crate::earth;
 use crate::model::{BlockKind, MeasContext};
 use crate::scalar::Scalar;
+use crate::strapdown::{NavState, StepInfo};
 use crate::types::GnssFix;
 use nalgebra::Vector3;
 
@@ -32,82 +33,26 @@ pub(super) struct GnssModel<T: Scalar, const N: usize> {
 impl<T: Scalar, const N: usize> Filter<T, N> {
     /// The residuals and Jacobians of `fix` (`dt_fix` = fix time - filter time, s).
     pub(super) fn gnss_model(&self, fix: &GnssFix, dt_fix: f64) -> GnssModel<T, N> {
-        let nav = *self.mech.state();
-        let c = dcm_f64(&nav.q_nb);
-        let l = Vector3::from(self.lever_arm_body_m());
-        let w = self.last_step.omega_ib_body_radps;
-        let c_l = c * l;
-        let c_w_x_l = c * w.cross(&l);
-        let c_lx = c * l.cross_matrix();
-        // time offset: the fix is the antenna at IMU time t_fix + dt_hat, tau after this epoch
-        let time_offset = self.layout.contains(BlockKind::TimeOffset);
-        let tau = dt_fix + self.time_offset_s();
-        let lat = nav.pos.lat_rad;
-        let v_ant0 = nav.vel_ned_mps + c_w_x_l;
-        let acc_n = if time_offset {
-            self.last_step.f_ned_mps2 + earth::gravity_ned_mps2(lat, nav.pos.h_m)
-        } else {
-            Vector3::zeros()
-        };
-        // local curvilinear map (that of `earth::displace` and of the position error; it
-        // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
-        let (sl, cl) = (libm::sin(lat), libm::cos(lat));
-        let d = 1.0 - earth::E2 * sl * sl;
-        let sd = libm::sqrt(d);
-        let rn = earth::A_M / sd + nav.pos.h_m;
-        let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
-        let w_in = {
-            let v = &nav.vel_ned_mps;
-            let w = earth::OMEGA_IE_RADPS;
-            Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn))
-        };
-        let ctx = MeasContext {
-            c_l: c_l.into(),
-            c_w_x_l: c_w_x_l.into(),
-            c_lx: c_lx.transpose().into(),
-            omega_b_radps: w.into(),
-            c_nb: c.transpose().into(),
-            f_b_mps2: self.last_step.f_body_mps2.into(),
-            temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
-            // d/d(dt) of the predicted antenna position v_ant tau + a tau^2 / 2
-            v_ant_ned_mps: (v_ant0 + acc_n * tau).into(),
-            acc_ned_mps2: acc_n.into(),
-            bridge_s: tau,
-            lever_bridge_s: if time_offset { tau } else { 0.0 },
-            w_in_ned_radps: w_in.into(),
-            f_ned_mps2: self.last_step.f_ned_mps2.into(),
-        };
+        let g = gnss_geometry(
+            &GeometryInput {
+                nav: *self.mech.state(),
+                step: self.last_step,
+                lever_arm_body_m: self.lever_arm_body_m(),
+                time_offset: self.layout.contains(BlockKind::TimeOffset),
+                time_offset_s: self.time_offset_s(),
+                temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
+            },
+            fix,
+            dt_fix,
+        );
         let mut h_pos = [[T::ZERO; N]; 3];
         let mut h_vel = [[T::ZERO; N]; 3];
         for (off, b) in self.layout.iter() {
-            b.gnss_jacobian(off, &ctx, &mut h_pos, &mut h_vel);
+            b.gnss_jacobian(off, &g.ctx, &mut h_pos, &mut h_vel);
         }
-        // predicted antenna position at the fix time minus the measured one, NED m
-        let mut dlon = fix.lon_rad - nav.pos.lon_rad;
-        if dlon > core::f64::consts::PI {
-            dlon -= 2.0 * core::f64::consts::PI;
-        } else if dlon < -core::f64::consts::PI {
-            dlon += 2.0 * core::f64::consts::PI;
-        }
-        let meas_off = Vector3::new(
-            (fix.lat_rad - lat) * rm,
-            dlon * rn * cl,
-            nav.pos.h_m - fix.h_m,
-        );
-        let zp = if time_offset {
-            // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
-            c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
-        } else {
-            c_l + nav.vel_ned_mps * dt_fix - meas_off
-        };
-        let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
-        if time_offset {
-            v_ant += acc_n * tau;
-        }
-        let zv = v_ant - Vector3::from(fix.vel_ned_mps);
         GnssModel {
-            zp: [zp.x, zp.y, zp.z],
-            zv: [zv.x, zv.y, zv.z],
+            zp: g.zp,
+            zv: g.zv,
             h_pos,
             h_vel,
         }
@@ -142,7 +87,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 downweight: vg.downweight_nis,
                 reject: vg.reject_nis,
             },
-            |_, _| {},
+            None,
         )?;
         let c = &mut self.counters;
         if g.accepted {
@@ -154,5 +99,102 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             c.gnss_vel_rejected = c.gnss_vel_rejected.saturating_add(1);
         }
         Ok(out)
+    }
+}
+
+/// What the N-independent part of the GNSS model needs of the filter.
+struct GeometryInput {
+    nav: NavState,
+    step: StepInfo,
+    lever_arm_body_m: [f64; 3],
+    time_offset: bool,
+    time_offset_s: f64,
+    temperature_offset_c: f64,
+}
+
+/// The N-independent part of the GNSS model: the residuals and the measurement context.
+struct Geometry {
+    ctx: MeasContext,
+    zp: [f64; 3],
+    zv: [f64; 3],
+}
+
+/// The residuals and the Jacobians' context of `fix` at the filter's state `inp` (`dt_fix` =
+/// fix time - filter time, s). Not generic over the state dimension: one instance whatever
+/// the filter sizes a binary carries (flash).
+#[inline(never)]
+fn gnss_geometry(inp: &GeometryInput, fix: &GnssFix, dt_fix: f64) -> Geometry {
+    let nav = &inp.nav;
+    let c = dcm_f64(&nav.q_nb);
+    let l = Vector3::from(inp.lever_arm_body_m);
+    let w = inp.step.omega_ib_body_radps;
+    let c_l = c * l;
+    let c_w_x_l = c * w.cross(&l);
+    let c_lx = c * l.cross_matrix();
+    // time offset: the fix is the antenna at IMU time t_fix + dt_hat, tau after this epoch
+    let time_offset = inp.time_offset;
+    let tau = dt_fix + inp.time_offset_s;
+    let lat = nav.pos.lat_rad;
+    let v_ant0 = nav.vel_ned_mps + c_w_x_l;
+    let acc_n = if time_offset {
+        inp.step.f_ned_mps2 + earth::gravity_ned_mps2(lat, nav.pos.h_m)
+    } else {
+        Vector3::zeros()
+    };
+    // local curvilinear map (that of `earth::displace` and of the position error; it
+    // differs from the exact ECEF offset by d^2/R, 4e-6 m at 5 m) with one sin/cos/sqrt
+    let (sl, cl) = (libm::sin(lat), libm::cos(lat));
+    let d = 1.0 - earth::E2 * sl * sl;
+    let sd = libm::sqrt(d);
+    let rn = earth::A_M / sd + nav.pos.h_m;
+    let rm = earth::A_M * (1.0 - earth::E2) / (d * sd) + nav.pos.h_m;
+    let w_in = {
+        let v = &nav.vel_ned_mps;
+        let w = earth::OMEGA_IE_RADPS;
+        Vector3::new(w * cl + v.y / rn, -v.x / rm, -w * sl - v.y * sl / (cl * rn))
+    };
+    let ctx = MeasContext {
+        c_l: c_l.into(),
+        c_w_x_l: c_w_x_l.into(),
+        c_lx: c_lx.transpose().into(),
+        omega_b_radps: w.into(),
+        c_nb: c.transpose().into(),
+        f_b_mps2: inp.step.f_body_mps2.into(),
+        temperature_offset_c: inp.temperature_offset_c,
+        // d/d(dt) of the predicted antenna position v_ant tau + a tau^2 / 2
+        v_ant_ned_mps: (v_ant0 + acc_n * tau).into(),
+        acc_ned_mps2: acc_n.into(),
+        bridge_s: tau,
+        lever_bridge_s: if time_offset { tau } else { 0.0 },
+        w_in_ned_radps: w_in.into(),
+        f_ned_mps2: inp.step.f_ned_mps2.into(),
+    };
+    // predicted antenna position at the fix time minus the measured one, NED m
+    let mut dlon = fix.lon_rad - nav.pos.lon_rad;
+    if dlon > core::f64::consts::PI {
+        dlon -= 2.0 * core::f64::consts::PI;
+    } else if dlon < -core::f64::consts::PI {
+        dlon += 2.0 * core::f64::consts::PI;
+    }
+    let meas_off = Vector3::new(
+        (fix.lat_rad - lat) * rm,
+        dlon * rn * cl,
+        nav.pos.h_m - fix.h_m,
+    );
+    let zp = if time_offset {
+        // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
+        c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
+    } else {
+        c_l + nav.vel_ned_mps * dt_fix - meas_off
+    };
+    let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
+    if time_offset {
+        v_ant += acc_n * tau;
+    }
+    let zv = v_ant - Vector3::from(fix.vel_ned_mps);
+    Geometry {
+        ctx,
+        zp: [zp.x, zp.y, zp.z],
+        zv: [zv.x, zv.y, zv.z],
     }
 }

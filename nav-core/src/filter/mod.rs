@@ -220,7 +220,7 @@ pub struct Filter<T: Scalar, const N: usize> {
     /// position; [`Filter::widen_for_fill`]).
     fill_var: [f64; 9],
     /// The first fix after an outage, used on probation ([`reacq`]).
-    tentative: Option<reacq::Tentative<T, N>>,
+    tentative: reacq::Tentative<T, N>,
     /// The current fix must be processed again (its probation check undid the previous one).
     redo: bool,
 }
@@ -249,6 +249,17 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         init: NavState,
         unc: &InitialUncertainty,
     ) -> Result<Self, FilterError> {
+        Self::check_new(&layout, cfg, &init, unc)?;
+        Ok(Self::new_checked(layout, cfg, init, unc))
+    }
+
+    /// The checks of [`Self::new`] alone (what it would refuse), without building a filter.
+    pub fn check_new(
+        layout: &Layout,
+        cfg: &FilterConfig,
+        init: &NavState,
+        unc: &InitialUncertainty,
+    ) -> Result<(), FilterError> {
         layout.validate(N).map_err(FilterError::Layout)?;
         cfg.validate().map_err(FilterError::Config)?;
         let q = init.q_nb.quaternion();
@@ -264,6 +275,20 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         if !(state_ok && unc_ok) {
             return Err(FilterError::InitialState);
         }
+        Ok(())
+    }
+
+    /// [`Self::new`] after [`Self::check_new`] passed: the filter itself, without a `Result`
+    /// around it (`slot = Some(Filter::new_checked(..))` holds one copy of the filter on the
+    /// MCU's stack where `Some(Filter::new(..)?)` held two; out of line, so that its own
+    /// temporaries stay out of the caller's frame).
+    #[inline(never)]
+    pub(crate) fn new_checked(
+        layout: Layout,
+        cfg: &FilterConfig,
+        init: NavState,
+        unc: &InitialUncertainty,
+    ) -> Self {
         let mut var = [0.0f64; N];
         for (dst, src) in [
             (IDX_ATT, unc.att_sigma_rad),
@@ -285,7 +310,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 *x = T::of_f64(v);
             }
         }
-        Ok(Self {
+        Self {
             layout,
             cfg: *cfg,
             mech: Strapdown::new(init),
@@ -307,9 +332,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             last_temperature_c: f64::NAN,
             fed_back: [T::ZERO; N],
             fill_var: [0.0; 9],
-            tentative: None,
+            tentative: reacq::Tentative::none(),
             redo: false,
-        })
+        }
     }
 
     /// Integrates one raw IMU sample: corrects it with the estimated sensor errors,
@@ -674,9 +699,15 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         let th = self.gate.thresholds(&self.cfg.gating, M, t_s);
         let normal_reject = th.normal_reject;
         let z_pos = [0, 1, 2].map(|i| z64.get(i).copied().unwrap_or(0.0));
-        // a first fix after an outage may go on probation: the covariance before it, and the
+        // the next fix decides a fix on probation; a first fix after an outage may go on
+        // probation: the covariance before it (the gated update hands its copy over), and the
         // correction it feeds back (what `fed_back` gains)
-        let before = th.after_outage.then_some((self.p, self.fed_back));
+        let check = reacq::FixCheck {
+            normal_reject,
+            t_s,
+            z_pos_m: z_pos,
+            fed_back_before: th.after_outage.then_some(self.fed_back),
+        };
         let g = self.gated_update(
             z64,
             h,
@@ -685,25 +716,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 downweight: th.downweight,
                 reject: th.reject,
             },
-            |f, nis| {
-                f.gate.last_within_normal_gate = nis <= normal_reject;
-                // the next fix decides a fix on probation (undone: this fix is processed
-                // again, `gated_update` stops here)
-                f.redo = f.settle_tentative(nis, &th, t_s, z_pos);
-            },
+            Some(&check),
         )?;
-        if let Some((p0, fb0)) = before.filter(|_| g.accepted && g.nis > normal_reject) {
-            let mut dx = self.fed_back;
-            for (d, b) in dx.iter_mut().zip(fb0) {
-                *d -= b;
-            }
-            self.tentative = Some(reacq::Tentative {
-                p0,
-                dx,
-                t_s,
-                z_pos_m: z_pos,
-            });
-        }
         let mut out = UpdateOutcome {
             t_s,
             dim: M,

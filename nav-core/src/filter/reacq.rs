@@ -14,12 +14,14 @@
 //! fix interval (the specific force times the tilt correction times the interval), and any
 //! aiding update in that interval is dropped with the covariance.
 
-use super::robust::Thresholds;
 use super::{Cov, Filter};
 use crate::model::{IDX_POS, IDX_VEL};
 use crate::scalar::Scalar;
 
 /// A fix used on probation: the covariance before it, the correction it fed back, its time.
+/// Kept in place in the filter (`armed` false: no fix is on probation and the other fields
+/// are stale), so that neither putting a fix on probation nor deciding it copies the
+/// covariance through the stack (the MCU's RAM + stack budget).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Tentative<T: Scalar, const N: usize> {
     pub p0: Cov<T, N>,
@@ -27,31 +29,59 @@ pub(super) struct Tentative<T: Scalar, const N: usize> {
     pub t_s: f64,
     /// Its position innovation (predicted minus measured antenna, NED m).
     pub z_pos_m: [f64; 3],
+    /// A fix is on probation (the fields above describe it).
+    pub armed: bool,
+}
+
+impl<T: Scalar, const N: usize> Tentative<T, N> {
+    /// No fix on probation.
+    pub(super) fn none() -> Self {
+        Self {
+            p0: [[T::ZERO; N]; N],
+            dx: [T::ZERO; N],
+            t_s: 0.0,
+            z_pos_m: [0.0; 3],
+            armed: false,
+        }
+    }
+}
+
+/// A GNSS position fix's part of the gated update ([`Filter::gated_update`]): the NIS
+/// against the normal gate, the probation of the previous fix it decides, and (a first fix
+/// after an outage) what it needs to go on probation itself besides the covariance before it,
+/// which the gated update hands over ([`Filter::put_on_probation`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct FixCheck<T: Scalar, const N: usize> {
+    /// The normal (not widened) rejection threshold of the fix's NIS.
+    pub normal_reject: f64,
+    /// The fix time, s.
+    pub t_s: f64,
+    /// Its position innovation (predicted minus measured antenna, NED m).
+    pub z_pos_m: [f64; 3],
+    /// A first fix after an outage: the corrections fed back since the last prediction
+    /// before it (`fed_back`); None otherwise (it cannot go on probation).
+    pub fed_back_before: Option<[T; N]>,
 }
 
 impl<T: Scalar, const N: usize> Filter<T, N> {
-    /// Decides a fix on probation with the next fix (its NIS `nis` and position innovation
-    /// `z_pos_m` against the corrected state, at `t_s`). Confirmed when the next fix is within
+    /// Decides a fix on probation with the next fix `c` (its NIS `nis` and position innovation
+    /// against the corrected state). Confirmed when the next fix is within
     /// the normal gate, or when it is closer to the fix on probation than to the state before
     /// it: with `z_b` its innovation against the state without the correction (the correction's
     /// position plus its velocity times the interval added back) and `z_1` the innovation of
     /// the fix on probation, `|z_b - z_1| <= |z_b|` (a jump of all fixes: both fixes agree, while
     /// the velocity correction the first one caused can put the next one beyond the normal
     /// gate). Otherwise it is undone, and true is returned (the caller processes the fix again).
-    pub(super) fn settle_tentative(
-        &mut self,
-        nis: f64,
-        th: &Thresholds,
-        t_s: f64,
-        z_pos_m: [f64; 3],
-    ) -> bool {
-        let Some(tv) = self.tentative.take() else {
-            return false;
-        };
-        if nis <= th.normal_reject {
+    pub(super) fn settle_tentative(&mut self, nis: f64, c: &FixCheck<T, N>) -> bool {
+        if !self.tentative.armed {
             return false;
         }
-        let tau = t_s - tv.t_s;
+        self.tentative.armed = false;
+        if nis <= c.normal_reject {
+            return false;
+        }
+        let tv = &self.tentative;
+        let tau = c.t_s - tv.t_s;
         let tau = if tau.is_finite() && tau > 0.0 {
             T::of_f64(tau)
         } else {
@@ -59,7 +89,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         };
         let mut undo = tv.dx.map(|v| -v);
         let (mut to_b, mut to_1) = (0.0, 0.0);
-        for (k, (z2, z1)) in z_pos_m.iter().zip(tv.z_pos_m).enumerate() {
+        for (k, (z2, z1)) in c.z_pos_m.iter().zip(tv.z_pos_m).enumerate() {
             let dv = tv.dx.get(IDX_VEL + k).copied().unwrap_or(T::ZERO);
             let dr = tv.dx.get(IDX_POS + k).copied().unwrap_or(T::ZERO);
             if let Some(x) = undo.get_mut(IDX_POS + k) {
@@ -73,9 +103,30 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return false;
         }
         self.feedback(&undo);
-        self.p = tv.p0;
+        self.p = self.tentative.p0;
         self.gate.stats.reacquisitions_undone =
             self.gate.stats.reacquisitions_undone.saturating_add(1);
         true
+    }
+
+    /// Puts the fix `c` just used (NIS `nis`) on probation when it is a first fix after an
+    /// outage and was beyond the normal gate: `p0` is the covariance before its update (the
+    /// gated update's own copy, handed over), the correction it fed back is what `fed_back`
+    /// gained since `c.fed_back_before`.
+    pub(super) fn put_on_probation(&mut self, c: &FixCheck<T, N>, p0: &Cov<T, N>, nis: f64) {
+        let Some(before) = c.fed_back_before.as_ref() else {
+            return;
+        };
+        if nis <= c.normal_reject {
+            return;
+        }
+        let tv = &mut self.tentative;
+        tv.p0 = *p0;
+        for ((d, after), b) in tv.dx.iter_mut().zip(self.fed_back.iter()).zip(before) {
+            *d = *after - *b;
+        }
+        tv.t_s = c.t_s;
+        tv.z_pos_m = c.z_pos_m;
+        tv.armed = true;
     }
 }

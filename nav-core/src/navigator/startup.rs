@@ -85,8 +85,8 @@ impl FixMean {
     }
 }
 
-/// Whether a filter accepts `layout` and `cfg` (built at a neutral state and dropped; its own
-/// frame, so the caller's stack does not hold the filter).
+/// Whether a filter accepts `layout` and `cfg` (its checks at a neutral state, no filter is
+/// built).
 #[inline(never)]
 pub(super) fn check_config<T: Scalar, const N: usize>(
     layout: Layout,
@@ -107,5 +107,5 @@ pub(super) fn check_config<T: Scalar, const N: usize>(
         vel_sigma_mps: [1.0; 3],
         pos_sigma_m: [1.0; 3],
     };
-    Filter::<T, N>::new(layout, cfg, probe, &unc).map(|_| ())
+    Filter::<T, N>::check_new(&layout, cfg, &probe, &unc)
 }
