@@ -99,7 +99,8 @@ pub fn heading_measurement<T: Scalar, const N: usize>(
     }
     let bn = dcm_f64(&nav.q_nb) * Vector3::from(cfg.baseline_m);
     let (psi_hat, frac) = baseline_azimuth(cfg, nav);
-    if !(frac >= MIN_HORIZONTAL_FRACTION) {
+    // NaN (a non-finite attitude) fails too
+    if frac.is_nan() || frac < MIN_HORIZONTAL_FRACTION {
         return None;
     }
     let (n, e, d) = (bn.x, bn.y, bn.z);

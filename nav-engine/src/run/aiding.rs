@@ -251,12 +251,13 @@ impl<T: Scalar> RunAiding<T> {
     ) {
         let cfg = self.inner.config();
         let (t, dt) = (f.nav_state().t_s, f.last_step().dt_s);
-        if rec.is_enabled() && cfg.imu_epoch_sources() {
-            if t - self.last_decision_s >= cfg.interval_s - 0.5 * dt {
-                self.last_decision_s = t;
-                // a failure is counted by the update that follows
-                let _ = f.predict_covariance_observed(rec);
-            }
+        if rec.is_enabled()
+            && cfg.imu_epoch_sources()
+            && t - self.last_decision_s >= cfg.interval_s - 0.5 * dt
+        {
+            self.last_decision_s = t;
+            // a failure is counted by the update that follows
+            let _ = f.predict_covariance_observed(rec);
         }
         let odometer_speed_mps = match self.odometer.as_mut().map(|o| o.speed_at(t)) {
             Some(Ok(v)) => v,
