@@ -39,8 +39,9 @@ pub const FLASH_EXEMPT: &[&str] = &["firmware"];
 /// land-vehicle aiding (a 64-sample stationarity window in static RAM) and the probation of
 /// the first fix after an outage (a kept covariance) had taken the HIL frame link with the
 /// aiding on to 14,240 B static + 22,068 B peak stack = 36,308 B; with the probation kept in
-/// place, the gated update's temporaries in its own frame, the filter built without a
-/// `Result` copy and the app's rare paths out of line it is 14,240 B + 15,484 B = 29,724 B.
+/// place, the gated update out of line with its temporaries in its own frame, the filter
+/// built without a `Result` copy and the app's rare paths out of line it is 14,240 B +
+/// 12,284 B = 26,524 B.
 pub const RAM_STACK_BUDGET: u64 = 32 * 1024;
 /// The 21-state f32 filter's budget, instructions per 200 Hz IMU epoch on average including a
 /// 1 Hz GNSS update (5 % of a 168 MHz Cortex-M4F).
