@@ -7,7 +7,8 @@
 //!   estimated; without the state the 2 % is a velocity error;
 //! * dual-antenna heading (`[aiding.heading]`): a static vehicle with GNSS positions only
 //!   (yaw unobservable) started with a 3 deg yaw error: the heading removes it; an outlier in
-//!   the heading file is rejected by the gate;
+//!   the heading file is rejected by the gate; the same headings as an NMEA log (`HDT`) do
+//!   as well;
 //! * the GNSS velocity's own gate (`[gnss] velocity_gate`, `--velocity-gate`) reaches the
 //!   filter: a Doppler velocity outlier is rejected by it (and only with it).
 //!
@@ -255,6 +256,37 @@ fn dual_antenna_heading_fixes_an_unobservable_yaw_and_rejects_an_outlier() {
         &config(&case, "", &init, &aid(&outlier)),
         &[],
     );
+    // the same headings as a receiver's NMEA log: RMC/GGA/GST of the epoch, then HDT
+    let nmea: String = nav_io::read_heading(&heading)
+        .unwrap()
+        .iter()
+        .flat_map(|h| {
+            let fix = nav_core::types::GnssFix {
+                t_s: h.t_s,
+                quality: nav_core::types::FixQuality::RtkFixed,
+                ..Default::default()
+            };
+            let body = format!("GPHDT,{:.3},T", h.heading_deg);
+            let cs = body.bytes().fold(0u8, |a, b| a ^ b);
+            let mut lines = nav_io::gnss::encode::nmea_epoch(&fix, 2300, 18).to_vec();
+            lines.push(format!("${body}*{cs:02X}"));
+            lines
+        })
+        .map(|l| l + "\r\n")
+        .collect();
+    let nmea_file = dir.path().join("heading.nmea");
+    std::fs::write(&nmea_file, nmea).unwrap();
+    let (_, with_nmea) = run(
+        dir.path(),
+        "heading-nmea",
+        &config(
+            &case,
+            "",
+            &init,
+            &(aid(&nmea_file) + "format = \"nmea\"\nsigma_deg = 0.3\n"),
+        ),
+        &[],
+    );
     let yaw = |m: &Value| {
         (
             f(&m["overall"]["yaw_deg"]["rms"]),
@@ -262,17 +294,21 @@ fn dual_antenna_heading_fixes_an_unobservable_yaw_and_rejects_an_outlier() {
         )
     };
     let ((b_rms, b_max), (h_rms, h_max), (o_rms, _)) = (yaw(&base), yaw(&with), yaw(&with_out));
+    let (n_rms, _) = yaw(&with_nmea);
+    let hn = &with_nmea["aiding"]["heading"];
     let h = &with["aiding"]["heading"];
     let ho = &with_out["aiding"]["heading"];
     println!(
         "static, GNSS position only: yaw error RMS {b_rms:.3} deg (max {b_max:.3}) without the \
          heading, {h_rms:.4} deg (max {h_max:.3}) with it ({:.3}x), {o_rms:.4} deg with an \
-         outlier; heading {} used / {} rejected, with the outlier {} used / {} rejected",
+         outlier, {n_rms:.4} deg from the NMEA log (HDT); heading {} used / {} rejected, with the \
+         outlier {} used / {} rejected, NMEA {} used",
         h_rms / b_rms,
         h["used"],
         h["rejected"],
         ho["used"],
         ho["rejected"],
+        hn["used"],
     );
     assert!(b_rms > 2.0, "the yaw error stays without heading: {b_rms}");
     assert!(h_rms < 0.1 * b_rms, "{h_rms} vs {b_rms}");
@@ -283,6 +319,9 @@ fn dual_antenna_heading_fixes_an_unobservable_yaw_and_rejects_an_outlier() {
     assert_eq!(n(&ho["used"]) + 1, n(&h["used"]), "{ho} vs {h}");
     assert!((o_rms - h_rms).abs() < 0.01, "{o_rms} vs {h_rms}");
     assert!(so.contains("aiding: heading "), "{so}");
+    // the NMEA log: every sample, the same accuracy
+    assert_eq!(n(&hn["used"]), n(&h["used"]), "{hn} vs {h}");
+    assert!((n_rms - h_rms).abs() < 0.005, "{n_rms} vs {h_rms}");
 }
 
 #[test]

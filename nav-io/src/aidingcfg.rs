@@ -43,6 +43,8 @@
 //! [aiding.heading]                 # dual-antenna GNSS heading (nav_io::heading format)
 //! enabled = true
 //! file = "heading.txt"             # relative to the configuration file's folder
+//! format = "text"                  # or "nmea" (HDT/THS, timed by RMC/GGA)
+//! leap_seconds = 18                # GPS - UTC, for "nmea"
 //! baseline_m = [1.0, 0.0, 0.0]     # primary -> secondary antenna, body FRD (direction only)
 //! sigma_deg = 0.5                  # for samples without their own sigma
 //! nis_gate = 15.14
@@ -91,6 +93,12 @@ pub struct HeadingSection {
     /// The heading file (`nav_io::heading` format), relative to the configuration's folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub file: Option<std::path::PathBuf>,
+    /// `"text"` (default) or `"nmea"` (`nav_io::heading::HeadingFormat`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub format: Option<String>,
+    /// GPS - UTC of an NMEA log, s (default 18).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub leap_seconds: Option<i64>,
     /// Baseline from the primary to the secondary antenna, body FRD, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub baseline_m: Option<[f64; 3]>,
@@ -140,6 +148,22 @@ impl OdometerSection {
     /// Whether the scale-factor state is estimated (on and `scale_factor` not false).
     pub fn estimates_scale(&self) -> bool {
         self.enabled && self.scale_factor.unwrap_or(true)
+    }
+}
+
+impl HeadingSection {
+    /// The file's kind (the error names the key).
+    pub fn file_format(&self) -> Result<crate::heading::HeadingFormat, String> {
+        use crate::heading::HeadingFormat;
+        match self.format.as_deref().unwrap_or("text") {
+            "text" => Ok(HeadingFormat::Text),
+            "nmea" => Ok(HeadingFormat::Nmea {
+                leap_seconds: self.leap_seconds.unwrap_or(18),
+            }),
+            other => Err(format!(
+                "aiding: heading.format `{other}`: expected \"text\" or \"nmea\""
+            )),
+        }
     }
 }
 
@@ -294,6 +318,7 @@ impl AidingSection {
         if h.enabled && h.file.is_none() {
             return Err("aiding: heading.file is needed when the heading is enabled".into());
         }
+        h.file_format()?;
         if o.enabled && o.file.is_none() {
             return Err("aiding: odometer.file is needed when the odometer is enabled".into());
         }
@@ -383,5 +408,16 @@ mod tests {
         let bad: AidingSection =
             toml::from_str("[heading]\nenabled = true\nfile = \"h\"\nsigma_deg = 0\n").unwrap();
         assert!(bad.to_config().unwrap_err().contains("heading.sigma_deg"));
+        let nmea: AidingSection = toml::from_str(
+            "[heading]\nenabled = true\nfile = \"h\"\nformat = \"nmea\"\nleap_seconds = 17\n",
+        )
+        .unwrap();
+        assert_eq!(
+            nmea.heading.file_format(),
+            Ok(crate::heading::HeadingFormat::Nmea { leap_seconds: 17 })
+        );
+        let fmt: AidingSection =
+            toml::from_str("[heading]\nenabled = true\nfile = \"h\"\nformat = \"csv\"\n").unwrap();
+        assert!(fmt.to_config().unwrap_err().contains("heading.format"));
     }
 }

@@ -12,6 +12,7 @@ use nav_core::filter::Filter;
 use nav_core::model::BlockKind;
 use nav_core::scalar::Scalar;
 use nav_core::types::GnssFix;
+use nav_io::heading::HeadingFormat;
 use nav_io::{HeadingStream, OdometerStream};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -26,8 +27,10 @@ pub struct RunAidingConfig {
     pub odometer_file: Option<PathBuf>,
     /// Longest interval between wheel-speed samples interpolated across, s.
     pub odometer_max_gap_s: f64,
-    /// Heading file (`nav_io::heading` format), needed when the heading is on.
+    /// Heading file (`nav_io::heading` text, or an NMEA log), needed when the heading is on.
     pub heading_file: Option<PathBuf>,
+    /// Its kind.
+    pub heading_format: HeadingFormat,
 }
 
 impl RunAidingConfig {
@@ -37,6 +40,7 @@ impl RunAidingConfig {
         odometer_file: None,
         odometer_max_gap_s: nav_io::aidingcfg::OdometerSection::DEFAULT_MAX_GAP_S,
         heading_file: None,
+        heading_format: HeadingFormat::Text,
     };
 }
 
@@ -216,7 +220,7 @@ impl<T: Scalar> RunAiding<T> {
                 .heading_file
                 .as_ref()
                 .ok_or("aiding: the heading is on but no heading file is given")?;
-            Some(HeadingStream::open(p).map_err(|e| e.to_string())?)
+            Some(HeadingStream::open_format(p, cfg.heading_format).map_err(|e| e.to_string())?)
         } else {
             None
         };

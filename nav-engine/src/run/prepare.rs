@@ -752,6 +752,15 @@ fn apply_aiding(
             .max_gap_s
             .unwrap_or(nav_io::aidingcfg::OdometerSection::DEFAULT_MAX_GAP_S),
         heading_file: file(case_dir.and_then(|c| c.heading.as_ref()), &a.heading.file),
+        // a case's own heading.txt is text whatever the configuration's format
+        heading_format: match case_dir.and_then(|c| c.heading.as_ref()) {
+            Some(_) => nav_io::heading::HeadingFormat::Text,
+            None => a
+                .heading
+                .file_format()
+                .map_err(|e| anyhow::anyhow!(e))
+                .context("[aiding]")?,
+        },
     };
     if o.estimates_scale() {
         opts.add_effect_block(Block::OdometerScale);
