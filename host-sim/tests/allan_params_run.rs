@@ -3,85 +3,15 @@
 //! file is pasted into a run configuration of a simulated drive of the same IMU, and the run
 //! is as accurate as with the simulator's true noise figures.
 use std::path::Path;
-use std::process::Command;
-use test_support::cli::{self, Bin};
+use test_support::cli::Bin;
+use test_support::runcase::{case_config, run_case, simulate_case, TACTICAL_NOISE};
 use test_support::scenario::{four_minute_drive, ScenarioToml};
 
-fn host_sim() -> Command {
-    Bin::new(env!("CARGO_BIN_EXE_host-sim")).command()
-}
+const HOST_SIM: Bin = Bin::new(env!("CARGO_BIN_EXE_host-sim"));
 
-/// Runs `cmd`, which must succeed; its standard output and error.
-fn run_ok(cmd: &mut Command) -> String {
-    let r = cli::run(cmd);
-    assert!(
-        r.ok,
-        "{cmd:?}\nstdout:\n{}\nstderr:\n{}",
-        r.stdout, r.stderr
-    );
-    r.stdout + &r.stderr
-}
-
-fn simulate(dir: &Path, name: &str, scenario: &str, seed: u32) -> std::path::PathBuf {
-    let sc = dir.join(format!("{name}.toml"));
-    std::fs::write(&sc, scenario).unwrap();
-    let case = dir.join(name);
-    run_ok(host_sim().args([
-        "simulate",
-        "--scenario",
-        sc.to_str().unwrap(),
-        "--errors",
-        "tactical",
-        "--seed",
-        &seed.to_string(),
-        "--out",
-        case.to_str().unwrap(),
-    ]));
-    case
-}
-
-/// The run configuration of the drive, with `noise` as its `[noise]` part.
-fn config(case: &Path, noise: &str) -> String {
-    format!(
-        r#"name = "allan-params"
-[imu]
-path = "{imu}"
-format = "text"
-[gnss]
-path = "{gnss}"
-format = "text"
-use_velocity = true
-[truth]
-path = "{truth}"
-format = "nav_text"
-[init]
-pos_std_m = [0.05, 0.05, 0.1]
-vel_std_mps = [0.05, 0.05, 0.05]
-att_std_deg = [1.0, 1.0, 5.0]
-[init.align]
-static_s = 20.0
-
-{noise}"#,
-        imu = case.join("imu.txt").display(),
-        gnss = case.join("gnss.txt").display(),
-        truth = case.join("truth.nav").display(),
-    )
-}
-
+/// Runs the drive's configuration `cfg` (a 30 s outage from 120 s); its metrics.
 fn run_metrics(dir: &Path, name: &str, cfg: &str) -> serde_json::Value {
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, cfg).unwrap();
-    let out = dir.join(format!("out-{name}"));
-    let so = run_ok(host_sim().args([
-        "run",
-        "--config",
-        p.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--outage",
-        "120:30",
-        "--quiet",
-    ]));
+    let (so, out) = run_case(HOST_SIM, dir, name, cfg);
     println!("{name}:\n{so}");
     serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap()
 }
@@ -90,7 +20,8 @@ fn run_metrics(dir: &Path, name: &str, cfg: &str) -> serde_json::Value {
 fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
     let dir = tempfile::tempdir().unwrap();
     // one static hour at 50 Hz (the tactical preset's Gauss-Markov T_B is 300 s)
-    let static_case = simulate(
+    let static_case = simulate_case(
+        HOST_SIM,
         dir.path(),
         "static",
         &ScenarioToml::new("static-hour")
@@ -99,10 +30,11 @@ fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
             .imu_rate_hz(50.0)
             .stationary(3600.0)
             .build(),
+        "tactical",
         1,
     );
     let adir = dir.path().join("allan");
-    let so = run_ok(host_sim().args([
+    let so = HOST_SIM.run_ok_both([
         "allan",
         static_case.join("imu.txt").to_str().unwrap(),
         "--out-dir",
@@ -113,7 +45,7 @@ fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
         "200",
         "--gyro-bias-init-deg-per-h",
         "1",
-    ]));
+    ]);
     let params = std::fs::read_to_string(adir.join("allan_params.toml")).unwrap();
     println!("{so}\n{params}");
     assert!(adir.join("allan_sim_errors.toml").exists());
@@ -139,18 +71,17 @@ fn allan_params_are_a_noise_section_a_run_accepts_verbatim() {
     }
 
     // pasted verbatim into the drive's configuration: it runs, as accurately as the truth
-    let drive = simulate(
+    let drive = simulate_case(
+        HOST_SIM,
         dir.path(),
         "drive",
         &four_minute_drive("allan-params-drive").build(),
+        "tactical",
         4,
     );
-    let identified = run_metrics(dir.path(), "identified", &config(&drive, &params));
-    let truth_noise = "[noise]\nmodel = \"nbk\"\n[noise.accel]\nn_ug_per_sqrt_hz = 50.0\n\
-                       gm_sigma_ug = 50.0\nt_b_s = 300.0\nbias_init_ug = 200.0\n[noise.gyro]\n\
-                       arw_deg_per_sqrt_h = 0.1\ngm_sigma_deg_per_h = 1.0\nt_b_s = 300.0\n\
-                       bias_init_deg_per_h = 1.0\n";
-    let reference = run_metrics(dir.path(), "true-noise", &config(&drive, truth_noise));
+    let config = |noise: &str| case_config("allan-params", &drive, "gnss.txt", "text", "", noise);
+    let identified = run_metrics(dir.path(), "identified", &config(&params));
+    let reference = run_metrics(dir.path(), "true-noise", &config(TACTICAL_NOISE));
     let get = |m: &serde_json::Value| {
         (
             m["outside_outages"]["pos_horizontal_m"]["rms"]
@@ -206,7 +137,7 @@ fn a_single_channel_takes_its_unit_or_prints_si_with_si_headings() {
     std::fs::write(&file, text).unwrap();
     let allan = |unit: &str, out: &str| {
         let o = dir.path().join(out);
-        let so = run_ok(host_sim().args([
+        let so = HOST_SIM.run_ok_both([
             "allan",
             file.to_str().unwrap(),
             "--columns",
@@ -219,7 +150,7 @@ fn a_single_channel_takes_its_unit_or_prints_si_with_si_headings() {
             o.to_str().unwrap(),
             "--no-plot",
             "--quiet",
-        ]));
+        ]);
         let params = std::fs::read_to_string(o.join("allan_params.toml")).unwrap();
         println!("--x-unit {unit}:\n{so}\n{params}");
         (so, params)

@@ -7,9 +7,10 @@ use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude::{dcm_from_euler_zyx, euler_zyx_from_dcm};
 
-fn drive() -> Scenario {
+/// The drive; `vehicle` is appended as the scenario's `[vehicle]` table (body roll in turns).
+fn drive(vehicle: &str) -> Scenario {
     Scenario::from_toml_str(
-        r#"
+        &(r#"
 name = "mounting-drive"
 description = "20 s at rest, then about 5 minutes with turns, speed changes and hills"
 [start]
@@ -80,7 +81,9 @@ duration_s = 10.0
 [[segment]]
 kind = "static"
 duration_s = 10.0
-"#,
+"#
+        .to_string()
+            + vehicle),
         "mounting-drive",
     )
     .unwrap()
@@ -88,7 +91,38 @@ duration_s = 10.0
 
 #[test]
 fn every_axis_layout_with_misalignment_is_found() {
-    let case = simulate(&drive(), &ErrorModel::preset("tactical").unwrap(), 11).unwrap();
+    // the simulator's default body roll in turns: 4 deg per g outwards
+    check_layouts("", "flat turns");
+}
+
+#[test]
+fn every_axis_layout_is_found_with_banked_turns() {
+    // a banked road: the body rolls INTO the turn, 20 deg per g of lateral acceleration
+    // (up to 6.9 deg in the 0.34 g turns of this drive), and a car leaning out on soft springs,
+    // 10 deg per g
+    check_layouts(
+        "[vehicle]\nroll_per_g_deg = -20.0\n",
+        "banked turns, -20 deg/g",
+    );
+    check_layouts(
+        "[vehicle]\nroll_per_g_deg = 10.0\n",
+        "soft springs, +10 deg/g",
+    );
+}
+
+fn check_layouts(vehicle: &str, label: &str) {
+    let case = simulate(
+        &drive(vehicle),
+        &ErrorModel::preset("tactical").unwrap(),
+        11,
+    )
+    .unwrap();
+    let roll_max = case
+        .trajectory
+        .truth
+        .iter()
+        .map(|s| s.rpy_rad[0].to_degrees().abs())
+        .fold(0.0, f64::max);
     let body = CaseData::from(&case);
     let dur = body.imu.last().unwrap().t_s - body.imu[0].t_s;
     assert!(dur > 300.0, "{dur}");
@@ -114,7 +148,7 @@ fn every_axis_layout_with_misalignment_is_found() {
             s.dv_mps = v.into();
         }
         let est = estimate_mounting(&imu, &body.gnss).unwrap();
-        assert_eq!(&est.layout, l, "layout {k}");
+        assert_eq!(&est.layout, l, "{label}: layout {k}");
         // the estimate as configured: x_body = C(rpy)^T x_imu
         let m_est = dcm_from_euler_zyx(est.rpy_deg.map(f64::to_radians)).transpose();
         let err = euler_zyx_from_dcm(&(m_est * m_true.transpose())).map(f64::to_degrees);
@@ -126,12 +160,12 @@ fn every_axis_layout_with_misalignment_is_found() {
         }
         assert!(
             err[0].abs() < 0.3 && err[1].abs() < 0.3,
-            "layout {k}: {err:?}"
+            "{label}: layout {k}: {err:?}"
         );
-        assert!(err[2].abs() < 1.0, "layout {k}: {err:?}");
+        assert!(err[2].abs() < 1.0, "{label}: layout {k}: {err:?}");
     }
     println!(
-        "24 layouts: worst roll/pitch error {worst_tilt:.4} deg, worst yaw error {worst_yaw:.4} \
+        "{label} (largest body roll {roll_max:.2} deg): 24 layouts: worst roll/pitch error {worst_tilt:.4} deg, worst yaw error {worst_yaw:.4} \
          deg, smallest runner-up/best residual ratio {min_margin:.2}"
     );
 }

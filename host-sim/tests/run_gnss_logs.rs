@@ -5,83 +5,30 @@
 //! date.
 use nav_io::gnss::encode::{nmea_epoch, ubx_nav_pvt};
 use std::path::Path;
-use std::process::Command;
-use test_support::scenario::ScenarioToml;
+use test_support::cli::Bin;
+use test_support::runcase::{case_config, run_case, simulate_case, TACTICAL_NOISE};
+use test_support::scenario::four_minute_drive;
 
-fn host_sim() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_host-sim"))
-}
-
-fn run_ok(cmd: &mut Command) -> String {
-    let out = cmd.output().unwrap();
-    let so = String::from_utf8_lossy(&out.stdout).to_string();
-    let se = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        out.status.success(),
-        "{cmd:?}\nstdout:\n{so}\nstderr:\n{se}"
-    );
-    so + &se
-}
+const HOST_SIM: Bin = Bin::new(env!("CARGO_BIN_EXE_host-sim"));
 
 const WEEK: i64 = 2300;
 const LEAP_S: i32 = 18;
 
 fn config(case: &Path, gnss: &str, format: &str, log: &str) -> String {
-    format!(
-        r#"name = "gnss-{format}"
-[imu]
-path = "{imu}"
-format = "text"
-[gnss]
-path = "{gnss}"
-format = "{format}"
-use_velocity = true
-max_q = 1
-{log}
-[truth]
-path = "{truth}"
-format = "nav_text"
-[init]
-pos_std_m = [0.05, 0.05, 0.1]
-vel_std_mps = [0.05, 0.05, 0.05]
-att_std_deg = [1.0, 1.0, 5.0]
-[init.align]
-static_s = 20.0
-[noise]
-model = "nbk"
-[noise.accel]
-n_ug_per_sqrt_hz = 50.0
-gm_sigma_ug = 50.0
-t_b_s = 300.0
-bias_init_ug = 200.0
-[noise.gyro]
-arw_deg_per_sqrt_h = 0.1
-gm_sigma_deg_per_h = 1.0
-t_b_s = 300.0
-bias_init_deg_per_h = 1.0
-"#,
-        imu = case.join("imu.txt").display(),
-        gnss = case.join(gnss).display(),
-        truth = case.join("truth.nav").display(),
+    case_config(
+        &format!("gnss-{format}"),
+        case,
+        gnss,
+        format,
+        log,
+        TACTICAL_NOISE,
     )
 }
 
 /// (horizontal RMS outside the outage, horizontal error at the outage's end, first week in
 /// nav.txt, run output)
 fn run(dir: &Path, name: &str, cfg: &str) -> (f64, f64, u16, String) {
-    let p = dir.join(format!("{name}.toml"));
-    std::fs::write(&p, cfg).unwrap();
-    let out = dir.join(format!("out-{name}"));
-    let so = run_ok(host_sim().args([
-        "run",
-        "--config",
-        p.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--outage",
-        "120:30",
-        "--quiet",
-    ]));
+    let (so, out) = run_case(HOST_SIM, dir, name, cfg);
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(m["reference"], "truth", "{name}");
@@ -99,38 +46,17 @@ fn run(dir: &Path, name: &str, cfg: &str) -> (f64, f64, u16, String) {
 #[test]
 fn runs_from_nmea_and_ubx_logs_match_the_run_from_the_gnss_text() {
     let dir = tempfile::tempdir().unwrap();
-    let sc = dir.path().join("drive.toml");
-    std::fs::write(
-        &sc,
-        ScenarioToml::new("gnss-logs-drive")
+    // the 4-minute test drive, in Seattle heading 30 deg
+    let case = simulate_case(
+        HOST_SIM,
+        dir.path(),
+        "case",
+        &four_minute_drive("gnss-logs-drive")
             .start(47.6, -122.3, 40.0, 30.0)
-            .gps_time(WEEK as u16, 200_000.0)
-            .imu_rate_hz(100.0)
-            .stationary(30.0)
-            .accelerate(10.0, 10.0)
-            .turn(90.0, 30.0)
-            .cruise(30.0)
-            .turn(-180.0, 25.0)
-            .accelerate(15.0, 10.0)
-            .cruise(120.0)
-            .turn(45.0, 50.0)
-            .brake(0.0, 10.0)
-            .stationary(10.0)
             .build(),
-    )
-    .unwrap();
-    let case = dir.path().join("case");
-    run_ok(host_sim().args([
-        "simulate",
-        "--scenario",
-        sc.to_str().unwrap(),
-        "--errors",
         "tactical",
-        "--seed",
-        "5",
-        "--out",
-        case.to_str().unwrap(),
-    ]));
+        5,
+    );
     // The simulated receiver is an RTK one (the text file has no quality column); the
     // simulator writes no GNSS velocity, so the receiver's is the truth's plus white noise
     // of the rtk preset's 0.02 m/s (deterministic normals).

@@ -772,3 +772,150 @@ pub fn motion_align(
         t_end_s: 0.0,
     })
 }
+
+/// When the direction of a GNSS displacement is taken as the heading ([`course_from_displacement`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CourseRule {
+    /// Largest accepted one-sigma of the course from the position noise, rad: a displacement
+    /// of horizontal length `d` between two positions with horizontal one-sigmas `s_a` and
+    /// `s_b` (per axis) has a course one-sigma of about `hypot(s_a, s_b) / d` (the cross-track
+    /// error over the length, small angles), so the course is accepted from
+    /// `d >= hypot(s_a, s_b) / max_std_rad`.
+    pub max_std_rad: f64,
+    /// Length at which the course is accepted whatever the position noise, m (the longer the
+    /// look-ahead, the likelier the track has turned: a cap for noisy single-point fixes).
+    pub max_distance_m: f64,
+}
+
+impl Default for CourseRule {
+    /// 1 deg, 5 m: RTK fixes (2 cm per axis) give the course after 1.6 m, single-point fixes
+    /// (1.5 m) after 5 m (with a one-sigma of 24 deg, returned).
+    fn default() -> Self {
+        Self {
+            max_std_rad: DEG,
+            max_distance_m: 5.0,
+        }
+    }
+}
+
+/// A course over ground and its one-sigma ([`course_from_displacement`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Course {
+    /// Course `atan2(east, north)`, rad.
+    pub yaw_rad: f64,
+    /// One-sigma of the course from the position noise, rad.
+    pub std_rad: f64,
+    /// Horizontal length of the displacement, m.
+    pub distance_m: f64,
+}
+
+/// The heading from the GNSS course over a displacement `north_m`, `east_m` (m) between two
+/// positions whose horizontal one-sigmas per axis combine to `sigma_m` (m,
+/// `hypot(s_a, s_b)`), when the displacement is long enough ([`CourseRule`]): at least
+/// `sigma_m / max_std_rad`, or at least `max_distance_m` whatever the noise. `None` when it is
+/// shorter, or an input is not finite or `sigma_m` is negative.
+///
+/// Why a length from the position noise rather than a speed: a slow vehicle with precise
+/// fixes has a well-defined course long before it reaches a speed at which a velocity course
+/// is usable. Issue 15's rover moves at 0.2 m/s with RTK fixes (2 cm) every 3 s: 0.6 m
+/// between fixes, where a 1-deg course needs 1.6 m (the third fix after it starts); a speed
+/// threshold (0.5 m/s by default) never triggers, and a fixed 5 m look-ahead takes the chord
+/// across its first turn. [`TrackCourse`] then extends the course while the track stays
+/// straight, so a car driving off straight still gets the course over 5 m.
+pub fn course_from_displacement(
+    north_m: f64,
+    east_m: f64,
+    sigma_m: f64,
+    rule: &CourseRule,
+) -> Option<Course> {
+    if !(north_m.is_finite() && east_m.is_finite() && sigma_m.is_finite() && sigma_m >= 0.0) {
+        return None;
+    }
+    let d = sqrt(north_m * north_m + east_m * east_m);
+    let need = if rule.max_std_rad > 0.0 {
+        (sigma_m / rule.max_std_rad).min(rule.max_distance_m)
+    } else {
+        rule.max_distance_m
+    };
+    if !(d > 0.0 && d >= need) {
+        return None;
+    }
+    Some(Course {
+        yaw_rad: atan2(east_m, north_m),
+        std_rad: sigma_m / d,
+        distance_m: d,
+    })
+}
+
+/// The GNSS course over the first metres of a track ([`CourseRule`]), fix by fix, allocation
+/// free: the displacement from the start to the first fix far enough away for the course
+/// ([`course_from_displacement`]) gives a course, which is then extended to later fixes while
+/// the track stays straight, up to [`CourseRule::max_distance_m`]: a segment between
+/// consecutive fixes whose direction differs from the course by more than 3 sigma (the
+/// segment's and the course's) is a turn, and the course found before it is kept.
+///
+/// On a straight start this is the course over [`CourseRule::max_distance_m`] (the longest
+/// baseline); a vehicle that turns soon after it starts (issue 15's rover: 0.2 m/s, fixes
+/// every 3 s, a turn after 2 m) keeps the course of its straight part instead of the chord
+/// across the turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackCourse {
+    rule: CourseRule,
+    best: Option<Course>,
+    last_ne_m: Option<[f64; 2]>,
+    settled: bool,
+}
+
+impl TrackCourse {
+    /// A course to be found with `rule`.
+    pub fn new(rule: CourseRule) -> Self {
+        Self {
+            rule,
+            best: None,
+            last_ne_m: None,
+            settled: false,
+        }
+    }
+
+    /// Feeds the next fix: its horizontal displacement from the start position `north_m`,
+    /// `east_m` (m), the combined one-sigma of start and fix `sigma_m` (m, as for
+    /// [`course_from_displacement`]) and the fix's own horizontal one-sigma `fix_sigma_m`
+    /// (m). Returns true once the course is settled (later fixes change nothing).
+    pub fn push(&mut self, north_m: f64, east_m: f64, sigma_m: f64, fix_sigma_m: f64) -> bool {
+        if self.settled || !(north_m.is_finite() && east_m.is_finite()) {
+            return self.settled;
+        }
+        if let (Some(c), Some([ln, le])) = (self.best, self.last_ne_m) {
+            let (sn, se) = (north_m - ln, east_m - le);
+            let len = sqrt(sn * sn + se * se);
+            if len > 0.0 && fix_sigma_m.is_finite() {
+                let seg_std = core::f64::consts::SQRT_2 * fix_sigma_m.abs() / len;
+                let mut dev = atan2(se, sn) - c.yaw_rad;
+                while dev > core::f64::consts::PI {
+                    dev -= 2.0 * core::f64::consts::PI;
+                }
+                while dev < -core::f64::consts::PI {
+                    dev += 2.0 * core::f64::consts::PI;
+                }
+                if dev.abs() > 3.0 * sqrt(seg_std * seg_std + c.std_rad * c.std_rad) {
+                    self.settled = true;
+                    return true;
+                }
+            }
+        }
+        self.last_ne_m = Some([north_m, east_m]);
+        if let Some(c) = course_from_displacement(north_m, east_m, sigma_m, &self.rule) {
+            self.settled = c.distance_m >= self.rule.max_distance_m;
+            self.best = Some(c);
+        }
+        self.settled
+    }
+
+    /// The course found so far (`None` before a fix far enough away).
+    pub fn course(&self) -> Option<Course> {
+        self.best
+    }
+}

@@ -414,3 +414,78 @@ fn motion_alignment_recovers_the_attitude_from_gnss_velocity_and_specific_force(
     );
     assert!(e.is_err());
 }
+
+#[test]
+fn course_from_displacement_needs_a_length_from_the_position_noise() {
+    use nav_core::align::{course_from_displacement, CourseRule};
+    let rule = CourseRule::default();
+    // RTK: 2 cm per axis at both ends -> 2.83 cm, 1 deg needs 1.62 m
+    let s = 0.02f64.hypot(0.02);
+    let need = s / 1f64.to_radians();
+    assert!((need - 1.6205).abs() < 1e-3, "{need}");
+    // the slow rover: 0.6 m per 3-s fix interval is not enough, 1.2 m neither, 1.8 m is
+    assert!(course_from_displacement(0.6, 0.0, s, &rule).is_none());
+    assert!(course_from_displacement(0.0, 1.2, s, &rule).is_none());
+    let c = course_from_displacement(-1.8 * 0.6, 1.8 * 0.8, s, &rule).unwrap();
+    assert!((c.yaw_rad - 0.8f64.atan2(-0.6)).abs() < 1e-12);
+    assert!((c.distance_m - 1.8).abs() < 1e-12);
+    assert!((c.std_rad - s / 1.8).abs() < 1e-15 && c.std_rad < 1f64.to_radians());
+    // single point (1.5 m): the 5 m cap applies, and the course says how poor it is
+    let sp = 1.5f64.hypot(1.5);
+    assert!(course_from_displacement(4.9, 0.0, sp, &rule).is_none());
+    let c = course_from_displacement(5.0, 0.0, sp, &rule).unwrap();
+    assert!(
+        (c.std_rad.to_degrees() - 24.3).abs() < 0.1,
+        "{}",
+        c.std_rad.to_degrees()
+    );
+    // no movement, or bad input: no course
+    assert!(course_from_displacement(0.0, 0.0, 0.0, &rule).is_none());
+    assert!(course_from_displacement(f64::NAN, 1.0, s, &rule).is_none());
+    assert!(course_from_displacement(10.0, 1.0, -1.0, &rule).is_none());
+}
+
+#[test]
+fn the_track_course_extends_on_a_straight_start_and_stops_at_a_turn() {
+    use nav_core::align::{CourseRule, TrackCourse};
+    let (s, f) = (0.02f64.hypot(0.02), 0.02);
+    let yaw = 130f64.to_radians();
+    // straight at 130 deg, a fix every 0.6 m: the course over the first fix >= 5 m (5.4 m),
+    // as a fixed 5 m look-ahead gives
+    let mut t = TrackCourse::new(CourseRule::default());
+    let mut settled_at = None;
+    for k in 1..20 {
+        let d = 0.6 * k as f64;
+        if t.push(d * yaw.cos(), d * yaw.sin(), s, f) {
+            settled_at = Some(d);
+            break;
+        }
+    }
+    let c = t.course().unwrap();
+    assert!((settled_at.unwrap() - 5.4).abs() < 1e-9, "{settled_at:?}");
+    assert!((c.distance_m - 5.4).abs() < 1e-9 && (c.yaw_rad - yaw).abs() < 1e-12);
+    // 2.4 m straight, then a 90 deg right turn of 2.3 m radius at 0.6 m per fix: the course
+    // of the straight part, not the chord across the turn
+    let mut t = TrackCourse::new(CourseRule::default());
+    let (mut n, mut e, mut h) = (0.0f64, 0.0f64, yaw);
+    let mut settled = false;
+    for k in 1..20 {
+        if k > 4 {
+            h += 0.6 / 2.3;
+        }
+        n += 0.6 * h.cos();
+        e += 0.6 * h.sin();
+        if t.push(n, e, s, f) {
+            settled = true;
+            break;
+        }
+    }
+    let c = t.course().unwrap();
+    assert!(settled);
+    assert!(
+        (c.yaw_rad - yaw).abs() < 0.5f64.to_radians(),
+        "course {} deg",
+        c.yaw_rad.to_degrees()
+    );
+    assert!((c.distance_m - 2.4).abs() < 1e-9, "{}", c.distance_m);
+}

@@ -488,16 +488,24 @@ pub fn summary_table(m: &Metrics) -> String {
         m.reference, m.model
     ));
     s.push_str("                      RMS        max\n");
-    let rows: [(&str, &Stat, usize); 8] = [
+    let rows: [(&str, &Stat, usize); 10] = [
         ("position N [m]", &o.pos_n_m, 3),
         ("position E [m]", &o.pos_e_m, 3),
         ("position D [m]", &o.pos_d_m, 3),
         ("horizontal [m]", &o.pos_horizontal_m, 3),
         ("velocity N [m/s]", &o.vel_n_mps, 4),
         ("velocity E [m/s]", &o.vel_e_mps, 4),
+        ("velocity D [m/s]", &o.vel_d_mps, 4),
         ("roll [deg]", &o.roll_deg, 4),
+        ("pitch [deg]", &o.pitch_deg, 4),
         ("yaw [deg]", &o.yaw_deg, 4),
     ];
+    if rows.iter().all(|r| r.1.n == 0) {
+        s.push_str(
+            "  (no reference epochs: give a [truth] file, or impose outages (--outage) to compare \
+             with the withheld fixes)\n",
+        );
+    }
     for (name, st, p) in rows {
         if st.n > 0 {
             s.push_str(&format!(
@@ -506,14 +514,6 @@ pub fn summary_table(m: &Metrics) -> String {
                 f(st.max, p)
             ));
         }
-    }
-    if o.pitch_deg.n > 0 {
-        s.push_str(&format!(
-            "  {:<18} {:>10} {:>10}\n",
-            "pitch [deg]",
-            f(o.pitch_deg.rms, 4),
-            f(o.pitch_deg.max, 4)
-        ));
     }
     let r = &m.gnss_residuals;
     s.push_str(&format!(

@@ -26,7 +26,9 @@
 //!    that both are m/s^2); the best layout and the runner-up's residual are reported;
 //! 3. the fine angles: the rotation that best maps the measured specific forces onto the
 //!    expected ones (Wahba's problem, solved by SVD), started from the best layout: roll and
-//!    pitch come mostly from gravity, yaw from the along-track vs lateral acceleration;
+//!    pitch come mostly from gravity, yaw from the along-track vs lateral acceleration; the
+//!    body's own roll in turns (lean, banked roads) is unknown, so in turns the expected
+//!    cross-track/vertical direction is taken from the data and the solution repeated;
 //! 4. one-sigma of the angles from the residual scatter: roll/pitch ~ rms / (g sqrt(n)),
 //!    yaw ~ rms / (rms horizontal acceleration sqrt(n_moving)).
 
@@ -223,6 +225,8 @@ struct Pair {
     wz_exp: Option<f64>,
     speed: f64,
     moving: bool,
+    /// Lateral (cross-track) acceleration of a moving pair, m/s^2 (0 at rest).
+    lat_mps2: f64,
 }
 
 /// The `[imu.mounting]` estimated from the data.
@@ -276,6 +280,7 @@ fn pairs(imu: &[ImuSample], gnss: &[GnssFix]) -> Vec<Pair> {
                     wz_exp: None,
                     speed,
                     moving: false,
+                    lat_mps2: 0.0,
                 });
             }
             prev = None;
@@ -308,6 +313,7 @@ fn pairs(imu: &[ImuSample], gnss: &[GnssFix]) -> Vec<Pair> {
                     wz_exp: Some(course_rate),
                     speed: vm.x.hypot(vm.y),
                     moving: true,
+                    lat_mps2: y1,
                 });
             }
         }
@@ -336,6 +342,44 @@ fn residual(m: &Matrix3<f64>, ps: &[Pair]) -> f64 {
     }
 }
 
+/// Lateral acceleration from which a moving interval counts as a turn whose body roll is not
+/// known (suspension lean, banked road), m/s^2.
+pub const ROLL_FREE_LAT_MPS2: f64 = 0.3;
+/// Passes of the fine-angle solution with the turns' body roll taken from the data.
+const ROLL_PASSES: usize = 3;
+
+/// Wahba's problem by SVD: the rotation `c` minimising sum |f_exp - c L f_meas|^2, returned
+/// as `c L` (x_body = m x_imu); `None` when the SVD fails.
+fn wahba(ps: &[Pair], layout: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let mut b = Matrix3::zeros();
+    for p in ps {
+        b += p.f_exp * (layout * p.f_meas).transpose();
+    }
+    let svd = b.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let d = (u.determinant() * vt.determinant()).signum();
+    Some(u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * vt * layout)
+}
+
+/// In a turn the body rolls by an angle the GNSS does not see (leaning out on its springs,
+/// into a banked curve): the expected specific force's cross-track/vertical part is turned
+/// about the along-track axis onto the measured one's direction (its size and the
+/// along-track part stay expected), so turns inform yaw and pitch but not the roll, which
+/// comes from rest and straight driving. Pairs with less than [`ROLL_FREE_LAT_MPS2`] of
+/// lateral acceleration are left as they are.
+fn roll_to_data(p: &mut Pair, m: &Matrix3<f64>) {
+    if !p.moving || p.lat_mps2.abs() < ROLL_FREE_LAT_MPS2 {
+        return;
+    }
+    let f = m * p.f_meas;
+    let e = p.f_exp;
+    let size = e.y.hypot(e.z);
+    let dir = f.y.hypot(f.z);
+    if size > 0.0 && dir > 0.0 {
+        p.f_exp = Vector3::new(e.x, size * f.y / dir, size * f.z / dir);
+    }
+}
+
 /// Estimates the IMU-to-body rotation from increments in SENSOR axes and GNSS fixes (see the
 /// module notes). Errors say what the data lack.
 pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<MountingEstimate, String> {
@@ -355,19 +399,16 @@ pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<Mounting
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (best_res, layout) = scored[0];
     let runner_up = scored[1].0;
-    // fine angles: Wahba on the specific forces, from the layout
-    let mut b = Matrix3::zeros();
-    for p in &ps {
-        b += p.f_exp * (layout * p.f_meas).transpose();
+    // fine angles: Wahba on the specific forces, from the layout; then again with the body
+    // roll of each turning pair taken from the data (a few passes)
+    let mut m = wahba(&ps, &layout).ok_or("the specific forces do not determine a rotation")?;
+    let mut ps = ps;
+    for _ in 0..ROLL_PASSES {
+        for p in ps.iter_mut() {
+            roll_to_data(p, &m);
+        }
+        m = wahba(&ps, &layout).ok_or("the specific forces do not determine a rotation")?;
     }
-    let svd = b.svd(true, true);
-    let (u, vt) = match (svd.u, svd.v_t) {
-        (Some(u), Some(vt)) => (u, vt),
-        _ => return Err("the specific forces do not determine a rotation".into()),
-    };
-    let d = (u.determinant() * vt.determinant()).signum();
-    let c = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * vt;
-    let m = c * layout;
     let final_res = residual(&m, &ps);
     let rpy = euler_zyx_from_dcm(&m.transpose());
     let g = 9.8;

@@ -251,17 +251,17 @@ fn t_b(what: &str, s_b: [f64; 3], t_b_s: Option<f64>) -> Result<f64, String> {
     }
 }
 
-/// The Gauss-Markov PSD from `s_b` or from a stationary sigma (already in SI).
+/// The Gauss-Markov PSD from `s_b` or from a stationary sigma (both already in SI).
 fn gm_psd(
     w: &str,
-    s_b: Option<AxisValue>,
+    s_b: Option<[f64; 3]>,
     sigma_key: &str,
     sigma: Option<[f64; 3]>,
     t_raw: Option<f64>,
 ) -> Result<[f64; 3], String> {
     match (s_b, sigma) {
         (Some(_), Some(_)) => Err(format!("{w}: give only one of s_b, {sigma_key}")),
-        (Some(v), None) => one_of(w, &[("s_b", Some(v.axes()))]),
+        (Some(v), None) => one_of(w, &[("s_b", Some(v))]),
         (None, Some(sg)) => {
             let t = t_b(w, [1.0; 3], t_raw)?;
             one_of(
@@ -273,166 +273,186 @@ fn gm_psd(
     }
 }
 
+/// What a key of `[noise.accel]` / `[noise.gyro]` gives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Quantity {
+    /// White-noise PSD.
+    White,
+    /// Gauss-Markov driving PSD `s_b`.
+    GmPsd,
+    /// Gauss-Markov stationary sigma (converted with `t_b_s`).
+    GmSigma,
+    /// Gauss-Markov correlation time `t_b_s`.
+    Tb,
+    /// Bias random-walk PSD.
+    RandomWalk,
+    /// Initial (turn-on) bias sigma.
+    BiasInit,
+}
+
+/// One key of a sensor's noise table: its name, what it gives, its value as written and the
+/// conversion of one value to SI.
+type NoiseKey = (&'static str, Quantity, Option<[f64; 3]>, fn(f64) -> f64);
+
+fn si(x: f64) -> f64 {
+    x
+}
+
+/// The SI parameters from a sensor's keys (one definition for accelerometers and gyros):
+/// one alternative per quantity, a Gauss-Markov term by PSD or by stationary sigma, `t_b_s`
+/// where a Gauss-Markov term needs it.
+fn sensor_noise(w: &str, keys: &[NoiseKey]) -> Result<SensorNoise, String> {
+    let alts = |q: Quantity| -> Vec<(&str, Option<[f64; 3]>)> {
+        keys.iter()
+            .filter(|k| k.1 == q)
+            .map(|(name, _, v, to_si)| (*name, v.map(|a| a.map(to_si))))
+            .collect()
+    };
+    let first = |q: Quantity| alts(q).into_iter().next();
+    let t_raw = first(Quantity::Tb).and_then(|(_, v)| v).map(|v| v[0]);
+    let s_n = one_of(w, &alts(Quantity::White))?;
+    let (sigma_key, sigma) = first(Quantity::GmSigma).unwrap_or(("gm_sigma", None));
+    let s_b_given = first(Quantity::GmPsd).and_then(|(_, v)| v);
+    let s_b = gm_psd(w, s_b_given, sigma_key, sigma, t_raw)?;
+    let t_b_s = t_b(w, s_b, t_raw)?;
+    let s_k = one_of(w, &alts(Quantity::RandomWalk))?;
+    let bias_init_sigma = one_of(w, &alts(Quantity::BiasInit))?;
+    Ok(SensorNoise {
+        s_n,
+        s_b,
+        t_b_s,
+        s_k,
+        bias_init_sigma,
+    })
+}
+
+fn raw(v: Option<AxisValue>) -> Option<[f64; 3]> {
+    v.map(AxisValue::axes)
+}
+
 impl AccelNoiseConfig {
+    /// The keys of `[noise.accel]`: name, quantity, value, conversion to SI.
+    fn keys(&self) -> [NoiseKey; 11] {
+        use Quantity::*;
+        [
+            ("s_n", White, raw(self.s_n), si),
+            (
+                "n_ug_per_sqrt_hz",
+                White,
+                raw(self.n_ug_per_sqrt_hz),
+                units::accel_psd_from_ug_per_sqrt_hz,
+            ),
+            (
+                "vrw_mps_per_sqrt_h",
+                White,
+                raw(self.vrw_mps_per_sqrt_h),
+                units::accel_psd_from_mps_per_sqrt_h,
+            ),
+            ("s_b", GmPsd, raw(self.s_b), si),
+            (
+                "gm_sigma_ug",
+                GmSigma,
+                raw(self.gm_sigma_ug),
+                units::mps2_from_ug,
+            ),
+            ("t_b_s", Tb, self.t_b_s.map(|t| [t; 3]), si),
+            ("s_k", RandomWalk, raw(self.s_k), si),
+            (
+                "k_ug_per_sqrt_h",
+                RandomWalk,
+                raw(self.k_ug_per_sqrt_h),
+                units::accel_rw_psd_from_ug_per_sqrt_h,
+            ),
+            (
+                "k_ug_per_sqrt_hz",
+                RandomWalk,
+                raw(self.k_ug_per_sqrt_hz),
+                |k| units::mps2_from_ug(k).powi(2),
+            ),
+            ("bias_init_sigma", BiasInit, raw(self.bias_init_sigma), si),
+            (
+                "bias_init_ug",
+                BiasInit,
+                raw(self.bias_init_ug),
+                units::mps2_from_ug,
+            ),
+        ]
+    }
+
     /// The SI parameters (nav-core's [`SensorNoise`]).
     pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
-        let w = "noise.accel";
-        let s_n = one_of(
-            w,
-            &[
-                ("s_n", self.s_n.map(AxisValue::axes)),
-                (
-                    "n_ug_per_sqrt_hz",
-                    self.n_ug_per_sqrt_hz
-                        .map(|v| v.map(units::accel_psd_from_ug_per_sqrt_hz)),
-                ),
-                (
-                    "vrw_mps_per_sqrt_h",
-                    self.vrw_mps_per_sqrt_h
-                        .map(|v| v.map(units::accel_psd_from_mps_per_sqrt_h)),
-                ),
-            ],
-        )?;
-        let sig = self.gm_sigma_ug.map(|v| v.map(units::mps2_from_ug));
-        let s_b = gm_psd(w, self.s_b, "gm_sigma_ug", sig, self.t_b_s)?;
-        let t_b_s = t_b(w, s_b, self.t_b_s)?;
-        let s_k = one_of(
-            w,
-            &[
-                ("s_k", self.s_k.map(AxisValue::axes)),
-                (
-                    "k_ug_per_sqrt_h",
-                    self.k_ug_per_sqrt_h
-                        .map(|v| v.map(units::accel_rw_psd_from_ug_per_sqrt_h)),
-                ),
-                (
-                    "k_ug_per_sqrt_hz",
-                    self.k_ug_per_sqrt_hz
-                        .map(|v| v.map(|k| units::mps2_from_ug(k).powi(2))),
-                ),
-            ],
-        )?;
-        let b0 = one_of(
-            w,
-            &[
-                ("bias_init_sigma", self.bias_init_sigma.map(AxisValue::axes)),
-                (
-                    "bias_init_ug",
-                    self.bias_init_ug.map(|v| v.map(units::mps2_from_ug)),
-                ),
-            ],
-        )?;
-        Ok(SensorNoise {
-            s_n,
-            s_b,
-            t_b_s,
-            s_k,
-            bias_init_sigma: b0,
-        })
+        sensor_noise("noise.accel", &self.keys())
     }
 
     /// Every key with its values (absent: None).
     pub(crate) fn entries(&self) -> [(&'static str, Option<[f64; 3]>); 11] {
-        let a = |v: Option<AxisValue>| v.map(AxisValue::axes);
-        [
-            ("s_n", a(self.s_n)),
-            ("n_ug_per_sqrt_hz", a(self.n_ug_per_sqrt_hz)),
-            ("vrw_mps_per_sqrt_h", a(self.vrw_mps_per_sqrt_h)),
-            ("s_b", a(self.s_b)),
-            ("gm_sigma_ug", a(self.gm_sigma_ug)),
-            ("t_b_s", self.t_b_s.map(|t| [t; 3])),
-            ("s_k", a(self.s_k)),
-            ("k_ug_per_sqrt_h", a(self.k_ug_per_sqrt_h)),
-            ("k_ug_per_sqrt_hz", a(self.k_ug_per_sqrt_hz)),
-            ("bias_init_sigma", a(self.bias_init_sigma)),
-            ("bias_init_ug", a(self.bias_init_ug)),
-        ]
+        self.keys().map(|(name, _, v, _)| (name, v))
     }
 }
 
 impl GyroNoiseConfig {
+    /// The keys of `[noise.gyro]`: name, quantity, value, conversion to SI.
+    fn keys(&self) -> [NoiseKey; 12] {
+        use Quantity::*;
+        [
+            ("s_n", White, raw(self.s_n), si),
+            (
+                "arw_deg_per_sqrt_h",
+                White,
+                raw(self.arw_deg_per_sqrt_h),
+                units::gyro_psd_from_deg_per_sqrt_h,
+            ),
+            (
+                "n_deg_per_s_per_sqrt_hz",
+                White,
+                raw(self.n_deg_per_s_per_sqrt_hz),
+                |n| (n * units::DEG).powi(2),
+            ),
+            ("s_b", GmPsd, raw(self.s_b), si),
+            (
+                "gm_sigma_deg_per_h",
+                GmSigma,
+                raw(self.gm_sigma_deg_per_h),
+                units::radps_from_deg_per_h,
+            ),
+            ("t_b_s", Tb, self.t_b_s.map(|t| [t; 3]), si),
+            ("s_k", RandomWalk, raw(self.s_k), si),
+            (
+                "k_deg_per_h_per_sqrt_h",
+                RandomWalk,
+                raw(self.k_deg_per_h_per_sqrt_h),
+                units::gyro_rw_psd_from_deg_per_h_per_sqrt_h,
+            ),
+            (
+                "k_deg_per_s_per_sqrt_hz",
+                RandomWalk,
+                raw(self.k_deg_per_s_per_sqrt_hz),
+                |k| (k * units::DEG).powi(2),
+            ),
+            ("bias_init_sigma", BiasInit, raw(self.bias_init_sigma), si),
+            (
+                "bias_init_deg_per_h",
+                BiasInit,
+                raw(self.bias_init_deg_per_h),
+                units::radps_from_deg_per_h,
+            ),
+            (
+                "bias_init_deg_per_s",
+                BiasInit,
+                raw(self.bias_init_deg_per_s),
+                |x| x * units::DEG,
+            ),
+        ]
+    }
+
     /// The SI parameters (nav-core's [`SensorNoise`]).
     pub fn to_sensor_noise(&self) -> Result<SensorNoise, String> {
-        let w = "noise.gyro";
-        let deg = units::DEG;
-        let s_n = one_of(
-            w,
-            &[
-                ("s_n", self.s_n.map(AxisValue::axes)),
-                (
-                    "arw_deg_per_sqrt_h",
-                    self.arw_deg_per_sqrt_h
-                        .map(|v| v.map(units::gyro_psd_from_deg_per_sqrt_h)),
-                ),
-                (
-                    "n_deg_per_s_per_sqrt_hz",
-                    self.n_deg_per_s_per_sqrt_hz
-                        .map(|v| v.map(|n| (n * deg).powi(2))),
-                ),
-            ],
-        )?;
-        let sig = self
-            .gm_sigma_deg_per_h
-            .map(|v| v.map(units::radps_from_deg_per_h));
-        let s_b = gm_psd(w, self.s_b, "gm_sigma_deg_per_h", sig, self.t_b_s)?;
-        let t_b_s = t_b(w, s_b, self.t_b_s)?;
-        let s_k = one_of(
-            w,
-            &[
-                ("s_k", self.s_k.map(AxisValue::axes)),
-                (
-                    "k_deg_per_h_per_sqrt_h",
-                    self.k_deg_per_h_per_sqrt_h
-                        .map(|v| v.map(units::gyro_rw_psd_from_deg_per_h_per_sqrt_h)),
-                ),
-                (
-                    "k_deg_per_s_per_sqrt_hz",
-                    self.k_deg_per_s_per_sqrt_hz
-                        .map(|v| v.map(|k| (k * deg).powi(2))),
-                ),
-            ],
-        )?;
-        let b0 = one_of(
-            w,
-            &[
-                ("bias_init_sigma", self.bias_init_sigma.map(AxisValue::axes)),
-                (
-                    "bias_init_deg_per_h",
-                    self.bias_init_deg_per_h
-                        .map(|v| v.map(units::radps_from_deg_per_h)),
-                ),
-                (
-                    "bias_init_deg_per_s",
-                    self.bias_init_deg_per_s.map(|v| v.map(|x| x * deg)),
-                ),
-            ],
-        )?;
-        Ok(SensorNoise {
-            s_n,
-            s_b,
-            t_b_s,
-            s_k,
-            bias_init_sigma: b0,
-        })
+        sensor_noise("noise.gyro", &self.keys())
     }
 
     /// Every key with its values (absent: None).
     pub(crate) fn entries(&self) -> [(&'static str, Option<[f64; 3]>); 12] {
-        let a = |v: Option<AxisValue>| v.map(AxisValue::axes);
-        [
-            ("s_n", a(self.s_n)),
-            ("arw_deg_per_sqrt_h", a(self.arw_deg_per_sqrt_h)),
-            ("n_deg_per_s_per_sqrt_hz", a(self.n_deg_per_s_per_sqrt_hz)),
-            ("s_b", a(self.s_b)),
-            ("gm_sigma_deg_per_h", a(self.gm_sigma_deg_per_h)),
-            ("t_b_s", self.t_b_s.map(|t| [t; 3])),
-            ("s_k", a(self.s_k)),
-            ("k_deg_per_h_per_sqrt_h", a(self.k_deg_per_h_per_sqrt_h)),
-            ("k_deg_per_s_per_sqrt_hz", a(self.k_deg_per_s_per_sqrt_hz)),
-            ("bias_init_sigma", a(self.bias_init_sigma)),
-            ("bias_init_deg_per_h", a(self.bias_init_deg_per_h)),
-            ("bias_init_deg_per_s", a(self.bias_init_deg_per_s)),
-        ]
+        self.keys().map(|(name, _, v, _)| (name, v))
     }
 }
 

@@ -195,7 +195,7 @@ pub fn read_imu_text_rates(path: &Path) -> Result<Channels, ReadError> {
         }
     }
     let mut notes = vec![format!(
-        "{}: {} samples of increments, dt = {dt} s (median), rates = increment / dt",
+        "{}: {} samples of increments, dt = {dt:.6} s (median), rates = increment / dt",
         path.display(),
         rec.samples.len()
     )];
@@ -326,7 +326,7 @@ pub fn read_columns(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadErro
         data,
         tau0_s: tau0,
         notes: vec![format!(
-            "{}: {n} rows, tau0 = {tau0} s (column reader of noise_id::reader)",
+            "{}: {n} rows, tau0 = {tau0:.6} s (column reader of noise_id::reader)",
             path.display()
         )],
     })
@@ -383,7 +383,7 @@ fn read_with_io(path: &Path, spec: &ColumnSpec, cols: &[String]) -> Result<Chann
         }
     };
     let mut notes = vec![format!(
-        "{}: {} rows, tau0 = {tau0} s (nav_io::read_imu_csv_raw)",
+        "{}: {} rows, tau0 = {tau0:.6} s (nav_io::read_imu_csv_raw)",
         path.display(),
         rec.samples.len()
     )];

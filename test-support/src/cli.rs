@@ -63,6 +63,24 @@ impl Bin {
     {
         run_ok(self.command().args(args))
     }
+
+    /// As [`Bin::run_ok`], returning the standard output followed by the standard error (for
+    /// checks on notes and warnings as well as results).
+    pub fn run_ok_both<I, S>(&self, args: I) -> String
+    where
+        I: IntoIterator<Item = S>,
+        S: AsRef<OsStr>,
+    {
+        let mut cmd = self.command();
+        cmd.args(args);
+        let ran = run(&mut cmd);
+        assert!(
+            ran.ok,
+            "{cmd:?} exited with {}\nstdout:\n{}\nstderr:\n{}",
+            ran.status, ran.stdout, ran.stderr
+        );
+        ran.stdout + &ran.stderr
+    }
 }
 
 /// Runs `cmd` and captures what it did (panics only when it cannot be started).
@@ -104,6 +122,7 @@ mod tests {
         assert_eq!(ran.status.code(), Some(3));
         assert!(!ran.ok);
         assert_eq!(sh.run_ok(["-c", "echo fine"]), "fine\n");
+        assert_eq!(sh.run_ok_both(["-c", "echo a; echo b >&2"]), "a\nb\n");
         let failed = std::panic::catch_unwind(|| sh.run_ok(["-c", "echo why >&2; exit 1"]));
         let msg = failed.expect_err("a failing run panics");
         let msg = msg.downcast_ref::<String>().expect("a formatted message");

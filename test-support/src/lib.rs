@@ -2,6 +2,7 @@
 
 pub mod cli;
 pub mod filter_sim;
+pub mod runcase;
 pub mod scenario;
 pub mod trajectory;
 pub mod transition;

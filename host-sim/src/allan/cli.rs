@@ -642,7 +642,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         pb.finish_and_clear();
     }
     println!(
-        "{}: {} samples, tau0 = {} s, {} ({}), fit on OADEV octave taus",
+        "{}: {} samples, tau0 = {:.6} s, {} ({}), fit on OADEV octave taus",
         args.input.display(),
         n,
         ch.tau0_s,
@@ -668,7 +668,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
             let sel = a.fit.as_ref().ok().map(|f| f.terms);
             for c in &a.candidates {
                 println!(
-                    "  {:3} {}{:24} chi2 {:10.1} p {} BIC {:10.1}  {}",
+                    "  {:3} {}{:26} chi2 {:10.1} p {} BIC {:10.1}  {}",
                     a.name,
                     if Some(c.terms) == sel { '*' } else { ' ' },
                     c.terms.label(),

@@ -177,7 +177,7 @@ pub fn noise_section_toml(an: &Analysis, source: &Path, bias: &BiasInit) -> Stri
     let mut body = String::new();
     let _ = writeln!(
         head,
-        "# IMU noise identified by `host-sim allan` from {} ({} samples, tau0 = {} s).\n\
+        "# IMU noise identified by `host-sim allan` from {} ({} samples, tau0 = {:.6} s).\n\
          # A [noise] section of a run configuration (nav-io/src/noisecfg.rs): paste it verbatim.\n\
          # SI, two-sided PSDs (IEEE 952), per IMU axis [x, y, z]: s_n white noise [m^2/s^3 | rad^2/s],\n\
          # s_b Gauss-Markov driving PSD [m^2/s^5 | rad^2/s^3] with its correlation time t_b_s [s],\n\
@@ -331,7 +331,7 @@ pub fn sim_errors_toml(an: &Analysis, source: &Path) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "# Noise parameters identified by `host-sim allan` from {} ({} samples, tau0 = {} s).\n\
+        "# Noise parameters identified by `host-sim allan` from {} ({} samples, tau0 = {:.6} s).\n\
          # Fit of the overlapping Allan variance (corrected model of docs/DESIGN.md), SI units,\n\
          # two-sided PSDs (IEEE 952): white_psd S_N [m^2/s^3 | rad^2/s], gm_psd S_B [m^2/s^5 |\n\
          # rad^2/s^3], gm_tau_s T_B [s], rw_psd S_K [m^2/s^5 | rad^2/s^3], flicker_b B (IEEE 952,\n\

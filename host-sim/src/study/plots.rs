@@ -37,6 +37,26 @@ fn display_scale(i: usize) -> f64 {
     }
 }
 
+/// Draws `pts` as a line of separate 2-point segments: a `LineSeries` wider than 1 px joins
+/// its segments with mitres that overshoot far beyond the chart (out of the picture) at a
+/// sharp spike such as the fall of the error when the fixes come back after an outage
+/// (plotters issue 549); segments without joins stay where the data are.
+fn segments<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate<From = (f64, f64)>>(
+    ch: &mut ChartContext<'a, DB, CT>,
+    pts: &[(f64, f64)],
+    style: ShapeStyle,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    ch.draw_series(
+        pts.windows(2)
+            .map(|w| PathElement::new(vec![w[0], w[1]], style)),
+    )
+    .map_err(perr)?;
+    Ok(())
+}
+
 /// Draws `pts` as a dashed line: runs of 16 points on, 9 off (1 Hz data: 16 s dashes).
 fn dashed<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate<From = (f64, f64)>>(
     ch: &mut ChartContext<'a, DB, CT>,
@@ -48,7 +68,7 @@ where
 {
     for chunk in pts.chunks(25) {
         let on: Vec<(f64, f64)> = chunk.iter().take(17).copied().collect();
-        ch.draw_series(LineSeries::new(on, style)).map_err(perr)?;
+        segments(ch, &on, style)?;
     }
     Ok(())
 }
@@ -157,8 +177,7 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
                     .map(|(t, x)| (t / 60.0, (x[i] * sc).log10().clamp(y0, y1)))
                     .collect()
             };
-            ch.draw_series(LineSeries::new(pts(&c.stats.rms_err), col.stroke_width(2)))
-                .map_err(perr)?;
+            segments(&mut ch, &pts(&c.stats.rms_err), col.stroke_width(2))?;
             dashed(&mut ch, &pts(&c.stats.std), col.stroke_width(2))?;
         }
     }

@@ -6,8 +6,10 @@
 //! Roll and pitch come from levelling the mean specific force of the window
 //! (`nav_core::align::coarse_align`, which also checks that the window is static). Heading:
 //! given, or (MEMS gyros cannot gyrocompass) from the GNSS **course of the first metres of
-//! motion**: the direction from the mean static antenna position to the first later fix at
-//! least `course_distance_m` away. That looks ahead in the data (post-processing), assumes the
+//! motion**: the direction from the mean static antenna position to the later fixes, from
+//! the first one far enough away for a 1-deg course from the fixes' sigmas, extended while
+//! the track stays straight up to `course_distance_m` (`nav_core::align::TrackCourse`).
+//! That looks ahead in the data (post-processing), assumes the
 //! vehicle drives off forward and roughly straight, and is given a generous uncertainty
 //! (`heading_std_rad`) that the filter then reduces. Position: the mean antenna position of the
 //! fixes inside the window, moved to the IMU point with the lever arm. Velocity zero. With
@@ -18,8 +20,8 @@
 use super::{RunError, RunOptions};
 use nalgebra::Vector3;
 use nav_core::align::{
-    coarse_align, motion_align, static_start, AlignConfig, AlignError, HeadingSource,
-    MotionAlignConfig, MotionCue, MotionLevelling,
+    coarse_align, motion_align, static_start, AlignConfig, AlignError, Course, CourseRule,
+    HeadingSource, MotionAlignConfig, MotionCue, MotionLevelling, TrackCourse,
 };
 use nav_core::attitude::quat_from_rotvec;
 use nav_core::config::FilterConfig;
@@ -61,7 +63,8 @@ pub struct StaticAlign {
     pub heading_rad: Option<f64>,
     /// 1-sigma of the heading, rad.
     pub heading_std_rad: f64,
-    /// Distance the antenna must move for the GNSS course, m.
+    /// Distance at which the antenna's GNSS course is taken whatever the fixes' sigmas, m
+    /// (precise fixes give it earlier).
     pub course_distance_m: f64,
     /// When set and the fixes carry velocities: the course is that of the first fix after the
     /// window whose horizontal speed reaches this, m/s (instead of the displacement rule).
@@ -300,6 +303,7 @@ fn static_alignment(
             "given".to_string(),
         ),
         None => {
+            let mut course_std = 0.0f64;
             let by_speed = sa
                 .course_min_speed_mps
                 .and_then(|v| gnss_velocity_course(case, t_b, v));
@@ -309,17 +313,24 @@ fn static_alignment(
                     format!("GNSS velocity course at {v:.2} m/s (fix at {t:.2} s)"),
                 ),
                 None => {
-                    let (yaw, t, d) = gnss_course(case, &ant, t_b, sa.course_distance_m)?;
+                    let start_sigma = mean_std[0].max(mean_std[1]);
+                    let (c, t) = gnss_course(case, &ant, start_sigma, t_b, sa.course_distance_m)?;
+                    course_std = c.std_rad;
                     (
-                        yaw,
-                        format!("GNSS course over the first {d:.1} m of motion (fix at {t:.2} s)"),
+                        c.yaw_rad,
+                        format!(
+                            "GNSS course over the first {:.2} m of motion (fix at {t:.2} s, \
+                             1-sigma {:.2} deg)",
+                            c.distance_m,
+                            c.std_rad.to_degrees()
+                        ),
                     )
                 }
             };
             (
                 HeadingSource::Given {
                     yaw_rad: yaw,
-                    std_rad: sa.heading_std_rad,
+                    std_rad: sa.heading_std_rad.max(course_std),
                 },
                 format!("{what}: {:.2} deg", yaw.to_degrees()),
             )
@@ -390,30 +401,40 @@ fn static_alignment(
     })
 }
 
-/// The course from `from` to the first fix after `t_after` at least `dist_m` away
-/// horizontally: (yaw rad, fix time, distance).
+/// The GNSS course of the track from `from` (horizontal one-sigma `from_sigma_m`) over the
+/// fixes after `t_after` (`nav_core::align::TrackCourse`: from the first fix far enough away
+/// for a 1-deg course from the sigmas, extended while the track stays straight, up to
+/// `dist_m`): (course, time of the fix it ends at).
 fn gnss_course(
     case: &InitData<'_>,
     from: &Llh,
+    from_sigma_m: f64,
     t_after: f64,
     dist_m: f64,
-) -> Result<(f64, f64, f64), RunError> {
+) -> Result<(Course, f64), RunError> {
+    let mut track = TrackCourse::new(CourseRule {
+        max_distance_m: dist_m,
+        ..CourseRule::default()
+    });
+    let mut t_end = f64::NAN;
     for g in case.gnss.iter().filter(|g| g.t_s > t_after && g.is_valid()) {
-        let p = Llh {
-            lat_rad: g.lat_rad,
-            lon_rad: g.lon_rad,
-            h_m: g.h_m,
-        };
-        let d = earth::ned_offset_m(from, &p);
-        let hd = d.x.hypot(d.y);
-        if hd >= dist_m {
-            return Ok((d.y.atan2(d.x), g.t_s, hd));
+        let d = earth::ned_offset_m(from, &llh_of(g));
+        let s_fix = g.pos_std_ned_m[0].max(g.pos_std_ned_m[1]);
+        let before = track.course();
+        let settled = track.push(d.x, d.y, from_sigma_m.hypot(s_fix), s_fix);
+        if track.course() != before {
+            t_end = g.t_s;
+        }
+        if settled {
+            break;
         }
     }
-    Err(RunError::Init(format!(
-        "no heading given and the antenna never moves {dist_m} m after the static window \
-         (GNSS course unavailable)"
-    )))
+    track.course().map(|c| (c, t_end)).ok_or_else(|| {
+        RunError::Init(format!(
+            "no heading given and the antenna never moves far enough after the static window \
+             for the GNSS course (1 deg from the fixes' sigmas, or {dist_m} m)"
+        ))
+    })
 }
 
 /// The course of the first fix after `t_after` with a velocity of at least `min_speed_mps`
