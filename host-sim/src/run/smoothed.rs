@@ -60,6 +60,10 @@ pub fn finish(
         t_run_s
     );
     print!("{}", imu_summary(&fwd));
+    let al = fwd.aiding.summary_line();
+    if !al.is_empty() {
+        println!("{al}");
+    }
     println!(
         "smoother: {} nodes ({} with updates), history {:.1} MB ({:.0} B/node), smoothed {:.1} MB, \
          backward pass {:.2} s, applied in {:.2} s{}",

@@ -177,7 +177,7 @@ impl AidingReport {
         }
         if self.heading_skipped > 0 {
             line.push_str(&format!(
-                "; {} heading sample(s) outside the IMU epochs",
+                "; {} heading sample(s) before the run's first epoch or in IMU gaps (not used)",
                 self.heading_skipped
             ));
         }
