@@ -195,7 +195,8 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     let s = rb.format_finite(x).as_bytes();
     // Within its positional range zmij writes what `Display` does, except that an integer
     // gets ".0" ("12.0" where `Display` writes "12"); outside it, an exponent.
-    if !s.contains(&b'e') {
+    // an exponent ("e-7", "e16", "e-308") is within the last 5 bytes: no memchr call
+    if !s.iter().rev().take(5).any(|&c| c == b'e') {
         let s = s.strip_suffix(b".0").unwrap_or(s);
         out.get_mut(..s.len())?.copy_from_slice(s);
         return Some(s.len());

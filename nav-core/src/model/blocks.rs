@@ -241,6 +241,11 @@ impl Block {
     /// (`F[core, block] * dt`), to `f_top` (the 9 core rows of the accumulated F dt) at
     /// column `off`. Signs follow dx = estimate - truth: a gyro error dw = w_hat - w drives
     /// `phi' = ... - C dw`, an accelerometer error df drives `dv' = ... + C df`.
+    ///
+    /// The bias blocks add nothing here: their coupling is `+-C_b^n dt`, whose sum over the
+    /// interval the accumulator keeps anyway (`Accumulator::c_dt`); [`Self::add_bias_f`]
+    /// puts it in at the discretisation (the same sums, bit for bit, without adding 18 or 36
+    /// numbers per IMU epoch).
     pub fn accumulate_f<T: Scalar, const N: usize>(
         self,
         off: usize,
@@ -249,20 +254,8 @@ impl Block {
     ) {
         let c_dt = scale3(&reg.c_nb, reg.dt);
         match self {
-            Self::Core => {}
-            // gyro bias error db: w_hat = w - db  =>  phi' += C db
-            Self::GyroBias(m) => {
-                for g in 0..m.dim() / 3 {
-                    add3(f_top, IDX_ATT, off + 3 * g, &c_dt);
-                }
-            }
-            // accel bias error db: f_hat = f - db  =>  dv' -= C db
-            Self::AccelBias(m) => {
-                let neg = scale3(&c_dt, -T::ONE);
-                for g in 0..m.dim() / 3 {
-                    add3(f_top, IDX_VEL, off + 3 * g, &neg);
-                }
-            }
+            // the bias blocks: Self::add_bias_f at the discretisation
+            Self::Core | Self::GyroBias(_) | Self::AccelBias(_) => {}
             // gyro scale error ds: w_hat = w - diag(w) ds  =>  phi' += C diag(w) ds
             Self::GyroScaleFactor => {
                 add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.omega_b));
@@ -301,6 +294,37 @@ impl Block {
             }
             // measurement-only blocks
             Self::LeverArm | Self::TimeOffset | Self::OdometerScale => {}
+        }
+    }
+
+    /// Adds the coupling of a bias block integrated over a whole interval to `a_top` (the 9
+    /// core rows of the integrated F dt, zero in the block's columns) at column `off`, from
+    /// `c_dt` = the sum of `C_b^n dt` over the interval ([`Self::accumulate_f`] left them
+    /// out): gyro bias `phi' += C db`, accelerometer bias `dv' -= C db`, every process of the
+    /// block alike. Other blocks add nothing. The result equals the per-epoch accumulation
+    /// bit for bit: the per-epoch terms were `c dt` (or `-(c dt)`), summed from zero in the
+    /// same order as `c_dt`, and IEEE rounding is symmetric under negation.
+    pub fn add_bias_f<T: Scalar, const N: usize>(
+        self,
+        off: usize,
+        c_dt: &[[T; 3]; 3],
+        a_top: &mut [[T; N]; CORE_DIM],
+    ) {
+        match self {
+            // gyro bias error db: w_hat = w - db  =>  phi' += C db
+            Self::GyroBias(m) => {
+                for g in 0..m.dim() / 3 {
+                    add3(a_top, IDX_ATT, off + 3 * g, c_dt);
+                }
+            }
+            // accel bias error db: f_hat = f - db  =>  dv' -= C db
+            Self::AccelBias(m) => {
+                let neg = scale3(c_dt, -T::ONE);
+                for g in 0..m.dim() / 3 {
+                    add3(a_top, IDX_VEL, off + 3 * g, &neg);
+                }
+            }
+            _ => {}
         }
     }
 

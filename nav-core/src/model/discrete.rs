@@ -46,7 +46,8 @@ pub struct Accumulator<T, const N: usize> {
     pub f_ned_dt: [T; 3],
     /// Sum of C_b^n dt, s (row-major).
     pub c_dt: [[T; 3]; 3],
-    /// Sum of `F[core, :] dt` contributed by the blocks' couplings (core columns unused).
+    /// Sum of `F[core, :] dt` contributed by the blocks' couplings (core columns unused; the
+    /// bias blocks' columns stay zero: their coupling is `+-c_dt`, added by [`discretize`]).
     pub f_top: [[T; N]; CORE_DIM],
 }
 
@@ -138,6 +139,9 @@ pub fn discretize<T: Scalar, const N: usize>(
     // A = integral of F dt: core from the state (phi-v coupling from the accumulated f_n dt)
     let cf = core_f::<T>(nav.pos.lat_rad, nav.pos.h_m, &nav.vel_ned_mps.into());
     let mut a_top = acc.f_top;
+    for (off, b) in layout.iter() {
+        b.add_bias_f(off, &acc.c_dt, &mut a_top);
+    }
     for (arow, crow) in a_top.iter_mut().zip(cf.iter()) {
         for (a, c) in arow.iter_mut().zip(crow) {
             *a = *c * t;

@@ -86,8 +86,9 @@ impl Out {
 enum Rec {
     /// A line of `nav.txt`.
     Nav(NavSolution),
-    /// A line of `std.txt` and of `bias.txt` (the header of `bias.txt` before the first).
-    Epoch(EpochRecord),
+    /// A line of `std.txt` and of `bias.txt` (the header of `bias.txt` before the first);
+    /// boxed so that the common `Nav` message stays small.
+    Epoch(Box<EpochRecord>),
     /// A line of `innovations.txt`.
     Inn(InnovationRecord),
     /// Raw bytes for `std.txt` (its header).
@@ -421,7 +422,7 @@ impl RunSink for FileSink<'_> {
     }
 
     fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
-        self.push(Rec::Epoch(r))
+        self.push(Rec::Epoch(Box::new(r)))
     }
 
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
