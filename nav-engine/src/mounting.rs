@@ -336,17 +336,34 @@ fn residual(m: &Matrix3<f64>, ps: &[Pair]) -> f64 {
     }
 }
 
+/// Why the mounting could not be estimated ([`estimate_mounting`]): what the data lack.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum MountingError {
+    /// Too few GNSS intervals while moving.
+    #[error(
+        "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
+         needs a drive with accelerations and turns (a few minutes)"
+    )]
+    TooLittleMotion {
+        /// GNSS intervals while moving (at least 10 are needed).
+        moving: usize,
+    },
+    /// The specific forces do not determine a rotation (the SVD failed).
+    #[error("the specific forces do not determine a rotation")]
+    NoRotation,
+}
+
 /// Estimates the IMU-to-body rotation from increments in SENSOR axes and GNSS fixes (see the
 /// module notes). Errors say what the data lack.
-pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<MountingEstimate, String> {
+pub fn estimate_mounting(
+    imu: &[ImuSample],
+    gnss: &[GnssFix],
+) -> Result<MountingEstimate, MountingError> {
     let ps = pairs(imu, gnss);
     let rest = ps.iter().filter(|p| !p.moving).count();
     let moving = ps.len() - rest;
     if moving < 10 {
-        return Err(format!(
-            "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
-             needs a drive with accelerations and turns (a few minutes)"
-        ));
+        return Err(MountingError::TooLittleMotion { moving });
     }
     let mut scored: Vec<(f64, Matrix3<f64>)> = axis_layouts()
         .into_iter()
@@ -363,7 +380,7 @@ pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<Mounting
     let svd = b.svd(true, true);
     let (u, vt) = match (svd.u, svd.v_t) {
         (Some(u), Some(vt)) => (u, vt),
-        _ => return Err("the specific forces do not determine a rotation".into()),
+        _ => return Err(MountingError::NoRotation),
     };
     let d = (u.determinant() * vt.determinant()).signum();
     let c = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * vt;
