@@ -43,6 +43,15 @@
 //! through [`Navigator::push_aiding`] with the same scheduling; [`AidingInput`] has no
 //! variant yet.
 //!
+//! # Hooks
+//!
+//! [`Navigator::push_imu_with`] and [`Navigator::flush_with`] take [`NavHooks`]: a call when
+//! an epoch is complete (its fixes applied, before the next sample is integrated), the
+//! covariance predictions (the smoother's history), fixes withheld (imposed outages), aiding
+//! updates after each integrated sample and a call before each GNSS update. The host's run
+//! engine (`nav-engine/src/run/engine.rs`) is this loop with its hooks; [`Navigator::push_imu`]
+//! and [`Navigator::flush`] pass [`NoHooks`] (the same code as without hooks).
+//!
 //! # The IMU guard
 //!
 //! Every sample after the start passes the [`ImuGuard`] (gaps bridged by the data's
@@ -64,7 +73,11 @@ use crate::strapdown::{NavState, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use nalgebra::Vector3;
 
+mod error;
+mod hooks;
+pub use error::NavigatorError;
 mod startup;
+pub use hooks::{NavHooks, NoHooks, ObserveWith};
 use startup::{check_config, FixMean, Leveller};
 
 /// Default capacity of the fix queue (fixes waiting for the next IMU sample).
@@ -177,55 +190,6 @@ impl NavigatorConfig {
     }
 }
 
-/// Errors of the navigator. The navigator stays usable after every one.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum NavigatorError {
-    /// The filter refused its configuration or initial state, or failed on a sample.
-    Filter(FilterError),
-    /// The IMU guard's fault (time not increasing, gap too long): the sample was not used.
-    Guard(GuardError),
-    /// The fix queue is full (more than `Q` fixes ahead of the IMU): the fix was dropped.
-    FixQueueFull {
-        /// Time of the dropped fix, s.
-        t_s: f64,
-    },
-}
-
-impl core::fmt::Display for NavigatorError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            Self::Filter(e) => write!(f, "navigator: {e}"),
-            Self::Guard(e) => write!(f, "navigator: {e}"),
-            Self::FixQueueFull { t_s } => write!(
-                f,
-                "navigator: GNSS fix at {t_s:.3} s dropped: fix queue full (fixes ahead of the IMU)"
-            ),
-        }
-    }
-}
-
-impl core::error::Error for NavigatorError {
-    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
-        match self {
-            Self::Guard(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<FilterError> for NavigatorError {
-    fn from(e: FilterError) -> Self {
-        Self::Filter(e)
-    }
-}
-
-impl From<GuardError> for NavigatorError {
-    fn from(e: GuardError) -> Self {
-        Self::Guard(e)
-    }
-}
-
 /// How the filter started ([`ImuStep::aligned`], [`GnssEvent::Aligned`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -309,6 +273,16 @@ impl FixEvent {
             Ok(o) if o.weight < 1.0 => Self::Downweighted(o),
             Ok(o) => Self::Accepted(o),
             Err(error) => Self::Refused { t_s, error },
+        }
+    }
+
+    /// The update's outcome (None when refused).
+    pub fn outcome(&self) -> Option<&UpdateOutcome> {
+        match self {
+            Self::Accepted(o) | Self::Downweighted(o) | Self::Rejected(o) | Self::Reset(o) => {
+                Some(o)
+            }
+            Self::Refused { .. } => None,
         }
     }
 
@@ -503,17 +477,31 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         Ok(())
     }
 
-    /// Applies the queued fixes due before a sample at `t_next_s` (nearest-epoch rule).
-    fn apply_due(&mut self, t_next_s: f64, events: &mut FixEvents<Q>) {
+    /// Applies the queued fixes due before a sample at `t_next_s` (nearest-epoch rule) and
+    /// completes the epoch.
+    fn apply_due<H: NavHooks<T, N>>(
+        &mut self,
+        t_next_s: f64,
+        events: &mut FixEvents<Q>,
+        hooks: &mut H,
+    ) {
         let Some(t_k) = self.epoch_s else {
             return;
         };
         let horizon = t_k + 0.5 * (t_next_s - t_k);
-        self.apply_before(horizon, events);
+        self.apply_before(horizon, events, hooks);
         self.epoch_s = None;
+        if let Some(f) = self.filter.as_ref() {
+            hooks.on_epoch_done(f);
+        }
     }
 
-    fn apply_before(&mut self, horizon: f64, events: &mut FixEvents<Q>) {
+    fn apply_before<H: NavHooks<T, N>>(
+        &mut self,
+        horizon: f64,
+        events: &mut FixEvents<Q>,
+        hooks: &mut H,
+    ) {
         let Some(filter) = self.filter.as_mut() else {
             return;
         };
@@ -522,7 +510,17 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
                 break;
             }
             self.fixes.pop_front();
+            if hooks.withhold_fix(filter, &fix) {
+                continue;
+            }
+            if hooks.observes_covariance() {
+                // the update's own prediction, seen by the observer (a failure is reported by
+                // the update)
+                let _ = filter.predict_covariance_observed(&mut hooks.observer());
+            }
+            hooks.before_gnss(&fix);
             let ev = FixEvent::of(filter.update_gnss(&fix), fix.t_s);
+            hooks.on_fix(filter, &fix, &ev);
             let c = &mut self.counters;
             match ev {
                 FixEvent::Accepted(_) => c.gnss_used = c.gnss_used.saturating_add(1),
@@ -552,6 +550,16 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     /// used; fixes applied before it are lost from the account but counted): a guard fault or
     /// a filter failure other than a non-finite sample.
     pub fn push_imu(&mut self, s: &ImuSample) -> Result<ImuStep<Q>, NavigatorError> {
+        self.push_imu_with(s, &mut NoHooks)
+    }
+
+    /// [`Self::push_imu`] with hooks into the loop ([`NavHooks`]; the order of the calls is
+    /// in its module notes).
+    pub fn push_imu_with<H: NavHooks<T, N>>(
+        &mut self,
+        s: &ImuSample,
+        hooks: &mut H,
+    ) -> Result<ImuStep<Q>, NavigatorError> {
         let mut step = ImuStep {
             fixes: FixEvents::new(),
             aligned: None,
@@ -563,7 +571,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
                 return Ok(step);
             }
         }
-        self.apply_due(s.t_s, &mut step.fixes);
+        self.apply_due(s.t_s, &mut step.fixes, hooks);
         let Some(t0) = self.filter.as_ref().map(|f| f.nav_state().t_s) else {
             return Ok(step);
         };
@@ -591,11 +599,12 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         };
         let filled = c.fill.len();
         for f in c.fill {
-            filter.propagate(&f)?;
+            filter.propagate_observed(&f, &mut hooks.observer())?;
         }
         filter.widen_for_fill(&c.fill.uncertainty());
-        match filter.propagate(&c.sample) {
-            Ok(()) => {}
+        let r = filter.propagate_observed(&c.sample, &mut hooks.observer());
+        match r {
+            Ok(()) => hooks.after_sample(filter),
             Err(e @ FilterError::NonFiniteImu) => {
                 self.counters.imu_refused += 1;
                 step.imu = ImuEvent::Refused(e);
@@ -832,12 +841,28 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     /// At the end of the data: applies the queued fixes due at the last epoch (with the last
     /// interval as `dt_next`) and drops the rest (counted in `gnss_dropped`).
     pub fn flush(&mut self) -> FixEvents<Q> {
+        self.flush_with(&mut NoHooks)
+    }
+
+    /// [`Self::flush`] with hooks ([`NavHooks`]): the last epoch's fixes, then
+    /// [`NavHooks::on_epoch_done`] when an epoch was pending.
+    pub fn flush_with<H: NavHooks<T, N>>(&mut self, hooks: &mut H) -> FixEvents<Q> {
         let mut events = FixEvents::new();
         if let Some(t_k) = self.epoch_s.take() {
-            self.apply_before(t_k + 0.5 * self.epoch_dt_s, &mut events);
+            self.apply_before(t_k + 0.5 * self.epoch_dt_s, &mut events, hooks);
+            if let Some(f) = self.filter.as_ref() {
+                hooks.on_epoch_done(f);
+            }
         }
         self.drop_queued();
         events
+    }
+
+    /// The last integrated epoch whose fixes still wait for the next sample's time: its time
+    /// and the interval it integrated, s (what [`Self::flush`] uses: fixes before
+    /// `t + dt / 2` are due).
+    pub fn pending_epoch(&self) -> Option<(f64, f64)> {
+        self.epoch_s.map(|t| (t, self.epoch_dt_s))
     }
 
     fn drop_queued(&mut self) {

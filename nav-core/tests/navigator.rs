@@ -6,11 +6,12 @@
 use test_support::filter_sim::{nav_errors, test_uncertainty, Motion, Sim, SimConfig};
 
 use nav_core::config::FilterConfig;
+use nav_core::filter::observe::{CovObserver, PredictionRecord};
 use nav_core::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use nav_core::imu_guard::{GuardConfig, ImuGuard, Verdict};
 use nav_core::model::{LAYOUT_KF_GINS, LAYOUT_NBK};
 use nav_core::navigator::{
-    AlignMode, FirstFixAlign, FixEvent, GnssEvent, ImuEvent, Navigator, NavigatorConfig,
+    AlignMode, FirstFixAlign, FixEvent, GnssEvent, ImuEvent, NavHooks, Navigator, NavigatorConfig,
     NavigatorError, NavigatorKfGins, NavigatorNbk, StaticAlignSettings,
 };
 use nav_core::strapdown::NavState;
@@ -145,9 +146,9 @@ struct Record {
     refused: u64,
 }
 
-/// A direct copy of the host's run loop (`run_layout` in nav-engine/src/run/engine.rs, without
-/// outages and records): start at the given state, skip samples up to it, guard, integrate,
-/// then apply every pending fix with `t_f < t_k + dt_next / 2`.
+/// The host's run loop as it was before it became the navigator's with hooks (the reference
+/// form of the rule, without outages and records): start at the given state, skip samples up
+/// to it, guard, integrate, then apply every pending fix with `t_f < t_k + dt_next / 2`.
 fn host_rule<const N: usize>(
     d: &Drive,
     layout: nav_core::model::Layout,
@@ -488,4 +489,157 @@ fn a_bad_configuration_is_refused_at_construction() {
         r,
         Err(NavigatorError::Filter(FilterError::Config(_)))
     ));
+}
+
+/// Counts covariance predictions.
+struct Count<'a>(&'a mut u64);
+
+impl<const N: usize> CovObserver<f32, N> for Count<'_> {
+    fn predicted(&mut self, _rec: &PredictionRecord<'_, f32, N>) {
+        *self.0 += 1;
+    }
+}
+
+/// Hooks that withhold the fixes in `[from, to)` and count every call.
+#[derive(Default)]
+struct Probe {
+    from: f64,
+    to: f64,
+    /// Whether the update's predictions are wanted too ([`NavHooks::observes_covariance`]).
+    observe: bool,
+    withheld: usize,
+    before: usize,
+    fixes: usize,
+    predictions: u64,
+    after: usize,
+    epochs: Vec<[u64; 11]>,
+    /// Calls out of order (a fix's update without its `before_gnss`).
+    disorder: usize,
+}
+
+impl<const N: usize> NavHooks<f32, N> for Probe {
+    fn observes_covariance(&self) -> bool {
+        self.observe
+    }
+    fn observer(&mut self) -> impl CovObserver<f32, N> + '_ {
+        Count(&mut self.predictions)
+    }
+    fn after_sample(&mut self, _filter: &mut Filter<f32, N>) {
+        self.after += 1;
+    }
+    fn withhold_fix(&mut self, _filter: &Filter<f32, N>, fix: &GnssFix) -> bool {
+        let w = fix.t_s >= self.from && fix.t_s < self.to;
+        self.withheld += usize::from(w);
+        w
+    }
+    fn before_gnss(&mut self, _fix: &GnssFix) {
+        self.before += 1;
+    }
+    fn on_fix(&mut self, _filter: &Filter<f32, N>, _fix: &GnssFix, _event: &FixEvent) {
+        self.fixes += 1;
+        if self.fixes != self.before {
+            self.disorder += 1;
+        }
+    }
+    fn on_epoch_done(&mut self, filter: &Filter<f32, N>) {
+        self.epochs.push(bits(filter.nav_state()));
+    }
+}
+
+/// Drive 5 through a navigator with `probe`: the states after every integrated sample, the
+/// filter at the end.
+fn probe_run(probe: &mut Probe, cfg: &FilterConfig) -> (Vec<[u64; 11]>, Navigator<f32, NBK>) {
+    let d = drive(5);
+    let mut nav = Navigator::<f32, NBK>::new(
+        LAYOUT_NBK,
+        NavigatorConfig {
+            filter: *cfg,
+            guard: GuardConfig::new(DT),
+            align: AlignMode::Given {
+                state: d.init,
+                unc: d.unc,
+            },
+        },
+    )
+    .unwrap();
+    let mut states = Vec::new();
+    let mut gi = 0;
+    for s in &d.imu {
+        while let Some(g) = d.gnss.get(gi).filter(|g| g.t_s <= s.t_s) {
+            nav.push_gnss(g).unwrap();
+            gi += 1;
+        }
+        let step = nav.push_imu_with(s, probe).unwrap();
+        if matches!(step.imu, ImuEvent::Propagated | ImuEvent::GapBridged { .. }) {
+            states.push(bits(nav.state().unwrap()));
+        }
+    }
+    for g in &d.gnss[gi..] {
+        nav.push_gnss(g).unwrap();
+    }
+    nav.flush_with(probe);
+    (states, nav)
+}
+
+#[test]
+fn hooks_withhold_fixes_observe_every_prediction_and_close_every_epoch() {
+    let mut cfg = FilterConfig::source_nbk_model();
+    cfg.lever_arm_body_m = SimConfig::nbk(100.0).lever_arm_body_m;
+    let (from, to) = (1100.0, 1130.0);
+    // the reference: the same drive without the fixes of the window, no hooks
+    let mut cut = drive(5);
+    let n_all = cut.gnss.len();
+    cut.gnss.retain(|g| !(g.t_s >= from && g.t_s < to));
+    let n_window = n_all - cut.gnss.len();
+    assert!(n_window > 30, "{n_window} fixes in the window");
+    let (reference, _) = navigator_run::<NBK>(&cut, LAYOUT_NBK, &cfg, GuardConfig::new(DT));
+
+    let mut probe = Probe {
+        from,
+        to,
+        ..Probe::default()
+    };
+    let (states, nav) = probe_run(&mut probe, &cfg);
+    let f = nav.filter().unwrap();
+    // withheld fixes are as if they were not there, bit for bit
+    assert_eq!(probe.withheld, n_window);
+    assert_eq!(states, reference.states);
+    assert_eq!(bits(f.nav_state()), reference.final_state);
+    let std: Vec<u64> = f.state_std().iter().map(|v| v.to_bits()).collect();
+    assert_eq!(std, reference.final_std);
+    // every other fix: before_gnss then on_fix, once
+    assert_eq!(probe.disorder, 0);
+    assert_eq!(probe.fixes, reference.fixes.len());
+    assert_eq!(probe.before, probe.fixes);
+    // every integrated sample: one after_sample and one completed epoch at its time
+    assert_eq!(probe.after, states.len());
+    assert_eq!(probe.epochs.len(), states.len());
+    for (e, s) in probe.epochs.iter().zip(&states) {
+        assert_eq!(e[0], s[0], "epoch time");
+    }
+    // the propagation's predictions are seen, the updates' not (not asked for)
+    let all = u64::from(f.counters().cov_predictions);
+    assert!(
+        probe.predictions > 2_000,
+        "{} predictions",
+        probe.predictions
+    );
+    assert!(probe.predictions < all, "{} of {all}", probe.predictions);
+
+    // asking for them: every prediction is seen. (The navigator then predicts before each
+    // update, also before a fix the update refuses, e.g. the invalid one, which the update
+    // alone would not: the run differs from the one without, as the host's smoother run
+    // always did.)
+    let mut probe = Probe {
+        from,
+        to,
+        observe: true,
+        ..Probe::default()
+    };
+    let (states_obs, nav) = probe_run(&mut probe, &cfg);
+    let f = nav.filter().unwrap();
+    assert_eq!(probe.predictions, u64::from(f.counters().cov_predictions));
+    assert_eq!(probe.disorder, 0);
+    assert_eq!(probe.fixes, reference.fixes.len());
+    assert_eq!(states_obs.len(), states.len());
 }

@@ -380,17 +380,34 @@ fn roll_to_data(p: &mut Pair, m: &Matrix3<f64>) {
     }
 }
 
+/// Why the mounting could not be estimated ([`estimate_mounting`]): what the data lack.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum MountingError {
+    /// Too few GNSS intervals while moving.
+    #[error(
+        "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
+         needs a drive with accelerations and turns (a few minutes)"
+    )]
+    TooLittleMotion {
+        /// GNSS intervals while moving (at least 10 are needed).
+        moving: usize,
+    },
+    /// The specific forces do not determine a rotation (the SVD failed).
+    #[error("the specific forces do not determine a rotation")]
+    NoRotation,
+}
+
 /// Estimates the IMU-to-body rotation from increments in SENSOR axes and GNSS fixes (see the
 /// module notes). Errors say what the data lack.
-pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<MountingEstimate, String> {
+pub fn estimate_mounting(
+    imu: &[ImuSample],
+    gnss: &[GnssFix],
+) -> Result<MountingEstimate, MountingError> {
     let ps = pairs(imu, gnss);
     let rest = ps.iter().filter(|p| !p.moving).count();
     let moving = ps.len() - rest;
     if moving < 10 {
-        return Err(format!(
-            "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
-             needs a drive with accelerations and turns (a few minutes)"
-        ));
+        return Err(MountingError::TooLittleMotion { moving });
     }
     let mut scored: Vec<(f64, Matrix3<f64>)> = axis_layouts()
         .into_iter()
@@ -401,13 +418,13 @@ pub fn estimate_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> Result<Mounting
     let runner_up = scored[1].0;
     // fine angles: Wahba on the specific forces, from the layout; then again with the body
     // roll of each turning pair taken from the data (a few passes)
-    let mut m = wahba(&ps, &layout).ok_or("the specific forces do not determine a rotation")?;
+    let mut m = wahba(&ps, &layout).ok_or(MountingError::NoRotation)?;
     let mut ps = ps;
     for _ in 0..ROLL_PASSES {
         for p in ps.iter_mut() {
             roll_to_data(p, &m);
         }
-        m = wahba(&ps, &layout).ok_or("the specific forces do not determine a rotation")?;
+        m = wahba(&ps, &layout).ok_or(MountingError::NoRotation)?;
     }
     let final_res = residual(&m, &ps);
     let rpy = euler_zyx_from_dcm(&m.transpose());

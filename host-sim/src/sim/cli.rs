@@ -37,25 +37,12 @@ pub struct SimulateArgs {
     pub plot: bool,
 }
 
-/// Parses `START:DURATION` (seconds).
+/// Parses `START:DURATION` (seconds): the run's parser ([`nav_engine::run::parse_outage`]),
+/// as the simulator's outage.
 pub fn parse_outage(s: &str) -> Result<Outage, String> {
-    let (a, b) = s
-        .split_once(':')
-        .ok_or_else(|| format!("outage `{s}`: expected START:DURATION in seconds"))?;
-    let start_s: f64 = a
-        .trim()
-        .parse()
-        .map_err(|e| format!("outage `{s}`: start: {e}"))?;
-    let duration_s: f64 = b
-        .trim()
-        .parse()
-        .map_err(|e| format!("outage `{s}`: duration: {e}"))?;
-    if !(start_s.is_finite() && start_s >= 0.0 && duration_s.is_finite() && duration_s > 0.0) {
-        return Err(format!("outage `{s}`: start must be >= 0 and duration > 0"));
-    }
-    Ok(Outage {
-        start_s,
-        duration_s,
+    nav_engine::run::parse_outage(s).map(|o| Outage {
+        start_s: o.start_s,
+        duration_s: o.duration_s,
     })
 }
 

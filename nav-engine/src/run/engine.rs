@@ -10,6 +10,18 @@
 //! [`Collect`] sink keeps everything (tests, `diagnose`, the study), the file sink of
 //! `host-sim run` writes as it goes.
 //!
+//! # The loop is the navigator's
+//!
+//! Start-up, the IMU guard and the nearest-epoch fix scheduling are
+//! `nav_core::navigator::Navigator`'s (given start: the state `init` found, the guard's
+//! nominal interval set here), run with the engine's hooks ([`NavHooks`]): the records of an
+//! epoch, its outage snapshots and the coasters they start are made when the navigator
+//! completes the epoch (its fixes applied, before the next sample is integrated); fixes inside
+//! an imposed outage are withheld, their innovation taken at the epoch of use; the smoother's
+//! recorder observes every covariance prediction; the aiding updates follow each integrated
+//! sample. Fixes are pushed to the navigator before the first sample after them (they can be
+//! due at the epoch before it; at most [`FIX_QUEUE`] wait).
+//!
 //! # Differences from loading the record whole
 //!
 //! - The nominal IMU interval (gap detection) is the median interval of the first
@@ -22,19 +34,24 @@
 use super::coast::{CoastMode, CoastTrack};
 use super::init::{self, InitData, InitReport};
 use super::{
-    all_estimates, block_estimates, effect_estimates, filter_err, gating_report, outage,
-    position_innovation, record_of, state_names, Decimator, EpochRecord, FixUse, ImuEvent,
-    ImuReport, InnovationRecord, Model, OutageSnapshot, RunCounters, RunError, RunOptions,
-    RunOutput, MAX_IMU_EVENTS,
+    block_estimates, effect_estimates, filter_err, gating_report, outage, position_innovation,
+    state_names, Decimator, EpochRecord, FixUse, ImuEvent, ImuReport, InnovationRecord, Model,
+    OutageSnapshot, RunCounters, RunError, RunOptions, RunOutput, MAX_IMU_EVENTS,
 };
-use nav_core::filter::{Filter, FilterError};
-use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard, Verdict};
+use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard};
 use nav_core::model::{ImuCorrection, Layout};
+use nav_core::navigator::{
+    AlignMode, ImuEvent as ImuEventNav, Navigator, NavigatorConfig, NavigatorError,
+    START_TOLERANCE_S,
+};
 use nav_core::scalar::Scalar;
 use nav_core::strapdown::{NavState, Strapdown, MAX_DT_S};
-use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use std::collections::VecDeque;
 use std::path::PathBuf;
+
+mod hooks;
+use hooks::EngineHooks;
 
 /// Samples from the start of the record whose median interval is the nominal IMU interval.
 pub const NOMINAL_WINDOW: usize = 2001;
@@ -325,7 +342,13 @@ pub struct RunData<'a> {
     pub truth: Option<&'a [NavSolution]>,
 }
 
-/// Runs the filter of `layout` on a stream of IMU samples (see the module notes).
+/// Capacity of the navigator's fix queue in host runs: fixes due at one IMU epoch (more is
+/// a fault: an IMU gap longer than the queue at the GNSS rate, which the guard's longest gap
+/// rules out at ordinary rates).
+pub const FIX_QUEUE: usize = 128;
+
+/// Runs the filter of `layout` on a stream of IMU samples (see the module notes): the
+/// navigator (`nav_core::navigator`, given start) with the engine's hooks.
 ///
 /// Returns the run's summary as a [`RunOutput`] whose record lists are empty (the records
 /// went to `sink`); a fault mid-run returns [`RunError::Fault`] with that summary.
@@ -403,10 +426,41 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         }
     }
     let InitReport { t_s: t0, .. } = start.report;
-    let mut filter = Filter::<T, N>::new(layout, &cfg, start.state, &start.unc)
-        .map_err(|e| filter_err(t0, e))?;
+    let guard_cfg = GuardConfig {
+        increments: opts
+            .imu_checks
+            .increments
+            .unwrap_or(if feed.info.increments_span_gaps {
+                GapIncrements::Span
+            } else {
+                GapIncrements::Auto
+            }),
+        limits: opts.imu_checks.limits,
+        max_gap_s: opts.imu_checks.max_gap_s,
+        ..GuardConfig::new(nominal)
+    };
+    // the guard starts with the first sample after the start; its settings are checked now
+    ImuGuard::new(guard_cfg, t0, None).map_err(RunError::Guard)?;
+    let mut nav = Box::new(
+        Navigator::<T, N, FIX_QUEUE>::new(
+            layout,
+            NavigatorConfig {
+                filter: cfg,
+                guard: guard_cfg,
+                align: AlignMode::Given {
+                    state: start.state,
+                    unc: start.unc,
+                },
+            },
+        )
+        .map_err(|e| match e {
+            NavigatorError::Filter(e) => filter_err(t0, e),
+            NavigatorError::Guard(e) => RunError::Guard(e),
+            e => RunError::Options(e.to_string()),
+        })?,
+    );
     for (kind, v) in start.estimates.iter().chain(opts.initial_estimates.iter()) {
-        if let Some((_, b)) = layout.find(*kind) {
+        if let (Some((_, b)), Some(filter)) = (layout.find(*kind), nav.filter_mut()) {
             let mut full = vec![0.0; b.dim()];
             for (d, s) in full.iter_mut().zip(v.iter()) {
                 *d = *s;
@@ -433,14 +487,15 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     };
 
     let end_s = opts.end_s.unwrap_or(f64::INFINITY);
-    // samples up to the initial epoch are not integrated (the last two kept for the guard)
-    let mut before: [Option<ImuSample>; 2] = [None, None];
+    // samples up to the initial epoch are not integrated (the navigator keeps the last two
+    // for the guard)
     while let Some(it) = feed.peek()? {
         if it.sample.t_s > t0 {
             break;
         }
         if let Some((_, it)) = feed.next()? {
-            before = [before[1], Some(it.sample)];
+            nav.push_imu(&it.sample)
+                .map_err(|e| RunError::Options(e.to_string()))?;
         }
     }
     let first = feed.index;
@@ -453,84 +508,56 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         model: opts.model,
         state_names: &state_names,
     })?;
-    let mut counters = RunCounters {
-        imu_before_start: first as u64,
-        gnss_total: data.gnss.len() as u64,
-        ..Default::default()
-    };
-    let mut nav_dec = Decimator::new(opts.record.nav_rate_hz, t0);
-    let mut ep_dec = Decimator::new(opts.record.epoch_rate_hz, t0);
-    let want_epochs = sink.wants_epochs();
-    let record = |f: &Filter<T, N>,
-                  sink: &mut dyn RunSink,
-                  nav_dec: &mut Decimator,
-                  ep_dec: &mut Decimator|
-     -> Result<(), RunError> {
-        let t = f.nav_state().t_s;
-        let take_nav = nav_dec.take(t);
-        let take_ep = ep_dec.take(t) && want_epochs;
-        if take_nav || take_ep {
-            let s = f.solution();
-            if take_nav {
-                sink.nav(&s)?;
-            }
-            if take_ep {
-                sink.epoch(EpochRecord {
-                    t_s: t,
-                    nav: s,
-                    state_std: f.state_std().to_vec(),
-                    estimates: all_estimates(f),
-                    blocks: block_estimates(f),
-                })?;
-            }
-        }
-        Ok(())
-    };
-    record(&filter, sink, &mut nav_dec, &mut ep_dec)?;
-
     // fixes before the initial epoch are not used
     let gnss = data.gnss;
-    let mut gi = gnss.partition_point(|g| g.t_s < t0 - 1e-9);
-    let gi0 = gi;
-    counters.gnss_outside_run = gi as u64;
-    let mut next_outage = outages.partition_point(|o| o.start_s < t0);
-    let mut status_seen = 0u32;
-    let mut guard = {
-        let increments = opts
-            .imu_checks
-            .increments
-            .unwrap_or(if feed.info.increments_span_gaps {
-                GapIncrements::Span
-            } else {
-                GapIncrements::Auto
-            });
-        let gcfg = GuardConfig {
-            increments,
-            limits: opts.imu_checks.limits,
-            max_gap_s: opts.imu_checks.max_gap_s,
-            ..GuardConfig::new(nominal)
-        };
-        // the sample ending at the initial epoch (with its interval), for the first fill
-        let prev = match before {
-            [Some(pp), Some(p)] if (p.t_s - t0).abs() < 1e-9 => Some((p, p.t_s - pp.t_s)),
-            _ => None,
-        };
-        ImuGuard::new(gcfg, t0, prev).map_err(RunError::Guard)?
+    let gi0 = gnss.partition_point(|g| g.t_s < t0 - START_TOLERANCE_S);
+    let mut hooks = EngineHooks::<T> {
+        sink,
+        err: None,
+        fault: None,
+        rec: if opts.smoother_history {
+            crate::smooth::Recorder::new(N)
+        } else {
+            crate::smooth::Recorder::disabled()
+        },
+        aid: super::aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?,
+        outages: &outages,
+        next_outage: outages.partition_point(|o| o.start_s < t0),
+        counters: RunCounters {
+            imu_before_start: first as u64,
+            gnss_total: gnss.len() as u64,
+            gnss_outside_run: gi0 as u64,
+            ..Default::default()
+        },
+        status_seen: 0,
+        processed: 0,
+        nav_dec: Decimator::new(opts.record.nav_rate_hz, t0),
+        ep_dec: Decimator::new(opts.record.epoch_rate_hz, t0),
+        want_epochs: false,
+        coast_modes: &coast_modes,
+        coasters: Vec::new(),
+        raw: None,
+        next_index: first,
+        gnss,
+        gi0,
+        lever_arm_m: opts.lever_arm_m,
     };
+    hooks.want_epochs = hooks.sink.wants_epochs();
+    if let Some(f) = nav.filter() {
+        hooks.record(f);
+    }
+    if let Some(e) = hooks.err.take() {
+        return Err(e);
+    }
     let mut imu_report = ImuReport {
-        nominal_dt_s: guard.config().nominal_dt_s,
+        nominal_dt_s: guard_cfg.nominal_dt_s,
         ..ImuReport::default()
     };
-    let mut coasters: Vec<Coaster> = Vec::new();
     let mut fault: Option<(String, f64, String)> = None;
     let mut done = 0usize;
-    let mut rec = if opts.smoother_history {
-        crate::smooth::Recorder::new(N)
-    } else {
-        crate::smooth::Recorder::disabled()
-    };
-    let mut aid = super::aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?;
-    'imu: while let Some((k, it)) = feed.next()? {
+    // fixes pushed to the navigator (it applies them at the nearest epoch)
+    let mut gi = gi0;
+    while let Some((k, it)) = feed.next()? {
         let s = it.sample;
         if s.t_s > end_s {
             // not integrated; the coasters may still want it
@@ -539,215 +566,112 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             break;
         }
         let next_t = feed.peek()?.map(|n| n.sample.t_s);
-        if !coasters.is_empty() {
-            let mut i = 0;
-            while let Some(c) = coasters.get_mut(i) {
-                if c.step(&s, next_t) {
-                    let (m, t) = coasters.swap_remove(i).finish();
-                    sink.coast(m, t);
-                } else {
-                    i += 1;
-                }
-            }
-        }
         done += 1;
         if done.is_multiple_of(4096) {
             progress(done, 0);
         }
-        let dt = s.t_s - filter.nav_state().t_s;
-        let c = match guard.check(&s) {
-            Ok(Verdict::Use(c)) => c,
-            Ok(Verdict::Reject(why)) if opts.imu_checks.stop_on_implausible => {
+        // every fix before this sample can be due at the epoch before it
+        while let Some(fix) = gnss.get(gi).filter(|g| g.t_s < s.t_s) {
+            if let Err(e) = nav.push_gnss(fix) {
                 fault = Some((
-                    feed.info.locate(k, it.line),
-                    s.t_s,
-                    format!("implausible IMU sample: {why}"),
+                    format!("GNSS fix at t = {:.3} s", fix.t_s),
+                    fix.t_s,
+                    e.to_string(),
                 ));
-                break;
-            }
-            Ok(Verdict::Reject(why)) => {
-                counters.imu_implausible += 1;
-                if imu_report.events.len() < MAX_IMU_EVENTS {
-                    imu_report.events.push(ImuEvent {
-                        t_s: s.t_s,
-                        location: feed.info.locate(k, it.line),
-                        what: format!("rejected: {why}"),
-                    });
-                }
-                continue;
-            }
-            Err(e) => {
-                fault = Some((feed.info.locate(k, it.line), s.t_s, e.to_string()));
-                break;
-            }
-        };
-        if c.missing > 0 && imu_report.events.len() < MAX_IMU_EVENTS {
-            imu_report.events.push(ImuEvent {
-                t_s: s.t_s,
-                location: feed.info.locate(k, it.line),
-                what: format!(
-                    "gap of {dt:.4} s ({} sample(s) missing): {}",
-                    c.missing,
-                    if c.spanned {
-                        "increment spans the gap"
-                    } else {
-                        "lost increments filled by interpolation"
-                    }
-                ),
-            });
-        }
-        for f in c.fill {
-            if let Err(e) = filter.propagate_observed(&f, &mut rec) {
-                fault = Some((
-                    feed.info.locate(k, it.line),
-                    s.t_s,
-                    format!("filling the gap before it: {e}"),
-                ));
-                break 'imu;
-            }
-        }
-        filter.widen_for_fill(&c.fill.uncertainty());
-        match filter.propagate_observed(&c.sample, &mut rec) {
-            Ok(()) => aid.after_imu(&mut filter, &mut rec),
-            Err(FilterError::NonFiniteImu) => {
-                counters.imu_rejected += 1;
-                continue;
-            }
-            Err(e) => {
-                fault = Some((feed.info.locate(k, it.line), s.t_s, e.to_string()));
-                break;
-            }
-        }
-        let t_k = s.t_s;
-        let dt_next = next_t.filter(|n| *n <= end_s).map_or(dt, |n| n - t_k);
-        let horizon = t_k + 0.5 * dt_next;
-        while let Some(fix) = gnss.get(gi) {
-            if fix.t_s >= horizon {
                 break;
             }
             gi += 1;
-            if let Some(oi) = outage::find(&outages, fix.t_s) {
-                counters.gnss_withheld += 1;
-                // the antenna as the filter models it: configured lever arm plus any
-                // lever-arm estimate, at IMU time t_fix + the estimated time offset
-                let st = filter.nav_state();
-                let shifted = GnssFix {
-                    t_s: fix.t_s + filter.time_offset_s(),
-                    ..*fix
-                };
-                let inn = position_innovation(st, &filter.lever_arm_body_m(), &shifted);
-                sink.innovation(&InnovationRecord {
-                    t_s: fix.t_s,
-                    used: FixUse::Withheld,
-                    outage: Some(oi),
-                    dim: 3,
-                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
-                    innovation_var: [f64::NAN; 6],
-                    nis: f64::NAN,
-                    nis_threshold: f64::NAN,
-                    quality: fix.quality.rtklib_q(),
-                })?;
-                continue;
-            }
-            if rec.is_enabled() {
-                // the update's own prediction, seen by the smoother's recorder (a failure is
-                // reported by the update)
-                let _ = filter.predict_covariance_observed(&mut rec);
-            }
-            aid.note_fix(fix);
-            match filter.update_gnss(fix) {
-                Ok(o) => {
-                    status_seen |= filter.status();
-                    let r = record_of(&o, fix);
-                    match r.used {
-                        FixUse::Accepted => counters.gnss_accepted += 1,
-                        FixUse::Forced => {
-                            counters.gnss_accepted += 1;
-                            counters.gnss_forced += 1
-                        }
-                        _ => counters.gnss_rejected += 1,
-                    }
-                    sink.innovation(&r)?;
-                }
-                Err(FilterError::InvalidGnss)
-                | Err(FilterError::GnssTime { .. })
-                | Err(FilterError::Numerical) => {
-                    counters.gnss_invalid += 1;
-                    sink.innovation(&InnovationRecord {
-                        t_s: fix.t_s,
-                        used: FixUse::Invalid,
-                        outage: None,
-                        dim: 0,
-                        innovation: [f64::NAN; 6],
-                        innovation_var: [f64::NAN; 6],
-                        nis: f64::NAN,
-                        nis_threshold: f64::NAN,
-                        quality: if fix.quality == FixQuality::NoFix {
-                            0
-                        } else {
-                            fix.quality.rtklib_q()
-                        },
-                    })?;
-                }
-                Err(e) => {
-                    fault = Some((
-                        format!("GNSS fix at t = {:.3} s", fix.t_s),
-                        fix.t_s,
-                        e.to_string(),
-                    ));
-                    break 'imu;
-                }
-            }
         }
-        // snapshot at the first IMU epoch at or after an outage start
-        while let Some(o) = outages.get(next_outage) {
-            if t_k < o.start_s {
+        if fault.is_some() {
+            break;
+        }
+        let dt = nav.state().map_or(0.0, |st| s.t_s - st.t_s);
+        hooks.raw = Some((s, next_t));
+        hooks.next_index = k;
+        let step = nav.push_imu_with(&s, &mut hooks);
+        // the coasters step on every sample (in the epoch call when there was one)
+        hooks.step_coasters();
+        if let Some(e) = hooks.err.take() {
+            return Err(e);
+        }
+        if let Some(f) = hooks.fault.take() {
+            fault = Some(f);
+            break;
+        }
+        match step {
+            Ok(step) => match step.imu {
+                ImuEventNav::Rejected(why) if opts.imu_checks.stop_on_implausible => {
+                    fault = Some((
+                        feed.info.locate(k, it.line),
+                        s.t_s,
+                        format!("implausible IMU sample: {why}"),
+                    ));
+                    break;
+                }
+                ImuEventNav::Rejected(why) => {
+                    hooks.counters.imu_implausible += 1;
+                    if imu_report.events.len() < MAX_IMU_EVENTS {
+                        imu_report.events.push(ImuEvent {
+                            t_s: s.t_s,
+                            location: feed.info.locate(k, it.line),
+                            what: format!("rejected: {why}"),
+                        });
+                    }
+                }
+                ImuEventNav::Refused(_) => hooks.counters.imu_rejected += 1,
+                ImuEventNav::GapBridged {
+                    missing, spanned, ..
+                } if imu_report.events.len() < MAX_IMU_EVENTS => {
+                    imu_report.events.push(ImuEvent {
+                        t_s: s.t_s,
+                        location: feed.info.locate(k, it.line),
+                        what: format!(
+                            "gap of {dt:.4} s ({missing} sample(s) missing): {}",
+                            if spanned {
+                                "increment spans the gap"
+                            } else {
+                                "lost increments filled by interpolation"
+                            }
+                        ),
+                    });
+                }
+                _ => {}
+            },
+            Err(e) => {
+                let msg = match e {
+                    NavigatorError::Guard(g) => g.to_string(),
+                    NavigatorError::Filter(f) => f.to_string(),
+                    e => e.to_string(),
+                };
+                fault = Some((feed.info.locate(k, it.line), s.t_s, msg));
                 break;
             }
-            if t_k < o.end_s() {
-                let snap = OutageSnapshot {
-                    outage: next_outage,
-                    next_imu: k + 1,
-                    state: *filter.nav_state(),
-                    correction: filter.imu_correction(),
-                };
-                sink.snapshot(&snap);
-                if !coast_modes.is_empty() {
-                    // the fixes the run withholds in this outage (all reached so far or later)
-                    let fixes: Vec<GnssFix> = gnss
-                        .iter()
-                        .skip(gi0)
-                        .filter(|g| outage::find(&outages, g.t_s) == Some(next_outage))
-                        .copied()
-                        .collect();
-                    for (m, mode) in coast_modes.iter().enumerate() {
-                        let corr = match mode {
-                            CoastMode::Raw => ImuCorrection::default(),
-                            CoastMode::Held => snap.correction,
-                            CoastMode::Fixed(c) => **c,
-                        };
-                        coasters.push(Coaster::new(
-                            m,
-                            next_outage,
-                            o.end_s(),
-                            corr,
-                            snap.state,
-                            fixes.clone(),
-                            opts.lever_arm_m,
-                        ));
-                    }
-                }
-            }
-            next_outage += 1;
         }
-        record(&filter, sink, &mut nav_dec, &mut ep_dec)?;
+    }
+    if fault.is_none() {
+        // the last epoch's fixes
+        if let Some((t_k, dt)) = nav.pending_epoch() {
+            while let Some(fix) = gnss.get(gi).filter(|g| g.t_s < t_k + 0.5 * dt) {
+                if nav.push_gnss(fix).is_err() {
+                    break;
+                }
+                gi += 1;
+            }
+        }
+        hooks.next_index = feed.index;
+        nav.flush_with(&mut hooks);
+        if let Some(e) = hooks.err.take() {
+            return Err(e);
+        }
+        fault = hooks.fault.take();
     }
     progress(done, done);
+    let gi = gi0 + hooks.processed;
+    let mut coasters = std::mem::take(&mut hooks.coasters);
     if fault.is_none() && !coasters.is_empty() {
         // the run has ended: the coasters see only the fixes the run reached
-        let horizon_gi = gi;
         for c in &mut coasters {
-            let reached = gnss.get(gi0..horizon_gi).map_or(0, |v| {
+            let reached = gnss.get(gi0..gi).map_or(0, |v| {
                 v.iter()
                     .filter(|g| outage::find(&outages, g.t_s) == Some(c.outage))
                     .count()
@@ -764,7 +688,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             while let Some(c) = coasters.get_mut(i) {
                 if c.step(&it.sample, next_t) {
                     let (m, t) = coasters.swap_remove(i).finish();
-                    sink.coast(m, t);
+                    hooks.sink.coast(m, t);
                 } else {
                     i += 1;
                 }
@@ -773,15 +697,19 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         // record ended before the outage did
         for c in coasters.drain(..) {
             let (m, t) = c.finish();
-            sink.coast(m, t);
+            hooks.sink.coast(m, t);
         }
     }
+    let Some(filter) = nav.filter() else {
+        return Err(RunError::Options("the navigator did not start".into()));
+    };
+    let mut counters = hooks.counters;
     counters.gnss_outside_run += (gnss.len() - gi.min(gnss.len())) as u64;
     counters.absorb(filter.counters());
     counters.imu_rejected = counters
         .imu_rejected
         .max(u64::from(filter.counters().imu_rejected));
-    let g = guard.counters();
+    let g = nav.guard_counters();
     counters.imu_gaps = g.gaps;
     counters.imu_missing_samples = g.missing_samples;
     counters.imu_gaps_filled = g.gaps_filled;
@@ -791,11 +719,13 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     imu_report.gaps_spanned = g.gaps_spanned;
     imu_report.gaps_filled = g.gaps_filled;
     imu_report.rejected = counters.imu_implausible;
-    let history = rec.finish(
+    let history = hooks.rec.finish(
         filter.covariance(),
         filter.pending_correction(),
         u64::from(filter.counters().cov_predictions),
     );
+    let aiding = hooks.aid.report();
+    let status_seen = hooks.status_seen;
     let out = RunOutput {
         model: opts.model,
         state_names,
@@ -806,8 +736,8 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         outages,
         snapshots: Vec::new(),
         init: start.report,
-        final_blocks: block_estimates(&filter),
-        final_effects: effect_estimates(&filter),
+        final_blocks: block_estimates(filter),
+        final_effects: effect_estimates(filter),
         lever_arm_m: opts.lever_arm_m,
         gating: gating_report::GatingReport::new(
             &cfg.gating,
@@ -817,7 +747,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         ),
         imu_report,
         history,
-        aiding: aid.report(),
+        aiding,
     };
     match fault {
         None => Ok(out),

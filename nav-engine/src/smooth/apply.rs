@@ -92,19 +92,6 @@ fn euler_std(rpy: &[f64; 3], cov: &[f64; 81]) -> [f64; 3] {
     ]
 }
 
-fn state_of(s: &NavSolution) -> NavState {
-    NavState {
-        t_s: s.t_s,
-        pos: Llh {
-            lat_rad: s.lat_rad,
-            lon_rad: s.lon_rad,
-            h_m: s.h_m,
-        },
-        vel_ned_mps: Vector3::from(s.vel_ned_mps),
-        q_nb: attitude::quat_from_euler_zyx(s.rpy_rad),
-    }
-}
-
 /// The record of `nav` nearest to `t_s` (records in time order).
 fn nearest(nav: &[NavSolution], t_s: f64) -> Option<&NavSolution> {
     let i = nav.partition_point(|s| s.t_s < t_s);
@@ -175,7 +162,7 @@ pub fn smoothed_output(case: &CaseData, fwd: &RunOutput, sm: &Smoothed) -> RunOu
             t_s: fix.t_s + dt_off,
             ..*fix
         };
-        let inn = position_innovation(&state_of(s), &lever, &shifted);
+        let inn = position_innovation(&NavState::from_solution(s), &lever, &shifted);
         r.innovation[..3].copy_from_slice(&inn);
         r.innovation_var = [f64::NAN; 6];
         r.nis = f64::NAN;
