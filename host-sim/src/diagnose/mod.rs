@@ -842,6 +842,27 @@ pub fn write_outputs(
     Ok(())
 }
 
+/// `[a, b, c]` with 4 significant digits (the console summary; `diagnosis.json` keeps full
+/// precision).
+fn short_list(v: &[f64]) -> String {
+    let items: Vec<String> = v
+        .iter()
+        .map(|x| {
+            let a = x.abs();
+            if a == 0.0 || (1e-3..1e4).contains(&a) {
+                format!(
+                    "{:.*}",
+                    (3 - a.log10().floor().max(-3.0) as i32).max(0) as usize,
+                    x
+                )
+            } else {
+                format!("{x:.3e}")
+            }
+        })
+        .collect();
+    format!("[{}]", items.join(", "))
+}
+
 /// Runs `host-sim diagnose`.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let p = prepare(&args.run)?;
@@ -857,14 +878,18 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let dir: &PathBuf = &args.run.out;
     write_outputs(dir, &p, &d, Some(&args.run.config))?;
     let dg = &d.diagnosis;
-    println!("{}", dg.verdict);
+    println!("effects the model lacks: {}", dg.verdict);
     for w in &dg.warnings {
         println!("warning: {w}");
     }
     for e in &dg.added_effects {
         println!(
-            "added {}: estimate {:?} sigma {:?} [{}] evidence {:.1}",
-            e.name, e.estimate, e.sigma, e.unit, e.evidence
+            "added {}: estimate {} sigma {} [{}] evidence {:.1}",
+            e.name,
+            short_list(&e.estimate),
+            short_list(&e.sigma),
+            e.unit,
+            e.evidence
         );
     }
     for u in &dg.undetected {

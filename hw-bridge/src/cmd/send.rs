@@ -42,7 +42,7 @@ pub struct SendArgs {
     /// the same bytes through a host model of the receiver).
     #[arg(long)]
     pub copy_to: Option<PathBuf>,
-    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge send`
+    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge record`
     /// on the same emulated board's pty) can use it at the same time.
     #[arg(long)]
     pub shared: bool,

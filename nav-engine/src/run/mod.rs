@@ -120,9 +120,9 @@ pub enum Model {
     #[cfg_attr(feature = "clap", value(name = "kf-gins"))]
     #[serde(rename = "kf-gins")]
     KfGins21,
-    /// KF-GINS's 21 states as its code runs them ([`LAYOUT_KF_GINS_FEEDBACK`]): bias estimates
-    /// that do not decay between updates (the default for a KF-GINS YAML, see
-    /// `docs/kfgins-parity.md`).
+    /// KF-GINS's 21 states as its code runs them: bias estimates that do not decay between
+    /// updates (the default for a KF-GINS YAML; layout `LAYOUT_KF_GINS_FEEDBACK`, see
+    /// docs/kfgins-parity.md).
     #[cfg_attr(feature = "clap", value(name = "kf-gins-feedback"))]
     #[serde(rename = "kf-gins-feedback")]
     KfGinsFeedback,

@@ -304,8 +304,8 @@ pub struct ImuStream {
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
-    let kind = read_config(&args.config)
-        .with_context(|| format!("reading the configuration {}", args.config.display()))?;
+    // the readers' errors name the file (and line/column): not repeated here
+    let kind = read_config(&args.config).context("reading the run configuration")?;
     let cfg_dir = args
         .config
         .parent()
