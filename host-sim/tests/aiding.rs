@@ -2,13 +2,14 @@
 //! zero-rate updates (ZUPT/ZARU) on a simulated urban drive with stops, side slip and bounce
 //! (`scenarios/land_stops.toml`, consumer MEMS IMU, RTK GNSS), and on the real drive
 //! (`configs/drive0708_aided.toml`, the 20 s outage protocol).
-use host_sim::metrics::{self, errors_vs_truth};
-use host_sim::run::cli::{execute, prepare, RunArgs};
-use host_sim::run::{run_filter, CaseData, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
+use host_sim::run::cli::{prepare, RunArgs};
 use host_sim::sim::{simulate, Case, ErrorModel, Scenario};
 use nav_core::aiding::AidingConfig;
 use nav_core::config::{units, FilterConfig, SensorNoise};
 use nav_core::filter::InitialUncertainty;
+use nav_engine::execute;
+use nav_engine::metrics::{self, errors_vs_truth};
+use nav_engine::run::{run_filter, CaseData, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
 use std::path::Path;
 
 fn scenario() -> Scenario {

@@ -11,8 +11,9 @@
 //! model being the augmented configuration (time offset as `imu.time_offset_s`, so its
 //! solution is on the GNSS clock).
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions};
-use host_sim::run::cli::{execute, prepare, RunArgs};
-use host_sim::run::{parse_periodic, Outage};
+use host_sim::run::cli::{prepare, RunArgs};
+use nav_engine::execute;
+use nav_engine::run::{parse_periodic, Outage};
 use std::path::Path;
 
 fn data_dir() -> Option<&'static Path> {

@@ -7,12 +7,12 @@
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
-use host_sim::run::cli::Prepared;
-use host_sim::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use host_sim::sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
+use nav_engine::Prepared;
 use rayon::prelude::*;
 use test_support::scenario::ScenarioToml;
 
@@ -533,7 +533,7 @@ fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) ->
         .join("\n");
     std::fs::write(&yp, y).unwrap();
     let mut a = host_sim::run::cli::RunArgs::new(&yp);
-    a.periodic_outages = vec![host_sim::run::parse_periodic("150:30:100").unwrap()];
+    a.periodic_outages = vec![nav_engine::run::parse_periodic("150:30:100").unwrap()];
     let p = host_sim::run::cli::prepare(&a).unwrap();
     assert_eq!(p.opts.model, Model::KfGinsFeedback);
     assert_eq!(p.opts.filter.gyro_scale.sigma, [0.0; 3]);
@@ -799,8 +799,8 @@ fn refusal_is_right(
     if let Some(t) = d.noise_tuning.as_ref().filter(|t| t.adopted) {
         t.chosen.apply(&mut o.filter);
     }
-    let out = host_sim::run::run_filter(&corrected, &o).map_err(|e| e.to_string())?;
-    let m = host_sim::metrics::compute(&out, p.case.truth.as_deref());
+    let out = nav_engine::run::run_filter(&corrected, &o).map_err(|e| e.to_string())?;
+    let m = nav_engine::metrics::compute(&out, p.case.truth.as_deref());
     let exact = host_sim::diagnose::validate::step_errors(&out, &m)
         .heldout_outage_m
         .ok_or("no held-out error")?;
@@ -858,7 +858,7 @@ fn tune_noise_recovers_an_understated_white_noise_and_keeps_a_right_one() {
         // itself and hides part of the understated noise this test measures (with its first
         // version, which inflated Q: base NIS 3.84 instead of 8.57)
         p.opts.filter.gating = host_sim::run::cli::parse_gate("0.9999").unwrap();
-        host_sim::run::cli::scale_white_noise(&mut p.opts.filter, 1.0 / understate);
+        nav_engine::run::prepare::scale_white_noise(&mut p.opts.filter, 1.0 / understate);
         let o = DiagnoseOptions {
             tune_noise: true,
             ..DiagnoseOptions::default()
@@ -965,9 +965,9 @@ fn refused_scale_factors_help_over_noise_seeds() {
                     b == Block::GyroScaleFactor,
                     &ppm.map(|x| x * 1e-6),
                 );
-                let h = |case: &host_sim::run::CaseData, o: &RunOptions| {
-                    let out = host_sim::run::run_filter(case, o).unwrap();
-                    let m = host_sim::metrics::compute(&out, p.case.truth.as_deref());
+                let h = |case: &nav_engine::run::CaseData, o: &RunOptions| {
+                    let out = nav_engine::run::run_filter(case, o).unwrap();
+                    let m = nav_engine::metrics::compute(&out, p.case.truth.as_deref());
                     validate::step_errors(&out, &m).heldout_outage_m.unwrap()
                 };
                 let r = [
@@ -1031,7 +1031,7 @@ fn written_solution_metric_uses_the_estimated_lever_arm() {
             .iter()
             .find(|e| e.name == "lever_arm")
             .map_or([0.0; 3], |e| [e.estimate[0], e.estimate[1], e.estimate[2]]);
-        let f = |run: &host_sim::run::RunOutput, shift: f64, l: [f64; 3]| {
+        let f = |run: &nav_engine::run::RunOutput, shift: f64, l: [f64; 3]| {
             host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
                 &run.nav,
                 shift,

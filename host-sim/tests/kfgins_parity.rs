@@ -18,10 +18,11 @@
 //! that the default mapping stays closer to KF-GINS than that reading.
 //!
 //! Reads the data in place; skips with a visible "SKIPPED" when it is missing unless CI=true.
-use host_sim::metrics::{errors_vs_truth, outage_metrics, ErrSample, OutageSummary};
-use host_sim::run::cli::{execute, prepare, RunArgs};
-use host_sim::run::{Model, Outage};
+use host_sim::run::cli::{prepare, RunArgs};
 use nav_core::types::NavSolution;
+use nav_engine::execute;
+use nav_engine::metrics::{errors_vs_truth, outage_metrics, ErrSample, OutageSummary};
+use nav_engine::run::{Model, Outage};
 use nav_io::read_nav_text;
 use std::path::PathBuf;
 

@@ -1,46 +1,23 @@
 //! `run` warns when the data contradict the configured mounting: the body z gyro turning
 //! against the GNSS course, gravity at rest not along body -z.
 
-use host_sim::mounting::check_mounting;
-use host_sim::run::CaseData;
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::sim::{simulate, ErrorModel};
+use nav_engine::mounting::check_mounting;
+use nav_engine::run::CaseData;
+use test_support::scenario::ScenarioToml;
 
 fn case() -> CaseData {
-    let sc = Scenario::from_toml_str(
-        r#"
-name = "mount-check"
-description = "rest, then turns"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 20.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = 120.0
-radius_m = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = -150.0
-radius_m = 50.0
-[[segment]]
-kind = "cruise"
-duration_s = 10.0
-"#,
-        "mount-check",
-    )
-    .unwrap();
+    let sc = ScenarioToml::new("mount-check")
+        .description("rest, then turns")
+        .start(48.1990, 16.3700, 220.0, 20.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(10.0)
+        .accelerate(10.0, 8.0)
+        .turn(120.0, 40.0)
+        .turn(-150.0, 50.0)
+        .cruise(10.0)
+        .scenario();
     CaseData::from(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
 }
 

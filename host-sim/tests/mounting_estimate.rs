@@ -1,98 +1,47 @@
 //! `host-sim mounting`: the IMU-to-body rotation from the data, in each of the 24 axis layouts
 //! with a few degrees of misalignment, after a 5-minute drive with turns.
 
-use host_sim::mounting::{axis_layouts, estimate_mounting};
-use host_sim::run::CaseData;
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude::{dcm_from_euler_zyx, euler_zyx_from_dcm};
+use nav_engine::mounting::{axis_layouts, estimate_mounting};
+use nav_engine::run::CaseData;
+use test_support::scenario::ScenarioToml;
 
-/// The drive; `vehicle` is appended as the scenario's `[vehicle]` table (body roll in turns).
-fn drive(vehicle: &str) -> Scenario {
-    Scenario::from_toml_str(
-        &(r#"
-name = "mounting-drive"
-description = "20 s at rest, then about 5 minutes with turns, speed changes and hills"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 40.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 12.0
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 50.0
-[[segment]]
-kind = "hill"
-height_m = 4.0
-length_m = 200.0
-[[segment]]
-kind = "turn"
-angle_deg = -120.0
-radius_m = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 18.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = 180.0
-radius_m = 60.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 8.0
-duration_s = 8.0
-[[segment]]
-kind = "turn"
-angle_deg = -90.0
-radius_m = 25.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 15.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 90.0
-[[segment]]
-kind = "turn"
-angle_deg = 60.0
-radius_m = 50.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 10.0
-"#
-        .to_string()
-            + vehicle),
-        "mounting-drive",
-    )
-    .unwrap()
+/// The drive; `roll_per_g_deg` replaces the scenario's default body roll in turns, deg per g.
+fn drive(roll_per_g_deg: Option<f64>) -> Scenario {
+    let mut sc = ScenarioToml::new("mounting-drive")
+        .description("20 s at rest, then about 5 minutes with turns, speed changes and hills")
+        .start(48.199, 16.37, 220.0, 40.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(20.0)
+        .accelerate(12.0, 10.0)
+        .turn(90.0, 40.0)
+        .cruise(50.0)
+        .hill(4.0, 200.0)
+        .turn(-120.0, 30.0)
+        .accelerate(18.0, 10.0)
+        .cruise(30.0)
+        .turn(180.0, 60.0)
+        .brake(8.0, 8.0)
+        .turn(-90.0, 25.0)
+        .accelerate(15.0, 10.0)
+        .cruise(90.0)
+        .turn(60.0, 50.0)
+        .brake(0.0, 10.0)
+        .stationary(10.0)
+        .scenario();
+    if let Some(r) = roll_per_g_deg {
+        sc.vehicle.roll_per_g_deg = r;
+    }
+    sc
 }
 
 #[test]
 fn every_axis_layout_with_misalignment_is_found() {
     // the simulator's default body roll in turns: 4 deg per g outwards
-    check_layouts("", "flat turns");
+    check_layouts(None, "flat turns");
 }
 
 #[test]
@@ -100,19 +49,13 @@ fn every_axis_layout_is_found_with_banked_turns() {
     // a banked road: the body rolls INTO the turn, 20 deg per g of lateral acceleration
     // (up to 6.9 deg in the 0.34 g turns of this drive), and a car leaning out on soft springs,
     // 10 deg per g
-    check_layouts(
-        "[vehicle]\nroll_per_g_deg = -20.0\n",
-        "banked turns, -20 deg/g",
-    );
-    check_layouts(
-        "[vehicle]\nroll_per_g_deg = 10.0\n",
-        "soft springs, +10 deg/g",
-    );
+    check_layouts(Some(-20.0), "banked turns, -20 deg/g");
+    check_layouts(Some(10.0), "soft springs, +10 deg/g");
 }
 
-fn check_layouts(vehicle: &str, label: &str) {
+fn check_layouts(roll_per_g_deg: Option<f64>, label: &str) {
     let case = simulate(
-        &drive(vehicle),
+        &drive(roll_per_g_deg),
         &ErrorModel::preset("tactical").unwrap(),
         11,
     )

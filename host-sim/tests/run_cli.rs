@@ -1,6 +1,6 @@
 //! `host-sim run` end to end through the binary: a case written by `host-sim simulate
 //! --kf-gins` runs from its `kf-gins.yaml` alone, and the outputs are complete and right.
-use host_sim::metrics::errors_vs_truth;
+use nav_engine::metrics::errors_vs_truth;
 use nav_io::read_nav_text;
 use std::path::Path;
 use std::process::Command;

@@ -5,11 +5,12 @@
 //! Gap tests compare the run on the gapped record with the run on the same record without
 //! the gap (position and height errors against the truth), with the default gate, the hard
 //! 0.9999 chi-square gate set explicitly and the gate off.
-use host_sim::metrics::Metrics;
-use host_sim::run::cli::{execute, parse_gate, prepare, Prepared, RunArgs};
-use host_sim::run::{RunError, RunOutput};
+use host_sim::run::cli::{parse_gate, prepare, RunArgs};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::imu_guard::GapIncrements;
+use nav_engine::metrics::Metrics;
+use nav_engine::run::{RunError, RunOutput};
+use nav_engine::{execute, Prepared};
 use nav_io::{
     read_imu_csv, read_nav_text, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit,
     SampleConvention,
@@ -509,7 +510,7 @@ fn run_error_of_a_fault_carries_the_partial_output() {
     let t = p.case.imu[3000].t_s;
     p.case.imu[3000].dv_mps[2] = 1e5;
     p.opts.imu_checks.stop_on_implausible = true;
-    let e = host_sim::run::run_filter(&p.case, &p.opts).unwrap_err();
+    let e = nav_engine::run::run_filter(&p.case, &p.opts).unwrap_err();
     match e {
         RunError::Fault {
             location,

@@ -2,56 +2,28 @@
 //! GNSS velocity automatically (no hand-given state), and the static window covers `static_s`
 //! whatever the sample times (the "9.9938 s (need 10 s)" off-by-one).
 
-use host_sim::metrics::errors_vs_truth;
-use host_sim::run::{run_filter, CaseData, InitSpec, Model, RunOptions, StaticAlign};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
+use nav_engine::metrics::errors_vs_truth;
+use nav_engine::run::{run_filter, CaseData, InitSpec, Model, RunOptions, StaticAlign};
+use test_support::scenario::ScenarioToml;
 
 /// Accelerates to 15 m/s, then drives with turns and a hill; the runs start at t0 + 12 s,
 /// already cruising at 15 m/s.
 fn scenario() -> Scenario {
-    Scenario::from_toml_str(
-        r#"
-name = "moving-start"
-description = "starts at 15 m/s"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 57.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 125.0
-[[segment]]
-kind = "static"
-duration_s = 1.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 15.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 10.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 80.0
-[[segment]]
-kind = "hill"
-height_m = 4.0
-length_m = 200.0
-[[segment]]
-kind = "turn"
-angle_deg = -60.0
-radius_m = 60.0
-[[segment]]
-kind = "cruise"
-duration_s = 20.0
-"#,
-        "moving-start",
-    )
-    .unwrap()
+    ScenarioToml::new("moving-start")
+        .description("starts at 15 m/s")
+        .start(48.199, 16.37, 220.0, 57.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(125.0)
+        .stationary(1.0)
+        .accelerate(15.0, 10.0)
+        .cruise(10.0)
+        .turn(90.0, 80.0)
+        .hill(4.0, 200.0)
+        .turn(-60.0, 60.0)
+        .cruise(20.0)
+        .scenario()
 }
 
 fn check_moving_start(errors: &ErrorModel, label: &str) {
@@ -120,33 +92,15 @@ fn a_drive_starting_at_15_mps_aligns_in_motion_from_gnss_velocity() {
 fn a_static_window_of_10_s_at_125_hz_is_long_enough() {
     // 125 Hz samples with jittered time stamps: before the fix the window ended at the last
     // sample <= t_a + 10 s (9.99x s) and was refused as shorter than the 10 s asked for
-    let sc = Scenario::from_toml_str(
-        r#"
-name = "static-start"
-description = "static 20 s then a drive"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 10.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 125.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 10.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 10.0
-"#,
-        "static-start",
-    )
-    .unwrap();
+    let sc = ScenarioToml::new("static-start")
+        .description("static 20 s then a drive")
+        .start(48.199, 16.37, 220.0, 10.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(125.0)
+        .stationary(20.0)
+        .accelerate(10.0, 10.0)
+        .cruise(10.0)
+        .scenario();
     let case = simulate(&sc, &ErrorModel::preset("tactical").unwrap(), 4).unwrap();
     let mut data = CaseData::from(&case);
     // real logs are not on a grid: +-1.5 ms of time-stamp jitter

@@ -1,14 +1,15 @@
-//! `host_sim::run` on simulated data in memory: metrics against an injected offset, outages
-//! honoured, NBK accuracy on seed-nbk data, static alignment, f32 vs f64.
-use host_sim::metrics::{self, errors_vs_truth, ErrSample};
-use host_sim::run::{
-    coast_outages, run_filter, CaseData, CoastMode, FixUse, InitSpec, Model, Outage, Precision,
-    RunOptions, StaticAlign,
-};
+//! The run engine (`nav_engine::run`) on simulated data in memory: metrics against an
+//! injected offset, outages honoured, NBK accuracy on seed-nbk data, static alignment, f32 vs
+//! f64.
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::earth;
 use nav_core::filter::InitialUncertainty;
+use nav_engine::metrics::{self, errors_vs_truth, ErrSample};
+use nav_engine::run::{
+    coast_outages, run_filter, CaseData, CoastMode, FixUse, InitSpec, Model, Outage, Precision,
+    RunOptions, StaticAlign,
+};
 use test_support::scenario::ScenarioToml;
 
 /// A 6-minute drive at 100 Hz: 60 s static, then accelerations, turns, a hill, a stop.

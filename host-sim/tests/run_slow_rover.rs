@@ -4,9 +4,9 @@
 //! `[init.align]` gives only `static_s`: the heading must come from the GNSS course without a
 //! hand setting. A fast car with fixes at 1 Hz aligns from the same rule.
 
-use host_sim::metrics::errors_vs_truth;
 use host_sim::sim::{simulate, ErrorModel};
 use nav_core::types::{GnssFix, ImuSample};
+use nav_engine::metrics::errors_vs_truth;
 use nav_io::gnss::encode::utc_of_gps;
 use std::path::Path;
 use std::process::Command;

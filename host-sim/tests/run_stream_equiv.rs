@@ -3,10 +3,12 @@
 //! every record kept, metrics and coasting computed after the run, files written by
 //! `output::write_all`) on a generated case with imposed outages: all five output files must
 //! be byte-identical, at the IMU rate and decimated.
-use host_sim::run::cli::{decimate, execute, metrics_json, prepare, RunArgs};
-use host_sim::run::output;
-use host_sim::run::Outage;
-use host_sim::run::PeriodicOutages;
+use host_sim::run::cli::{prepare, RunArgs};
+use nav_engine::execute;
+use nav_engine::run::execute::{decimate, metrics_json};
+use nav_engine::run::output;
+use nav_engine::run::Outage;
+use nav_engine::run::PeriodicOutages;
 use std::path::Path;
 use std::process::Command;
 use test_support::cli::{run_ok, Bin};

@@ -4,7 +4,7 @@
 //! (`--imu-time-offset -0.125`), errors against the withheld RTK fixes. The target:
 //! smoothed outage RMS-of-max horizontal <= 2.0 m.
 use host_sim::run::cli::{run, RunArgs};
-use host_sim::run::parse_periodic;
+use nav_engine::run::parse_periodic;
 use std::path::Path;
 
 fn data_present() -> bool {

@@ -1,12 +1,12 @@
-//! The closed-loop RTS backward pass (`host_sim::smooth`) against the textbook open-loop
+//! The closed-loop RTS backward pass (`nav_engine::smooth`) against the textbook open-loop
 //! Rauch-Tung-Striebel smoother on a linear-Gaussian system, where the two must agree to
 //! rounding: a 9-state system with a dense random Phi, driven by noise, measured at some steps
 //! (3 components), filtered twice: open loop (state estimate propagated, textbook RTS) and
 //! closed loop (the estimate fed back into a nominal after each update, the error state reset
 //! to zero, the history stored as the filter's recorder stores it). Also: a break in the chain
 //! (a segment boundary) and the refusal of a history with unrecorded predictions.
-use host_sim::smooth::{smooth, History, Node, SmoothError};
 use nalgebra::{DMatrix, DVector};
+use nav_engine::smooth::{smooth, History, Node, SmoothError};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;

@@ -4,71 +4,35 @@
 //! smoothed outage error a fraction of the forward one, `run --smooth`'s files; and (ignored,
 //! `cargo test --release -p host-sim --test smooth_sim -- --ignored`) the 40-minute 200 Hz
 //! drive with three 60 s outages.
-use host_sim::metrics::{self, errors_vs_truth};
-use host_sim::run::{run_filter, CaseData, Outage, RunOptions};
 use host_sim::sim::{simulate, Scenario};
-use host_sim::smooth::apply::smooth_run;
 use host_sim::study::setup::{init_spec, truth_errors, Sources, Variant};
 use nav_core::types::NavSolution;
+use nav_engine::metrics::{self, errors_vs_truth};
+use nav_engine::run::{run_filter, CaseData, Outage, RunOptions};
+use nav_engine::smooth::apply::smooth_run;
 use noise_id::stats::nees_band_95;
+use test_support::scenario::ScenarioToml;
 
 /// A 6-minute drive at 100 Hz: 60 s static, accelerations, turns, a hill, a stop.
-const SCENARIO: &str = r#"
-name = "smooth-test"
-description = "6 min test drive"
-[start]
-lat_deg = 48.1990
-lon_deg = 16.3700
-h_m = 220.0
-heading_deg = 30.0
-gps_week = 2227
-sow_s = 118800.0
-[imu]
-rate_hz = 100.0
-[[segment]]
-kind = "static"
-duration_s = 60.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 12.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 30.0
-[[segment]]
-kind = "turn"
-angle_deg = 90.0
-radius_m = 40.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "hill"
-height_m = 5.0
-length_m = 300.0
-[[segment]]
-kind = "turn"
-angle_deg = -120.0
-radius_m = 30.0
-[[segment]]
-kind = "accelerate"
-to_speed_mps = 18.0
-duration_s = 10.0
-[[segment]]
-kind = "cruise"
-duration_s = 40.0
-[[segment]]
-kind = "turn"
-angle_deg = 60.0
-radius_m = 60.0
-[[segment]]
-kind = "brake"
-to_speed_mps = 0.0
-duration_s = 10.0
-[[segment]]
-kind = "static"
-duration_s = 20.0
-"#;
+fn scenario() -> ScenarioToml {
+    ScenarioToml::new("smooth-test")
+        .description("6 min test drive")
+        .start(48.199, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(60.0)
+        .accelerate(12.0, 10.0)
+        .cruise(30.0)
+        .turn(90.0, 40.0)
+        .cruise(40.0)
+        .hill(5.0, 300.0)
+        .turn(-120.0, 30.0)
+        .accelerate(18.0, 10.0)
+        .cruise(40.0)
+        .turn(60.0, 60.0)
+        .brake(0.0, 10.0)
+        .stationary(20.0)
+}
 
 /// Per-group NEES (attitude, velocity, position) of a solution against the truth from the
 /// diagonal standard deviations (as the study computes it), at 1 Hz.
@@ -104,7 +68,7 @@ fn nees_1hz(nav: &[NavSolution], truth: &[NavSolution]) -> Vec<(f64, [f64; 3])> 
 
 #[test]
 fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
-    let sc = Scenario::from_toml_str(SCENARIO, "smooth-test").unwrap();
+    let sc = scenario().scenario();
     const RUNS: usize = 6;
     let mut sum_f: Vec<[f64; 3]> = Vec::new();
     let mut sum_s: Vec<[f64; 3]> = Vec::new();
@@ -281,9 +245,9 @@ fn forty_minute_drive_with_three_minute_outages() {
 /// smoother runs, needs no pseudo-inverse, and cuts the outage error.
 #[test]
 fn every_layout_is_smoothed() {
-    use host_sim::run::{Model, Precision};
     use nav_core::model::Block;
-    let sc = Scenario::from_toml_str(SCENARIO, "smooth-test").unwrap();
+    use nav_engine::run::{Model, Precision};
+    let sc = scenario().scenario();
     let case = simulate(&sc, &truth_errors(), 21).unwrap();
     let data = CaseData::from(&case);
     let t0 = case.trajectory.t0_s;
@@ -341,7 +305,7 @@ fn run_smooth_writes_the_smoothed_and_forward_solutions() {
     use std::process::Command;
     let dir = tempfile::tempdir().unwrap();
     let sc = dir.path().join("scenario.toml");
-    std::fs::write(&sc, SCENARIO).unwrap();
+    std::fs::write(&sc, scenario().build()).unwrap();
     let case = dir.path().join("case");
     let bin = env!("CARGO_BIN_EXE_host-sim");
     let ok = |args: &[&str]| {
@@ -387,7 +351,7 @@ fn run_smooth_writes_the_smoothed_and_forward_solutions() {
     // the two solutions differ (most in the outage), and the smoothed one is nearer the truth
     let truth = nav_io::read_nav_text(case.join("truth.nav")).unwrap();
     let (ef, es) = (errors_vs_truth(&fwd, &truth), errors_vs_truth(&sm, &truth));
-    let worst = |e: &[host_sim::metrics::ErrSample]| {
+    let worst = |e: &[nav_engine::metrics::ErrSample]| {
         e.iter().map(|x| x.horizontal_m()).fold(0.0f64, f64::max)
     };
     println!(

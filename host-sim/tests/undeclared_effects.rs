@@ -10,8 +10,9 @@
 //!   1.1x of the gate-off run.
 //!
 //! Each test prints its row of the table (`cargo test --release -- --nocapture`).
-use host_sim::run::cli::{execute, prepare, RunArgs};
+use host_sim::run::cli::{prepare, RunArgs};
 use host_sim::sim::undeclared::{generate, DriveSpec, Effect};
+use nav_engine::execute;
 
 /// What one run gave.
 #[derive(Debug, Clone, Copy)]

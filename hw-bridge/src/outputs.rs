@@ -4,7 +4,7 @@
 //! to the last checkpoint; a file without the suffix is complete.
 //!
 //! The text formats are those of `nav_io` (the same digits, byte for byte: the test
-//! `streamed_outputs_equal_host_sims_writers_byte_for_byte` checks it).
+//! `streamed_outputs_equal_nav_io_writers_byte_for_byte` checks it).
 
 use anyhow::Context;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};

@@ -1,6 +1,6 @@
 //! A capture with one IMU frame lost (a flipped byte fails its CRC) through the path
 //! `hw-bridge replay --config` uses (`decode_capture` then `run_filter_on_frames`, i.e.
-//! `host-sim run`'s engine): the lost frame is seen as a one-sample gap, its increment is
+//! the run engine, `nav-engine`): the lost frame is seen as a one-sample gap, its increment is
 //! filled, and the solution stays with the one from the intact capture.
 use hw_bridge::capture::{CaptureHeader, CaptureWriter, Record};
 use hw_bridge::cmd::{decode_capture, read_case, run_filter_on_frames};
@@ -8,7 +8,9 @@ use nav_core::wire::{Encoder, Payload, MAX_FRAME_LEN};
 use std::path::Path;
 use test_support::scenario::ScenarioToml;
 
-fn scenario_toml() -> String {
+mod simcase;
+
+fn scenario() -> nav_sim::Scenario {
     ScenarioToml::new("capture-gaps")
         .description("2 min drive")
         .start(30.5, 114.3, 20.0, 120.0)
@@ -19,7 +21,7 @@ fn scenario_toml() -> String {
         .turn(90.0, 30.0)
         .cruise(60.0)
         .brake(0.0, 10.0)
-        .build()
+        .scenario()
 }
 
 /// Writes a capture of the case's frames in 4 kB chunks; with `flip = Some(k)` one byte in
@@ -61,21 +63,8 @@ fn write_capture(case: &Path, path: &Path, flip: Option<usize>) -> usize {
 fn a_lost_imu_frame_is_filled_and_the_solution_kept() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sc = d.join("drive.toml");
-    std::fs::write(&sc, scenario_toml()).unwrap();
     let case = d.join("case");
-    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
-        scenario: sc.display().to_string(),
-        errors: "tactical".into(),
-        seed: 3,
-        out: case.clone(),
-        outages: vec![],
-        gnss_rate_hz: None,
-        kf_gins: true,
-        plot: false,
-    })
-    .unwrap();
-    let config = case.join("kf-gins.yaml");
+    let config = simcase::write_case(&case, &scenario(), 3, &[]);
     let n_imu = nav_io::read_imu_text(case.join("imu.txt"))
         .unwrap()
         .samples

@@ -1,15 +1,18 @@
 //! End to end over a real pseudo-terminal pair (socat): `hw-bridge send` into one end,
 //! `hw-bridge record` on the other, then the capture decodes to exactly the frames sent
 //! (bit-exact payloads), `replay` writes text files that read back bit-exactly, and
-//! `replay --config` on a simulated drive gives the solution of `host-sim run` on the same
-//! case, bit for bit.
+//! `replay --config` on a simulated drive gives the solution of the run engine (`nav-engine`,
+//! what `host-sim run` runs) on the case files, bit for bit.
 
 use hw_bridge::cmd::{decode_capture, read_case};
 use nav_core::wire::{encode_raw, Frame, MAX_RAW_LEN};
+use nav_engine::RunSpec;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use test_support::scenario::ScenarioToml;
+
+mod simcase;
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 
@@ -287,7 +290,7 @@ fn send_and_record(d: &Path, port: &Path, peer: &Path, send_args: &[&str]) -> st
     cap
 }
 
-fn drive_toml() -> String {
+fn drive() -> nav_sim::Scenario {
     ScenarioToml::new("e2e-replay")
         .description("100 s drive for the send/record/replay test")
         .start(48.2, 16.37, 220.0, 30.0)
@@ -300,7 +303,7 @@ fn drive_toml() -> String {
         .turn(-60.0, 50.0)
         .brake(0.0, 8.0)
         .stationary(5.0)
-        .build()
+        .scenario()
 }
 
 /// Every field of every solution as bits.
@@ -326,33 +329,16 @@ fn nav_bits(nav: &[nav_core::types::NavSolution]) -> Vec<u64> {
 }
 
 #[test]
-fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_bit() {
-    let name = "send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_bit";
+fn send_record_replay_with_config_equals_the_run_engine_on_the_case_files_bit_for_bit() {
+    let name = "send_record_replay_with_config_equals_the_run_engine_on_the_case_files_bit_for_bit";
     if !require_socat(name) {
         return;
     }
-    use host_sim::run::cli::{execute, prepare, RunArgs};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // a simulated drive with a GNSS outage, written by host-sim's simulate (KF-GINS config)
-    let sc = d.join("drive.toml");
-    std::fs::write(&sc, drive_toml()).unwrap();
+    // a simulated drive with a GNSS outage (50 s + 20 s) and its KF-GINS configuration
     let case = d.join("case");
-    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
-        scenario: sc.display().to_string(),
-        errors: "tactical".into(),
-        seed: 11,
-        out: case.clone(),
-        outages: vec![host_sim::sim::errors::Outage {
-            start_s: 50.0,
-            duration_s: 20.0,
-        }],
-        gnss_rate_hz: None,
-        kf_gins: true,
-        plot: false,
-    })
-    .unwrap();
-    let config = case.join("kf-gins.yaml");
+    let config = simcase::write_case(&case, &drive(), 11, &[(50.0, 20.0)]);
 
     // hw-bridge send -> pty pair -> hw-bridge record
     let _socat = pty_pair(d);
@@ -364,11 +350,18 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
         &["--quiet", "--as-fast-as-possible", "--case", &case_s],
     );
 
-    // host-sim run on the case files (the CLI function: the files it writes) ...
+    // the run engine on the case files, streaming the IMU file as `host-sim run` does (the
+    // files it writes) ...
     let out_sim = d.join("out-sim");
-    let mut ra = RunArgs::new(&config);
-    ra.out = out_sim.clone();
-    host_sim::run::cli::run(ra.clone()).unwrap();
+    let loaded = nav_engine::load(&RunSpec::new(&config), true).unwrap();
+    nav_engine::execute_streaming(
+        &loaded.prepared,
+        loaded.imu_stream.as_ref(),
+        &out_sim,
+        None,
+        &mut |_, _| {},
+    )
+    .unwrap();
     // ... and hw-bridge replay --config on the capture
     let out_rep = d.join("out-replay");
     let st = Command::new(BIN)
@@ -396,7 +389,10 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
         let a = std::fs::read(out_sim.join(f)).unwrap();
         let b = std::fs::read(out_rep.join(f)).unwrap();
         assert!(!a.is_empty(), "{f} is empty");
-        assert!(a == b, "{f}: replay differs from host-sim run");
+        assert!(
+            a == b,
+            "{f}: replay differs from the run engine on the files"
+        );
     }
 
     // in memory, every bit of every solution, f64 and f32 covariance
@@ -404,10 +400,10 @@ fn send_record_replay_with_config_equals_host_sim_run_on_the_same_case_bit_for_b
     assert_eq!(decoded.stats.rejected(), 0);
     assert_eq!(decoded.stats.lost(), 0);
     for f32 in [false, true] {
-        let mut ra = RunArgs::new(&config);
-        ra.f32 = f32;
-        let p = prepare(&ra).unwrap();
-        let (want, _) = execute(&p, &mut |_, _| {}).unwrap();
+        let mut spec = RunSpec::new(&config);
+        spec.f32 = f32;
+        let p = nav_engine::load(&spec, false).unwrap().prepared;
+        let (want, _) = nav_engine::execute(&p, &mut |_, _| {}).unwrap();
         let got =
             hw_bridge::cmd::run_filter_on_frames(&decoded.log, &config, None, None, f32).unwrap();
         let c = &got.output.counters;
@@ -435,20 +431,8 @@ fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case
     }
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sc = d.join("drive.toml");
-    std::fs::write(&sc, drive_toml()).unwrap();
     let case = d.join("case");
-    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
-        scenario: sc.display().to_string(),
-        errors: "tactical".into(),
-        seed: 12,
-        out: case.clone(),
-        outages: vec![],
-        gnss_rate_hz: None,
-        kf_gins: false,
-        plot: false,
-    })
-    .unwrap();
+    simcase::write_case(&case, &drive(), 12, &[]);
     let _socat = pty_pair(d);
     let port = d.join("B").display().to_string();
     // live: stream --host-filter on one end (library call in a thread), send on the other

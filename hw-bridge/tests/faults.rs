@@ -17,6 +17,8 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 use test_support::scenario::ScenarioToml;
 
+mod simcase;
+
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 const IMU: usize = 0;
 const GNSS: usize = 1;
@@ -654,7 +656,7 @@ fn error_messages_say_each_cause_once() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
     assert_eq!(err.matches("os error 2").count(), 1, "{err}");
-    // a host-sim reader error (its message contains its source) through send
+    // a nav-io reader error (its message contains its source) through send
     let out = run_cli(
         &[
             "send",
@@ -708,7 +710,7 @@ fn a_truncated_capture_exits_2_with_complete_outputs_marked_incomplete() {
 }
 
 #[test]
-fn streamed_outputs_equal_host_sims_writers_byte_for_byte() {
+fn streamed_outputs_equal_nav_io_writers_byte_for_byte() {
     // the temperature column decided by a first sample without temperature, then changed
     let mut payloads = case(300);
     for (t, p) in payloads.iter_mut().take(3) {
@@ -750,7 +752,7 @@ fn streamed_outputs_equal_host_sims_writers_byte_for_byte() {
             assert!(!a.is_empty());
             assert!(
                 a == b,
-                "{f} differs from host-sim's writer (variant {variant})"
+                "{f} differs from nav-io's writer (variant {variant})"
             );
         }
     }
@@ -919,7 +921,7 @@ proptest! {
     }
 }
 
-fn drive_toml() -> String {
+fn drive() -> nav_sim::Scenario {
     ScenarioToml::new("faults-config")
         .description("40 s drive for the duplicated-chunk replay --config test")
         .start(48.2, 16.37, 220.0, 30.0)
@@ -929,28 +931,15 @@ fn drive_toml() -> String {
         .accelerate(10.0, 8.0)
         .turn(90.0, 40.0)
         .cruise(8.0)
-        .build()
+        .scenario()
 }
 
 #[test]
 fn replay_config_on_a_capture_with_a_duplicated_chunk_writes_every_output_and_the_clean_solution() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sc = d.join("drive.toml");
-    std::fs::write(&sc, drive_toml()).unwrap();
     let case_dir = d.join("case");
-    host_sim::sim::cli::run(host_sim::sim::cli::SimulateArgs {
-        scenario: sc.display().to_string(),
-        errors: "tactical".into(),
-        seed: 3,
-        out: case_dir.clone(),
-        outages: vec![],
-        gnss_rate_hz: None,
-        kf_gins: true,
-        plot: false,
-    })
-    .unwrap();
-    let config = case_dir.join("kf-gins.yaml");
+    let config = simcase::write_case(&case_dir, &drive(), 3, &[]);
     let payloads = hw_bridge::cmd::read_case(&case_dir).unwrap();
     let (bytes, frames, ends) = wire(&payloads);
     // records of 50 frames; record 40 again, 1 ms later (a duplicated chunk)

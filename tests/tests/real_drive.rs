@@ -1,10 +1,10 @@
 //! The real drive (`../shared/data/rtklibexplorer-drive0708`, consumer MEMS IMU + RTK) through
-//! `host-sim run` with `configs/drive0708.toml` and imposed GNSS outages: the withheld RTK
+//! the run engine (`nav-engine`, what `host-sim run` runs) with `configs/drive0708.toml` and imposed GNSS outages: the withheld RTK
 //! fixes are the reference. Checks: the solution stays on the road without outages, outage
 //! errors are finite, and the filter beats free-inertial coasting from the same points.
-use host_sim::metrics::{Metrics, OutageSummary};
-use host_sim::run::cli::{execute, prepare, RunArgs};
-use host_sim::run::{parse_periodic, FixUse, PeriodicOutages, RunOutput};
+use nav_engine::metrics::{Metrics, OutageSummary};
+use nav_engine::run::{parse_periodic, FixUse, PeriodicOutages, RunOutput};
+use nav_engine::RunSpec;
 use std::path::Path;
 
 fn data_dir() -> Option<&'static Path> {
@@ -24,17 +24,21 @@ fn config() -> String {
 }
 
 fn run(periodic: Option<PeriodicOutages>) -> (RunOutput, Metrics) {
-    let mut a = RunArgs::new(config());
-    a.periodic_outages = periodic.into_iter().collect();
-    let p = prepare(&a).expect("loading the drive through configs/drive0708.toml");
-    execute(&p, &mut |_, _| {}).expect("running the filter on the drive")
+    let mut spec = RunSpec::new(config());
+    spec.periodic_outages = periodic.into_iter().collect();
+    let loaded =
+        nav_engine::load(&spec, false).expect("loading the drive through configs/drive0708.toml");
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    nav_engine::execute(&loaded.prepared, &mut |_, _| {}).expect("running the filter on the drive")
 }
 
 fn print(name: &str, m: &Metrics) {
-    println!("== {name}\n{}", host_sim::metrics::summary_table(m));
+    println!("== {name}\n{}", nav_engine::metrics::summary_table(m));
 }
 
-fn raw_coasting(m: &Metrics) -> &host_sim::metrics::CoastingMetrics {
+fn raw_coasting(m: &Metrics) -> &nav_engine::metrics::CoastingMetrics {
     m.coasting
         .iter()
         .find(|c| c.mode.starts_with("raw"))

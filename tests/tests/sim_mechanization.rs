@@ -1,8 +1,8 @@
 //! Generated truth and ideal increments are consistent with `nav-core`'s mechanization: the
 //! strapdown algorithm on the error-free increments of the default scenario follows the truth.
-use host_sim::sim::{Scenario, Trajectory};
 use nav_core::earth::{ned_offset_m, Llh};
 use nav_core::strapdown::Strapdown;
+use nav_sim::{Scenario, Trajectory};
 use std::path::Path;
 
 fn default_trajectory() -> Trajectory {
