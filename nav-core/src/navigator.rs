@@ -75,7 +75,7 @@ use nalgebra::Vector3;
 
 mod error;
 mod hooks;
-pub use error::NavigatorError;
+pub use error::{AlignFailure, NavigatorError};
 mod startup;
 pub use hooks::{NavHooks, NoHooks, ObserveWith};
 use startup::{check_config, FixMean, Leveller};
@@ -203,18 +203,6 @@ pub struct Aligned {
     /// Whether the yaw is known (given, gyrocompassed or from the GNSS course); false: 0 with
     /// a 180 deg sigma.
     pub heading_known: bool,
-}
-
-/// A static window that did not align ([`ImuEvent::AlignFailed`]); a new window starts.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum AlignFailure {
-    /// The static test or the levelling failed.
-    Align(AlignError),
-    /// No valid GNSS fix in the window (no position).
-    NoFix,
-    /// The filter refused the initial state.
-    Filter(FilterError),
 }
 
 /// What happened to an IMU sample.
