@@ -62,7 +62,7 @@
 //! No allocation, no panic: errors are [`NavigatorError`] values and leave the navigator
 //! usable.
 
-use crate::align::{static_start, AlignConfig, AlignError, HeadingSource, StaticWindow};
+use crate::align::{static_start, AlignConfig, HeadingSource, StaticWindow};
 use crate::config::FilterConfig;
 use crate::earth::Llh;
 use crate::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
