@@ -22,6 +22,11 @@
 //! sample. Fixes are pushed to the navigator before the first sample after them (they can be
 //! due at the epoch before it; at most [`FIX_QUEUE`] wait).
 //!
+//! The fixes are a stream as well ([`ahead::FixAhead`] over a [`ahead::FixSource`]): the
+//! engine holds the fixes not yet pushed, those of the next outage its snapshot takes (read
+//! ahead to the outage's end), and during the start-up those the initialisation looked at;
+//! the rest of the stream is read only to count it at the end (`gnss_total`).
+//!
 //! # Differences from loading the record whole
 //!
 //! - The nominal IMU interval (gap detection) is the median interval of the first
