@@ -894,3 +894,44 @@ impl CaseIndex {
         toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn streamed_gnss_is_the_loaded_list_scaled_and_errors_before_the_run() {
+        let dir = std::env::temp_dir().join(format!("gnssstream-prep-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ok = dir.join("gnss.txt");
+        std::fs::write(
+            &ok,
+            "100.0 30.5 114.3 20.0 0.5 0.6 1.1\n\
+             101.0 30.50001 114.30001 20.5 0.4 0.3 0.9 1.0 2.0 -0.5 0.05 0.06 0.07\n",
+        )
+        .unwrap();
+        let k = 1.7;
+        let st = GnssStream::check(&ok, k).unwrap();
+        assert_eq!(st.fixes, 2);
+        let streamed: Vec<_> = st.source().unwrap().map(Result::unwrap).collect();
+        let mut loaded = read_gnss_text(&ok).unwrap();
+        for g in &mut loaded {
+            scale_sigmas(g, k);
+        }
+        assert_eq!(streamed, loaded);
+        assert_eq!(
+            streamed[1].vel_std_ned_mps[2].to_bits(),
+            (0.07 * k).to_bits()
+        );
+        // a file that does not parse is refused by the check, naming file and line
+        let bad = dir.join("bad.txt");
+        std::fs::write(
+            &bad,
+            "100.0 30.5 114.3 20.0 0.5 0.6 1.1\n99.0 30.5 114.3 20.0 0.5\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", GnssStream::check(&bad, 1.0).unwrap_err());
+        assert!(e.contains("bad.txt") && e.contains('2'), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
