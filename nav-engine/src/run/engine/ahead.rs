@@ -23,7 +23,13 @@ pub trait FixLookup {
     fn fix(&self, index: usize) -> Option<GnssFix>;
 }
 
-impl FixLookup for [GnssFix] {
+impl FixLookup for &[GnssFix] {
+    fn fix(&self, index: usize) -> Option<GnssFix> {
+        self.get(index).copied()
+    }
+}
+
+impl FixLookup for Vec<GnssFix> {
     fn fix(&self, index: usize) -> Option<GnssFix> {
         self.get(index).copied()
     }
@@ -182,6 +188,16 @@ mod tests {
         assert_eq!(a.peak(), 7);
         assert_eq!(a.count(), 10);
         assert!(a.take_err().is_none());
+    }
+
+    #[test]
+    fn a_list_in_memory_is_looked_up_like_the_stream() {
+        let v: Vec<GnssFix> = (0..3).map(|k| fix(f64::from(k))).collect();
+        let slice = v.as_slice();
+        for src in [&v as &dyn FixLookup, &slice] {
+            let t: Vec<f64> = fixes_from(src, 1).map(|f| f.t_s).collect();
+            assert_eq!(t, [1.0, 2.0]);
+        }
     }
 
     #[test]
