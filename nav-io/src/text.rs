@@ -449,18 +449,60 @@ fn parse_gnss_line(dl: &DataLine<'_>) -> Result<GnssFix, IoError> {
     Ok(fix)
 }
 
-/// Reads a GNSS text file (plain or gzip): 7 or 13 fields per line.
+/// Reads a GNSS text file (plain or gzip): 7 or 13 fields per line ([`GnssTextReader`]
+/// collected).
 pub fn read_gnss_text(path: impl AsRef<Path>) -> Result<Vec<GnssFix>, IoError> {
-    let path = path.as_ref();
-    let mut rd = open_text(path)?;
-    let mut out = Vec::new();
-    let mut mono = MonotonicTime::new();
-    while let Some(dl) = rd.next_data()? {
-        let f = parse_gnss_line(&dl)?;
-        mono.check(&dl, 0, GNSS_NAMES[0], f.t_s)?;
-        out.push(f);
+    GnssTextReader::open(path)?.collect()
+}
+
+/// A GNSS text file (plain or gzip) read one fix at a time: the one parser of the format
+/// ([`read_gnss_text`] collects it). Errors name file, line and column; time must increase
+/// strictly. Nothing is kept but the current line.
+pub struct GnssTextReader {
+    rd: super::lines::LineReader,
+    mono: MonotonicTime,
+    failed: bool,
+}
+
+impl GnssTextReader {
+    /// Opens `path`.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
+        Ok(Self {
+            rd: open_text(path.as_ref())?,
+            mono: MonotonicTime::new(),
+            failed: false,
+        })
     }
-    Ok(out)
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        self.rd.path()
+    }
+
+    fn read(&mut self) -> Result<Option<GnssFix>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
+        let f = parse_gnss_line(&dl)?;
+        self.mono.check(&dl, 0, GNSS_NAMES[0], f.t_s)?;
+        Ok(Some(f))
+    }
+}
+
+impl Iterator for GnssTextReader {
+    type Item = Result<GnssFix, IoError>;
+
+    /// The next fix; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
 }
 
 /// Writes GNSS fixes in the GNSS text format; a fix with `has_velocity` gets the six velocity

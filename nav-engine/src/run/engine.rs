@@ -22,6 +22,11 @@
 //! sample. Fixes are pushed to the navigator before the first sample after them (they can be
 //! due at the epoch before it; at most [`FIX_QUEUE`] wait).
 //!
+//! The fixes are a stream as well ([`ahead::FixAhead`] over a [`ahead::FixSource`]): the
+//! engine holds the fixes not yet pushed, those of the next outage its snapshot takes (read
+//! ahead to the outage's end), and during the start-up those the initialisation looked at;
+//! the rest of the stream is read only to count it at the end (`gnss_total`).
+//!
 //! # Differences from loading the record whole
 //!
 //! - The nominal IMU interval (gap detection) is the median interval of the first
@@ -50,8 +55,11 @@ use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 
+pub mod ahead;
 mod hooks;
+use ahead::{FixAhead, FixSource};
 use hooks::EngineHooks;
+use std::cell::RefCell;
 
 /// Samples from the start of the record whose median interval is the nominal IMU interval.
 pub const NOMINAL_WINDOW: usize = 2001;
@@ -184,6 +192,8 @@ pub struct Coaster {
     mech: Strapdown,
     nav: Vec<NavSolution>,
     fixes: Vec<GnssFix>,
+    /// Index in the run's fixes of each of `fixes`.
+    fix_index: Vec<usize>,
     next_fix: usize,
     out_fixes: Vec<InnovationRecord>,
     lever_arm_m: [f64; 3],
@@ -196,7 +206,7 @@ impl Coaster {
         end_s: f64,
         corr: ImuCorrection,
         state: NavState,
-        fixes: Vec<GnssFix>,
+        (fixes, fix_index): (Vec<GnssFix>, Vec<usize>),
         lever_arm_m: [f64; 3],
     ) -> Self {
         Self {
@@ -207,6 +217,7 @@ impl Coaster {
             mech: Strapdown::new(state),
             nav: vec![state.to_solution()],
             fixes,
+            fix_index,
             next_fix: 0,
             out_fixes: Vec::new(),
             lever_arm_m,
@@ -243,6 +254,13 @@ impl Coaster {
             });
         }
         st.t_s >= self.end_s && self.next_fix >= self.fixes.len()
+    }
+
+    /// Keeps only the fixes before index `end` of the run's fixes (those the run reached).
+    fn keep_fixes_before(&mut self, end: usize) {
+        let n = self.fix_index.iter().take_while(|&&i| i < end).count();
+        self.fixes.truncate(n);
+        self.fix_index.truncate(n);
     }
 
     fn finish(self) -> (usize, CoastTrack) {
@@ -342,6 +360,22 @@ pub struct RunData<'a> {
     pub truth: Option<&'a [NavSolution]>,
 }
 
+/// The data of a run besides the IMU stream, as the engine reads it: the fixes as a stream
+/// ([`FixSource`], read with a bounded look-ahead) and the truth.
+pub(crate) struct RunInput<'a> {
+    /// GNSS fixes in time order.
+    pub gnss: FixSource<'a>,
+    /// Truth (for the initialisation from the truth), when known.
+    pub truth: Option<&'a [NavSolution]>,
+}
+
+impl<'a> RunData<'a> {
+    /// The fixes as the engine's stream ([`FixSource`]).
+    pub fn gnss_source(&self) -> FixSource<'a> {
+        Box::new(self.gnss.iter().copied().map(Ok))
+    }
+}
+
 /// Capacity of the navigator's fix queue in host runs: fixes due at one IMU epoch (more is
 /// a fault: an IMU gap longer than the queue at the GNSS rate, which the guard's longest gap
 /// rules out at ordinary rates).
@@ -357,7 +391,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     layout: Layout,
     imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
     info: ImuSourceInfo,
-    data: RunData<'_>,
+    data: RunInput<'_>,
     opts: &RunOptions,
     coast: CoastPlan,
     sink: &mut dyn RunSink,
@@ -408,18 +442,25 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         }
     }
     let nominal = median_interval(&feed.buf).unwrap_or(MAX_DT_S);
+    // the fixes, read as far ahead as the start-up looks
+    let ahead = RefCell::new(FixAhead::new(data.gnss));
     let start = {
         let prefix: Vec<ImuSample> = feed.buf.iter().map(|i| i.sample).collect();
         init::initialise(
             &InitData {
                 imu: &prefix,
-                gnss: data.gnss,
+                gnss: &ahead,
                 truth: data.truth,
             },
             opts,
             &cfg,
-        )?
+        )
     };
+    let mut gnss = ahead.into_inner();
+    if let Some(e) = gnss.take_err() {
+        return Err(e);
+    }
+    let start = start?;
     if let Some(fl) = start.gyro_bias_sigma_floor {
         for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
             *s = s.max(f);
@@ -508,9 +549,9 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         model: opts.model,
         state_names: &state_names,
     })?;
-    // fixes before the initial epoch are not used
-    let gnss = data.gnss;
-    let gi0 = gnss.partition_point(|g| g.t_s < t0 - START_TOLERANCE_S);
+    // fixes before the initial epoch are not used (nor kept)
+    let gi0 = gnss.first_at_or_after(t0 - START_TOLERANCE_S);
+    gnss.release(gi0, f64::INFINITY);
     let mut hooks = EngineHooks::<T> {
         sink,
         err: None,
@@ -525,7 +566,8 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         next_outage: outages.partition_point(|o| o.start_s < t0),
         counters: RunCounters {
             imu_before_start: first as u64,
-            gnss_total: gnss.len() as u64,
+            // the total once the stream is read to its end
+            gnss_total: 0,
             gnss_outside_run: gi0 as u64,
             ..Default::default()
         },
@@ -571,8 +613,8 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             progress(done, 0);
         }
         // every fix before this sample can be due at the epoch before it
-        while let Some(fix) = gnss.get(gi).filter(|g| g.t_s < s.t_s) {
-            if let Err(e) = nav.push_gnss(fix) {
+        while let Some(fix) = hooks.gnss.get(gi).filter(|g| g.t_s < s.t_s) {
+            if let Err(e) = nav.push_gnss(&fix) {
                 fault = Some((
                     format!("GNSS fix at t = {:.3} s", fix.t_s),
                     fix.t_s,
@@ -582,9 +624,13 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             }
             gi += 1;
         }
+        if let Some(e) = hooks.gnss.take_err() {
+            return Err(e);
+        }
         if fault.is_some() {
             break;
         }
+        hooks.release_fixes(gi);
         let dt = nav.state().map_or(0.0, |st| s.t_s - st.t_s);
         hooks.raw = Some((s, next_t));
         hooks.next_index = k;
@@ -651,11 +697,14 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     if fault.is_none() {
         // the last epoch's fixes
         if let Some((t_k, dt)) = nav.pending_epoch() {
-            while let Some(fix) = gnss.get(gi).filter(|g| g.t_s < t_k + 0.5 * dt) {
-                if nav.push_gnss(fix).is_err() {
+            while let Some(fix) = hooks.gnss.get(gi).filter(|g| g.t_s < t_k + 0.5 * dt) {
+                if nav.push_gnss(&fix).is_err() {
                     break;
                 }
                 gi += 1;
+            }
+            if let Some(e) = hooks.gnss.take_err() {
+                return Err(e);
             }
         }
         hooks.next_index = feed.index;
@@ -671,12 +720,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     if fault.is_none() && !coasters.is_empty() {
         // the run has ended: the coasters see only the fixes the run reached
         for c in &mut coasters {
-            let reached = gnss.get(gi0..gi).map_or(0, |v| {
-                v.iter()
-                    .filter(|g| outage::find(&outages, g.t_s) == Some(c.outage))
-                    .count()
-            });
-            c.fixes.truncate(reached);
+            c.keep_fixes_before(gi);
         }
         // and continue on the rest of the record until their outage ends
         while !coasters.is_empty() {
@@ -704,7 +748,13 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         return Err(RunError::Options("the navigator did not start".into()));
     };
     let mut counters = hooks.counters;
-    counters.gnss_outside_run += (gnss.len() - gi.min(gnss.len())) as u64;
+    // the fixes after the last one reached are read (not kept) to count them
+    let total = hooks.gnss.count();
+    if let Some(e) = hooks.gnss.take_err() {
+        return Err(e);
+    }
+    counters.gnss_total = total as u64;
+    counters.gnss_outside_run += (total - gi.min(total)) as u64;
     counters.absorb(filter.counters());
     counters.imu_rejected = counters
         .imu_rejected

@@ -99,7 +99,16 @@ pub fn execute_streaming(
                 increments_span_gaps: false,
             };
             let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
-            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
+            match &st.gnss {
+                // the fixes read as the filter goes (memory independent of the length)
+                Some(g) => match g.source() {
+                    Ok(src) => super::run_stream_fixes(
+                        &mut it, info, src, truth, &opts, coast, &mut sink, progress,
+                    ),
+                    Err(e) => Err(e),
+                },
+                None => super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress),
+            }
         }
         None => {
             let (mut it, info) = super::case_imu_stream(&p.case);

@@ -17,6 +17,7 @@
 //! minus the earth rate (resolved with the aligned attitude): the usual MEMS start-up
 //! calibration. The filter starts at the last sample of the window.
 
+use super::engine::ahead::{fixes_from, FixLookup};
 use super::{RunError, RunOptions};
 use nalgebra::Vector3;
 use nav_core::align::{
@@ -130,15 +131,26 @@ pub(crate) struct Start {
 
 /// What the initialisation looks at: the first IMU samples (at least the static window), the
 /// GNSS fixes and the truth when there is one.
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 pub struct InitData<'a> {
     /// IMU samples from the start of the record (a bounded prefix is enough: the static
     /// window plus one sample).
     pub imu: &'a [ImuSample],
-    /// GNSS fixes in time order.
-    pub gnss: &'a [GnssFix],
+    /// GNSS fixes in time order (a slice, or the run's stream read as far ahead as the
+    /// start-up looks).
+    pub gnss: &'a dyn FixLookup,
     /// Truth, when known.
     pub truth: Option<&'a [NavSolution]>,
+}
+
+impl std::fmt::Debug for InitData<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("InitData")
+            .field("imu", &self.imu.len())
+            .field("gnss", &"(fixes read on demand)")
+            .field("truth", &self.truth.map(<[NavSolution]>::len))
+            .finish()
+    }
 }
 
 fn max3(a: &[f64; 3]) -> f64 {
@@ -263,10 +275,9 @@ fn static_alignment(
     let t_b = window.last().map_or(t_a, |s| s.t_s);
 
     // static antenna position: mean of the fixes in the window
-    let fixes: Vec<_> = case
-        .gnss
-        .iter()
-        .filter(|g| g.t_s >= t_a - 0.5 && g.t_s <= t_b + 0.5 && g.is_valid())
+    let fixes: Vec<GnssFix> = fixes_from(case.gnss, 0)
+        .take_while(|g| g.t_s <= t_b + 0.5)
+        .filter(|g| g.t_s >= t_a - 0.5 && g.is_valid())
         .collect();
     if fixes.is_empty() {
         return Err(RunError::Init(format!(
@@ -417,8 +428,8 @@ fn gnss_course(
         ..CourseRule::default()
     });
     let mut t_end = f64::NAN;
-    for g in case.gnss.iter().filter(|g| g.t_s > t_after && g.is_valid()) {
-        let d = earth::ned_offset_m(from, &llh_of(g));
+    for g in fixes_from(case.gnss, 0).filter(|g| g.t_s > t_after && g.is_valid()) {
+        let d = earth::ned_offset_m(from, &llh_of(&g));
         let s_fix = g.pos_std_ned_m[0].max(g.pos_std_ned_m[1]);
         let before = track.course();
         let settled = track.push(d.x, d.y, from_sigma_m.hypot(s_fix), s_fix);
@@ -444,8 +455,7 @@ fn gnss_velocity_course(
     t_after: f64,
     min_speed_mps: f64,
 ) -> Option<(f64, f64, f64)> {
-    case.gnss
-        .iter()
+    fixes_from(case.gnss, 0)
         .filter(|g| g.t_s > t_after && g.is_valid() && g.has_velocity)
         .find_map(|g| {
             let [vn, ve, _] = g.vel_ned_mps;
@@ -466,11 +476,10 @@ fn llh_of(g: &GnssFix) -> Llh {
 }
 
 /// The first two valid fixes at or after `t_a` (within 5 s of each other).
-fn first_two_fixes<'a>(case: &InitData<'a>, t_a: f64) -> Option<(&'a GnssFix, &'a GnssFix)> {
-    let mut it = case
-        .gnss
-        .iter()
-        .filter(|g| g.t_s >= t_a - 1e-6 && g.t_s <= t_a + 5.0 && g.is_valid());
+fn first_two_fixes(case: &InitData<'_>, t_a: f64) -> Option<(GnssFix, GnssFix)> {
+    let mut it = fixes_from(case.gnss, 0)
+        .take_while(|g| g.t_s <= t_a + 5.0)
+        .filter(|g| g.t_s >= t_a - 1e-6 && g.is_valid());
     let a = it.next()?;
     let b = it.next()?;
     (b.t_s - a.t_s > 0.0 && b.t_s - a.t_s <= 5.0).then_some((a, b))
@@ -494,7 +503,7 @@ fn fix_velocity(a: &GnssFix, b: &GnssFix) -> (Vector3<f64>, f64) {
 /// Horizontal GNSS speed at the start and the time of the fix it is from.
 fn start_speed(case: &InitData<'_>, t_a: f64) -> Option<(f64, f64)> {
     let (a, b) = first_two_fixes(case, t_a)?;
-    let (v, _) = fix_velocity(a, b);
+    let (v, _) = fix_velocity(&a, &b);
     Some((v.x.hypot(v.y), a.t_s))
 }
 
@@ -514,12 +523,11 @@ fn motion_alignment(
         ))
     })?;
     let dt = f1.t_s - f0.t_s;
-    let (v0, v_std) = fix_velocity(f0, f1);
+    let (v0, v_std) = fix_velocity(&f0, &f1);
     // acceleration: from the two fixes' velocities, or (positions only) from a third fix
-    let third = case
-        .gnss
-        .iter()
-        .filter(|g| g.t_s > f1.t_s && g.t_s <= f1.t_s + 5.0 && g.is_valid())
+    let third = fixes_from(case.gnss, 0)
+        .take_while(|g| g.t_s <= f1.t_s + 5.0)
+        .filter(|g| g.t_s > f1.t_s && g.is_valid())
         .find(|_| !f0.has_velocity);
     let (acc, acc_std) = match (f0.has_velocity && f1.has_velocity, third) {
         (true, _) => (
@@ -527,7 +535,7 @@ fn motion_alignment(
             std::f64::consts::SQRT_2 * v_std / dt,
         ),
         (false, Some(f2)) => {
-            let (v1, _) = fix_velocity(f1, f2);
+            let (v1, _) = fix_velocity(&f1, &f2);
             let dtm = 0.5 * (f2.t_s - f0.t_s);
             ((v1 - v0) / dtm, std::f64::consts::SQRT_2 * v_std / dtm)
         }
@@ -547,7 +555,7 @@ fn motion_alignment(
         }
         prev = Some(s.t_s);
     }
-    let p0 = llh_of(f0);
+    let p0 = llh_of(&f0);
     let level = (tsum > 0.0).then(|| MotionLevelling {
         mean_f_body_mps2: (dv / tsum).into(),
         accel_ned_mps2: acc.into(),

@@ -34,6 +34,7 @@ pub mod prepare;
 pub mod sink;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};
+pub use engine::ahead::{FixAhead, FixLookup, FixSource};
 pub use engine::{
     CoastPlan, Coaster, Collect, ImuItem, ImuSourceInfo, RunData, RunHead, RunSink, NOMINAL_WINDOW,
 };
@@ -706,6 +707,33 @@ pub fn run_stream(
     sink: &mut dyn RunSink,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RunOutput, RunError> {
+    run_stream_fixes(
+        imu,
+        info,
+        data.gnss_source(),
+        data.truth,
+        opts,
+        coast,
+        sink,
+        progress,
+    )
+}
+
+/// [`run_stream`] with the GNSS fixes streamed too: `gnss` yields them in time order (a
+/// reader over a file; a read error ends the run with that error). The engine keeps only the
+/// fixes it may still need ([`FixAhead`]): memory independent of the record's length.
+#[allow(clippy::too_many_arguments)]
+pub fn run_stream_fixes(
+    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
+    info: ImuSourceInfo,
+    gnss: FixSource<'_>,
+    truth: Option<&[NavSolution]>,
+    opts: &RunOptions,
+    coast: CoastPlan,
+    sink: &mut dyn RunSink,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RunOutput, RunError> {
+    let data = engine::RunInput { gnss, truth };
     macro_rules! go {
         ($layout:expr) => {
             match opts.precision {

@@ -30,7 +30,8 @@ use nav_core::strapdown::NavState;
 use nav_core::types::NavSolution;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig, RunConfig, TruthData,
+    GnssTextReader, ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig,
+    RunConfig, TruthData,
 };
 use std::path::{Path, PathBuf};
 
@@ -288,19 +289,76 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     att_std_rad
 }
 
-/// An IMU text file the run streams instead of loading ([`load`]).
+/// An IMU text file the run streams instead of loading ([`load`]), and the GNSS text file
+/// streamed with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImuStream {
     /// The IMU text file (plain or gzip).
     pub path: PathBuf,
     /// Offset added to every time stamp, s ([`RunSpec::imu_time_offset_s`]).
     pub time_offset_s: f64,
+    /// The GNSS text file read while the filter runs (then `prepared.case.gnss` is empty);
+    /// None: the fixes are in `prepared.case.gnss`.
+    pub gnss: Option<GnssStream>,
+}
+
+/// A GNSS text file the run streams instead of loading ([`ImuStream::gnss`]): read once by
+/// [`load`] to check it (the reader's errors before the run starts, nothing kept), then again
+/// while the filter runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GnssStream {
+    /// The GNSS text file (plain or gzip), 7 or 13 fields per line.
+    pub path: PathBuf,
+    /// Factor applied to every position and velocity standard deviation
+    /// (`[gnss] sigma_scale`; 1 for KF-GINS configurations).
+    pub sigma_scale: f64,
+    /// Fixes in the file (counted by [`load`]'s check).
+    pub fixes: usize,
+}
+
+impl GnssStream {
+    /// Checks the file (parsed to its end, nothing kept) and counts its fixes.
+    pub fn check(path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
+        let mut fixes = 0usize;
+        for r in GnssTextReader::open(path)? {
+            r?;
+            fixes += 1;
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            sigma_scale,
+            fixes,
+        })
+    }
+
+    /// The fixes as the engine's stream, the standard deviations scaled.
+    pub fn source(&self) -> Result<super::FixSource<'static>, super::RunError> {
+        let k = self.sigma_scale;
+        let rd = GnssTextReader::open(&self.path).map_err(super::RunError::Input)?;
+        Ok(Box::new(rd.map(move |r| {
+            let mut g = r.map_err(super::RunError::Input)?;
+            scale_sigmas(&mut g, k);
+            Ok(g)
+        })))
+    }
+}
+
+/// Multiplies a fix's position and velocity standard deviations by `k`.
+fn scale_sigmas(g: &mut nav_core::types::GnssFix, k: f64) {
+    for s in &mut g.pos_std_ned_m {
+        *s *= k;
+    }
+    for s in &mut g.vel_std_ned_mps {
+        *s *= k;
+    }
 }
 
 /// Loads everything a run needs. With `stream_imu`, an IMU text file (KF-GINS configurations
 /// and case directories) is not loaded: the case's IMU list stays empty and the file is
 /// returned in [`Loaded::imu_stream`], to be read while the filter runs
-/// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way.
+/// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way. The GNSS
+/// text file of such a run is streamed too ([`ImuStream::gnss`]: checked here, the case's
+/// fix list left empty).
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
@@ -319,7 +377,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         }
         None => None,
     };
-    let (mut case, mut opts, mut week, mut description, imu_stream) = match kind {
+    let (mut case, mut opts, mut week, mut description, streams) = match kind {
         ConfigKind::KfGins(k) => {
             prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
         }
@@ -327,9 +385,10 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
             prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream, &mut warnings)?
         }
     };
-    let mut imu_stream = imu_stream.map(|path| ImuStream {
+    let mut imu_stream = streams.map(|(path, gnss)| ImuStream {
         path,
         time_offset_s: 0.0,
+        gnss,
     });
     if let Some(cd) = &case_dir {
         week = cd.week;
@@ -457,13 +516,16 @@ fn imu_text_time_span(path: &Path, last: bool) -> anyhow::Result<(f64, f64)> {
     Ok((t0, t1))
 }
 
+/// The files a run streams: the IMU text file and, when it is a text file too, the GNSS one.
+type Streams = (PathBuf, Option<GnssStream>);
+
 fn prepare_kf_gins(
     k: &KfGinsConfig,
     dir: &Path,
     case_dir: Option<&CaseDir>,
     model: Option<Model>,
     stream: bool,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<Streams>)> {
     k.validate()
         .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
     let (imu_p, gnss_p) = match case_dir {
@@ -473,12 +535,17 @@ fn prepare_kf_gins(
             k.resolve_path(&k.gnsspath, dir),
         ),
     };
-    let (imu_rec, imu_stream) = if stream {
-        (nav_io::ImuRecord::default(), Some(imu_p.clone()))
+    // streamed: the IMU and the GNSS text files are read while the filter runs
+    let (imu_rec, gnss, imu_stream) = if stream {
+        let g = GnssStream::check(&gnss_p, 1.0)?;
+        (
+            nav_io::ImuRecord::default(),
+            Vec::new(),
+            Some((imu_p.clone(), Some(g))),
+        )
     } else {
-        (read_imu_text(&imu_p)?, None)
+        (read_imu_text(&imu_p)?, read_gnss_text(&gnss_p)?, None)
     };
-    let gnss = read_gnss_text(&gnss_p)?;
     // the model: what KF-GINS's code does unless the command line asks for another layout
     let model = model.unwrap_or(Model::KfGinsFeedback);
     let filter = match model {
@@ -552,9 +619,10 @@ fn prepare_run_config(
     case_dir: Option<&CaseDir>,
     stream: bool,
     warnings: &mut Vec<String>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<PathBuf>)> {
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<Streams>)> {
     let mut week = 0u16;
-    let mut imu_stream = None;
+    let mut imu_stream: Option<PathBuf> = None;
+    let mut gnss_stream = None;
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
@@ -566,7 +634,12 @@ fn prepare_run_config(
             } else {
                 read_imu_text(&c.imu)?
             },
-            read_gnss_text(&c.gnss)?,
+            if stream {
+                gnss_stream = Some(GnssStream::check(&c.gnss, r.gnss.sigma_scale)?);
+                Vec::new()
+            } else {
+                read_gnss_text(&c.gnss)?
+            },
             if c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
             } else {
@@ -605,15 +678,11 @@ fn prepare_run_config(
         }
     };
     let imu = imu_rec.samples;
-    // the data against the configured [imu.mounting] (z gyro vs GNSS course, gravity at rest)
+    // the data against the configured [imu.mounting] (z gyro vs GNSS course, gravity at rest;
+    // nothing to check when the IMU is streamed)
     warnings.extend(crate::mounting::check_mounting(&imu, &gnss).warnings);
     for g in &mut gnss {
-        for s in &mut g.pos_std_ned_m {
-            *s *= r.gnss.sigma_scale;
-        }
-        for s in &mut g.vel_std_ned_mps {
-            *s *= r.gnss.sigma_scale;
-        }
+        scale_sigmas(g, r.gnss.sigma_scale);
     }
     let accel = r
         .noise
@@ -723,7 +792,7 @@ fn prepare_run_config(
         opts,
         week,
         d,
-        imu_stream,
+        imu_stream.map(|p| (p, gnss_stream)),
     ))
 }
 
@@ -823,5 +892,46 @@ impl CaseIndex {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn streamed_gnss_is_the_loaded_list_scaled_and_errors_before_the_run() {
+        let dir = std::env::temp_dir().join(format!("gnssstream-prep-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ok = dir.join("gnss.txt");
+        std::fs::write(
+            &ok,
+            "100.0 30.5 114.3 20.0 0.5 0.6 1.1\n\
+             101.0 30.50001 114.30001 20.5 0.4 0.3 0.9 1.0 2.0 -0.5 0.05 0.06 0.07\n",
+        )
+        .unwrap();
+        let k = 1.7;
+        let st = GnssStream::check(&ok, k).unwrap();
+        assert_eq!(st.fixes, 2);
+        let streamed: Vec<_> = st.source().unwrap().map(Result::unwrap).collect();
+        let mut loaded = read_gnss_text(&ok).unwrap();
+        for g in &mut loaded {
+            scale_sigmas(g, k);
+        }
+        assert_eq!(streamed, loaded);
+        assert_eq!(
+            streamed[1].vel_std_ned_mps[2].to_bits(),
+            (0.07 * k).to_bits()
+        );
+        // a file that does not parse is refused by the check, naming file and line
+        let bad = dir.join("bad.txt");
+        std::fs::write(
+            &bad,
+            "100.0 30.5 114.3 20.0 0.5 0.6 1.1\n99.0 30.5 114.3 20.0 0.5\n",
+        )
+        .unwrap();
+        let e = format!("{:#}", GnssStream::check(&bad, 1.0).unwrap_err());
+        assert!(e.contains("bad.txt") && e.contains('2'), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1,6 +1,7 @@
 //! The engine's hooks into the navigator's loop ([`EngineHooks`], see the module notes of
 //! [`super`]).
 
+use super::ahead::FixAhead;
 use super::{Coaster, RunSink};
 use crate::run::coast::CoastMode;
 use crate::run::{
@@ -17,7 +18,7 @@ use nav_core::types::{FixQuality, GnssFix, ImuSample};
 /// The host run's additions to the navigator's loop ([`NavHooks`]): records at every epoch,
 /// innovations, fixes withheld inside outages, outage snapshots and the coasters they start,
 /// the smoother's recorder and the land-vehicle aiding.
-pub(super) struct EngineHooks<'a, T: Scalar> {
+pub(super) struct EngineHooks<'a, 'g, T: Scalar> {
     pub(super) sink: &'a mut dyn RunSink,
     /// A sink error (the run returns it after the call).
     pub(super) err: Option<RunError>,
@@ -41,12 +42,24 @@ pub(super) struct EngineHooks<'a, T: Scalar> {
     pub(super) raw: Option<(ImuSample, Option<f64>)>,
     /// Index in the record of the sample being pushed (an outage snapshot's `next_imu`).
     pub(super) next_index: usize,
-    pub(super) gnss: &'a [GnssFix],
+    /// The run's fixes (those not yet given to the navigator, and those of the next outage
+    /// its snapshot may take).
+    pub(super) gnss: FixAhead<'g>,
     pub(super) gi0: usize,
     pub(super) lever_arm_m: [f64; 3],
 }
 
-impl<T: Scalar> EngineHooks<'_, T> {
+impl<T: Scalar> EngineHooks<'_, '_, T> {
+    /// Drops the fixes before index `given` (given to the navigator) that no snapshot will
+    /// take (before the next outage's start, or all when there is no coasting).
+    pub(super) fn release_fixes(&mut self, given: usize) {
+        let keep_s = match self.outages.get(self.next_outage) {
+            Some(o) if !self.coast_modes.is_empty() => o.start_s,
+            _ => f64::INFINITY,
+        };
+        self.gnss.release(given, keep_s);
+    }
+
     pub(super) fn stopped(&self) -> bool {
         self.err.is_some() || self.fault.is_some()
     }
@@ -113,14 +126,21 @@ impl<T: Scalar> EngineHooks<'_, T> {
                 };
                 self.sink.snapshot(&snap);
                 if !self.coast_modes.is_empty() {
-                    // the fixes the run withholds in this outage (all reached so far or later)
-                    let fixes: Vec<GnssFix> = self
-                        .gnss
-                        .iter()
-                        .skip(self.gi0)
-                        .filter(|g| outage::find(self.outages, g.t_s) == Some(self.next_outage))
-                        .copied()
-                        .collect();
+                    // the fixes the run withholds in this outage (all reached so far or later:
+                    // read ahead to the outage's end; the fixes in time order)
+                    let mut fixes = (Vec::new(), Vec::new());
+                    // (those released before cannot be in it: before its start)
+                    let mut i = self.gi0.max(self.gnss.first_held());
+                    while let Some(g) = self.gnss.get(i) {
+                        if g.t_s >= o.end_s() {
+                            break;
+                        }
+                        if outage::find(self.outages, g.t_s) == Some(self.next_outage) {
+                            fixes.0.push(g);
+                            fixes.1.push(i);
+                        }
+                        i += 1;
+                    }
                     for (m, mode) in self.coast_modes.iter().enumerate() {
                         let corr = match mode {
                             CoastMode::Raw => ImuCorrection::default(),
@@ -144,7 +164,7 @@ impl<T: Scalar> EngineHooks<'_, T> {
     }
 }
 
-impl<T: Scalar, const N: usize> NavHooks<T, N> for EngineHooks<'_, T> {
+impl<T: Scalar, const N: usize> NavHooks<T, N> for EngineHooks<'_, '_, T> {
     fn observes_covariance(&self) -> bool {
         self.rec.is_enabled()
     }
