@@ -9,11 +9,11 @@ use std::time::Instant;
 
 use host_sim::diagnose::{diagnose, DiagnoseOptions};
 use host_sim::run::cli::Prepared;
-use host_sim::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use host_sim::sim::errors::{Axes3, Temperature};
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use nav_sim::ScenarioBuilder;
 
 fn scenario() -> Scenario {

@@ -13,10 +13,5 @@ pub mod diagnose;
 pub mod mounting;
 pub mod noise;
 pub mod run;
-// The run engine's metrics and smoother live in `nav-engine`. These re-exports (and `run`'s
-// `pub use nav_engine::run::*`) serve host-sim's own modules (`diagnose` and `study` name
-// `crate::metrics`, `crate::smooth`, `crate::run::...`); tests and other crates name
-// `nav_engine::...`, the crate that owns them.
-pub use nav_engine::{metrics, smooth};
 pub mod sim;
 pub mod study;

@@ -1,7 +1,7 @@
 //! `host-sim mounting`: the IMU mounting estimated from the data (the estimator and the
-//! check live in `nav_engine::mounting`, re-exported here).
+//! check live in `nav_engine::mounting`).
 
-pub use nav_engine::mounting::*;
+use nav_engine::mounting::estimate_mounting;
 
 /// `host-sim mounting` arguments.
 #[derive(clap::Args, Debug)]

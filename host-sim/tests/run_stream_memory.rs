@@ -1,21 +1,21 @@
 //! The streaming engine's memory does not grow with the record: hours of 200 Hz IMU data
 //! generated on the fly (never stored, never written to disk) run through
-//! `host_sim::run::run_stream` while a counting global allocator tracks the live heap.
+//! `nav_engine::run::run_stream` while a counting global allocator tracks the live heap.
 //! Loading the same record would take `n * size_of::<ImuSample>()` bytes for the samples
 //! alone (plus a navigation record per sample); the test asserts the peak stays below a
 //! small fixed bound instead, and that the run was a real one (every sample integrated, the
 //! solution next to the fixes).
 
-use host_sim::run::{
-    run_stream, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
-    RunData, RunError, RunOptions, RunSink,
-};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::InitialUncertainty;
 use nav_core::strapdown::NavState;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_engine::run::{
+    run_stream, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
+    RunData, RunError, RunOptions, RunSink,
+};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -62,7 +62,7 @@ impl RunSink for Count {
     }
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
         self.innovations += 1;
-        if r.used == host_sim::run::FixUse::Accepted {
+        if r.used == nav_engine::run::FixUse::Accepted {
             self.accepted += 1;
         }
         Ok(())

@@ -36,7 +36,7 @@
 //!
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects) and the final run; see the README for a 40-minute 200 Hz drive.
-//! The filter's state count is a compile-time constant: [`crate::run::run_filter`] dispatches
+//! The filter's state count is a compile-time constant: [`nav_engine::run::run_filter`] dispatches
 //! layouts with extra blocks on their dimension (16 to [`MAX_EXTRA_DIM`] states).
 //!
 //! Units of the estimates ([`AddedEffect::estimate`], the blocks' states, SI):
@@ -60,9 +60,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-use crate::metrics::{self, Metrics};
 use crate::run::cli::{execute, execute_case, prepare, Prepared, RunArgs};
-use crate::run::{output, run_filter, RunOptions, RunOutput, MAX_EXTRA_DIM};
+use nav_engine::metrics::{self, Metrics};
+use nav_engine::run::{output, run_filter, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
 pub use prior::{candidates, options_with};
 pub use stats::{regressor_correlation, residual_stats, ResidualStats, Whiteness};
@@ -367,7 +367,7 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
     o
 }
 
-fn evaluate(p: &Prepared, o: &RunOptions, smooth: bool) -> Result<Eval, crate::run::RunError> {
+fn evaluate(p: &Prepared, o: &RunOptions, smooth: bool) -> Result<Eval, nav_engine::run::RunError> {
     let mut ro = search_recording(o);
     ro.smoother_history |= smooth;
     let mut out = run_filter(&p.case, &ro)?;
@@ -376,7 +376,7 @@ fn evaluate(p: &Prepared, o: &RunOptions, smooth: bool) -> Result<Eval, crate::r
     e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &p.case.gnss);
     if smooth {
         // a run the smoother refuses keeps None: scored on the forward solution
-        if let Ok((so, _, _)) = crate::smooth::apply::smooth_run(&p.case, &out) {
+        if let Ok((so, _, _)) = nav_engine::smooth::apply::smooth_run(&p.case, &out) {
             e.heldout_outage_smoothed_m = validate::heldout_outage_error_m(&so);
         }
         out.history = None;

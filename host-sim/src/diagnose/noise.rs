@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::stats::{residual_stats, ResidualStats};
-use crate::run::{run_filter, CaseData, RunOptions};
+use nav_engine::run::{run_filter, CaseData, RunOptions};
 
 /// Multipliers on the IMU noise PSDs of a configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

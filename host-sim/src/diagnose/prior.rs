@@ -10,7 +10,7 @@
 use nav_core::config::{EffectsConfig, FilterConfig, ScaleFactorNoise};
 use nav_core::model::{Block, EFFECT_BLOCKS};
 
-use crate::run::{CaseData, RunOptions};
+use nav_engine::run::{CaseData, RunOptions};
 
 /// Prior 1-sigma of a freed scale-factor block, ppm.
 pub const FREED_SCALE_SIGMA_PPM: f64 = 1000.0;
@@ -128,8 +128,8 @@ pub fn added_dim(opts: &RunOptions, b: Block) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::run::{InitSpec, Model};
     use nav_core::filter::InitialUncertainty;
+    use nav_engine::run::{InitSpec, Model};
 
     fn init() -> InitSpec {
         InitSpec::FromTruth {

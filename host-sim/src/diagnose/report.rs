@@ -12,9 +12,9 @@ use anyhow::Context;
 use plotters::prelude::*;
 
 use super::{DiagnoseOutput, Diagnosis};
-use crate::metrics;
 use crate::run::cli::Prepared;
-use crate::run::{FixUse, RunOutput};
+use nav_engine::metrics;
+use nav_engine::run::{FixUse, RunOutput};
 
 fn perr<E: std::fmt::Display>(e: E) -> anyhow::Error {
     anyhow::anyhow!("plot: {e}")
@@ -62,8 +62,9 @@ fn plot_innovations(path: &Path, before: &RunOutput, after: &RunOutput) -> anyho
     root.fill(&WHITE).map_err(perr)?;
     let areas = root.split_evenly((3, 1));
     let t0 = t0_of(before);
-    let used =
-        |r: &&crate::run::InnovationRecord| matches!(r.used, FixUse::Accepted | FixUse::Forced);
+    let used = |r: &&nav_engine::run::InnovationRecord| {
+        matches!(r.used, FixUse::Accepted | FixUse::Forced)
+    };
     for (c, a) in areas.iter().enumerate() {
         let pts = |run: &RunOutput| -> Vec<(f64, f64)> {
             run.innovations

@@ -5,7 +5,7 @@ use nav_core::model::Block;
 use nav_core::types::{ImuSample, NavSolution};
 use serde::Serialize;
 
-use crate::run::{FixUse, InnovationRecord, RunOutput};
+use nav_engine::run::{FixUse, InnovationRecord, RunOutput};
 
 /// Number of autocorrelation lags of the whiteness test.
 pub const LAGS: usize = 10;

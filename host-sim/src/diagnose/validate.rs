@@ -13,8 +13,8 @@ use nav_core::types::{GnssFix, NavSolution};
 use serde::Serialize;
 
 use super::stats::{c_bn, residual_stats};
-use crate::metrics::{self, Metrics};
-use crate::run::{FixUse, Outage, RunOutput};
+use nav_engine::metrics::{self, Metrics};
+use nav_engine::run::{FixUse, Outage, RunOutput};
 
 /// RMS over the outages of each outage's largest 3D error against its withheld fixes, m
 /// (None without withheld fixes).

@@ -13,10 +13,10 @@
 
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
-use crate::metrics;
 use anyhow::Context;
 use nav_core::config::Gating;
 use nav_core::imu_guard::GapIncrements;
+use nav_engine::metrics;
 pub use nav_engine::run::execute::{
     decimate, execute, execute_case, execute_streaming, imu_summary, metrics_json,
     threaded_imu_reader,

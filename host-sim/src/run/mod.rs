@@ -1,5 +1,5 @@
 //! `host-sim run`: the command line ([`cli`]) over the run engine, which lives in the
-//! `nav-engine` crate and is re-exported here (`host_sim::run::X` is `nav_engine::run::X`).
+//! `nav-engine` crate and is re-exported here (`nav_engine::run::X` is `nav_engine::run::X`).
 
 pub use nav_engine::run::*;
 

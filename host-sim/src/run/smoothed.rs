@@ -3,9 +3,9 @@
 
 use super::cli::{decimate, imu_summary, Prepared, RunArgs};
 use super::{output, RunOutput};
-use crate::metrics::{self, Metrics};
 use anyhow::Context;
 use nav_core::types::NavSolution;
+use nav_engine::metrics::{self, Metrics};
 use nav_engine::smooth::apply::{smooth_run, SmootherReport};
 use serde::Serialize;
 
@@ -35,7 +35,7 @@ pub fn finish(
         forward: &'a Metrics,
         smoothed: &'a Metrics,
         smoother: &'a SmootherReport,
-        imu: &'a crate::run::ImuReport,
+        imu: &'a nav_engine::run::ImuReport,
         complete: bool,
     }
     let json = serde_json::to_string_pretty(&File {

@@ -12,7 +12,7 @@
 //! - **Models**: N (manufacturer white noise, constant biases), NBK (identified parameters,
 //!   separate Gauss-Markov and random-walk accelerometer bias states) and the source's
 //!   single-state NBK variant, each on **case 1** (continuous 1 Hz GNSS) and **case 2** (one
-//!   5-minute outage). Every filter run goes through [`crate::run::run_filter`].
+//!   5-minute outage). Every filter run goes through [`nav_engine::run::run_filter`].
 //! - **Statistics** ([`stats`]): per epoch (1 Hz) the mean and RMS of the true errors over the
 //!   runs, the filter's standard deviations, and the average NEES of attitude, velocity and
 //!   position against the two-sided 95 % chi-square band of `runs x 3` degrees of freedom.
@@ -29,10 +29,10 @@ pub mod report;
 pub mod setup;
 pub mod stats;
 
-use crate::run::{self, CaseData, RecordOptions, RunOptions};
 use crate::sim::{Scenario, Trajectory};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use nav_engine::run::{self, CaseData, RecordOptions, RunOptions};
 use rayon::prelude::*;
 use serde::Serialize;
 use setup::Variant;
