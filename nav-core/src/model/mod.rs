@@ -140,6 +140,64 @@ pub(crate) fn set3<T: Scalar, const R: usize, const C: usize>(
     }
 }
 
+/// Three rows of a measurement Jacobian (`[[T; N]; 3]`, row-major) seen as one slice with the
+/// number of columns a runtime value: code that fills Jacobian columns through it is one
+/// instance per scalar type whatever the state dimension N (flash: a binary may carry several
+/// filter sizes). Writes outside the rows or columns are ignored.
+pub struct Rows3<'a, T> {
+    data: &'a mut [T],
+    cols: usize,
+}
+
+impl<'a, T: Scalar> Rows3<'a, T> {
+    /// The view of `m` (3 rows of N columns).
+    pub fn new<const N: usize>(m: &'a mut [[T; N]; 3]) -> Self {
+        Self {
+            data: m.as_flattened_mut(),
+            cols: N,
+        }
+    }
+
+    /// Number of columns (the state dimension).
+    pub fn cols(&self) -> usize {
+        self.cols
+    }
+
+    /// Entry (row `r`, column `c`), or None outside the rows or columns.
+    pub fn get_mut(&mut self, r: usize, c: usize) -> Option<&mut T> {
+        if c >= self.cols {
+            return None;
+        }
+        // r < 3 and c < cols: r * cols + c < data.len() = 3 cols (no overflow)
+        if r >= 3 {
+            return None;
+        }
+        self.data.get_mut(r * self.cols + c)
+    }
+
+    /// Writes the 3 x K `m` at column `col0` (rows 0..3).
+    pub fn set_block<const K: usize>(&mut self, col0: usize, m: &[[T; K]; 3]) {
+        for (r, m_row) in m.iter().enumerate() {
+            for (k, v) in m_row.iter().enumerate() {
+                if let Some(d) = self.get_mut(r, col0 + k) {
+                    *d = *v;
+                }
+            }
+        }
+    }
+
+    /// Adds the 3 x K `m` at column `col0` (rows 0..3).
+    pub fn add_block<const K: usize>(&mut self, col0: usize, m: &[[T; K]; 3]) {
+        for (r, m_row) in m.iter().enumerate() {
+            for (k, v) in m_row.iter().enumerate() {
+                if let Some(d) = self.get_mut(r, col0 + k) {
+                    *d += *v;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
