@@ -37,7 +37,7 @@ use crate::model::{
 use crate::scalar::Scalar;
 use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
-use linalg::{all_finite, cholesky_in_place, dot};
+use linalg::{all_finite, cholesky_in_place};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use observe::{CovObserver, PredictionRecord};
 use robust::{GateState, RejectedFix, RobustStats};
@@ -604,44 +604,6 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             set2(&mut p, *idx, *idx, T::of_f64(*var));
         }
         self.p = p;
-    }
-
-    /// P H^T, S = H P H^T + R (symmetrised) and its Cholesky factor, for the current P.
-    #[allow(clippy::type_complexity)]
-    fn innovation_cov<const M: usize>(
-        &self,
-        h: &[[T; N]; M],
-        r: &[T; M],
-    ) -> ([[T; M]; N], [[T; M]; M], Option<[[T; M]; M]>) {
-        let mut pht = [[T::ZERO; M]; N];
-        for (prow, out) in self.p.iter().zip(pht.iter_mut()) {
-            for (o, hrow) in out.iter_mut().zip(h) {
-                *o = dot(prow, hrow);
-            }
-        }
-        let mut s = [[T::ZERO; M]; M];
-        for (a, (srow, hrow)) in s.iter_mut().zip(h).enumerate() {
-            for (b, sab) in srow.iter_mut().enumerate() {
-                let mut acc = T::ZERO;
-                for (hai, phti) in hrow.iter().zip(pht.iter()) {
-                    acc += *hai * phti.get(b).copied().unwrap_or(T::ZERO);
-                }
-                if a == b {
-                    acc += r.get(a).copied().unwrap_or(T::ZERO);
-                }
-                *sab = acc;
-            }
-        }
-        for a in 0..M {
-            for b in 0..a {
-                let v = (get2(&s, a, b) + get2(&s, b, a)) * T::HALF;
-                set2(&mut s, a, b, v);
-                set2(&mut s, b, a, v);
-            }
-        }
-        let mut l = s;
-        let ok = cholesky_in_place(&mut l);
-        (pht, s, ok.then_some(l))
     }
 
     /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
