@@ -246,7 +246,7 @@ struct Joseph<'a, T, const M: usize> {
 }
 
 /// With `R / weight`: the gain `K = P H^T S^-1`, the correction `K z` and the Joseph-form
-/// covariance in place. False (numerical failure; `p` partly overwritten) when the reweighted
+/// covariance in place ([`joseph`]). False (numerical failure; `p` partly overwritten) when the reweighted
 /// S is not positive definite, or K, the correction or the covariance is not finite or has a
 /// negative diagonal. Generic over M only (flash).
 #[inline(never)]
@@ -294,14 +294,47 @@ fn gain_and_joseph<T: Scalar, const M: usize>(j: Joseph<'_, T, M>) -> bool {
     if !(k.iter().all(|r| r.iter().all(|v| v.finite())) && dx.iter().all(|v| v.finite())) {
         return false;
     }
-    // Joseph form P = (I - K H) P (I - K H)^T + K R K^T, in place:
+    joseph(
+        p,
+        n,
+        h,
+        pht.as_flattened(),
+        k.as_flattened(),
+        &r,
+        y.as_flattened_mut(),
+    )
+}
+
+/// The Joseph-form covariance update in place, `P = (I - K H) P (I - K H)^T + K R K^T`, for
+/// `p` (n x n), `h` (m rows of n), `pht` = P H^T and the gain `k` (n rows of m each), the
+/// diagonal `r` (m) and the scratch `y` (n rows of m), all row-major; then mirrored from the
+/// upper triangle. False when the result is not finite or has a negative diagonal. Both
+/// dimensions are runtime values: one instance per scalar type (flash).
+#[inline(never)]
+fn joseph<T: Scalar>(
+    p: &mut [T],
+    n: usize,
+    h: &[T],
+    pht: &[T],
+    k: &[T],
+    r: &[T],
+    y: &mut [T],
+) -> bool {
+    let m = r.len();
+    if n == 0 || m == 0 {
+        return false;
+    }
     // AP = P - K (P H^T)^T;  P = AP - (AP H^T - K R) K^T  (upper triangle, mirrored)
-    for (prow, krow) in p.chunks_exact_mut(n).zip(k.iter()) {
-        for (pij, phtj) in prow.iter_mut().zip(pht.iter()) {
+    for (prow, krow) in p.chunks_exact_mut(n).zip(k.chunks_exact(m)) {
+        for (pij, phtj) in prow.iter_mut().zip(pht.chunks_exact(m)) {
             *pij -= dot(krow, phtj);
         }
     }
-    for ((yrow, prow), krow) in y.iter_mut().zip(p.chunks_exact(n)).zip(k.iter()) {
+    for ((yrow, prow), krow) in y
+        .chunks_exact_mut(m)
+        .zip(p.chunks_exact(n))
+        .zip(k.chunks_exact(m))
+    {
         for (((yv, hrow), kv), rv) in yrow
             .iter_mut()
             .zip(h.chunks_exact(n))
@@ -311,8 +344,8 @@ fn gain_and_joseph<T: Scalar, const M: usize>(j: Joseph<'_, T, M>) -> bool {
             *yv = dot(prow, hrow) - *kv * *rv;
         }
     }
-    for (i, (prow, yrow)) in p.chunks_exact_mut(n).zip(y.iter()).enumerate() {
-        for (pij, kj) in prow.iter_mut().zip(k.iter()).skip(i) {
+    for (i, (prow, yrow)) in p.chunks_exact_mut(n).zip(y.chunks_exact(m)).enumerate() {
+        for (pij, kj) in prow.iter_mut().zip(k.chunks_exact(m)).skip(i) {
             *pij -= dot(yrow, kj);
         }
     }
