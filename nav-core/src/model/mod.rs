@@ -415,4 +415,30 @@ mod tests {
             assert!((v - c[i]).abs() < 1e-15);
         }
     }
+
+    #[test]
+    fn rows3_writes_like_set3_and_add3_and_ignores_outside_columns() {
+        let m = [[1.0f32, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0]];
+        // blocks at 1 (inside) and at 3 (two of three columns outside a 4-column matrix)
+        for col0 in [1usize, 3] {
+            let mut a = [[0.5f32; 4]; 3];
+            let mut b = a;
+            set3(&mut a, 0, col0, &m);
+            add3(&mut a, 0, col0, &m);
+            let mut v = Rows3::new(&mut b);
+            assert_eq!(v.cols(), 4);
+            v.set_block(col0, &m);
+            v.add_block(col0, &m);
+            assert_eq!(a, b, "block at column {col0}");
+        }
+        let mut c = [[0.0f32; 4]; 3];
+        let mut v = Rows3::new(&mut c);
+        assert!(v.get_mut(3, 0).is_none());
+        assert!(v.get_mut(0, 4).is_none());
+        if let Some(x) = v.get_mut(2, 3) {
+            *x = 7.0;
+        }
+        assert_eq!(c[2][3], 7.0);
+        assert_eq!(c.iter().flatten().filter(|x| **x != 0.0).count(), 1);
+    }
 }
