@@ -12,7 +12,7 @@ use super::gated::Gate;
 use super::{dcm_f64, Filter, FilterError, UpdateOutcome};
 use crate::config::VelocityGating;
 use crate::earth;
-use crate::model::{BlockKind, MeasContext};
+use crate::model::{BlockKind, Layout, MeasContext, Rows3};
 use crate::scalar::Scalar;
 use crate::strapdown::{NavState, StepInfo};
 use crate::types::GnssFix;
@@ -47,9 +47,12 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         );
         let mut h_pos = [[T::ZERO; N]; 3];
         let mut h_vel = [[T::ZERO; N]; 3];
-        for (off, b) in self.layout.iter() {
-            b.gnss_jacobian(off, &g.ctx, &mut h_pos, &mut h_vel);
-        }
+        gnss_jacobians(
+            &self.layout,
+            &g.ctx,
+            Rows3::new(&mut h_pos),
+            Rows3::new(&mut h_vel),
+        );
         GnssModel {
             zp: g.zp,
             zv: g.zv,
@@ -99,6 +102,21 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             c.gnss_vel_rejected = c.gnss_vel_rejected.saturating_add(1);
         }
         Ok(out)
+    }
+}
+
+/// The GNSS Jacobians' columns of every block of `layout` (rows zero on entry). Not generic
+/// over the state dimension (the rows' column count is a runtime value): one instance per
+/// scalar type whatever the filter sizes a binary carries (flash).
+#[inline(never)]
+fn gnss_jacobians<T: Scalar>(
+    layout: &Layout,
+    ctx: &MeasContext,
+    mut h_pos: Rows3<'_, T>,
+    mut h_vel: Rows3<'_, T>,
+) {
+    for (off, b) in layout.iter() {
+        b.gnss_jacobian(off, ctx, &mut h_pos, &mut h_vel);
     }
 }
 

@@ -37,7 +37,7 @@ use crate::model::{
 use crate::scalar::Scalar;
 use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
-use linalg::{all_finite, cholesky_in_place, dot};
+use linalg::{all_finite, cholesky_in_place};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use observe::{CovObserver, PredictionRecord};
 use robust::{GateState, RejectedFix, RobustStats};
@@ -527,69 +527,30 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         Ok(self.after_update(out, &m.zp, &rp, zv))
     }
 
-    /// Bookkeeping after the gate decided: counters, status bits, the NIS monitor, and the
-    /// re-initialisation from the fixes when the gate forced one.
+    /// Bookkeeping after the gate decided: counters, status bits, the NIS monitor
+    /// ([`note_gnss_outcome`], not generic), and the re-initialisation from the fixes when the
+    /// gate forced one.
     fn after_update(
         &mut self,
-        mut out: UpdateOutcome,
+        out: UpdateOutcome,
         zp: &[f64; 3],
         rp: &[f64; 3],
         zv: Option<([f64; 3], [f64; 3])>,
     ) -> UpdateOutcome {
-        self.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_LAST_FIX_DOWNWEIGHTED | STATUS_RESET);
-        if out.accepted {
-            self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
-            self.consecutive_rejections = 0;
-            self.gate.last_rejected = None;
-            self.gate.earlier_rejected = None;
-            self.status &= !STATUS_NO_FIX_YET;
-            if out.weight < 1.0 {
-                self.status |= STATUS_LAST_FIX_DOWNWEIGHTED;
-                self.gate.stats.downweighted = self.gate.stats.downweighted.saturating_add(1);
-            }
-        } else if !out.forced {
-            self.counters.gnss_rejected = self.counters.gnss_rejected.saturating_add(1);
-            self.consecutive_rejections = self.consecutive_rejections.saturating_add(1);
-            self.status |= STATUS_LAST_FIX_REJECTED;
-            self.gate.earlier_rejected = self.gate.last_rejected;
-            self.gate.last_rejected = Some(RejectedFix {
-                t_s: out.t_s,
-                z_pos_m: *zp,
-                var_pos_m2: *rp,
-            });
-        }
-        if let Some(r) = self.cfg.gating.robust {
-            let ends_gap = out.forced || (out.accepted && self.gate.last_within_normal_gate);
-            self.gate.note_fix(out.t_s, ends_gap);
-            if out.dim > 0 {
-                let rejected = !out.accepted && !out.forced;
-                let base = if out.dim == 3 {
-                    self.cfg.gating.nis_threshold_pos
-                } else {
-                    self.cfg.gating.nis_threshold_pos_vel
-                };
-                let grow = if out.accepted && !out.forced {
-                    r.growth_per_fix * out.nis / base
-                } else {
-                    0.0
-                };
-                self.gate
-                    .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected, grow);
-            }
-            if self.gate.stats.mismatch {
-                self.status |= STATUS_MODEL_MISMATCH;
-            } else {
-                self.status &= !STATUS_MODEL_MISMATCH;
-            }
-        }
+        let out = note_gnss_outcome(
+            GnssBook {
+                counters: &mut self.counters,
+                consecutive_rejections: &mut self.consecutive_rejections,
+                gate: &mut self.gate,
+                status: &mut self.status,
+            },
+            &self.cfg.gating,
+            out,
+            zp,
+            rp,
+        );
         if out.forced {
             self.reset_from_fixes(out.t_s, zp, rp, zv);
-            self.counters.gnss_accepted = self.counters.gnss_accepted.saturating_add(1);
-            self.counters.gnss_forced = self.counters.gnss_forced.saturating_add(1);
-            self.consecutive_rejections = 0;
-            self.status &= !STATUS_NO_FIX_YET;
-            self.status |= STATUS_RESET;
-            out.accepted = true;
         }
         out
     }
@@ -643,44 +604,6 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             set2(&mut p, *idx, *idx, T::of_f64(*var));
         }
         self.p = p;
-    }
-
-    /// P H^T, S = H P H^T + R (symmetrised) and its Cholesky factor, for the current P.
-    #[allow(clippy::type_complexity)]
-    fn innovation_cov<const M: usize>(
-        &self,
-        h: &[[T; N]; M],
-        r: &[T; M],
-    ) -> ([[T; M]; N], [[T; M]; M], Option<[[T; M]; M]>) {
-        let mut pht = [[T::ZERO; M]; N];
-        for (prow, out) in self.p.iter().zip(pht.iter_mut()) {
-            for (o, hrow) in out.iter_mut().zip(h) {
-                *o = dot(prow, hrow);
-            }
-        }
-        let mut s = [[T::ZERO; M]; M];
-        for (a, (srow, hrow)) in s.iter_mut().zip(h).enumerate() {
-            for (b, sab) in srow.iter_mut().enumerate() {
-                let mut acc = T::ZERO;
-                for (hai, phti) in hrow.iter().zip(pht.iter()) {
-                    acc += *hai * phti.get(b).copied().unwrap_or(T::ZERO);
-                }
-                if a == b {
-                    acc += r.get(a).copied().unwrap_or(T::ZERO);
-                }
-                *sab = acc;
-            }
-        }
-        for a in 0..M {
-            for b in 0..a {
-                let v = (get2(&s, a, b) + get2(&s, b, a)) * T::HALF;
-                set2(&mut s, a, b, v);
-                set2(&mut s, b, a, v);
-            }
-        }
-        let mut l = s;
-        let ok = cholesky_in_place(&mut l);
-        (pht, s, ok.then_some(l))
     }
 
     /// Gated Joseph-form update with measurement `z = H dx + v` (z = predicted - measured),
@@ -776,6 +699,86 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         self.status |= STATUS_NUMERICAL_FAILURE;
         FilterError::Numerical
     }
+}
+
+/// The filter's GNSS bookkeeping state that [`note_gnss_outcome`] updates.
+struct GnssBook<'a> {
+    counters: &'a mut Counters,
+    consecutive_rejections: &'a mut u32,
+    gate: &'a mut GateState,
+    status: &'a mut u32,
+}
+
+/// The bookkeeping of a GNSS position update once the gate decided (`out`; `zp`, `rp` its
+/// position innovation, m, and variances, m^2): counters, consecutive rejections, status
+/// bits, the rejected-fix history and the NIS monitor (robust gating); a forced fix counts as
+/// accepted (the caller then re-initialises from the fixes). Not generic over the state
+/// dimension: one instance whatever the filter sizes a binary carries (flash).
+#[inline(never)]
+fn note_gnss_outcome(
+    b: GnssBook<'_>,
+    gating: &crate::config::Gating,
+    mut out: UpdateOutcome,
+    zp: &[f64; 3],
+    rp: &[f64; 3],
+) -> UpdateOutcome {
+    *b.status &= !(STATUS_LAST_FIX_REJECTED | STATUS_LAST_FIX_DOWNWEIGHTED | STATUS_RESET);
+    if out.accepted {
+        b.counters.gnss_accepted = b.counters.gnss_accepted.saturating_add(1);
+        *b.consecutive_rejections = 0;
+        b.gate.last_rejected = None;
+        b.gate.earlier_rejected = None;
+        *b.status &= !STATUS_NO_FIX_YET;
+        if out.weight < 1.0 {
+            *b.status |= STATUS_LAST_FIX_DOWNWEIGHTED;
+            b.gate.stats.downweighted = b.gate.stats.downweighted.saturating_add(1);
+        }
+    } else if !out.forced {
+        b.counters.gnss_rejected = b.counters.gnss_rejected.saturating_add(1);
+        *b.consecutive_rejections = b.consecutive_rejections.saturating_add(1);
+        *b.status |= STATUS_LAST_FIX_REJECTED;
+        b.gate.earlier_rejected = b.gate.last_rejected;
+        b.gate.last_rejected = Some(RejectedFix {
+            t_s: out.t_s,
+            z_pos_m: *zp,
+            var_pos_m2: *rp,
+        });
+    }
+    if let Some(r) = gating.robust {
+        let ends_gap = out.forced || (out.accepted && b.gate.last_within_normal_gate);
+        b.gate.note_fix(out.t_s, ends_gap);
+        if out.dim > 0 {
+            let rejected = !out.accepted && !out.forced;
+            let base = if out.dim == 3 {
+                gating.nis_threshold_pos
+            } else {
+                gating.nis_threshold_pos_vel
+            };
+            let grow = if out.accepted && !out.forced {
+                r.growth_per_fix * out.nis / base
+            } else {
+                0.0
+            };
+            b.gate
+                .monitor(&r, out.t_s, out.nis / out.dim as f64, rejected, grow);
+        }
+        if b.gate.stats.mismatch {
+            *b.status |= STATUS_MODEL_MISMATCH;
+        } else {
+            *b.status &= !STATUS_MODEL_MISMATCH;
+        }
+    }
+    if out.forced {
+        // the caller re-initialises position and velocity from the fixes (it reads none of
+        // the counters, status bits or rejection count set here)
+        b.counters.gnss_accepted = b.counters.gnss_accepted.saturating_add(1);
+        b.counters.gnss_forced = b.counters.gnss_forced.saturating_add(1);
+        *b.consecutive_rejections = 0;
+        *b.status &= !STATUS_NO_FIX_YET;
+        *b.status |= STATUS_RESET;
+        out.accepted = true;
+    }
+    out
 }
 
 /// Largest interval between the previous rejected fix and the fix that re-initialises the

@@ -462,52 +462,48 @@ impl Block {
 
     /// Adds the block's columns (at `off`) of the GNSS measurement Jacobians: `h_pos` (antenna
     /// position, 3 rows) and `h_vel` (antenna velocity, 3 rows). Measurement = predicted -
-    /// measured, so `z = H dx + noise` with dx = estimate - truth.
-    pub fn gnss_jacobian<T: Scalar, const N: usize>(
+    /// measured, so `z = H dx + noise` with dx = estimate - truth. The rows are [`Rows3`] views
+    /// (runtime column count): one instance per scalar type whatever the state dimension.
+    pub fn gnss_jacobian<T: Scalar>(
         self,
         off: usize,
         ctx: &MeasContext,
-        h_pos: &mut [[T; N]; 3],
-        h_vel: &mut [[T; N]; 3],
+        h_pos: &mut Rows3<'_, T>,
+        h_vel: &mut Rows3<'_, T>,
     ) {
         match self {
             Self::Core => {
                 // p_ant = r + C l: dz = dr + [(C l) x] phi
-                set3(h_pos, 0, off + IDX_ATT, &to_t(&skew(&ctx.c_l)));
-                set3(h_pos, 0, off + IDX_POS, &to_t(&IDENTITY3));
+                h_pos.set_block(off + IDX_ATT, &to_t(&skew(&ctx.c_l)));
+                h_pos.set_block(off + IDX_POS, &to_t(&IDENTITY3));
                 // v_ant = v + C (w x l) - w_in x (C l): dz = dv + [(C (w x l)) x] phi
                 //   + C [l x] dw_gyro (w_in x terms neglected, < 1e-4 of the rest)
-                set3(h_vel, 0, off + IDX_ATT, &to_t(&skew(&ctx.c_w_x_l)));
-                set3(h_vel, 0, off + IDX_VEL, &to_t(&IDENTITY3));
+                h_vel.set_block(off + IDX_ATT, &to_t(&skew(&ctx.c_w_x_l)));
+                h_vel.set_block(off + IDX_VEL, &to_t(&IDENTITY3));
             }
             // dw = -db  =>  dz_vel = -C [l x] db ... sign: C (dw x l) = -C [l x] dw = C [l x] db
             Self::GyroBias(m) => {
                 for g in 0..m.dim() / 3 {
-                    set3(h_vel, 0, off + 3 * g, &to_t(&ctx.c_lx));
+                    h_vel.set_block(off + 3 * g, &to_t(&ctx.c_lx));
                 }
             }
             // dw = -diag(w) ds  =>  dz_vel = C [l x] diag(w) ds
             Self::GyroScaleFactor => {
-                set3(
-                    h_vel,
-                    0,
-                    off,
-                    &to_t(&mul_diag3(&ctx.c_lx, &ctx.omega_b_radps)),
-                );
+                h_vel.set_block(off, &to_t(&mul_diag3(&ctx.c_lx, &ctx.omega_b_radps)));
             }
             // dw = -J(w) dm  =>  dz_vel = C [l x] J(w) dm
             Self::GyroMisalignment => {
                 let m = effects::c_mis(&ctx.c_lx, &ctx.omega_b_radps);
-                effects::set_block(h_vel, 0, off, &m.map(|r| r.map(T::of_f64)));
+                h_vel.set_block(off, &m.map(|r| r.map(T::of_f64)));
             }
             // dw = -dT dk  =>  dz_vel = C [l x] dT dk
             Self::GyroTemperatureBias => {
                 let d_t = effects::temperature_regressor(ctx.temperature_offset_c);
-                set3(h_vel, 0, off, &to_t(&scale3(&ctx.c_lx, d_t)));
+                h_vel.set_block(off, &to_t(&scale3(&ctx.c_lx, d_t)));
             }
             // dw = -diag(f) dg  =>  dz_vel = C [l x] diag(f) dg
             Self::GyroGSensitivity => {
-                set3(h_vel, 0, off, &to_t(&mul_diag3(&ctx.c_lx, &ctx.f_b_mps2)));
+                h_vel.set_block(off, &to_t(&mul_diag3(&ctx.c_lx, &ctx.f_b_mps2)));
             }
             // p_ant = r + C (l + dl) (+ v_ant bridge): dz_pos = (C + bridge C [w x]) dl;
             // v_ant = v + C (w x (l + dl)) - w_in x (C (l + dl)): dz_vel = (C [w x] - [w_in x] C) dl
@@ -519,7 +515,7 @@ impl Block {
                         *a += ctx.lever_bridge_s * *b;
                     }
                 }
-                set3(h_pos, 0, off, &to_t(&hp));
+                h_pos.set_block(off, &to_t(&hp));
                 let win_c = effects::mul3(&skew(&ctx.w_in_ned_radps), &ctx.c_nb);
                 let mut hv = c_wx;
                 for (r, w) in hv.iter_mut().zip(&win_c) {
@@ -527,7 +523,7 @@ impl Block {
                         *a -= *b;
                     }
                 }
-                set3(h_vel, 0, off, &to_t(&hv));
+                h_vel.set_block(off, &to_t(&hv));
             }
             // predicted antenna at t_fix + dt_hat: dz_pos = v_ant d(dt), dz_vel = a d(dt); the
             // bridge tau = t_fix + dt_hat - t also multiplies the velocity error, and the
@@ -544,19 +540,19 @@ impl Block {
                         *v = t * *f;
                     }
                 }
-                add3(h_pos, 0, IDX_ATT, &to_t(&hp));
-                add3(h_vel, 0, IDX_ATT, &to_t(&hv));
-                for (k, row) in h_pos.iter_mut().enumerate() {
-                    if let Some(x) = row.get_mut(off) {
-                        *x = T::of_f64(ctx.v_ant_ned_mps.get(k).copied().unwrap_or(0.0));
+                h_pos.add_block(IDX_ATT, &to_t(&hp));
+                h_vel.add_block(IDX_ATT, &to_t(&hv));
+                for (k, v) in ctx.v_ant_ned_mps.iter().enumerate() {
+                    if let Some(x) = h_pos.get_mut(k, off) {
+                        *x = T::of_f64(*v);
                     }
-                    if let Some(x) = row.get_mut(IDX_VEL + k) {
+                    if let Some(x) = h_pos.get_mut(k, IDX_VEL + k) {
                         *x = T::of_f64(ctx.bridge_s);
                     }
                 }
-                for (k, row) in h_vel.iter_mut().enumerate() {
-                    if let Some(x) = row.get_mut(off) {
-                        *x = T::of_f64(ctx.acc_ned_mps2.get(k).copied().unwrap_or(0.0));
+                for (k, a) in ctx.acc_ned_mps2.iter().enumerate() {
+                    if let Some(x) = h_vel.get_mut(k, off) {
+                        *x = T::of_f64(*a);
                     }
                 }
             }

@@ -48,20 +48,6 @@ pub fn add_block<T: Scalar, const R: usize, const C: usize, const K: usize>(
     }
 }
 
-/// Writes the 3 x K `m` into `dst` at (row0, col0); entries outside `dst` are ignored.
-pub fn set_block<T: Scalar, const R: usize, const C: usize, const K: usize>(
-    dst: &mut [[T; C]; R],
-    row0: usize,
-    col0: usize,
-    m: &[[T; K]; 3],
-) {
-    for (d_row, m_row) in dst.iter_mut().skip(row0).zip(m) {
-        for (d, v) in d_row.iter_mut().skip(col0).zip(m_row) {
-            *d = *v;
-        }
-    }
-}
-
 /// The temperature regressor `T - T_ref` (degC), zero when it is not finite (no temperature
 /// in the sample, or no reference yet).
 pub fn temperature_regressor<T: Scalar>(d_t: T) -> T {

@@ -140,6 +140,64 @@ pub(crate) fn set3<T: Scalar, const R: usize, const C: usize>(
     }
 }
 
+/// Three rows of a measurement Jacobian (`[[T; N]; 3]`, row-major) seen as one slice with the
+/// number of columns a runtime value: code that fills Jacobian columns through it is one
+/// instance per scalar type whatever the state dimension N (flash: a binary may carry several
+/// filter sizes). Writes outside the rows or columns are ignored.
+pub struct Rows3<'a, T> {
+    data: &'a mut [T],
+    cols: usize,
+}
+
+impl<'a, T: Scalar> Rows3<'a, T> {
+    /// The view of `m` (3 rows of N columns).
+    pub fn new<const N: usize>(m: &'a mut [[T; N]; 3]) -> Self {
+        Self {
+            data: m.as_flattened_mut(),
+            cols: N,
+        }
+    }
+
+    /// Number of columns (the state dimension).
+    pub fn cols(&self) -> usize {
+        self.cols
+    }
+
+    /// Entry (row `r`, column `c`), or None outside the rows or columns.
+    pub fn get_mut(&mut self, r: usize, c: usize) -> Option<&mut T> {
+        if c >= self.cols {
+            return None;
+        }
+        // r < 3 and c < cols: r * cols + c < data.len() = 3 cols (no overflow)
+        if r >= 3 {
+            return None;
+        }
+        self.data.get_mut(r * self.cols + c)
+    }
+
+    /// Writes the 3 x K `m` at column `col0` (rows 0..3).
+    pub fn set_block<const K: usize>(&mut self, col0: usize, m: &[[T; K]; 3]) {
+        for (r, m_row) in m.iter().enumerate() {
+            for (k, v) in m_row.iter().enumerate() {
+                if let Some(d) = self.get_mut(r, col0 + k) {
+                    *d = *v;
+                }
+            }
+        }
+    }
+
+    /// Adds the 3 x K `m` at column `col0` (rows 0..3).
+    pub fn add_block<const K: usize>(&mut self, col0: usize, m: &[[T; K]; 3]) {
+        for (r, m_row) in m.iter().enumerate() {
+            for (k, v) in m_row.iter().enumerate() {
+                if let Some(d) = self.get_mut(r, col0 + k) {
+                    *d += *v;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -356,5 +414,31 @@ mod tests {
             let v: f64 = (0..3).map(|j| s[i][j] * b[j]).sum();
             assert!((v - c[i]).abs() < 1e-15);
         }
+    }
+
+    #[test]
+    fn rows3_writes_like_set3_and_add3_and_ignores_outside_columns() {
+        let m = [[1.0f32, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0]];
+        // blocks at 1 (inside) and at 3 (two of three columns outside a 4-column matrix)
+        for col0 in [1usize, 3] {
+            let mut a = [[0.5f32; 4]; 3];
+            let mut b = a;
+            set3(&mut a, 0, col0, &m);
+            add3(&mut a, 0, col0, &m);
+            let mut v = Rows3::new(&mut b);
+            assert_eq!(v.cols(), 4);
+            v.set_block(col0, &m);
+            v.add_block(col0, &m);
+            assert_eq!(a, b, "block at column {col0}");
+        }
+        let mut c = [[0.0f32; 4]; 3];
+        let mut v = Rows3::new(&mut c);
+        assert!(v.get_mut(3, 0).is_none());
+        assert!(v.get_mut(0, 4).is_none());
+        if let Some(x) = v.get_mut(2, 3) {
+            *x = 7.0;
+        }
+        assert_eq!(c[2][3], 7.0);
+        assert_eq!(c.iter().flatten().filter(|x| **x != 0.0).count(), 1);
     }
 }
