@@ -63,9 +63,15 @@ impl LineBuf {
         Ok(())
     }
 
-    /// Appends `x` as `Display` writes it (formatted in place: the line is flushed to `w`
-    /// first when fewer than [`FAST_MAX`] bytes are free).
-    pub fn push_f64<W: Write + ?Sized>(&mut self, w: &mut W, x: f64) -> std::io::Result<()> {
+    /// Appends what `fast` writes, formatted in place (the line is flushed to `w` first when
+    /// fewer than [`FAST_MAX`] bytes are free); when `fast` declines (`None`), the line is
+    /// flushed and `slow` writes to `w`.
+    fn push_with<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        fast: impl FnOnce(&mut [u8; FAST_MAX]) -> Option<usize>,
+        slow: impl FnOnce(&mut W) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
         if self.len + FAST_MAX > self.buf.len() {
             self.flush(w)?;
         }
@@ -73,12 +79,17 @@ impl LineBuf {
             .buf
             .get_mut(self.len..self.len + FAST_MAX)
             .and_then(|d| <&mut [u8; FAST_MAX]>::try_from(d).ok());
-        if let Some(n) = dst.and_then(|d| display_f64(x, d)) {
+        if let Some(n) = dst.and_then(fast) {
             self.len += n;
             return Ok(());
         }
         self.flush(w)?;
-        write!(w, "{x}")
+        slow(w)
+    }
+
+    /// Appends `x` as `Display` writes it.
+    pub fn push_f64<W: Write + ?Sized>(&mut self, w: &mut W, x: f64) -> std::io::Result<()> {
+        self.push_with(w, |d| display_f64(x, d), |w| write!(w, "{x}"))
     }
 
     /// Appends an unsigned integer.
@@ -107,14 +118,7 @@ impl LineBuf {
         x: f64,
         prec: usize,
     ) -> std::io::Result<()> {
-        let mut tmp = [0u8; FAST_MAX];
-        match fixed_f64(x, prec, &mut tmp) {
-            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
-            None => {
-                self.flush(w)?;
-                write!(w, "{x:.prec$}")
-            }
-        }
+        self.push_with(w, |d| fixed_f64(x, prec, d), |w| write!(w, "{x:.prec$}"))
     }
 
     /// Appends `x` as `format!("{x:.prec$e}")` writes it (`prec + 1` significant digits,
@@ -125,14 +129,7 @@ impl LineBuf {
         x: f64,
         prec: usize,
     ) -> std::io::Result<()> {
-        let mut tmp = [0u8; FAST_MAX];
-        match exp_f64(x, prec, &mut tmp) {
-            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
-            None => {
-                self.flush(w)?;
-                write!(w, "{x:.prec$e}")
-            }
-        }
+        self.push_with(w, |d| exp_f64(x, prec, d), |w| write!(w, "{x:.prec$e}"))
     }
 
     /// Writes the buffered bytes to `w`.

@@ -39,6 +39,96 @@ struct Out {
     cut: Option<u64>,
 }
 
+/// Bytes of `nav.txt` between two early write-backs ([`Syncer`]).
+const SYNC_EVERY_BYTES: u64 = 16 << 20;
+
+/// Starts the disk write-back of a file while it is being written: a thread of its own
+/// calls `sync_data` on a clone of the handle each time it is asked (at most one request
+/// waiting, further ones dropped while it is busy), so the final `sync_all` before the
+/// rename only has the last part to write instead of the whole file. The thread only waits
+/// on the disk; the data written and the final `sync_all` are unchanged.
+struct Syncer {
+    tx: Option<SyncSender<()>>,
+    thread: Option<JoinHandle<()>>,
+    next_at: u64,
+}
+
+impl Syncer {
+    /// For `f` (a failed clone or thread start leaves the write-back to the final sync).
+    fn new(f: &File) -> Self {
+        let mut s = Self {
+            tx: None,
+            thread: None,
+            next_at: SYNC_EVERY_BYTES,
+        };
+        if let Ok(f) = f.try_clone() {
+            let (tx, rx) = sync_channel::<()>(1);
+            if let Ok(h) = std::thread::Builder::new()
+                .name("run-sync".into())
+                .spawn(move || {
+                    for () in rx {
+                        // an error here shows again at the final sync_all, which reports it
+                        let _ = f.sync_data();
+                    }
+                })
+            {
+                s.tx = Some(tx);
+                s.thread = Some(h);
+            }
+        }
+        s
+    }
+
+    /// Asks for a write-back when `written` bytes have gone out since the last request.
+    fn poke(&mut self, written: u64) {
+        if written >= self.next_at {
+            self.next_at = written + SYNC_EVERY_BYTES;
+            if let Some(tx) = &self.tx {
+                let _ = tx.try_send(());
+            }
+        }
+    }
+
+    /// Stops the thread (after its current write-back).
+    fn stop(&mut self) {
+        self.tx = None;
+        if let Some(h) = self.thread.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for Syncer {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// A writer that counts the bytes that went through it (a line formatted straight into the
+/// file's buffer, no intermediate line vector).
+struct Counted<'a, W: Write> {
+    w: &'a mut W,
+    n: &'a mut u64,
+}
+
+impl<W: Write> Write for Counted<'_, W> {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        let k = self.w.write(b)?;
+        *self.n += k as u64;
+        Ok(k)
+    }
+
+    fn write_all(&mut self, b: &[u8]) -> std::io::Result<()> {
+        self.w.write_all(b)?;
+        *self.n += b.len() as u64;
+        Ok(())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.w.flush()
+    }
+}
+
 impl Out {
     fn create(path: PathBuf) -> Result<Self, RunError> {
         let f = File::create(&path).map_err(|source| {
@@ -99,6 +189,8 @@ enum Rec {
 struct Writer {
     week: u16,
     nav: Out,
+    /// Early write-back of `nav.txt` (the big one).
+    nav_sync: Syncer,
     std: Out,
     bias: Out,
     inn: Out,
@@ -111,7 +203,7 @@ impl Writer {
         let mut l = std::mem::take(&mut self.line);
         l.clear();
         let res = match r {
-            Rec::Nav(s) => self.nav_line(&mut l, &s),
+            Rec::Nav(s) => self.nav_line(&s),
             Rec::Epoch(e) => self.epoch_lines(&mut l, &e),
             Rec::Inn(i) => output::innovation_line(&mut l, &i)
                 .map_err(|e| self.inn.err(e))
@@ -122,19 +214,21 @@ impl Writer {
         res
     }
 
-    fn nav_line(&mut self, l: &mut Vec<u8>, s: &NavSolution) -> Result<(), RunError> {
+    fn nav_line(&mut self, s: &NavSolution) -> Result<(), RunError> {
         if self.nav.cut.is_none() && !solution_is_finite(s) {
             self.nav.cut = Some(self.nav.n);
         }
-        nav_io::write_nav_line(
-            l,
+        let Out { w, n, .. } = &mut self.nav;
+        let r = nav_io::write_nav_line(
+            &mut Counted { w, n },
             &NavSolution {
                 week: self.week,
                 ..*s
             },
-        )
-        .map_err(|e| self.nav.err(e))?;
-        self.nav.write(l)
+        );
+        r.map_err(|e| self.nav.err(e))?;
+        self.nav_sync.poke(self.nav.n);
+        Ok(())
     }
 
     fn epoch_lines(&mut self, l: &mut Vec<u8>, r: &EpochRecord) -> Result<(), RunError> {
@@ -217,9 +311,12 @@ impl<'a> FileSink<'a> {
         let mut head = Vec::new();
         output::innovations_header(&mut head).map_err(|e| inn.err(e))?;
         inn.write(&head)?;
+        let nav = Out::create(p_nav)?;
+        let nav_sync = Syncer::new(nav.w.get_ref());
         let mut w = Writer {
             week,
-            nav: Out::create(p_nav)?,
+            nav,
+            nav_sync,
             std: Out::create(p_std)?,
             bias: Out::create(p_bias)?,
             inn,
@@ -342,6 +439,8 @@ impl<'a> FileSink<'a> {
             },
         );
         let cut = fault.is_some();
+        let mut w = w;
+        w.nav_sync.stop();
         let mut bias = w.bias;
         if !w.bias_head {
             let mut h = Vec::new();
