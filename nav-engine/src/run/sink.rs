@@ -508,24 +508,39 @@ impl<'a> FileSink<'a> {
             output::bias_header(&mut h, None).map_err(|e| bias.err(e))?;
             bias.write(&h)?;
         }
-        let mut paths = vec![
-            w.nav.finish(cut)?,
-            w.std.finish(cut)?,
-            bias.finish(cut)?,
-            w.inn.finish(false)?,
-        ];
+        // the four files flushed, cut and synced to disk at the same time (one thread each;
+        // the disk waits overlap), metrics.json written meanwhile; errors reported in the
+        // order of the files, as one after the other would
         let p_met = output::partial_path(&self.dir, "metrics.json");
-        let text = json(&m)?;
-        std::fs::write(&p_met, text).map_err(|source| IoError::Write {
-            path: p_met.clone(),
-            source,
-        })?;
-        File::open(&p_met)
-            .and_then(|f| f.sync_all())
-            .map_err(|source| IoError::Write {
-                path: p_met.clone(),
-                source,
-            })?;
+        let outs = [(w.nav, cut), (w.std, cut), (bias, cut), (w.inn, false)];
+        let (finished, met) = std::thread::scope(|sc| {
+            let handles = outs.map(|(o, c)| sc.spawn(move || o.finish(c)));
+            let met = json(&m).and_then(|text| {
+                std::fs::write(&p_met, text)
+                    .and_then(|()| File::open(&p_met))
+                    .and_then(|f| f.sync_all())
+                    .map_err(|source| {
+                        anyhow::Error::from(IoError::Write {
+                            path: p_met.clone(),
+                            source,
+                        })
+                    })
+            });
+            let finished = handles.map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(RunError::Output(IoError::Write {
+                        path: self.dir.clone(),
+                        source: std::io::Error::other("finishing an output file failed"),
+                    }))
+                })
+            });
+            (finished, met)
+        });
+        let mut paths = Vec::with_capacity(5);
+        for f in finished {
+            paths.push(f?);
+        }
+        met?;
         paths.push(p_met);
         self.remover.join();
         if fault.is_none() {
