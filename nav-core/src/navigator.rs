@@ -613,17 +613,23 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
             return Ok(());
         };
         let dt = s.t_s - filter.nav_state().t_s;
-        let c = match guard.check(s)? {
-            Verdict::Use(c) => c,
-            Verdict::Reject(why) => {
+        // matched by reference: the verdict (about 300 bytes) is not copied out of its
+        // result, and the fill is copied (to iterate it) only when there is one
+        let verdict = guard.check(s);
+        let c = match &verdict {
+            Ok(Verdict::Use(c)) => c,
+            Ok(Verdict::Reject(why)) => {
                 self.counters.imu_implausible += 1;
-                step.imu = ImuEvent::Rejected(why);
+                step.imu = ImuEvent::Rejected(*why);
                 return Ok(());
             }
+            Err(e) => return Err((*e).into()),
         };
         let filled = c.fill.len();
-        for f in c.fill {
-            filter.propagate_observed(&f, &mut hooks.observer())?;
+        if filled > 0 {
+            for f in c.fill {
+                filter.propagate_observed(&f, &mut hooks.observer())?;
+            }
         }
         filter.widen_for_fill(&c.fill.uncertainty());
         let r = filter.propagate_observed(&c.sample, &mut hooks.observer());
