@@ -297,6 +297,17 @@ pub struct ImuStep<const Q: usize> {
     pub imu: ImuEvent,
 }
 
+impl<const Q: usize> Default for ImuStep<Q> {
+    /// No fixes, not aligned, [`ImuEvent::Aligning`] (what a call starts from).
+    fn default() -> Self {
+        Self {
+            fixes: FixEvents::new(),
+            aligned: None,
+            imu: ImuEvent::Aligning,
+        }
+    }
+}
+
 /// What happened to a pushed GNSS fix.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -548,20 +559,33 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         s: &ImuSample,
         hooks: &mut H,
     ) -> Result<ImuStep<Q>, NavigatorError> {
-        let mut step = ImuStep {
-            fixes: FixEvents::new(),
-            aligned: None,
-            imu: ImuEvent::Aligning,
-        };
+        let mut step = ImuStep::default();
+        self.push_imu_into(s, hooks, &mut step)?;
+        Ok(step)
+    }
+
+    /// [`Self::push_imu_with`] writing its account into `step` (cleared first) instead of
+    /// returning it, for a caller that keeps one account across samples: the account holds
+    /// room for `Q` fix outcomes (about 19.5 KB for `Q` = 128), which a return by value
+    /// copies on every sample. After an error, `step` holds what happened before it.
+    pub fn push_imu_into<H: NavHooks<T, N>>(
+        &mut self,
+        s: &ImuSample,
+        hooks: &mut H,
+        step: &mut ImuStep<Q>,
+    ) -> Result<(), NavigatorError> {
+        step.fixes.clear();
+        step.aligned = None;
+        step.imu = ImuEvent::Aligning;
         if self.filter.is_none() {
-            self.align_with(s, &mut step);
+            self.align_with(s, step);
             if self.filter.is_none() || step.aligned.is_none() {
-                return Ok(step);
+                return Ok(());
             }
         }
         self.apply_due(s.t_s, &mut step.fixes, hooks);
         let Some(t0) = self.filter.as_ref().map(|f| f.nav_state().t_s) else {
-            return Ok(step);
+            return Ok(());
         };
         if self.guard.is_none() {
             if s.t_s <= t0 {
@@ -569,25 +593,31 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
                 self.remember(s);
                 self.counters.imu_before_start += 1;
                 step.imu = ImuEvent::BeforeStart;
-                return Ok(step);
+                return Ok(());
             }
             self.make_guard(t0)?;
         }
         let (Some(guard), Some(filter)) = (self.guard.as_mut(), self.filter.as_mut()) else {
-            return Ok(step);
+            return Ok(());
         };
         let dt = s.t_s - filter.nav_state().t_s;
-        let c = match guard.check(s)? {
-            Verdict::Use(c) => c,
-            Verdict::Reject(why) => {
+        // matched by reference: the verdict (about 300 bytes) is not copied out of its
+        // result, and the fill is copied (to iterate it) only when there is one
+        let verdict = guard.check(s);
+        let c = match &verdict {
+            Ok(Verdict::Use(c)) => c,
+            Ok(Verdict::Reject(why)) => {
                 self.counters.imu_implausible += 1;
-                step.imu = ImuEvent::Rejected(why);
-                return Ok(step);
+                step.imu = ImuEvent::Rejected(*why);
+                return Ok(());
             }
+            Err(e) => return Err((*e).into()),
         };
         let filled = c.fill.len();
-        for f in c.fill {
-            filter.propagate_observed(&f, &mut hooks.observer())?;
+        if filled > 0 {
+            for f in c.fill {
+                filter.propagate_observed(&f, &mut hooks.observer())?;
+            }
         }
         filter.widen_for_fill(&c.fill.uncertainty());
         let r = filter.propagate_observed(&c.sample, &mut hooks.observer());
@@ -596,7 +626,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
             Err(e @ FilterError::NonFiniteImu) => {
                 self.counters.imu_refused += 1;
                 step.imu = ImuEvent::Refused(e);
-                return Ok(step);
+                return Ok(());
             }
             Err(e) => return Err(e.into()),
         }
@@ -613,7 +643,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         } else {
             ImuEvent::Propagated
         };
-        Ok(step)
+        Ok(())
     }
 
     /// A sample before the filter runs: levelling or the static window.

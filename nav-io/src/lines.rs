@@ -16,12 +16,26 @@ use std::path::{Path, PathBuf};
 /// Longest accepted line, bytes; longer lines are reported as a format error (binary input).
 const MAX_LINE_BYTES: usize = 1 << 20;
 
+/// Bytes asked of the source per read (the buffer grows beyond it only for longer lines).
+const CHUNK_BYTES: usize = 1 << 17;
+
 /// A text file read line by line (gzip or plain), counting 1-based line numbers.
+///
+/// The bytes are read in chunks of [`CHUNK_BYTES`] into one buffer and the lines are found
+/// in it with `memchr` (no per-line read call, no copy of a line); a line's text is a slice
+/// of the buffer.
 pub struct LineReader {
     path: PathBuf,
-    inner: Box<dyn BufRead>,
+    inner: Box<dyn Read>,
     line: usize,
+    /// Read buffer: `buf[start..end]` is not yet consumed (its length is the allocation,
+    /// zeroed once).
     buf: Vec<u8>,
+    start: usize,
+    end: usize,
+    /// The current line (terminators removed): `buf[cur.0..cur.1]`.
+    cur: (usize, usize),
+    eof: bool,
 }
 
 /// Opens `path` for line reading; gzip is detected from the magic bytes `1f 8b`.
@@ -44,8 +58,8 @@ impl LineReader {
             source,
         })?;
         let gz = head.len() >= 2 && head[0] == 0x1f && head[1] == 0x8b;
-        let inner: Box<dyn BufRead> = if gz {
-            Box::new(BufReader::with_capacity(1 << 16, MultiGzDecoder::new(br)))
+        let inner: Box<dyn Read> = if gz {
+            Box::new(MultiGzDecoder::new(br))
         } else {
             Box::new(br)
         };
@@ -53,7 +67,11 @@ impl LineReader {
             path: name.to_path_buf(),
             inner,
             line: 0,
-            buf: Vec::with_capacity(256),
+            buf: vec![0; CHUNK_BYTES],
+            start: 0,
+            end: 0,
+            cur: (0, 0),
+            eof: false,
         })
     }
 
@@ -67,59 +85,128 @@ impl LineReader {
         self.line
     }
 
+    /// Reads more bytes after `end` (the unconsumed part moved to the front first; the buffer
+    /// doubled when that part fills it). Sets `eof` when the source is exhausted.
+    fn fill(&mut self) -> Result<(), IoError> {
+        if self.start > 0 {
+            self.buf.copy_within(self.start..self.end, 0);
+            self.end -= self.start;
+            self.start = 0;
+        }
+        if self.end == self.buf.len() {
+            let n = self.buf.len().max(CHUNK_BYTES);
+            self.buf.resize(2 * n, 0);
+        }
+        let dst = self.buf.get_mut(self.end..).unwrap_or(&mut []);
+        loop {
+            match self.inner.read(dst) {
+                Ok(0) => {
+                    self.eof = true;
+                    return Ok(());
+                }
+                Ok(n) => {
+                    self.end += n;
+                    return Ok(());
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(source) => {
+                    return Err(IoError::Read {
+                        path: self.path.clone(),
+                        line: self.line,
+                        source,
+                    })
+                }
+            }
+        }
+    }
+
+    /// Moves to the next line (its bytes in `cur`, terminators `\n` and trailing `\r`
+    /// removed); false at the end of the file. A line of more than [`MAX_LINE_BYTES`] bytes
+    /// (with its `\n`) is a format error.
+    pub(crate) fn advance(&mut self) -> Result<bool, IoError> {
+        self.line += 1;
+        let too_long = |s: &Self| IoError::Format {
+            path: s.path.clone(),
+            line: s.line,
+            message: format!("line longer than {MAX_LINE_BYTES} bytes (not a text file?)"),
+        };
+        let (a, mut b) = loop {
+            let avail = self.buf.get(self.start..self.end).unwrap_or(&[]);
+            if let Some(i) = memchr::memchr(b'\n', avail) {
+                if i + 1 > MAX_LINE_BYTES {
+                    return Err(too_long(self));
+                }
+                let a = self.start;
+                self.start = a + i + 1;
+                break (a, a + i);
+            }
+            if avail.len() > MAX_LINE_BYTES {
+                return Err(too_long(self));
+            }
+            if self.eof {
+                if avail.is_empty() {
+                    self.line -= 1;
+                    return Ok(false);
+                }
+                let a = self.start;
+                self.start = self.end;
+                break (a, self.end);
+            }
+            self.fill()?;
+        };
+        while b > a && matches!(self.buf.get(b - 1), Some(b'\r' | b'\n')) {
+            b -= 1;
+        }
+        self.cur = (a, b);
+        Ok(true)
+    }
+
+    /// The bytes of the current line (terminators removed).
+    pub(crate) fn current_bytes(&self) -> &[u8] {
+        self.buf.get(self.cur.0..self.cur.1).unwrap_or(&[])
+    }
+
+    /// The current line as text (an error when it is not UTF-8).
+    fn current_str(&self) -> Result<&str, IoError> {
+        std::str::from_utf8(self.current_bytes()).map_err(|_| IoError::NotText {
+            path: self.path.clone(),
+            line: self.line,
+        })
+    }
+
+    /// The current line split into fields, or `None` when it is blank or a comment (see
+    /// [`LineReader::next_data`]); an error when it is not UTF-8.
+    pub(crate) fn current_data(&self) -> Result<Option<DataLine<'_>>, IoError> {
+        let text = self.current_str()?;
+        if is_skippable(text) {
+            return Ok(None);
+        }
+        Ok(Some(DataLine::new(&self.path, self.line, text)))
+    }
+
     /// The next line, whatever it holds (line terminator removed), with its 1-based number;
     /// `None` at the end of the file.
     pub fn next_raw(&mut self) -> Result<Option<(usize, &str)>, IoError> {
-        self.buf.clear();
-        self.line += 1;
-        let n = (&mut self.inner)
-            .take(MAX_LINE_BYTES as u64 + 1)
-            .read_until(b'\n', &mut self.buf)
-            .map_err(|source| IoError::Read {
-                path: self.path.clone(),
-                line: self.line,
-                source,
-            })?;
-        if n == 0 {
-            self.line -= 1;
+        if !self.advance()? {
             return Ok(None);
         }
-        if self.buf.len() > MAX_LINE_BYTES {
-            return Err(IoError::Format {
-                path: self.path.clone(),
-                line: self.line,
-                message: format!("line longer than {MAX_LINE_BYTES} bytes (not a text file?)"),
-            });
-        }
-        while matches!(self.buf.last(), Some(b'\n' | b'\r')) {
-            self.buf.pop();
-        }
-        match std::str::from_utf8(&self.buf) {
-            Ok(s) => Ok(Some((self.line, s))),
-            Err(_) => Err(IoError::NotText {
-                path: self.path.clone(),
-                line: self.line,
-            }),
-        }
+        Ok(Some((self.line, self.current_str()?)))
     }
 
     /// The next data line: blank lines and comment lines (first non-blank character `#` or
     /// `%`) are skipped. `None` at the end of the file.
     pub fn next_data(&mut self) -> Result<Option<DataLine<'_>>, IoError> {
         loop {
-            match self.next_raw()? {
-                None => return Ok(None),
-                Some((_, t)) if is_skippable(t) => continue,
-                Some(_) => break,
+            if !self.advance()? {
+                return Ok(None);
+            }
+            if !is_skippable(self.current_str()?) {
+                break;
             }
         }
-        // The line was validated as UTF-8 by `next_raw`; validate again rather than keep an
+        // The line was validated as UTF-8 above; validate again rather than keep an
         // unsafe unchecked conversion (a few ns per line).
-        let text = std::str::from_utf8(&self.buf).map_err(|_| IoError::NotText {
-            path: self.path.clone(),
-            line: self.line,
-        })?;
-        Ok(Some(DataLine::new(&self.path, self.line, text)))
+        self.current_data()
     }
 }
 
@@ -434,6 +521,19 @@ pub(crate) struct MonotonicTime {
 impl MonotonicTime {
     pub(crate) fn new() -> Self {
         Self { prev: None }
+    }
+
+    /// Whether `t_s` (of line `line`) is after the previous time; if so it becomes the
+    /// previous time (as [`MonotonicTime::check`] does), otherwise nothing changes (the
+    /// caller reports the error with `check`).
+    pub(crate) fn accept(&mut self, line: usize, t_s: f64) -> bool {
+        if let Some((p, _)) = self.prev {
+            if t_s <= p {
+                return false;
+            }
+        }
+        self.prev = Some((t_s, line));
+        true
     }
 
     /// Checks `t_s` (on `dl`'s line, column `idx` 0-based) is after the previous time.

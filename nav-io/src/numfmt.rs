@@ -63,16 +63,33 @@ impl LineBuf {
         Ok(())
     }
 
+    /// Appends what `fast` writes, formatted in place (the line is flushed to `w` first when
+    /// fewer than [`FAST_MAX`] bytes are free); when `fast` declines (`None`), the line is
+    /// flushed and `slow` writes to `w`.
+    fn push_with<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        fast: impl FnOnce(&mut [u8; FAST_MAX]) -> Option<usize>,
+        slow: impl FnOnce(&mut W) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        if self.len + FAST_MAX > self.buf.len() {
+            self.flush(w)?;
+        }
+        let dst = self
+            .buf
+            .get_mut(self.len..self.len + FAST_MAX)
+            .and_then(|d| <&mut [u8; FAST_MAX]>::try_from(d).ok());
+        if let Some(n) = dst.and_then(fast) {
+            self.len += n;
+            return Ok(());
+        }
+        self.flush(w)?;
+        slow(w)
+    }
+
     /// Appends `x` as `Display` writes it.
     pub fn push_f64<W: Write + ?Sized>(&mut self, w: &mut W, x: f64) -> std::io::Result<()> {
-        let mut tmp = [0u8; FAST_MAX];
-        match display_f64(x, &mut tmp) {
-            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
-            None => {
-                self.flush(w)?;
-                write!(w, "{x}")
-            }
-        }
+        self.push_with(w, |d| display_f64(x, d), |w| write!(w, "{x}"))
     }
 
     /// Appends an unsigned integer.
@@ -101,14 +118,7 @@ impl LineBuf {
         x: f64,
         prec: usize,
     ) -> std::io::Result<()> {
-        let mut tmp = [0u8; FAST_MAX];
-        match fixed_f64(x, prec, &mut tmp) {
-            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
-            None => {
-                self.flush(w)?;
-                write!(w, "{x:.prec$}")
-            }
-        }
+        self.push_with(w, |d| fixed_f64(x, prec, d), |w| write!(w, "{x:.prec$}"))
     }
 
     /// Appends `x` as `format!("{x:.prec$e}")` writes it (`prec + 1` significant digits,
@@ -119,14 +129,7 @@ impl LineBuf {
         x: f64,
         prec: usize,
     ) -> std::io::Result<()> {
-        let mut tmp = [0u8; FAST_MAX];
-        match exp_f64(x, prec, &mut tmp) {
-            Some(n) => self.push_bytes(w, tmp.get(..n).unwrap_or(&[])),
-            None => {
-                self.flush(w)?;
-                write!(w, "{x:.prec$e}")
-            }
-        }
+        self.push_with(w, |d| exp_f64(x, prec, d), |w| write!(w, "{x:.prec$e}"))
     }
 
     /// Writes the buffered bytes to `w`.
@@ -195,8 +198,12 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     let s = rb.format_finite(x).as_bytes();
     // Within its positional range zmij writes what `Display` does, except that an integer
     // gets ".0" ("12.0" where `Display` writes "12"); outside it, an exponent.
-    // an exponent ("e-7", "e16", "e-308") is within the last 5 bytes: no memchr call
-    if !s.iter().rev().take(5).any(|&c| c == b'e') {
+    // zmij writes positionally when the decimal exponent of the shortest digits is in
+    // -5..=15, so for 1e-4 <= |x| < 1e15 (exponent -4..=15 whatever the digits) there is no
+    // exponent to look for; otherwise an exponent ("e-7", "e16", "e-308") is within the last
+    // 5 bytes: no memchr call
+    let ax = x.abs();
+    if (1e-4..1e15).contains(&ax) || !s.iter().rev().take(5).any(|&c| c == b'e') {
         let s = s.strip_suffix(b".0").unwrap_or(s);
         out.get_mut(..s.len())?.copy_from_slice(s);
         return Some(s.len());

@@ -302,13 +302,69 @@ impl ImuTextReader {
     }
 
     fn read(&mut self) -> Result<Option<(ImuSample, usize)>, IoError> {
-        let Some(dl) = self.rd.next_data()? else {
-            return Ok(None);
-        };
-        let s = parse_imu_line(&dl)?;
-        self.mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
-        Ok(Some((s, dl.line)))
+        loop {
+            if !self.rd.advance()? {
+                return Ok(None);
+            }
+            let line = self.rd.line_number();
+            // the common line: parsed in one pass over its bytes
+            if let Some(s) = parse_imu_fast(self.rd.current_bytes()) {
+                if self.mono.accept(line, s.t_s) {
+                    return Ok(Some((s, line)));
+                }
+            }
+            // anything else (comments, errors, other spellings): the general parser on the
+            // same line, which gives the same values and the errors with their columns
+            if let Some(dl) = self.rd.current_data()? {
+                let s = parse_imu_line(&dl)?;
+                self.mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
+                return Ok(Some((s, line)));
+            }
+        }
     }
+}
+
+/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
+/// `fast-float2` (no field list, no UTF-8 check: every accepted byte is ASCII), or `None`
+/// when the line is anything else (blank, comment, comma-separated, non-ASCII, a field that
+/// is not a plain finite number, too few or too many fields). What it accepts, it reads to
+/// the bits [`parse_imu_line`] gives (both parse a plain number with `fast-float2`, see
+/// [`super::lines::parse_f64`]); everything else goes to [`parse_imu_line`].
+fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
+    let mut v = [0.0f64; 8];
+    let mut n = 0usize;
+    let mut i = 0usize;
+    loop {
+        while b.get(i).is_some_and(u8::is_ascii_whitespace) {
+            i += 1;
+        }
+        let rest = b.get(i..)?;
+        if rest.is_empty() {
+            break;
+        }
+        // a finite result is a plain number ([+-] digits [. digits] [e [+-] digits]):
+        // `inf`/`nan` spellings give non-finite values and go to the general parser
+        let (x, used) = fast_float2::parse_partial::<f64, _>(rest).ok()?;
+        if used == 0 || !x.is_finite() {
+            return None;
+        }
+        i += used;
+        if b.get(i).is_some_and(|c| !c.is_ascii_whitespace()) {
+            return None;
+        }
+        *v.get_mut(n)? = x;
+        n += 1;
+    }
+    if n < 7 {
+        return None;
+    }
+    let [t_s, gx, gy, gz, ax, ay, az, temp] = v;
+    Some(ImuSample {
+        t_s,
+        dtheta_rad: [gx, gy, gz],
+        dv_mps: [ax, ay, az],
+        temperature_c: if n == 8 { temp } else { f64::NAN },
+    })
 }
 
 impl Iterator for ImuTextReader {

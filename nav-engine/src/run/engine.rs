@@ -599,6 +599,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     let mut done = 0usize;
     // fixes pushed to the navigator (it applies them at the nearest epoch)
     let mut gi = gi0;
+    let mut imu_step = nav_core::navigator::ImuStep::default();
     while let Some((k, it)) = feed.next()? {
         let s = it.sample;
         if s.t_s > end_s {
@@ -634,7 +635,10 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         let dt = nav.state().map_or(0.0, |st| s.t_s - st.t_s);
         hooks.raw = Some((s, next_t));
         hooks.next_index = k;
-        let step = nav.push_imu_with(&s, &mut hooks);
+        // one account kept across samples (no copy of its fix list per sample)
+        let step = nav
+            .push_imu_into(&s, &mut hooks, &mut imu_step)
+            .map(|()| imu_step.imu);
         // the coasters step on every sample (in the epoch call when there was one)
         hooks.step_coasters();
         if let Some(e) = hooks.err.take() {
@@ -645,7 +649,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             break;
         }
         match step {
-            Ok(step) => match step.imu {
+            Ok(imu) => match imu {
                 ImuEventNav::Rejected(why) if opts.imu_checks.stop_on_implausible => {
                     fault = Some((
                         feed.info.locate(k, it.line),
