@@ -3,9 +3,10 @@
 use nav_core::config::{ConfigError, FilterConfig};
 use nav_core::earth::Llh;
 use nav_core::filter::{FilterError, InitialUncertainty};
+use nav_core::imu_guard::GuardError;
 use nav_core::strapdown::NavState;
 use nav_core::types::ImuSample;
-use nav_engine::run::{InitSpec, Model};
+use nav_engine::run::{FaultCause, InitSpec, Model};
 use nav_engine::{run_filter, CaseData, RunError, RunOptions};
 use std::error::Error;
 
@@ -65,4 +66,36 @@ fn an_invalid_configuration_is_the_typed_source_of_run_error_filter_config() {
         src.downcast_ref::<ConfigError>().is_some(),
         "source of {e:?} is not a ConfigError"
     );
+}
+
+#[test]
+fn a_fault_mid_run_carries_the_nav_core_error_as_its_typed_source() {
+    // a 100 s hole in the IMU record: the guard refuses to bridge it and the run stops there
+    let mut c = case();
+    for s in c.imu.iter_mut().skip(50) {
+        s.t_s += 100.0;
+    }
+    let o = opts(
+        Llh::from_deg(30.0, 114.0, 20.0),
+        FilterConfig::source_n_model(),
+    );
+    let e = run_filter(&c, &o).expect_err("a 100 s IMU gap must stop the run");
+    let RunError::Fault { t_s, partial, .. } = &e else {
+        panic!("expected RunError::Fault, got {e:?}");
+    };
+    assert_eq!(*t_s, c.imu[50].t_s);
+    assert!(
+        !partial.nav.is_empty(),
+        "the samples before the gap are kept"
+    );
+    let src = e.source().expect("a source");
+    let cause = src
+        .downcast_ref::<FaultCause>()
+        .expect("the source is the typed FaultCause");
+    assert!(
+        matches!(cause, FaultCause::Guard(GuardError::GapTooLong { .. })),
+        "{cause:?}"
+    );
+    // the message says the guard's own words once, with where it happened
+    assert!(e.to_string().contains(&cause.to_string()), "{e}");
 }

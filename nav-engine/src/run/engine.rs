@@ -43,6 +43,7 @@ use super::{
     state_names, Decimator, EpochRecord, FixUse, ImuEvent, ImuReport, InnovationRecord, Model,
     OutageSnapshot, RunCounters, RunError, RunOptions, RunOutput, MAX_IMU_EVENTS,
 };
+use crate::run::FaultCause;
 use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard};
 use nav_core::model::{ImuCorrection, Layout};
 use nav_core::navigator::{
@@ -595,7 +596,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
         nominal_dt_s: guard_cfg.nominal_dt_s,
         ..ImuReport::default()
     };
-    let mut fault: Option<(String, f64, String)> = None;
+    let mut fault: Option<(String, f64, FaultCause)> = None;
     let mut done = 0usize;
     // fixes pushed to the navigator (it applies them at the nearest epoch)
     let mut gi = gi0;
@@ -619,7 +620,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 fault = Some((
                     format!("GNSS fix at t = {:.3} s", fix.t_s),
                     fix.t_s,
-                    e.to_string(),
+                    e.into(),
                 ));
                 break;
             }
@@ -654,7 +655,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                     fault = Some((
                         feed.info.locate(k, it.line),
                         s.t_s,
-                        format!("implausible IMU sample: {why}"),
+                        FaultCause::Implausible(why),
                     ));
                     break;
                 }
@@ -688,12 +689,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 _ => {}
             },
             Err(e) => {
-                let msg = match e {
-                    NavigatorError::Guard(g) => g.to_string(),
-                    NavigatorError::Filter(f) => f.to_string(),
-                    e => e.to_string(),
-                };
-                fault = Some((feed.info.locate(k, it.line), s.t_s, msg));
+                fault = Some((feed.info.locate(k, it.line), s.t_s, e.into()));
                 break;
             }
         }
@@ -805,10 +801,10 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     };
     match fault {
         None => Ok(out),
-        Some((location, t_s, msg)) => Err(RunError::Fault {
+        Some((location, t_s, cause)) => Err(RunError::Fault {
             location,
             t_s,
-            msg,
+            cause,
             partial: Box::new(out),
         }),
     }

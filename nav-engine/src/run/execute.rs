@@ -132,10 +132,10 @@ pub fn execute_streaming(
         Err(super::RunError::Fault {
             location,
             t_s,
-            msg,
+            cause,
             partial,
         }) => {
-            let fault = format!("{location} (t = {t_s:.6} s): {msg}");
+            let fault = format!("{location} (t = {t_s:.6} s): {cause}");
             let t_last = sink.last_nav_t();
             let written = sink.finish(&partial, Some(&fault), |m| {
                 metrics_json(m, &partial, Some(&fault))

@@ -563,14 +563,15 @@ pub enum RunError {
     #[error("run: {0}")]
     Guard(#[source] nav_core::imu_guard::GuardError),
     /// A fault in the middle of the data ended the run; `partial` holds everything up to it.
-    #[error("run: {location} (t = {t_s:.6} s): {msg}; the run stopped there")]
+    #[error("run: {location} (t = {t_s:.6} s): {cause}; the run stopped there")]
     Fault {
         /// `file line N` of the offending sample (or `IMU sample N`, `GNSS fix at t`).
         location: String,
         /// Its time, s.
         t_s: f64,
-        /// What went wrong.
-        msg: String,
+        /// What went wrong: the nav-core error (typed source of this error).
+        #[source]
+        cause: FaultCause,
         /// The outputs up to the fault.
         partial: Box<RunOutput>,
     },
@@ -590,6 +591,35 @@ pub enum RunError {
         #[source]
         source: FilterError,
     },
+}
+
+/// Why a run stopped in the middle of the data ([`RunError::Fault`]); the nav-core error
+/// where there is one (its message is the nav-core error's own).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum FaultCause {
+    /// The IMU guard refused a sample (time not increasing, gap too long).
+    #[error(transparent)]
+    Guard(nav_core::imu_guard::GuardError),
+    /// The filter refused a sample or a fix, or failed numerically.
+    #[error(transparent)]
+    Filter(FilterError),
+    /// Another navigator error (e.g. its fix queue overflowed).
+    #[error(transparent)]
+    Navigator(nav_core::navigator::NavigatorError),
+    /// An implausible IMU sample with `stop_on_implausible` set.
+    #[error("implausible IMU sample: {0}")]
+    Implausible(nav_core::imu_guard::Implausible),
+}
+
+impl From<nav_core::navigator::NavigatorError> for FaultCause {
+    fn from(e: nav_core::navigator::NavigatorError) -> Self {
+        use nav_core::navigator::NavigatorError as N;
+        match e {
+            N::Guard(g) => Self::Guard(g),
+            N::Filter(f) => Self::Filter(f),
+            other => Self::Navigator(other),
+        }
+    }
 }
 
 fn filter_err(t_s: f64, source: FilterError) -> RunError {
@@ -660,7 +690,7 @@ pub fn run_filter_with_progress(
         Err(RunError::Fault {
             location,
             t_s,
-            msg,
+            cause,
             mut partial,
         }) => {
             sink.fill(&mut partial);
@@ -679,7 +709,7 @@ pub fn run_filter_with_progress(
             Err(RunError::Fault {
                 location,
                 t_s,
-                msg,
+                cause,
                 partial,
             })
         }

@@ -23,7 +23,7 @@ pub(super) struct EngineHooks<'a, 'g, T: Scalar> {
     /// A sink error (the run returns it after the call).
     pub(super) err: Option<RunError>,
     /// A fault in a fix's update (the run stops after the call; later fixes are withheld).
-    pub(super) fault: Option<(String, f64, String)>,
+    pub(super) fault: Option<(String, f64, super::super::FaultCause)>,
     pub(super) rec: crate::smooth::Recorder,
     pub(super) aid: crate::run::aiding::RunAiding<T>,
     pub(super) outages: &'a [outage::Outage],
@@ -244,7 +244,7 @@ impl<T: Scalar, const N: usize> NavHooks<T, N> for EngineHooks<'_, '_, T> {
                 self.fault.get_or_insert((
                     format!("GNSS fix at t = {:.3} s", fix.t_s),
                     fix.t_s,
-                    error.to_string(),
+                    super::super::FaultCause::Filter(*error),
                 ));
                 return;
             }
