@@ -157,34 +157,46 @@ fn build_baseline(rev: &str) -> Result<PathBuf> {
 }
 
 /// A drive of `seconds` at 200 Hz: 3 min static, then blocks of driving with turns, speed
-/// changes and stops, 2 min static at the end.
+/// changes and stops, 2 min static at the end (the scenario's TOML, built with the
+/// simulator's own types).
 fn scenario(seconds: f64) -> String {
-    let mut s = String::from(
-        "name = \"bench-run\"\ndescription = \"generated drive for cargo xtask bench-run\"\n\
-         [start]\nlat_deg = 48.199\nlon_deg = 16.37\nh_m = 220.0\nheading_deg = 120.0\n\
-         gps_week = 2227\nsow_s = 200000.0\n[imu]\nrate_hz = 200.0\n\
-         [[segment]]\nkind = \"static\"\nduration_s = 180.0\n",
-    );
-    // one block: 10 + 120 + ~6 + 15 + 200 + ~8 + 10 + 30 (stop) = ~400 s
-    let block = "[[segment]]\nkind = \"accelerate\"\nto_speed_mps = 15.0\nduration_s = 10.0\n\
-         [[segment]]\nkind = \"cruise\"\nduration_s = 120.0\n\
-         [[segment]]\nkind = \"turn\"\nangle_deg = 90.0\nradius_m = 80.0\n\
-         [[segment]]\nkind = \"accelerate\"\nto_speed_mps = 25.0\nduration_s = 15.0\n\
-         [[segment]]\nkind = \"cruise\"\nduration_s = 200.0\n\
-         [[segment]]\nkind = \"turn\"\nangle_deg = -90.0\nradius_m = 150.0\n\
-         [[segment]]\nkind = \"brake\"\nto_speed_mps = 0.0\nduration_s = 10.0\n\
-         [[segment]]\nkind = \"static\"\nduration_s = 30.0\n";
+    let mut b = nav_sim::ScenarioBuilder::new("bench-run")
+        .description("generated drive for cargo xtask bench-run")
+        .start(48.199, 16.37, 220.0, 120.0)
+        .gps_time(2227, 200000.0)
+        .imu_rate_hz(200.0)
+        .stationary(180.0);
+    // one block: 10 + 120 + ~8.4 + 15 + 200 + ~9.4 + 10 + 30 (stop) = ~403 s
     let block_s = 10.0 + 120.0 + 8.4 + 15.0 + 200.0 + 9.4 + 10.0 + 30.0;
     let mut t = 180.0 + 120.0;
     while t + block_s <= seconds {
-        s.push_str(block);
+        b = b
+            .accelerate(15.0, 10.0)
+            .cruise(120.0)
+            .turn(90.0, 80.0)
+            .accelerate(25.0, 15.0)
+            .cruise(200.0)
+            .turn(-90.0, 150.0)
+            .brake(0.0, 10.0)
+            .stationary(30.0);
         t += block_s;
     }
-    s.push_str(&format!(
-        "[[segment]]\nkind = \"static\"\nduration_s = {:.1}\n",
-        (seconds - t + 120.0).max(120.0)
-    ));
-    s
+    // the last static segment to 0.1 s, as the case files have always been written
+    let last_s = ((seconds - t + 120.0).max(120.0) * 10.0).round() / 10.0;
+    b.stationary(last_s).build()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_bench_scenario_parses_and_has_the_asked_length() {
+        for hours in [0.6666666666666666, 4.0] {
+            let text = super::scenario(hours * 3600.0);
+            let sc = nav_sim::Scenario::from_toml_str(&text, "bench-run").expect("parses");
+            assert_eq!(sc.imu.rate_hz, 200.0);
+            assert!(sc.segments.len() > 8, "{} segments", sc.segments.len());
+        }
+    }
 }
 
 /// What to measure (the command line of `cargo xtask bench-run`).
