@@ -186,19 +186,6 @@ fn scenario(seconds: f64) -> String {
     b.stationary(last_s).build()
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn the_bench_scenario_parses_and_has_the_asked_length() {
-        for hours in [0.6666666666666666, 4.0] {
-            let text = super::scenario(hours * 3600.0);
-            let sc = nav_sim::Scenario::from_toml_str(&text, "bench-run").expect("parses");
-            assert_eq!(sc.imu.rate_hz, 200.0);
-            assert!(sc.segments.len() > 8, "{} segments", sc.segments.len());
-        }
-    }
-}
-
 /// What to measure (the command line of `cargo xtask bench-run`).
 pub struct Opts {
     /// Length of the drive, hours.
@@ -479,4 +466,17 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
         bail!("nav.txt differs from the baseline's");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_bench_scenario_parses_and_has_the_asked_length() {
+        for hours in [0.6666666666666666, 4.0] {
+            let text = super::scenario(hours * 3600.0);
+            let sc = nav_sim::Scenario::from_toml_str(&text, "bench-run").expect("parses");
+            assert_eq!(sc.imu.rate_hz, 200.0);
+            assert!(sc.segments.len() > 8, "{} segments", sc.segments.len());
+        }
+    }
 }
