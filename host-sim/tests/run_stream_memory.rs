@@ -16,31 +16,10 @@ use nav_engine::run::{
     run_stream, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
     RunData, RunError, RunOptions, RunSink,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-struct Counting;
-
-static LIVE: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            let now = LIVE.fetch_add(l.size(), Ordering::Relaxed) + l.size();
-            PEAK.fetch_max(now, Ordering::Relaxed);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        LIVE.fetch_sub(l.size(), Ordering::Relaxed);
-    }
-}
+use test_support::alloc;
 
 #[global_allocator]
-static A: Counting = Counting;
+static A: alloc::Counting = alloc::Counting;
 
 /// Counts the records and keeps the last navigation record (nothing else).
 #[derive(Default)]
@@ -122,8 +101,7 @@ fn hours_of_imu_run_in_bounded_memory() {
     );
     opts.record.epoch_rate_hz = Some(0.0);
     let mut sink = Count::default();
-    let base = LIVE.load(Ordering::Relaxed);
-    PEAK.store(base, Ordering::Relaxed);
+    let base = alloc::reset_peak();
     let t = std::time::Instant::now();
     let out = run_stream(
         &mut gen,
@@ -138,7 +116,7 @@ fn hours_of_imu_run_in_bounded_memory() {
         &mut |_, _| {},
     )
     .expect("run");
-    let peak = PEAK.load(Ordering::Relaxed).saturating_sub(base);
+    let peak = alloc::peak_bytes().saturating_sub(base);
     let secs = t.elapsed().as_secs_f64();
     let loaded = n * std::mem::size_of::<ImuSample>() + n * std::mem::size_of::<NavSolution>();
     println!(

@@ -1,5 +1,6 @@
 #![doc = include_str!("../README.md")]
 
+pub mod alloc;
 pub mod cli;
 pub mod filter_sim;
 pub mod runcase;
