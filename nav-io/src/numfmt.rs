@@ -366,6 +366,29 @@ fn scale10(a: f64, k: i32) -> Option<f64> {
     Some(if k >= 0 { a * p } else { a / p })
 }
 
+/// Writes `-` when `negative`, then `n / p10`, and for `prec > 0` a `.` and the `prec` digits of
+/// `n % p10` (the mantissa of both the fixed and the exponent form).
+fn put_sign_and_digits(
+    out: &mut [u8; FAST_MAX],
+    len: &mut usize,
+    negative: bool,
+    n: u64,
+    p10: u64,
+    prec: usize,
+) -> Option<()> {
+    if negative {
+        *out.get_mut(*len)? = b'-';
+        *len += 1;
+    }
+    put_digits(out, len, n / p10, 1)?;
+    if prec > 0 {
+        *out.get_mut(*len)? = b'.';
+        *len += 1;
+        put_digits(out, len, n % p10, prec)?;
+    }
+    Some(())
+}
+
 /// Writes `x` as `format!("{x:.prec$}")` would into `out`; `None` when the fast path does not
 /// apply (see the module docs): the caller uses `core::fmt` then.
 pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<usize> {
@@ -375,16 +398,7 @@ pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option
     let n = round_exact(scale10(x.abs(), prec as i32)?)?;
     let p10 = *POW10_U64.get(prec)?;
     let mut len = 0usize;
-    if x.is_sign_negative() {
-        *out.get_mut(len)? = b'-';
-        len += 1;
-    }
-    put_digits(out, &mut len, n / p10, 1)?;
-    if prec > 0 {
-        *out.get_mut(len)? = b'.';
-        len += 1;
-        put_digits(out, &mut len, n % p10, prec)?;
-    }
+    put_sign_and_digits(out, &mut len, x.is_sign_negative(), n, p10, prec)?;
     Some(len)
 }
 
@@ -424,16 +438,7 @@ pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<u
         return None;
     }
     let mut len = 0usize;
-    if x.is_sign_negative() {
-        *out.get_mut(len)? = b'-';
-        len += 1;
-    }
-    put_digits(out, &mut len, n / p10, 1)?;
-    if prec > 0 {
-        *out.get_mut(len)? = b'.';
-        len += 1;
-        put_digits(out, &mut len, n % p10, prec)?;
-    }
+    put_sign_and_digits(out, &mut len, x.is_sign_negative(), n, p10, prec)?;
     *out.get_mut(len)? = b'e';
     len += 1;
     if e < 0 {
