@@ -10,7 +10,7 @@ use nav_engine::RunSpec;
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use test_support::scenario::ScenarioToml;
+use test_support::scenario::bridge_replay_drive;
 
 mod simcase;
 
@@ -291,19 +291,7 @@ fn send_and_record(d: &Path, port: &Path, peer: &Path, send_args: &[&str]) -> st
 }
 
 fn drive() -> nav_sim::Scenario {
-    ScenarioToml::new("e2e-replay")
-        .description("100 s drive for the send/record/replay test")
-        .start(48.2, 16.37, 220.0, 30.0)
-        .gps_time(2227, 118800.0)
-        .imu_rate_hz(200.0)
-        .stationary(20.0)
-        .accelerate(12.0, 8.0)
-        .turn(90.0, 40.0)
-        .cruise(40.0)
-        .turn(-60.0, 50.0)
-        .brake(0.0, 8.0)
-        .stationary(5.0)
-        .scenario()
+    bridge_replay_drive("e2e-replay").scenario()
 }
 
 /// Every field of every solution as bits.

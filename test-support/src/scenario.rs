@@ -32,3 +32,22 @@ pub fn four_minute_drive(name: &str) -> ScenarioToml {
         .brake(0.0, 10.0)
         .stationary(10.0)
 }
+
+/// The short drive of the bridge's replay tests (`hw-bridge/tests/e2e_pty.rs`,
+/// `tests/tests/bridge_replay.rs`), named `name`: 200 Hz, 20 s static, accelerate to 12 m/s,
+/// 90 deg right on 40 m, cruise 40 s, 60 deg left on 50 m, brake to a stop, 5 s static
+/// (about 90 s).
+pub fn bridge_replay_drive(name: &str) -> ScenarioToml {
+    ScenarioToml::new(name)
+        .description("short drive for the bridge's send/record/replay tests")
+        .start(48.2, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(200.0)
+        .stationary(20.0)
+        .accelerate(12.0, 8.0)
+        .turn(90.0, 40.0)
+        .cruise(40.0)
+        .turn(-60.0, 50.0)
+        .brake(0.0, 8.0)
+        .stationary(5.0)
+}

@@ -9,22 +9,10 @@ use hw_bridge::capture::{CaptureHeader, CaptureWriter, Record};
 use hw_bridge::cmd::{read_case, replay, ReplayArgs};
 use nav_core::wire::{Encoder, MAX_FRAME_LEN};
 use std::path::Path;
-use test_support::scenario::ScenarioToml;
+use test_support::scenario::bridge_replay_drive;
 
 fn drive() -> String {
-    ScenarioToml::new("bridge-replay")
-        .description("171 s drive for the replay --config vs host-sim run test")
-        .start(48.2, 16.37, 220.0, 30.0)
-        .gps_time(2227, 118800.0)
-        .imu_rate_hz(200.0)
-        .stationary(20.0)
-        .accelerate(12.0, 8.0)
-        .turn(90.0, 40.0)
-        .cruise(40.0)
-        .turn(-60.0, 50.0)
-        .brake(0.0, 8.0)
-        .stationary(5.0)
-        .build()
+    bridge_replay_drive("bridge-replay").build()
 }
 
 /// The case's frames, one encoder (as `hw-bridge send` writes them), in a capture of 4 kB
