@@ -10,32 +10,11 @@ use nav_engine::run::{
     coast_outages, run_filter, CaseData, CoastMode, FixUse, InitSpec, Model, Outage, Precision,
     RunOptions, StaticAlign,
 };
-use test_support::scenario::ScenarioToml;
+use test_support::scenario::six_minute_drive;
 
-/// A 6-minute drive at 100 Hz: 60 s static, then accelerations, turns, a hill, a stop.
+/// The shared 6-minute drive at 100 Hz (`test_support::scenario::six_minute_drive`).
 fn scenario() -> Scenario {
-    Scenario::from_toml_str(
-        &ScenarioToml::new("run-test")
-            .description("6 min test drive")
-            .start(48.199, 16.37, 220.0, 30.0)
-            .gps_time(2227, 118800.0)
-            .imu_rate_hz(100.0)
-            .stationary(60.0)
-            .accelerate(12.0, 10.0)
-            .cruise(30.0)
-            .turn(90.0, 40.0)
-            .cruise(40.0)
-            .hill(5.0, 300.0)
-            .turn(-120.0, 30.0)
-            .accelerate(18.0, 10.0)
-            .cruise(40.0)
-            .turn(60.0, 60.0)
-            .brake(0.0, 10.0)
-            .stationary(20.0)
-            .build(),
-        "run-test",
-    )
-    .unwrap()
+    Scenario::from_toml_str(&six_minute_drive("run-test").build(), "run-test").unwrap()
 }
 
 fn truth_unc() -> InitialUncertainty {

@@ -11,27 +11,11 @@ use nav_engine::metrics::{self, errors_vs_truth};
 use nav_engine::run::{run_filter, CaseData, Outage, RunOptions};
 use nav_engine::smooth::apply::smooth_run;
 use noise_id::stats::nees_band_95;
-use test_support::scenario::ScenarioToml;
+use test_support::scenario::{six_minute_drive, ScenarioToml};
 
-/// A 6-minute drive at 100 Hz: 60 s static, accelerations, turns, a hill, a stop.
+/// The shared 6-minute drive at 100 Hz.
 fn scenario() -> ScenarioToml {
-    ScenarioToml::new("smooth-test")
-        .description("6 min test drive")
-        .start(48.199, 16.37, 220.0, 30.0)
-        .gps_time(2227, 118800.0)
-        .imu_rate_hz(100.0)
-        .stationary(60.0)
-        .accelerate(12.0, 10.0)
-        .cruise(30.0)
-        .turn(90.0, 40.0)
-        .cruise(40.0)
-        .hill(5.0, 300.0)
-        .turn(-120.0, 30.0)
-        .accelerate(18.0, 10.0)
-        .cruise(40.0)
-        .turn(60.0, 60.0)
-        .brake(0.0, 10.0)
-        .stationary(20.0)
+    six_minute_drive("smooth-test")
 }
 
 /// Per-group NEES (attitude, velocity, position) of a solution against the truth from the

@@ -51,3 +51,27 @@ pub fn bridge_replay_drive(name: &str) -> ScenarioToml {
         .brake(0.0, 8.0)
         .stationary(5.0)
 }
+
+/// The 6-minute drive of the run and smoother simulation tests (`host-sim/tests/run_sim.rs`,
+/// `smooth_sim.rs`), named `name`: 100 Hz, 60 s static, accelerate to 12 m/s, cruise, 90 deg
+/// right on 40 m, a 5 m hill over 300 m, 120 deg left on 30 m, accelerate to 18 m/s, 60 deg
+/// right on 60 m, brake to a stop, 20 s static.
+pub fn six_minute_drive(name: &str) -> ScenarioToml {
+    ScenarioToml::new(name)
+        .description("6 min test drive")
+        .start(48.199, 16.37, 220.0, 30.0)
+        .gps_time(2227, 118800.0)
+        .imu_rate_hz(100.0)
+        .stationary(60.0)
+        .accelerate(12.0, 10.0)
+        .cruise(30.0)
+        .turn(90.0, 40.0)
+        .cruise(40.0)
+        .hill(5.0, 300.0)
+        .turn(-120.0, 30.0)
+        .accelerate(18.0, 10.0)
+        .cruise(40.0)
+        .turn(60.0, 60.0)
+        .brake(0.0, 10.0)
+        .stationary(20.0)
+}
