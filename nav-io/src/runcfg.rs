@@ -11,13 +11,13 @@
 
 use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
 use super::gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions};
-use super::imucsv::{read_imu_csv, ImuCsvFormat};
+use super::imucsv::ImuCsvFormat;
 use super::mount::Mounting;
 pub use super::noisecfg::{
     AccelNoiseConfig, AxisValue, BiasModel, GyroNoiseConfig, NoiseConfig, ScaleNoiseConfig,
 };
 use super::pos::{read_rtklib_pos, PosOptions};
-use super::text::{read_gnss_text, read_imu_text, read_nav_text, ImuRecord};
+use super::text::{read_gnss_text, read_nav_text, ImuRecord};
 use super::IoError;
 use nav_core::types::{GnssFix, NavSolution};
 use std::path::{Path, PathBuf};
@@ -566,35 +566,134 @@ pub struct RunInputs {
     pub truth: Option<TruthData>,
 }
 
+/// The IMU file of a run configuration read one sample at a time ([`RunConfig::open_imu`]):
+/// increments in BODY axes (the `[imu.mounting]` rotation applied), every time offset applied
+/// (the CSV mapping's and `[imu] time_offset_s`), each with its 1-based file line. Memory is
+/// that of the underlying reader ([`ImuTextReader`](super::text::ImuTextReader) or
+/// [`ImuCsvIncrements`](super::imucsv::ImuCsvIncrements)): constant.
+pub struct ImuFileReader {
+    inner: ImuFileInner,
+    path: PathBuf,
+    c_imu_b: Option<nalgebra::Matrix3<f64>>,
+    offset_s: f64,
+}
+
+enum ImuFileInner {
+    Text(super::text::ImuTextReader),
+    Csv(super::imucsv::ImuCsvIncrements),
+}
+
+impl ImuFileReader {
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// True when each increment covers the whole interval since the previous one even across
+    /// a time gap (CSV rates converted over the true interval); false for increment files,
+    /// where a gap may have lost increments (see `ImuOrigin::increments_span_gaps`).
+    pub fn increments_span_gaps(&self) -> bool {
+        matches!(self.inner, ImuFileInner::Csv(_))
+    }
+}
+
+impl Iterator for ImuFileReader {
+    type Item = Result<(nav_core::types::ImuSample, usize), IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let r = match &mut self.inner {
+            ImuFileInner::Text(rd) => rd.next()?,
+            ImuFileInner::Csv(rd) => rd.next()?,
+        };
+        Some(r.map(|(mut s, line)| {
+            if let Some(c) = &self.c_imu_b {
+                let a = c * nalgebra::Vector3::from(s.dtheta_rad);
+                let v = c * nalgebra::Vector3::from(s.dv_mps);
+                s.dtheta_rad = [a.x, a.y, a.z];
+                s.dv_mps = [v.x, v.y, v.z];
+            }
+            s.t_s += self.offset_s;
+            (s, line)
+        }))
+    }
+}
+
+/// What a [`GnssFixReader`] learnt of its file besides the fixes: complete once the reader
+/// has returned `None` (before that, what was seen so far).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct GnssReadSummary {
+    /// GPS week of the GNSS times when the file states it (RTKLIB .pos, CSV with a week or an
+    /// absolute time, NMEA with its RMC date, UBX NAV-PVT with a valid UTC date).
+    pub week: Option<i64>,
+    /// Records dropped by the quality filter (`max_q`, no fix).
+    pub dropped_by_quality: usize,
+    /// Things the reader wants the user to know, each once (e.g. default GNSS sigmas used).
+    pub warnings: Vec<String>,
+}
+
+/// The GNSS file of a run configuration read one fix at a time ([`RunConfig::open_gnss`]),
+/// whatever its format: fixes after the quality filter, in time order, `[gnss]
+/// time_offset_s` applied (standard deviations and velocities as in the file).
+pub struct GnssFixReader {
+    fixes: std::vec::IntoIter<GnssFix>,
+    path: PathBuf,
+    offset_s: f64,
+    summary: GnssReadSummary,
+}
+
+impl GnssFixReader {
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The week, drops and warnings seen so far (all of them once the reader is exhausted).
+    pub fn summary(&self) -> &GnssReadSummary {
+        &self.summary
+    }
+}
+
+impl Iterator for GnssFixReader {
+    type Item = Result<GnssFix, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let mut f = self.fixes.next()?;
+        f.t_s += self.offset_s;
+        Some(Ok(f))
+    }
+}
+
 impl RunConfig {
-    /// Reads the IMU (converted to increments in body axes), GNSS and truth files named by the
-    /// configuration; relative paths are resolved against `config_dir`.
-    pub fn load_inputs(&self, config_dir: &Path) -> Result<RunInputs, IoError> {
-        let imu_path = Self::resolve(config_dir, &self.imu.path);
-        let mut imu = match self.imu.format {
-            ImuFileKind::Text => read_imu_text(&imu_path)?,
+    /// Opens the IMU file named by the configuration as a stream ([`ImuFileReader`]); relative
+    /// paths are resolved against `config_dir`. Errors in the file come with the samples.
+    pub fn open_imu(&self, config_dir: &Path) -> Result<ImuFileReader, IoError> {
+        let path = Self::resolve(config_dir, &self.imu.path);
+        let inner = match self.imu.format {
+            ImuFileKind::Text => ImuFileInner::Text(super::text::ImuTextReader::open(&path)?),
             ImuFileKind::Csv => {
                 let fmt = self.imu.csv.as_ref().ok_or_else(|| IoError::Config {
-                    path: imu_path.clone(),
+                    path: path.clone(),
                     message: "imu.format = \"csv\" needs an [imu.csv] mapping".into(),
                     source: None,
                 })?;
-                read_imu_csv(&imu_path, fmt)?
+                ImuFileInner::Csv(super::imucsv::ImuCsvIncrements::open(&path, fmt)?)
             }
         };
-        self.imu.mounting.rotate_increments(&mut imu.samples);
-        if self.imu.time_offset_s != 0.0 {
-            for s in &mut imu.samples {
-                s.t_s += self.imu.time_offset_s;
-            }
-            for g in &mut imu.gaps.gaps {
-                g.t_before_s += self.imu.time_offset_s;
-                g.t_after_s += self.imu.time_offset_s;
-            }
-        }
+        let m = &self.imu.mounting;
+        Ok(ImuFileReader {
+            inner,
+            path,
+            c_imu_b: (*m != Mounting::identity()).then(|| m.c_imu_b()),
+            offset_s: self.imu.time_offset_s,
+        })
+    }
+
+    /// Opens the GNSS file named by the configuration as a stream of fixes
+    /// ([`GnssFixReader`]); relative paths are resolved against `config_dir`.
+    pub fn open_gnss(&self, config_dir: &Path) -> Result<GnssFixReader, IoError> {
         let gnss_path = Self::resolve(config_dir, &self.gnss.path);
         let mut warnings = Vec::new();
-        let (mut gnss, gnss_week, dropped) = match self.gnss.format {
+        let (gnss, week, dropped_by_quality) = match self.gnss.format {
             GnssFileKind::Text => (read_gnss_text(&gnss_path)?, None, 0),
             GnssFileKind::Csv => {
                 let fmt = self.gnss.csv.as_ref().ok_or_else(|| IoError::Config {
@@ -626,9 +725,60 @@ impl RunConfig {
                 (r.fixes, r.week, r.dropped_by_quality)
             }
         };
-        for f in &mut gnss {
-            f.t_s += self.gnss.time_offset_s;
+        Ok(GnssFixReader {
+            fixes: gnss.into_iter(),
+            path: gnss_path,
+            offset_s: self.gnss.time_offset_s,
+            summary: GnssReadSummary {
+                week,
+                dropped_by_quality,
+                warnings,
+            },
+        })
+    }
+}
+
+impl RunConfig {
+    /// Reads the IMU (converted to increments in body axes), GNSS and truth files named by the
+    /// configuration; relative paths are resolved against `config_dir`.
+    pub fn load_inputs(&self, config_dir: &Path) -> Result<RunInputs, IoError> {
+        let imu_rd = self.open_imu(config_dir)?;
+        let imu_path = imu_rd.path().to_path_buf();
+        let spans = imu_rd.increments_span_gaps();
+        let mut samples = Vec::new();
+        let mut lines = Vec::new();
+        for r in imu_rd {
+            let (s, line) = r?;
+            samples.push(s);
+            lines.push(line);
         }
+        let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+        let mut gaps = super::text::TimeGapReport::detect(&t, &lines);
+        if spans {
+            // increment i of a CSV log closes the interval ending at row i + 1
+            for g in &mut gaps.gaps {
+                g.index = g.index.saturating_sub(1);
+            }
+        }
+        let imu = ImuRecord {
+            samples,
+            gaps,
+            origin: Some(super::text::ImuOrigin {
+                path: imu_path,
+                lines,
+                increments_span_gaps: spans,
+            }),
+        };
+        let mut gnss_rd = self.open_gnss(config_dir)?;
+        let mut gnss = Vec::new();
+        for r in &mut gnss_rd {
+            gnss.push(r?);
+        }
+        let GnssReadSummary {
+            week: gnss_week,
+            dropped_by_quality: dropped,
+            warnings,
+        } = gnss_rd.summary().clone();
         let truth = match &self.truth {
             None => None,
             Some(t) => {
