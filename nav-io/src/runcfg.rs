@@ -580,7 +580,7 @@ pub struct ImuFileReader {
 
 enum ImuFileInner {
     Text(super::text::ImuTextReader),
-    Csv(super::imucsv::ImuCsvIncrements),
+    Csv(Box<super::imucsv::ImuCsvIncrements>),
 }
 
 impl ImuFileReader {
@@ -676,7 +676,7 @@ impl RunConfig {
                     message: "imu.format = \"csv\" needs an [imu.csv] mapping".into(),
                     source: None,
                 })?;
-                ImuFileInner::Csv(super::imucsv::ImuCsvIncrements::open(&path, fmt)?)
+                ImuFileInner::Csv(Box::new(super::imucsv::ImuCsvIncrements::open(&path, fmt)?))
             }
         };
         let m = &self.imu.mounting;
