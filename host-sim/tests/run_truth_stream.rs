@@ -6,7 +6,9 @@
 //! two coasting baselines), with a truth at another rate and phase (`--truth`: every third
 //! record, 2.1 ms late, so every comparison interpolates), with the run configuration's own
 //! `[truth]` (no case directory), and with the initialisation from the truth (its first
-//! record read by a short read of its own, the IMU from memory).
+//! record read by a short read of its own, the IMU from memory). A truth file that turns bad
+//! part-way (read only as the run gets there, or after its end) still stops the run with the
+//! file and line named, and no output under a final name.
 
 use host_sim::run::cli::{prepare, RunArgs};
 use nav_core::filter::InitialUncertainty;
@@ -17,7 +19,7 @@ use nav_engine::run::{InitSpec, Outage};
 use nav_engine::{execute, Prepared};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use test_support::cli::{run_ok, Bin};
+use test_support::cli::{run, run_ok, Bin};
 use test_support::scenario::four_minute_drive;
 
 fn host_sim() -> Command {
@@ -224,9 +226,53 @@ fn a_streamed_truth_gives_the_in_memory_engines_files() {
     let mut q = p.clone();
     q.case.truth = None;
     let tf = TruthFile::nav_text(PathBuf::from(&truth_nav));
-    let (run, _) = execute_streaming(&q, None, Some(&tf), &a, None, &mut |_, _| {}).unwrap();
-    assert_eq!(run.init.method, "truth");
-    assert!((run.init.t_s - 200_040.0).abs() < 0.011, "{}", run.init.t_s);
+    let (r4, _) = execute_streaming(&q, None, Some(&tf), &a, None, &mut |_, _| {}).unwrap();
+    assert_eq!(r4.init.method, "truth");
+    assert!((r4.init.t_s - 200_040.0).abs() < 0.011, "{}", r4.init.t_s);
     let m4 = same_files(&a, &b, "initialisation from the truth");
     assert_eq!(m4["reference"], "truth");
+
+    // 5. a bad line in the truth file, in the middle of the run and after its end (the rest
+    // of the file is checked when the run is complete): the run fails naming file and line,
+    // and leaves no output under a final name
+    for (what, k) in [("mid-run", n_truth / 2), ("after the run", n_truth - 1)] {
+        let bad = d.join("truth-bad.nav");
+        let text: String = truth_lines
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == k {
+                    "2300 x\n".to_string()
+                } else {
+                    format!("{l}\n")
+                }
+            })
+            .collect();
+        std::fs::write(&bad, text).unwrap();
+        let out = d.join("bad-out");
+        let mut c = host_sim();
+        c.args([
+            "run",
+            "--config",
+            s(&cfg),
+            "--case",
+            s(&case),
+            "--truth",
+            s(&bad),
+        ])
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet");
+        let r = run(&mut c);
+        assert!(!r.ok, "{what}: a bad truth line must stop the run");
+        let line = format!("line {}", k + 1);
+        assert!(
+            r.stderr.contains("truth-bad.nav") && r.stderr.contains(&line),
+            "{what}: {}",
+            r.stderr
+        );
+        for f in output::OUTPUT_NAMES {
+            assert!(!out.join(f).exists(), "{what}: {f} written");
+        }
+    }
 }
