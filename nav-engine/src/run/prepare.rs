@@ -360,7 +360,9 @@ fn scale_sigmas(g: &mut nav_core::types::GnssFix, k: f64) {
 /// returned in [`Loaded::imu_stream`], to be read while the filter runs
 /// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way. The GNSS
 /// text file of such a run is streamed too ([`ImuStream::gnss`]: checked here, the case's
-/// fix list left empty).
+/// fix list left empty). With `stream_imu` the truth is never loaded (`case.truth` stays
+/// None): its file is checked and returned in [`Loaded::truth_stream`], to be read as the
+/// solution advances.
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();

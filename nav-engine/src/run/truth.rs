@@ -81,7 +81,7 @@ impl TruthFile {
     }
 
     /// The records read and parsed by a thread of their own and handed over in chunks
-    /// through a bounded channel (at most [`QUEUE`] x [`CHUNK`] records in flight): parsing
+    /// through a bounded channel (at most 4 chunks of 1,024 records in flight): parsing
     /// overlaps the filter. The thread stops at the first error (passed on) or when the
     /// stream is dropped.
     pub fn records(&self) -> TruthSource<'static> {
