@@ -15,9 +15,11 @@
 //! the KF-GINS paper reports its 60 s-every-180 s protocol.
 
 use crate::run::{CoastTrack, FixUse, InnovationRecord, Outage, RunOutput};
-use nav_core::earth::{self, Llh};
 use nav_core::types::NavSolution;
 use serde::Serialize;
+
+mod truth;
+pub use truth::{error_vs_truth, errors_vs_truth, interpolate, TruthMatcher};
 
 /// RMS and maximum of |x| over `n` samples (NaN when n = 0).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -264,87 +266,6 @@ pub struct Metrics {
     pub aiding: crate::run::aiding::AidingReport,
 }
 
-fn wrap_deg(a: f64) -> f64 {
-    let r = (a + 180.0).rem_euclid(360.0) - 180.0;
-    if r == -180.0 {
-        180.0
-    } else {
-        r
-    }
-}
-
-fn llh(s: &NavSolution) -> Llh {
-    Llh {
-        lat_rad: s.lat_rad,
-        lon_rad: s.lon_rad,
-        h_m: s.h_m,
-    }
-}
-
-/// Error of `sol` against `truth` (same time assumed).
-pub fn error_vs_truth(sol: &NavSolution, truth: &NavSolution) -> ErrSample {
-    let d = earth::ned_offset_m(&llh(truth), &llh(sol));
-    let v = [0, 1, 2].map(|i| sol.vel_ned_mps[i] - truth.vel_ned_mps[i]);
-    let a = [0, 1, 2].map(|i| wrap_deg((sol.rpy_rad[i] - truth.rpy_rad[i]).to_degrees()));
-    ErrSample {
-        t_s: truth.t_s,
-        pos_ned_m: d.into(),
-        vel_ned_mps: v,
-        att_deg: a,
-    }
-}
-
-/// Errors at every truth epoch (both records in time order): the solution record with the
-/// same time stamp (within 0.1 ms), or linearly interpolated between the two solution records
-/// around the truth epoch when they are at most 0.05 s apart (truth at a rate or phase other
-/// than the solution's); truth epochs outside the solution are skipped.
-pub fn errors_vs_truth(nav: &[NavSolution], truth: &[NavSolution]) -> Vec<ErrSample> {
-    const TOL_S: f64 = 1e-4;
-    const MAX_GAP_S: f64 = 0.05;
-    let mut out = Vec::new();
-    let mut i = 0;
-    for t in truth {
-        while nav.get(i).is_some_and(|s| s.t_s < t.t_s - TOL_S) {
-            i += 1;
-        }
-        let Some(b) = nav.get(i) else {
-            break;
-        };
-        if (b.t_s - t.t_s).abs() <= TOL_S {
-            out.push(error_vs_truth(b, t));
-            continue;
-        }
-        let Some(a) = i.checked_sub(1).and_then(|j| nav.get(j)) else {
-            continue;
-        };
-        if b.t_s - a.t_s > MAX_GAP_S {
-            continue;
-        }
-        out.push(error_vs_truth(&interpolate(a, b, t.t_s), t));
-    }
-    out
-}
-
-/// Linear interpolation of two solution records at `t_s` (angles along the short way).
-pub fn interpolate(a: &NavSolution, b: &NavSolution, t_s: f64) -> NavSolution {
-    let w = (t_s - a.t_s) / (b.t_s - a.t_s);
-    let lin = |x: f64, y: f64| x + w * (y - x);
-    let ang = |x: f64, y: f64| {
-        let d = (y - x + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
-            - std::f64::consts::PI;
-        x + w * d
-    };
-    NavSolution {
-        t_s,
-        lat_rad: lin(a.lat_rad, b.lat_rad),
-        lon_rad: lin(a.lon_rad, b.lon_rad),
-        h_m: lin(a.h_m, b.h_m),
-        vel_ned_mps: [0, 1, 2].map(|k| lin(a.vel_ned_mps[k], b.vel_ned_mps[k])),
-        rpy_rad: [0, 1, 2].map(|k| ang(a.rpy_rad[k], b.rpy_rad[k])),
-        ..*b
-    }
-}
-
 /// Position errors at GNSS fixes (predicted minus measured) of the records `keep` selects.
 pub fn errors_vs_fixes<'a>(
     recs: impl Iterator<Item = &'a InnovationRecord>,
@@ -585,8 +506,6 @@ mod tests {
         assert_eq!(s.n, 2);
         assert!((s.rms - 12.5f64.sqrt()).abs() < 1e-15);
         assert_eq!(s.max, 4.0);
-        assert_eq!(wrap_deg(359.0), -1.0);
-        assert_eq!(wrap_deg(-181.0), 179.0);
         assert!(Stat::of([]).rms.is_nan());
     }
 }
@@ -782,52 +701,10 @@ impl SampleAcc {
     }
 }
 
-/// [`errors_vs_truth`] one solution record at a time: the truth epochs each new record
-/// decides are compared as it arrives (identical samples).
-#[derive(Debug, Clone)]
-pub struct TruthMatcher<'a> {
-    truth: &'a [NavSolution],
-    next: usize,
-    prev: Option<NavSolution>,
-}
-
-impl<'a> TruthMatcher<'a> {
-    /// Against `truth` (time order).
-    pub fn new(truth: &'a [NavSolution]) -> Self {
-        Self {
-            truth,
-            next: 0,
-            prev: None,
-        }
-    }
-
-    /// The next solution record (time order); `out` gets the samples it decides.
-    pub fn push(&mut self, b: &NavSolution, mut out: impl FnMut(ErrSample)) {
-        const TOL_S: f64 = 1e-4;
-        const MAX_GAP_S: f64 = 0.05;
-        while let Some(t) = self.truth.get(self.next) {
-            if t.t_s - TOL_S > b.t_s {
-                break;
-            }
-            self.next += 1;
-            if (b.t_s - t.t_s).abs() <= TOL_S {
-                out(error_vs_truth(b, t));
-                continue;
-            }
-            let Some(a) = &self.prev else {
-                continue;
-            };
-            if b.t_s - a.t_s > MAX_GAP_S {
-                continue;
-            }
-            out(error_vs_truth(&interpolate(a, b, t.t_s), t));
-        }
-        self.prev = Some(*b);
-    }
-}
-
 /// Metrics of one coasting track against its outage (as [`coasting_metrics`] does per
-/// track), for online use: the track can be dropped afterwards.
+/// track), for online use: the track can be dropped afterwards. `truth`: the whole truth, or
+/// only its records inside the track's outage (`[start, end)`: the only epochs the outage's
+/// metrics count, each compared by itself, so the result is the same).
 pub fn coasting_track_metrics(
     t: &CoastTrack,
     outages: &[Outage],

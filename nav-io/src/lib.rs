@@ -68,5 +68,5 @@ pub use text::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_line, write_gnss_text,
     write_imu_bin, write_imu_line, write_imu_text, write_nav_line, write_nav_line_display,
     write_nav_text, GnssTextReader, ImuBinReader, ImuGap, ImuOrigin, ImuRecord, ImuTextReader,
-    TimeGapReport,
+    NavTextReader, TimeGapReport,
 };

@@ -640,24 +640,67 @@ fn parse_nav_line(dl: &DataLine<'_>) -> Result<NavSolution, IoError> {
     })
 }
 
-/// Reads a navigation/truth text file (KF-GINS nav format). The standard deviations of the
-/// returned solutions are NaN (not in the format). Time (week*604800 + sow) must increase.
+/// Reads a navigation/truth text file (KF-GINS nav format): [`NavTextReader`] collected. The
+/// standard deviations of the returned solutions are NaN (not in the format). Time
+/// (week*604800 + sow) must increase.
 pub fn read_nav_text(path: impl AsRef<Path>) -> Result<Vec<NavSolution>, IoError> {
-    let path = path.as_ref();
-    let mut rd = open_text(path)?;
-    let mut out = Vec::new();
-    let mut mono = MonotonicTime::new();
-    while let Some(dl) = rd.next_data()? {
+    NavTextReader::open(path)?.collect()
+}
+
+/// A navigation/truth text file (KF-GINS nav format, plain or gzip) read one record at a
+/// time: the one parser of the format ([`read_nav_text`] collects it). Errors name file, line
+/// and column; time (week*604800 + sow, s) must increase strictly. Nothing is kept but the
+/// current line.
+pub struct NavTextReader {
+    rd: super::lines::LineReader,
+    mono: MonotonicTime,
+    failed: bool,
+}
+
+impl NavTextReader {
+    /// Opens `path`.
+    pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
+        Ok(Self {
+            rd: open_text(path.as_ref())?,
+            mono: MonotonicTime::new(),
+            failed: false,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        self.rd.path()
+    }
+
+    fn read(&mut self) -> Result<Option<NavSolution>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
         let n = parse_nav_line(&dl)?;
-        mono.check(
+        self.mono.check(
             &dl,
             1,
             NAV_NAMES[1],
             n.week as f64 * SECONDS_PER_WEEK + n.t_s,
         )?;
-        out.push(n);
+        Ok(Some(n))
     }
-    Ok(out)
+}
+
+impl Iterator for NavTextReader {
+    type Item = Result<NavSolution, IoError>;
+
+    /// The next record; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
 }
 
 /// Writes navigation solutions in the KF-GINS nav format (standard deviations and status are

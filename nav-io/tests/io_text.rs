@@ -4,7 +4,7 @@
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use nav_io::{
     read_gnss_text, read_imu_bin, read_imu_text, read_nav_text, write_gnss_text, write_imu_bin,
-    write_imu_text, write_nav_text, IoError,
+    write_imu_text, write_nav_text, IoError, NavTextReader,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -485,6 +485,47 @@ fn nav_text_round_trip_across_a_week_rollover_within_a_micrometre() {
         .to_string();
     let lat = line.split_whitespace().nth(2).unwrap();
     assert!(lat.split('.').nth(1).unwrap().len() >= 10, "{line}");
+}
+
+#[test]
+fn nav_text_reader_streams_what_read_nav_text_loads_and_stops_at_the_first_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = navs(300);
+    let p = dir.path().join("nav.txt.gz");
+    write_nav_text(&p, &f).unwrap();
+    let whole = read_nav_text(&p).unwrap();
+    let streamed: Vec<NavSolution> = NavTextReader::open(&p)
+        .unwrap()
+        .map(Result::unwrap)
+        .collect();
+    assert_eq!(whole.len(), 300);
+    // the same records (the standard deviations are NaN: compared by their debug text)
+    assert_eq!(streamed.len(), whole.len());
+    assert!(
+        format!("{streamed:?}") == format!("{whole:?}"),
+        "the streamed records differ from the loaded ones"
+    );
+    // the records before a bad line, then its located error, then nothing more
+    let bad = dir.path().join("bad.txt");
+    write_str(
+        &bad,
+        "2374 100 30 114 20 0 0 0 1 2 3\n2374 100.5 30 114 20 0 0 0 1 2 3\n\
+         2374 100.2 30 114 20 0 0 0 1 2 3\n2374 101 30 114 20 0 0 0 1 2 3\n",
+    );
+    let mut rd = NavTextReader::open(&bad).unwrap();
+    assert_eq!(rd.path(), bad.as_path());
+    assert_eq!(rd.next().unwrap().unwrap().t_s, 100.0);
+    assert_eq!(rd.next().unwrap().unwrap().t_s, 100.5);
+    let e = rd.next().unwrap().unwrap_err();
+    assert!(
+        matches!(e, IoError::NonMonotonicTime { line: 3, .. }),
+        "{e:?}"
+    );
+    assert!(rd.next().is_none());
+    assert!(matches!(
+        read_nav_text(&bad),
+        Err(IoError::NonMonotonicTime { line: 3, .. })
+    ));
 }
 
 #[test]

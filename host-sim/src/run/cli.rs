@@ -205,21 +205,22 @@ pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
 /// Loads everything a run needs from the arguments; the warnings about the data go to
 /// stderr.
 pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
-    Ok(load(args, false)?.0)
+    Ok(load(args, false)?.prepared)
 }
 
-/// [`prepare`] without loading the IMU when it is a text file: the case's IMU list stays
-/// empty and the file is returned, to be read while the filter runs ([`execute_streaming`]).
-pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
+/// [`prepare`] without loading the IMU when it is a text file (the case's IMU list stays
+/// empty and the file is returned) nor the truth (its file is returned): both are read while
+/// the filter runs ([`execute_streaming`]).
+pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<Loaded> {
     load(args, true)
 }
 
-fn load(args: &RunArgs, stream: bool) -> anyhow::Result<(Prepared, Option<ImuStream>)> {
+fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
     let l = nav_engine::load(&args.spec()?, stream)?;
     for w in &l.warnings {
         eprintln!("warning: {w}");
     }
-    Ok((l.prepared, l.imu_stream))
+    Ok(l)
 }
 
 /// `run --smooth`: the backward pass needs the whole forward run, so the case is run in memory
@@ -241,7 +242,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         return run_smoothed(&args);
     }
     let t = std::time::Instant::now();
-    let (p, imu) = prepare_streaming(&args)?;
+    let Loaded {
+        prepared: p,
+        imu_stream: imu,
+        truth_stream: truth,
+        ..
+    } = prepare_streaming(&args)?;
     println!("{}", p.description);
     let pb = if args.quiet {
         indicatif::ProgressBar::hidden()
@@ -253,9 +259,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
     );
     let dir = &args.out;
-    let res = execute_streaming(&p, imu.as_ref(), dir, args.nav_rate, &mut |done, _| {
-        pb.set_position(done as u64)
-    });
+    let res = execute_streaming(
+        &p,
+        imu.as_ref(),
+        truth.as_ref(),
+        dir,
+        args.nav_rate,
+        &mut |done, _| pb.set_position(done as u64),
+    );
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
     let (out, m) = res?;

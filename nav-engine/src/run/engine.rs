@@ -102,6 +102,9 @@ pub struct RunHead<'a> {
     pub model: Model,
     /// Names (with units) of the error states.
     pub state_names: &'a [String],
+    /// Coasting tracks the run makes per outage it reaches (its coasting modes, see
+    /// [`CoastPlan`]; 0 without coasting).
+    pub coast_modes: usize,
 }
 
 /// Receives the records of a run as they are made.
@@ -549,6 +552,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     sink.start(&RunHead {
         model: opts.model,
         state_names: &state_names,
+        coast_modes: coast_modes.len(),
     })?;
     // fixes before the initial epoch are not used (nor kept)
     let gi0 = gnss.first_at_or_after(t0 - START_TOLERANCE_S);

@@ -17,6 +17,7 @@
 use super::coast::{coast_outages, CoastMode};
 use super::output;
 use super::prepare::{ImuStream, Prepared};
+use super::truth::TruthFile;
 use super::{run_filter_with_progress, CaseData, RunOptions, RunOutput};
 use crate::metrics::{self, Metrics};
 use anyhow::Context;
@@ -70,20 +71,31 @@ pub fn execute_case(
 /// Runs the filter on a prepared case with the IMU streamed from `imu` (or from the case's
 /// samples in memory when `None`), writing the outputs in `dir` as it goes
 /// ([`super::sink::FileSink`]: `*.partial`, renamed when complete) and computing the metrics
-/// online, with the coasting baselines. `nav_rate_hz`: rate of `nav.txt` (None: every IMU
-/// epoch). A fault mid-run leaves the outputs up to it as `*.partial` and returns
-/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); other errors
-/// leave no output.
+/// online, with the coasting baselines. `truth`: a truth file read as the solution advances
+/// ([`super::truth`]; None: the case's truth in memory, if any). `nav_rate_hz`: rate of
+/// `nav.txt` (None: every IMU epoch). A fault mid-run leaves the outputs up to it as
+/// `*.partial` and returns [`super::RunError::Fault`] (its `partial` holds the summary, no
+/// records); other errors leave no output.
 pub fn execute_streaming(
     p: &Prepared,
     imu: Option<&ImuStream>,
+    truth: Option<&TruthFile>,
     dir: &Path,
     nav_rate_hz: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
     let opts = p.opts.clone();
-    let truth = p.case.truth.as_deref();
-    let mut sink = super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, truth)?;
+    // the truth: the metrics' stream, and the records the initialisation looks at
+    let truth_file = truth;
+    let start = super::truth::start_records(&opts, truth_file)?;
+    let truth = start.as_deref().or(p.case.truth.as_deref());
+    let metrics_truth: Option<super::truth::TruthSource<'_>> = match (truth_file, &p.case.truth) {
+        (Some(f), _) => Some(f.records()),
+        (None, Some(v)) => Some(Box::new(v.iter().copied().map(Ok))),
+        (None, None) => None,
+    };
+    let mut sink =
+        super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, metrics_truth)?;
     let data = super::RunData {
         gnss: &p.case.gnss,
         truth,
@@ -115,6 +127,8 @@ pub fn execute_streaming(
             super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
         }
     };
+    // a complete run: the rest of the truth file checked (as when it was loaded whole)
+    let res = res.and_then(|out| sink.check_truth_rest().map(|()| out));
     match res {
         Ok(out) => {
             let m = sink

@@ -27,7 +27,6 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind};
 use nav_core::strapdown::NavState;
-use nav_core::types::NavSolution;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
     GnssTextReader, ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig,
@@ -133,6 +132,9 @@ pub struct Loaded {
     pub imu_stream: Option<ImuStream>,
     /// Warnings about the data (e.g. the mounting check); the front end shows them.
     pub warnings: Vec<String>,
+    /// The truth file the run reads as the solution advances instead of loading it (asked
+    /// with `stream_imu`; then `prepared.case.truth` is None), see [`super::truth`].
+    pub truth_stream: Option<super::truth::TruthFile>,
 }
 
 /// Parses `--imu-gaps`.
@@ -358,7 +360,9 @@ fn scale_sigmas(g: &mut nav_core::types::GnssFix, k: f64) {
 /// returned in [`Loaded::imu_stream`], to be read while the filter runs
 /// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way. The GNSS
 /// text file of such a run is streamed too ([`ImuStream::gnss`]: checked here, the case's
-/// fix list left empty).
+/// fix list left empty). With `stream_imu` the truth is never loaded (`case.truth` stays
+/// None): its file is checked and returned in [`Loaded::truth_stream`], to be read as the
+/// solution advances.
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
@@ -377,11 +381,25 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         }
         None => None,
     };
+    // streamed, the truth is not loaded: it is read as the solution advances
+    let truth_stream = if stream {
+        let cd_truth = case_dir.as_ref().map(|c| c.truth.as_path());
+        let cfg_truth = match &kind {
+            ConfigKind::Run(r) => r.truth.as_ref(),
+            ConfigKind::KfGins(_) => None,
+        };
+        super::truth::run_truth_file(args.truth.as_deref(), cd_truth, cfg_truth, &cfg_dir)?
+    } else {
+        None
+    };
     let (mut case, mut opts, mut week, mut description, streams) = match kind {
         ConfigKind::KfGins(k) => {
             prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
         }
-        ConfigKind::Run(r) => {
+        ConfigKind::Run(mut r) => {
+            if stream {
+                r.truth = None;
+            }
             prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream, &mut warnings)?
         }
     };
@@ -393,13 +411,17 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     if let Some(cd) = &case_dir {
         week = cd.week;
         if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
-            case.truth = Some(read_nav_text(&cd.truth)?);
+            if !stream {
+                case.truth = Some(read_nav_text(&cd.truth)?);
+            }
             description.push_str(&format!("; truth {}", cd.truth.display()));
         }
         opts.outages.extend(cd.outages.iter().copied());
     }
     if let Some(t) = &args.truth {
-        case.truth = Some(read_nav_text(t)?);
+        if !stream {
+            case.truth = Some(read_nav_text(t)?);
+        }
         description.push_str(&format!("; truth {}", t.display()));
     }
     if let Some(dt) = args.imu_time_offset_s {
@@ -496,6 +518,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         },
         imu_stream,
         warnings,
+        truth_stream,
     })
 }
 
@@ -640,7 +663,7 @@ fn prepare_run_config(
             } else {
                 read_gnss_text(&c.gnss)?
             },
-            if c.truth.exists() {
+            if !stream && c.truth.exists() {
                 Some(read_nav_text(&c.truth)?)
             } else {
                 None
@@ -657,22 +680,7 @@ fn prepare_run_config(
             }
             let truth = inp.truth.map(|t| match t {
                 TruthData::Nav(v) => v,
-                TruthData::Positions(f) => f
-                    .iter()
-                    .map(|f| NavSolution {
-                        t_s: f.t_s,
-                        lat_rad: f.lat_rad,
-                        lon_rad: f.lon_rad,
-                        h_m: f.h_m,
-                        vel_ned_mps: if f.has_velocity {
-                            f.vel_ned_mps
-                        } else {
-                            [f64::NAN; 3]
-                        },
-                        rpy_rad: [f64::NAN; 3],
-                        ..NavSolution::default()
-                    })
-                    .collect(),
+                TruthData::Positions(f) => f.iter().map(super::truth::truth_from_fix).collect(),
             });
             (inp.imu, inp.gnss, truth)
         }

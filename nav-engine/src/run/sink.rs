@@ -2,7 +2,9 @@
 //! written (as `NAME.partial`, see [`super::output::write_all`]) while the filter runs,
 //! and the metrics computed online ([`crate::metrics::SampleAcc`]): memory independent of
 //! the record's length. What it keeps: running sums (overall, outside the outages, per outage,
-//! GNSS residuals) and, while an outage's coasting track is open, that track.
+//! GNSS residuals), while an outage's coasting track is open, that track, and the truth (when
+//! there is one) as a stream read as the solution advances ([`super::truth::TruthFeed`]:
+//! one record ahead, and the records inside an outage until its coasting tracks are in).
 //!
 //! The text of every file is the one [`super::output`] writes from a [`super::RunOutput`]
 //! (same functions per line): `nav.txt` is byte-identical to the in-memory path.
@@ -15,7 +17,10 @@
 use super::coast::CoastTrack;
 use super::engine::{RunHead, RunSink};
 use super::output::{self, PARTIAL_SUFFIX};
-use super::{solution_is_finite, EpochRecord, FixUse, InnovationRecord, Outage, RunError};
+use super::truth::{TruthFeed, TruthSource};
+use super::{
+    solution_is_finite, EpochRecord, FixUse, InnovationRecord, Outage, OutageSnapshot, RunError,
+};
 use crate::metrics::{self, Metrics, OutageMetrics, SampleAcc, TruthMatcher};
 use nav_core::types::NavSolution;
 use nav_io::IoError;
@@ -330,8 +335,8 @@ pub struct FileSink<'a> {
     tx: Option<SyncSender<Vec<Rec>>>,
     writer: Option<JoinHandle<Result<Writer, RunError>>>,
     residuals: metrics::ResidualAcc,
-    truth: Option<&'a [NavSolution]>,
-    matcher: Option<TruthMatcher<'a>>,
+    /// The solution against the truth, read as it advances (None: no truth).
+    truth: Option<TruthMatcher<TruthFeed<'a>>>,
     samples: SampleAcc,
     outages: Vec<Outage>,
     coasting: [Option<Vec<OutageMetrics>>; 2],
@@ -347,14 +352,16 @@ pub const COAST_MODE_NAMES: [&str; 2] =
 
 impl<'a> FileSink<'a> {
     /// Removes earlier outputs in `dir` and opens the `.partial` files. `outages` must be the
-    /// run's outages and `truth` the reference when there is one. `nav_rate_hz`: rate of
-    /// `nav.txt` (None: every record; the metrics always see every record).
+    /// run's outages and `truth` the reference when there is one (its records in time order,
+    /// read as the solution advances; a slice in memory is `slice.iter().copied().map(Ok)`).
+    /// `nav_rate_hz`: rate of `nav.txt` (None: every record; the metrics always see every
+    /// record).
     pub fn create(
         dir: &Path,
         week: u16,
         nav_rate_hz: Option<f64>,
         outages: &[Outage],
-        truth: Option<&'a [NavSolution]>,
+        truth: Option<TruthSource<'a>>,
     ) -> Result<Self, RunError> {
         std::fs::create_dir_all(dir).map_err(|source| {
             RunError::Output(IoError::Write {
@@ -407,8 +414,7 @@ impl<'a> FileSink<'a> {
             tx: Some(tx),
             writer: Some(writer),
             residuals: metrics::ResidualAcc::default(),
-            truth,
-            matcher: truth.map(TruthMatcher::new),
+            truth: truth.map(|t| TruthMatcher::new(TruthFeed::new(t, &outages))),
             samples: SampleAcc::new(&outages),
             outages,
             coasting: [None, None],
@@ -460,6 +466,21 @@ impl<'a> FileSink<'a> {
             Some(h) => h.join().map_err(|_| gone())?,
             None => Err(gone()),
         }
+    }
+
+    /// After a complete run: reads the rest of the truth file (nothing kept) and returns its
+    /// read error, so that a truth file is checked to its end as when it was loaded whole.
+    pub fn check_truth_rest(&mut self) -> Result<(), RunError> {
+        match &mut self.truth {
+            Some(m) => m.source_mut().check_rest().map_err(RunError::Input),
+            None => Ok(()),
+        }
+    }
+
+    /// Truth records the sink holds (read ahead, and kept for the outages' coasting
+    /// metrics), count.
+    pub fn truth_held(&self) -> usize {
+        self.truth.as_ref().map_or(0, |m| m.source().held())
     }
 
     /// Navigation records written to `nav.txt`.
@@ -576,13 +597,19 @@ impl RunSink for FileSink<'_> {
                 source,
             })
         })?;
+        if let Some(m) = &mut self.truth {
+            m.source_mut().set_coast_modes(head.coast_modes);
+        }
         self.push(Rec::StdRaw(l))
     }
 
     fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
-        if let Some(m) = &mut self.matcher {
+        if let Some(m) = &mut self.truth {
             let acc = &mut self.samples;
             m.push(s, |e| acc.push(&e));
+            if let Some(e) = m.source_mut().take_err() {
+                return Err(RunError::Input(e));
+            }
         }
         let rate = self.nav_rate_hz;
         let dec = self
@@ -612,8 +639,26 @@ impl RunSink for FileSink<'_> {
         Ok(())
     }
 
+    fn snapshot(&mut self, s: &OutageSnapshot) {
+        if let Some(m) = &mut self.truth {
+            m.source_mut().outage_reached(s.outage);
+        }
+    }
+
     fn coast(&mut self, mode: usize, track: CoastTrack) {
-        let per = metrics::coasting_track_metrics(&track, &self.outages, self.truth);
+        let per = match &mut self.truth {
+            Some(m) => {
+                let feed = m.source_mut();
+                let per = metrics::coasting_track_metrics(
+                    &track,
+                    &self.outages,
+                    Some(feed.outage_window(track.outage)),
+                );
+                feed.track_done(track.outage);
+                per
+            }
+            None => metrics::coasting_track_metrics(&track, &self.outages, None),
+        };
         if let Some(slot) = self.coasting.get_mut(mode) {
             slot.get_or_insert_with(Vec::new).extend(per);
         }
