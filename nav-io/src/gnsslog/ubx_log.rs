@@ -8,7 +8,7 @@ use crate::gpstime::{gpst_minus_utc_s, gpst_week_sow, SECONDS_PER_WEEK};
 use crate::IoError;
 use nav_core::types::GnssFix;
 use std::collections::VecDeque;
-use std::io::{BufRead, BufReader, Read};
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// Bytes read from the file (or the gzip decoder) at a time.
@@ -80,16 +80,42 @@ impl UbxLogReader {
             path: path.to_path_buf(),
             source,
         })?;
-        let mut br = BufReader::with_capacity(CHUNK_BYTES, f);
-        let head = br.fill_buf().map_err(|source| IoError::Read {
-            path: path.to_path_buf(),
-            line: 0,
-            source,
-        })?;
-        let src: Box<dyn Read + Send> = if head.starts_with(&[0x1f, 0x8b]) {
-            Box::new(flate2::read::MultiGzDecoder::new(br))
+        Self::from_reader(path, f, opts, max_q)
+    }
+
+    /// Reads from any byte source (gzip detected from its magic bytes); `name` is the file
+    /// name used in errors and warnings.
+    pub fn from_reader<R: Read + Send + 'static>(
+        name: &Path,
+        src: R,
+        opts: &GnssLogOptions,
+        max_q: u8,
+    ) -> Result<Self, IoError> {
+        let path = name;
+        // the first two bytes (however the source splits them) tell gzip
+        let mut src = src;
+        let mut head = [0u8; 2];
+        let mut n = 0;
+        while n < head.len() {
+            match src.read(head.get_mut(n..).unwrap_or(&mut [])) {
+                Ok(0) => break,
+                Ok(k) => n += k,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(source) => {
+                    return Err(IoError::Read {
+                        path: path.to_path_buf(),
+                        line: 0,
+                        source,
+                    })
+                }
+            }
+        }
+        let gz = n == 2 && head == [0x1f, 0x8b];
+        let src = std::io::Cursor::new(head).take(n as u64).chain(src);
+        let src: Box<dyn Read + Send> = if gz {
+            Box::new(flate2::read::MultiGzDecoder::new(BufReader::new(src)))
         } else {
-            Box::new(br)
+            Box::new(src)
         };
         Ok(Self {
             path: path.to_path_buf(),
