@@ -557,221 +557,332 @@ fn parse_time(
     }
 }
 
-/// Reads a GNSS CSV/text log with the mapping `fmt` (see the module notes).
+/// Reads a GNSS CSV/text log with the mapping `fmt` (see the module notes;
+/// [`GnssCsvReader`] collected).
 pub fn read_gnss_csv(
     path: impl AsRef<Path>,
     fmt: &GnssCsvFormat,
 ) -> Result<GnssCsvRecord, IoError> {
-    let path = path.as_ref();
-    if let GnssCsvTime::Text { format, .. } = &fmt.time {
-        if format.trim().is_empty() {
-            return Err(cfg_err(path, "gnss.csv.time.format is empty"));
-        }
-    }
-    let mut rd = open_text(path)?;
-    let names = read_header(&mut rd, path, fmt.skip_lines, fmt.names_line)?;
-    let cols = resolve_cols(path, fmt, names.as_deref())?;
-    let accept: Vec<String> = fmt
-        .quality
-        .as_ref()
-        .map(|q| {
-            q.accept
-                .iter()
-                .map(|s| s.trim().to_ascii_uppercase())
-                .collect()
-        })
-        .unwrap_or_default();
-    let codes = fmt.quality.as_ref().map(|q| q.codes).unwrap_or_default();
-    let kv = fmt.speed_unit.to_mps();
-
-    let mut out = GnssCsvRecord {
-        path: path.to_path_buf(),
-        ..GnssCsvRecord::default()
-    };
-    if let SigCols::Default(d) = cols.sig {
-        out.warnings.push(format!(
-            "{}: no position accuracy in the file: every fix gets the configured default_sigma_ned_m = {d:?} m",
-            path.display()
-        ));
-    }
-    if let (VelSigCols::Default(d), false) = (&cols.vel_sig, matches!(cols.vel, VelCols::None)) {
-        out.warnings.push(format!(
-            "{}: no velocity accuracy in the file: every velocity gets the configured default_vel_sigma_ned_mps = {d:?} m/s",
-            path.display()
-        ));
-    }
-    if matches!(cols.vel, VelCols::SpeedCourse(_, _, None)) {
-        out.warnings.push(format!(
-            "{}: no vertical speed column: the down velocity is taken as 0 with sigma {} m/s",
-            path.display(),
-            match cols.vel_sig {
-                VelSigCols::Default(d) => d[2],
-                _ => f64::NAN,
-            }
-        ));
-    }
-    let mut mono = MonotonicTime::new();
-    let mut week0: Option<i64> = None;
-    while let Some(dl) = rd.next_data()? {
-        // quality first: records that are not kept need not hold a valid position
-        let mut quality = FixQuality::Single;
-        if let Some(qi) = cols.quality {
-            let text = *dl
-                .fields
-                .get(qi)
-                .ok_or_else(|| dl.invalid(qi, "quality", "missing"))?;
-            let up = text.trim().to_ascii_uppercase();
-            let listed = accept.contains(&up);
-            let q = match up.parse::<i64>() {
-                Ok(c) => Some(codes.quality(c)),
-                Err(_) => quality_from_name(&up),
-            };
-            quality = match q {
-                Some(q) => q,
-                None if listed => FixQuality::Single,
-                None => {
-                    return Err(dl.invalid(
-                        qi,
-                        "quality",
-                        "unknown fix quality name: list it in gnss.csv.quality.accept to keep such records",
-                    ))
-                }
-            };
-            let keep = if accept.is_empty() {
-                quality != FixQuality::NoFix
-            } else {
-                listed
-            };
-            if !keep {
-                out.dropped_by_quality += 1;
-                continue;
-            }
-            if quality == FixQuality::NoFix {
-                // accepted explicitly: the user says it is a usable position
-                quality = FixQuality::Single;
-            }
-        }
-        let (week, sow) = parse_time(&dl, fmt, &cols)?;
-        let w0 = *week0.get_or_insert(week.unwrap_or(0));
-        let t_s = sow + (week.unwrap_or(0) - w0) as f64 * SECONDS_PER_WEEK;
-        mono.check(&dl, cols.time, "time", t_s)?;
-        let mut fix = GnssFix {
-            t_s,
-            quality,
-            ..GnssFix::default()
-        };
-        match cols.pos {
-            PosCols::Llh([a, b, h]) => {
-                fix.lat_rad = dl.lat_deg(a, "lat [deg]")?.to_radians();
-                fix.lon_rad = dl.lon_deg(b, "lon [deg]")?.to_radians();
-                fix.h_m = dl.num(h, "h [m]")?;
-                if !(-1.0e4..1.0e7).contains(&fix.h_m) {
-                    return Err(dl.invalid(h, "h [m]", "height outside -10 km .. 10000 km"));
-                }
-            }
-            PosCols::Ecef([x, y, z]) => {
-                let r = Vector3::new(
-                    dl.num(x, "ecef_x [m]")?,
-                    dl.num(y, "ecef_y [m]")?,
-                    dl.num(z, "ecef_z [m]")?,
-                );
-                if !(1.0e6..1.0e8).contains(&r.norm()) {
-                    return Err(dl.invalid(
-                        x,
-                        "ecef_x [m]",
-                        "ECEF position not between 1000 km and 100000 km from the earth's centre",
-                    ));
-                }
-                let llh = ecef_to_geodetic(&r);
-                fix.lat_rad = llh.lat_rad;
-                fix.lon_rad = llh.lon_rad;
-                fix.h_m = llh.h_m;
-            }
-        }
-        let positive = |dl: &DataLine<'_>, i: usize, n: &str| -> Result<f64, IoError> {
-            let v = dl.sigma(i, n)?;
-            if v <= 0.0 {
-                return Err(dl.invalid(i, n, "a standard deviation must be > 0"));
-            }
-            Ok(v)
-        };
-        fix.pos_std_ned_m = match cols.sig {
-            SigCols::Ned([a, b, c]) => [
-                positive(&dl, a, "sigma_n [m]")?,
-                positive(&dl, b, "sigma_e [m]")?,
-                positive(&dl, c, "sigma_d [m]")?,
-            ],
-            SigCols::Hv(h, v) => {
-                let d = fmt.default_sigma_ned_m.unwrap_or([f64::NAN; 3]);
-                let sh = match h {
-                    Some(i) => positive(&dl, i, "sigma_h [m]")?,
-                    None => d[0],
-                };
-                let sv = match v {
-                    Some(i) => positive(&dl, i, "sigma_v [m]")?,
-                    None => d[2],
-                };
-                [sh, sh, sv]
-            }
-            SigCols::Default(d) => d,
-        };
-        match cols.vel {
-            VelCols::None => {}
-            VelCols::Ned([a, b, c]) => {
-                fix.vel_ned_mps = [
-                    dl.num(a, "vel_n [m/s]")?,
-                    dl.num(b, "vel_e [m/s]")?,
-                    dl.num(c, "vel_d [m/s]")?,
-                ];
-                fix.has_velocity = true;
-            }
-            VelCols::SpeedCourse(s, k, climb) => {
-                let sp = dl.num(s, "speed")? * kv;
-                if sp < 0.0 {
-                    return Err(dl.invalid(s, "speed", "a speed cannot be negative"));
-                }
-                let co = dl.num(k, "course [deg]")?;
-                if co.abs() > 720.0 {
-                    return Err(dl.invalid(k, "course [deg]", "course outside -720..720 deg"));
-                }
-                let up = match climb {
-                    Some(i) => dl.num(i, "climb [m/s]")?,
-                    None => 0.0,
-                };
-                let c = co.to_radians();
-                fix.vel_ned_mps = [sp * c.cos(), sp * c.sin(), -up];
-                fix.has_velocity = true;
-            }
-        }
-        if fix.has_velocity {
-            fix.vel_std_ned_mps = match cols.vel_sig {
-                VelSigCols::Ned([a, b, c]) => [
-                    positive(&dl, a, "vel_sigma_n [m/s]")?,
-                    positive(&dl, b, "vel_sigma_e [m/s]")?,
-                    positive(&dl, c, "vel_sigma_d [m/s]")?,
-                ],
-                VelSigCols::Speed(i) => [positive(&dl, i, "speed_sigma [m/s]")?; 3],
-                VelSigCols::Default(d) => d,
-            };
-        }
-        if let Some(i) = cols.num_sats {
-            fix.num_sats = u8::try_from(dl.integer(i, "num_sats", 0, 255)?).unwrap_or(u8::MAX);
-        }
-        out.lines.push(dl.line);
+    let mut rd = GnssCsvReader::open(path, fmt)?;
+    let mut out = GnssCsvRecord::default();
+    for r in &mut rd {
+        let (fix, line) = r?;
         out.fixes.push(fix);
+        out.lines.push(line);
     }
-    if !matches!(fmt.time, GnssCsvTime::GpsSow) {
-        out.week = week0;
-    }
-    if out.fixes.is_empty() {
-        return Err(IoError::Format {
-            path: path.to_path_buf(),
-            line: 0,
-            message: format!(
-                "no GNSS fixes kept ({} dropped by the quality filter)",
-                out.dropped_by_quality
-            ),
-        });
-    }
+    out.week = rd.week();
+    out.dropped_by_quality = rd.dropped_by_quality();
+    out.warnings = rd.warnings().to_vec();
+    out.path = rd.path;
     Ok(out)
+}
+
+/// A GNSS CSV/text log read one record at a time with the mapping `fmt`: the one parser of
+/// the format ([`read_gnss_csv`] collects it). Yields the kept fixes with their 1-based file
+/// line; the week ([`Self::week`]) is the first kept fix's, known once it is read; the
+/// warnings about the mapping are known at opening. A file without a kept fix ends with an
+/// error. Errors name file, line and column; after an error the reader ends. Nothing is kept
+/// but the current line and the resolved mapping: constant memory.
+pub struct GnssCsvReader {
+    rd: super::lines::LineReader,
+    path: PathBuf,
+    fmt: GnssCsvFormat,
+    cols: Cols,
+    /// `quality.accept`, trimmed and upper case.
+    accept: Vec<String>,
+    codes: QualityCodes,
+    /// Speed unit to m/s.
+    kv: f64,
+    mono: MonotonicTime,
+    week0: Option<i64>,
+    kept: usize,
+    dropped_by_quality: usize,
+    warnings: Vec<String>,
+    done: bool,
+}
+
+impl GnssCsvReader {
+    /// Opens `path` and reads its header lines; mapping errors (columns, sigmas, names not in
+    /// the header) come here.
+    pub fn open(path: impl AsRef<Path>, fmt: &GnssCsvFormat) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        if let GnssCsvTime::Text { format, .. } = &fmt.time {
+            if format.trim().is_empty() {
+                return Err(cfg_err(path, "gnss.csv.time.format is empty"));
+            }
+        }
+        let mut rd = open_text(path)?;
+        let names = read_header(&mut rd, path, fmt.skip_lines, fmt.names_line)?;
+        let cols = resolve_cols(path, fmt, names.as_deref())?;
+        let accept: Vec<String> = fmt
+            .quality
+            .as_ref()
+            .map(|q| {
+                q.accept
+                    .iter()
+                    .map(|s| s.trim().to_ascii_uppercase())
+                    .collect()
+            })
+            .unwrap_or_default();
+        let codes = fmt.quality.as_ref().map(|q| q.codes).unwrap_or_default();
+        let mut warnings = Vec::new();
+        if let SigCols::Default(d) = cols.sig {
+            warnings.push(format!(
+                "{}: no position accuracy in the file: every fix gets the configured default_sigma_ned_m = {d:?} m",
+                path.display()
+            ));
+        }
+        if let (VelSigCols::Default(d), false) = (&cols.vel_sig, matches!(cols.vel, VelCols::None))
+        {
+            warnings.push(format!(
+                "{}: no velocity accuracy in the file: every velocity gets the configured default_vel_sigma_ned_mps = {d:?} m/s",
+                path.display()
+            ));
+        }
+        if matches!(cols.vel, VelCols::SpeedCourse(_, _, None)) {
+            warnings.push(format!(
+                "{}: no vertical speed column: the down velocity is taken as 0 with sigma {} m/s",
+                path.display(),
+                match cols.vel_sig {
+                    VelSigCols::Default(d) => d[2],
+                    _ => f64::NAN,
+                }
+            ));
+        }
+        Ok(Self {
+            rd,
+            path: path.to_path_buf(),
+            fmt: fmt.clone(),
+            cols,
+            accept,
+            codes,
+            kv: fmt.speed_unit.to_mps(),
+            mono: MonotonicTime::new(),
+            week0: None,
+            kept: 0,
+            dropped_by_quality: 0,
+            warnings,
+            done: false,
+        })
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// GPS week of the first kept fix when the time format gives it (None before it is
+    /// read).
+    pub fn week(&self) -> Option<i64> {
+        if matches!(self.fmt.time, GnssCsvTime::GpsSow) {
+            None
+        } else {
+            self.week0
+        }
+    }
+
+    /// Records dropped so far by the quality filter.
+    pub fn dropped_by_quality(&self) -> usize {
+        self.dropped_by_quality
+    }
+
+    /// Things the user should know (each said once): default sigmas used, ...
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The next kept fix and its line; `None` at the end of the file.
+    fn read(&mut self) -> Result<Option<(GnssFix, usize)>, IoError> {
+        let Self {
+            rd,
+            fmt,
+            cols,
+            accept,
+            codes,
+            kv,
+            mono,
+            week0,
+            dropped_by_quality,
+            ..
+        } = self;
+        let (fmt, cols, accept, codes, kv) = (&*fmt, &*cols, &*accept, *codes, *kv);
+        while let Some(dl) = rd.next_data()? {
+            // quality first: records that are not kept need not hold a valid position
+            let mut quality = FixQuality::Single;
+            if let Some(qi) = cols.quality {
+                let text = *dl
+                    .fields
+                    .get(qi)
+                    .ok_or_else(|| dl.invalid(qi, "quality", "missing"))?;
+                let up = text.trim().to_ascii_uppercase();
+                let listed = accept.contains(&up);
+                let q = match up.parse::<i64>() {
+                    Ok(c) => Some(codes.quality(c)),
+                    Err(_) => quality_from_name(&up),
+                };
+                quality = match q {
+                    Some(q) => q,
+                    None if listed => FixQuality::Single,
+                    None => {
+                        return Err(dl.invalid(
+                            qi,
+                            "quality",
+                            "unknown fix quality name: list it in gnss.csv.quality.accept to keep such records",
+                        ))
+                    }
+                };
+                let keep = if accept.is_empty() {
+                    quality != FixQuality::NoFix
+                } else {
+                    listed
+                };
+                if !keep {
+                    *dropped_by_quality += 1;
+                    continue;
+                }
+                if quality == FixQuality::NoFix {
+                    // accepted explicitly: the user says it is a usable position
+                    quality = FixQuality::Single;
+                }
+            }
+            let (week, sow) = parse_time(&dl, fmt, cols)?;
+            let w0 = *week0.get_or_insert(week.unwrap_or(0));
+            let t_s = sow + (week.unwrap_or(0) - w0) as f64 * SECONDS_PER_WEEK;
+            mono.check(&dl, cols.time, "time", t_s)?;
+            let mut fix = GnssFix {
+                t_s,
+                quality,
+                ..GnssFix::default()
+            };
+            match cols.pos {
+                PosCols::Llh([a, b, h]) => {
+                    fix.lat_rad = dl.lat_deg(a, "lat [deg]")?.to_radians();
+                    fix.lon_rad = dl.lon_deg(b, "lon [deg]")?.to_radians();
+                    fix.h_m = dl.num(h, "h [m]")?;
+                    if !(-1.0e4..1.0e7).contains(&fix.h_m) {
+                        return Err(dl.invalid(h, "h [m]", "height outside -10 km .. 10000 km"));
+                    }
+                }
+                PosCols::Ecef([x, y, z]) => {
+                    let r = Vector3::new(
+                        dl.num(x, "ecef_x [m]")?,
+                        dl.num(y, "ecef_y [m]")?,
+                        dl.num(z, "ecef_z [m]")?,
+                    );
+                    if !(1.0e6..1.0e8).contains(&r.norm()) {
+                        return Err(dl.invalid(
+                            x,
+                            "ecef_x [m]",
+                            "ECEF position not between 1000 km and 100000 km from the earth's centre",
+                        ));
+                    }
+                    let llh = ecef_to_geodetic(&r);
+                    fix.lat_rad = llh.lat_rad;
+                    fix.lon_rad = llh.lon_rad;
+                    fix.h_m = llh.h_m;
+                }
+            }
+            let positive = |dl: &DataLine<'_>, i: usize, n: &str| -> Result<f64, IoError> {
+                let v = dl.sigma(i, n)?;
+                if v <= 0.0 {
+                    return Err(dl.invalid(i, n, "a standard deviation must be > 0"));
+                }
+                Ok(v)
+            };
+            fix.pos_std_ned_m = match cols.sig {
+                SigCols::Ned([a, b, c]) => [
+                    positive(&dl, a, "sigma_n [m]")?,
+                    positive(&dl, b, "sigma_e [m]")?,
+                    positive(&dl, c, "sigma_d [m]")?,
+                ],
+                SigCols::Hv(h, v) => {
+                    let d = fmt.default_sigma_ned_m.unwrap_or([f64::NAN; 3]);
+                    let sh = match h {
+                        Some(i) => positive(&dl, i, "sigma_h [m]")?,
+                        None => d[0],
+                    };
+                    let sv = match v {
+                        Some(i) => positive(&dl, i, "sigma_v [m]")?,
+                        None => d[2],
+                    };
+                    [sh, sh, sv]
+                }
+                SigCols::Default(d) => d,
+            };
+            match cols.vel {
+                VelCols::None => {}
+                VelCols::Ned([a, b, c]) => {
+                    fix.vel_ned_mps = [
+                        dl.num(a, "vel_n [m/s]")?,
+                        dl.num(b, "vel_e [m/s]")?,
+                        dl.num(c, "vel_d [m/s]")?,
+                    ];
+                    fix.has_velocity = true;
+                }
+                VelCols::SpeedCourse(s, k, climb) => {
+                    let sp = dl.num(s, "speed")? * kv;
+                    if sp < 0.0 {
+                        return Err(dl.invalid(s, "speed", "a speed cannot be negative"));
+                    }
+                    let co = dl.num(k, "course [deg]")?;
+                    if co.abs() > 720.0 {
+                        return Err(dl.invalid(k, "course [deg]", "course outside -720..720 deg"));
+                    }
+                    let up = match climb {
+                        Some(i) => dl.num(i, "climb [m/s]")?,
+                        None => 0.0,
+                    };
+                    let c = co.to_radians();
+                    fix.vel_ned_mps = [sp * c.cos(), sp * c.sin(), -up];
+                    fix.has_velocity = true;
+                }
+            }
+            if fix.has_velocity {
+                fix.vel_std_ned_mps = match cols.vel_sig {
+                    VelSigCols::Ned([a, b, c]) => [
+                        positive(&dl, a, "vel_sigma_n [m/s]")?,
+                        positive(&dl, b, "vel_sigma_e [m/s]")?,
+                        positive(&dl, c, "vel_sigma_d [m/s]")?,
+                    ],
+                    VelSigCols::Speed(i) => [positive(&dl, i, "speed_sigma [m/s]")?; 3],
+                    VelSigCols::Default(d) => d,
+                };
+            }
+            if let Some(i) = cols.num_sats {
+                fix.num_sats = u8::try_from(dl.integer(i, "num_sats", 0, 255)?).unwrap_or(u8::MAX);
+            }
+            return Ok(Some((fix, dl.line)));
+        }
+        Ok(None)
+    }
+}
+
+impl Iterator for GnssCsvReader {
+    type Item = Result<(GnssFix, usize), IoError>;
+
+    /// The next kept fix and its 1-based line; at the end of a file without a kept fix, an
+    /// error; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let r = match self.read() {
+            Ok(Some(x)) => {
+                self.kept += 1;
+                return Some(Ok(x));
+            }
+            Ok(None) if self.kept > 0 => None,
+            Ok(None) => Some(Err(IoError::Format {
+                path: self.path.clone(),
+                line: 0,
+                message: format!(
+                    "no GNSS fixes kept ({} dropped by the quality filter)",
+                    self.dropped_by_quality
+                ),
+            })),
+            Err(e) => Some(Err(e)),
+        };
+        self.done = true;
+        r
+    }
 }

@@ -9,7 +9,10 @@
 //! - lines and columns in errors are 1-based (column = field index on the line);
 //! - no input makes a reader panic: every problem is an [`IoError`];
 //! - IMU inputs have streaming readers ([`ImuTextReader`], [`ImuBinReader`], [`ImuCsvReader`],
-//!   [`ImuCsvIncrements`]) that allocate nothing per line; the whole-file readers collect them.
+//!   [`ImuCsvIncrements`]) that allocate nothing per line; the whole-file readers collect them;
+//! - GNSS inputs too, one reader per format ([`GnssTextReader`], [`PosReader`],
+//!   [`GnssCsvReader`], [`NmeaLogReader`], [`UbxLogReader`]; `runcfg::GnssFixReader` holds
+//!   the one a run configuration names): constant memory, the whole-file readers collect them.
 //!
 //! Writers write gzip when the path ends in `.gz`.
 #![deny(missing_docs)]
@@ -36,10 +39,12 @@ pub mod text;
 pub use aidingcfg::AidingSection;
 pub use error::IoError;
 pub use gnsscsv::{
-    read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvRecord, GnssCsvTime, QualityCodes,
-    QualityMap, SpeedUnit, TimeScale,
+    read_gnss_csv, GnssCsvColumns, GnssCsvFormat, GnssCsvReader, GnssCsvRecord, GnssCsvTime,
+    QualityCodes, QualityMap, SpeedUnit, TimeScale,
 };
-pub use gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord};
+pub use gnsslog::{
+    read_nmea_log, read_ubx_log, GnssLogOptions, GnssLogRecord, NmeaLogReader, UbxLogReader,
+};
 pub use heading::{read_heading, write_heading, HeadingReader, HeadingSample, HeadingStream};
 pub use imucsv::{
     rates_to_increments, read_imu_csv, read_imu_csv_raw, AccelUnit, Column, CsvTime, ImuCsvColumns,
@@ -56,7 +61,9 @@ pub use numfmt::LineBuf;
 pub use odometer::{
     read_odometer, write_odometer, OdometerReader, OdometerSample, OdometerStream, OdometerTrack,
 };
-pub use pos::{read_rtklib_pos, PosOptions, PosPositionFormat, PosRecord, PosTimeSystem};
+pub use pos::{
+    read_rtklib_pos, PosOptions, PosPositionFormat, PosReader, PosRecord, PosTimeSystem,
+};
 pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,
     GivenState, GnssFileKind, GnssSource, GyroNoiseConfig, ImuChecksConfig, ImuClassName,

@@ -19,14 +19,15 @@ const MAX_LINE_BYTES: usize = 1 << 20;
 /// Bytes asked of the source per read (the buffer grows beyond it only for longer lines).
 const CHUNK_BYTES: usize = 1 << 17;
 
-/// A text file read line by line (gzip or plain), counting 1-based line numbers.
+/// A text file read line by line (gzip or plain), counting 1-based line numbers. `Send`: a
+/// reader can be moved to another thread.
 ///
 /// The bytes are read in chunks of [`CHUNK_BYTES`] into one buffer and the lines are found
 /// in it with `memchr` (no per-line read call, no copy of a line); a line's text is a slice
 /// of the buffer.
 pub struct LineReader {
     path: PathBuf,
-    inner: Box<dyn Read>,
+    inner: Box<dyn Read + Send>,
     line: usize,
     /// Read buffer: `buf[start..end]` is not yet consumed (its length is the allocation,
     /// zeroed once).
@@ -50,7 +51,7 @@ pub fn open_text(path: &Path) -> Result<LineReader, IoError> {
 impl LineReader {
     /// Wraps any byte source; `name` is used in error messages. Gzip is detected from the
     /// magic bytes.
-    pub fn from_reader<R: Read + 'static>(name: &Path, src: R) -> Result<Self, IoError> {
+    pub fn from_reader<R: Read + Send + 'static>(name: &Path, src: R) -> Result<Self, IoError> {
         let mut br = BufReader::with_capacity(1 << 16, src);
         let head = br.fill_buf().map_err(|source| IoError::Read {
             path: name.to_path_buf(),
@@ -58,7 +59,7 @@ impl LineReader {
             source,
         })?;
         let gz = head.len() >= 2 && head[0] == 0x1f && head[1] == 0x8b;
-        let inner: Box<dyn Read> = if gz {
+        let inner: Box<dyn Read + Send> = if gz {
             Box::new(MultiGzDecoder::new(br))
         } else {
             Box::new(br)

@@ -461,91 +461,197 @@ fn parse_record(
     Ok((fix, week, q))
 }
 
-/// Reads an RTKLIB `.pos` file (plain or gzip) and keeps the records with `1 <= Q <= max_q`.
+/// Reads an RTKLIB `.pos` file (plain or gzip) and keeps the records with `1 <= Q <= max_q`
+/// ([`PosReader`] collected).
 pub fn read_rtklib_pos(path: impl AsRef<Path>, opts: &PosOptions) -> Result<PosRecord, IoError> {
-    let path = path.as_ref();
-    if !(1..=6).contains(&opts.max_q) {
-        return Err(IoError::Config {
+    let mut rd = PosReader::open(path, opts)?;
+    let mut fixes = Vec::new();
+    for r in &mut rd {
+        fixes.push(r?.0);
+    }
+    Ok(PosRecord {
+        fixes,
+        week: rd.week(),
+        epochs: rd.epochs(),
+        dropped_by_quality: rd.dropped_by_quality(),
+        count_by_q: rd.count_by_q(),
+        time_system: rd.time_system(),
+        position_format: rd.position_format(),
+        has_velocity: rd.has_velocity(),
+    })
+}
+
+/// An RTKLIB `.pos` file (plain or gzip) read one record at a time: the one parser of the
+/// format ([`read_rtklib_pos`] collects it). Yields the kept fixes (`1 <= Q <= max_q`) with
+/// their 1-based file line; the counters ([`Self::epochs`], [`Self::dropped_by_quality`],
+/// [`Self::count_by_q`], ...) cover the records read so far. The week ([`Self::week`]) is the
+/// first record's, known once it is read. Errors name file, line and column; after an error
+/// the reader ends. Nothing is kept but the current line and the layout: constant memory.
+pub struct PosReader {
+    rd: super::lines::LineReader,
+    path: std::path::PathBuf,
+    max_q: u8,
+    info: HeaderInfo,
+    layout: Option<Layout>,
+    week0: Option<i64>,
+    mono: MonotonicTime,
+    epochs: usize,
+    dropped_by_quality: usize,
+    count_by_q: [usize; 8],
+    has_velocity: bool,
+    failed: bool,
+}
+
+impl PosReader {
+    /// Opens `path` (an error when `max_q` is outside 1..=6 or the file cannot be opened).
+    pub fn open(path: impl AsRef<Path>, opts: &PosOptions) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        if !(1..=6).contains(&opts.max_q) {
+            return Err(IoError::Config {
+                path: path.to_path_buf(),
+                message: format!("max_q must be in 1..=6, got {}", opts.max_q),
+                source: None,
+            });
+        }
+        Ok(Self {
+            rd: open_text(path)?,
             path: path.to_path_buf(),
-            message: format!("max_q must be in 1..=6, got {}", opts.max_q),
-            source: None,
-        });
+            max_q: opts.max_q,
+            info: HeaderInfo::default(),
+            layout: None,
+            week0: None,
+            mono: MonotonicTime::new(),
+            epochs: 0,
+            dropped_by_quality: 0,
+            count_by_q: [0; 8],
+            has_velocity: false,
+            failed: false,
+        })
     }
-    let mut rd = open_text(path)?;
-    let mut info = HeaderInfo::default();
-    let mut layout: Option<Layout> = None;
-    let mut week0: Option<i64> = None;
-    let mut rec = PosRecord {
-        fixes: Vec::new(),
-        week: None,
-        epochs: 0,
-        dropped_by_quality: 0,
-        count_by_q: [0; 8],
-        time_system: PosTimeSystem::Gpst,
-        position_format: PosPositionFormat::LlhDeg,
-        has_velocity: false,
-    };
-    let mut mono = MonotonicTime::new();
-    while let Some((line_no, text)) = rd.next_raw()? {
-        let t = text.trim_start();
-        if t.starts_with('%') || t.starts_with('#') {
-            if layout.is_none() {
-                parse_header_line(t, &mut info, path, line_no)?;
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// GPS week of the first record (None before it is read, or for a file without records).
+    pub fn week(&self) -> Option<i64> {
+        self.week0
+    }
+
+    /// Data records read so far (kept + dropped).
+    pub fn epochs(&self) -> usize {
+        self.epochs
+    }
+
+    /// Records dropped so far because Q was outside `1..=max_q`.
+    pub fn dropped_by_quality(&self) -> usize {
+        self.dropped_by_quality
+    }
+
+    /// Records read so far per Q flag value 0..=7 (before filtering).
+    pub fn count_by_q(&self) -> [usize; 8] {
+        self.count_by_q
+    }
+
+    /// Time system of the file (GPST until the first record fixes the layout).
+    pub fn time_system(&self) -> PosTimeSystem {
+        self.layout
+            .as_ref()
+            .map_or(PosTimeSystem::Gpst, |l| l.time_system)
+    }
+
+    /// Position layout of the file (lat/lon in degrees until the first record fixes it).
+    pub fn position_format(&self) -> PosPositionFormat {
+        self.layout
+            .as_ref()
+            .map_or(PosPositionFormat::LlhDeg, |l| l.pos)
+    }
+
+    /// Whether a record read so far carried velocities.
+    pub fn has_velocity(&self) -> bool {
+        self.has_velocity
+    }
+
+    /// The next kept fix and its line; `None` at the end of the file.
+    fn read(&mut self) -> Result<Option<(GnssFix, usize)>, IoError> {
+        loop {
+            let Some((line_no, text)) = self.rd.next_raw()? else {
+                return Ok(None);
+            };
+            let path = self.path.as_path();
+            let t = text.trim_start();
+            if t.starts_with('%') || t.starts_with('#') {
+                if self.layout.is_none() {
+                    parse_header_line(t, &mut self.info, path, line_no)?;
+                }
+                continue;
             }
-            continue;
-        }
-        if t.is_empty() {
-            continue;
-        }
-        // .pos: split on commas and white space alike (the date and time are two fields).
-        let fields = text
-            .split(|c: char| c == ',' || c.is_whitespace())
-            .filter(|s| !s.is_empty())
-            .collect();
-        let dl = DataLine {
-            path,
-            line: line_no,
-            fields,
-        };
-        let lay = match &layout {
-            Some(l) => l,
-            None => {
-                let tf = if dl.fields.first().is_some_and(|f| f.contains('/')) {
-                    TimeFormat::Calendar
-                } else {
-                    TimeFormat::WeekTow
-                };
-                let l = Layout::new(
-                    info.time_system.unwrap_or(PosTimeSystem::Gpst),
-                    info.pos.unwrap_or(PosPositionFormat::LlhDeg),
-                    tf,
-                );
-                rec.time_system = l.time_system;
-                rec.position_format = l.pos;
-                layout.insert(l)
+            if t.is_empty() {
+                continue;
             }
-        };
-        let w0 = match week0 {
-            Some(w) => w,
-            None => {
-                let (w, _) = parse_time(&dl, lay)?;
-                week0 = Some(w);
-                w
+            // .pos: split on commas and white space alike (the date and time are two fields).
+            let fields = text
+                .split(|c: char| c == ',' || c.is_whitespace())
+                .filter(|s| !s.is_empty())
+                .collect();
+            let dl = DataLine {
+                path,
+                line: line_no,
+                fields,
+            };
+            let lay = match &self.layout {
+                Some(l) => l,
+                None => {
+                    let tf = if dl.fields.first().is_some_and(|f| f.contains('/')) {
+                        TimeFormat::Calendar
+                    } else {
+                        TimeFormat::WeekTow
+                    };
+                    self.layout.insert(Layout::new(
+                        self.info.time_system.unwrap_or(PosTimeSystem::Gpst),
+                        self.info.pos.unwrap_or(PosPositionFormat::LlhDeg),
+                        tf,
+                    ))
+                }
+            };
+            let w0 = match self.week0 {
+                Some(w) => w,
+                None => {
+                    let (w, _) = parse_time(&dl, lay)?;
+                    self.week0 = Some(w);
+                    w
+                }
+            };
+            let (fix, _week, q) = parse_record(&dl, lay, w0)?;
+            self.mono.check(&dl, 1, lay.name(1), fix.t_s)?;
+            self.epochs += 1;
+            if let Some(c) = self.count_by_q.get_mut(usize::from(q.min(7))) {
+                *c += 1;
             }
-        };
-        let (fix, _week, q) = parse_record(&dl, lay, w0)?;
-        mono.check(&dl, 1, lay.name(1), fix.t_s)?;
-        rec.epochs += 1;
-        rec.count_by_q[usize::from(q.min(7))] += 1;
-        if fix.has_velocity {
-            rec.has_velocity = true;
-        }
-        if q >= 1 && q <= opts.max_q {
-            rec.fixes.push(fix);
-        } else {
-            rec.dropped_by_quality += 1;
+            if fix.has_velocity {
+                self.has_velocity = true;
+            }
+            if q >= 1 && q <= self.max_q {
+                return Ok(Some((fix, line_no)));
+            }
+            self.dropped_by_quality += 1;
         }
     }
-    rec.week = week0;
-    Ok(rec)
+}
+
+impl Iterator for PosReader {
+    type Item = Result<(GnssFix, usize), IoError>;
+
+    /// The next kept fix and its 1-based line; after an error, `None`.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        let r = self.read().transpose();
+        if matches!(r, Some(Err(_))) {
+            self.failed = true;
+        }
+        r
+    }
 }

@@ -9,15 +9,15 @@
 //! The `[noise]` section and its keys (SI or datasheet units, one value or one per axis) are
 //! documented in [`super::noisecfg`].
 
-use super::gnsscsv::{read_gnss_csv, GnssCsvFormat};
-use super::gnsslog::{read_nmea_log, read_ubx_log, GnssLogOptions};
+use super::gnsscsv::GnssCsvFormat;
+use super::gnsslog::GnssLogOptions;
 use super::imucsv::ImuCsvFormat;
 use super::mount::Mounting;
 pub use super::noisecfg::{
     AccelNoiseConfig, AxisValue, BiasModel, GyroNoiseConfig, NoiseConfig, ScaleNoiseConfig,
 };
 use super::pos::{read_rtklib_pos, PosOptions};
-use super::text::{read_gnss_text, read_nav_text, ImuRecord};
+use super::text::{read_nav_text, ImuRecord};
 use super::IoError;
 use nav_core::types::{GnssFix, NavSolution};
 use std::path::{Path, PathBuf};
@@ -580,6 +580,7 @@ pub struct ImuFileReader {
 
 enum ImuFileInner {
     Text(super::text::ImuTextReader),
+    // boxed: the CSV reader is large (clippy::large_enum_variant)
     Csv(Box<super::imucsv::ImuCsvIncrements>),
 }
 
@@ -634,11 +635,30 @@ pub struct GnssReadSummary {
 /// The GNSS file of a run configuration read one fix at a time ([`RunConfig::open_gnss`]),
 /// whatever its format: fixes after the quality filter, in time order, `[gnss]
 /// time_offset_s` applied (standard deviations and velocities as in the file).
+///
+/// It holds the format's streaming reader ([`GnssTextReader`](super::text::GnssTextReader),
+/// [`PosReader`](super::pos::PosReader), [`GnssCsvReader`](super::gnsscsv::GnssCsvReader),
+/// [`NmeaLogReader`](super::gnsslog::NmeaLogReader) or
+/// [`UbxLogReader`](super::gnsslog::UbxLogReader)), the one parser of each format, and fills
+/// the summary as it goes: memory is constant whatever the file's length. Errors in the file
+/// come with the fixes (those before it are returned first), naming the file and the line
+/// (text formats) or the byte offset (UBX); after an error the reader ends. `Send`: it can be
+/// read on another thread.
 pub struct GnssFixReader {
-    fixes: std::vec::IntoIter<GnssFix>,
+    inner: GnssFileInner,
     path: PathBuf,
     offset_s: f64,
     summary: GnssReadSummary,
+}
+
+enum GnssFileInner {
+    Text(super::text::GnssTextReader),
+    Pos(super::pos::PosReader),
+    // boxed: the CSV mapping, the NMEA epoch being assembled and the UBX parser's 4 KiB
+    // packet buffer are large (clippy::large_enum_variant)
+    Csv(Box<super::gnsscsv::GnssCsvReader>),
+    Nmea(Box<super::gnsslog::NmeaLogReader>),
+    Ubx(Box<super::gnsslog::UbxLogReader>),
 }
 
 impl GnssFixReader {
@@ -651,15 +671,45 @@ impl GnssFixReader {
     pub fn summary(&self) -> &GnssReadSummary {
         &self.summary
     }
+
+    /// Copies what the format's reader learnt so far into the summary.
+    fn update_summary(&mut self) {
+        let (week, dropped, warnings): (Option<i64>, usize, &[String]) = match &self.inner {
+            GnssFileInner::Text(_) => (None, 0, &[]),
+            GnssFileInner::Pos(rd) => (rd.week(), rd.dropped_by_quality(), &[]),
+            GnssFileInner::Csv(rd) => (rd.week(), rd.dropped_by_quality(), rd.warnings()),
+            GnssFileInner::Nmea(rd) => (rd.week(), rd.dropped_by_quality(), rd.warnings()),
+            GnssFileInner::Ubx(rd) => (rd.week(), rd.dropped_by_quality(), rd.warnings()),
+        };
+        let s = &mut self.summary;
+        s.week = week;
+        s.dropped_by_quality = dropped;
+        // warnings are only ever appended
+        if let Some(new) = warnings.get(s.warnings.len()..) {
+            s.warnings.extend_from_slice(new);
+        }
+    }
 }
 
 impl Iterator for GnssFixReader {
     type Item = Result<GnssFix, IoError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        let mut f = self.fixes.next()?;
-        f.t_s += self.offset_s;
-        Some(Ok(f))
+        let r = match &mut self.inner {
+            GnssFileInner::Text(rd) => rd.next(),
+            GnssFileInner::Pos(rd) => rd.next().map(|r| r.map(|(f, _)| f)),
+            GnssFileInner::Csv(rd) => rd.next().map(|r| r.map(|(f, _)| f)),
+            GnssFileInner::Nmea(rd) => rd.next().map(|r| r.map(|(f, _)| f)),
+            GnssFileInner::Ubx(rd) => rd.next().map(|r| r.map(|(f, _)| f)),
+        };
+        self.update_summary();
+        let offset_s = self.offset_s;
+        r.map(|r| {
+            r.map(|mut f| {
+                f.t_s += offset_s;
+                f
+            })
+        })
     }
 }
 
@@ -689,52 +739,52 @@ impl RunConfig {
     }
 
     /// Opens the GNSS file named by the configuration as a stream of fixes
-    /// ([`GnssFixReader`]); relative paths are resolved against `config_dir`.
+    /// ([`GnssFixReader`]); relative paths are resolved against `config_dir`. Errors of the
+    /// options and of opening come here (for NMEA also a log without an RMC date, found by a
+    /// first pass that stops at the first RMC), errors in the file with the fixes.
     pub fn open_gnss(&self, config_dir: &Path) -> Result<GnssFixReader, IoError> {
-        let gnss_path = Self::resolve(config_dir, &self.gnss.path);
-        let mut warnings = Vec::new();
-        let (gnss, week, dropped_by_quality) = match self.gnss.format {
-            GnssFileKind::Text => (read_gnss_text(&gnss_path)?, None, 0),
+        let path = Self::resolve(config_dir, &self.gnss.path);
+        let inner = match self.gnss.format {
+            GnssFileKind::Text => GnssFileInner::Text(super::text::GnssTextReader::open(&path)?),
             GnssFileKind::Csv => {
                 let fmt = self.gnss.csv.as_ref().ok_or_else(|| IoError::Config {
-                    path: gnss_path.clone(),
+                    path: path.clone(),
                     message: "gnss.format = \"csv\" needs a [gnss.csv] mapping".into(),
                     source: None,
                 })?;
-                let r = read_gnss_csv(&gnss_path, fmt)?;
-                warnings.extend(r.warnings);
-                (r.fixes, r.week, r.dropped_by_quality)
+                GnssFileInner::Csv(Box::new(super::gnsscsv::GnssCsvReader::open(&path, fmt)?))
             }
             GnssFileKind::Nmea | GnssFileKind::Ubx => {
                 let opts = self.gnss.log.clone().unwrap_or_default();
-                let r = if self.gnss.format == GnssFileKind::Nmea {
-                    read_nmea_log(&gnss_path, &opts, self.gnss.max_q)?
+                if self.gnss.format == GnssFileKind::Nmea {
+                    GnssFileInner::Nmea(Box::new(super::gnsslog::NmeaLogReader::open(
+                        &path,
+                        &opts,
+                        self.gnss.max_q,
+                    )?))
                 } else {
-                    read_ubx_log(&gnss_path, &opts, self.gnss.max_q)?
-                };
-                warnings.extend(r.warnings);
-                (r.fixes, r.week, r.dropped_by_quality)
+                    GnssFileInner::Ubx(Box::new(super::gnsslog::UbxLogReader::open(
+                        &path,
+                        &opts,
+                        self.gnss.max_q,
+                    )?))
+                }
             }
-            GnssFileKind::RtklibPos => {
-                let r = read_rtklib_pos(
-                    &gnss_path,
-                    &PosOptions {
-                        max_q: self.gnss.max_q,
-                    },
-                )?;
-                (r.fixes, r.week, r.dropped_by_quality)
-            }
+            GnssFileKind::RtklibPos => GnssFileInner::Pos(super::pos::PosReader::open(
+                &path,
+                &PosOptions {
+                    max_q: self.gnss.max_q,
+                },
+            )?),
         };
-        Ok(GnssFixReader {
-            fixes: gnss.into_iter(),
-            path: gnss_path,
+        let mut rd = GnssFixReader {
+            inner,
+            path,
             offset_s: self.gnss.time_offset_s,
-            summary: GnssReadSummary {
-                week,
-                dropped_by_quality,
-                warnings,
-            },
-        })
+            summary: GnssReadSummary::default(),
+        };
+        rd.update_summary();
+        Ok(rd)
     }
 }
 

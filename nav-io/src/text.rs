@@ -282,7 +282,10 @@ impl ImuTextReader {
     }
 
     /// Reads from any byte source (gzip detected); `name` is the file name used in errors.
-    pub fn from_reader<R: std::io::Read + 'static>(name: &Path, src: R) -> Result<Self, IoError> {
+    pub fn from_reader<R: std::io::Read + Send + 'static>(
+        name: &Path,
+        src: R,
+    ) -> Result<Self, IoError> {
         Ok(Self::from_lines(super::lines::LineReader::from_reader(
             name, src,
         )?))

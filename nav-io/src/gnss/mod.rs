@@ -103,6 +103,20 @@ impl GnssStream {
         s
     }
 
+    /// Whether the parser holds no partial packet: the next byte starts afresh.
+    pub fn is_idle(&self) -> bool {
+        self.parser.is_buffer_empty()
+    }
+
+    /// The largest UBX payload the parser's protocol accepts, bytes (a header announcing
+    /// more is skipped as garbage).
+    pub fn max_ubx_payload(&self) -> usize {
+        fn max<T: ublox::UnderlyingBuffer, P: ublox::UbxProtocol>(_: &ublox::Parser<T, P>) -> u16 {
+            P::MAX_PAYLOAD_LEN
+        }
+        usize::from(max(&self.parser))
+    }
+
     /// The UTC date and time of the last NAV-PVT packet (when flagged valid), taken: a
     /// NAV-PVT's iTOW has no GPS week, its UTC date gives it.
     pub fn take_nav_pvt_utc(&mut self) -> Option<ubx::UtcTime> {
