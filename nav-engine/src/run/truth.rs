@@ -62,15 +62,15 @@ impl TruthFile {
         }
     }
 
-    /// The records on the calling thread (a nav text file read line by line; an RTKLIB
-    /// `.pos` file is read whole by its reader, all qualities kept, then handed out).
+    /// The records on the calling thread, read line by line (an RTKLIB `.pos` file with all
+    /// qualities kept).
     pub fn open(&self) -> Result<TruthSource<'static>, IoError> {
         Ok(match self.format {
             TruthFileKind::NavText => Box::new(NavTextReader::open(&self.path)?),
-            TruthFileKind::RtklibPos => {
-                let r = nav_io::read_rtklib_pos(&self.path, &PosOptions { max_q: 6 })?;
-                Box::new(r.fixes.into_iter().map(|f| Ok(truth_from_fix(&f))))
-            }
+            TruthFileKind::RtklibPos => Box::new(
+                nav_io::PosReader::open(&self.path, &PosOptions { max_q: 6 })?
+                    .map(|r| r.map(|(f, _line)| truth_from_fix(&f))),
+            ),
         })
     }
 
