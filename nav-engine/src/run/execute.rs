@@ -17,12 +17,12 @@
 use super::coast::{coast_outages, CoastMode};
 use super::output;
 use super::prepare::{ImuStream, Prepared};
+use super::streams::ImuFile;
 use super::{run_filter_with_progress, CaseData, RunOptions, RunOutput};
 use crate::metrics::{self, Metrics};
 use anyhow::Context;
 use nav_core::model::ImuCorrection;
 use nav_core::types::NavSolution;
-use nav_io::ImuTextReader;
 use std::path::{Path, PathBuf};
 
 /// Runs the filter and computes the metrics (with coasting baselines when there are outages).
@@ -96,9 +96,9 @@ pub fn execute_streaming(
         Some(st) => {
             let info = super::ImuSourceInfo {
                 path: Some(st.path.clone()),
-                increments_span_gaps: false,
+                increments_span_gaps: st.increments_span_gaps,
             };
-            let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
+            let mut it = threaded_file_reader(st.file.clone(), st.time_offset_s);
             match &st.gnss {
                 // the fixes read as the filter goes (memory independent of the length)
                 Some(g) => match g.source() {
@@ -173,18 +173,29 @@ const READ_CHUNK: usize = 2048;
 /// Messages in flight between the reader thread and the filter.
 const READ_QUEUE: usize = 4;
 
-/// The samples of an IMU text file read and parsed by a thread of their own and handed over
-/// in chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
-/// flight): reading and parsing overlap the filter. The thread stops at the first error
-/// (passed on) or when the receiver is dropped.
+/// The samples of an IMU text file read and parsed by a thread of their own
+/// ([`threaded_file_reader`]).
 pub fn threaded_imu_reader(
     path: PathBuf,
+    time_offset_s: f64,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    threaded_file_reader(ImuFile::Text(path), time_offset_s)
+}
+
+/// The samples of an IMU file (a text file, or a run configuration's file in any format it
+/// reads, opened in the thread) read and parsed by a thread of their own and handed over in
+/// chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
+/// flight): reading and parsing overlap the filter. `time_offset_s` is added to every time.
+/// The thread stops at the first error (passed on after the samples before it) or when the
+/// receiver is dropped.
+pub fn threaded_file_reader(
+    file: ImuFile,
     time_offset_s: f64,
 ) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
     type Msg = Result<Vec<super::ImuItem>, super::RunError>;
     let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
     std::thread::spawn(move || {
-        let rd = match ImuTextReader::open(&path) {
+        let rd = match file.open() {
             Ok(r) => r,
             Err(e) => {
                 let _ = tx.send(Err(super::RunError::Input(e)));

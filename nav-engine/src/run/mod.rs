@@ -33,6 +33,7 @@ pub mod outage;
 pub mod output;
 pub mod prepare;
 pub mod sink;
+pub mod streams;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};
 pub use engine::ahead::{FixAhead, FixLookup, FixSource};
