@@ -72,8 +72,10 @@ pub fn execute_case(
 /// ([`super::sink::FileSink`]: `*.partial`, renamed when complete) and computing the metrics
 /// online, with the coasting baselines. `nav_rate_hz`: rate of `nav.txt` (None: every IMU
 /// epoch). A fault mid-run leaves the outputs up to it as `*.partial` and returns
-/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); other errors
-/// leave no output.
+/// [`super::RunError::Fault`] (its `partial` holds the summary, no records); so does an error
+/// reading the streamed IMU file in the middle (the error names file and line; the run ends
+/// at the last sample before it, `metrics.json.partial` says `"complete": false` and the
+/// error); other errors leave no output.
 pub fn execute_streaming(
     p: &Prepared,
     imu: Option<&ImuStream>,
@@ -92,13 +94,18 @@ pub fn execute_streaming(
         raw: true,
         static_gyro_bias: true,
     };
+    // a read error of the streamed IMU ends its samples; the run up to it is kept
+    let mut read_err = None;
     let res = match imu {
         Some(st) => {
             let info = super::ImuSourceInfo {
                 path: Some(st.path.clone()),
                 increments_span_gaps: st.increments_span_gaps,
             };
-            let mut it = threaded_file_reader(st.file.clone(), st.time_offset_s);
+            let mut it = StopAtError {
+                inner: threaded_file_reader(st.file.clone(), st.time_offset_s),
+                err: &mut read_err,
+            };
             match &st.gnss {
                 // the fixes read as the filter goes (memory independent of the length)
                 Some(g) => match g.source() {
@@ -114,6 +121,29 @@ pub fn execute_streaming(
             let (mut it, info) = super::case_imu_stream(&p.case);
             super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
         }
+    };
+    let res = match (res, read_err) {
+        (Ok(out), Some(e)) => {
+            // the record ended at a read error: the outputs up to it, marked incomplete
+            let fault = e.to_string();
+            let t_last = sink.last_nav_t();
+            let written = sink.finish(&out, Some(&fault), |m| metrics_json(m, &out, Some(&fault)));
+            return Err(match written {
+                Ok(_) => anyhow::anyhow!(
+                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                     {}/*{} (incomplete)",
+                    dir.display(),
+                    output::PARTIAL_SUFFIX
+                ),
+                Err(w) => anyhow::anyhow!(
+                    "{fault}; the run stopped there, and writing the partial outputs failed \
+                     too: {w:#}"
+                ),
+            });
+        }
+        // nothing run (e.g. the file unreadable from its first sample): the read error
+        (Err(super::RunError::NoImu), Some(e)) => Err(e),
+        (res, _) => res,
     };
     match res {
         Ok(out) => {
@@ -164,6 +194,30 @@ pub fn execute_streaming(
                 let _ = std::fs::remove_file(output::partial_path(dir, n));
             }
             Err(e.into())
+        }
+    }
+}
+
+/// The samples of `inner` up to its first error, which is kept in `err` (the stream ends
+/// there).
+struct StopAtError<'a, I> {
+    inner: I,
+    err: &'a mut Option<super::RunError>,
+}
+
+impl<I: Iterator<Item = Result<super::ImuItem, super::RunError>>> Iterator for StopAtError<'_, I> {
+    type Item = Result<super::ImuItem, super::RunError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.err.is_some() {
+            return None;
+        }
+        match self.inner.next()? {
+            Ok(it) => Some(Ok(it)),
+            Err(e) => {
+                *self.err = Some(e);
+                None
+            }
         }
     }
 }

@@ -18,7 +18,7 @@
 
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
-use super::streams::{scale_sigmas, ConfigFiles, ImuFile};
+use super::streams::{read_prefix, scale_sigmas, ConfigFiles, ImuFile};
 pub use super::streams::{GnssStream, ImuStream};
 use super::{CaseData, Model, Precision, RunOptions};
 use anyhow::{bail, Context};
@@ -296,7 +296,7 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
 /// ([`super::execute::execute_streaming`]). The GNSS file of such a run is streamed too
 /// ([`ImuStream::gnss`]: checked here, its week and warnings taken, the case's fix list left
 /// empty), and the mounting check reads the first minutes of both
-/// ([`super::streams::mounting_check_prefix`]). Without `stream_imu` everything is loaded.
+/// ([`super::streams::read_prefix`]). Without `stream_imu` everything is loaded.
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
@@ -325,18 +325,19 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     };
     let mut imu_stream = streams;
     // the data against the configured mounting (z gyro vs GNSS course, gravity at rest): a
-    // streamed run checks the first minutes of its files
-    warnings.extend(
-        match &imu_stream {
-            Some(st) => super::streams::mounting_check_prefix(
-                &st.file,
-                st.gnss.as_ref().map(|g| &g.file),
-                &case.gnss,
-            ),
-            None => crate::mounting::check_mounting(&case.imu, &case.gnss),
-        }
-        .warnings,
-    );
+    // streamed run checks the first minutes of its files (and learns its first IMU time)
+    let prefix = match &imu_stream {
+        Some(st) => Some(read_prefix(
+            &st.file,
+            st.gnss.as_ref().map(|g| &g.file),
+            &case.gnss,
+        )?),
+        None => None,
+    };
+    warnings.extend(match &prefix {
+        Some(p) => p.mounting.warnings.clone(),
+        None => crate::mounting::check_mounting(&case.imu, &case.gnss).warnings,
+    });
     if let Some(cd) = &case_dir {
         week = cd.week;
         if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
@@ -414,7 +415,11 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
     let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
         (Some(st), _, _) => {
-            let (a, b) = st.file.time_span(periodic_wanted)?;
+            // the last time only when periodic outages need it (a pass over the whole file)
+            let (a, b) = match &prefix {
+                Some(p) if !periodic_wanted => (p.first_t_s, p.first_t_s),
+                _ => st.file.time_span(periodic_wanted)?,
+            };
             (a + st.time_offset_s, b + st.time_offset_s)
         }
         (None, Some(a), Some(b)) => (a.t_s, b.t_s),
@@ -465,7 +470,7 @@ fn prepare_kf_gins(
     // streamed: the IMU and the GNSS text files are read while the filter runs
     let (imu_rec, gnss, imu_stream) = if stream {
         let g = GnssStream::check(&gnss_p, 1.0)?;
-        let mut st = ImuStream::new(ImuFile::Text(imu_p.clone()))?;
+        let mut st = ImuStream::new(ImuFile::Text(imu_p.clone()));
         st.gnss = Some(g);
         (nav_io::ImuRecord::default(), Vec::new(), Some(st))
     } else {
@@ -553,7 +558,7 @@ fn prepare_run_config(
     let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
             if stream {
-                let mut st = ImuStream::new(ImuFile::Text(c.imu.clone()))?;
+                let mut st = ImuStream::new(ImuFile::Text(c.imu.clone()));
                 st.gnss = Some(GnssStream::check(&c.gnss, r.gnss.sigma_scale)?);
                 imu_stream = Some(st);
                 nav_io::ImuRecord::default()
@@ -579,7 +584,7 @@ fn prepare_run_config(
                 config: std::sync::Arc::new(r.clone()),
                 dir: dir.to_path_buf(),
             };
-            let mut st = ImuStream::new(ImuFile::Config(files.clone()))?;
+            let mut st = ImuStream::new(ImuFile::Config(files.clone()));
             let g = GnssStream::check_config(files, r.gnss.sigma_scale)?;
             warnings.extend(g.summary.warnings.iter().cloned());
             if let Some(w) = g.summary.week {

@@ -10,7 +10,7 @@
 //! from short separate reads: the first IMU time (a given initial state, the outage times),
 //! the last one only when periodic outages need it (a full pass, nothing kept), the GNSS
 //! file's errors, count, week, warnings and drops (a check pass over the fixes, nothing kept),
-//! and the mounting check ([`mounting_check_prefix`]: the first [`MOUNTING_PREFIX_S`] of IMU
+//! and the mounting check ([`read_prefix`]: the first [`MOUNTING_PREFIX_S`] of IMU
 //! data and the fixes of that span). The IMU gap report of the loaded description is not
 //! made up front: the engine's IMU guard reports the gaps as it meets them (run summary,
 //! `metrics.json` `imu`).
@@ -19,7 +19,7 @@ use crate::mounting::{MountingCheck, MountingChecker};
 use anyhow::bail;
 use nav_core::types::{GnssFix, ImuSample};
 use nav_io::runcfg::GnssReadSummary;
-use nav_io::{GnssTextReader, ImuTextReader, IoError, RunConfig};
+use nav_io::{GnssTextReader, ImuFileKind, ImuTextReader, IoError, RunConfig};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -63,12 +63,14 @@ impl ImuFile {
     }
 
     /// True when each increment covers the whole interval since the previous sample even
-    /// across a time gap (CSV rates; see [`nav_io::ImuOrigin::increments_span_gaps`]).
-    pub fn increments_span_gaps(&self) -> Result<bool, IoError> {
-        Ok(match self {
+    /// across a time gap (see [`nav_io::ImuOrigin::increments_span_gaps`]): what the reader
+    /// says (`ImuFileReader::increments_span_gaps`: CSV rate logs), known from the
+    /// configuration without opening the file (a tagged CSV's opening reads it whole).
+    pub fn increments_span_gaps(&self) -> bool {
+        match self {
             Self::Text(_) => false,
-            Self::Config(c) => c.config.open_imu(&c.dir)?.increments_span_gaps(),
-        })
+            Self::Config(c) => c.config.imu.format == ImuFileKind::Csv,
+        }
     }
 
     /// Time of the first sample and, when `last` is asked, of the last one (the whole file
@@ -110,14 +112,14 @@ pub struct ImuStream {
 
 impl ImuStream {
     /// The IMU file `file`, no extra time offset, no GNSS stream.
-    pub fn new(file: ImuFile) -> anyhow::Result<Self> {
-        Ok(Self {
+    pub fn new(file: ImuFile) -> Self {
+        Self {
             path: file.path(),
-            increments_span_gaps: file.increments_span_gaps()?,
+            increments_span_gaps: file.increments_span_gaps(),
             file,
             time_offset_s: 0.0,
             gnss: None,
-        })
+        }
     }
 }
 
@@ -226,25 +228,39 @@ pub fn scale_sigmas(g: &mut GnssFix, k: f64) {
 }
 
 /// Seconds of IMU data, from the first sample, that the mounting check of a streamed run
-/// reads ([`mounting_check_prefix`]).
+/// reads ([`read_prefix`]).
 pub const MOUNTING_PREFIX_S: f64 = 600.0;
 
-/// The mounting check ([`crate::mounting::check_mounting`]) of a streamed run, on the first
-/// [`MOUNTING_PREFIX_S`] of the IMU file and the fixes of that span (`gnss`: the streamed
-/// GNSS file, or the fixes in memory), read in a separate pass before the run (memory: the
-/// check's own window, [`MountingChecker`]). The IMU as the configuration gives it (the
-/// run's extra `--imu-time-offset` is not applied, as the loaded check does not), the fixes
-/// unscaled. A read error ends the pass quietly (the check covers what came before it): the
-/// run itself reports it, with the outputs up to it.
-pub fn mounting_check_prefix(
+/// What [`read_prefix`] learnt of the start of a streamed run's files.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prefix {
+    /// Time of the first IMU sample, s (the configuration's offsets applied, not the run's
+    /// extra one).
+    pub first_t_s: f64,
+    /// The mounting check on the prefix ([`crate::mounting::check_mounting`]).
+    pub mounting: MountingCheck,
+}
+
+/// Reads the start of a streamed run's files in a pass of its own before the run: the first
+/// IMU time, and the mounting check on the first [`MOUNTING_PREFIX_S`] of the IMU file and the
+/// fixes of that span (`gnss`: the streamed GNSS file, or else the fixes in memory) with
+/// memory bounded by the check's own window ([`MountingChecker`]). The IMU as the
+/// configuration gives it (the run's extra `--imu-time-offset` is not applied, as the loaded
+/// check does not), the fixes unscaled. Errors opening the IMU file or in its first sample
+/// are returned; a read error after that ends the pass quietly (the check covers what came
+/// before it): the run itself reports it, with the outputs up to it.
+pub fn read_prefix(
     imu: &ImuFile,
     gnss: Option<&GnssFile>,
     fixes_in_memory: &[GnssFix],
-) -> MountingCheck {
-    let mut c = MountingChecker::new();
-    let Ok(samples) = imu.open() else {
-        return c.finish();
+) -> anyhow::Result<Prefix> {
+    let mut samples = imu.open()?;
+    let Some(first) = samples.next().transpose()? else {
+        bail!("no IMU samples in {}", imu.path().display());
     };
+    let first_t_s = first.0.t_s;
+    let end = first_t_s + MOUNTING_PREFIX_S;
+    let mut c = MountingChecker::new();
     let mut fixes: Box<dyn Iterator<Item = GnssFix> + '_> = match gnss {
         Some(f) => match f.open() {
             Ok(rd) => Box::new(rd.map_while(Result::ok)),
@@ -253,12 +269,8 @@ pub fn mounting_check_prefix(
         None => Box::new(fixes_in_memory.iter().copied()),
     };
     let mut ahead: Option<GnssFix> = None;
-    let mut end = f64::INFINITY;
-    for r in samples {
-        let Ok((s, _)) = r else { break };
-        if end.is_infinite() {
-            end = s.t_s + MOUNTING_PREFIX_S;
-        }
+    let rest = samples.map_while(Result::ok).map(|(s, _)| s);
+    for s in std::iter::once(first.0).chain(rest) {
         if s.t_s > end {
             break;
         }
@@ -280,5 +292,8 @@ pub fn mounting_check_prefix(
         }
         c.push_fix(&g);
     }
-    c.finish()
+    Ok(Prefix {
+        first_t_s,
+        mounting: c.finish(),
+    })
 }
