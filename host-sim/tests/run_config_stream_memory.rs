@@ -37,10 +37,12 @@ fn measure(minutes: f64, with_loaded: bool) -> Measured {
     let cfg = nav_io::read_run_config(&case.config).unwrap();
     // the GNSS reader on its own: what it holds (all its fixes, until it streams)
     let (n, gnss) = peak_of(|| {
-        cfg.open_gnss(dir.path())
-            .unwrap()
-            .map(|r| r.unwrap())
-            .count()
+        let mut n = 0usize;
+        for r in cfg.open_gnss(dir.path()).unwrap() {
+            r.unwrap();
+            n += 1;
+        }
+        n
     });
     assert_eq!(n, case.fixes);
     // the streamed run, outputs written
