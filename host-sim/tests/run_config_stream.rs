@@ -257,3 +257,45 @@ fn a_bad_csv_row_mid_stream_names_file_and_line_and_keeps_the_outputs_before_it(
         "{used} innovations, {fixes_before} fixes before the row"
     );
 }
+
+#[test]
+fn a_generated_csv_and_pos_case_with_a_gap_and_outages_streams_the_loaded_runs_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = write_csv_pos_case(dir.path(), 4.0, 200.0, None);
+    // 11 rows lost after data row 4998 (file lines 5000 to 5010)
+    let text = std::fs::read_to_string(&case.imu).unwrap();
+    let kept: Vec<&str> = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(4999..5010).contains(i))
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(&case.imu, kept.join("\n") + "\n").unwrap();
+    let mut spec = RunSpec::new(&case.config);
+    spec.periodic_outages = vec![nav_engine::run::PeriodicOutages {
+        first_start_s: 60.0,
+        duration_s: 20.0,
+        period_s: 60.0,
+    }];
+    let (a, b) = (dir.path().join("loaded"), dir.path().join("streamed"));
+    let loaded = run(&spec, false, &a);
+    let streamed = run(&spec, true, &b);
+    assert_same_outputs(&a, &b);
+    assert_eq!(loaded.prepared.week, test_support::csvcase::WEEK);
+    assert_eq!(streamed.prepared.week, test_support::csvcase::WEEK);
+    assert_eq!(loaded.prepared.opts.outages, streamed.prepared.opts.outages);
+    assert_eq!(streamed.prepared.opts.outages.len(), 3);
+    // the loaded description reports the gap from the whole file; the streamed run reports
+    // it as the engine meets it (metrics.json "imu", the same in both)
+    assert!(loaded
+        .prepared
+        .description
+        .contains("IMU time gaps: 1 time gap"));
+    assert!(!streamed.prepared.description.contains("IMU time gaps"));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(b.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["imu"]["gaps"], 1);
+    assert_eq!(m["imu"]["missing_samples"], 11);
+    let ev = m["imu"]["events"][0]["location"].as_str().unwrap();
+    assert!(ev.ends_with("imu.csv line 5000"), "{ev}");
+}
