@@ -9,6 +9,10 @@
 //!   prefix);
 //! - a generated CSV + `.pos` case longer than the prefix with an upside-down mounting: the
 //!   same warning, from the prefix;
+//! - a generated CSV + `.pos` case with an IMU gap and periodic outages: outputs
+//!   byte-identical, the gap in the run's IMU report;
+//! - a simulated case directory and its KF-GINS file (IMU text streamed): the mounting
+//!   check's warnings the same streamed and loaded, with the IMU upside down and without;
 //! - a CSV row that does not parse in the middle of the streamed file: the error names the
 //!   file and line, and the outputs up to it are kept as `*.partial`.
 
@@ -298,4 +302,98 @@ fn a_generated_csv_and_pos_case_with_a_gap_and_outages_streams_the_loaded_runs_f
     assert_eq!(m["imu"]["missing_samples"], 11);
     let ev = m["imu"]["events"][0]["location"].as_str().unwrap();
     assert!(ev.ends_with("imu.csv line 5000"), "{ev}");
+}
+
+/// Negates the y and z increments of every sample of a case's `imu.txt` (an IMU mounted
+/// upside down, as roll 180 deg).
+fn flip_imu_text(case: &Path) {
+    let p = case.join("imu.txt");
+    let text = std::fs::read_to_string(&p).unwrap();
+    let mut out = String::with_capacity(text.len() + text.len() / 10);
+    for line in text.lines() {
+        if line.starts_with('#') || line.trim().is_empty() {
+            out.push_str(line);
+        } else {
+            let f: Vec<&str> = line.split_whitespace().collect();
+            assert!(f.len() >= 7, "{line}");
+            let neg = |s: &str| match s.strip_prefix('-') {
+                Some(r) => r.to_string(),
+                None => format!("-{s}"),
+            };
+            let mut g: Vec<String> = f.iter().map(|s| s.to_string()).collect();
+            for k in [2, 3, 5, 6] {
+                g[k] = neg(f[k]);
+            }
+            out.push_str(&g.join(" "));
+        }
+        out.push('\n');
+    }
+    std::fs::write(&p, out).unwrap();
+}
+
+#[test]
+fn case_directories_and_kf_gins_files_streamed_warn_as_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("scenario.toml");
+    std::fs::write(
+        &sc,
+        test_support::scenario::four_minute_drive("mount").build(),
+    )
+    .unwrap();
+    let case = dir.path().join("case");
+    test_support::cli::Bin::new(env!("CARGO_BIN_EXE_host-sim")).run_ok([
+        "simulate",
+        "--scenario",
+        sc.to_str().unwrap(),
+        "--errors",
+        "tactical",
+        "--seed",
+        "5",
+        "--kf-gins",
+        "--out",
+        case.to_str().unwrap(),
+    ]);
+    let cfg = dir.path().join("run.toml");
+    std::fs::write(
+        &cfg,
+        test_support::runcase::case_config(
+            "mount",
+            &case,
+            "gnss.txt",
+            "text",
+            "",
+            test_support::runcase::TACTICAL_NOISE,
+        ),
+    )
+    .unwrap();
+    let mut as_case = RunSpec::new(&cfg);
+    as_case.case = Some(case.clone());
+    let kf = RunSpec::new(case.join("kf-gins.yaml"));
+    let specs = [("case directory", as_case), ("KF-GINS", kf)];
+    // the right mounting: no warning either way
+    for (name, spec) in &specs {
+        let (l, s) = (load(spec, false).unwrap(), load(spec, true).unwrap());
+        assert!(
+            s.imu_stream.is_some() && s.prepared.case.imu.is_empty(),
+            "{name}"
+        );
+        assert!(
+            l.warnings.is_empty() && s.warnings.is_empty(),
+            "{name}: {:?}",
+            s.warnings
+        );
+    }
+    // upside down: the same two warnings (the 5.4-minute drive is within the prefix)
+    flip_imu_text(&case);
+    for (name, spec) in &specs {
+        let (l, s) = (load(spec, false).unwrap(), load(spec, true).unwrap());
+        println!("{name}: {:?}", s.warnings);
+        assert_eq!(l.warnings, s.warnings, "{name}");
+        assert_eq!(s.warnings.len(), 2, "{name}: {:?}", s.warnings);
+        assert!(s.warnings[0].contains("AGAINST the GNSS course"), "{name}");
+        assert!(
+            s.warnings[1].contains("tilts the body by 180 deg"),
+            "{name}"
+        );
+    }
 }
