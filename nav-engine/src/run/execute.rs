@@ -223,9 +223,9 @@ impl<I: Iterator<Item = Result<super::ImuItem, super::RunError>>> Iterator for S
 }
 
 /// Samples per message from the reader thread.
-const READ_CHUNK: usize = 2048;
+pub const READ_CHUNK: usize = 2048;
 /// Messages in flight between the reader thread and the filter.
-const READ_QUEUE: usize = 4;
+pub const READ_QUEUE: usize = 4;
 
 /// The samples of an IMU text file read and parsed by a thread of their own
 /// ([`threaded_file_reader`]).

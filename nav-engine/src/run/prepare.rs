@@ -13,6 +13,11 @@
 //! file inside such a case directory also picks up the case's `truth.nav`, outages and GPS
 //! week.
 //!
+//! [`load`] with streaming leaves the IMU and GNSS files unread but for short passes (the
+//! GNSS file checked, the first IMU minutes for the mounting check): they are read while the
+//! filter runs ([`super::streams`]); without it (diagnose, study, smoothing) everything is
+//! loaded.
+//!
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], [`RunSpec`]'s `imu_*` fields and
 //! `[imu.checks]`. Running a prepared case and writing its outputs: [`super::execute`].
 
