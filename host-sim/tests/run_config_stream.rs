@@ -263,7 +263,7 @@ fn a_bad_csv_row_mid_stream_names_file_and_line_and_keeps_the_outputs_before_it(
 }
 
 #[test]
-fn a_generated_csv_and_pos_case_with_a_gap_and_outages_streams_the_loaded_runs_files() {
+fn a_generated_csv_and_pos_case_with_a_gap_outages_and_an_offset_streams_the_loaded_runs_files() {
     let dir = tempfile::tempdir().unwrap();
     let case = write_csv_pos_case(dir.path(), 4.0, 200.0, None);
     // 11 rows lost after data row 4998 (file lines 5000 to 5010)
@@ -281,6 +281,8 @@ fn a_generated_csv_and_pos_case_with_a_gap_and_outages_streams_the_loaded_runs_f
         duration_s: 20.0,
         period_s: 60.0,
     }];
+    // the run's own extra IMU time offset on top of the reader's
+    spec.imu_time_offset_s = Some(-0.0125);
     let (a, b) = (dir.path().join("loaded"), dir.path().join("streamed"));
     let loaded = run(&spec, false, &a);
     let streamed = run(&spec, true, &b);
