@@ -297,3 +297,60 @@ pub fn read_prefix(
         mounting: c.finish(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A configuration of `format` ("text" or "csv") over `imu` in `dir`.
+    fn files(dir: &Path, format: &str) -> ConfigFiles {
+        let csv = "[imu.csv]\nskip_lines = 0\ngyro_unit = \"rad/s\"\naccel_unit = \"m/s^2\"\n\
+                   convention = \"interval_mean\"\n[imu.csv.columns]\ntime = 1\n\
+                   gyro = [2, 3, 4]\naccel = [5, 6, 7]\n[imu.csv.time]\nkind = \"seconds\"\n";
+        let text = format!(
+            "name = \"t\"\n[imu]\npath = \"imu.{format}\"\nformat = \"{format}\"\n{}\
+             [gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n\
+             [init]\npos_std_m = [1.0, 1.0, 1.0]\nvel_std_mps = [0.1, 0.1, 0.1]\n\
+             att_std_deg = [1.0, 1.0, 1.0]\n[init.align]\nstatic_s = 10.0\n\
+             [noise]\nmodel = \"n\"\n[noise.accel]\nn_ug_per_sqrt_hz = 100.0\n\
+             [noise.gyro]\nn_deg_per_s_per_sqrt_hz = 0.005\n",
+            if format == "csv" { csv } else { "" }
+        );
+        let config = nav_io::parse_run_config(&dir.join("run.toml"), &text).unwrap();
+        ConfigFiles {
+            config: Arc::new(config),
+            dir: dir.to_path_buf(),
+        }
+    }
+
+    #[test]
+    fn the_configurations_gap_convention_and_first_time_without_the_reader_say_what_it_says() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(
+            d.join("imu.text"),
+            "100.00 0 0 0 0 0 -0.098\n100.01 0 0 0 0 0 -0.098\n100.02 0 0 0 0 0 -0.098\n",
+        )
+        .unwrap();
+        std::fs::write(
+            d.join("imu.csv"),
+            "100.00,0,0,0,0,0,-9.8\n100.01,0,0,0,0,0,-9.8\n100.02,0,0,0,0,0,-9.8\n",
+        )
+        .unwrap();
+        for format in ["text", "csv"] {
+            let c = files(d, format);
+            let reader = c.config.open_imu(d).unwrap();
+            let f = ImuFile::Config(c.clone());
+            assert_eq!(f.increments_span_gaps(), reader.increments_span_gaps());
+            assert_eq!(f.increments_span_gaps(), format == "csv");
+            assert_eq!(f.path(), reader.path());
+            let times: Vec<f64> = reader.map(|r| r.unwrap().0.t_s).collect();
+            let (a, b) = f.time_span(true).unwrap();
+            assert_eq!((a, b), (times[0], *times.last().unwrap()), "{format}");
+            assert_eq!(f.time_span(false).unwrap(), (a, a));
+            let st = ImuStream::new(f);
+            assert_eq!(st.increments_span_gaps, format == "csv");
+            assert!(st.path.ends_with(format!("imu.{format}")));
+        }
+    }
+}
