@@ -36,6 +36,7 @@ use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude::euler_zyx_from_dcm;
 use nav_core::earth::{self, Llh};
 use nav_core::types::{GnssFix, ImuSample};
+use std::collections::VecDeque;
 
 /// Lowest GNSS horizontal speed for the course to be used, m/s.
 pub const MIN_SPEED_MPS: f64 = 3.0;
@@ -45,6 +46,8 @@ pub const MIN_TURN_RATE_DEG_S: f64 = 3.0;
 pub const REST_SPEED_MPS: f64 = 0.1;
 /// Fewest turning intervals for a verdict from the turns.
 pub const MIN_TURN_INTERVALS: usize = 5;
+/// Longest GNSS interval used by the check, s.
+pub const MAX_INTERVAL_S: f64 = 5.0;
 
 /// What the data say about the configured mounting.
 #[derive(Debug, Clone, PartialEq)]
@@ -105,53 +108,151 @@ fn sums(imu: &[ImuSample], t0: f64, t1: f64) -> ([f64; 3], [f64; 3], f64) {
     (th, dv, span)
 }
 
-/// Checks body-axis increments `imu` against the GNSS fixes `gnss` (see the module notes).
+/// Checks body-axis increments `imu` against the GNSS fixes `gnss` (see the module notes):
+/// [`MountingChecker`] over the two lists.
 pub fn check_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
-    let fixes: Vec<&GnssFix> = gnss.iter().filter(|g| g.is_valid()).collect();
-    let (mut sxy, mut sxx, mut n_turn) = (0.0, 0.0, 0usize);
-    let (mut f_rest, mut t_rest) = ([0.0; 3], 0.0);
-    // course of the previous interval: (mid time, course rad)
-    let mut prev_course: Option<(f64, f64)> = None;
-    for w in fixes.windows(2) {
-        let (a, b) = (w[0], w[1]);
+    let mut c = MountingChecker::new();
+    let mut fixes = gnss.iter().peekable();
+    for s in imu {
+        // the fixes up to this sample's time first: at most a few are pending at a time
+        while let Some(g) = fixes.next_if(|g| g.t_s <= s.t_s) {
+            c.push_fix(g);
+        }
+        c.push_imu(s);
+    }
+    for g in fixes {
+        c.push_fix(g);
+    }
+    c.finish()
+}
+
+/// [`check_mounting`] as a stream: IMU samples (time order) and GNSS fixes (time order) pushed
+/// as they are read, each fix at the latest before the first IMU sample after it (fixes may
+/// come any time earlier). Memory: the IMU samples of the current and the previous GNSS
+/// interval (intervals longer than [`MAX_INTERVAL_S`] are not used, so at most about twice
+/// that of data) and the fixes pushed ahead of the IMU. The result is bit-identical to
+/// [`check_mounting`] on the whole lists: each GNSS interval is taken once the IMU has passed
+/// its end, with the same sums in the same order.
+#[derive(Debug, Clone, Default)]
+pub struct MountingChecker {
+    /// IMU samples from the last one at or before the earliest time a later interval needs.
+    imu: VecDeque<ImuSample>,
+    /// Valid fixes not yet taken (the IMU has not passed them).
+    pending: VecDeque<GnssFix>,
+    /// The previous valid fix taken.
+    prev_fix: Option<GnssFix>,
+    /// Course of the previous interval: (mid time, course rad).
+    prev_course: Option<(f64, f64)>,
+    sxy: f64,
+    sxx: f64,
+    n_turn: usize,
+    f_rest: [f64; 3],
+    t_rest: f64,
+}
+
+impl MountingChecker {
+    /// An empty check.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A GNSS fix (invalid fixes are ignored, as [`check_mounting`] does).
+    pub fn push_fix(&mut self, g: &GnssFix) {
+        if g.is_valid() {
+            self.pending.push_back(*g);
+        }
+    }
+
+    /// An IMU sample (body axes, after the previous one in time; every fix before it already
+    /// pushed).
+    pub fn push_imu(&mut self, s: &ImuSample) {
+        self.imu.push_back(*s);
+        // every sample up to a fix before this one is in: its interval can be taken
+        while let Some(b) = self.pending.front().copied() {
+            if b.t_s >= s.t_s {
+                break;
+            }
+            self.pending.pop_front();
+            self.interval_to(b);
+        }
+        // no fix ahead and none within MAX_INTERVAL_S before: the next fix (not before this
+        // sample) closes an interval too long to be used; the one after it starts at that
+        // fix, so only the last sample is still needed
+        let far = self.prev_fix.is_none_or(|p| s.t_s - p.t_s > MAX_INTERVAL_S);
+        if self.pending.is_empty() && far {
+            while self.imu.len() > 1 {
+                self.imu.pop_front();
+            }
+        }
+    }
+
+    /// The check over everything pushed.
+    pub fn finish(mut self) -> MountingCheck {
+        while let Some(b) = self.pending.pop_front() {
+            self.interval_to(b);
+        }
+        verdict(
+            (self.n_turn >= MIN_TURN_INTERVALS && self.sxx > 0.0)
+                .then(|| (self.sxy / self.sxx, self.n_turn)),
+            (self.t_rest >= 1.0).then(|| (self.f_rest.map(|v| v / self.t_rest), self.t_rest)),
+        )
+    }
+
+    /// The GNSS interval from the previous fix to `b` (every IMU sample up to `b` is in).
+    fn interval_to(&mut self, b: GnssFix) {
+        let Some(a) = self.prev_fix.replace(b) else {
+            return;
+        };
+        self.interval(&a, &b);
+        // a later interval needs samples after min(b, this interval's mid) and the one
+        // before them (the span of a sum starts at the sample before its window)
+        let keep_from = self.prev_course.map_or(b.t_s, |(tp, _)| tp.min(b.t_s));
+        while self.imu.get(1).is_some_and(|s| s.t_s <= keep_from) {
+            self.imu.pop_front();
+        }
+    }
+
+    fn interval(&mut self, a: &GnssFix, b: &GnssFix) {
         let dt = b.t_s - a.t_s;
-        if !(dt > 0.0 && dt <= 5.0) {
-            prev_course = None;
-            continue;
+        if !(dt > 0.0 && dt <= MAX_INTERVAL_S) {
+            self.prev_course = None;
+            return;
         }
         let [vn, ve] = interval_velocity(a, b);
         let speed = vn.hypot(ve);
         let mid = 0.5 * (a.t_s + b.t_s);
         if speed <= REST_SPEED_MPS {
-            let (_, dv, span) = sums(imu, a.t_s, b.t_s);
+            let (_, dv, span) = sums(self.imu.make_contiguous(), a.t_s, b.t_s);
             if span > 0.0 {
-                for k in 0..3 {
-                    f_rest[k] += dv[k];
+                for (f, d) in self.f_rest.iter_mut().zip(dv) {
+                    *f += d;
                 }
-                t_rest += span;
+                self.t_rest += span;
             }
         }
         if speed < MIN_SPEED_MPS {
-            prev_course = None;
-            continue;
+            self.prev_course = None;
+            return;
         }
         let course = ve.atan2(vn);
-        if let Some((tp, cp)) = prev_course {
+        if let Some((tp, cp)) = self.prev_course {
             let rate = wrap_pi(course - cp) / (mid - tp);
             if rate.abs() >= MIN_TURN_RATE_DEG_S.to_radians() {
-                let (th, _, span) = sums(imu, tp, mid);
+                let (th, _, span) = sums(self.imu.make_contiguous(), tp, mid);
                 if span > 0.0 {
                     let wz = th[2] / span;
-                    sxy += wz * rate;
-                    sxx += rate * rate;
-                    n_turn += 1;
+                    self.sxy += wz * rate;
+                    self.sxx += rate * rate;
+                    self.n_turn += 1;
                 }
             }
         }
-        prev_course = Some((mid, course));
+        self.prev_course = Some((mid, course));
     }
-    let turn_slope = (n_turn >= MIN_TURN_INTERVALS && sxx > 0.0).then(|| (sxy / sxx, n_turn));
-    let rest = (t_rest >= 1.0).then(|| (f_rest.map(|v| v / t_rest), t_rest));
+}
+
+/// The warnings from the turn slope and the mean specific force at rest.
+fn verdict(turn_slope: Option<(f64, usize)>, rest: Option<([f64; 3], f64)>) -> MountingCheck {
     let mut warnings = Vec::new();
     if let Some((s, n)) = turn_slope {
         if s < -0.5 {
@@ -469,5 +570,172 @@ impl MountingEstimate {
             self.best_residual_mps2,
             self.runner_up_residual_mps2
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nav_core::types::FixQuality;
+
+    /// The check as it was written over whole lists (before [`MountingChecker`]): the
+    /// reference the stream must equal bit for bit.
+    fn reference(imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
+        let fixes: Vec<&GnssFix> = gnss.iter().filter(|g| g.is_valid()).collect();
+        let (mut sxy, mut sxx, mut n_turn) = (0.0, 0.0, 0usize);
+        let (mut f_rest, mut t_rest) = ([0.0; 3], 0.0);
+        let mut prev_course: Option<(f64, f64)> = None;
+        for w in fixes.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let dt = b.t_s - a.t_s;
+            if !(dt > 0.0 && dt <= 5.0) {
+                prev_course = None;
+                continue;
+            }
+            let [vn, ve] = interval_velocity(a, b);
+            let speed = vn.hypot(ve);
+            let mid = 0.5 * (a.t_s + b.t_s);
+            if speed <= REST_SPEED_MPS {
+                let (_, dv, span) = sums(imu, a.t_s, b.t_s);
+                if span > 0.0 {
+                    for k in 0..3 {
+                        f_rest[k] += dv[k];
+                    }
+                    t_rest += span;
+                }
+            }
+            if speed < MIN_SPEED_MPS {
+                prev_course = None;
+                continue;
+            }
+            let course = ve.atan2(vn);
+            if let Some((tp, cp)) = prev_course {
+                let rate = wrap_pi(course - cp) / (mid - tp);
+                if rate.abs() >= MIN_TURN_RATE_DEG_S.to_radians() {
+                    let (th, _, span) = sums(imu, tp, mid);
+                    if span > 0.0 {
+                        sxy += th[2] / span * rate;
+                        sxx += rate * rate;
+                        n_turn += 1;
+                    }
+                }
+            }
+            prev_course = Some((mid, course));
+        }
+        verdict(
+            (n_turn >= MIN_TURN_INTERVALS && sxx > 0.0).then(|| (sxy / sxx, n_turn)),
+            (t_rest >= 1.0).then(|| (f_rest.map(|v| v / t_rest), t_rest)),
+        )
+    }
+
+    /// A car: 20 s at rest, then driving with turns of changing rate, a 10 s stop, a GNSS
+    /// gap of 8 s, some fixes without velocity and some invalid; IMU at 100 Hz with a little
+    /// deterministic wobble, GNSS at 4 Hz. `flip`: the IMU upside down (y and z negated).
+    fn drive(flip: bool) -> (Vec<ImuSample>, Vec<GnssFix>) {
+        let g = 9.8;
+        let dt = 0.01;
+        let t0 = 1000.0;
+        let speed = |t: f64| -> f64 {
+            let r = t - t0;
+            if r < 20.0 || (150.0..160.0).contains(&r) {
+                0.0
+            } else {
+                (12.0 * (1.0 - (-(r - 20.0) / 5.0).exp())).min(12.0)
+            }
+        };
+        let yaw_rate = |t: f64| -> f64 {
+            let r = t - t0;
+            if speed(t) < 1.0 {
+                0.0
+            } else {
+                0.15 * (r / 9.0).sin() + 0.05 * (r / 2.3).cos()
+            }
+        };
+        let (mut yaw, mut n, mut e) = (0.3f64, 0.0f64, 0.0f64);
+        let (mut imu, mut gnss) = (Vec::new(), Vec::new());
+        let lat0 = 0.7f64;
+        for k in 1..=30_000 {
+            let t = t0 + k as f64 * dt;
+            let w = yaw_rate(t);
+            let v = speed(t);
+            let a_long = (v - speed(t - dt)) / dt;
+            yaw += w * dt;
+            n += v * yaw.cos() * dt;
+            e += v * yaw.sin() * dt;
+            let wob = 1e-3 * (k as f64 * 0.37).sin();
+            let mut th = [wob * dt, -wob * dt, w * dt];
+            let mut dv = [a_long * dt, (v * w + wob) * dt, -g * dt];
+            if flip {
+                th[1] = -th[1];
+                th[2] = -th[2];
+                dv[1] = -dv[1];
+                dv[2] = -dv[2];
+            }
+            imu.push(ImuSample {
+                t_s: t,
+                dtheta_rad: th,
+                dv_mps: dv,
+                temperature_c: f64::NAN,
+            });
+            // GNSS every 25th sample, off the IMU grid by 3 ms, not in the gap
+            if k % 25 == 0 && !(200.0..208.0).contains(&(t - t0)) {
+                let mut f = GnssFix {
+                    t_s: t + 0.003,
+                    lat_rad: lat0 + n / 6.4e6,
+                    lon_rad: e / (6.4e6 * lat0.cos()),
+                    h_m: 100.0,
+                    pos_std_ned_m: [0.1, 0.1, 0.2],
+                    vel_ned_mps: [v * yaw.cos(), v * yaw.sin(), 0.0],
+                    vel_std_ned_mps: [0.05; 3],
+                    has_velocity: k % 400 != 0,
+                    quality: FixQuality::Single,
+                    num_sats: 9,
+                };
+                if k % 1000 == 0 {
+                    f.pos_std_ned_m[0] = f64::NAN;
+                }
+                gnss.push(f);
+            }
+        }
+        (imu, gnss)
+    }
+
+    #[test]
+    fn the_stream_is_the_whole_list_check_bit_for_bit_in_any_interleaving() {
+        for flip in [false, true] {
+            let (imu, gnss) = drive(flip);
+            let want = reference(&imu, &gnss);
+            let (slope, n) = want.turn_slope.expect("turns");
+            assert!(n > 100, "{n}");
+            assert!(
+                (slope - if flip { -1.0 } else { 1.0 }).abs() < 0.2,
+                "{slope}"
+            );
+            assert!(want.rest_f_body_mps2.expect("rest").1 > 20.0);
+            assert_eq!(want.warnings.len(), if flip { 2 } else { 0 });
+            assert_eq!(check_mounting(&imu, &gnss), want);
+            // all fixes first, then the IMU
+            let mut c = MountingChecker::new();
+            gnss.iter().for_each(|g| c.push_fix(g));
+            imu.iter().for_each(|s| c.push_imu(s));
+            assert_eq!(c.finish(), want);
+            // fixes pushed one second ahead of the IMU: the buffer stays small
+            let mut c = MountingChecker::new();
+            let mut fixes = gnss.iter().peekable();
+            let mut most = 0;
+            for s in &imu {
+                while let Some(g) = fixes.next_if(|g| g.t_s <= s.t_s + 1.0) {
+                    c.push_fix(g);
+                }
+                c.push_imu(s);
+                most = most.max(c.imu.len());
+            }
+            fixes.for_each(|g| c.push_fix(g));
+            assert_eq!(c.finish(), want);
+            // at most MAX_INTERVAL_S of samples (in the 8 s GNSS gap), one GNSS interval of
+            // 0.25 s and the sample before
+            assert!(most <= 500 + 25 + 1, "{most} IMU samples held");
+            assert!(most >= 500, "{most} IMU samples held");
+        }
     }
 }

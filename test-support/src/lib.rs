@@ -2,6 +2,7 @@
 
 pub mod alloc;
 pub mod cli;
+pub mod csvcase;
 pub mod filter_sim;
 pub mod runcase;
 pub mod scenario;

@@ -208,9 +208,9 @@ pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
     Ok(load(args, false)?.prepared)
 }
 
-/// [`prepare`] without loading the IMU when it is a text file (the case's IMU list stays
-/// empty and the file is returned) nor the truth (its file is returned): both are read while
-/// the filter runs ([`execute_streaming`]).
+/// [`prepare`] without loading the IMU and GNSS files (any the configuration names) nor the
+/// truth: the case's lists stay empty and the files are returned, to be read while the filter
+/// runs ([`execute_streaming`]).
 pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<Loaded> {
     load(args, true)
 }

@@ -17,13 +17,13 @@
 use super::coast::{coast_outages, CoastMode};
 use super::output;
 use super::prepare::{ImuStream, Prepared};
+use super::streams::ImuFile;
 use super::truth::TruthFile;
 use super::{run_filter_with_progress, CaseData, RunOptions, RunOutput};
 use crate::metrics::{self, Metrics};
 use anyhow::Context;
 use nav_core::model::ImuCorrection;
 use nav_core::types::NavSolution;
-use nav_io::ImuTextReader;
 use std::path::{Path, PathBuf};
 
 /// Runs the filter and computes the metrics (with coasting baselines when there are outages).
@@ -75,7 +75,9 @@ pub fn execute_case(
 /// ([`super::truth`]; None: the case's truth in memory, if any). `nav_rate_hz`: rate of
 /// `nav.txt` (None: every IMU epoch). A fault mid-run leaves the outputs up to it as
 /// `*.partial` and returns [`super::RunError::Fault`] (its `partial` holds the summary, no
-/// records); other errors leave no output.
+/// records); so does an error reading the streamed IMU file in the middle (the error names
+/// file and line; the run ends at the last sample before it, `metrics.json.partial` says
+/// `"complete": false` and the error); other errors leave no output.
 pub fn execute_streaming(
     p: &Prepared,
     imu: Option<&ImuStream>,
@@ -104,13 +106,18 @@ pub fn execute_streaming(
         raw: true,
         static_gyro_bias: true,
     };
+    // a read error of the streamed IMU ends its samples; the run up to it is kept
+    let mut read_err = None;
     let res = match imu {
         Some(st) => {
             let info = super::ImuSourceInfo {
                 path: Some(st.path.clone()),
-                increments_span_gaps: false,
+                increments_span_gaps: st.increments_span_gaps,
             };
-            let mut it = threaded_imu_reader(st.path.clone(), st.time_offset_s);
+            let mut it = StopAtError {
+                inner: threaded_file_reader(st.file.clone(), st.time_offset_s),
+                err: &mut read_err,
+            };
             match &st.gnss {
                 // the fixes read as the filter goes (memory independent of the length)
                 Some(g) => match g.source() {
@@ -126,6 +133,29 @@ pub fn execute_streaming(
             let (mut it, info) = super::case_imu_stream(&p.case);
             super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
         }
+    };
+    let res = match (res, read_err) {
+        (Ok(out), Some(e)) => {
+            // the record ended at a read error: the outputs up to it, marked incomplete
+            let fault = e.to_string();
+            let t_last = sink.last_nav_t();
+            let written = sink.finish(&out, Some(&fault), |m| metrics_json(m, &out, Some(&fault)));
+            return Err(match written {
+                Ok(_) => anyhow::anyhow!(
+                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                     {}/*{} (incomplete)",
+                    dir.display(),
+                    output::PARTIAL_SUFFIX
+                ),
+                Err(w) => anyhow::anyhow!(
+                    "{fault}; the run stopped there, and writing the partial outputs failed \
+                     too: {w:#}"
+                ),
+            });
+        }
+        // nothing run (e.g. the file unreadable from its first sample): the read error
+        (Err(super::RunError::NoImu), Some(e)) => Err(e),
+        (res, _) => res,
     };
     // a complete run: the rest of the truth file checked (as when it was loaded whole)
     let res = res.and_then(|out| sink.check_truth_rest().map(|()| out));
@@ -182,23 +212,58 @@ pub fn execute_streaming(
     }
 }
 
-/// Samples per message from the reader thread.
-const READ_CHUNK: usize = 2048;
-/// Messages in flight between the reader thread and the filter.
-const READ_QUEUE: usize = 4;
+/// The samples of `inner` up to its first error, which is kept in `err` (the stream ends
+/// there).
+struct StopAtError<'a, I> {
+    inner: I,
+    err: &'a mut Option<super::RunError>,
+}
 
-/// The samples of an IMU text file read and parsed by a thread of their own and handed over
-/// in chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
-/// flight): reading and parsing overlap the filter. The thread stops at the first error
-/// (passed on) or when the receiver is dropped.
+impl<I: Iterator<Item = Result<super::ImuItem, super::RunError>>> Iterator for StopAtError<'_, I> {
+    type Item = Result<super::ImuItem, super::RunError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.err.is_some() {
+            return None;
+        }
+        match self.inner.next()? {
+            Ok(it) => Some(Ok(it)),
+            Err(e) => {
+                *self.err = Some(e);
+                None
+            }
+        }
+    }
+}
+
+/// Samples per message from the reader thread.
+pub const READ_CHUNK: usize = 2048;
+/// Messages in flight between the reader thread and the filter.
+pub const READ_QUEUE: usize = 4;
+
+/// The samples of an IMU text file read and parsed by a thread of their own
+/// ([`threaded_file_reader`]).
 pub fn threaded_imu_reader(
     path: PathBuf,
+    time_offset_s: f64,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    threaded_file_reader(ImuFile::Text(path), time_offset_s)
+}
+
+/// The samples of an IMU file (a text file, or a run configuration's file in any format it
+/// reads, opened in the thread) read and parsed by a thread of their own and handed over in
+/// chunks through a bounded channel (at most [`READ_QUEUE`] x [`READ_CHUNK`] samples in
+/// flight): reading and parsing overlap the filter. `time_offset_s` is added to every time.
+/// The thread stops at the first error (passed on after the samples before it) or when the
+/// receiver is dropped.
+pub fn threaded_file_reader(
+    file: ImuFile,
     time_offset_s: f64,
 ) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
     type Msg = Result<Vec<super::ImuItem>, super::RunError>;
     let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
     std::thread::spawn(move || {
-        let rd = match ImuTextReader::open(&path) {
+        let rd = match file.open() {
             Ok(r) => r,
             Err(e) => {
                 let _ = tx.send(Err(super::RunError::Input(e)));

@@ -33,6 +33,7 @@ pub mod outage;
 pub mod output;
 pub mod prepare;
 pub mod sink;
+pub mod streams;
 pub mod truth;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};

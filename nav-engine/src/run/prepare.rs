@@ -13,11 +13,18 @@
 //! file inside such a case directory also picks up the case's `truth.nav`, outages and GPS
 //! week.
 //!
+//! [`load`] with streaming leaves the IMU and GNSS files unread but for short passes (the
+//! GNSS file checked, the first IMU minutes for the mounting check): they are read while the
+//! filter runs ([`super::streams`]); without it (diagnose, study, smoothing) everything is
+//! loaded.
+//!
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], [`RunSpec`]'s `imu_*` fields and
 //! `[imu.checks]`. Running a prepared case and writing its outputs: [`super::execute`].
 
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
+use super::streams::{read_prefix, scale_sigmas, ConfigFiles, ImuFile};
+pub use super::streams::{GnssStream, ImuStream};
 use super::{CaseData, Model, Precision, RunOptions};
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
@@ -29,8 +36,7 @@ use nav_core::model::{Block, BlockKind};
 use nav_core::strapdown::NavState;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    GnssTextReader, ImuChecksConfig, ImuClassName, ImuTextReader, InitMode, KfGinsConfig,
-    RunConfig, TruthData,
+    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use std::path::{Path, PathBuf};
 
@@ -127,8 +133,7 @@ impl RunSpec {
 pub struct Loaded {
     /// The data and options.
     pub prepared: Prepared,
-    /// The IMU text file the run streams instead of loading (then `prepared.case.imu` is
-    /// empty).
+    /// The IMU file the run streams instead of loading (then `prepared.case.imu` is empty).
     pub imu_stream: Option<ImuStream>,
     /// Warnings about the data (e.g. the mounting check); the front end shows them.
     pub warnings: Vec<String>,
@@ -291,78 +296,16 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     att_std_rad
 }
 
-/// An IMU text file the run streams instead of loading ([`load`]), and the GNSS text file
-/// streamed with it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ImuStream {
-    /// The IMU text file (plain or gzip).
-    pub path: PathBuf,
-    /// Offset added to every time stamp, s ([`RunSpec::imu_time_offset_s`]).
-    pub time_offset_s: f64,
-    /// The GNSS text file read while the filter runs (then `prepared.case.gnss` is empty);
-    /// None: the fixes are in `prepared.case.gnss`.
-    pub gnss: Option<GnssStream>,
-}
-
-/// A GNSS text file the run streams instead of loading ([`ImuStream::gnss`]): read once by
-/// [`load`] to check it (the reader's errors before the run starts, nothing kept), then again
-/// while the filter runs.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GnssStream {
-    /// The GNSS text file (plain or gzip), 7 or 13 fields per line.
-    pub path: PathBuf,
-    /// Factor applied to every position and velocity standard deviation
-    /// (`[gnss] sigma_scale`; 1 for KF-GINS configurations).
-    pub sigma_scale: f64,
-    /// Fixes in the file (counted by [`load`]'s check).
-    pub fixes: usize,
-}
-
-impl GnssStream {
-    /// Checks the file (parsed to its end, nothing kept) and counts its fixes.
-    pub fn check(path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
-        let mut fixes = 0usize;
-        for r in GnssTextReader::open(path)? {
-            r?;
-            fixes += 1;
-        }
-        Ok(Self {
-            path: path.to_path_buf(),
-            sigma_scale,
-            fixes,
-        })
-    }
-
-    /// The fixes as the engine's stream, the standard deviations scaled.
-    pub fn source(&self) -> Result<super::FixSource<'static>, super::RunError> {
-        let k = self.sigma_scale;
-        let rd = GnssTextReader::open(&self.path).map_err(super::RunError::Input)?;
-        Ok(Box::new(rd.map(move |r| {
-            let mut g = r.map_err(super::RunError::Input)?;
-            scale_sigmas(&mut g, k);
-            Ok(g)
-        })))
-    }
-}
-
-/// Multiplies a fix's position and velocity standard deviations by `k`.
-fn scale_sigmas(g: &mut nav_core::types::GnssFix, k: f64) {
-    for s in &mut g.pos_std_ned_m {
-        *s *= k;
-    }
-    for s in &mut g.vel_std_ned_mps {
-        *s *= k;
-    }
-}
-
-/// Loads everything a run needs. With `stream_imu`, an IMU text file (KF-GINS configurations
-/// and case directories) is not loaded: the case's IMU list stays empty and the file is
+/// Loads everything a run needs. With `stream_imu`, the IMU file is not loaded (a case
+/// directory's or a KF-GINS configuration's text file, or whatever file a run configuration
+/// names, through [`RunConfig::open_imu`]): the case's IMU list stays empty and the file is
 /// returned in [`Loaded::imu_stream`], to be read while the filter runs
-/// ([`super::execute::execute_streaming`]); other IMU formats are loaded either way. The GNSS
-/// text file of such a run is streamed too ([`ImuStream::gnss`]: checked here, the case's
-/// fix list left empty). With `stream_imu` the truth is never loaded (`case.truth` stays
-/// None): its file is checked and returned in [`Loaded::truth_stream`], to be read as the
-/// solution advances.
+/// ([`super::execute::execute_streaming`]). The GNSS file of such a run is streamed too
+/// ([`ImuStream::gnss`]: checked here, its week and warnings taken, the case's fix list left
+/// empty), and the mounting check reads the first minutes of both
+/// ([`super::streams::read_prefix`]). Without `stream_imu` everything is loaded.
+/// With `stream_imu` the truth is never loaded (`case.truth` stays None): its file is checked
+/// and returned in [`Loaded::truth_stream`], to be read as the solution advances.
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
@@ -403,10 +346,20 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
             prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream, &mut warnings)?
         }
     };
-    let mut imu_stream = streams.map(|(path, gnss)| ImuStream {
-        path,
-        time_offset_s: 0.0,
-        gnss,
+    let mut imu_stream = streams;
+    // the data against the configured mounting (z gyro vs GNSS course, gravity at rest): a
+    // streamed run checks the first minutes of its files (and learns its first IMU time)
+    let prefix = match &imu_stream {
+        Some(st) => Some(read_prefix(
+            &st.file,
+            st.gnss.as_ref().map(|g| &g.file),
+            &case.gnss,
+        )?),
+        None => None,
+    };
+    warnings.extend(match &prefix {
+        Some(p) => p.mounting.warnings.clone(),
+        None => crate::mounting::check_mounting(&case.imu, &case.gnss).warnings,
     });
     if let Some(cd) = &case_dir {
         week = cd.week;
@@ -489,7 +442,11 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
     let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
         (Some(st), _, _) => {
-            let (a, b) = imu_text_time_span(&st.path, periodic_wanted)?;
+            // the last time only when periodic outages need it (a pass over the whole file)
+            let (a, b) = match &prefix {
+                Some(p) if !periodic_wanted => (p.first_t_s, p.first_t_s),
+                _ => st.file.time_span(periodic_wanted)?,
+            };
             (a + st.time_offset_s, b + st.time_offset_s)
         }
         (None, Some(a), Some(b)) => (a.t_s, b.t_s),
@@ -522,33 +479,13 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     })
 }
 
-/// Time of the first IMU sample of a text file and, when `last` is asked, of its last one
-/// (the whole file is read then; otherwise the second value is the first time too).
-fn imu_text_time_span(path: &Path, last: bool) -> anyhow::Result<(f64, f64)> {
-    let mut rd = ImuTextReader::open(path)?;
-    let Some(first) = rd.next().transpose()? else {
-        bail!("no IMU samples in {}", path.display());
-    };
-    let t0 = first.0.t_s;
-    let mut t1 = t0;
-    if last {
-        for r in rd {
-            t1 = r?.0.t_s;
-        }
-    }
-    Ok((t0, t1))
-}
-
-/// The files a run streams: the IMU text file and, when it is a text file too, the GNSS one.
-type Streams = (PathBuf, Option<GnssStream>);
-
 fn prepare_kf_gins(
     k: &KfGinsConfig,
     dir: &Path,
     case_dir: Option<&CaseDir>,
     model: Option<Model>,
     stream: bool,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<Streams>)> {
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<ImuStream>)> {
     k.validate()
         .map_err(|e| anyhow::anyhow!("KF-GINS configuration: {e}"))?;
     let (imu_p, gnss_p) = match case_dir {
@@ -561,11 +498,9 @@ fn prepare_kf_gins(
     // streamed: the IMU and the GNSS text files are read while the filter runs
     let (imu_rec, gnss, imu_stream) = if stream {
         let g = GnssStream::check(&gnss_p, 1.0)?;
-        (
-            nav_io::ImuRecord::default(),
-            Vec::new(),
-            Some((imu_p.clone(), Some(g))),
-        )
+        let mut st = ImuStream::new(ImuFile::Text(imu_p.clone()));
+        st.gnss = Some(g);
+        (nav_io::ImuRecord::default(), Vec::new(), Some(st))
     } else {
         (read_imu_text(&imu_p)?, read_gnss_text(&gnss_p)?, None)
     };
@@ -642,23 +577,23 @@ fn prepare_run_config(
     case_dir: Option<&CaseDir>,
     stream: bool,
     warnings: &mut Vec<String>,
-) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<Streams>)> {
+) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<ImuStream>)> {
     let mut week = 0u16;
-    let mut imu_stream: Option<PathBuf> = None;
-    let mut gnss_stream = None;
+    let mut imu_stream: Option<ImuStream> = None;
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
     let (imu_rec, mut gnss, truth) = match case_dir {
         Some(c) => (
             if stream {
-                imu_stream = Some(c.imu.clone());
+                let mut st = ImuStream::new(ImuFile::Text(c.imu.clone()));
+                st.gnss = Some(GnssStream::check(&c.gnss, r.gnss.sigma_scale)?);
+                imu_stream = Some(st);
                 nav_io::ImuRecord::default()
             } else {
                 read_imu_text(&c.imu)?
             },
             if stream {
-                gnss_stream = Some(GnssStream::check(&c.gnss, r.gnss.sigma_scale)?);
                 Vec::new()
             } else {
                 read_gnss_text(&c.gnss)?
@@ -669,6 +604,26 @@ fn prepare_run_config(
                 None
             },
         ),
+        None if stream => {
+            // the configuration's own files read while the filter runs: the IMU opened here
+            // (its errors before the run), the GNSS checked to its end (errors, count, week,
+            // warnings), nothing kept
+            let files = ConfigFiles {
+                config: std::sync::Arc::new(r.clone()),
+                dir: dir.to_path_buf(),
+            };
+            let mut st = ImuStream::new(ImuFile::Config(files.clone()));
+            let g = GnssStream::check_config(files, r.gnss.sigma_scale)?;
+            warnings.extend(g.summary.warnings.iter().cloned());
+            if let Some(w) = g.summary.week {
+                week = u16::try_from(w).unwrap_or(0);
+            }
+            st.gnss = Some(g);
+            imu_stream = Some(st);
+            // the truth of a streamed run is read as the solution advances (`load` takes the
+            // `[truth]` table for `Loaded::truth_stream` before calling here)
+            (nav_io::ImuRecord::default(), Vec::new(), None)
+        }
         None => {
             let inp = r.load_inputs(dir)?;
             warnings.extend(inp.warnings.iter().map(ToString::to_string));
@@ -678,17 +633,11 @@ fn prepare_run_config(
             if inp.imu.gaps.count() > 0 {
                 gaps = format!("; IMU time gaps: {}", inp.imu.gaps);
             }
-            let truth = inp.truth.map(|t| match t {
-                TruthData::Nav(v) => v,
-                TruthData::Positions(f) => f.iter().map(super::truth::truth_from_fix).collect(),
-            });
+            let truth = inp.truth.map(truth_solutions);
             (inp.imu, inp.gnss, truth)
         }
     };
     let imu = imu_rec.samples;
-    // the data against the configured [imu.mounting] (z gyro vs GNSS course, gravity at rest;
-    // nothing to check when the IMU is streamed)
-    warnings.extend(crate::mounting::check_mounting(&imu, &gnss).warnings);
     for g in &mut gnss {
         scale_sigmas(g, r.gnss.sigma_scale);
     }
@@ -741,8 +690,8 @@ fn prepare_run_config(
                 .start_s
                 .or_else(|| imu.first().map(|s| s.t_s))
                 .or_else(|| {
-                    let p = imu_stream.as_ref()?;
-                    imu_text_time_span(p, false).ok().map(|(a, _)| a)
+                    let st = imu_stream.as_ref()?;
+                    st.file.time_span(false).ok().map(|(a, _)| a)
                 })
                 .unwrap_or(0.0);
             InitSpec::Given(
@@ -800,8 +749,17 @@ fn prepare_run_config(
         opts,
         week,
         d,
-        imu_stream.map(|p| (p, gnss_stream)),
+        imu_stream,
     ))
+}
+
+/// A configuration's truth as navigation records (RTKLIB positions: velocity when the file
+/// has one, attitude unknown).
+fn truth_solutions(t: TruthData) -> Vec<nav_core::types::NavSolution> {
+    match t {
+        TruthData::Nav(v) => v,
+        TruthData::Positions(f) => f.iter().map(super::truth::truth_from_fix).collect(),
+    }
 }
 
 /// `[aiding]` into the run options: the filter side, the input files (a case directory's own

@@ -1,0 +1,356 @@
+//! The files a streamed run reads while the filter runs ([`super::prepare::load`] with
+//! `stream_imu`, [`super::execute::execute_streaming`]): the IMU ([`ImuStream`]) and the GNSS
+//! fixes ([`GnssStream`]), each either a text file (case directories, KF-GINS
+//! configurations) or the file a run configuration names, read through
+//! [`RunConfig::open_imu`] / [`RunConfig::open_gnss`] (any format they read: IMU text or CSV
+//! with tick clocks, tag files and the mounting rotation; GNSS text, CSV, NMEA, UBX, RTKLIB
+//! `.pos`, with the quality filter).
+//!
+//! What a loaded run learns from the whole data before the filter starts, a streamed one gets
+//! from short separate reads: the first IMU time (a given initial state, the outage times),
+//! the last one only when periodic outages need it (a full pass, nothing kept), the GNSS
+//! file's errors, count, week, warnings and drops (a check pass over the fixes, nothing kept),
+//! and the mounting check ([`read_prefix`]: the first [`MOUNTING_PREFIX_S`] of IMU
+//! data and the fixes of that span). The IMU gap report of the loaded description is not
+//! made up front: the engine's IMU guard reports the gaps as it meets them (run summary,
+//! `metrics.json` `imu`).
+
+use crate::mounting::{MountingCheck, MountingChecker};
+use anyhow::bail;
+use nav_core::types::{GnssFix, ImuSample};
+use nav_io::runcfg::GnssReadSummary;
+use nav_io::{GnssTextReader, ImuFileKind, ImuTextReader, IoError, RunConfig};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A run configuration and the folder its relative paths are resolved against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigFiles {
+    /// The configuration.
+    pub config: Arc<RunConfig>,
+    /// Its folder.
+    pub dir: PathBuf,
+}
+
+/// Where a streamed run's IMU samples come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ImuFile {
+    /// An IMU text file (plain or gzip), increments as in the file.
+    Text(PathBuf),
+    /// The IMU file of a run configuration ([`RunConfig::open_imu`]: increments in body axes,
+    /// the configuration's time offsets applied).
+    Config(ConfigFiles),
+}
+
+/// IMU samples with their 1-based file lines, as a reader yields them.
+pub type ImuLines = Box<dyn Iterator<Item = Result<(ImuSample, usize), IoError>>>;
+
+impl ImuFile {
+    /// The file.
+    pub fn path(&self) -> PathBuf {
+        match self {
+            Self::Text(p) => p.clone(),
+            Self::Config(c) => RunConfig::resolve(&c.dir, &c.config.imu.path),
+        }
+    }
+
+    /// Opens the file (read from its start).
+    pub fn open(&self) -> Result<ImuLines, IoError> {
+        Ok(match self {
+            Self::Text(p) => Box::new(ImuTextReader::open(p)?),
+            Self::Config(c) => Box::new(c.config.open_imu(&c.dir)?),
+        })
+    }
+
+    /// True when each increment covers the whole interval since the previous sample even
+    /// across a time gap (see [`nav_io::ImuOrigin::increments_span_gaps`]): what the reader
+    /// says (`ImuFileReader::increments_span_gaps`: CSV rate logs), known from the
+    /// configuration without opening the file (a tagged CSV's opening reads it whole).
+    pub fn increments_span_gaps(&self) -> bool {
+        match self {
+            Self::Text(_) => false,
+            Self::Config(c) => c.config.imu.format == ImuFileKind::Csv,
+        }
+    }
+
+    /// Time of the first sample and, when `last` is asked, of the last one (the whole file
+    /// is read then, nothing kept; otherwise the second value is the first time too).
+    pub fn time_span(&self, last: bool) -> anyhow::Result<(f64, f64)> {
+        let mut rd = self.open()?;
+        let Some(first) = rd.next().transpose()? else {
+            bail!("no IMU samples in {}", self.path().display());
+        };
+        let t0 = first.0.t_s;
+        let mut t1 = t0;
+        if last {
+            for r in rd {
+                t1 = r?.0.t_s;
+            }
+        }
+        Ok((t0, t1))
+    }
+}
+
+/// An IMU file the run streams instead of loading ([`super::prepare::load`]), and the GNSS
+/// file streamed with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImuStream {
+    /// The IMU file (for messages: `file line N`).
+    pub path: PathBuf,
+    /// How it is read.
+    pub file: ImuFile,
+    /// True when each increment covers the whole interval since the previous sample even
+    /// across a time gap ([`ImuFile::increments_span_gaps`]).
+    pub increments_span_gaps: bool,
+    /// Offset added to every time stamp, s ([`super::prepare::RunSpec::imu_time_offset_s`];
+    /// a configuration's own offsets are applied by its reader).
+    pub time_offset_s: f64,
+    /// The GNSS file read while the filter runs (then `prepared.case.gnss` is empty); None:
+    /// the fixes are in `prepared.case.gnss`.
+    pub gnss: Option<GnssStream>,
+}
+
+impl ImuStream {
+    /// The IMU file `file`, no extra time offset, no GNSS stream.
+    pub fn new(file: ImuFile) -> Self {
+        Self {
+            path: file.path(),
+            increments_span_gaps: file.increments_span_gaps(),
+            file,
+            time_offset_s: 0.0,
+            gnss: None,
+        }
+    }
+}
+
+/// Where a streamed run's GNSS fixes come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GnssFile {
+    /// A GNSS text file (plain or gzip), 7 or 13 fields per line.
+    Text(PathBuf),
+    /// The GNSS file of a run configuration ([`RunConfig::open_gnss`]: quality filter and
+    /// `[gnss] time_offset_s` applied).
+    Config(ConfigFiles),
+}
+
+/// GNSS fixes as a reader yields them.
+pub type Fixes = Box<dyn Iterator<Item = Result<GnssFix, IoError>>>;
+
+impl GnssFile {
+    /// Opens the file (read from its start); the fixes as in the file (sigmas not scaled).
+    pub fn open(&self) -> Result<Fixes, IoError> {
+        Ok(match self {
+            Self::Text(p) => Box::new(GnssTextReader::open(p)?),
+            Self::Config(c) => Box::new(c.config.open_gnss(&c.dir)?),
+        })
+    }
+}
+
+/// A GNSS file the run streams instead of loading ([`ImuStream::gnss`]): read once by
+/// [`super::prepare::load`] to check it (the reader's errors before the run starts, nothing
+/// kept), then again while the filter runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GnssStream {
+    /// The GNSS file.
+    pub path: PathBuf,
+    /// How it is read.
+    pub file: GnssFile,
+    /// Factor applied to every position and velocity standard deviation
+    /// (`[gnss] sigma_scale`; 1 for KF-GINS configurations).
+    pub sigma_scale: f64,
+    /// Fixes in the file (counted by the check), after the quality filter.
+    pub fixes: usize,
+    /// What the check pass learnt besides the fixes: the GPS week the file states, the
+    /// records dropped by the quality filter, the reader's warnings (empty for text files).
+    pub summary: GnssReadSummary,
+}
+
+impl GnssStream {
+    /// Checks a GNSS text file (parsed to its end, nothing kept) and counts its fixes.
+    pub fn check(path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
+        Self::check_file(GnssFile::Text(path.to_path_buf()), path, sigma_scale)
+    }
+
+    /// Checks the GNSS file of a run configuration (read to its end through
+    /// [`RunConfig::open_gnss`], nothing kept): its fixes counted, its summary kept.
+    pub fn check_config(c: ConfigFiles, sigma_scale: f64) -> anyhow::Result<Self> {
+        let path = RunConfig::resolve(&c.dir, &c.config.gnss.path);
+        let mut rd = c.config.open_gnss(&c.dir)?;
+        let mut fixes = 0usize;
+        for r in &mut rd {
+            r?;
+            fixes += 1;
+        }
+        Ok(Self {
+            path,
+            file: GnssFile::Config(c),
+            sigma_scale,
+            fixes,
+            summary: rd.summary().clone(),
+        })
+    }
+
+    fn check_file(file: GnssFile, path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
+        let mut fixes = 0usize;
+        for r in file.open()? {
+            r?;
+            fixes += 1;
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            file,
+            sigma_scale,
+            fixes,
+            summary: GnssReadSummary::default(),
+        })
+    }
+
+    /// The fixes as the engine's stream, the standard deviations scaled.
+    pub fn source(&self) -> Result<super::FixSource<'static>, super::RunError> {
+        let k = self.sigma_scale;
+        let rd = self.file.open().map_err(super::RunError::Input)?;
+        Ok(Box::new(rd.map(move |r| {
+            let mut g = r.map_err(super::RunError::Input)?;
+            scale_sigmas(&mut g, k);
+            Ok(g)
+        })))
+    }
+}
+
+/// Multiplies a fix's position and velocity standard deviations by `k`.
+pub fn scale_sigmas(g: &mut GnssFix, k: f64) {
+    for s in &mut g.pos_std_ned_m {
+        *s *= k;
+    }
+    for s in &mut g.vel_std_ned_mps {
+        *s *= k;
+    }
+}
+
+/// Seconds of IMU data, from the first sample, that the mounting check of a streamed run
+/// reads ([`read_prefix`]).
+pub const MOUNTING_PREFIX_S: f64 = 600.0;
+
+/// What [`read_prefix`] learnt of the start of a streamed run's files.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prefix {
+    /// Time of the first IMU sample, s (the configuration's offsets applied, not the run's
+    /// extra one).
+    pub first_t_s: f64,
+    /// The mounting check on the prefix ([`crate::mounting::check_mounting`]).
+    pub mounting: MountingCheck,
+}
+
+/// Reads the start of a streamed run's files in a pass of its own before the run: the first
+/// IMU time, and the mounting check on the first [`MOUNTING_PREFIX_S`] of the IMU file and the
+/// fixes of that span (`gnss`: the streamed GNSS file, or else the fixes in memory) with
+/// memory bounded by the check's own window ([`MountingChecker`]). The IMU as the
+/// configuration gives it (the run's extra `--imu-time-offset` is not applied, as the loaded
+/// check does not), the fixes unscaled. Errors opening the IMU file or in its first sample
+/// are returned; a read error after that ends the pass quietly (the check covers what came
+/// before it): the run itself reports it, with the outputs up to it.
+pub fn read_prefix(
+    imu: &ImuFile,
+    gnss: Option<&GnssFile>,
+    fixes_in_memory: &[GnssFix],
+) -> anyhow::Result<Prefix> {
+    let mut samples = imu.open()?;
+    let Some(first) = samples.next().transpose()? else {
+        bail!("no IMU samples in {}", imu.path().display());
+    };
+    let first_t_s = first.0.t_s;
+    let end = first_t_s + MOUNTING_PREFIX_S;
+    let mut c = MountingChecker::new();
+    let mut fixes: Box<dyn Iterator<Item = GnssFix> + '_> = match gnss {
+        Some(f) => match f.open() {
+            Ok(rd) => Box::new(rd.map_while(Result::ok)),
+            Err(_) => Box::new(std::iter::empty()),
+        },
+        None => Box::new(fixes_in_memory.iter().copied()),
+    };
+    let mut ahead: Option<GnssFix> = None;
+    let rest = samples.map_while(Result::ok).map(|(s, _)| s);
+    for s in std::iter::once(first.0).chain(rest) {
+        if s.t_s > end {
+            break;
+        }
+        // the fixes up to this sample first (the checker's contract)
+        while let Some(g) = ahead.take().or_else(|| fixes.next()) {
+            if g.t_s <= s.t_s {
+                c.push_fix(&g);
+            } else {
+                ahead = Some(g);
+                break;
+            }
+        }
+        c.push_imu(&s);
+    }
+    // the fixes after the last sample read, up to the prefix end
+    for g in ahead.into_iter().chain(fixes) {
+        if g.t_s > end {
+            break;
+        }
+        c.push_fix(&g);
+    }
+    Ok(Prefix {
+        first_t_s,
+        mounting: c.finish(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A configuration of `format` ("text" or "csv") over `imu` in `dir`.
+    fn files(dir: &Path, format: &str) -> ConfigFiles {
+        let csv = "[imu.csv]\nskip_lines = 0\ngyro_unit = \"rad/s\"\naccel_unit = \"m/s^2\"\n\
+                   convention = \"interval_mean\"\n[imu.csv.columns]\ntime = 1\n\
+                   gyro = [2, 3, 4]\naccel = [5, 6, 7]\n[imu.csv.time]\nkind = \"seconds\"\n";
+        let text = format!(
+            "name = \"t\"\n[imu]\npath = \"imu.{format}\"\nformat = \"{format}\"\n{}\
+             [gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n\
+             [init]\npos_std_m = [1.0, 1.0, 1.0]\nvel_std_mps = [0.1, 0.1, 0.1]\n\
+             att_std_deg = [1.0, 1.0, 1.0]\n[init.align]\nstatic_s = 10.0\n\
+             [noise]\nmodel = \"n\"\n[noise.accel]\nn_ug_per_sqrt_hz = 100.0\n\
+             [noise.gyro]\nn_deg_per_s_per_sqrt_hz = 0.005\n",
+            if format == "csv" { csv } else { "" }
+        );
+        let config = nav_io::parse_run_config(&dir.join("run.toml"), &text).unwrap();
+        ConfigFiles {
+            config: Arc::new(config),
+            dir: dir.to_path_buf(),
+        }
+    }
+
+    #[test]
+    fn the_configurations_gap_convention_and_first_time_without_the_reader_say_what_it_says() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(
+            d.join("imu.text"),
+            "100.00 0 0 0 0 0 -0.098\n100.01 0 0 0 0 0 -0.098\n100.02 0 0 0 0 0 -0.098\n",
+        )
+        .unwrap();
+        std::fs::write(
+            d.join("imu.csv"),
+            "100.00,0,0,0,0,0,-9.8\n100.01,0,0,0,0,0,-9.8\n100.02,0,0,0,0,0,-9.8\n",
+        )
+        .unwrap();
+        for format in ["text", "csv"] {
+            let c = files(d, format);
+            let reader = c.config.open_imu(d).unwrap();
+            let f = ImuFile::Config(c.clone());
+            assert_eq!(f.increments_span_gaps(), reader.increments_span_gaps());
+            assert_eq!(f.increments_span_gaps(), format == "csv");
+            assert_eq!(f.path(), reader.path());
+            let times: Vec<f64> = reader.map(|r| r.unwrap().0.t_s).collect();
+            let (a, b) = f.time_span(true).unwrap();
+            assert_eq!((a, b), (times[0], *times.last().unwrap()), "{format}");
+            assert_eq!(f.time_span(false).unwrap(), (a, a));
+            let st = ImuStream::new(f);
+            assert_eq!(st.increments_span_gaps, format == "csv");
+            assert!(st.path.ends_with(format!("imu.{format}")));
+        }
+    }
+}
