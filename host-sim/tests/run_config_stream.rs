@@ -53,6 +53,7 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
     execute_streaming(
         &l.prepared,
         l.imu_stream.as_ref(),
+        l.truth_stream.as_ref(),
         out,
         None,
         &mut |_, _| {},
@@ -125,6 +126,57 @@ fn the_real_drive_streamed_writes_the_loaded_runs_files() {
             assert!(streamed.prepared.opts.outages.len() >= 7);
         }
     }
+}
+
+#[test]
+fn the_real_drive_against_an_rtklib_pos_truth_streamed_writes_the_loaded_runs_files() {
+    // `[truth] format = "rtklib_pos"` (all qualities, positions and velocities, no attitude):
+    // loaded whole by `load(.., false)`, read line by line (nav_io::PosReader) by the
+    // streamed run; with periodic outages so that the coasting tracks are scored too
+    let Some(data) = shared() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let data = data.canonicalize().unwrap();
+    let mut text = std::fs::read_to_string(config("drive0708.toml"))
+        .unwrap()
+        .replace(
+            "../../shared/data/rtklibexplorer-drive0708",
+            data.to_str().unwrap(),
+        );
+    text.push_str(&format!(
+        "\n[truth]\npath = \"{}\"\nformat = \"rtklib_pos\"\n",
+        data.join("gnss_1934_sf.pos").display()
+    ));
+    // `[truth]` must be a top-level table: appended after every other table it is one
+    let p = dir.path().join("with_truth.toml");
+    std::fs::write(&p, text).unwrap();
+    let mut spec = RunSpec::new(&p);
+    spec.periodic_outages = vec![nav_engine::run::PeriodicOutages {
+        first_start_s: 116.645,
+        duration_s: 20.0,
+        period_s: 60.0,
+    }];
+    let (a, b) = (dir.path().join("loaded"), dir.path().join("streamed"));
+    let loaded = run(&spec, false, &a);
+    let streamed = run(&spec, true, &b);
+    assert!(loaded
+        .prepared
+        .case
+        .truth
+        .as_ref()
+        .is_some_and(|t| t.len() > 2000));
+    let tf = streamed.truth_stream.as_ref().expect("truth streamed");
+    assert!(streamed.prepared.case.truth.is_none());
+    assert!(tf.path.ends_with("gnss_1934_sf.pos"));
+    assert_same_outputs(&a, &b);
+    // scored against the truth: position errors at the truth epochs, coasting tracks per outage
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(b.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["reference"], "truth");
+    // every .pos epoch inside the run, bar the alignment's and the start's, is compared
+    let n = m["overall"]["pos_horizontal_m"]["n"].as_u64().unwrap();
+    assert!(n > 2000, "{n} truth epochs compared");
 }
 
 #[test]
@@ -211,6 +263,7 @@ fn a_bad_csv_row_mid_stream_names_file_and_line_and_keeps_the_outputs_before_it(
     let e = execute_streaming(
         &l.prepared,
         l.imu_stream.as_ref(),
+        l.truth_stream.as_ref(),
         &out,
         None,
         &mut |_, _| {},

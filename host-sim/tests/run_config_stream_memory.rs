@@ -52,6 +52,7 @@ fn measure(minutes: f64, with_loaded: bool) -> Measured {
         let ran = execute_streaming(
             &l.prepared,
             l.imu_stream.as_ref(),
+            l.truth_stream.as_ref(),
             &out,
             None,
             &mut |_, _| {},
