@@ -565,8 +565,9 @@ pub struct ImuCsvReader {
 }
 
 impl ImuCsvReader {
-    /// Opens `path` with the mapping `fmt` (reads the tag file, and makes the first pass over
-    /// the rows when the ticks are stretched to the tag's end).
+    /// Opens `path` with the mapping `fmt` (reads the tag file and, with a tag file, the first
+    /// rows for the first tick, or a whole first pass over the rows when the ticks are stretched
+    /// to the tag's end).
     pub fn open(path: impl AsRef<Path>, fmt: &ImuCsvFormat) -> Result<Self, IoError> {
         let path = path.as_ref();
         let mut r = Self::open_mapped(path, fmt, TimeMap::Column)?;
@@ -588,7 +589,9 @@ impl ImuCsvReader {
                 } else {
                     tf.clone()
                 };
-                // first and last used ticks (first pass, ticks as they are)
+                // first and last used ticks (first pass, ticks as they are; without the
+                // stretch only the first tick is needed: the pass stops at the first row, the
+                // rest of the file is checked as it is read)
                 let mut first = None;
                 let mut last = None;
                 let mut n = 0usize;
@@ -597,6 +600,9 @@ impl ImuCsvReader {
                     first.get_or_insert(s.t_s);
                     last = Some(s.t_s);
                     n += 1;
+                    if !*stretch_to_tag_end {
+                        break;
+                    }
                 }
                 let tg = read_time_tag(&tf)?;
                 if let (Some(tick0), Some(tick1)) = (first, last) {
