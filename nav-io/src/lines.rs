@@ -22,7 +22,7 @@ const CHUNK_BYTES: usize = 1 << 17;
 /// A text file read line by line (gzip or plain), counting 1-based line numbers. `Send`: a
 /// reader can be moved to another thread.
 ///
-/// The bytes are read in chunks of [`CHUNK_BYTES`] into one buffer and the lines are found
+/// The bytes are read in chunks of 128 KiB into one buffer and the lines are found
 /// in it with `memchr` (no per-line read call, no copy of a line); a line's text is a slice
 /// of the buffer.
 pub struct LineReader {

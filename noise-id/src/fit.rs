@@ -380,7 +380,7 @@ fn gen_cov(c: &[f64; 5], t_b: f64, t: f64) -> f64 {
 /// `n_i` terms each (sample time `dt_s`), for Gaussian noise with the model `c` (linear
 /// coefficients `[Q^2, S_N, S_B, S_K, B^2]`) and `T_B`:
 /// `Cov(A_a, A_b) = 2 sum_k C_ab(k)^2 #(k) / (4 m_a^2 m_b^2 n_a n_b dt^4)` with `C_ab(k)` the
-/// covariance of the second differences `d_a(i)` and `d_b(i + k)` (from [`gen_cov`]) and `#(k)`
+/// covariance of the second differences `d_a(i)` and `d_b(i + k)` (from `gen_cov`) and `#(k)`
 /// the number of term pairs at lag k. The lag sum is exact for short supports and sampled
 /// (step h, weight h) when the support exceeds 4096 lags. Its diagonal is the exact variance of
 /// each estimate (what the EDF approximates).

@@ -281,6 +281,17 @@ fn ci() -> Result<()> {
         },
     )?;
     step(
+        "cargo doc -D warnings (host crates: every doc link resolves, none to a private item)",
+        &mut || {
+            run(cargo().env("RUSTDOCFLAGS", "-D warnings").args([
+                "doc",
+                "--workspace",
+                "--no-deps",
+                "--release",
+            ]))
+        },
+    )?;
+    step(
         "cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf)",
         &mut || embedded::clippy_nav_core_thumb(),
     )?;

@@ -16,7 +16,7 @@
 //!   ([`drive_outages`]);
 //! - one undeclared effect ([`Effect`]) drawn per seed inside issue 13's realistic ranges
 //!   (random signs per axis);
-//! - a `kf-gins.yaml` ([`UndeclaredDrive::kf_gins_config`]) as a KF-GINS user writes it: the
+//! - a `kf-gins.yaml` ([`kf_gins_config`]) as a KF-GINS user writes it: the
 //!   noise of the declared sensor in KF-GINS's keys, scale-factor sigmas of zero, the lever arm
 //!   the user believes (zero for the lever-arm drive while the antenna is 1.5 m away), and an
 //!   initial state drawn around the truth with the declared initial standard deviations.

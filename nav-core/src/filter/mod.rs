@@ -469,7 +469,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     ///
     /// With robust gating, a first fix after an outage that needs the re-acquisition widening
     /// is used on probation: when the next fix disagrees with it (beyond the normal gate), it
-    /// is taken back and the next fix is used as the first one ([`reacq`]).
+    /// is taken back and the next fix is used as the first one (module `filter::reacq`).
     pub fn update_gnss(&mut self, fix: &GnssFix) -> Result<UpdateOutcome, FilterError> {
         let out = self.update_gnss_once(fix)?;
         if core::mem::take(&mut self.redo) {

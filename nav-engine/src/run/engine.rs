@@ -14,7 +14,7 @@
 //!
 //! Start-up, the IMU guard and the nearest-epoch fix scheduling are
 //! `nav_core::navigator::Navigator`'s (given start: the state `init` found, the guard's
-//! nominal interval set here), run with the engine's hooks ([`NavHooks`]): the records of an
+//! nominal interval set here), run with the engine's hooks ([`NavHooks`](nav_core::navigator::NavHooks)): the records of an
 //! epoch, its outage snapshots and the coasters they start are made when the navigator
 //! completes the epoch (its fixes applied, before the next sample is integrated); fixes inside
 //! an imposed outage are withheld, their innovation taken at the epoch of use; the smoother's

@@ -23,7 +23,7 @@
 //!   the error interpolated linearly in time between `dx_s+(k)` and `dx_s-(k+1)` (and the
 //!   covariance between `P_s(k)` and `P_s(k+1)`); at a node the record (written after the
 //!   updates there) gets `dx_s+(k)`. The smoothed state is the nominal corrected as the
-//!   filter's own feedback does ([`correct`]).
+//!   filter's own feedback does ([`apply::correct`]).
 //!
 //! Nothing here depends on N at compile time: the layout's dimension is a runtime value, so
 //! every model, layout and effect block works.
