@@ -16,7 +16,7 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 use nav_engine::run::execute::metrics_json;
 use nav_engine::run::sink::FileSink;
-use nav_engine::run::truth::{start_records, TruthFile};
+use nav_engine::run::truth::{self, start_records, TruthFile};
 use nav_engine::run::{
     run_stream_fixes, CoastPlan, ImuItem, ImuSourceInfo, InitSpec, Model, Outage, RunOptions,
 };
@@ -210,11 +210,17 @@ fn a_truth_file_is_read_in_bounded_memory() {
         peaks.push((r.peak, held));
     }
     let [(p5, _), (p20, held20)] = [peaks[0], peaks[1]];
-    // the 20-min run holds no more than the 5-min one (4x the truth): within 5 % + 64 KiB
-    // (allocator and channel timing)
+    // the 20-min run holds no more than the 5-min one (4x the truth) but for the truth reader's
+    // chunks in flight, a constant: how many are queued when the peak comes depends on the
+    // threads' scheduling (seen in CI: +354 KB between two lengths), bounded by the queue
+    // plus the chunk being filled and the one being matched; 64 KiB for the allocator. A truth
+    // held in proportion to the length would add 27 MiB here.
+    let in_flight =
+        (truth::READ_QUEUE + 2) * truth::READ_CHUNK * std::mem::size_of::<NavSolution>();
     assert!(
-        p20 <= p5 + p5 / 20 + (64 << 10),
-        "peak live heap grows with the truth's length: {p5} B (5 min) -> {p20} B (20 min)"
+        p20 <= p5 + in_flight + (64 << 10),
+        "peak live heap grows with the truth's length: {p5} B (5 min) -> {p20} B (20 min), \
+         more than the {in_flight} B of truth chunks in flight"
     );
     // and far below the longer truth held whole
     assert!(

@@ -48,10 +48,10 @@ pub fn truth_from_fix(f: &GnssFix) -> NavSolution {
     }
 }
 
-/// Truth records per message from the reader thread.
-const CHUNK: usize = 1024;
+/// Truth records per message from the reader thread ([`TruthFile::records`]).
+pub const READ_CHUNK: usize = 1024;
 /// Messages in flight between the reader thread and the run.
-const QUEUE: usize = 4;
+pub const READ_QUEUE: usize = 4;
 
 impl TruthFile {
     /// A navigation text file.
@@ -86,7 +86,7 @@ impl TruthFile {
     /// stream is dropped.
     pub fn records(&self) -> TruthSource<'static> {
         type Msg = Result<Vec<NavSolution>, IoError>;
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(QUEUE);
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
         let file = self.clone();
         let spawned = std::thread::Builder::new()
             .name("truth-reader".into())
@@ -98,13 +98,14 @@ impl TruthFile {
                         return;
                     }
                 };
-                let mut chunk = Vec::with_capacity(CHUNK);
+                let mut chunk = Vec::with_capacity(READ_CHUNK);
                 for r in rd {
                     match r {
                         Ok(s) => {
                             chunk.push(s);
-                            if chunk.len() == CHUNK {
-                                let full = std::mem::replace(&mut chunk, Vec::with_capacity(CHUNK));
+                            if chunk.len() == READ_CHUNK {
+                                let full =
+                                    std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
                                 if tx.send(Ok(full)).is_err() {
                                     return;
                                 }
