@@ -15,12 +15,12 @@ use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
 use nav_core::filter::InitialUncertainty;
 use nav_core::strapdown::NavState;
-use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_core::types::{GnssFix, NavSolution};
 use nav_engine::run::{
     run_stream_fixes, CoastPlan, CoastTrack, EpochRecord, FixUse, ImuItem, ImuSourceInfo, InitSpec,
     InnovationRecord, Model, Outage, RunError, RunOptions, RunSink,
 };
-use test_support::alloc;
+use test_support::{alloc, standing};
 
 #[global_allocator]
 static A: alloc::Counting = alloc::Counting;
@@ -73,37 +73,13 @@ const OUTAGE_S: f64 = 10.0;
 #[test]
 fn hours_of_imu_and_gnss_run_in_bounded_memory() {
     let pos = Llh::from_deg(30.5, 114.3, 20.0);
-    let dt = 1.0 / RATE_HZ;
     let n = (HOURS * 3600.0 * RATE_HZ) as usize;
     // a level, north-facing, standing vehicle: body = NED; the gyros see the earth rate and
     // the accelerometers the reaction to gravity
-    let w = earth::earth_rate_ned_radps(pos.lat_rad);
-    let g = earth::gravity_mps2(pos.lat_rad, pos.h_m);
-    let mut imu = (1..=n).map(move |k| {
-        Ok(ImuItem {
-            sample: ImuSample {
-                t_s: T0 + k as f64 * dt,
-                dtheta_rad: [w.x * dt, w.y * dt, w.z * dt],
-                dv_mps: [0.0, 0.0, -g * dt],
-                temperature_c: f64::NAN,
-            },
-            line: 0,
-        })
-    });
+    let mut imu = standing::imu(pos, T0, RATE_HZ, n).map(|sample| Ok(ImuItem { sample, line: 0 }));
     // GNSS at 10 Hz at the same place, generated as the engine reads them
     let n_fix = (HOURS * 3600.0 * GNSS_HZ) as usize - 1;
-    let gnss = (1..=n_fix).map(move |k| {
-        Ok(GnssFix {
-            t_s: T0 + k as f64 / GNSS_HZ,
-            lat_rad: pos.lat_rad,
-            lon_rad: pos.lon_rad,
-            h_m: pos.h_m,
-            pos_std_ned_m: [0.5, 0.5, 1.0],
-            quality: FixQuality::Single,
-            num_sats: 10,
-            ..GnssFix::default()
-        })
-    });
+    let gnss = standing::fixes(pos, T0, GNSS_HZ, n_fix).map(Ok);
     let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
     let unc = InitialUncertainty {
         att_sigma_rad: [1e-3, 1e-3, 1e-2],

@@ -11,9 +11,9 @@
 //! at the same time would count too).
 
 use nav_core::config::FilterConfig;
-use nav_core::earth::{self, Llh};
+use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
-use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
+use nav_core::types::NavSolution;
 use nav_engine::run::execute::metrics_json;
 use nav_engine::run::sink::FileSink;
 use nav_engine::run::truth::{self, start_records, TruthFile};
@@ -22,7 +22,7 @@ use nav_engine::run::{
 };
 use std::io::Write;
 use std::path::Path;
-use test_support::alloc;
+use test_support::{alloc, standing};
 
 #[global_allocator]
 static A: alloc::Counting = alloc::Counting;
@@ -71,35 +71,11 @@ fn run(dir: &Path, minutes: f64) -> Measured {
     write_truth(&truth_path, n);
     let truth = TruthFile::nav_text(&truth_path);
     let p = pos();
-    let dt = 1.0 / RATE_HZ;
     // level, north-facing, standing: the gyros see the earth rate, the accelerometers the
     // reaction to gravity
-    let w = earth::earth_rate_ned_radps(p.lat_rad);
-    let g = earth::gravity_mps2(p.lat_rad, p.h_m);
-    let mut imu = (1..=n).map(move |k| {
-        Ok(ImuItem {
-            sample: ImuSample {
-                t_s: T0 + k as f64 * dt,
-                dtheta_rad: [w.x * dt, w.y * dt, w.z * dt],
-                dv_mps: [0.0, 0.0, -g * dt],
-                temperature_c: f64::NAN,
-            },
-            line: 0,
-        })
-    });
+    let mut imu = standing::imu(p, T0, RATE_HZ, n).map(|sample| Ok(ImuItem { sample, line: 0 }));
     let n_fix = (minutes * 60.0 * GNSS_HZ) as usize - 1;
-    let gnss = (1..=n_fix).map(move |k| {
-        Ok(GnssFix {
-            t_s: T0 + k as f64 / GNSS_HZ,
-            lat_rad: p.lat_rad,
-            lon_rad: p.lon_rad,
-            h_m: p.h_m,
-            pos_std_ned_m: [0.5, 0.5, 1.0],
-            quality: FixQuality::Single,
-            num_sats: 10,
-            ..GnssFix::default()
-        })
-    });
+    let gnss = standing::fixes(p, T0, GNSS_HZ, n_fix).map(Ok);
     let mut opts = RunOptions::new(
         Model::N,
         FilterConfig::source_n_model(),

@@ -6,6 +6,7 @@ pub mod csvcase;
 pub mod filter_sim;
 pub mod runcase;
 pub mod scenario;
+pub mod standing;
 pub mod trajectory;
 pub mod transition;
 
