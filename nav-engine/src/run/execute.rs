@@ -260,49 +260,23 @@ pub fn threaded_file_reader(
     file: ImuFile,
     time_offset_s: f64,
 ) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
-    type Msg = Result<Vec<super::ImuItem>, super::RunError>;
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
-    std::thread::spawn(move || {
-        let rd = match file.open() {
-            Ok(r) => r,
-            Err(e) => {
-                let _ = tx.send(Err(super::RunError::Input(e)));
-                return;
-            }
-        };
-        let mut chunk = Vec::with_capacity(READ_CHUNK);
-        for r in rd {
-            match r {
-                Ok((mut s, line)) => {
-                    s.t_s += time_offset_s;
-                    chunk.push(super::ImuItem { sample: s, line });
-                    if chunk.len() == READ_CHUNK {
-                        let full = std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
-                        if tx.send(Ok(full)).is_err() {
-                            return;
-                        }
-                    }
+    let path = file.path();
+    super::reader_thread::read_in_chunks(
+        "imu-reader",
+        READ_CHUNK,
+        READ_QUEUE,
+        move || {
+            let rd = file.open().map_err(super::RunError::Input)?;
+            Ok(rd.map(move |r| match r {
+                Ok((mut sample, line)) => {
+                    sample.t_s += time_offset_s;
+                    Ok(super::ImuItem { sample, line })
                 }
-                Err(e) => {
-                    if !chunk.is_empty() {
-                        let _ = tx.send(Ok(std::mem::take(&mut chunk)));
-                    }
-                    let _ = tx.send(Err(super::RunError::Input(e)));
-                    return;
-                }
-            }
-        }
-        if !chunk.is_empty() {
-            let _ = tx.send(Ok(chunk));
-        }
-    });
-    rx.into_iter().flat_map(|m| {
-        let (items, err) = match m {
-            Ok(v) => (v, None),
-            Err(e) => (Vec::new(), Some(Err(e))),
-        };
-        items.into_iter().map(Ok).chain(err)
-    })
+                Err(e) => Err(super::RunError::Input(e)),
+            }))
+        },
+        |source| super::RunError::Input(nav_io::IoError::Open { path, source }),
+    )
 }
 
 /// `metrics.json`: the metrics, the IMU report (gaps, rejected samples) and, after a fault,

@@ -32,6 +32,7 @@ pub mod init;
 pub mod outage;
 pub mod output;
 pub mod prepare;
+mod reader_thread;
 pub mod sink;
 pub mod streams;
 pub mod truth;

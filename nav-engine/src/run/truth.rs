@@ -80,64 +80,20 @@ impl TruthFile {
         self.open()?.next().transpose().map(|_| ())
     }
 
-    /// The records read and parsed by a thread of their own and handed over in chunks
-    /// through a bounded channel (at most 4 chunks of 1,024 records in flight): parsing
-    /// overlaps the filter. The thread stops at the first error (passed on) or when the
+    /// The records read and parsed by a thread of their own and handed over in chunks of
+    /// [`READ_CHUNK`] through a bounded channel of [`READ_QUEUE`] chunks: parsing overlaps
+    /// the filter. The thread stops at the first error (passed on) or when the
     /// stream is dropped.
     pub fn records(&self) -> TruthSource<'static> {
-        type Msg = Result<Vec<NavSolution>, IoError>;
-        let (tx, rx) = std::sync::mpsc::sync_channel::<Msg>(READ_QUEUE);
         let file = self.clone();
-        let spawned = std::thread::Builder::new()
-            .name("truth-reader".into())
-            .spawn(move || {
-                let rd = match file.open() {
-                    Ok(r) => r,
-                    Err(e) => {
-                        let _ = tx.send(Err(e));
-                        return;
-                    }
-                };
-                let mut chunk = Vec::with_capacity(READ_CHUNK);
-                for r in rd {
-                    match r {
-                        Ok(s) => {
-                            chunk.push(s);
-                            if chunk.len() == READ_CHUNK {
-                                let full =
-                                    std::mem::replace(&mut chunk, Vec::with_capacity(READ_CHUNK));
-                                if tx.send(Ok(full)).is_err() {
-                                    return;
-                                }
-                            }
-                        }
-                        Err(e) => {
-                            if !chunk.is_empty() {
-                                let _ = tx.send(Ok(std::mem::take(&mut chunk)));
-                            }
-                            let _ = tx.send(Err(e));
-                            return;
-                        }
-                    }
-                }
-                if !chunk.is_empty() {
-                    let _ = tx.send(Ok(chunk));
-                }
-            });
-        if let Err(source) = spawned {
-            let e = IoError::Open {
-                path: self.path.clone(),
-                source,
-            };
-            return Box::new(std::iter::once(Err(e)));
-        }
-        Box::new(rx.into_iter().flat_map(|m| {
-            let (items, err) = match m {
-                Ok(v) => (v, None),
-                Err(e) => (Vec::new(), Some(Err(e))),
-            };
-            items.into_iter().map(Ok).chain(err)
-        }))
+        let path = self.path.clone();
+        Box::new(super::reader_thread::read_in_chunks(
+            "truth-reader",
+            READ_CHUNK,
+            READ_QUEUE,
+            move || file.open(),
+            |source| IoError::Open { path, source },
+        ))
     }
 }
 

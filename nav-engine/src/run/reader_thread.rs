@@ -1,0 +1,69 @@
+//! Reading and parsing on a thread of their own, for the files `host-sim run` streams (the
+//! IMU file, [`super::execute::threaded_file_reader`]; the truth file,
+//! [`super::truth::TruthFile::records`]): the records are handed over in chunks through a
+//! bounded channel, so parsing overlaps the filter with a fixed number of records in flight.
+
+/// The items of the reader `open` returns, read on a thread named `name` and handed over in
+/// chunks of `chunk` items through a channel holding `queue` chunks: at most `queue + 2`
+/// chunks exist at once (the queued ones, the one being filled, the one being consumed). The
+/// thread stops at its first error, passed on after the items before it, or when the
+/// returned iterator is dropped. When the thread cannot be started, the one item is the
+/// error `spawn_failed` makes of the reason.
+pub(crate) fn read_in_chunks<T, E, I>(
+    name: &str,
+    chunk: usize,
+    queue: usize,
+    open: impl FnOnce() -> Result<I, E> + Send + 'static,
+    spawn_failed: impl FnOnce(std::io::Error) -> E,
+) -> impl Iterator<Item = Result<T, E>>
+where
+    T: Send + 'static,
+    E: Send + 'static,
+    I: Iterator<Item = Result<T, E>>,
+{
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Vec<T>, E>>(queue);
+    let spawned = std::thread::Builder::new()
+        .name(name.into())
+        .spawn(move || {
+            let rd = match open() {
+                Ok(r) => r,
+                Err(e) => {
+                    let _ = tx.send(Err(e));
+                    return;
+                }
+            };
+            let mut buf = Vec::with_capacity(chunk);
+            for r in rd {
+                match r {
+                    Ok(x) => {
+                        buf.push(x);
+                        if buf.len() == chunk {
+                            let full = std::mem::replace(&mut buf, Vec::with_capacity(chunk));
+                            if tx.send(Ok(full)).is_err() {
+                                return;
+                            }
+                        }
+                    }
+                    Err(e) => {
+                        if !buf.is_empty() {
+                            let _ = tx.send(Ok(std::mem::take(&mut buf)));
+                        }
+                        let _ = tx.send(Err(e));
+                        return;
+                    }
+                }
+            }
+            if !buf.is_empty() {
+                let _ = tx.send(Ok(buf));
+            }
+        });
+    // a thread that did not start dropped its sender: the channel is empty and closed
+    let failed = spawned.err().map(|e| Err(spawn_failed(e)));
+    failed.into_iter().chain(rx.into_iter().flat_map(|m| {
+        let (items, err) = match m {
+            Ok(v) => (v, None),
+            Err(e) => (Vec::new(), Some(Err(e))),
+        };
+        items.into_iter().map(Ok).chain(err)
+    }))
+}
