@@ -114,8 +114,8 @@ fn the_real_drive_streamed_writes_the_loaded_runs_files() {
         assert_eq!(loaded.warnings, streamed.warnings);
         assert!(streamed.warnings.is_empty(), "{:?}", streamed.warnings);
         let st = streamed.imu_stream.as_ref().unwrap();
-        assert!(st.increments_span_gaps);
-        assert!(st.path.ends_with("imu_1934.csv"));
+        assert!(st.file.increments_span_gaps());
+        assert!(st.file.path().ends_with("imu_1934.csv"));
         let g = st.gnss.as_ref().unwrap();
         assert_eq!(
             g.summary.dropped_by_quality, 8,

@@ -63,7 +63,7 @@ fn measure(minutes: f64, with_loaded: bool) -> Measured {
     // streamed indeed, and a real run: every increment integrated, every fix used
     assert!(l.prepared.case.imu.is_empty() && l.prepared.case.gnss.is_empty());
     let st = l.imu_stream.as_ref().expect("streamed");
-    assert!(st.increments_span_gaps);
+    assert!(st.file.increments_span_gaps());
     assert_eq!(st.gnss.as_ref().expect("GNSS streamed").fixes, case.fixes);
     assert_eq!(l.prepared.week, test_support::csvcase::WEEK);
     let (o, _) = ran;

@@ -111,8 +111,8 @@ pub fn execute_streaming(
     let res = match imu {
         Some(st) => {
             let info = super::ImuSourceInfo {
-                path: Some(st.path.clone()),
-                increments_span_gaps: st.increments_span_gaps,
+                path: Some(st.file.path()),
+                increments_span_gaps: st.file.increments_span_gaps(),
             };
             let mut it = StopAtError {
                 inner: threaded_file_reader(st.file.clone(), st.time_offset_s),

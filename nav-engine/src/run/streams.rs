@@ -95,13 +95,9 @@ impl ImuFile {
 /// file streamed with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImuStream {
-    /// The IMU file (for messages: `file line N`).
-    pub path: PathBuf,
-    /// How it is read.
+    /// How it is read (its path and gap convention: [`ImuFile::path`],
+    /// [`ImuFile::increments_span_gaps`]).
     pub file: ImuFile,
-    /// True when each increment covers the whole interval since the previous sample even
-    /// across a time gap ([`ImuFile::increments_span_gaps`]).
-    pub increments_span_gaps: bool,
     /// Offset added to every time stamp, s ([`super::prepare::RunSpec::imu_time_offset_s`];
     /// a configuration's own offsets are applied by its reader).
     pub time_offset_s: f64,
@@ -114,8 +110,6 @@ impl ImuStream {
     /// The IMU file `file`, no extra time offset, no GNSS stream.
     pub fn new(file: ImuFile) -> Self {
         Self {
-            path: file.path(),
-            increments_span_gaps: file.increments_span_gaps(),
             file,
             time_offset_s: 0.0,
             gnss: None,
@@ -349,8 +343,8 @@ mod tests {
             assert_eq!((a, b), (times[0], *times.last().unwrap()), "{format}");
             assert_eq!(f.time_span(false).unwrap(), (a, a));
             let st = ImuStream::new(f);
-            assert_eq!(st.increments_span_gaps, format == "csv");
-            assert!(st.path.ends_with(format!("imu.{format}")));
+            assert_eq!(st.file.increments_span_gaps(), format == "csv");
+            assert!(st.file.path().ends_with(format!("imu.{format}")));
         }
     }
 }
