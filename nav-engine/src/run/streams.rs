@@ -138,6 +138,14 @@ impl GnssFile {
             Self::Config(c) => Box::new(c.config.open_gnss(&c.dir)?),
         })
     }
+
+    /// The file.
+    pub fn path(&self) -> PathBuf {
+        match self {
+            Self::Text(p) => p.clone(),
+            Self::Config(c) => RunConfig::resolve(&c.dir, &c.config.gnss.path),
+        }
+    }
 }
 
 /// A GNSS file the run streams instead of loading ([`ImuStream::gnss`]): read once by
@@ -145,9 +153,7 @@ impl GnssFile {
 /// kept), then again while the filter runs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GnssStream {
-    /// The GNSS file.
-    pub path: PathBuf,
-    /// How it is read.
+    /// How it is read (its path: [`GnssFile::path`]).
     pub file: GnssFile,
     /// Factor applied to every position and velocity standard deviation
     /// (`[gnss] sigma_scale`; 1 for KF-GINS configurations).
@@ -162,40 +168,31 @@ pub struct GnssStream {
 impl GnssStream {
     /// Checks a GNSS text file (parsed to its end, nothing kept) and counts its fixes.
     pub fn check(path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
-        Self::check_file(GnssFile::Text(path.to_path_buf()), path, sigma_scale)
+        Self::check_file(GnssFile::Text(path.to_path_buf()), sigma_scale)
     }
 
     /// Checks the GNSS file of a run configuration (read to its end through
     /// [`RunConfig::open_gnss`], nothing kept): its fixes counted, its summary kept.
     pub fn check_config(c: ConfigFiles, sigma_scale: f64) -> anyhow::Result<Self> {
-        let path = RunConfig::resolve(&c.dir, &c.config.gnss.path);
-        let mut rd = c.config.open_gnss(&c.dir)?;
-        let mut fixes = 0usize;
-        for r in &mut rd {
-            r?;
-            fixes += 1;
-        }
-        Ok(Self {
-            path,
-            file: GnssFile::Config(c),
-            sigma_scale,
-            fixes,
-            summary: rd.summary().clone(),
-        })
+        Self::check_file(GnssFile::Config(c), sigma_scale)
     }
 
-    fn check_file(file: GnssFile, path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
-        let mut fixes = 0usize;
-        for r in file.open()? {
-            r?;
-            fixes += 1;
+    fn check_file(file: GnssFile, sigma_scale: f64) -> anyhow::Result<Self> {
+        fn count(rd: impl Iterator<Item = Result<GnssFix, IoError>>) -> Result<usize, IoError> {
+            rd.map(|r| r.map(|_| 1)).sum()
         }
+        let (fixes, summary) = match &file {
+            GnssFile::Text(p) => (count(GnssTextReader::open(p)?)?, GnssReadSummary::default()),
+            GnssFile::Config(c) => {
+                let mut rd = c.config.open_gnss(&c.dir)?;
+                (count(&mut rd)?, rd.summary().clone())
+            }
+        };
         Ok(Self {
-            path: path.to_path_buf(),
             file,
             sigma_scale,
             fixes,
-            summary: GnssReadSummary::default(),
+            summary,
         })
     }
 
