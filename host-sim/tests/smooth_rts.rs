@@ -109,7 +109,7 @@ fn textbook(c: &Case) -> Vec<DVector<f64>> {
 
 /// Closed-loop filter recording the history the way `smooth::Recorder` does; returns the
 /// stored (post-feedback) nominal per node and the history.
-fn closed_loop(c: &Case) -> (Vec<DVector<f64>>, History) {
+fn closed_loop(c: &Case) -> (Vec<DVector<f64>>, Vec<Node>) {
     let mut nominal = c.x0_hat.clone();
     let mut p = c.p0.clone();
     let mut nodes: Vec<Node> = Vec::new();
@@ -142,14 +142,12 @@ fn closed_loop(c: &Case) -> (Vec<DVector<f64>>, History) {
             prior = p.clone();
         }
     }
-    (
-        stored,
-        History {
-            n: N,
-            nodes,
-            unobserved_predictions: 0,
-        },
-    )
+    (stored, nodes)
+}
+
+/// The history of `nodes` (in its temporary file).
+fn history(nodes: &[Node]) -> History {
+    History::from_nodes(N, nodes.iter().cloned()).unwrap()
 }
 
 #[test]
@@ -157,10 +155,13 @@ fn closed_loop_rts_equals_the_textbook_smoother_on_a_linear_system() {
     for seed in 1..=3 {
         let c = case(seed, 100);
         let xs = textbook(&c);
-        let (nominal, hist) = closed_loop(&c);
+        let (nominal, nodes) = closed_loop(&c);
+        let hist = history(&nodes);
+        assert_eq!(hist.read_nodes().unwrap(), nodes);
         let sm = smooth(&hist).unwrap();
-        assert_eq!(sm.t_s.len(), xs.len());
         assert_eq!(sm.pinv_fallbacks, 0);
+        let sm = sm.load().unwrap();
+        assert_eq!(sm.t_s.len(), xs.len());
         let mut worst = 0.0f64;
         let mut moved = 0.0f64;
         for k in 0..xs.len() {
@@ -180,10 +181,10 @@ fn closed_loop_rts_equals_the_textbook_smoother_on_a_linear_system() {
 #[test]
 fn smoothed_covariance_is_below_the_filtered_one_and_equals_it_at_the_end() {
     let c = case(7, 100);
-    let (_, hist) = closed_loop(&c);
-    let sm = smooth(&hist).unwrap();
-    let m = hist.nodes.len();
-    for (k, node) in hist.nodes.iter().enumerate() {
+    let (_, nodes) = closed_loop(&c);
+    let sm = smooth(&history(&nodes)).unwrap().load().unwrap();
+    let m = nodes.len();
+    for (k, node) in nodes.iter().enumerate() {
         let post = node.post();
         // diagonal of the packed posterior: index of (i, i)
         let mut idx = 0;
@@ -205,15 +206,16 @@ fn smoothed_covariance_is_below_the_filtered_one_and_equals_it_at_the_end() {
 #[test]
 fn a_broken_chain_restarts_from_the_filtered_solution() {
     let c = case(3, 60);
-    let (_, mut hist) = closed_loop(&c);
+    let (_, mut nodes) = closed_loop(&c);
     // break between node 29 and 30: node 29 is the end of a segment
-    hist.nodes[29].phi = None;
-    let sm = smooth(&hist).unwrap();
+    nodes[29].phi = None;
+    let mut hist = history(&nodes);
+    let sm = smooth(&hist).unwrap().load().unwrap();
     assert!(!sm.linked[29] && sm.linked[28]);
     // node 29 keeps the filtered solution (zero error), node 28 is smoothed
     assert!(sm.dx_post[29 * N..30 * N].iter().all(|v| *v == 0.0));
     assert!(sm.dx_post[28 * N..29 * N].iter().any(|v| v.abs() > 1e-6));
     hist.unobserved_predictions = 2;
-    assert_eq!(smooth(&hist), Err(SmoothError::Unobserved(2)));
-    assert_eq!(smooth(&History::default()), Err(SmoothError::Empty));
+    assert_eq!(smooth(&hist).err(), Some(SmoothError::Unobserved(2)));
+    assert_eq!(smooth(&History::default()).err(), Some(SmoothError::Empty));
 }

@@ -223,17 +223,13 @@ fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
     Ok(l)
 }
 
-/// `run --smooth`: the backward pass needs the whole forward run, so the case is run in memory
-/// ([`execute`]) and the smoother writes the outputs ([`super::smoothed::finish`]).
+/// `run --smooth`: the inputs streamed as by `run`, the forward pass, the backward pass and
+/// the smoothed outputs in bounded memory ([`super::smoothed::finish`]).
 fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
-    let p = prepare(args)?;
-    println!("{}", p.description);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    let (out, m) = execute(&p, &mut |_, _| {})?;
-    let t_run = t.elapsed().as_secs_f64();
-    super::smoothed::finish(args, &p, out, m, t_run)
+    let l = prepare_streaming(args)?;
+    println!("{}", l.prepared.description);
+    super::smoothed::finish(args, &l, t)
 }
 
 /// Runs `host-sim run` (streaming: see [`execute_streaming`]).

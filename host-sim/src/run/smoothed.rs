@@ -1,56 +1,65 @@
-//! `run --smooth`'s outputs: the smoothed solution of a run ([`nav_engine::smooth`]) written
-//! beside the forward one, and both summaries printed.
+//! `run --smooth`'s outputs: the smoothed solution of a run ([`nav_engine::smooth`], in
+//! bounded memory: [`nav_engine::smooth::run`]) written beside the forward one, and both
+//! summaries printed.
 
-use super::cli::{decimate, imu_summary, Prepared, RunArgs};
-use super::{output, RunOutput};
-use anyhow::Context;
-use nav_core::types::NavSolution;
+use super::cli::{imu_summary, Loaded, RunArgs};
 use nav_engine::metrics::{self, Metrics};
-use nav_engine::smooth::apply::{smooth_run, SmootherReport};
+use nav_engine::run::{ImuReport, RunOutput};
+use nav_engine::smooth::apply::SmootherReport;
+use nav_engine::smooth::run::{execute_smoothed, SmoothedRun};
 use serde::Serialize;
 
-/// `run --smooth`: smooths the forward run `fwd` (metrics `m`), writes the smoothed
-/// `nav.txt`, `std.txt` (and the other outputs), the forward solution as `nav_forward.txt`,
-/// and `metrics.json` with the forward metrics at the top level and the smoothed ones under
-/// `smoothed` (with `smoother`: memory and time); prints both summaries.
-pub fn finish(
-    args: &RunArgs,
-    p: &Prepared,
-    fwd: RunOutput,
-    m: Metrics,
-    t_run_s: f64,
-) -> anyhow::Result<()> {
-    let (out, _, rep) = smooth_run(&p.case, &fwd)?;
-    let ms = metrics::compute(&out, p.case.truth.as_deref());
-    let dir = &args.out;
-    let rate = |nav: &[NavSolution]| match args.nav_rate {
-        Some(r) if r > 0.0 => decimate(nav, r),
-        _ => nav.to_vec(),
-    };
-    output::write_nav(&dir.join("nav_forward.txt"), &rate(&fwd.nav), p.week)
-        .with_context(|| format!("writing {}/nav_forward.txt", dir.display()))?;
+/// The text of `run --smooth`'s `metrics.json`: the forward metrics at the top level, the
+/// smoothed ones under `smoothed`, the smoother's sizes and times under `smoother`.
+fn metrics_json(
+    forward: &Metrics,
+    smoothed: &Metrics,
+    smoother: &SmootherReport,
+    fwd: &RunOutput,
+) -> anyhow::Result<String> {
     #[derive(Serialize)]
     struct File<'a> {
         #[serde(flatten)]
         forward: &'a Metrics,
         smoothed: &'a Metrics,
         smoother: &'a SmootherReport,
-        imu: &'a nav_engine::run::ImuReport,
+        imu: &'a ImuReport,
         complete: bool,
     }
-    let json = serde_json::to_string_pretty(&File {
-        forward: &m,
-        smoothed: &ms,
-        smoother: &rep,
+    Ok(serde_json::to_string_pretty(&File {
+        forward,
+        smoothed,
+        smoother,
         imu: &fwd.imu_report,
         complete: true,
-    })?;
-    output::write_all(dir, &out, &rate(&out.nav), p.week, &json, true)
-        .with_context(|| format!("writing the outputs in {}", dir.display()))?;
+    })?)
+}
+
+/// `run --smooth`: runs the loaded case smoothed, writes the smoothed `nav.txt`, `std.txt`
+/// (and the other outputs), the forward solution as `nav_forward.txt`, and `metrics.json`
+/// with the forward metrics at the top level and the smoothed ones under `smoothed` (with
+/// `smoother`: sizes and times); prints both summaries. `t0`: start of the command.
+pub fn finish(args: &RunArgs, l: &Loaded, t0: std::time::Instant) -> anyhow::Result<()> {
+    let dir = &args.out;
+    let SmoothedRun {
+        forward: fwd,
+        forward_metrics: m,
+        smoothed_metrics: ms,
+        report: rep,
+    } = execute_smoothed(
+        &l.prepared,
+        l.imu_stream.as_ref(),
+        l.truth_stream.as_ref(),
+        dir,
+        args.nav_rate,
+        &metrics_json,
+        &mut |_, _| {},
+    )?;
+    let t_run_s = t0.elapsed().as_secs_f64();
     let c = &fwd.counters;
     println!(
         "model {} ({} states): {} IMU epochs, GNSS {} used, {} withheld in {} outage(s); \
-         forward {:.2} s",
+         {:.2} s",
         fwd.model.name(),
         rep.states,
         c.imu_epochs,
@@ -65,8 +74,8 @@ pub fn finish(
         println!("{al}");
     }
     println!(
-        "smoother: {} nodes ({} with updates), history {:.1} MB ({:.0} B/node), smoothed {:.1} MB, \
-         backward pass {:.2} s, applied in {:.2} s{}",
+        "smoother: {} nodes ({} with updates), history {:.1} MB ({:.0} B/node) and smoothed \
+         {:.1} MB in temporary files, backward pass {:.2} s, smoothed outputs in {:.2} s{}",
         rep.nodes,
         rep.update_nodes,
         rep.history_bytes as f64 / 1e6,

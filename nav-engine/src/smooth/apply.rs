@@ -1,8 +1,8 @@
 //! The smoothed solution of a run: corrected navigation records, smoothed standard
 //! deviations, GNSS errors recomputed against the smoothed trajectory.
 
-use super::{smooth, SmoothError, Smoothed, SmoothedPoint};
-use crate::run::{position_innovation, CaseData, FixUse, RunOutput};
+use super::{smooth, History, SmoothError, Smoothed, SmoothedPoint};
+use crate::run::{position_innovation, CaseData, EpochRecord, FixUse, InnovationRecord, RunOutput};
 use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude;
 use nav_core::earth::{self, Llh};
@@ -11,7 +11,7 @@ use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, NavSolution};
 use serde::Serialize;
 
-/// Memory and time of the smoother.
+/// Sizes and times of the smoother.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SmootherReport {
     /// Error-state dimension.
@@ -20,15 +20,16 @@ pub struct SmootherReport {
     pub nodes: usize,
     /// Nodes with an update (posterior and/or correction stored).
     pub update_nodes: usize,
-    /// Memory of the forward history, bytes.
-    pub history_bytes: usize,
+    /// Size of the forward history (its temporary file), bytes.
+    pub history_bytes: u64,
     /// History bytes per node.
     pub history_bytes_per_node: f64,
-    /// Memory of the smoothed node data, bytes.
-    pub smoothed_bytes: usize,
+    /// Size of the smoothed node data (their temporary file), bytes.
+    pub smoothed_bytes: u64,
     /// Time of the backward pass, s.
     pub backward_s: f64,
-    /// Time to apply it to the records, s.
+    /// Time to apply it to the records (in a streamed run: the second pass over the data
+    /// that writes the smoothed outputs), s.
     pub apply_s: f64,
     /// Backward steps that needed the pseudo-inverse of the prior covariance.
     pub pinv_fallbacks: usize,
@@ -93,7 +94,7 @@ fn euler_std(rpy: &[f64; 3], cov: &[f64; 81]) -> [f64; 3] {
 }
 
 /// The record of `nav` nearest to `t_s` (records in time order).
-fn nearest(nav: &[NavSolution], t_s: f64) -> Option<&NavSolution> {
+pub(crate) fn nearest(nav: &[NavSolution], t_s: f64) -> Option<&NavSolution> {
     let i = nav.partition_point(|s| s.t_s < t_s);
     let after = nav.get(i);
     let before = i.checked_sub(1).and_then(|j| nav.get(j));
@@ -103,32 +104,17 @@ fn nearest(nav: &[NavSolution], t_s: f64) -> Option<&NavSolution> {
     }
 }
 
-/// The run's outputs with the smoothed solution: nav records corrected, `epochs`' standard
-/// deviations and sensor-error estimates smoothed (their `blocks`, i.e. `bias.txt`, stay
-/// the forward ones), and the position innovation of every GNSS fix (used and withheld)
-/// recomputed against the smoothed trajectory (the antenna from the smoothed nav record
-/// nearest the fix, with the forward run's final lever-arm and time-offset estimates).
-pub fn smoothed_output(case: &CaseData, fwd: &RunOutput, sm: &Smoothed) -> RunOutput {
-    let mut out = fwd.clone();
-    out.history = None;
-    for s in &mut out.nav {
-        if let Some(p) = sm.at(s.t_s) {
-            *s = correct(s, &p);
-        }
-    }
-    for e in &mut out.epochs {
-        if let Some(p) = sm.at(e.t_s) {
-            e.nav = correct(&e.nav, &p);
-            for (sd, v) in e.state_std.iter_mut().zip(&p.var) {
-                *sd = v.max(0.0).sqrt();
-            }
-            for (i, (est, d)) in e.estimates.iter_mut().zip(&p.dx).enumerate() {
-                if i >= CORE_DIM {
-                    *est -= d;
-                }
-            }
-        }
-    }
+/// Fix outcomes whose innovation is recomputed against the smoothed trajectory.
+pub(crate) fn recomputed(u: FixUse) -> bool {
+    matches!(
+        u,
+        FixUse::Accepted | FixUse::Forced | FixUse::Withheld | FixUse::Rejected
+    )
+}
+
+/// The antenna lever arm (m, body) and GNSS time offset (s) of the forward run's final
+/// estimates, for the innovations against the smoothed trajectory.
+pub(crate) fn antenna(fwd: &RunOutput) -> ([f64; 3], f64) {
     let effect = |name: &str| {
         fwd.final_effects
             .iter()
@@ -144,11 +130,70 @@ pub fn smoothed_output(case: &CaseData, fwd: &RunOutput, sm: &Smoothed) -> RunOu
     let dt_off = effect("time_offset")
         .and_then(|v| v.first().copied())
         .unwrap_or(0.0);
+    (lever, dt_off)
+}
+
+/// The innovation of `fix` recomputed against the smoothed record `s` (the innovation
+/// variances and NIS become NaN).
+pub(crate) fn reinnovate(
+    r: &mut InnovationRecord,
+    fix: &GnssFix,
+    s: &NavSolution,
+    lever: &[f64; 3],
+    dt_off: f64,
+) {
+    let shifted = GnssFix {
+        t_s: fix.t_s + dt_off,
+        ..*fix
+    };
+    let inn = position_innovation(&NavState::from_solution(s), lever, &shifted);
+    r.innovation[..3].copy_from_slice(&inn);
+    r.innovation_var = [f64::NAN; 6];
+    r.nis = f64::NAN;
+}
+
+/// An epoch record with the smoothed solution `p`: nav corrected, standard deviations and
+/// sensor-error estimates smoothed (the `blocks` stay the forward ones).
+pub(crate) fn smooth_epoch(e: &mut EpochRecord, p: &SmoothedPoint) {
+    e.nav = correct(&e.nav, p);
+    for (sd, v) in e.state_std.iter_mut().zip(&p.var) {
+        *sd = v.max(0.0).sqrt();
+    }
+    for (i, (est, d)) in e.estimates.iter_mut().zip(&p.dx).enumerate() {
+        if i >= CORE_DIM {
+            *est -= d;
+        }
+    }
+}
+
+/// The run's outputs with the smoothed solution: nav records corrected, `epochs`' standard
+/// deviations and sensor-error estimates smoothed (their `blocks`, i.e. `bias.txt`, stay
+/// the forward ones), and the position innovation of every GNSS fix (used and withheld)
+/// recomputed against the smoothed trajectory (the antenna from the smoothed nav record
+/// nearest the fix, with the forward run's final lever-arm and time-offset estimates).
+/// For a run held in memory; `host-sim run --smooth` streams ([`super::run`]).
+pub fn smoothed_output(
+    case: &CaseData,
+    fwd: &RunOutput,
+    sm: &Smoothed,
+) -> Result<RunOutput, SmoothError> {
+    let mut out = fwd.clone();
+    out.history = None;
+    let mut cur = sm.cursor();
+    for s in &mut out.nav {
+        if let Some(p) = cur.at(s.t_s)? {
+            *s = correct(s, &p);
+        }
+    }
+    let mut cur = sm.cursor();
+    for e in &mut out.epochs {
+        if let Some(p) = cur.at(e.t_s)? {
+            smooth_epoch(e, &p);
+        }
+    }
+    let (lever, dt_off) = antenna(fwd);
     for r in &mut out.innovations {
-        if !matches!(
-            r.used,
-            FixUse::Accepted | FixUse::Forced | FixUse::Withheld | FixUse::Rejected
-        ) {
+        if !recomputed(r.used) {
             continue;
         }
         let i = case.gnss.partition_point(|g| g.t_s < r.t_s);
@@ -158,20 +203,13 @@ pub fn smoothed_output(case: &CaseData, fwd: &RunOutput, sm: &Smoothed) -> RunOu
         let Some(s) = nearest(&out.nav, fix.t_s) else {
             continue;
         };
-        let shifted = GnssFix {
-            t_s: fix.t_s + dt_off,
-            ..*fix
-        };
-        let inn = position_innovation(&NavState::from_solution(s), &lever, &shifted);
-        r.innovation[..3].copy_from_slice(&inn);
-        r.innovation_var = [f64::NAN; 6];
-        r.nis = f64::NAN;
+        reinnovate(r, fix, s, &lever, dt_off);
     }
-    out
+    Ok(out)
 }
 
-/// Smooths a run that recorded its history (`RunOptions::smoother_history`): the smoothed
-/// outputs and the smoother's memory and time.
+/// Smooths a run held in memory that recorded its history
+/// (`RunOptions::smoother_history`): the smoothed outputs and the smoother's memory and time.
 pub fn smooth_run(
     case: &CaseData,
     fwd: &RunOutput,
@@ -181,19 +219,26 @@ pub fn smooth_run(
     let sm = smooth(h)?;
     let backward_s = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
-    let out = smoothed_output(case, fwd, &sm);
+    let out = smoothed_output(case, fwd, &sm)?;
     let apply_s = t.elapsed().as_secs_f64();
-    let hb = h.bytes();
-    let rep = SmootherReport {
-        states: h.n,
-        nodes: h.nodes.len(),
-        update_nodes: h.update_nodes(),
-        history_bytes: hb,
-        history_bytes_per_node: hb as f64 / h.nodes.len().max(1) as f64,
-        smoothed_bytes: sm.bytes(),
-        backward_s,
-        apply_s,
-        pinv_fallbacks: sm.pinv_fallbacks,
-    };
+    let rep = SmootherReport::new(h, &sm, backward_s, apply_s);
     Ok((out, sm, rep))
+}
+
+impl SmootherReport {
+    /// The report of a backward pass `sm` over `h` and its times.
+    pub fn new(h: &History, sm: &Smoothed, backward_s: f64, apply_s: f64) -> Self {
+        let hb = h.file_bytes();
+        Self {
+            states: h.n,
+            nodes: h.len(),
+            update_nodes: h.update_nodes(),
+            history_bytes: hb,
+            history_bytes_per_node: hb as f64 / h.len().max(1) as f64,
+            smoothed_bytes: sm.file_bytes(),
+            backward_s,
+            apply_s,
+            pinv_fallbacks: sm.pinv_fallbacks,
+        }
+    }
 }
