@@ -13,7 +13,6 @@
 
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
-use anyhow::Context;
 use nav_core::config::Gating;
 use nav_core::imu_guard::GapIncrements;
 use nav_engine::metrics;
