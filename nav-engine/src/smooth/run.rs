@@ -15,7 +15,9 @@
 //!    their fix (the fixes read again as a stream, the last [`RECENT`] smoothed records kept).
 //!
 //! The outputs are those of [`super::apply::smooth_run`] on the run held in memory, byte for
-//! byte. The temporary files and folder are removed at the end and after an error.
+//! byte. The temporary files and folder are removed at the end and after an error (except
+//! after a fault in the middle of the forward pass: its outputs up to the fault stay in the
+//! temporary folder, which the error names).
 
 use super::apply::SmootherReport;
 use super::apply::{antenna, correct, nearest, recomputed, reinnovate, smooth_epoch};
@@ -79,8 +81,19 @@ pub fn execute_smoothed(
         .tempdir_in(dir)
         .with_context(|| format!("creating a temporary folder in {}", dir.display()))?;
     let (mut fwd, forward_metrics) =
-        execute_streaming(p, imu, truth, tmp.path(), nav_rate_hz, progress)
-            .context("the forward pass of the smoother (no output written)")?;
+        match execute_streaming(p, imu, truth, tmp.path(), nav_rate_hz, progress) {
+            Ok(r) => r,
+            Err(e) => {
+                // a fault mid-run leaves the forward outputs up to it: kept where the error
+                // says they are
+                let partial = std::fs::read_dir(tmp.path()).is_ok_and(|mut d| d.next().is_some());
+                if partial {
+                    let _ = tmp.keep();
+                    return Err(e.context("the forward pass of the smoother (not smoothed)"));
+                }
+                return Err(e.context("the forward pass of the smoother (no output written)"));
+            }
+        };
     let h = fwd.history.take().ok_or(SmoothError::Empty)?;
     let t = std::time::Instant::now();
     let sm = smooth(&h)?;
