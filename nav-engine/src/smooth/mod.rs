@@ -11,7 +11,7 @@
 //!   hands over Phi, the covariance before (the posterior at the interval start) and after
 //!   (the prior at its end), and the correction fed back at the interval start. One
 //!   [`Node`] per prediction epoch, f64, written as the run goes to a temporary file (a
-//!   [`History`], see [`store`]): P prior (packed upper triangle), P posterior only where an
+//!   [`History`], laid out as `docs/derivations/rts_smoother.md` section 3 says): P prior (packed upper triangle), P posterior only where an
 //!   update changed it, the correction only where non-zero, Phi as its dense 9 core rows plus
 //!   the diagonal below (the filter's [`Transition`] structure). The recorder holds one node.
 //! * **Backward** ([`smooth`]): with `dx_s+(k)` the smoothed error relative to the stored
