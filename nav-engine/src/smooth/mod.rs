@@ -11,9 +11,10 @@
 //!   hands over Phi, the covariance before (the posterior at the interval start) and after
 //!   (the prior at its end), and the correction fed back at the interval start. One
 //!   [`Node`] per prediction epoch, f64, written as the run goes to a temporary file (a
-//!   [`History`], laid out as `docs/derivations/rts_smoother.md` section 3 says): P prior (packed upper triangle), P posterior only where an
-//!   update changed it, the correction only where non-zero, Phi as its dense 9 core rows plus
-//!   the diagonal below (the filter's [`Transition`] structure). The recorder holds one node.
+//!   [`History`], laid out as the derivation's section 3 says): P prior (packed upper
+//!   triangle), P posterior only where an update changed it, the correction only where
+//!   non-zero, Phi as its dense 9 core rows plus the diagonal below (the filter's
+//!   [`Transition`] structure). The recorder holds one node.
 //! * **Backward** ([`smooth`]): with `dx_s+(k)` the smoothed error relative to the stored
 //!   (post-feedback) nominal at node k and `c(k)` the correction fed back there,
 //!   `dx_s-(k+1) = dx_s+(k+1) + c(k+1)` (relative to the pre-feedback nominal that the
