@@ -281,9 +281,11 @@ impl MountingChecker {
         while let Some(b) = self.pending.pop_front() {
             self.interval_to(b);
         }
-        let lag = (self.turns.len() >= 2 * MIN_TURN_INTERVALS)
-            .then(|| self.lag())
-            .flatten();
+        let lag = if self.turns.len() >= 2 * MIN_TURN_INTERVALS {
+            self.lag()
+        } else {
+            None
+        };
         verdict(Evidence {
             turn_slope: (self.n_turn >= MIN_TURN_INTERVALS && self.sxx > 0.0)
                 .then(|| (self.sxy / self.sxx, self.n_turn)),

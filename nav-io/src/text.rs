@@ -579,19 +579,20 @@ impl GnssTextReader {
     }
 
     fn read(&mut self) -> Result<Option<GnssFix>, IoError> {
-        let r = (|| -> Result<Option<GnssFix>, IoError> {
-            let Some(dl) = self.rd.next_data()? else {
-                return Ok(None);
-            };
-            let f = parse_gnss_line(&dl)?;
-            self.mono.check(&dl, 0, GNSS_NAMES[0], f.t_s)?;
-            Ok(Some(f))
-        })();
-        match r {
+        match self.read_line() {
             // a last line cut short (a log still being written): the file ends before it
             Err(e) if cut_short(&self.rd, &e) => Ok(None),
             r => r,
         }
+    }
+
+    fn read_line(&mut self) -> Result<Option<GnssFix>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
+        let f = parse_gnss_line(&dl)?;
+        self.mono.check(&dl, 0, GNSS_NAMES[0], f.t_s)?;
+        Ok(Some(f))
     }
 }
 
@@ -723,24 +724,25 @@ impl NavTextReader {
     }
 
     fn read(&mut self) -> Result<Option<NavSolution>, IoError> {
-        let r = (|| -> Result<Option<NavSolution>, IoError> {
-            let Some(dl) = self.rd.next_data()? else {
-                return Ok(None);
-            };
-            let n = parse_nav_line(&dl)?;
-            self.mono.check(
-                &dl,
-                1,
-                NAV_NAMES[1],
-                n.week as f64 * SECONDS_PER_WEEK + n.t_s,
-            )?;
-            Ok(Some(n))
-        })();
-        match r {
+        match self.read_line() {
             // a last line cut short (a log still being written): the file ends before it
             Err(e) if cut_short(&self.rd, &e) => Ok(None),
             r => r,
         }
+    }
+
+    fn read_line(&mut self) -> Result<Option<NavSolution>, IoError> {
+        let Some(dl) = self.rd.next_data()? else {
+            return Ok(None);
+        };
+        let n = parse_nav_line(&dl)?;
+        self.mono.check(
+            &dl,
+            1,
+            NAV_NAMES[1],
+            n.week as f64 * SECONDS_PER_WEEK + n.t_s,
+        )?;
+        Ok(Some(n))
     }
 }
 
