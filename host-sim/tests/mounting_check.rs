@@ -84,3 +84,47 @@ fn a_sideways_z_axis_is_named() {
         c.warnings
     );
 }
+
+#[test]
+fn gnss_position_outliers_do_not_blame_a_correct_mounting() {
+    let mut d = case();
+    // 30 m north, 30 m east, 100 m north: in the turns and at rest
+    for (k, dn, de) in [
+        (5, 30.0, 0.0),
+        (30, 30.0, 0.0),
+        (45, 0.0, 30.0),
+        (70, 100.0, 0.0),
+    ] {
+        let g = &mut d.gnss[k];
+        g.lat_rad += dn / 6.37e6;
+        g.lon_rad += de / (6.37e6 * g.lat_rad.cos());
+    }
+    let c = check_mounting(&d.imu, &d.gnss);
+    let (slope, n) = c.turn_slope.unwrap();
+    assert!((slope - 1.0).abs() < 0.05, "{slope} over {n}");
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+}
+
+#[test]
+fn a_gnss_time_offset_is_estimated_and_named() {
+    let d = case();
+    let c = check_mounting(&d.imu, &d.gnss);
+    let lag = c.gnss_lag_s.unwrap();
+    assert!(lag.abs() < 0.05, "{lag}");
+    for late in [0.3, 0.5, -0.4] {
+        let mut d = case();
+        for g in &mut d.gnss {
+            g.t_s += late;
+        }
+        let c = check_mounting(&d.imu, &d.gnss);
+        let lag = c.gnss_lag_s.unwrap();
+        println!("GNSS {late:+} s late: estimate {lag:+.3} s");
+        assert!((lag + late).abs() < 0.05, "{late}: {lag}");
+        assert_eq!(c.warnings.len(), 1, "{:?}", c.warnings);
+        assert!(
+            c.warnings[0].contains("[gnss] time_offset_s"),
+            "{}",
+            c.warnings[0]
+        );
+    }
+}

@@ -21,8 +21,8 @@
 //!   force changes from one sample to the next on a land vehicle or a boat.
 //!
 //! A sample whose mean angular rate or specific force exceeds the configured physical range
-//! on any axis ([`ImuLimits`], e.g. from the sensor class with [`ImuLimits::for_class`]), or
-//! that is not finite, is *rejected*: it is not integrated and the interval it covered is
+//! on any axis ([`ImuLimits`], e.g. from the sensor class with [`ImuLimits::for_class`]), that
+//! is not finite, or whose six increments are all exactly zero, is *rejected*: it is not integrated and the interval it covered is
 //! bridged as a gap by the next sample. A gap longer than [`GuardConfig::max_gap_s`] is a
 //! fault ([`GuardError::GapTooLong`]): the caller stops there.
 //!
@@ -150,6 +150,9 @@ impl GuardConfig {
 pub enum Implausible {
     /// Time or an increment is NaN or infinite.
     NonFinite,
+    /// All six increments are exactly zero: no sensor reads that (gravity alone gives about
+    /// 9.8 m/s^2, noise the rest); a logger that wrote an empty record.
+    AllZero,
     /// Mean angular rate beyond the limit on an axis (rad/s).
     Rate {
         /// Axis (0 = x, 1 = y, 2 = z).
@@ -171,6 +174,10 @@ impl core::fmt::Display for Implausible {
         const AX: [&str; 3] = ["x", "y", "z"];
         match *self {
             Self::NonFinite => f.write_str("non-finite time or increment"),
+            Self::AllZero => f.write_str(
+                "all six increments exactly zero (an empty record: no sensor reads zero \
+                 specific force and zero rate)",
+            ),
             Self::Rate { axis, value_radps } => write!(
                 f,
                 "angular rate {:.4e} deg/s on {} beyond the physical range",
@@ -492,6 +499,13 @@ impl ImuGuard {
     fn plausible(&self, s: &ImuSample, dt: f64) -> Result<(), Implausible> {
         if !s.is_finite() {
             return Err(Implausible::NonFinite);
+        }
+        if s.dtheta_rad
+            .iter()
+            .chain(s.dv_mps.iter())
+            .all(|x| *x == 0.0)
+        {
+            return Err(Implausible::AllZero);
         }
         let l = &self.cfg.limits;
         for (axis, x) in (0u8..).zip(s.dtheta_rad.iter()) {

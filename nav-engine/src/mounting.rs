@@ -1,6 +1,6 @@
-//! Checks of the configured IMU mounting against the data (issue 15). The body frame is FRD
-//! (x forward, y right, z down); after the configured mounting rotation the increments are in
-//! body axes. Two cues:
+//! Checks of the configured IMU mounting, units, sample rate and GNSS time against the data.
+//! The body frame is FRD (x forward, y right, z down); after the configured mounting rotation
+//! the increments are in body axes. Two cues:
 //!
 //! * **turns**: while the vehicle moves (GNSS horizontal speed >= [`MIN_SPEED_MPS`]) the body z
 //!   gyro must turn WITH the GNSS course: over GNSS intervals with a course rate of at least
@@ -10,7 +10,20 @@
 //! * **gravity at rest**: while the GNSS speed stays below [`REST_SPEED_MPS`], the mean
 //!   specific force points along body -z (about (0, 0, -g)).
 //!
-//! Either cue that contradicts the mounting gives a warning naming it and the way out.
+//! Either cue that contradicts the mounting gives a warning naming it and the way out. Course
+//! rates from GNSS intervals whose velocity jumps by more than [`MAX_GNSS_ACCEL_MPS2`] (a
+//! position outlier) are not used: one bad fix does not blame the mounting.
+//!
+//! The same cues name what is not the mounting, with the setting to change:
+//!
+//! * the SIZE of the specific force at rest: 1 m/s^2 is data in g read as m/s^2, 96 m/s^2 the
+//!   reverse; for increments, any other multiple of g is the ratio of the interval the
+//!   increments cover to the one their time stamps give (increments of 100 Hz stamped at
+//!   200 Hz give 2 g); the turn checks are then not made;
+//! * the turn slope: 57.3 is a gyro in deg/s read as rad/s, 1/57.3 the reverse;
+//! * the GNSS time offset: the z gyro is binned at [`LAG_BIN_S`] and the turning intervals'
+//!   course rates are fitted to it with the fixes shifted by up to +-[`MAX_LAG_S`]; an offset
+//!   of at least [`MIN_REPORTED_LAG_S`] that halves the residual is reported with its estimate.
 //!
 //! # Estimating the mounting ([`estimate_mounting`], `host-sim mounting --config FILE`)
 //!
@@ -48,6 +61,35 @@ pub const REST_SPEED_MPS: f64 = 0.1;
 pub const MIN_TURN_INTERVALS: usize = 5;
 /// Longest GNSS interval used by the check, s.
 pub const MAX_INTERVAL_S: f64 = 5.0;
+/// Largest horizontal acceleration between two consecutive GNSS interval velocities for a
+/// course rate to be used, m/s^2 (about 1 g: more than a car brakes or turns). A position
+/// outlier of a few metres in one fix makes the two intervals it closes and opens jump by
+/// far more; their course rates are not used.
+pub const MAX_GNSS_ACCEL_MPS2: f64 = 10.0;
+/// Normal gravity used to tell units and sample rates at rest, m/s^2.
+pub const G_MPS2: f64 = 9.806_65;
+/// Bin of the z rate record used to estimate the GNSS time offset, s.
+pub const LAG_BIN_S: f64 = 0.05;
+/// Largest GNSS time offset looked for, s.
+pub const MAX_LAG_S: f64 = 2.0;
+/// Smallest GNSS time offset reported, s.
+pub const MIN_REPORTED_LAG_S: f64 = 0.1;
+/// Most seconds of z rate kept for the time offset estimate (from the first sample).
+pub const LAG_RECORD_S: f64 = 3600.0;
+/// Most turning intervals kept for the time offset estimate.
+const MAX_TURNS: usize = 4096;
+
+/// What the IMU file holds, for the warnings to name the setting to change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ImuInput {
+    /// Increments with their time stamps (the text format, binary, a KF-GINS file): the
+    /// increments' size at rest tells the interval they cover.
+    #[default]
+    Increments,
+    /// Rates and specific forces of an IMU CSV mapped by `[imu.csv]` (`gyro_unit`,
+    /// `accel_unit`): converted to increments over the stamped intervals.
+    CsvRates,
+}
 
 /// What the data say about the configured mounting.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,7 +99,13 @@ pub struct MountingCheck {
     pub turn_slope: Option<(f64, usize)>,
     /// Mean specific force at rest, body axes, m/s^2, and the seconds of rest it is from.
     pub rest_f_body_mps2: Option<([f64; 3], f64)>,
-    /// Warnings (empty when the data agree with the mounting).
+    /// Mean IMU sample interval at rest (from the time stamps), s.
+    pub rest_dt_s: Option<f64>,
+    /// Estimated GNSS time offset, s: the z gyro follows the GNSS course best when the
+    /// fixes are taken this much later (negative: the fixes are stamped late; add it to
+    /// `[gnss] time_offset_s`); None with too few turns.
+    pub gnss_lag_s: Option<f64>,
+    /// Warnings (empty when the data agree with the configuration).
     pub warnings: Vec<String>,
 }
 
@@ -90,6 +138,12 @@ fn wrap_pi(a: f64) -> f64 {
 
 /// Sum of increments of `imu` (time order) with times in (t0, t1], and the time they span.
 fn sums(imu: &[ImuSample], t0: f64, t1: f64) -> ([f64; 3], [f64; 3], f64) {
+    let (th, dv, span, _) = sums_n(imu, t0, t1);
+    (th, dv, span)
+}
+
+/// [`sums`] and the number of samples summed.
+fn sums_n(imu: &[ImuSample], t0: f64, t1: f64) -> ([f64; 3], [f64; 3], f64, usize) {
     let i0 = imu.partition_point(|s| s.t_s <= t0);
     let i1 = imu.partition_point(|s| s.t_s <= t1);
     let (mut th, mut dv) = ([0.0; 3], [0.0; 3]);
@@ -105,13 +159,18 @@ fn sums(imu: &[ImuSample], t0: f64, t1: f64) -> ([f64; 3], [f64; 3], f64) {
         }
         prev = Some(s.t_s);
     }
-    (th, dv, span)
+    (th, dv, span, i1.saturating_sub(i0))
 }
 
 /// Checks body-axis increments `imu` against the GNSS fixes `gnss` (see the module notes):
 /// [`MountingChecker`] over the two lists.
 pub fn check_mounting(imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
-    let mut c = MountingChecker::new();
+    check_mounting_of(ImuInput::Increments, imu, gnss)
+}
+
+/// [`check_mounting`] of an IMU file holding `input` (named in the warnings).
+pub fn check_mounting_of(input: ImuInput, imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
+    let mut c = MountingChecker::for_input(input);
     let mut fixes = gnss.iter().peekable();
     for s in imu {
         // the fixes up to this sample's time first: at most a few are pending at a time
@@ -143,17 +202,35 @@ pub struct MountingChecker {
     prev_fix: Option<GnssFix>,
     /// Course of the previous interval: (mid time, course rad).
     prev_course: Option<(f64, f64)>,
+    /// Horizontal velocity of the previous interval: (mid time, north, east m/s).
+    prev_vel: Option<(f64, [f64; 2])>,
     sxy: f64,
     sxx: f64,
     n_turn: usize,
     f_rest: [f64; 3],
     t_rest: f64,
+    n_rest: usize,
+    input: ImuInput,
+    /// Time of the first IMU sample, s (start of `wz_bins`).
+    t0: Option<f64>,
+    /// Body z increments summed per [`LAG_BIN_S`] bin (by sample time), rad.
+    wz_bins: Vec<f32>,
+    /// Turning intervals: (start, end, GNSS course rate rad/s).
+    turns: Vec<(f64, f64, f64)>,
 }
 
 impl MountingChecker {
-    /// An empty check.
+    /// An empty check (an increments file).
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// An empty check of an IMU file holding `input`.
+    pub fn for_input(input: ImuInput) -> Self {
+        Self {
+            input,
+            ..Self::default()
+        }
     }
 
     /// A GNSS fix (invalid fixes are ignored, as [`check_mounting`] does).
@@ -166,6 +243,19 @@ impl MountingChecker {
     /// An IMU sample (body axes, after the previous one in time; every fix before it already
     /// pushed).
     pub fn push_imu(&mut self, s: &ImuSample) {
+        let t0 = *self.t0.get_or_insert(s.t_s);
+        // binned by the middle of the interval the increment covers
+        let mid = 0.5 * (s.t_s + self.imu.back().map_or(s.t_s, |p| p.t_s));
+        let bin = ((mid - t0) / LAG_BIN_S).floor();
+        if (0.0..LAG_RECORD_S / LAG_BIN_S).contains(&bin) {
+            let bin = bin as usize;
+            if self.wz_bins.len() <= bin {
+                self.wz_bins.resize(bin + 1, 0.0);
+            }
+            if let Some(b) = self.wz_bins.get_mut(bin) {
+                *b += s.dtheta_rad[2] as f32;
+            }
+        }
         self.imu.push_back(*s);
         // every sample up to a fix before this one is in: its interval can be taken
         while let Some(b) = self.pending.front().copied() {
@@ -191,11 +281,88 @@ impl MountingChecker {
         while let Some(b) = self.pending.pop_front() {
             self.interval_to(b);
         }
-        verdict(
-            (self.n_turn >= MIN_TURN_INTERVALS && self.sxx > 0.0)
+        let lag = if self.turns.len() >= 2 * MIN_TURN_INTERVALS {
+            self.lag()
+        } else {
+            None
+        };
+        verdict(Evidence {
+            turn_slope: (self.n_turn >= MIN_TURN_INTERVALS && self.sxx > 0.0)
                 .then(|| (self.sxy / self.sxx, self.n_turn)),
-            (self.t_rest >= 1.0).then(|| (self.f_rest.map(|v| v / self.t_rest), self.t_rest)),
-        )
+            rest: (self.t_rest >= 1.0).then(|| (self.f_rest.map(|v| v / self.t_rest), self.t_rest)),
+            rest_dt_s: (self.t_rest >= 1.0 && self.n_rest > 0)
+                .then(|| self.t_rest / self.n_rest as f64),
+            lag,
+            input: self.input,
+        })
+    }
+
+    /// The GNSS time offset that best lines the z gyro up with the GNSS course rates of the
+    /// turning intervals (least-squares slope through the origin at each offset on a
+    /// [`LAG_BIN_S`] grid within +-[`MAX_LAG_S`], the minimum refined by a parabola), with the
+    /// residual there and at zero offset.
+    fn lag(&self) -> Option<Lag> {
+        let t0 = self.t0?;
+        let mut cum = Vec::with_capacity(self.wz_bins.len() + 1);
+        let mut acc = 0.0f64;
+        cum.push(0.0);
+        for b in &self.wz_bins {
+            acc += f64::from(*b);
+            cum.push(acc);
+        }
+        // the z angle turned from t0 to t: the bins' running sum, linear within a bin
+        let angle = |t: f64| -> Option<f64> {
+            let x = (t - t0) / LAG_BIN_S;
+            if x.is_nan() || x < 0.0 {
+                return None;
+            }
+            let i = x.floor();
+            let (a, b) = (*cum.get(i as usize)?, *cum.get(i as usize + 1)?);
+            Some(a + (x - i) * (b - a))
+        };
+        let sum = |a: f64, b: f64| -> Option<f64> { Some(angle(b)? - angle(a)?) };
+        let steps = (MAX_LAG_S / LAG_BIN_S).round() as i64;
+        // the turns whose window stays inside the record at every offset tried
+        let t_end = t0 + self.wz_bins.len() as f64 * LAG_BIN_S;
+        let margin = MAX_LAG_S + 2.0 * LAG_BIN_S;
+        let turns: Vec<(f64, f64, f64)> = self
+            .turns
+            .iter()
+            .copied()
+            .filter(|&(a, b, _)| a - margin >= t0 && b + margin <= t_end)
+            .collect();
+        if turns.len() < 2 * MIN_TURN_INTERVALS {
+            return None;
+        }
+        let rss_at = |k: i64| -> Option<f64> {
+            let tau = k as f64 * LAG_BIN_S;
+            let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+            for &(a, b, r) in &turns {
+                let wz = sum(a + tau, b + tau)? / (b - a);
+                sxy += wz * r;
+                sxx += r * r;
+                syy += wz * wz;
+            }
+            (sxx > 0.0).then(|| syy - sxy * sxy / sxx)
+        };
+        let rss: Vec<(i64, f64)> = (-steps..=steps)
+            .filter_map(|k| rss_at(k).map(|r| (k, r)))
+            .collect();
+        let rss0 = rss.iter().find(|(k, _)| *k == 0)?.1;
+        let &(kb, rb) = rss.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+        let at = |k: i64| rss.iter().find(|(j, _)| *j == k).map(|x| x.1);
+        let frac = match (at(kb - 1), at(kb + 1)) {
+            (Some(l), Some(r)) if l + r - 2.0 * rb > 0.0 => {
+                (0.5 * (l - r) / (l + r - 2.0 * rb)).clamp(-0.5, 0.5)
+            }
+            _ => 0.0,
+        };
+        Some(Lag {
+            lag_s: (kb as f64 + frac) * LAG_BIN_S,
+            rss: rb,
+            rss_zero: rss0,
+            turns: turns.len(),
+        })
     }
 
     /// The GNSS interval from the previous fix to `b` (every IMU sample up to `b` is in).
@@ -221,13 +388,21 @@ impl MountingChecker {
         let [vn, ve] = interval_velocity(a, b);
         let speed = vn.hypot(ve);
         let mid = 0.5 * (a.t_s + b.t_s);
+        // a jump of the velocity no vehicle makes: a position outlier in one of the fixes
+        let jump = self
+            .prev_vel
+            .replace((mid, [vn, ve]))
+            .is_some_and(|(tp, [pn, pe])| {
+                (vn - pn).hypot(ve - pe) > MAX_GNSS_ACCEL_MPS2 * (mid - tp)
+            });
         if speed <= REST_SPEED_MPS {
-            let (_, dv, span) = sums(self.imu.make_contiguous(), a.t_s, b.t_s);
+            let (_, dv, span, n) = sums_n(self.imu.make_contiguous(), a.t_s, b.t_s);
             if span > 0.0 {
                 for (f, d) in self.f_rest.iter_mut().zip(dv) {
                     *f += d;
                 }
                 self.t_rest += span;
+                self.n_rest += n;
             }
         }
         if speed < MIN_SPEED_MPS {
@@ -235,7 +410,7 @@ impl MountingChecker {
             return;
         }
         let course = ve.atan2(vn);
-        if let Some((tp, cp)) = self.prev_course {
+        if let Some((tp, cp)) = self.prev_course.filter(|_| !jump) {
             let rate = wrap_pi(course - cp) / (mid - tp);
             if rate.abs() >= MIN_TURN_RATE_DEG_S.to_radians() {
                 let (th, _, span) = sums(self.imu.make_contiguous(), tp, mid);
@@ -244,6 +419,9 @@ impl MountingChecker {
                     self.sxy += wz * rate;
                     self.sxx += rate * rate;
                     self.n_turn += 1;
+                    if self.turns.len() < MAX_TURNS {
+                        self.turns.push((tp, mid, rate));
+                    }
                 }
             }
         }
@@ -251,10 +429,136 @@ impl MountingChecker {
     }
 }
 
-/// The warnings from the turn slope and the mean specific force at rest.
-fn verdict(turn_slope: Option<(f64, usize)>, rest: Option<([f64; 3], f64)>) -> MountingCheck {
+/// The time offset found by [`MountingChecker::lag`].
+#[derive(Debug, Clone, Copy)]
+struct Lag {
+    lag_s: f64,
+    rss: f64,
+    rss_zero: f64,
+    turns: usize,
+}
+
+/// What the check gathered, for [`verdict`].
+struct Evidence {
+    turn_slope: Option<(f64, usize)>,
+    rest: Option<([f64; 3], f64)>,
+    rest_dt_s: Option<f64>,
+    lag: Option<Lag>,
+    input: ImuInput,
+}
+
+/// Whether `x` is within 10 % of `want`.
+fn near(x: f64, want: f64) -> bool {
+    (x / want - 1.0).abs() <= 0.1
+}
+
+/// The warning about the size of the specific force at rest (units, or increments stamped at
+/// another rate than they were taken), when it is not about 1 g; true when the time stamps
+/// themselves are in doubt.
+fn scale_warning(f: &[f64; 3], t: f64, dt: Option<f64>, input: ImuInput) -> Option<(String, bool)> {
+    let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+    let k = norm / G_MPS2;
+    if near(k, 1.0) || !norm.is_finite() || norm <= 0.0 {
+        return None;
+    }
+    let head = format!(
+        "at rest ({t:.1} s) the specific force is {norm:.3} m/s^2 = {k:.3} g, where gravity \
+         gives 9.81 m/s^2"
+    );
+    Some(match input {
+        ImuInput::CsvRates if near(norm, 1.0) => (
+            format!(
+                "{head}: the accelerometer data are in g but read as m/s^2; set [imu.csv] \
+                 accel_unit = \"g\""
+            ),
+            false,
+        ),
+        ImuInput::CsvRates if near(k, G_MPS2) => (
+            format!(
+                "{head}: the accelerometer data are in m/s^2 but read as g; set [imu.csv] \
+                 accel_unit = \"m/s^2\""
+            ),
+            false,
+        ),
+        ImuInput::CsvRates => (
+            format!(
+                "{head}: neither g nor m/s^2 fits the accelerometer data; check [imu.csv] \
+                 accel_unit and the accelerometer columns"
+            ),
+            false,
+        ),
+        ImuInput::Increments if near(norm, 1.0) => (
+            format!(
+                "{head}: the velocity increments are in g s, not m/s as the format wants; \
+                 multiply them by 9.80665"
+            ),
+            false,
+        ),
+        ImuInput::Increments => match dt {
+            Some(dt) => (
+                format!(
+                    "{head}: the increments are {k:.2}x what {dt:.4} s between time stamps \
+                     gives; they cover {:.4} s each: increments of {:.0} Hz stamped at {:.0} Hz? \
+                     Fix the time stamps (or [imu] time_offset_s / the tick clock); the \
+                     mounting and time checks from turns are not made",
+                    dt * k,
+                    1.0 / (dt * k),
+                    1.0 / dt
+                ),
+                true,
+            ),
+            None => (
+                format!("{head}: check the time stamps and the increments' units"),
+                true,
+            ),
+        },
+    })
+}
+
+/// The warnings from the turn slope, the specific force at rest and the time offset.
+fn verdict(ev: Evidence) -> MountingCheck {
+    let Evidence {
+        turn_slope,
+        rest,
+        rest_dt_s,
+        lag,
+        input,
+    } = ev;
     let mut warnings = Vec::new();
-    if let Some((s, n)) = turn_slope {
+    let mut stamps_in_doubt = false;
+    if let Some((f, t)) = rest {
+        if let Some((w, doubt)) = scale_warning(&f, t, rest_dt_s, input) {
+            warnings.push(w);
+            stamps_in_doubt = doubt;
+        }
+    }
+    let gyro_units = turn_slope.and_then(|(s, n)| {
+        let deg = 180.0 / std::f64::consts::PI;
+        let fix = |unit: &str| match input {
+            ImuInput::CsvRates => format!("set [imu.csv] gyro_unit = \"{unit}\""),
+            ImuInput::Increments => {
+                "convert the angle increments to rad (the format's unit)".into()
+            }
+        };
+        if near(s, deg) {
+            Some(format!(
+                "the body z gyro turns {s:.1}x as fast as the GNSS course over {n} turning \
+                 intervals: the gyro data are in deg (deg/s) but read as rad (rad/s); {}",
+                fix("deg/s")
+            ))
+        } else if near(s, 1.0 / deg) {
+            Some(format!(
+                "the body z gyro turns {s:.4}x as fast as the GNSS course over {n} turning \
+                 intervals: the gyro data are in rad (rad/s) but read as deg (deg/s); {}",
+                fix("rad/s")
+            ))
+        } else {
+            None
+        }
+    });
+    let gyro_units_found = gyro_units.is_some();
+    warnings.extend(gyro_units);
+    if let Some((s, n)) = turn_slope.filter(|_| !stamps_in_doubt && !gyro_units_found) {
         if s < -0.5 {
             warnings.push(format!(
                 "the body z gyro turns AGAINST the GNSS course (slope {s:.2} over {n} turning \
@@ -268,6 +572,22 @@ fn verdict(turn_slope: Option<(f64, usize)>, rest: Option<([f64; 3], f64)>) -> M
                  axis vertical"
             ));
         }
+    }
+    if let Some(l) = lag.filter(|l| {
+        !stamps_in_doubt && l.lag_s.abs() >= MIN_REPORTED_LAG_S && l.rss < 0.5 * l.rss_zero
+    }) {
+        warnings.push(format!(
+            "the GNSS time stamps are {:.2} s {} the IMU's: the z gyro follows the GNSS course \
+             best with the fixes moved by {:+.2} s (over {} turning intervals; residual {:.0} % \
+             of that at no offset); add {:+.2} s to [gnss] time_offset_s (or fix the logger's \
+             time stamps)",
+            l.lag_s.abs(),
+            if l.lag_s < 0.0 { "late on" } else { "early on" },
+            l.lag_s,
+            l.turns,
+            100.0 * l.rss / l.rss_zero,
+            l.lag_s
+        ));
     }
     if let Some((f, t)) = rest {
         let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
@@ -286,6 +606,8 @@ fn verdict(turn_slope: Option<(f64, usize)>, rest: Option<([f64; 3], f64)>) -> M
     MountingCheck {
         turn_slope,
         rest_f_body_mps2: rest,
+        rest_dt_s,
+        gnss_lag_s: lag.map(|l| l.lag_s),
         warnings,
     }
 }
@@ -580,11 +902,14 @@ mod tests {
 
     /// The check as it was written over whole lists (before [`MountingChecker`]): the
     /// reference the stream must equal bit for bit.
-    fn reference(imu: &[ImuSample], gnss: &[GnssFix]) -> MountingCheck {
+    type Reference = (Option<(f64, usize)>, Option<([f64; 3], f64)>);
+
+    fn reference(imu: &[ImuSample], gnss: &[GnssFix]) -> Reference {
         let fixes: Vec<&GnssFix> = gnss.iter().filter(|g| g.is_valid()).collect();
         let (mut sxy, mut sxx, mut n_turn) = (0.0, 0.0, 0usize);
         let (mut f_rest, mut t_rest) = ([0.0; 3], 0.0);
         let mut prev_course: Option<(f64, f64)> = None;
+        let mut prev_vel: Option<(f64, [f64; 2])> = None;
         for w in fixes.windows(2) {
             let (a, b) = (w[0], w[1]);
             let dt = b.t_s - a.t_s;
@@ -595,6 +920,11 @@ mod tests {
             let [vn, ve] = interval_velocity(a, b);
             let speed = vn.hypot(ve);
             let mid = 0.5 * (a.t_s + b.t_s);
+            let jump = prev_vel
+                .replace((mid, [vn, ve]))
+                .is_some_and(|(tp, [pn, pe])| {
+                    (vn - pn).hypot(ve - pe) > MAX_GNSS_ACCEL_MPS2 * (mid - tp)
+                });
             if speed <= REST_SPEED_MPS {
                 let (_, dv, span) = sums(imu, a.t_s, b.t_s);
                 if span > 0.0 {
@@ -609,7 +939,7 @@ mod tests {
                 continue;
             }
             let course = ve.atan2(vn);
-            if let Some((tp, cp)) = prev_course {
+            if let Some((tp, cp)) = prev_course.filter(|_| !jump) {
                 let rate = wrap_pi(course - cp) / (mid - tp);
                 if rate.abs() >= MIN_TURN_RATE_DEG_S.to_radians() {
                     let (th, _, span) = sums(imu, tp, mid);
@@ -622,10 +952,14 @@ mod tests {
             }
             prev_course = Some((mid, course));
         }
-        verdict(
+        (
             (n_turn >= MIN_TURN_INTERVALS && sxx > 0.0).then(|| (sxy / sxx, n_turn)),
             (t_rest >= 1.0).then(|| (f_rest.map(|v| v / t_rest), t_rest)),
         )
+    }
+
+    fn part(c: &MountingCheck) -> Reference {
+        (c.turn_slope, c.rest_f_body_mps2)
     }
 
     /// A car: 20 s at rest, then driving with turns of changing rate, a 10 s stop, a GNSS
@@ -704,7 +1038,9 @@ mod tests {
     fn the_stream_is_the_whole_list_check_bit_for_bit_in_any_interleaving() {
         for flip in [false, true] {
             let (imu, gnss) = drive(flip);
-            let want = reference(&imu, &gnss);
+            let whole = check_mounting(&imu, &gnss);
+            assert_eq!(part(&whole), reference(&imu, &gnss));
+            let want = whole;
             let (slope, n) = want.turn_slope.expect("turns");
             assert!(n > 100, "{n}");
             assert!(
@@ -712,8 +1048,12 @@ mod tests {
                 "{slope}"
             );
             assert!(want.rest_f_body_mps2.expect("rest").1 > 20.0);
-            assert_eq!(want.warnings.len(), if flip { 2 } else { 0 });
-            assert_eq!(check_mounting(&imu, &gnss), want);
+            assert_eq!(
+                want.warnings.len(),
+                if flip { 2 } else { 0 },
+                "{:?}",
+                want.warnings
+            );
             // all fixes first, then the IMU
             let mut c = MountingChecker::new();
             gnss.iter().for_each(|g| c.push_fix(g));

@@ -15,8 +15,9 @@ pub enum IoError {
         /// The operating-system error.
         source: std::io::Error,
     },
-    /// Reading failed part-way (I/O error, corrupt gzip stream).
-    #[error("{}: line {line}: read error: {source}", path.display())]
+    /// Reading failed part-way (I/O error, corrupt gzip stream); `line` 0 (not named) before
+    /// the first line or in a binary file.
+    #[error("{}{}: read error: {source}", path.display(), at_line(*line))]
     Read {
         /// The file.
         path: PathBuf,
@@ -136,7 +137,7 @@ pub enum IoError {
     },
     /// The file's layout is not what the reader supports (header, time system, binary tag file
     /// structure, ...). `line` is 0 when the problem is not tied to a line.
-    #[error("{}: line {line}: {message}", path.display())]
+    #[error("{}{}: {message}", path.display(), at_line(*line))]
     Format {
         /// The file.
         path: PathBuf,
@@ -156,6 +157,15 @@ pub enum IoError {
         #[source]
         source: Option<Box<dyn std::error::Error + Send + Sync + 'static>>,
     },
+}
+
+/// `": line N"` for a 1-based line, nothing for 0 (the file as a whole: never "line 0").
+fn at_line(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(": line {line}")
+    }
 }
 
 impl IoError {
@@ -180,15 +190,14 @@ impl IoError {
     /// The 1-based line the error is about, when it is about one.
     pub fn line(&self) -> Option<usize> {
         match self {
-            IoError::Read { line, .. }
-            | IoError::NotText { line, .. }
+            IoError::NotText { line, .. }
             | IoError::TooFewFields { line, .. }
             | IoError::TooManyFields { line, .. }
             | IoError::NotANumber { line, .. }
             | IoError::NonFinite { line, .. }
             | IoError::InvalidValue { line, .. }
             | IoError::NonMonotonicTime { line, .. } => Some(*line),
-            IoError::Format { line, .. } if *line > 0 => Some(*line),
+            IoError::Format { line, .. } | IoError::Read { line, .. } if *line > 0 => Some(*line),
             _ => None,
         }
     }

@@ -871,6 +871,8 @@ impl Iterator for GnssCsvReader {
                 self.kept += 1;
                 return Some(Ok(x));
             }
+            // a last line cut short (a log still being written): the file ends before it
+            Err(e) if self.kept > 0 && super::lines::cut_short(&self.rd, &e) => None,
             Ok(None) if self.kept > 0 => None,
             Ok(None) => Some(Err(IoError::Format {
                 path: self.path.clone(),

@@ -314,11 +314,18 @@ impl RawImuRecord {
 }
 
 /// Rates/specific forces to increments (see the module notes for the conventions). `n` rows
-/// give `n - 1` increments.
+/// give `n - 1` increments; a row that repeats the previous one exactly gives the previous
+/// increment again (as [`ImuCsvIncrements`] does: the run skips and counts it).
 pub fn rates_to_increments(raw: &[RawImuSample], conv: SampleConvention) -> Vec<ImuSample> {
-    raw.windows(2)
-        .map(|w| increment(&w[0], &w[1], conv))
-        .collect()
+    let mut out: Vec<ImuSample> = Vec::with_capacity(raw.len().saturating_sub(1));
+    for w in raw.windows(2) {
+        let inc = match out.last() {
+            Some(l) if same_row(&w[0], &w[1]) => *l,
+            _ => increment(&w[0], &w[1], conv),
+        };
+        out.push(inc);
+    }
+    out
 }
 
 /// The increment over the interval (a.t, b.t] of rows `a` and `b` (see the module notes).
@@ -561,7 +568,27 @@ pub struct ImuCsvReader {
     skip_last: usize,
     tag: Option<TimeTag>,
     stretch: f64,
+    /// The last row parsed (an exact repeat of it is passed on).
+    last_row: Option<RawImuSample>,
     failed: bool,
+}
+
+/// Whether two rows are the same record, bit for bit (NaN temperatures equal).
+fn same_row(a: &RawImuSample, b: &RawImuSample) -> bool {
+    let bits = |s: &RawImuSample| {
+        [
+            s.t_s,
+            s.gyro_radps[0],
+            s.gyro_radps[1],
+            s.gyro_radps[2],
+            s.accel_mps2[0],
+            s.accel_mps2[1],
+            s.accel_mps2[2],
+            s.temperature_c,
+        ]
+        .map(f64::to_bits)
+    };
+    bits(a) == bits(b)
 }
 
 impl ImuCsvReader {
@@ -667,6 +694,7 @@ impl ImuCsvReader {
             skip_last: fmt.skip_last_rows,
             tag: None,
             stretch: 1.0,
+            last_row: None,
             failed: false,
         })
     }
@@ -710,14 +738,25 @@ impl ImuCsvReader {
         }
         if let Some(i) = c.time {
             s.t_s = dl.num(i, nm(i))?;
-            self.mono.check(&dl, i, nm(i), s.t_s)?;
+            // an exact repeat of the previous row (a logger writing a record twice) is passed
+            // on: the increments skip it ([`ImuCsvIncrements`])
+            let repeat = self.last_row.is_some_and(|p| same_row(&p, &s));
+            if !repeat {
+                self.mono.check(&dl, i, nm(i), s.t_s)?;
+            }
         }
+        self.last_row = Some(s);
         Ok(Some((s, dl.line)))
     }
 
     fn read(&mut self) -> Result<Option<(RawImuSample, usize)>, IoError> {
         loop {
-            match self.parse_row()? {
+            let row = match self.parse_row() {
+                // a last line cut short (a log still being written): the file ends before it
+                Err(e) if super::lines::cut_short(&self.rd, &e) => None,
+                r => r?,
+            };
+            match row {
                 Some(r) => {
                     self.held.push_back(r);
                     if self.held.len() > self.skip_last {
@@ -792,10 +831,15 @@ pub fn read_imu_csv_raw(
 /// An IMU CSV log read as increments one at a time (the streaming form of [`read_imu_csv`]):
 /// each row after the first gives the increment over the interval it closes (see the module
 /// notes), yielded with the row's line.
+///
+/// A row that repeats the previous one exactly (a logger writing a record twice) gives the
+/// previous increment again, with the same time: the run skips and counts it as a rejected
+/// sample.
 pub struct ImuCsvIncrements {
     rows: ImuCsvReader,
     conv: SampleConvention,
     prev: Option<RawImuSample>,
+    last: Option<ImuSample>,
 }
 
 impl ImuCsvIncrements {
@@ -805,6 +849,7 @@ impl ImuCsvIncrements {
             rows: ImuCsvReader::open(path, fmt)?,
             conv: fmt.convention,
             prev: None,
+            last: None,
         })
     }
 }
@@ -819,7 +864,15 @@ impl Iterator for ImuCsvIncrements {
                 Err(e) => return Some(Err(e)),
             };
             if let Some(a) = self.prev.replace(b) {
-                return Some(Ok((increment(&a, &b, self.conv), line)));
+                if same_row(&a, &b) {
+                    if let Some(l) = self.last {
+                        return Some(Ok((l, line)));
+                    }
+                    continue;
+                }
+                let inc = increment(&a, &b, self.conv);
+                self.last = Some(inc);
+                return Some(Ok((inc, line)));
             }
         }
     }

@@ -439,7 +439,8 @@ pub fn read_kf_gins_yaml(path: impl AsRef<Path>) -> Result<KfGinsConfig, IoError
         path: path.to_path_buf(),
         source,
     })?;
-    parse_kf_gins_yaml(path, &text)
+    // a UTF-8 byte-order mark (written by some Windows editors)
+    parse_kf_gins_yaml(path, text.strip_prefix('\u{feff}').unwrap_or(&text))
 }
 
 /// Writes a KF-GINS YAML configuration (KF-GINS reads it; unknown keys are not written).

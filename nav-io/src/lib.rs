@@ -54,7 +54,9 @@ pub use imucsv::{
 pub use kfgins::{
     parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml,
 };
-pub use lines::{open_text, parse_f64, DataLine, Fields, LineReader};
+pub use lines::{
+    incomplete_last_line, open_text, parse_f64, DataLine, Fields, IncompleteLine, LineReader,
+};
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;
 pub use numfmt::LineBuf;

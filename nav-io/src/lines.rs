@@ -13,6 +13,9 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
+/// The UTF-8 byte-order mark, skipped at the start of a text file.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
 /// Longest accepted line, bytes; longer lines are reported as a format error (binary input).
 const MAX_LINE_BYTES: usize = 1 << 20;
 
@@ -37,6 +40,9 @@ pub struct LineReader {
     /// The current line (terminators removed): `buf[cur.0..cur.1]`.
     cur: (usize, usize),
     eof: bool,
+    /// The current line is the last one and has no line end (a file still being written, or
+    /// cut short).
+    unterminated: bool,
 }
 
 /// Opens `path` for line reading; gzip is detected from the magic bytes `1f 8b`.
@@ -73,6 +79,7 @@ impl LineReader {
             end: 0,
             cur: (0, 0),
             eof: false,
+            unterminated: false,
         })
     }
 
@@ -139,6 +146,7 @@ impl LineReader {
                 }
                 let a = self.start;
                 self.start = a + i + 1;
+                self.unterminated = false;
                 break (a, a + i);
             }
             if avail.len() > MAX_LINE_BYTES {
@@ -151,15 +159,29 @@ impl LineReader {
                 }
                 let a = self.start;
                 self.start = self.end;
+                self.unterminated = true;
                 break (a, self.end);
             }
             self.fill()?;
+        };
+        // a UTF-8 byte-order mark (written by some Windows tools) before the first line
+        let a = if self.line == 1 && self.buf.get(a..b).is_some_and(|l| l.starts_with(UTF8_BOM)) {
+            a + UTF8_BOM.len()
+        } else {
+            a
         };
         while b > a && matches!(self.buf.get(b - 1), Some(b'\r' | b'\n')) {
             b -= 1;
         }
         self.cur = (a, b);
         Ok(true)
+    }
+
+    /// Whether the current line is the last one of the file and has no line end: a line that
+    /// may have been cut short (a log still being written). The readers drop such a line when
+    /// it does not parse instead of failing (see [`incomplete_last_line`]).
+    pub fn at_unterminated_end(&self) -> bool {
+        self.unterminated
     }
 
     /// The bytes of the current line (terminators removed).
@@ -209,6 +231,22 @@ impl LineReader {
         // unsafe unchecked conversion (a few ns per line).
         self.current_data()
     }
+}
+
+/// Whether `e`, met on the current line of `rd`, is about a last line cut short: the line has
+/// no line end and does not parse (a log still being written). The readers end there instead
+/// of failing; [`incomplete_last_line`] names it for the user.
+pub(crate) fn cut_short(rd: &LineReader, e: &IoError) -> bool {
+    rd.at_unterminated_end()
+        && matches!(
+            e,
+            IoError::TooFewFields { .. }
+                | IoError::NotANumber { .. }
+                | IoError::NonFinite { .. }
+                | IoError::InvalidValue { .. }
+                | IoError::NotText { .. }
+                | IoError::NonMonotonicTime { .. }
+        )
 }
 
 /// Whether a line is blank or a comment (`#` or `%` first).
@@ -561,4 +599,101 @@ impl MonotonicTime {
         self.prev = Some((t_s, dl.line));
         Ok(())
     }
+}
+
+/// The last line of a text file when it has no line end and fewer fields than the line
+/// before it: a line cut short (a log still being written). The readers drop such a line
+/// (it does not parse) instead of failing; this tells the user about it before a run.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IncompleteLine {
+    /// The file.
+    pub path: PathBuf,
+    /// Byte offset of the line's start in the file.
+    pub offset: u64,
+    /// The line's text (at most 40 characters).
+    pub text: String,
+    /// Fields on the line.
+    pub fields: usize,
+    /// Fields on the complete line before it.
+    pub expected: usize,
+}
+
+impl std::fmt::Display for IncompleteLine {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: the last line (byte offset {}) is incomplete, {} field(s) where the line before \
+             has {}, and no line end: {:?} dropped (is the file still being written?)",
+            self.path.display(),
+            self.offset,
+            self.fields,
+            self.expected,
+            self.text
+        )
+    }
+}
+
+/// Bytes read from the end of a file by [`incomplete_last_line`].
+const TAIL_BYTES: u64 = 1 << 16;
+
+/// The cut-short last line of the plain text file `path` ([`IncompleteLine`]), when there is
+/// one: only the file's last 64 KiB are read. `None` for a gzip file, a file whose last line
+/// ends with a line end or is as long (in fields) as the one before it.
+pub fn incomplete_last_line(path: &Path) -> Result<Option<IncompleteLine>, IoError> {
+    use std::io::{Seek, SeekFrom};
+    let mut f = File::open(path).map_err(|source| IoError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let read_err = |source| IoError::Read {
+        path: path.to_path_buf(),
+        line: 1,
+        source,
+    };
+    let len = f.seek(SeekFrom::End(0)).map_err(read_err)?;
+    let mut head = [0u8; 2];
+    f.seek(SeekFrom::Start(0)).map_err(read_err)?;
+    if len >= 2 {
+        f.read_exact(&mut head).map_err(read_err)?;
+        if head == [0x1f, 0x8b] {
+            return Ok(None);
+        }
+    }
+    let from = len.saturating_sub(TAIL_BYTES);
+    f.seek(SeekFrom::Start(from)).map_err(read_err)?;
+    let mut tail = Vec::new();
+    f.take(TAIL_BYTES)
+        .read_to_end(&mut tail)
+        .map_err(read_err)?;
+    if tail.is_empty() || tail.ends_with(b"\n") {
+        return Ok(None);
+    }
+    let Some(nl) = memchr::memrchr(b'\n', &tail) else {
+        return Ok(None);
+    };
+    let (before, last) = tail.split_at(nl + 1);
+    let last_text = String::from_utf8_lossy(last);
+    let prev = before
+        .strip_suffix(b"\n")
+        .map(|b| b.strip_suffix(b"\r").unwrap_or(b))
+        .unwrap_or(before);
+    let prev_start = memchr::memrchr(b'\n', prev).map_or(0, |i| i + 1);
+    let prev_text = String::from_utf8_lossy(prev.get(prev_start..).unwrap_or(&[]));
+    if is_skippable(&prev_text) || is_skippable(&last_text) {
+        return Ok(None);
+    }
+    let (fields, expected) = (
+        split_fields(&last_text).len(),
+        split_fields(&prev_text).len(),
+    );
+    if fields >= expected {
+        return Ok(None);
+    }
+    Ok(Some(IncompleteLine {
+        path: path.to_path_buf(),
+        offset: from + (nl as u64) + 1,
+        text: clip(&last_text),
+        fields,
+        expected,
+    }))
 }

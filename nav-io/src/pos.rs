@@ -648,7 +648,11 @@ impl Iterator for PosReader {
         if self.failed {
             return None;
         }
-        let r = self.read().transpose();
+        let mut r = self.read().transpose();
+        if matches!(&r, Some(Err(e)) if super::lines::cut_short(&self.rd, e)) {
+            // a last line cut short (a log still being written): the file ends before it
+            r = None;
+        }
         if matches!(r, Some(Err(_))) {
             self.failed = true;
         }

@@ -320,49 +320,102 @@ impl RunConfig {
     /// Checks what serde cannot: CSV mapping present for CSV input, finite angles and
     /// offsets, non-negative sigmas, consistent noise keys, `1 <= max_q <= 6`.
     pub fn validate(&self) -> Result<(), String> {
-        let mut bad: Vec<String> = self
+        let bad: Vec<String> = self.problems().into_iter().map(|(_, _, msg)| msg).collect();
+        if bad.is_empty() {
+            Ok(())
+        } else {
+            Err(bad.join("; "))
+        }
+    }
+
+    /// What [`RunConfig::validate`] finds, each with the table and key it is about (for the
+    /// error to name their line; key "" for the table as a whole).
+    pub fn problems(&self) -> Vec<(&'static str, &'static str, String)> {
+        let mut bad: Vec<(&'static str, &'static str, String)> = self
             .located_problems()
             .into_iter()
-            .map(|(table, key, msg)| format!("{}{key}: {msg}", dotted(table)))
+            .map(|(table, key, msg)| (table, "", format!("{}{key}: {msg}", dotted(table))))
             .collect();
+        let mut push = |table: &'static str, key: &'static str, msg: String| {
+            bad.push((table, key, msg));
+        };
         if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
-            bad.push("imu.format = \"csv\" needs an [imu.csv] mapping".into());
+            push(
+                "imu",
+                "format",
+                "imu.format = \"csv\" needs an [imu.csv] mapping".into(),
+            );
         }
         if (self.gnss.format == GnssFileKind::Csv) != self.gnss.csv.is_some() {
-            bad.push("gnss.format = \"csv\" and a [gnss.csv] mapping go together".into());
+            push(
+                "gnss",
+                "format",
+                "gnss.format = \"csv\" and a [gnss.csv] mapping go together".into(),
+            );
         }
         if self.gnss.log.is_some()
             && !matches!(self.gnss.format, GnssFileKind::Nmea | GnssFileKind::Ubx)
         {
-            bad.push("[gnss.log] goes with gnss.format = \"nmea\" or \"ubx\"".into());
+            push(
+                "gnss.log",
+                "",
+                "[gnss.log] goes with gnss.format = \"nmea\" or \"ubx\"".into(),
+            );
         }
         if !self.imu.mounting.is_finite() {
-            bad.push("imu.mounting angles must be finite".into());
+            push(
+                "imu.mounting",
+                "",
+                "imu.mounting angles must be finite".into(),
+            );
         }
-        if !self.imu.time_offset_s.is_finite() || !self.gnss.time_offset_s.is_finite() {
-            bad.push("time offsets must be finite".into());
+        if !self.imu.time_offset_s.is_finite() {
+            push(
+                "imu",
+                "time_offset_s",
+                "imu.time_offset_s must be finite".into(),
+            );
+        }
+        if !self.gnss.time_offset_s.is_finite() {
+            push(
+                "gnss",
+                "time_offset_s",
+                "gnss.time_offset_s must be finite".into(),
+            );
         }
         if !(1..=6).contains(&self.gnss.max_q) {
-            bad.push(format!(
-                "gnss.max_q must be in 1..=6, got {}",
-                self.gnss.max_q
-            ));
+            push(
+                "gnss",
+                "max_q",
+                format!("gnss.max_q must be in 1..=6, got {}", self.gnss.max_q),
+            );
         }
         if !self.gnss.lever_arm_m.iter().all(|v| v.is_finite()) {
-            bad.push("gnss.lever_arm_m must be finite".into());
+            push(
+                "gnss",
+                "lever_arm_m",
+                "gnss.lever_arm_m must be finite".into(),
+            );
         }
         if !(self.gnss.sigma_scale.is_finite() && self.gnss.sigma_scale > 0.0) {
-            bad.push("gnss.sigma_scale must be > 0".into());
+            push("gnss", "sigma_scale", "gnss.sigma_scale must be > 0".into());
         }
         let sig_ok = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
-        if !(sig_ok(&self.init.pos_std_m)
-            && sig_ok(&self.init.vel_std_mps)
-            && sig_ok(&self.init.att_std_deg))
-        {
-            bad.push("init sigmas must be finite and >= 0".into());
+        for (key, v) in [
+            ("pos_std_m", &self.init.pos_std_m),
+            ("vel_std_mps", &self.init.vel_std_mps),
+            ("att_std_deg", &self.init.att_std_deg),
+        ] {
+            if !sig_ok(v) {
+                push(
+                    "init",
+                    key,
+                    format!("init.{key}: sigmas must be finite and >= 0"),
+                );
+            }
         }
         match self.init.mode() {
-            Err(e) => bad.push(e),
+            Err(e) => push("init", "", e),
             Ok(InitMode::Given(g)) => {
                 let mut all = g
                     .pos_deg_deg_m
@@ -370,33 +423,39 @@ impl RunConfig {
                     .chain(&g.vel_ned_mps)
                     .chain(&g.rpy_deg);
                 if !all.all(|v| v.is_finite()) || g.pos_deg_deg_m[0].abs() > 90.0 {
-                    bad.push("init.given: state must be finite with |lat| <= 90 deg".into());
+                    push(
+                        "init.given",
+                        "",
+                        "init.given: state must be finite with |lat| <= 90 deg".into(),
+                    );
                 }
             }
             Ok(InitMode::Align(a)) => {
                 if !(a.static_s.is_finite() && a.static_s > 0.0) {
-                    bad.push("init.align.static_s must be > 0".into());
+                    push(
+                        "init.align",
+                        "static_s",
+                        "init.align.static_s must be > 0".into(),
+                    );
                 }
                 if a.yaw_deg.is_some_and(|y| !y.is_finite())
                     || !a.yaw_from_gnss_min_speed_mps.is_finite()
                     || !(a.max_gravity_mismatch_mps2.is_finite()
                         && a.max_gravity_mismatch_mps2 > 0.0)
                 {
-                    bad.push("init.align: yaw_deg, yaw_from_gnss_min_speed_mps must be finite, max_gravity_mismatch_mps2 > 0".into());
+                    push("init.align", "", "init.align: yaw_deg, yaw_from_gnss_min_speed_mps must be finite, max_gravity_mismatch_mps2 > 0".into());
                 }
             }
         }
         if let (Some(a), Some(b)) = (self.start_s, self.end_s) {
             if b.partial_cmp(&a) != Some(std::cmp::Ordering::Greater) {
-                bad.push(format!("end_s {b} must be after start_s {a}"));
+                push("", "end_s", format!("end_s {b} must be after start_s {a}"));
             }
         }
-        bad.extend(self.noise.problems());
-        if bad.is_empty() {
-            Ok(())
-        } else {
-            Err(bad.join("; "))
+        for p in self.noise.problems() {
+            push("noise", "", p);
         }
+        bad
     }
 }
 
@@ -464,6 +523,29 @@ pub fn key_line(text: &str, table: &str, key: &str) -> Option<usize> {
     None
 }
 
+/// The 1-based line of the header `[table]` of `text` (None for the top level or a table
+/// not written as a header).
+pub fn table_line(text: &str, table: &str) -> Option<usize> {
+    if table.is_empty() {
+        return None;
+    }
+    text.lines()
+        .position(|raw| {
+            raw.trim()
+                .strip_prefix('[')
+                .map(|h| h.trim_start_matches('['))
+                .and_then(|h| h.split(']').next())
+                .is_some_and(|h| {
+                    h.split('.')
+                        .map(|p| p.trim().trim_matches('"'))
+                        .collect::<Vec<_>>()
+                        .join(".")
+                        == table
+                })
+        })
+        .map(|i| i + 1)
+}
+
 /// Parses and validates a run configuration from TOML text (`name` is used in errors).
 pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     let cfg: RunConfig = toml::from_str(text).map_err(|e| IoError::Config {
@@ -487,11 +569,24 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
             source: None,
         });
     }
-    cfg.validate().map_err(|message| IoError::Config {
-        path: name.to_path_buf(),
-        message,
-        source: None,
-    })?;
+    let problems = cfg.problems();
+    if !problems.is_empty() {
+        let message = problems
+            .iter()
+            .map(|(table, key, msg)| {
+                match key_line(text, table, key).or_else(|| table_line(text, table)) {
+                    Some(l) => format!("line {l}: {msg}"),
+                    None => msg.clone(),
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        return Err(IoError::Config {
+            path: name.to_path_buf(),
+            message,
+            source: None,
+        });
+    }
     if let Some(a) = &cfg.aiding {
         if let Err(message) = a.to_config() {
             // name the line of the offending key (the error names `table.key`)
@@ -523,7 +618,8 @@ pub fn read_run_config(path: impl AsRef<Path>) -> Result<RunConfig, IoError> {
         path: path.to_path_buf(),
         source,
     })?;
-    parse_run_config(path, &text)
+    // a UTF-8 byte-order mark (written by some Windows editors) is not TOML
+    parse_run_config(path, text.strip_prefix('\u{feff}').unwrap_or(&text))
 }
 
 /// Writes a run configuration as TOML.

@@ -23,7 +23,7 @@
 //! (~1e-16 rad ~ 1e-9 m on the earth's surface). Fields are separated by one space, without a
 //! header line, so KF-GINS reads the files too.
 
-use super::lines::{open_text, DataLine, MonotonicTime};
+use super::lines::{cut_short, open_text, DataLine, MonotonicTime};
 use super::IoError;
 use flate2::write::GzEncoder;
 use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
@@ -272,6 +272,8 @@ fn collect_record(
 pub struct ImuTextReader {
     rd: super::lines::LineReader,
     mono: MonotonicTime,
+    /// The last sample yielded (an exact repeat of it is passed on, see [`ImuTextReader`]).
+    prev: Option<ImuSample>,
     failed: bool,
 }
 
@@ -295,6 +297,7 @@ impl ImuTextReader {
         Self {
             rd,
             mono: MonotonicTime::new(),
+            prev: None,
             failed: false,
         }
     }
@@ -305,6 +308,18 @@ impl ImuTextReader {
     }
 
     fn read(&mut self) -> Result<Option<(ImuSample, usize)>, IoError> {
+        match self.read_line() {
+            Ok(Some((s, line))) => {
+                self.prev = Some(s);
+                Ok(Some((s, line)))
+            }
+            // a last line cut short (a log still being written): the file ends before it
+            Err(e) if cut_short(&self.rd, &e) => Ok(None),
+            r => r,
+        }
+    }
+
+    fn read_line(&mut self) -> Result<Option<(ImuSample, usize)>, IoError> {
         loop {
             if !self.rd.advance()? {
                 return Ok(None);
@@ -320,11 +335,36 @@ impl ImuTextReader {
             // same line, which gives the same values and the errors with their columns
             if let Some(dl) = self.rd.current_data()? {
                 let s = parse_imu_line(&dl)?;
+                if self.prev.is_some_and(|p| same_sample(&p, &s)) {
+                    // an exact repeat of the previous line (a logger writing a record
+                    // twice): passed on, the run skips and counts it
+                    return Ok(Some((s, line)));
+                }
                 self.mono.check(&dl, 0, IMU_NAMES[0], s.t_s)?;
                 return Ok(Some((s, line)));
             }
         }
     }
+}
+
+/// Whether two IMU samples are the same record: equal time, increments and temperature (NaN
+/// temperatures equal), bit for bit.
+pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
+    let bits = |s: &ImuSample| {
+        [
+            s.t_s,
+            s.dtheta_rad[0],
+            s.dtheta_rad[1],
+            s.dtheta_rad[2],
+            s.dv_mps[0],
+            s.dv_mps[1],
+            s.dv_mps[2],
+        ]
+        .map(f64::to_bits)
+    };
+    bits(a) == bits(b)
+        && (a.temperature_c.to_bits() == b.temperature_c.to_bits()
+            || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
 }
 
 /// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
@@ -539,6 +579,14 @@ impl GnssTextReader {
     }
 
     fn read(&mut self) -> Result<Option<GnssFix>, IoError> {
+        match self.read_line() {
+            // a last line cut short (a log still being written): the file ends before it
+            Err(e) if cut_short(&self.rd, &e) => Ok(None),
+            r => r,
+        }
+    }
+
+    fn read_line(&mut self) -> Result<Option<GnssFix>, IoError> {
         let Some(dl) = self.rd.next_data()? else {
             return Ok(None);
         };
@@ -676,6 +724,14 @@ impl NavTextReader {
     }
 
     fn read(&mut self) -> Result<Option<NavSolution>, IoError> {
+        match self.read_line() {
+            // a last line cut short (a log still being written): the file ends before it
+            Err(e) if cut_short(&self.rd, &e) => Ok(None),
+            r => r,
+        }
+    }
+
+    fn read_line(&mut self) -> Result<Option<NavSolution>, IoError> {
         let Some(dl) = self.rd.next_data()? else {
             return Ok(None);
         };
@@ -693,17 +749,33 @@ impl NavTextReader {
 impl Iterator for NavTextReader {
     type Item = Result<NavSolution, IoError>;
 
-    /// The next record; after an error, `None`.
+    /// The next record. After an error about one line (a field that does not parse, a time
+    /// not after the previous record's) the next call reads on from the next line, so a
+    /// caller may skip a bad record; after an error about the file (opening, reading, not
+    /// text), `None`.
     fn next(&mut self) -> Option<Self::Item> {
         if self.failed {
             return None;
         }
         let r = self.read().transpose();
-        if matches!(r, Some(Err(_))) {
-            self.failed = true;
+        if let Some(Err(e)) = &r {
+            self.failed = !is_line_error(e);
         }
         r
     }
+}
+
+/// Whether `e` is about the content of one line (the reader can go on with the next line).
+pub fn is_line_error(e: &IoError) -> bool {
+    matches!(
+        e,
+        IoError::TooFewFields { .. }
+            | IoError::TooManyFields { .. }
+            | IoError::NotANumber { .. }
+            | IoError::NonFinite { .. }
+            | IoError::InvalidValue { .. }
+            | IoError::NonMonotonicTime { .. }
+    )
 }
 
 /// Writes navigation solutions in the KF-GINS nav format (standard deviations and status are

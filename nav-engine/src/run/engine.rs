@@ -290,13 +290,55 @@ struct Feed<I> {
     last_t: f64,
     info: ImuSourceInfo,
     peeked: Option<ImuItem>,
+    /// The last sample read (an exact repeat of it is skipped).
+    last: Option<ImuSample>,
+    /// Exact repeats of the previous sample skipped (a record written twice), and the first
+    /// of them as events.
+    repeats: u64,
+    repeat_events: Vec<ImuEvent>,
 }
 
 impl<I: Iterator<Item = Result<ImuItem, RunError>>> Feed<I> {
+    fn new(src: I, info: ImuSourceInfo) -> Self {
+        Self {
+            buf: VecDeque::new(),
+            src,
+            index: 0,
+            last_t: f64::NEG_INFINITY,
+            info,
+            peeked: None,
+            last: None,
+            repeats: 0,
+            repeat_events: Vec::new(),
+        }
+    }
+
     fn read(&mut self) -> Result<Option<ImuItem>, RunError> {
-        let Some(it) = self.src.next().transpose()? else {
-            return Ok(None);
+        let it = loop {
+            let Some(it) = self.src.next().transpose()? else {
+                return Ok(None);
+            };
+            if !self
+                .last
+                .is_some_and(|p| nav_io::text::same_sample(&p, &it.sample))
+            {
+                break it;
+            }
+            // the same record again (a logger writing it twice): skipped, counted with the
+            // rejected samples
+            self.repeats += 1;
+            if self.repeat_events.len() < MAX_IMU_EVENTS {
+                let idx = self.index + self.buf.len() + usize::from(self.peeked.is_some());
+                self.repeat_events.push(ImuEvent {
+                    t_s: it.sample.t_s,
+                    location: self.info.locate(idx, it.line),
+                    what: "rejected: an exact repeat of the previous sample (same time and \
+                           values)"
+                        .into(),
+                });
+            }
         };
+        self.last = Some(it.sample);
         // `index` counts the samples handed out; the buffered ones come first
         let idx = self.index + self.buf.len() + usize::from(self.peeked.is_some());
         if self.last_t.is_finite()
@@ -407,14 +449,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     let mut outages = opts.outages.clone();
     outage::normalise(&mut outages).map_err(RunError::Options)?;
 
-    let mut feed = Feed {
-        buf: VecDeque::new(),
-        src: imu,
-        index: 0,
-        last_t: f64::NEG_INFINITY,
-        info,
-        peeked: None,
-    };
+    let mut feed = Feed::new(imu, info);
     // the start-up buffer: the nominal-interval window, and the static window when longer
     feed.fill(|b| b.len() >= NOMINAL_WINDOW)?;
     if let init::InitSpec::StaticAlignment(sa) = &opts.init {
@@ -772,6 +807,13 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     imu_report.missing_samples = g.missing_samples;
     imu_report.gaps_spanned = g.gaps_spanned;
     imu_report.gaps_filled = g.gaps_filled;
+    counters.imu_implausible += feed.repeats;
+    for e in feed.repeat_events.drain(..) {
+        if imu_report.events.len() < MAX_IMU_EVENTS {
+            imu_report.events.push(e);
+        }
+    }
+    imu_report.events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     imu_report.rejected = counters.imu_implausible;
     let history = hooks.rec.finish(
         filter.covariance(),

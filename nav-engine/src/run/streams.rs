@@ -15,7 +15,7 @@
 //! made up front: the engine's IMU guard reports the gaps as it meets them (run summary,
 //! `metrics.json` `imu`).
 
-use crate::mounting::{MountingCheck, MountingChecker};
+use crate::mounting::{ImuInput, MountingCheck, MountingChecker};
 use anyhow::bail;
 use nav_core::types::{GnssFix, ImuSample};
 use nav_io::runcfg::GnssReadSummary;
@@ -228,7 +228,10 @@ pub struct Prefix {
     /// Time of the first IMU sample, s (the configuration's offsets applied, not the run's
     /// extra one).
     pub first_t_s: f64,
-    /// The mounting check on the prefix ([`crate::mounting::check_mounting`]).
+    /// The mounting check on the prefix ([`crate::mounting::check_mounting`]: mounting,
+    /// units, sample rate, GNSS time offset); its warnings end with those about a last line
+    /// cut short in the IMU or GNSS file ([`nav_io::incomplete_last_line`]: a log still being
+    /// written, whose last line the readers drop).
     pub mounting: MountingCheck,
 }
 
@@ -251,7 +254,11 @@ pub fn read_prefix(
     };
     let first_t_s = first.0.t_s;
     let end = first_t_s + MOUNTING_PREFIX_S;
-    let mut c = MountingChecker::new();
+    let input = match imu {
+        ImuFile::Config(c) if c.config.imu.format == ImuFileKind::Csv => ImuInput::CsvRates,
+        _ => ImuInput::Increments,
+    };
+    let mut c = MountingChecker::for_input(input);
     let mut fixes: Box<dyn Iterator<Item = GnssFix> + '_> = match gnss {
         Some(f) => match f.open() {
             Ok(rd) => Box::new(rd.map_while(Result::ok)),
@@ -283,9 +290,17 @@ pub fn read_prefix(
         }
         c.push_fix(&g);
     }
+    let mut mounting = c.finish();
+    let files = std::iter::once(imu.path()).chain(gnss.map(GnssFile::path));
+    for p in files {
+        // a file that cannot be read here is reported by its reader
+        if let Ok(Some(cut)) = nav_io::incomplete_last_line(&p) {
+            mounting.warnings.push(cut.to_string());
+        }
+    }
     Ok(Prefix {
         first_t_s,
-        mounting: c.finish(),
+        mounting,
     })
 }
 

@@ -63,10 +63,22 @@ impl TruthFile {
     }
 
     /// The records on the calling thread, read line by line (an RTKLIB `.pos` file with all
-    /// qualities kept).
+    /// qualities kept). A nav text line that does not parse (or whose time is not after the
+    /// previous record's) is skipped with a warning on stderr ([`SkipBadLines`]): the truth
+    /// only scores the run, one bad epoch must not stop it.
     pub fn open(&self) -> Result<TruthSource<'static>, IoError> {
+        self.open_with(true)
+    }
+
+    /// [`TruthFile::open`]; `warn`: print the warnings about skipped lines (false for the
+    /// short reads before the run, which would repeat them).
+    fn open_with(&self, warn: bool) -> Result<TruthSource<'static>, IoError> {
         Ok(match self.format {
-            TruthFileKind::NavText => Box::new(NavTextReader::open(&self.path)?),
+            TruthFileKind::NavText => Box::new(SkipBadLines {
+                rd: NavTextReader::open(&self.path)?,
+                warn,
+                skipped: 0,
+            }),
             TruthFileKind::RtklibPos => Box::new(
                 nav_io::PosReader::open(&self.path, &PosOptions { max_q: 6 })?
                     .map(|r| r.map(|(f, _line)| truth_from_fix(&f))),
@@ -77,7 +89,7 @@ impl TruthFile {
     /// Checks that the file opens and its first record parses (the rest is checked as the
     /// run reads it).
     pub fn check(&self) -> Result<(), IoError> {
-        self.open()?.next().transpose().map(|_| ())
+        self.open_with(false)?.next().transpose().map(|_| ())
     }
 
     /// The records read and parsed by a thread of their own and handed over in chunks of
@@ -94,6 +106,47 @@ impl TruthFile {
             move || file.open(),
             |source| IoError::Open { path, source },
         ))
+    }
+}
+
+/// Warnings printed about skipped truth lines (the rest are counted at the end).
+pub const MAX_TRUTH_WARNINGS: usize = 10;
+
+/// A nav text truth file whose bad lines are skipped: each is a warning on stderr (the first
+/// [`MAX_TRUTH_WARNINGS`], then a count at the end of the file); errors about the file as a
+/// whole (opening, reading, not text) still end the stream.
+pub struct SkipBadLines {
+    rd: NavTextReader,
+    warn: bool,
+    skipped: usize,
+}
+
+impl Iterator for SkipBadLines {
+    type Item = Result<NavSolution, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            match self.rd.next() {
+                Some(Err(e)) if nav_io::text::is_line_error(&e) => {
+                    self.skipped += 1;
+                    if self.warn && self.skipped <= MAX_TRUTH_WARNINGS {
+                        eprintln!("warning: truth {e}: that truth epoch is skipped");
+                    }
+                }
+                None => {
+                    if self.warn && self.skipped > MAX_TRUTH_WARNINGS {
+                        eprintln!(
+                            "warning: truth {}: {} bad line(s) skipped in all",
+                            self.rd.path().display(),
+                            self.skipped
+                        );
+                    }
+                    self.warn = false;
+                    return None;
+                }
+                r => return r,
+            }
+        }
     }
 }
 
@@ -136,7 +189,7 @@ pub fn start_records(
         return Ok(Some(Vec::new()));
     }
     let start_s = opts.start_s.unwrap_or(f64::NEG_INFINITY);
-    for r in file.open().map_err(RunError::Input)? {
+    for r in file.open_with(false).map_err(RunError::Input)? {
         let s = r.map_err(RunError::Input)?;
         // the initialisation's own rule (see `init::initialise`)
         if s.t_s >= start_s && s.t_s.is_finite() {
