@@ -8,6 +8,7 @@
 //!   with its magnitude, and no effect added;
 //! * GNSS errors larger than declared (white 3x, Gauss-Markov 10 cm / 200 s): the
 //!   `gnss_position_gm` block's estimate significant in the diagnosis.
+#![allow(clippy::needless_range_loop)]
 use host_sim::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use host_sim::sim::errors::{Axes3, UG_MPS2};
 use host_sim::sim::{simulate, ErrorModel, Scenario};

@@ -8,6 +8,7 @@
 //!   analytic columns: offset `v_ant + a tau`, rate `(v_ant + a tau)(t_fix - t_0)`, GNSS error
 //!   `+I` on the position and nothing on the velocity), and the columns the filter's Jacobian
 //!   code writes must be those.
+#![allow(clippy::needless_range_loop)]
 use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, SensorNoise};
 use nav_core::filter::{dcm_f64, Filter, InitialUncertainty};

@@ -6,7 +6,10 @@
 //! 1. Onset: a CUSUM of the position innovations' log-likelihood ratio for a variance
 //!    inflation ([`CUSUM_INFLATION`]) over the used fixes; the step is placed at the first fix
 //!    after the last zero of the statistic before its peak, when the peak exceeds
-//!    [`CUSUM_ALARM_NATS`].
+//!    [`CUSUM_ALARM_NATS`]. A step needs a consistent model before it: at least
+//!    [`MIN_FIXES_BEFORE`] used fixes before the onset with a mean position NIS below
+//!    [`MAX_NIS_BEFORE`] (an effect present from the start, which inflates the innovations
+//!    throughout, is left to the effect search).
 //! 2. Magnitude: the IMU data after the onset are corrected by a candidate step `c` (body
 //!    axes) and the filter re-run. The innovations are linear in `c` to first order,
 //!    `nu(c) = nu(c0) + J (c - c0)`, with J from one re-run per axis; `c` minimises
@@ -34,6 +37,10 @@ pub const CUSUM_INFLATION: f64 = 4.0;
 pub const CUSUM_ALARM_NATS: f64 = 25.0;
 /// Half-width of the search for the step time around the CUSUM onset, s.
 pub const TIME_SEARCH_S: f64 = 6.0;
+/// Used fixes needed before the onset.
+pub const MIN_FIXES_BEFORE: usize = 60;
+/// Largest mean position NIS (3 dimensions: expected 3) of the fixes before the onset.
+pub const MAX_NIS_BEFORE: f64 = 6.0;
 /// Log-likelihood gain the corrected run must have beyond the BIC penalty, nats.
 pub const MIN_GAIN_NATS: f64 = 10.0;
 
@@ -163,10 +170,7 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     let mut start_t = f64::NAN;
     let mut best: Option<(f64, f64)> = None;
     for r in innovations.iter().filter(|r| in_stats(r)) {
-        let d = r.dim.min(3);
-        let nis: f64 = (0..d)
-            .map(|i| r.innovation[i] * r.innovation[i] / r.innovation_var[i])
-            .sum();
+        let (nis, d) = position_nis(r);
         let llr = 0.5 * nis * (1.0 - 1.0 / lam) - 0.5 * d as f64 * lam.ln();
         if s <= 0.0 {
             start_t = r.t_s;
@@ -177,6 +181,19 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
         }
     }
     best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
+}
+
+/// The normalised squared position innovation of a fix (diagonal variances) and its dimension.
+fn position_nis(r: &InnovationRecord) -> (f64, usize) {
+    let d = r.dim.min(3);
+    let nis = r
+        .innovation
+        .iter()
+        .zip(&r.innovation_var)
+        .take(d)
+        .map(|(z, v)| z * z / v)
+        .sum();
+    (nis, d)
 }
 
 /// The fixes a fit uses: the used fixes (not withheld) at or after `t_from`.
@@ -245,14 +262,20 @@ fn gauss_newton(
         if js.len() != 3 {
             continue;
         }
-        for i in 0..3 {
-            let w = 1.0 / r.innovation_var[i];
-            let nu = r.innovation[i];
-            let row = nalgebra::Vector3::new(
-                (js[0][i] - nu) / h,
-                (js[1][i] - nu) / h,
-                (js[2][i] - nu) / h,
-            );
+        for (i, (nu, var)) in r
+            .innovation
+            .iter()
+            .zip(&r.innovation_var)
+            .take(3)
+            .enumerate()
+        {
+            let (nu, w) = (*nu, 1.0 / var);
+            let col = |j: usize| {
+                js.get(j)
+                    .and_then(|v| v.get(i))
+                    .map_or(0.0, |x| (x - nu) / h)
+            };
+            let row = nalgebra::Vector3::new(col(0), col(1), col(2));
             a += row * row.transpose() * w;
             g += row * (w * nu);
         }
@@ -285,6 +308,17 @@ fn fit(
 /// corrected run does not pay.
 pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
     let (onset, _) = cusum_onset(&base.innovations)?;
+    let before: Vec<f64> = base
+        .innovations
+        .iter()
+        .filter(|r| in_stats(r) && r.t_s < onset)
+        .map(|r| position_nis(r).0)
+        .collect();
+    if before.len() < MIN_FIXES_BEFORE
+        || before.iter().sum::<f64>() / before.len() as f64 > MAX_NIS_BEFORE
+    {
+        return None;
+    }
     let t0 = case.imu.first().map(|s: &ImuSample| s.t_s)?;
     let rs = residual_stats(&base.innovations);
     let base_ll = rs.log_likelihood;

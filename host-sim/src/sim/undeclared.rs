@@ -680,10 +680,9 @@ mod tests {
                     }
                     Effect::GnssCorrelatedError => {
                         let (w, r) = (m.gnss.white_sigma_ned_m.0, m.gnss.reported_std());
-                        for i in 0..3 {
-                            assert!((2.0..=4.0).contains(&(w[i] / r[i])), "{w:?} {r:?}");
-                            let g = m.gnss.gm_sigma_ned_m.0[i];
-                            assert!((0.05..=0.15).contains(&g), "{g}");
+                        for ((w, r), g) in w.iter().zip(&r).zip(&m.gnss.gm_sigma_ned_m.0) {
+                            assert!((2.0..=4.0).contains(&(w / r)), "{w} {r}");
+                            assert!((0.05..=0.15).contains(g), "{g}");
                         }
                         assert!((100.0..=300.0).contains(&m.gnss.gm_tau_s));
                     }
