@@ -18,7 +18,10 @@
 //!    for the accelerometers and the gyros; the sensor whose corrected run gains more
 //!    log-likelihood is kept. The 1-sigma of `c` is that of the weighted least squares.
 //! 3. Time: the corrected run is repeated with the step moved by up to
-//!    [`TIME_SEARCH_S`] in 1 s steps; the time of largest log-likelihood is kept.
+//!    [`TIME_SEARCH_S`] in 1 s steps; the time of largest log-likelihood is kept. A step's
+//!    time is sharp: moving it by [`TIME_SEARCH_S`] either way must cost at least
+//!    [`MIN_SHARPNESS_NATS`] (a slowly growing error, e.g. a drifting clock, that a small step
+//!    absorbs in part has a flat profile and is left to the effect search).
 //!
 //! A step is reported when the corrected run gains more than the BIC penalty of its four
 //! parameters (3 axes and the time) plus [`MIN_GAIN_NATS`]. [`BiasStep::corrected_case`] gives
@@ -37,6 +40,8 @@ pub const CUSUM_INFLATION: f64 = 4.0;
 pub const CUSUM_ALARM_NATS: f64 = 25.0;
 /// Half-width of the search for the step time around the CUSUM onset, s.
 pub const TIME_SEARCH_S: f64 = 6.0;
+/// Log-likelihood a step must lose when moved by [`TIME_SEARCH_S`] either way, nats.
+pub const MIN_SHARPNESS_NATS: f64 = 20.0;
 /// Used fixes needed before the onset.
 pub const MIN_FIXES_BEFORE: usize = 60;
 /// Largest mean position NIS (3 dimensions: expected 3) of the fixes before the onset.
@@ -336,14 +341,31 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
     }
     // the time: the corrected run's likelihood over +-TIME_SEARCH_S in 1 s steps
     let n = TIME_SEARCH_S as i32;
-    let (t_best, ll_best) = (-n..=n)
+    let profile: Vec<(f64, f64)> = (-n..=n)
         .into_par_iter()
         .filter_map(|k| {
             let t = t_s + f64::from(k);
             run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
         })
+        .collect();
+    let (t_best, ll_best) = profile
+        .iter()
+        .copied()
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap_or((t_s, ll));
+    // sharp in time: the profile's ends (the best time moved by TIME_SEARCH_S, or the scan's
+    // ends) lose at least MIN_SHARPNESS_NATS
+    let at = |t: f64| {
+        profile
+            .iter()
+            .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))
+            .map_or(f64::INFINITY, |p| p.1)
+    };
+    let lo = at(t_best - TIME_SEARCH_S);
+    let hi = at(t_best + TIME_SEARCH_S);
+    if ll_best - lo.max(hi) < MIN_SHARPNESS_NATS {
+        return None;
+    }
     // refit the magnitude at the chosen time
     let (step, sigma, ll) = if t_best != t_s {
         fit(case, opts, base, sensor, t_best)

@@ -53,9 +53,10 @@ pub fn frozen_in(cfg: &FilterConfig, b: Block) -> bool {
     }
 }
 
-/// Whether the run's model carries block `b` (in its layout or as an extra block).
+/// Whether the run's model carries block `b` or one of its kind (in its layout or as an
+/// extra block: `imu_clock_drift` carries the time offset).
 pub fn carried(opts: &RunOptions, b: Block) -> bool {
-    opts.model.layout().contains(b.kind()) || opts.extra_blocks.contains(&b)
+    opts.model.layout().contains(b.kind()) || opts.extra_blocks.iter().any(|e| e.kind() == b.kind())
 }
 
 /// Whether the run's model carries block `b` frozen ([`frozen_in`]): declared absent.
