@@ -45,7 +45,11 @@
 //! (m_ij: fraction of the body-axis-j input sensed by sensor i); `lever_arm`: m, body FRD,
 //! the correction to the configured antenna lever arm; `time_offset`: s, a fix tagged t is
 //! the antenna at IMU time t + estimate; `accel_temperature_bias`: m/s^2/degC;
-//! `gyro_temperature_bias`: rad/s/degC; `gyro_g_sensitivity`: rad/s per m/s^2 (diagonal).
+//! `gyro_temperature_bias`: rad/s/degC; `gyro_g_sensitivity`: rad/s per m/s^2 (diagonal);
+//! `imu_clock_drift`: `[dt_0 s, rate s/s]`, the fix tagged t is the antenna at IMU time
+//! `t + dt_0 + rate (t - t_0)`; `gnss_position_gm`: m, NED, the GNSS position error at the
+//! end. A bias step ([`changepoint`]) is reported apart ([`Diagnosis::bias_step`]).
+pub mod changepoint;
 pub mod noise;
 pub mod prior;
 pub mod report;
@@ -286,6 +290,9 @@ pub struct Diagnosis {
     /// Time added to the IMU time stamps of the after solution in `nav_after.txt`, s: minus
     /// the time offset estimate (the output on the GNSS clock), 0 without one.
     pub output_clock_shift_s: f64,
+    /// A bias step found in the data ([`changepoint`]): removed from the data the search and
+    /// the final model use.
+    pub bias_step: Option<changepoint::BiasStep>,
     /// Position errors of the base model.
     pub error_before: ErrorSummary,
     /// Position errors of the final model.
@@ -420,6 +427,26 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     // so neither absorbs the other)
     let mut base_opts = p.opts.clone();
     let mut cur: Eval = (before.clone(), errors_before.clone(), se_before);
+    // a bias step is not a state: found as a change point and removed from the data
+    let bias_step = changepoint::find_bias_step(&p.case, &p.opts, &before);
+    let stepped;
+    let p = match &bias_step {
+        Some(s) => {
+            stepped = Prepared {
+                case: s.corrected_case(&p.case),
+                ..p.clone()
+            };
+            cur = evaluate(&stepped, &p.opts, dopts.smooth)?;
+            steps.push(Step {
+                label: format!("bias step removed: {}", s.describe()),
+                accepted: true,
+                reason: None,
+                errors: cur.2,
+            });
+            &stepped
+        }
+        None => p,
+    };
     let mut noise_tuning = if dopts.tune_noise {
         Some(noise::tune(&p.case, &p.opts, &residuals_before))
     } else {
@@ -703,7 +730,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             t.with_effects = Some(Box::new(t2));
         }
     }
-    let changed = final_opts.filter != p.opts.filter || !added.is_empty();
+    let changed = final_opts.filter != p.opts.filter || !added.is_empty() || bias_step.is_some();
     let (after, errors_after) = if changed {
         execute_case(&p.case, &final_opts, &mut |_, _| {})
             .map(|(r, m)| (Arc::new(r), m))
@@ -765,6 +792,9 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             verdict.push_str(&format!("; {a}"));
         }
     }
+    if let Some(s) = &bias_step {
+        verdict.push_str(&format!("; {} at {:.1} s", s.name, s.t_s));
+    }
     if let Some(u) = rounds.last().and_then(|r| r.unexplained.as_ref()) {
         warnings.push(format!("likelihood gain no effect explains: {u}"));
     }
@@ -808,6 +838,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             residuals_after,
             rounds,
             output_clock_shift_s,
+            bias_step,
             error_before,
             error_after,
             errors_before,
