@@ -12,17 +12,18 @@ use serde::Serialize;
 /// `run --smooth`: smooths the forward run `fwd` (metrics `m`), writes the smoothed
 /// `nav.txt`, `std.txt` (and the other outputs), the forward solution as `nav_forward.txt`,
 /// and `metrics.json` with the forward metrics at the top level and the smoothed ones under
-/// `smoothed` (with `smoother`: memory and time); prints both summaries.
+/// `smoothed` (with `smoother`: memory and time), all in `dir` (the stage folder of
+/// `--out`); prints both summaries.
 pub fn finish(
     args: &RunArgs,
     p: &Prepared,
+    dir: &std::path::Path,
     fwd: RunOutput,
     m: Metrics,
     t_run_s: f64,
 ) -> anyhow::Result<()> {
     let (out, _, rep) = smooth_run(&p.case, &fwd)?;
     let ms = metrics::compute(&out, p.case.truth.as_deref());
-    let dir = &args.out;
     let rate = |nav: &[NavSolution]| match args.nav_rate {
         Some(r) if r > 0.0 => decimate(nav, r),
         _ => nav.to_vec(),
@@ -87,7 +88,7 @@ pub fn finish(
     println!(
         "wrote {}/{{nav.txt, std.txt (smoothed), nav_forward.txt, bias.txt (forward), \
          innovations.txt (vs smoothed), metrics.json}}",
-        dir.display()
+        args.out.display()
     );
     Ok(())
 }
