@@ -60,7 +60,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-use crate::run::cli::{execute, execute_case, prepare, Prepared, RunArgs};
+use crate::run::cli::{execute, execute_case, Prepared, RunArgs};
 use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::outdir::OutDir;
 use nav_engine::run::{output, run_filter, RunOptions, RunOutput, MAX_EXTRA_DIM};
