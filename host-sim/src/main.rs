@@ -31,6 +31,12 @@ enum Cmd {
 
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
+    if matches!(cli.cmd, Cmd::Run(_) | Cmd::Diagnose(_)) {
+        // SIGINT/SIGTERM: a run keeps what it processed as *.partial (else the default)
+        if let Err(e) = nav_engine::run::interrupt::install() {
+            eprintln!("warning: SIGINT/SIGTERM handling not installed: {e}");
+        }
+    }
     let res = match cli.cmd {
         Cmd::Allan(a) => host_sim::allan::cli::run(a),
         Cmd::Simulate(a) => host_sim::sim::cli::run(a),
@@ -43,7 +49,11 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));
-            std::process::ExitCode::FAILURE
+            // stopped by a signal: 128 + its number, as a shell reports it
+            nav_engine::run::interrupt::exit_code().map_or(
+                std::process::ExitCode::FAILURE,
+                std::process::ExitCode::from,
+            )
         }
     }
 }

@@ -55,6 +55,7 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
         l.imu_stream.as_ref(),
         l.truth_stream.as_ref(),
         out,
+        &l.inputs,
         None,
         &mut |_, _| {},
     )
@@ -265,6 +266,7 @@ fn a_bad_csv_row_mid_stream_names_file_and_line_and_keeps_the_outputs_before_it(
         l.imu_stream.as_ref(),
         l.truth_stream.as_ref(),
         &out,
+        &l.inputs,
         None,
         &mut |_, _| {},
     )

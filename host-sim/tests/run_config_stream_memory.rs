@@ -54,6 +54,7 @@ fn measure(minutes: f64, with_loaded: bool) -> Measured {
             l.imu_stream.as_ref(),
             l.truth_stream.as_ref(),
             &out,
+            &l.inputs,
             None,
             &mut |_, _| {},
         )

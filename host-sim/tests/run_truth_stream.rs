@@ -226,7 +226,7 @@ fn a_streamed_truth_gives_the_in_memory_engines_files() {
     let mut q = p.clone();
     q.case.truth = None;
     let tf = TruthFile::nav_text(PathBuf::from(&truth_nav));
-    let (r4, _) = execute_streaming(&q, None, Some(&tf), &a, None, &mut |_, _| {}).unwrap();
+    let (r4, _) = execute_streaming(&q, None, Some(&tf), &a, &[], None, &mut |_, _| {}).unwrap();
     assert_eq!(r4.init.method, "truth");
     assert!((r4.init.t_s - 200_040.0).abs() < 0.011, "{}", r4.init.t_s);
     let m4 = same_files(&a, &b, "initialisation from the truth");

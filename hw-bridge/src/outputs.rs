@@ -3,12 +3,20 @@
 //! when the replay is finished. A killed replay leaves `*.partial` files holding everything up
 //! to the last checkpoint; a file without the suffix is complete.
 //!
+//! The output folder is opened as a [`nav_engine::run::outdir::OutDir`] ([`open_out`]): a
+//! folder holding one of the replay's inputs (the capture, the configuration and the files
+//! it names, the case folder) is refused before anything is written, and so is a folder
+//! another run or replay is writing into (the lock names its pid). Every file is created new
+//! (a file or link under its name is replaced, never written through); the summary and the
+//! filter's outputs are written in the stage folder and moved into place at the end.
+//!
 //! The text formats are those of `nav_io` (the same digits, byte for byte: the test
 //! `streamed_outputs_equal_nav_io_writers_byte_for_byte` checks it).
 
 use anyhow::Context;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_core::wire::Health;
+use nav_engine::run::outdir::{create_new_file, OutDir};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -24,10 +32,32 @@ pub fn partial_name(path: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// Writes `contents` to `path` through its `.partial` name and a rename.
+/// Opens the output folder `dir` of a replay reading `capture` (and, with `config`, the
+/// files of that run configuration and of the case folder `case`): see the module notes.
+pub fn open_out(
+    dir: &Path,
+    capture: &Path,
+    config: Option<&Path>,
+    case: Option<&Path>,
+) -> anyhow::Result<OutDir> {
+    let mut inputs = vec![capture.to_path_buf()];
+    if let Some(c) = config {
+        let mut spec = nav_engine::RunSpec::new(c);
+        spec.case = case.map(Path::to_path_buf);
+        inputs.extend(
+            nav_engine::run::prepare::run_inputs(&spec)
+                .with_context(|| format!("preparing the filter from {}", c.display()))?,
+        );
+    }
+    Ok(OutDir::open(dir, &inputs)?)
+}
+
+/// Writes `contents` to `path` through its `.partial` name (created new) and a rename.
 pub fn write_atomically(path: &Path, contents: &[u8]) -> anyhow::Result<()> {
     let tmp = partial_name(path);
-    std::fs::write(&tmp, contents).with_context(|| format!("writing {}", tmp.display()))?;
+    create_new_file(&tmp)
+        .and_then(|mut f| f.write_all(contents))
+        .with_context(|| format!("writing {}", tmp.display()))?;
     rename(&tmp, path)
 }
 
@@ -47,7 +77,7 @@ impl Stream {
     fn create(dir: &Path, name: &str) -> anyhow::Result<Self> {
         let final_path = dir.join(name);
         let tmp = partial_name(&final_path);
-        let f = File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        let f = create_new_file(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
         Ok(Self {
             final_path,
             w: BufWriter::new(f),
@@ -213,8 +243,16 @@ impl FrameFiles {
             } else {
                 let path = st.final_path.clone();
                 drop(st);
+                // host-sim's writer's text (nav_io::write_imu_text), into a file created new
                 let tmp = partial_name(&path);
-                nav_io::write_imu_text(&tmp, imu)?;
+                let with_temp = self.imu_any_temperature;
+                let mut w = BufWriter::new(
+                    create_new_file(&tmp).with_context(|| format!("creating {}", tmp.display()))?,
+                );
+                for s in imu {
+                    io(nav_io::write_imu_line(&mut w, s, with_temp), &path)?;
+                }
+                io(w.flush(), &path)?;
                 rename(&tmp, &path)?;
                 done.push(path);
             }

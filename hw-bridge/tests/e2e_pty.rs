@@ -347,6 +347,7 @@ fn send_record_replay_with_config_equals_the_run_engine_on_the_case_files_bit_fo
         loaded.imu_stream.as_ref(),
         loaded.truth_stream.as_ref(),
         &out_sim,
+        &loaded.inputs,
         None,
         &mut |_, _| {},
     )

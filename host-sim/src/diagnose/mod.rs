@@ -64,8 +64,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-use crate::run::cli::{execute, execute_case, prepare, Prepared, RunArgs};
+use crate::run::cli::{execute, execute_case, Prepared, RunArgs};
 use nav_engine::metrics::{self, Metrics};
+use nav_engine::run::outdir::OutDir;
 use nav_engine::run::{output, run_filter, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
 pub use prior::{candidates, options_with};
@@ -895,8 +896,14 @@ fn short_list(v: &[f64]) -> String {
 }
 
 /// Runs `host-sim diagnose`.
+///
+/// The outputs are written in the stage folder of `--out` ([`OutDir`]: refused when it holds
+/// one of the inputs or another run is writing into it) and moved into place at the end;
+/// SIGINT/SIGTERM before that end the process with `--out` unchanged.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
-    let p = prepare(&args.run)?;
+    let l = crate::run::cli::load(&args.run, false)?;
+    let p = l.prepared;
+    let od = OutDir::open(&args.run.out, &l.inputs)?;
     println!("{}", p.description);
     let dopts = DiagnoseOptions {
         max_effects: args.max_effects,
@@ -907,7 +914,11 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     };
     let d = diagnose(&p, &dopts)?;
     let dir: &PathBuf = &args.run.out;
-    write_outputs(dir, &p, &d, Some(&args.run.config))?;
+    write_outputs(od.stage(), &p, &d, Some(&args.run.config))?;
+    let moving = nav_engine::run::interrupt::Stoppable::enter();
+    od.commit()
+        .with_context(|| format!("moving the outputs into {}", dir.display()))?;
+    drop(moving);
     let dg = &d.diagnosis;
     println!("effects the model lacks: {}", dg.verdict);
     for w in &dg.warnings {

@@ -5,8 +5,11 @@
 //!
 //! The configuration is the project's run configuration (TOML) or a KF-GINS YAML file
 //! ([`nav_engine::run::prepare`]). Outputs in `--out` (default `run-out`): `nav.txt`,
-//! `std.txt`, `bias.txt`, `innovations.txt`, `metrics.json`, each written as `NAME.partial`
-//! and renamed when all are complete ([`nav_engine::run::execute`]). A fault in the middle of
+//! `std.txt`, `bias.txt`, `innovations.txt`, `metrics.json`, written in a stage folder inside
+//! `--out` and moved into place when all are complete ([`nav_engine::run::outdir`]: an `--out`
+//! holding one of the run's inputs, or locked by another run, is refused; the previous
+//! complete outputs stay until then). SIGINT/SIGTERM stop the run at the next IMU sample with
+//! the outputs up to there as `*.partial` ([`nav_engine::run::interrupt`]). A fault in the middle of
 //! the data (a gap longer than `--imu-max-gap`, a numerical failure, an implausible sample
 //! with `--imu-strict`) stops the run with the outputs up to it as `*.partial` and exit code 1.
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], options `--imu-*` and `[imu.checks]`.
@@ -20,6 +23,7 @@ pub use nav_engine::run::execute::{
     decimate, execute, execute_case, execute_streaming, imu_summary, metrics_json,
     threaded_imu_reader,
 };
+use nav_engine::run::outdir::OutDir;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
 };
@@ -214,7 +218,10 @@ pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<Loaded> {
     load(args, true)
 }
 
-fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
+/// Loads a run from the arguments ([`nav_engine::load`]; `stream`: see
+/// [`prepare_streaming`]) and prints the warnings about the data to stderr; the files it
+/// reads are in [`Loaded::inputs`].
+pub fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
     let l = nav_engine::load(&args.spec()?, stream)?;
     for w in &l.warnings {
         eprintln!("warning: {w}");
@@ -223,12 +230,19 @@ fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
 }
 
 /// `run --smooth`: the inputs streamed as by `run`, the forward pass, the backward pass and
-/// the smoothed outputs in bounded memory ([`super::smoothed::finish`]).
+/// the smoothed outputs in bounded memory ([`super::smoothed::finish`]). The outputs are
+/// written in the stage folder of `--out` ([`OutDir`]) and moved into place at the end; a
+/// smoothed run stopped by SIGINT/SIGTERM leaves `--out` as it was.
 fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
     let l = prepare_streaming(args)?;
+    let od = OutDir::open(&args.out, &l.inputs)?;
     println!("{}", l.prepared.description);
-    super::smoothed::finish(args, &l, t)
+    super::smoothed::finish(args, &l, od.stage(), t)?;
+    let _moving = nav_engine::run::interrupt::Stoppable::enter();
+    od.commit()
+        .with_context(|| format!("moving the outputs into {}", args.out.display()))?;
+    Ok(())
 }
 
 /// Runs `host-sim run` (streaming: see [`execute_streaming`]).
@@ -241,6 +255,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         prepared: p,
         imu_stream: imu,
         truth_stream: truth,
+        inputs,
         ..
     } = prepare_streaming(&args)?;
     println!("{}", p.description);
@@ -259,6 +274,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         imu.as_ref(),
         truth.as_ref(),
         dir,
+        &inputs,
         args.nav_rate,
         &mut |done, _| pb.set_position(done as u64),
     );

@@ -38,9 +38,14 @@ fn metrics_json(
 /// `run --smooth`: runs the loaded case smoothed, writes the smoothed `nav.txt`, `std.txt`
 /// (and the other outputs), the forward solution as `nav_forward.txt`, and `metrics.json`
 /// with the forward metrics at the top level and the smoothed ones under `smoothed` (with
-/// `smoother`: sizes and times); prints both summaries. `t0`: start of the command.
-pub fn finish(args: &RunArgs, l: &Loaded, t0: std::time::Instant) -> anyhow::Result<()> {
-    let dir = &args.out;
+/// `smoother`: sizes and times) in `dir` (the stage folder of `--out`); prints both summaries.
+/// `t0`: start of the command.
+pub fn finish(
+    args: &RunArgs,
+    l: &Loaded,
+    dir: &std::path::Path,
+    t0: std::time::Instant,
+) -> anyhow::Result<()> {
     let SmoothedRun {
         forward: fwd,
         forward_metrics: m,
@@ -96,7 +101,7 @@ pub fn finish(args: &RunArgs, l: &Loaded, t0: std::time::Instant) -> anyhow::Res
     println!(
         "wrote {}/{{nav.txt, std.txt (smoothed), nav_forward.txt, bias.txt (forward), \
          innovations.txt (vs smoothed), metrics.json}}",
-        dir.display()
+        args.out.display()
     );
     Ok(())
 }

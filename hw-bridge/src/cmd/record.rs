@@ -7,7 +7,7 @@ use crate::status::{decoder_summary, StatusLine};
 use anyhow::{bail, Context};
 use nav_core::wire::{DecoderStats, FrameDecoder};
 use std::io::{BufWriter, Read};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 /// `record` options.
@@ -99,6 +99,8 @@ pub struct RecordOutcome {
 /// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
 /// reopened until it comes back or a stop condition is met.
 pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
+    // the capture must not be written over its own input (the port's device file)
+    nav_engine::run::outdir::check_not_input(&a.out, Path::new(&a.port))?;
     let file = std::fs::File::create(&a.out)
         .with_context(|| format!("creating capture {}", a.out.display()))?;
     let header = CaptureHeader {

@@ -3,7 +3,7 @@
 use super::*;
 use crate::capture::{CaptureError, CaptureReader, Record};
 use crate::frames::FrameLog;
-use crate::outputs::{partial_name, rename, write_atomically, FrameFiles};
+use crate::outputs::{open_out, partial_name, rename, write_atomically, FrameFiles};
 use crate::serial;
 use crate::status::decoder_report;
 use anyhow::{bail, Context};
@@ -230,6 +230,17 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         skipped_bytes: rd.skipped_bytes(),
         ..ReplayOutcome::default()
     };
+    // the output folder checked (none of the inputs in it) and locked before anything is
+    // written in it
+    let od = match &a.out {
+        Some(dir) => Some(open_out(
+            dir,
+            &a.capture,
+            a.config.as_deref(),
+            a.case.as_deref(),
+        )?),
+        None => None,
+    };
     let mut files = match &a.out {
         Some(dir) if a.input == InputKind::Frames => Some(FrameFiles::new(dir, CHECKPOINT)?),
         _ => None,
@@ -377,27 +388,33 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
     }
     out.wall_s = start.elapsed().as_secs_f64();
     // The decoded files and the summary first: a filter run that fails leaves them in place.
-    if let Some(dir) = &a.out {
+    if let Some(od) = &od {
         if let Some(w) = files.take() {
             w.finish(&out.log.imu)?;
         }
-        write_outputs(dir, &out, a.input, &gnss)?;
+        write_outputs(od.stage(), &out, a.input, &gnss)?;
     }
-    if let Some(cfg) = &a.config {
-        if a.input != InputKind::Frames {
-            bail!("--config runs the filter on wire frames: not with --input gnss");
-        }
-        out.filter = Some(run_filter_on_frames(
-            &out.log,
-            cfg,
-            a.case.as_deref(),
-            a.model,
-            a.f32,
-        )?);
+    let filter = match &a.config {
+        Some(_) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
+            "--config runs the filter on wire frames: not with --input gnss"
+        )),
+        Some(cfg) => run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32)
+            .and_then(|f| {
+                if let Some(od) = &od {
+                    write_filter_outputs(od.stage(), &f)?;
+                }
+                Ok(Some(f))
+            }),
+        None => Ok(None),
+    };
+    // everything written moved into the output folder, the filter's outputs when it ran
+    if let Some(od) = od {
+        let _moving = nav_engine::run::interrupt::Stoppable::enter();
+        od.commit()?;
+    }
+    out.filter = filter?;
+    if out.filter.is_some() {
         out.wall_s = start.elapsed().as_secs_f64();
-        if let (Some(dir), Some(f)) = (&a.out, &out.filter) {
-            write_filter_outputs(dir, f)?;
-        }
     }
     Ok(out)
 }

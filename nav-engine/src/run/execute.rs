@@ -15,6 +15,7 @@
 //! `"complete": false` and the fault).
 
 use super::coast::{coast_outages, CoastMode};
+use super::outdir::OutDir;
 use super::output;
 use super::prepare::{ImuStream, Prepared};
 use super::streams::ImuFile;
@@ -77,15 +78,26 @@ pub fn execute_case(
 /// `*.partial` and returns [`super::RunError::Fault`] (its `partial` holds the summary, no
 /// records); so does an error reading the streamed IMU file in the middle (the error names
 /// file and line; the run ends at the last sample before it, `metrics.json.partial` says
-/// `"complete": false` and the error); other errors leave no output.
+/// `"complete": false` and the error), and so does SIGINT/SIGTERM once
+/// [`super::interrupt::install`] is in place (the run ends at the next IMU sample); other
+/// errors leave no output.
+///
+/// The folder `dir` is an [`OutDir`]: refused when it holds one of `inputs` (the files the
+/// run reads, [`super::prepare::Loaded::inputs`]) or when another run is writing into it;
+/// the files are written in its stage folder and moved into `dir` at the end, the complete
+/// outputs of an earlier run staying in place until then (an incomplete run's `*.partial`
+/// files are moved in beside them).
 pub fn execute_streaming(
     p: &Prepared,
     imu: Option<&ImuStream>,
     truth: Option<&TruthFile>,
     dir: &Path,
+    inputs: &[PathBuf],
     nav_rate_hz: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
+    let _stoppable = super::interrupt::Stoppable::enter();
+    let od = OutDir::open(dir, inputs)?;
     let opts = p.opts.clone();
     // the truth: the metrics' stream, and the records the initialisation looks at
     let truth_file = truth;
@@ -96,8 +108,13 @@ pub fn execute_streaming(
         (None, Some(v)) => Some(Box::new(v.iter().copied().map(Ok))),
         (None, None) => None,
     };
-    let mut sink =
-        super::sink::FileSink::create(dir, p.week, nav_rate_hz, &opts.outages, metrics_truth)?;
+    let mut sink = super::sink::FileSink::create(
+        od.stage(),
+        p.week,
+        nav_rate_hz,
+        &opts.outages,
+        metrics_truth,
+    )?;
     let data = super::RunData {
         gnss: &p.case.gnss,
         truth,
@@ -130,7 +147,11 @@ pub fn execute_streaming(
             }
         }
         None => {
-            let (mut it, info) = super::case_imu_stream(&p.case);
+            let (it, info) = super::case_imu_stream(&p.case);
+            let mut it = StopAtError {
+                inner: it,
+                err: &mut read_err,
+            };
             super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
         }
     };
@@ -139,7 +160,9 @@ pub fn execute_streaming(
             // the record ended at a read error: the outputs up to it, marked incomplete
             let fault = e.to_string();
             let t_last = sink.last_nav_t();
-            let written = sink.finish(&out, Some(&fault), |m| metrics_json(m, &out, Some(&fault)));
+            let written = sink
+                .finish(&out, Some(&fault), |m| metrics_json(m, &out, Some(&fault)))
+                .and_then(|m| Ok((m, od.commit()?)));
             return Err(match written {
                 Ok(_) => anyhow::anyhow!(
                     "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
@@ -163,6 +186,8 @@ pub fn execute_streaming(
         Ok(out) => {
             let m = sink
                 .finish(&out, None, |m| metrics_json(m, &out, None))
+                .and_then(|m| Ok((m, od.commit()?)))
+                .map(|(m, _)| m)
                 .with_context(|| {
                     format!(
                         "writing the outputs in {}: incomplete, left as *{} (no file under its \
@@ -181,9 +206,11 @@ pub fn execute_streaming(
         }) => {
             let fault = format!("{location} (t = {t_s:.6} s): {cause}");
             let t_last = sink.last_nav_t();
-            let written = sink.finish(&partial, Some(&fault), |m| {
-                metrics_json(m, &partial, Some(&fault))
-            });
+            let written = sink
+                .finish(&partial, Some(&fault), |m| {
+                    metrics_json(m, &partial, Some(&fault))
+                })
+                .and_then(|m| Ok((m, od.commit()?)));
             Err(match written {
                 Ok(_) => anyhow::anyhow!(
                     "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
@@ -197,18 +224,18 @@ pub fn execute_streaming(
                 ),
             })
         }
-        Err(e @ super::RunError::Output(_)) => Err(anyhow::Error::new(e).context(format!(
-            "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
-            dir.display(),
-            output::PARTIAL_SUFFIX
-        ))),
-        Err(e) => {
+        Err(e @ super::RunError::Output(_)) => {
+            // what was written, moved in as *.partial (best effort: the disk may be full)
             drop(sink);
-            for n in output::OUTPUT_NAMES {
-                let _ = std::fs::remove_file(output::partial_path(dir, n));
-            }
-            Err(e.into())
+            let _ = od.commit();
+            Err(anyhow::Error::new(e).context(format!(
+                "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
+                dir.display(),
+                output::PARTIAL_SUFFIX
+            )))
         }
+        // the stage folder removed with `od`: the output folder as it was
+        Err(e) => Err(e.into()),
     }
 }
 
@@ -224,6 +251,12 @@ impl<I: Iterator<Item = Result<super::ImuItem, super::RunError>>> Iterator for S
 
     fn next(&mut self) -> Option<Self::Item> {
         if self.err.is_some() {
+            return None;
+        }
+        if let Some(sig) = super::interrupt::requested() {
+            *self.err = Some(super::RunError::Interrupted {
+                signal: super::interrupt::signal_name(sig),
+            });
             return None;
         }
         match self.inner.next()? {

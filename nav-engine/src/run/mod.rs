@@ -29,7 +29,9 @@ pub mod execute;
 mod fault;
 pub mod gating_report;
 pub mod init;
+pub mod interrupt;
 pub mod outage;
+pub mod outdir;
 pub mod output;
 pub mod prepare;
 mod reader_thread;
@@ -587,6 +589,12 @@ pub enum RunError {
     /// Writing an output failed.
     #[error("run: writing the outputs: {0}")]
     Output(#[source] nav_io::IoError),
+    /// SIGINT or SIGTERM asked the run to stop (see [`interrupt`]).
+    #[error("run: interrupted by {signal}")]
+    Interrupted {
+        /// The signal's name.
+        signal: String,
+    },
     /// The filter refused its construction or failed.
     #[error("run: filter at t = {t_s:.3} s: {source}")]
     Filter {

@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::Path;
 
 fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, IoError> {
-    let f = std::fs::File::create(path).map_err(|source| IoError::Open {
+    let f = super::outdir::create_new_file(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
         source,
     })?;
@@ -239,11 +239,12 @@ pub fn partial_path(dir: &Path, name: &str) -> std::path::PathBuf {
 }
 
 /// Writes every output of a run so that a file under its final name is always complete:
-/// outputs of an earlier run under the final names are removed first, each file is written
-/// to `NAME.partial` and synced to disk, and only when all are written and `complete` (the
-/// run reached its end) are they renamed to their final names. On a write error (a full
-/// disk) or when `complete` is false the `.partial` files stay, and nothing under a final
-/// name claims to be the result. Returns the paths written.
+/// each file is written to `NAME.partial` (created new: a file or link under that name is
+/// replaced, never written through) and synced to disk, and only when all are written and
+/// `complete` (the run reached its end) are they renamed to their final names (replacing an
+/// earlier run's). On a write error (a full disk) or when `complete` is false the `.partial`
+/// files stay. Returns the paths written. The command line writes into the stage folder of an
+/// [`super::outdir::OutDir`], which moves them into `--out`.
 pub fn write_all(
     dir: &Path,
     run: &RunOutput,
@@ -252,23 +253,17 @@ pub fn write_all(
     metrics_json: &str,
     complete: bool,
 ) -> Result<Vec<std::path::PathBuf>, IoError> {
-    for name in OUTPUT_NAMES {
-        let p = dir.join(name);
-        match std::fs::remove_file(&p) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => return Err(IoError::Write { path: p, source }),
-        }
-    }
     let [p_nav, p_std, p_bias, p_inn, p_met] = OUTPUT_NAMES.map(|n| partial_path(dir, n));
     write_nav(&p_nav, nav, week)?;
     write_std(&p_std, run)?;
     write_bias(&p_bias, run)?;
     write_innovations(&p_inn, &run.innovations)?;
-    std::fs::write(&p_met, metrics_json).map_err(|source| IoError::Write {
-        path: p_met.clone(),
-        source,
-    })?;
+    super::outdir::create_new_file(&p_met)
+        .and_then(|mut f| f.write_all(metrics_json.as_bytes()))
+        .map_err(|source| IoError::Write {
+            path: p_met.clone(),
+            source,
+        })?;
     let partial = [p_nav, p_std, p_bias, p_inn, p_met];
     for p in &partial {
         std::fs::File::open(p)

@@ -140,6 +140,10 @@ pub struct Loaded {
     /// The truth file the run reads as the solution advances instead of loading it (asked
     /// with `stream_imu`; then `prepared.case.truth` is None), see [`super::truth`].
     pub truth_stream: Option<super::truth::TruthFile>,
+    /// Every file (and case folder) the run reads: the configuration, the case folder and its
+    /// files, IMU (and its time-tag file), GNSS, truth, aiding. An output folder must hold
+    /// none of them ([`super::outdir::check_inputs`]).
+    pub inputs: Vec<PathBuf>,
 }
 
 /// Parses `--imu-gaps`.
@@ -291,6 +295,70 @@ fn read_case_dir(dir: &Path) -> anyhow::Result<CaseDir> {
     })
 }
 
+/// The files a run of `spec` reads (as [`Loaded::inputs`] lists them), from its
+/// configuration and case folder alone, without loading any data: for a front end that must
+/// check its output folder before it writes anything (`hw-bridge replay --config`). A
+/// configuration that cannot be read is an error.
+pub fn run_inputs(spec: &RunSpec) -> anyhow::Result<Vec<PathBuf>> {
+    let kind = read_config(&spec.config).context("reading the run configuration")?;
+    let cfg_dir = spec
+        .config
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    let case_dir = match &spec.case {
+        Some(d) => Some(read_case_dir(d)?),
+        None if cfg_dir.join("case.toml").exists() && matches!(kind, ConfigKind::KfGins(_)) => {
+            Some(read_case_dir(&cfg_dir)?)
+        }
+        None => None,
+    };
+    Ok(input_files(spec, &kind, &cfg_dir, case_dir.as_ref()))
+}
+
+/// The files a run of `args` reads, as [`Loaded::inputs`] lists them.
+fn input_files(
+    args: &RunSpec,
+    kind: &ConfigKind,
+    cfg_dir: &Path,
+    case_dir: Option<&CaseDir>,
+) -> Vec<PathBuf> {
+    let mut v = vec![args.config.clone()];
+    v.extend(args.truth.iter().cloned());
+    if let Some(d) = &args.case {
+        v.push(d.clone());
+        v.push(d.join("case.toml"));
+    }
+    if let Some(c) = case_dir {
+        v.extend([c.imu.clone(), c.gnss.clone(), c.truth.clone()]);
+        v.extend(c.odometer.iter().chain(c.heading.iter()).cloned());
+    }
+    match kind {
+        ConfigKind::Run(r) => {
+            let imu = RunConfig::resolve(cfg_dir, &r.imu.path);
+            if let Some(nav_io::imucsv::CsvTime::TicksMs {
+                tag_file: Some(t), ..
+            }) = r.imu.csv.as_ref().map(|c| &c.time)
+            {
+                let csv_dir = imu.parent().map(Path::to_path_buf).unwrap_or_default();
+                v.push(RunConfig::resolve(&csv_dir, t));
+            }
+            v.push(imu);
+            v.push(RunConfig::resolve(cfg_dir, &r.gnss.path));
+            v.extend(r.truth.iter().map(|t| RunConfig::resolve(cfg_dir, &t.path)));
+            if let Some(a) = &r.aiding {
+                let files = a.odometer.file.iter().chain(a.heading.file.iter());
+                v.extend(files.map(|f| RunConfig::resolve(cfg_dir, f)));
+            }
+        }
+        ConfigKind::KfGins(k) => {
+            v.push(k.resolve_path(&k.imupath, cfg_dir));
+            v.push(k.resolve_path(&k.gnsspath, cfg_dir));
+        }
+    }
+    v
+}
+
 fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     // small angles: roll/pitch/yaw sigmas as phi N/E/D sigmas (exact at zero roll/pitch)
     att_std_rad
@@ -324,6 +392,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         }
         None => None,
     };
+    let mut inputs = input_files(args, &kind, &cfg_dir, case_dir.as_ref());
     // streamed, the truth is not loaded: it is read as the solution advances
     let truth_stream = if stream {
         let cd_truth = case_dir.as_ref().map(|c| c.truth.as_path());
@@ -466,6 +535,13 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     opts.record.nav_rate_hz = None;
     opts.record.epoch_rate_hz = Some(args.std_rate_hz);
     opts.smoother_history = args.smoother_history;
+    inputs.extend(opts.aiding.odometer_file.iter().cloned());
+    inputs.extend(opts.aiding.heading_file.iter().cloned());
+    if let Some(st) = &imu_stream {
+        inputs.push(st.file.path());
+        inputs.extend(st.gnss.as_ref().map(|g| g.file.path()));
+    }
+    inputs.extend(truth_stream.as_ref().map(|t| t.path.clone()));
     Ok(Loaded {
         prepared: Prepared {
             case,
@@ -476,6 +552,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         imu_stream,
         warnings,
         truth_stream,
+        inputs,
     })
 }
 

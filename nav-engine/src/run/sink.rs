@@ -109,71 +109,6 @@ impl Drop for Syncer {
     }
 }
 
-/// The previous run's outputs in `dir` moved aside (renamed to a hidden name in the same
-/// directory, which is immediate) and deleted by a thread of their own: deleting a large file
-/// held in the page cache takes tens of ms (a 95 MB `nav.txt`: 45 to 90 ms), which the run no
-/// longer waits for. The final names are free as soon as [`Remover::start`] returns, as
-/// before. A name that is not a file (or cannot be renamed) is removed in place, with the
-/// error as before. Joined when the sink finishes or is dropped.
-struct Remover {
-    thread: Option<JoinHandle<()>>,
-}
-
-impl Remover {
-    fn start(dir: &Path) -> Result<Self, RunError> {
-        let mut aside = Vec::new();
-        for name in output::OUTPUT_NAMES {
-            let p = dir.join(name);
-            let is_file = std::fs::symlink_metadata(&p).is_ok_and(|m| !m.is_dir());
-            if is_file {
-                let q = dir.join(format!(".{name}.old-{}", std::process::id()));
-                if std::fs::rename(&p, &q).is_ok() {
-                    aside.push(q);
-                    continue;
-                }
-            }
-            match std::fs::remove_file(&p) {
-                Ok(()) => {}
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                Err(source) => return Err(RunError::Output(IoError::Write { path: p, source })),
-            }
-        }
-        if aside.is_empty() {
-            return Ok(Self { thread: None });
-        }
-        let files = aside.clone();
-        let spawned = std::thread::Builder::new()
-            .name("run-unlink".into())
-            .spawn(move || {
-                for q in files {
-                    let _ = std::fs::remove_file(q);
-                }
-            });
-        match spawned {
-            Ok(h) => Ok(Self { thread: Some(h) }),
-            Err(_) => {
-                for q in aside {
-                    let _ = std::fs::remove_file(q);
-                }
-                Ok(Self { thread: None })
-            }
-        }
-    }
-
-    /// Waits for the deletions.
-    fn join(&mut self) {
-        if let Some(h) = self.thread.take() {
-            let _ = h.join();
-        }
-    }
-}
-
-impl Drop for Remover {
-    fn drop(&mut self) {
-        self.join();
-    }
-}
-
 /// A writer that counts the bytes that went through it (a line formatted straight into the
 /// file's buffer, no intermediate line vector).
 struct Counted<'a, W: Write> {
@@ -201,7 +136,7 @@ impl<W: Write> Write for Counted<'_, W> {
 
 impl Out {
     fn create(path: PathBuf) -> Result<Self, RunError> {
-        let f = File::create(&path).map_err(|source| {
+        let f = super::outdir::create_new_file(&path).map_err(|source| {
             RunError::Output(IoError::Open {
                 path: path.clone(),
                 source,
@@ -327,8 +262,6 @@ impl Writer {
 /// Writes the outputs of a run as it goes (on a writer thread) and computes its metrics
 /// online (on the caller's thread).
 pub struct FileSink<'a> {
-    /// Deletes the previous run's outputs in the background.
-    remover: Remover,
     dir: PathBuf,
     /// Records not yet sent to the writer.
     batch: Vec<Rec>,
@@ -351,7 +284,9 @@ pub const COAST_MODE_NAMES: [&str; 2] =
     ["raw: no sensor-error correction", "static gyro bias only"];
 
 impl<'a> FileSink<'a> {
-    /// Removes earlier outputs in `dir` and opens the `.partial` files. `outages` must be the
+    /// Opens the `.partial` files in `dir` (created new: a file or link under such a name is
+    /// replaced, never written through; a run writes into the stage folder of an
+    /// [`super::outdir::OutDir`]). `outages` must be the
     /// run's outages and `truth` the reference when there is one (its records in time order,
     /// read as the solution advances; a slice in memory is `slice.iter().copied().map(Ok)`).
     /// `nav_rate_hz`: rate of `nav.txt` (None: every record; the metrics always see every
@@ -369,7 +304,6 @@ impl<'a> FileSink<'a> {
                 source,
             })
         })?;
-        let remover = Remover::start(dir)?;
         let [p_nav, p_std, p_bias, p_inn, _] =
             output::OUTPUT_NAMES.map(|n| output::partial_path(dir, n));
         let mut outages = outages.to_vec();
@@ -408,7 +342,6 @@ impl<'a> FileSink<'a> {
                 })
             })?;
         Ok(Self {
-            remover,
             dir: dir.to_path_buf(),
             batch: Vec::with_capacity(BATCH),
             tx: Some(tx),
@@ -537,9 +470,8 @@ impl<'a> FileSink<'a> {
         let (finished, met) = std::thread::scope(|sc| {
             let handles = outs.map(|(o, c)| sc.spawn(move || o.finish(c)));
             let met = json(&m).and_then(|text| {
-                std::fs::write(&p_met, text)
-                    .and_then(|()| File::open(&p_met))
-                    .and_then(|f| f.sync_all())
+                super::outdir::create_new_file(&p_met)
+                    .and_then(|mut f| f.write_all(text.as_bytes()).and_then(|()| f.sync_all()))
                     .map_err(|source| {
                         anyhow::Error::from(IoError::Write {
                             path: p_met.clone(),
@@ -563,7 +495,6 @@ impl<'a> FileSink<'a> {
         }
         met?;
         paths.push(p_met);
-        self.remover.join();
         if fault.is_none() {
             for p in &paths {
                 let s = p.to_string_lossy();

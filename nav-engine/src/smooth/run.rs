@@ -81,7 +81,7 @@ pub fn execute_smoothed(
         .tempdir_in(dir)
         .with_context(|| format!("creating a temporary folder in {}", dir.display()))?;
     let (mut fwd, forward_metrics) =
-        match execute_streaming(p, imu, truth, tmp.path(), nav_rate_hz, progress) {
+        match execute_streaming(p, imu, truth, tmp.path(), &[], nav_rate_hz, progress) {
             Ok(r) => r,
             Err(e) => {
                 // a fault mid-run leaves the forward outputs up to it: kept where the error

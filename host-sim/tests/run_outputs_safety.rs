@@ -1,0 +1,407 @@
+//! `host-sim run` / `diagnose` used carelessly or with hostile folders, through the binary:
+//! `--out` at the input folder, links placed under output names, two runs into one folder,
+//! SIGTERM / SIGINT in the middle of a run. Each check compares content hashes: no input and
+//! no previous complete output may change.
+use std::collections::BTreeMap;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+use test_support::cli::Bin;
+use test_support::runcase::{case_config, simulate_case, TACTICAL_NOISE};
+use test_support::scenario::four_minute_drive;
+
+const OUTPUTS: [&str; 5] = [
+    "nav.txt",
+    "std.txt",
+    "bias.txt",
+    "innovations.txt",
+    "metrics.json",
+];
+
+fn bin() -> Bin {
+    Bin::new(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A simulated 4-minute drive at 400 Hz (96,000 IMU epochs: long enough to be interrupted),
+/// simulated once per test binary: `(folder, case folder)`.
+fn case() -> &'static (PathBuf, PathBuf) {
+    static CASE: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    CASE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap().keep();
+        let sc = four_minute_drive("safety").imu_rate_hz(400.0).build();
+        let case = simulate_case(bin(), &dir, "case", &sc, "tactical", 3);
+        (dir, case)
+    })
+}
+
+/// A fresh folder holding a copy of the case: `imu.txt`, `gnss.txt`, the truth as `nav.txt`
+/// (an input named like an output) and `run.toml` naming them.
+fn input_folder(name: &str) -> PathBuf {
+    let (dir, case) = case();
+    let d = dir.join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    for (from, to) in [
+        ("imu.txt", "imu.txt"),
+        ("gnss.txt", "gnss.txt"),
+        ("truth.nav", "nav.txt"),
+    ] {
+        std::fs::copy(case.join(from), d.join(to)).unwrap();
+    }
+    let cfg = case_config(name, &d, "gnss.txt", "text", "", TACTICAL_NOISE)
+        .replace("truth.nav", "nav.txt");
+    std::fs::write(d.join("run.toml"), cfg).unwrap();
+    d
+}
+
+fn hash_bytes(b: &[u8]) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    b.hash(&mut h);
+    h.finish()
+}
+
+/// Name -> content hash of every file in `d` (links: their target's path), recursively.
+fn hashes(d: &Path) -> BTreeMap<String, u64> {
+    let mut m = BTreeMap::new();
+    for e in std::fs::read_dir(d).unwrap().flatten() {
+        let p = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
+        let t = e.file_type().unwrap();
+        if t.is_symlink() {
+            let target = std::fs::read_link(&p).unwrap();
+            m.insert(name, hash_bytes(target.as_os_str().as_encoded_bytes()));
+        } else if t.is_dir() {
+            for (k, v) in hashes(&p) {
+                m.insert(format!("{name}/{k}"), v);
+            }
+        } else {
+            m.insert(name, hash_bytes(&std::fs::read(&p).unwrap()));
+        }
+    }
+    m
+}
+
+fn run_args(cfg: &Path, out: &Path) -> Vec<String> {
+    ["run", "--config", s(cfg), "--out", s(out), "--quiet"]
+        .map(String::from)
+        .to_vec()
+}
+
+/// The outputs of a complete run of `cfg` in a folder of its own (the reference).
+fn reference(cfg: &Path, name: &str) -> BTreeMap<String, u64> {
+    let out = case().0.join(name);
+    bin().run_ok(run_args(cfg, &out));
+    outputs_of(&out)
+}
+
+/// Hashes of the outputs under their final names in `out`, `metrics.json` without its
+/// timing fields (the wall time differs between two runs of the same case).
+fn outputs_of(out: &Path) -> BTreeMap<String, u64> {
+    let mut m = BTreeMap::new();
+    for n in OUTPUTS {
+        let p = out.join(n);
+        let Ok(b) = std::fs::read(&p) else { continue };
+        let h = if n == "metrics.json" {
+            let mut v: serde_json::Value = serde_json::from_slice(&b).unwrap();
+            strip_times(&mut v);
+            hash_bytes(v.to_string().as_bytes())
+        } else {
+            hash_bytes(&b)
+        };
+        m.insert(n.to_string(), h);
+    }
+    m
+}
+
+fn strip_times(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(o) => {
+            o.retain(|k, _| !k.contains("wall") && !k.ends_with("_s_run") && k != "run_time_s");
+            o.values_mut().for_each(strip_times);
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(strip_times),
+        _ => {}
+    }
+}
+
+#[test]
+fn out_holding_an_input_is_refused_before_anything_is_written() {
+    let d = input_folder("in-place");
+    let before = hashes(&d);
+    let cfg = d.join("run.toml");
+    let mut tried = 0;
+    // the folder itself, by another spelling, through a link, and diagnose
+    let link = case().0.join("in-place-link");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink(&d, &link).unwrap();
+    let other = d.join("..").join("in-place");
+    for out in [d.clone(), other, link.clone()] {
+        for cmd in ["run", "diagnose"] {
+            let ran = bin().run([cmd, "--config", s(&cfg), "--out", s(&out), "--quiet"]);
+            tried += 1;
+            assert!(!ran.ok, "{cmd} --out {}: {ran:?}", out.display());
+            assert!(
+                ran.stderr.contains("holds the input")
+                    && ran.stderr.contains("(nothing was written)"),
+                "{}",
+                ran.stderr
+            );
+            assert_eq!(
+                hashes(&d),
+                before,
+                "{cmd} --out {} changed the inputs",
+                out.display()
+            );
+        }
+    }
+    // the configuration elsewhere, the truth given on the command line from the folder
+    let cfg2 = case().0.join("in-place-elsewhere.toml");
+    std::fs::copy(&cfg, &cfg2).unwrap();
+    let ran = bin().run([
+        "run",
+        "--config",
+        s(&cfg2),
+        "--truth",
+        s(&d.join("nav.txt")),
+        "--out",
+        s(&d),
+        "--quiet",
+    ]);
+    tried += 1;
+    assert!(!ran.ok && ran.stderr.contains("nav.txt"), "{}", ran.stderr);
+    assert_eq!(hashes(&d), before);
+    // an input hard-linked into another folder under an output's name
+    let out = case().0.join("in-place-hardlink");
+    std::fs::create_dir_all(&out).unwrap();
+    let _ = std::fs::remove_file(out.join("nav.txt"));
+    std::fs::hard_link(d.join("imu.txt"), out.join("nav.txt")).unwrap();
+    let ran = bin().run(run_args(&cfg2, &out));
+    tried += 1;
+    assert!(
+        !ran.ok && ran.stderr.contains("another name"),
+        "{}",
+        ran.stderr
+    );
+    assert_eq!(hashes(&d), before);
+    println!("{tried} refusals, inputs unchanged");
+}
+
+#[cfg(unix)]
+#[test]
+fn links_under_output_names_are_replaced_not_written_through() {
+    let d = input_folder("links");
+    let cfg = d.join("run.toml");
+    let want = reference(&cfg, "links-ref");
+    let victims = case().0.join("links-victims");
+    std::fs::create_dir_all(&victims).unwrap();
+    let out = case().0.join("links-out");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut tried = 0;
+    for n in OUTPUTS {
+        for name in [n.to_string(), format!("{n}.partial")] {
+            let v = victims.join(&name);
+            std::fs::write(&v, format!("victim {name}\n")).unwrap();
+            let _ = std::fs::remove_file(out.join(&name));
+            std::os::unix::fs::symlink(&v, out.join(&name)).unwrap();
+            tried += 1;
+        }
+    }
+    // a link named like a stage folder and one at the lock file's name
+    std::os::unix::fs::symlink(&victims, out.join(".nav-out-stage-x")).unwrap();
+    let before = hashes(&victims);
+    let inputs = hashes(&d);
+    bin().run_ok(run_args(&cfg, &out));
+    assert_eq!(hashes(&victims), before, "a victim changed");
+    assert_eq!(hashes(&d), inputs, "an input changed");
+    assert_eq!(
+        outputs_of(&out),
+        want,
+        "the outputs are not the reference run's"
+    );
+    // a run that stops at a fault mid-run (a 2 s hole in the IMU data, longer than the 1 s
+    // bridged): its *.partial files replace links too
+    for n in OUTPUTS {
+        let name = format!("{n}.partial");
+        std::os::unix::fs::symlink(victims.join(&name), out.join(&name)).unwrap();
+    }
+    let bad = d.join("imu-gap.txt");
+    let imu = std::fs::read_to_string(d.join("imu.txt")).unwrap();
+    let half = imu.lines().count() / 2;
+    let text: String = imu
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(half..half + 800).contains(i))
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    std::fs::write(&bad, text).unwrap();
+    let cfg_bad = d.join("run-gap.toml");
+    let t = std::fs::read_to_string(&cfg).unwrap().replace(
+        &format!("path = \"{}\"", d.join("imu.txt").display()),
+        &format!("path = \"{}\"", bad.display()),
+    );
+    assert!(t.contains("imu-gap.txt"));
+    std::fs::write(&cfg_bad, t).unwrap();
+    let ran = bin().run(run_args(&cfg_bad, &out));
+    tried += 5;
+    assert!(
+        !ran.ok && ran.stderr.contains("stopped there"),
+        "{}",
+        ran.stderr
+    );
+    assert_eq!(hashes(&victims), before, "a victim changed");
+    // the previous complete outputs are still there, the partial ones beside them
+    assert_eq!(outputs_of(&out), want);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json.partial")).unwrap())
+            .unwrap();
+    assert_eq!(m["complete"], serde_json::Value::Bool(false));
+    assert!(!std::fs::symlink_metadata(out.join("nav.txt.partial"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    println!("{tried} links placed, none written through");
+}
+
+#[test]
+fn two_runs_into_one_folder_refuse_or_finish_whole() {
+    let d = input_folder("two");
+    let cfg = d.join("run.toml");
+    let want = reference(&cfg, "two-ref");
+    let out = case().0.join("two-out");
+    let (mut refused, mut both) = (0, 0);
+    for trial in 0..3 {
+        let spawn = || {
+            bin()
+                .command()
+                .args(run_args(&cfg, &out))
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        };
+        let (a, b) = (spawn(), spawn());
+        let (a, b) = (a.wait_with_output().unwrap(), b.wait_with_output().unwrap());
+        let errs: Vec<String> = [&a, &b]
+            .iter()
+            .filter(|o| !o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stderr).into_owned())
+            .collect();
+        assert!(errs.len() < 2, "trial {trial}: both failed: {errs:?}");
+        for e in &errs {
+            assert!(
+                e.contains("another run (pid ") && e.contains("nothing was written"),
+                "{e}"
+            );
+            refused += 1;
+        }
+        if errs.is_empty() {
+            both += 1;
+        }
+        assert_eq!(
+            outputs_of(&out),
+            want,
+            "trial {trial}: the outputs mix two runs"
+        );
+        let stray: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains("partial") || n.starts_with(".nav-out-stage"))
+            .collect();
+        assert!(stray.is_empty(), "{stray:?}");
+    }
+    println!("3 trials: {refused} refused with the owner's pid, {both} with both finishing");
+}
+
+/// Sends `sig` to a run into a folder holding a complete earlier run once its outputs are
+/// being written; the run keeps what it did as `*.partial` and the earlier outputs stay.
+fn interrupt_mid_run(sig: &str, code: i32) {
+    let d = input_folder(&format!("sig-{sig}"));
+    let cfg = d.join("run.toml");
+    let out = case().0.join(format!("sig-{sig}-out"));
+    bin().run_ok(run_args(&cfg, &out));
+    let before = hashes(&out);
+    let inputs = hashes(&d);
+    let mut child = bin()
+        .command()
+        .args(run_args(&cfg, &out))
+        .args(["--outage", "100:30"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // wait for the first written bytes in the stage folder
+    let t = Instant::now();
+    let started = loop {
+        let written = std::fs::read_dir(&out).unwrap().flatten().any(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .starts_with(".nav-out-stage")
+                && std::fs::metadata(e.path().join("nav.txt.partial")).is_ok_and(|m| m.len() > 0)
+        });
+        if written || t.elapsed() > Duration::from_secs(60) {
+            break written;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    };
+    assert!(started, "the run wrote nothing within 60 s");
+    let k = Command::new("kill")
+        .args([&format!("-{sig}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(k.success());
+    let st = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert_eq!(st.code(), Some(code), "{err}");
+    assert!(err.contains(&format!("interrupted by SIG{sig}")), "{err}");
+    // the earlier complete outputs and the inputs unchanged
+    let after = hashes(&out);
+    // (the lock file holds the last owner's pid)
+    for (k, v) in before
+        .iter()
+        .filter(|(k, _)| !k.starts_with(".nav-out.lock"))
+    {
+        assert_eq!(after.get(k), Some(v), "{k} changed");
+    }
+    assert_eq!(hashes(&d), inputs);
+    // what was processed, marked incomplete with the signal
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json.partial")).unwrap())
+            .unwrap();
+    assert_eq!(m["complete"], serde_json::Value::Bool(false));
+    assert!(
+        m["fault"].as_str().unwrap().contains(&format!("SIG{sig}")),
+        "{}",
+        m["fault"]
+    );
+    let nav = std::fs::read_to_string(out.join("nav.txt.partial")).unwrap();
+    let full = std::fs::read_to_string(out.join("nav.txt")).unwrap();
+    let n = nav.lines().count();
+    assert!(n > 0 && n < full.lines().count(), "{n} lines");
+    // nothing else left behind (no stage folder)
+    let names: Vec<String> = after.keys().cloned().collect();
+    assert!(
+        names.iter().all(|n| !n.starts_with(".nav-out-stage")),
+        "{names:?}"
+    );
+    println!(
+        "SIG{sig}: exit {code}, {n} of {} nav lines kept as partial",
+        full.lines().count()
+    );
+}
+
+#[test]
+fn sigterm_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
+    interrupt_mid_run("TERM", 143);
+}
+
+#[test]
+fn sigint_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
+    interrupt_mid_run("INT", 130);
+}

@@ -1,0 +1,245 @@
+//! `hw-bridge replay --out` / `record --out` used carelessly or with hostile folders, through
+//! the binary: `--out` at the folder of the replay's inputs, links placed under output names,
+//! two replays into one folder. Each check compares content hashes: no input and no previous
+//! output may change.
+use hw_bridge::capture::{CaptureHeader, CaptureWriter, Record};
+use hw_bridge::frames::case_payloads;
+use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use nav_core::wire::{Encoder, MAX_FRAME_LEN};
+use std::collections::BTreeMap;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
+
+/// A capture of `n` IMU samples at 200 Hz and a GNSS fix every 20, one record per 20 frames
+/// at their recorded times (100 ms apart): `n / 200` s long at `--speed 1`.
+fn capture(dir: &Path, n: usize) -> PathBuf {
+    let imu: Vec<ImuSample> = (1..=n)
+        .map(|i| ImuSample {
+            t_s: 1000.0 + i as f64 * 0.005,
+            dtheta_rad: [1e-5, -2e-6, 3e-6],
+            dv_mps: [0.01, -0.002, -0.049],
+            temperature_c: 25.0,
+        })
+        .collect();
+    let gnss: Vec<GnssFix> = (1..=n / 20)
+        .map(|k| GnssFix {
+            t_s: 1000.0 + k as f64 * 0.1,
+            lat_rad: 0.5,
+            lon_rad: 1.9,
+            h_m: 25.0,
+            pos_std_ned_m: [0.5, 0.6, 1.1],
+            vel_ned_mps: [1.0, -0.5, 0.01],
+            vel_std_ned_mps: [0.05, 0.05, 0.1],
+            has_velocity: true,
+            quality: FixQuality::Single,
+            num_sats: 9,
+        })
+        .collect();
+    let mut enc = Encoder::new();
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let h = CaptureHeader {
+        port: "/dev/pts/test".into(),
+        baud: 921_600,
+        start_unix_ns: 1,
+        tool: "outputs safety test".into(),
+        streams_from_start: true,
+    };
+    let mut w = CaptureWriter::new(Vec::new(), &h).unwrap();
+    let mut chunk = vec![0u8];
+    for (k, (_, p)) in case_payloads(&imu, &gnss).iter().enumerate() {
+        let m = enc.encode(p, &mut buf).unwrap();
+        chunk.extend_from_slice(&buf[..m]);
+        if k % 20 == 19 {
+            w.write(&Record::Data {
+                t_ns: (k as u64 + 1) * 5_000_000,
+                bytes: std::mem::take(&mut chunk),
+            })
+            .unwrap();
+        }
+    }
+    let p = dir.join("c.cap");
+    std::fs::write(&p, w.into_inner()).unwrap();
+    p
+}
+
+fn hash_bytes(b: &[u8]) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    b.hash(&mut h);
+    h.finish()
+}
+
+/// Name -> content hash of every entry of `d` (links: their target's path).
+fn hashes(d: &Path) -> BTreeMap<String, u64> {
+    let mut m = BTreeMap::new();
+    for e in std::fs::read_dir(d).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let t = e.file_type().unwrap();
+        let h = if t.is_symlink() {
+            hash_bytes(
+                std::fs::read_link(e.path())
+                    .unwrap()
+                    .as_os_str()
+                    .as_encoded_bytes(),
+            )
+        } else if t.is_dir() {
+            0
+        } else {
+            hash_bytes(&std::fs::read(e.path()).unwrap())
+        };
+        m.insert(name, h);
+    }
+    m
+}
+
+fn replay(args: &[&str], cap: &Path, out: &Path) -> Output {
+    Command::new(BIN)
+        .arg("replay")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .arg(cap)
+        .output()
+        .unwrap()
+}
+
+/// The decoded files of a replay (final names, no summary: it holds no timing but is
+/// compared anyway), hashed.
+fn decoded(out: &Path) -> BTreeMap<String, u64> {
+    hashes(out)
+        .into_iter()
+        .filter(|(n, _)| !n.starts_with('.'))
+        .collect()
+}
+
+#[test]
+fn replay_into_its_inputs_folder_is_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = capture(dir.path(), 400);
+    // a case folder: its data, and the run configuration naming them
+    let case = dir.path().join("case");
+    std::fs::create_dir(&case).unwrap();
+    std::fs::write(case.join("imu.txt"), "1000.005 0 0 0 0 0 -0.049\n").unwrap();
+    std::fs::write(case.join("gnss.txt"), "1000.1 28.6 108.8 25 0.5 0.6 1.1\n").unwrap();
+    std::fs::write(
+        case.join("run.toml"),
+        "name = \"c\"\n[imu]\npath = \"imu.txt\"\nformat = \"text\"\n[gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n",
+    )
+    .unwrap();
+    let cfg = case.join("run.toml");
+    let before = hashes(&case);
+    let cap_before = hashes(dir.path());
+    let mut tried = 0;
+    for out in [case.clone(), case.join("..").join("case")] {
+        let o = replay(
+            &["--as-fast-as-possible", "--config", cfg.to_str().unwrap()],
+            &cap,
+            &out,
+        );
+        tried += 1;
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains("holds the input") && err.contains("nothing was written"),
+            "{err}"
+        );
+        assert_eq!(hashes(&case), before, "the case folder changed");
+    }
+    // the capture's own folder
+    let o = replay(&["--as-fast-as-possible"], &cap, dir.path());
+    tried += 1;
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("c.cap"), "{err}");
+    assert_eq!(
+        hashes(dir.path()),
+        cap_before,
+        "the capture's folder changed"
+    );
+    // record --out at the port itself
+    let port = dir.path().join("port");
+    std::fs::write(&port, "not a port").unwrap();
+    let o = Command::new(BIN)
+        .args(["record", "--duration", "0.1", "--port"])
+        .arg(&port)
+        .arg("--out")
+        .arg(&port)
+        .output()
+        .unwrap();
+    tried += 1;
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("holds the input"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&port).unwrap(), "not a port");
+    println!("{tried} refusals, inputs unchanged");
+}
+
+#[cfg(unix)]
+#[test]
+fn links_under_output_names_are_replaced_not_written_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let cap = capture(dir.path(), 400);
+    let want_dir = dir.path().join("ref");
+    let o = replay(&["--as-fast-as-possible"], &cap, &want_dir);
+    assert!(o.status.success(), "{o:?}");
+    let want = decoded(&want_dir);
+    assert!(want.contains_key("imu.txt") && want.contains_key("replay-summary.txt"));
+    let victims = dir.path().join("victims");
+    std::fs::create_dir(&victims).unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let mut tried = 0;
+    for n in want.keys() {
+        for name in [n.clone(), format!("{n}.partial")] {
+            let v = victims.join(&name);
+            std::fs::write(&v, format!("victim {name}\n")).unwrap();
+            std::os::unix::fs::symlink(&v, out.join(&name)).unwrap();
+            tried += 1;
+        }
+    }
+    let before = hashes(&victims);
+    let o = replay(&["--as-fast-as-possible"], &cap, &out);
+    assert!(o.status.success(), "{o:?}");
+    assert_eq!(hashes(&victims), before, "a victim changed");
+    let got: BTreeMap<String, u64> = decoded(&out)
+        .into_iter()
+        .filter(|(n, _)| !n.ends_with(".partial"))
+        .collect();
+    assert_eq!(got, want, "the outputs are not the reference replay's");
+    println!("{tried} links placed, none written through");
+}
+
+#[test]
+fn two_replays_into_one_folder_one_refuses_with_the_owners_pid() {
+    let dir = tempfile::tempdir().unwrap();
+    // 1.5 s at --speed 1: the two replays overlap
+    let cap = capture(dir.path(), 300);
+    let want_dir = dir.path().join("ref");
+    assert!(replay(&["--as-fast-as-possible"], &cap, &want_dir)
+        .status
+        .success());
+    let want = decoded(&want_dir);
+    let out = dir.path().join("out");
+    let spawn = || {
+        Command::new(BIN)
+            .args(["replay", "--speed", "1", "--out"])
+            .arg(&out)
+            .arg(&cap)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let a = spawn();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let b = spawn();
+    let (a, b) = (a.wait_with_output().unwrap(), b.wait_with_output().unwrap());
+    assert!(a.status.success(), "{a:?}");
+    let err = String::from_utf8_lossy(&b.stderr);
+    assert_eq!(b.status.code(), Some(1), "{err}");
+    assert!(err.contains("another run (pid "), "{err}");
+    assert_eq!(decoded(&out), want, "the outputs mix two replays");
+}
