@@ -23,6 +23,7 @@ pub use nav_engine::run::execute::{
     decimate, execute, execute_case, execute_streaming, imu_summary, metrics_json,
     threaded_imu_reader,
 };
+use anyhow::Context;
 use nav_engine::run::outdir::OutDir;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
