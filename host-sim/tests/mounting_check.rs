@@ -89,11 +89,12 @@ fn a_sideways_z_axis_is_named() {
 fn gnss_position_outliers_do_not_blame_a_correct_mounting() {
     let mut d = case();
     // 30 m north, 30 m east, 100 m north: in the turns and at rest
+    let n = d.gnss.len();
     for (k, dn, de) in [
-        (5, 30.0, 0.0),
-        (30, 30.0, 0.0),
-        (45, 0.0, 30.0),
-        (70, 100.0, 0.0),
+        (n / 12, 30.0, 0.0),
+        (n / 3, 30.0, 0.0),
+        (n / 2, 0.0, 30.0),
+        (3 * n / 4, 100.0, 0.0),
     ] {
         let g = &mut d.gnss[k];
         g.lat_rad += dn / 6.37e6;
