@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+use test_support::runcase::{case_config, TACTICAL_NOISE};
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 
@@ -125,7 +126,7 @@ fn replay_into_its_inputs_folder_is_refused_before_anything_is_written() {
     std::fs::write(case.join("gnss.txt"), "1000.1 28.6 108.8 25 0.5 0.6 1.1\n").unwrap();
     std::fs::write(
         case.join("run.toml"),
-        "name = \"c\"\n[imu]\npath = \"imu.txt\"\nformat = \"text\"\n[gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n",
+        case_config("c", &case, "gnss.txt", "text", "", TACTICAL_NOISE),
     )
     .unwrap();
     let cfg = case.join("run.toml");
