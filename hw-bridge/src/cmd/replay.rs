@@ -76,10 +76,12 @@ pub struct ReplayArgs {
     #[arg(
         long,
         requires = "config",
-        value_parser = clap::builder::PossibleValuesParser::new(
-            <nav_engine::run::Model as strum::VariantNames>::VARIANTS.iter().copied()
+        value_parser = clap::builder::TypedValueParser::try_map(
+            clap::builder::PossibleValuesParser::new(
+                <nav_engine::run::Model as strum::VariantNames>::VARIANTS.iter().copied()
+            ),
+            |s| s.parse::<nav_engine::run::Model>()
         )
-        .try_map(|s| s.parse::<nav_engine::run::Model>())
     )]
     pub model: Option<nav_engine::run::Model>,
     /// f32 covariance (as on the MCU) for `--config`.
