@@ -1,4 +1,4 @@
-//! Checks of the configured IMU mounting against the data (issue 15). The body frame is FRD
+//! Checks of the configured IMU mounting against the data. The body frame is FRD
 //! (x forward, y right, z down); after the configured mounting rotation the increments are in
 //! body axes. Two cues:
 //!

@@ -124,7 +124,7 @@ pub enum BlockKind {
     OdometerScale,
 }
 
-/// Every effect block (issue 7's vocabulary), in the order of their names in the
+/// Every effect block (the diagnosis vocabulary), in the order of their names in the
 /// documentation: scale factors, misalignments, lever arm, time offset, temperature
 /// coefficients, g-sensitivity.
 pub const EFFECT_BLOCKS: [Block; 9] = [
