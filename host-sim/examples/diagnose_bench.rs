@@ -1,4 +1,4 @@
-//! Benchmark of a full `diagnose` (issue 7): a 40-minute drive at 200 Hz (RTK at 1 Hz, the
+//! Benchmark of a full `diagnose`: a 40-minute drive at 200 Hz (RTK at 1 Hz, the
 //! source's tactical IMU, a temperature column so all 9 candidates are considered, one
 //! undeclared effect: a 1000 ppm gyro z scale factor), 30 s GNSS outages every 100 s.
 //!

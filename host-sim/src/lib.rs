@@ -9,6 +9,7 @@
 #![deny(missing_docs)]
 
 pub mod allan;
+pub mod cli_enum;
 pub mod diagnose;
 pub mod mounting;
 pub mod noise;

@@ -1,7 +1,7 @@
-//! Land-vehicle aiding (issue 16): the non-holonomic constraint (NHC) and the zero-velocity /
+//! Land-vehicle aiding: the non-holonomic constraint (NHC) and the zero-velocity /
 //! zero-rate updates (ZUPT/ZARU) on a simulated urban drive with stops, side slip and bounce
 //! (`scenarios/land_stops.toml`, consumer MEMS IMU, RTK GNSS), and on the real drive
-//! (`configs/drive0708_aided.toml`, the issue's 20 s outage protocol).
+//! (`configs/drive0708_aided.toml`, the reference 20 s outage protocol).
 use host_sim::run::cli::{prepare, RunArgs};
 use host_sim::sim::{simulate, Case, ErrorModel, Scenario};
 use nav_core::aiding::AidingConfig;
@@ -136,7 +136,7 @@ fn nhc_at_least_halves_the_60s_outage_drift_on_a_simulated_land_drive() {
         sum_b += b * b;
         sum_a += a * a;
     }
-    // the issue's target on the RMS over the six seeds' RMS-of-max figures; NHC lowers the
+    // the target on the RMS over the six seeds' RMS-of-max figures; NHC lowers the
     // drift of every seed
     let pooled = (sum_a / sum_b).sqrt();
     println!("NHC / GNSS-only: pooled {pooled:.3}, per seed {ratios:.3?}");
@@ -225,7 +225,7 @@ fn data_dir() -> Option<&'static Path> {
     None
 }
 
-/// The issue's protocol: seven 20 s outages, the first 120 s after the first fix, every 60 s;
+/// The reference protocol: seven 20 s outages, the first 120 s after the first fix, every 60 s;
 /// RMS over outages of the maximum horizontal error against the withheld RTK fixes.
 #[test]
 fn real_drive_with_aiding_meets_the_issue_targets() {

@@ -1,4 +1,4 @@
-//! Issue 16, the aiding a user switches on from the run configuration, end to end through the
+//! The aiding a user switches on from the run configuration, end to end through the
 //! command line (`host-sim simulate` -> `host-sim run --config`):
 //!
 //! * odometer / wheel speed (`[aiding.odometer]`): a simulated tactical drive whose wheel

@@ -152,7 +152,7 @@ fn report_and_check(runs: &[Run], check: bool) {
         100.0 * slope_k
     );
     assert!(fit_b < slope_b && fit_k < slope_k);
-    // Targets of issue 5 (1-sigma spread relative to truth).
+    // Targets of the recovery (1-sigma spread relative to truth).
     let limits = [0.002, 0.12, 0.40, 0.20];
     for ((name, truth, s), lim) in out.iter().zip(limits) {
         assert!(

@@ -1,4 +1,4 @@
-//! Issue 15: the `allan_params.toml` that `host-sim allan` writes is a `[noise]` section a run
+//! The `allan_params.toml` that `host-sim allan` writes is a `[noise]` section a run
 //! configuration accepts verbatim. A static hour of a simulated tactical IMU is analysed, the
 //! file is pasted into a run configuration of a simulated drive of the same IMU, and the run
 //! is as accurate as with the simulator's true noise figures.
@@ -120,7 +120,7 @@ fn normals(n: usize, mut s: u64) -> Vec<f64> {
         .collect()
 }
 
-/// Issue 15: a single generic channel (`--columns x`) is reported in SI under SI headings,
+/// A single generic channel (`--columns x`) is reported in SI under SI headings,
 /// or, with `--x-unit`, as the sensor that unit names (datasheet units, a `[noise.gyro]`
 /// section with the channel for all three axes).
 #[test]

@@ -1,8 +1,8 @@
 //! `diagnose` on the real drive (`../shared/data/rtklibexplorer-drive0708`, consumer MEMS IMU +
-//! RTK, `configs/drive0708.toml`, IMU ticks at face value from the tag start) with the issue's
+//! RTK, `configs/drive0708.toml`, IMU ticks at face value from the tag start) with the reference
 //! protocol: seven 20 s outages every 60 s, the first 120 s after the first GNSS fix
 //! (`116.645:20:60` from the first IMU sample); the withheld RTK fixes are the reference.
-//! Checks (issue 14's done-when): an IMU-GNSS time offset is named first, of the size the RTK
+//! Checks: an IMU-GNSS time offset is named first, of the size the RTK
 //! fixes' prior residuals point to (0.095-0.141 s per minute of the drive, docs/diagnose.md;
 //! the data's source corrects 0.125 s), every added effect is finite and significant, and
 //! after is not worse than before in the outages and with GNSS against the RTK fixes on the

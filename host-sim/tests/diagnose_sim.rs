@@ -377,10 +377,10 @@ fn undeclared_gyro_temperature_coefficient_is_found() {
     check_first(&d, "gyro_temperature_bias", &k);
 }
 
-/// The issue's g-sensitivity, 0.5 deg/h/g on the diagonal, is below what a land drive can
+/// A g-sensitivity of 0.5 deg/h/g on the diagonal, is below what a land drive can
 /// show: on the z gyro it acts as a constant 0.5 deg/h bias (f_z = -g; the gyro-bias states
 /// absorb it), on x/y it is 0.1 deg/h during 0.2 g accelerations. Measured: the diagnosis adds
-/// nothing and the outage error is unchanged; the issue's target (named first, 30 % better) is
+/// nothing and the outage error is unchanged; the target (named first, 30 % better) is
 /// NOT met at this size.
 #[test]
 fn gyro_g_sensitivity_of_half_deg_per_h_per_g_is_not_detectable_on_a_land_drive() {
@@ -426,7 +426,7 @@ fn gyro_g_sensitivity_of_half_deg_per_h_per_g_is_not_detectable_on_a_land_drive(
         .all(|u| u.min_bound.is_finite() && u.min_bound > 0.0));
 }
 
-/// At 10 deg/h/g (20x the issue's size) the g-sensitivity is named first and the outage error
+/// At 10 deg/h/g (20x that size) the g-sensitivity is named first and the outage error
 /// drops; its estimate is NOT within 20 % / 3 sigma (measured: x 0.2e-6 +- 0.5e-6 for 4.9e-6,
 /// z 3.7e-6 +- 0.25e-6): x/y are barely excited on land and z is separated from the z gyro
 /// bias only by the bias prior. Only the naming and the improvement are asserted.
@@ -471,7 +471,7 @@ fn two_undeclared_effects_are_both_found() {
     // The gyro z scale factor (1400 ppm) is seen (its likelihood gain is large and its
     // estimate significant) but, with the lever arm in the model, adding it RAISES the
     // held-out outage error on this drive (measured: 0.518 -> 0.604 m against the withheld
-    // fixes), so issue 14's rule "after never worse" refuses it: it must be either added
+    // fixes), so the rule "after never worse" refuses it: it must be either added
     // with its estimate within 20 % / 3 sigma, or reported as refused by the held-out check
     // with the likelihood gain it leaves unexplained.
     match d
@@ -542,7 +542,7 @@ fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) ->
     p
 }
 
-/// Issue 14 item 2: an undeclared scale factor under a KF-GINS configuration that freezes the
+/// An undeclared scale factor under a KF-GINS configuration that freezes the
 /// scale-factor states is named (the frozen block is freed), estimated within 20 % / 3 sigma,
 /// and the outage error drops by at least 30 %, never worse in any step.
 #[test]
@@ -606,7 +606,7 @@ fn grade(d: &Diagnosis, name: &str, truth: &[f64]) -> (bool, bool, bool, f64, f6
 /// 40 more drives (8 effects x 4 seeds, magnitudes x0.6 to x1.33 of the per-effect tests'
 /// sizes, other trajectories and seeds, plus the two scale factors x 4 seeds configured from a
 /// KF-GINS YAML with frozen scale-factor states): the median outage-error ratio after/before
-/// at most 0.7 and no case worse than before (issue 14); in every case the effect is named
+/// at most 0.7 and no case worse than before; in every case the effect is named
 /// first with its estimate within 20 % / 3 sigma, or its refusal is right
 /// ([`refusal_is_right`]: it was the strongest candidate, estimated within those limits, and
 /// even the exact effect raises the held-out error on that drive; measured: 2 of the 40, the
@@ -754,7 +754,7 @@ fn robustness_sweep_over_seeds_and_magnitudes() {
 /// increments: the model then has the effect right with no estimation error) predicts the
 /// withheld fixes no better than the final model on the data as they are. Then adding the
 /// effect, however well estimated, would make the outage error worse on this drive, and the
-/// issue's "never worse" forbids it. Err: why not (other effects have no exact correction
+/// rule "never worse" forbids it. Err: why not (other effects have no exact correction
 /// here).
 fn refusal_is_right(
     p: &Prepared,

@@ -1,4 +1,4 @@
-//! KF-GINS parity (issue 13 item 7): `../shared/data/kfgins-parity/` holds a 40-minute 200 Hz
+//! KF-GINS parity: `../shared/data/kfgins-parity/` holds a 40-minute 200 Hz
 //! drive with a warming accelerometer (about 1 mg of bias change), made by an independent
 //! generator, with KF-GINS's own solution on it (i2Nav-WHU/KF-GINS f39bc2e, 20 Hz). Our run of
 //! the same `kf-gins.yaml` (gate off: KF-GINS has no gate) must give KF-GINS's solution:

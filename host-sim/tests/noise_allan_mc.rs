@@ -48,7 +48,7 @@ fn mc(
         .collect()
 }
 
-/// The criterion at every tau: |mean AVAR / theory - 1| < 3 / sqrt(runs EDF).
+/// The criterion at every tau: |mean AVAR / theory - 1| < 3 / sqrt(runs EDF).
 ///
 /// Statistically, the relative standard deviation of that mean is sqrt(2 / (runs EDF))
 /// (chi-square), so the band is 2.12 sigma per tau, and with ~15 correlated taus per process a

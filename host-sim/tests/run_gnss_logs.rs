@@ -1,4 +1,4 @@
-//! Issue 15: a run from raw files with a configuration only, with an NMEA log and a UBX log
+//! A run from raw files with a configuration only, with an NMEA log and a UBX log
 //! as the GNSS input. A simulated drive's fixes are written as NMEA RMC/GGA/GST and as UBX
 //! NAV-PVT by `nav_io::gnss::encode`; `host-sim run` on each gives the accuracy of the run on
 //! the simulator's own GNSS text file, and the UBX run gets its GPS week from NAV-PVT's UTC

@@ -1,4 +1,4 @@
-//! In-motion alignment (issue 15): a drive that does not start at rest is aligned from the
+//! In-motion alignment: a drive that does not start at rest is aligned from the
 //! GNSS velocity automatically (no hand-given state), and the static window covers `static_s`
 //! whatever the sample times (the "9.9938 s (need 10 s)" off-by-one).
 

@@ -1,4 +1,4 @@
-//! Issue 15's slow rover from raw files and a configuration with the defaults: 0.2 m/s with
+//! A slow rover from raw files and a configuration with the defaults: 0.2 m/s with
 //! stops and turns, an IMU mounted Z-up with x pointing backwards, RTK fixes every 3 s as
 //! lines `2015_11_26_15_00_02_617 RTK_FIXED lat lon h sN sE sD` (UTC), no velocity.
 //! `[init.align]` gives only `static_s`: the heading must come from the GNSS course without a

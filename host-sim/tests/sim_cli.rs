@@ -96,26 +96,27 @@ fn simulate_writes_a_case_the_readers_and_kf_gins_config_agree_with() {
     assert_eq!(cf.errors.accel.scale_factor_ppm.0, [800.0, 0.0, 0.0]);
 
     // KF-GINS configuration: its keys, its units, the truth's initial state.
-    let y: serde_yaml::Value =
-        serde_yaml::from_str(&std::fs::read_to_string(out.join("kf-gins.yaml")).unwrap()).unwrap();
+    let y: serde_norway::Value =
+        serde_norway::from_str(&std::fs::read_to_string(out.join("kf-gins.yaml")).unwrap())
+            .unwrap();
     let imupath = y["imupath"].as_str().unwrap();
     assert!(std::path::Path::new(imupath).exists(), "{imupath}");
     assert!(std::path::Path::new(y["gnsspath"].as_str().unwrap()).exists());
     assert_eq!(y["imudatalen"].as_i64(), Some(8));
     assert_eq!(y["imudatarate"].as_f64(), Some(100.0));
     assert_eq!(y["starttime"].as_f64(), Some(456300.0));
-    let initpos: Vec<f64> = serde_yaml::from_value(y["initpos"].clone()).unwrap();
+    let initpos: Vec<f64> = serde_norway::from_value(y["initpos"].clone()).unwrap();
     assert!((initpos[0] - 30.4447873701).abs() < 1e-9 && (initpos[2] - 20.899).abs() < 1e-4);
-    let initatt: Vec<f64> = serde_yaml::from_value(y["initatt"].clone()).unwrap();
+    let initatt: Vec<f64> = serde_norway::from_value(y["initatt"].clone()).unwrap();
     assert!((initatt[2] - 185.0).abs() < 1e-6);
-    let arw: Vec<f64> = serde_yaml::from_value(y["imunoise"]["arw"].clone()).unwrap();
+    let arw: Vec<f64> = serde_norway::from_value(y["imunoise"]["arw"].clone()).unwrap();
     let expect_arw = 5.3079e-10f64.sqrt().to_degrees() * 60.0;
     assert!((arw[0] / expect_arw - 1.0).abs() < 1e-12, "{arw:?}");
-    let vrw: Vec<f64> = serde_yaml::from_value(y["imunoise"]["vrw"].clone()).unwrap();
+    let vrw: Vec<f64> = serde_norway::from_value(y["imunoise"]["vrw"].clone()).unwrap();
     assert!((vrw[1] / (6.2865e-9f64.sqrt() * 60.0) - 1.0).abs() < 1e-12);
-    let lever: Vec<f64> = serde_yaml::from_value(y["antlever"].clone()).unwrap();
+    let lever: Vec<f64> = serde_norway::from_value(y["antlever"].clone()).unwrap();
     assert_eq!(lever, vec![0.5, -0.3, -1.1]);
-    let asstd: Vec<f64> = serde_yaml::from_value(y["imunoise"]["asstd"].clone()).unwrap();
+    let asstd: Vec<f64> = serde_norway::from_value(y["imunoise"]["asstd"].clone()).unwrap();
     assert_eq!(asstd[0], 800.0);
     assert!(out.join("trajectory.png").metadata().unwrap().len() > 10_000);
 }

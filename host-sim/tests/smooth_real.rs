@@ -1,7 +1,7 @@
 //! `run --smooth` on the real drive (`configs/drive0708.toml`, `../shared/data`; skipped with
 //! a visible message when the data are missing, required under CI=true): seven 20 s outages
 //! every 60 s from 120 s (`--periodic-outage 120:20:60`), the IMU logging delay applied
-//! (`--imu-time-offset -0.125`), errors against the withheld RTK fixes. The target:
+//! (`--imu-time-offset -0.125`), errors against the withheld RTK fixes. The target:
 //! smoothed outage RMS-of-max horizontal <= 2.0 m.
 use host_sim::run::cli::{run, RunArgs};
 use nav_engine::run::parse_periodic;

@@ -160,14 +160,14 @@ fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
     }
     let rms_ratio = (ratios.iter().map(|r| r * r).sum::<f64>() / ratios.len() as f64).sqrt();
     println!("smoothed / forward outage RMS-of-max: {ratios:.3?}, RMS {rms_ratio:.3}");
-    // the target for simulated land drives: at most 0.3x the forward one
+    // the target for simulated land drives: at most 0.3x the forward one
     for r in &ratios {
         assert!(*r <= 0.3, "{ratios:?}");
     }
 }
 
 /// The 40-minute 200 Hz drive (`scenarios/long.toml` cut at 40 min) with three 60 s outages:
-/// the target smoothed outage RMS-of-max <= 1/3 of the forward one; memory and time
+/// the target smoothed outage RMS-of-max <= 1/3 of the forward one; memory and time
 /// reported. About a minute in release mode.
 #[test]
 #[ignore]

@@ -1,6 +1,6 @@
 //! A reduced run of `host-sim study`: the default scenario cut 10 s after a 5-minute outage
 //! that starts 6 minutes in (3 min static, 3 min driving), N and NBK only, 20 runs per cell,
-//! the NBK error budget with 60 runs per source. Asserts the claims on the numbers.
+//! the NBK error budget with 60 runs per source. Asserts the study's claims on the numbers.
 
 use host_sim::sim::Scenario;
 use host_sim::study::report::{compute_verdicts, Consistency};

@@ -819,7 +819,7 @@ pub struct Course {
 ///
 /// Why a length from the position noise rather than a speed: a slow vehicle with precise
 /// fixes has a well-defined course long before it reaches a speed at which a velocity course
-/// is usable. Issue 15's rover moves at 0.2 m/s with RTK fixes (2 cm) every 3 s: 0.6 m
+/// is usable. A slow rover moving at 0.2 m/s with RTK fixes (2 cm) every 3 s: 0.6 m
 /// between fixes, where a 1-deg course needs 1.6 m (the third fix after it starts); a speed
 /// threshold (0.5 m/s by default) never triggers, and a fixed 5 m look-ahead takes the chord
 /// across its first turn. [`TrackCourse`] then extends the course while the track stays
@@ -857,7 +857,7 @@ pub fn course_from_displacement(
 /// segment's and the course's) is a turn, and the course found before it is kept.
 ///
 /// On a straight start this is the course over [`CourseRule::max_distance_m`] (the longest
-/// baseline); a vehicle that turns soon after it starts (issue 15's rover: 0.2 m/s, fixes
+/// baseline); a vehicle that turns soon after it starts (a slow rover: 0.2 m/s, fixes
 /// every 3 s, a turn after 2 m) keeps the course of its straight part instead of the chord
 /// across the turn.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -197,7 +197,7 @@ impl ScaleFactorNoise {
     }
 }
 
-/// Prior and process noise of an effect block (issue 7's effects: misalignment, lever arm,
+/// Prior and process noise of an effect block (the effects: misalignment, lever arm,
 /// time offset, temperature coefficients, g-sensitivity): every state of the block is a random
 /// constant (`rw_psd` = 0) or a very slow random walk `x' = w`, `E[w w] = rw_psd delta(t)`,
 /// starting at `N(0, init_sigma^2)`. Units are those of the block's states (documented on each

@@ -35,7 +35,8 @@
 //!   gyro-bias start from the static mean ([`crate::align::static_start`]). A window that is
 //!   not static (or has no fix) is reported ([`ImuEvent::AlignFailed`]) and a new window
 //!   starts. The host's look-ahead heading (the GNSS course of the first metres of motion
-//!   *after* the window) is a post-processing rule and stays in `host-sim`.
+//!   *after* the window) is a post-processing rule and stays in `nav-engine`
+//!   (`run/init.rs`).
 //!
 //! # Aiding
 //!

@@ -1,4 +1,4 @@
-//! Static coarse alignment (issue 3, part 8): levelling, gyrocompassing, static detection.
+//! Static coarse alignment: levelling, gyrocompassing, static detection.
 
 use test_support::trajectory;
 

@@ -1,4 +1,4 @@
-//! Monte Carlo consistency of the NBK filter on NBK data (issue 3's "filter is consistent"
+//! Monte Carlo consistency of the NBK filter on NBK data (the "filter is consistent"
 //! criterion): 30 seeded 10-minute drives at 100 Hz with 1 Hz RTK-grade GNSS, the truth's
 //! accelerometer bias a true Gauss-Markov + random-walk process with the source's identified
 //! parameters, gyro biases random constants. The drive (accelerations and turns) makes heading

@@ -1,4 +1,4 @@
-//! The f32-covariance filter against the f64 filter on the same data (issue 3): a 1-hour
+//! The f32-covariance filter against the f64 filter on the same data: a 1-hour
 //! 200 Hz drive with 1 Hz GNSS, the KF-GINS-equivalent 21-state model (Gauss-Markov biases and
 //! scale factors; the MCU's model) on data with those errors. Positions must agree to 1 cm and
 //! attitudes to 0.001 deg at every epoch; and over a 6-hour run (100 Hz) the f32 covariance

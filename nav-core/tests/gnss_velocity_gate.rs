@@ -1,4 +1,4 @@
-//! GNSS velocity with its own gate (issue 16, item 1, last bullet; `Gating::velocity`): a fix's
+//! GNSS velocity with its own gate (`Gating::velocity`): a fix's
 //! velocity is used by its own 3-dimensional update after the position, gated on its own and
 //! counted in `Counters::gnss_vel_*`.
 //!

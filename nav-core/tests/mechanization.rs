@@ -1,5 +1,5 @@
-//! Accuracy of the strapdown mechanization against independent references (issue 3, "Done
-//! when" bullets 1-3): at rest with perfect sensors, the Schuler period of the free-inertial
+//! Accuracy of the strapdown mechanization against independent references:
+//! at rest with perfect sensors, the Schuler period of the free-inertial
 //! horizontal channels, 10 minutes of dynamic driving from error-free increments, and coning.
 
 use test_support::trajectory;

@@ -1,4 +1,4 @@
-//! Odometer / wheel speed (issue 16, item 1; `nav_core::aiding::odometer`): on the simulated
+//! Odometer / wheel speed (`nav_core::aiding::odometer`): on the simulated
 //! 100 s drive (test-support, 100 Hz, 1 Hz RTK fixes) with four 60 s GNSS outages, a wheel
 //! speed with an undeclared 2 % scale factor and 0.02 m/s of noise at 10 Hz:
 //!

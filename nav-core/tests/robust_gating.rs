@@ -1,4 +1,4 @@
-//! Robust gating by default (issue 13, items 1-3): isolated outliers are still rejected with
+//! Robust gating by default: isolated outliers are still rejected with
 //! the state untouched; a jump of every fix is followed through a reset that re-initialises
 //! position and velocity; a diverged velocity is reset from the fixes; a slow vehicle with
 //! stops does not diverge; a persistent model mismatch (an undeclared gyro scale factor, an

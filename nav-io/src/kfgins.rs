@@ -157,7 +157,7 @@ pub struct KfGinsConfig {
     pub antlever: [f64; 3],
     /// Top-level keys KF-GINS does not read (kept so a caller can warn about them).
     #[serde(skip)]
-    pub unknown_keys: BTreeMap<String, serde_yaml::Value>,
+    pub unknown_keys: BTreeMap<String, serde_norway::Value>,
 }
 
 impl KfGinsConfig {
@@ -406,15 +406,15 @@ const KNOWN_KEYS: [&str; 23] = [
 
 /// Parses KF-GINS YAML text (`name` is used in errors) and validates it.
 pub fn parse_kf_gins_yaml(name: &Path, text: &str) -> Result<KfGinsConfig, IoError> {
-    let err = |e: serde_yaml::Error| IoError::Config {
+    let err = |e: serde_norway::Error| IoError::Config {
         path: name.to_path_buf(),
         message: e.to_string(),
         source: Some(Box::new(e)),
     };
     // Typed parse first: its errors carry the line and column.
-    let mut cfg: KfGinsConfig = serde_yaml::from_str(text).map_err(err)?;
-    if let serde_yaml::Value::Mapping(m) =
-        serde_yaml::from_str::<serde_yaml::Value>(text).map_err(err)?
+    let mut cfg: KfGinsConfig = serde_norway::from_str(text).map_err(err)?;
+    if let serde_norway::Value::Mapping(m) =
+        serde_norway::from_str::<serde_norway::Value>(text).map_err(err)?
     {
         for (k, v) in m {
             if let Some(k) = k.as_str() {
@@ -446,7 +446,7 @@ pub fn read_kf_gins_yaml(path: impl AsRef<Path>) -> Result<KfGinsConfig, IoError
 /// Writes a KF-GINS YAML configuration (KF-GINS reads it; unknown keys are not written).
 pub fn write_kf_gins_yaml(path: impl AsRef<Path>, cfg: &KfGinsConfig) -> Result<(), IoError> {
     let path = path.as_ref();
-    let text = serde_yaml::to_string(cfg).map_err(|e| IoError::Config {
+    let text = serde_norway::to_string(cfg).map_err(|e| IoError::Config {
         path: path.to_path_buf(),
         message: e.to_string(),
         source: Some(Box::new(e)),

@@ -55,10 +55,22 @@ pub struct ImuSource {
     pub checks: Option<ImuChecksConfig>,
 }
 
-/// Sensor class names of `[imu.checks] class` (see `nav_core::imu_guard::ImuClass`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+/// Sensor class names of `[imu.checks] class` (see `nav_core::imu_guard::ImuClass`); the same
+/// kebab-case names in TOML, `FromStr`/`Display` and `strum::VariantNames::VARIANTS`.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::VariantNames,
+)]
 #[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
 pub enum ImuClassName {
     /// Consumer / automotive MEMS: 4000 deg/s, 32 g.
     ConsumerMems,

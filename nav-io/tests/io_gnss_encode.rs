@@ -1,7 +1,7 @@
 //! The receiver-message writers (`nav_io::gnss::encode`) read back through the log readers:
 //! NMEA RMC/GGA/GST and UBX NAV-PVT round trips within the formats' resolution, and the
 //! GPS week of a UBX log derived from NAV-PVT's UTC date with the leap seconds, across a
-//! week rollover (issue 15: NAV-PVT has no week field).
+//! week rollover (NAV-PVT has no week field).
 use nav_core::types::{FixQuality, GnssFix};
 use nav_io::gnss::encode::{nmea_epoch, ubx_nav_pvt, utc_of_gps};
 use nav_io::{read_nmea_log, read_ubx_log, GnssLogOptions};

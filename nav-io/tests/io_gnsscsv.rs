@@ -1,5 +1,5 @@
 //! The generic GNSS CSV/text reader (`[gnss.csv]`): golden files written by the tests for every
-//! time format, the two stories (rover text lines with a date-time stamp and a fix
+//! time format, two users' files (rover text lines with a date-time stamp and a fix
 //! name; u-blox CSV with speed and bearing and no accuracy), missing sigmas, the quality
 //! filter, and malformed input named by file, line and column.
 

@@ -130,7 +130,7 @@ fn malformed_kf_gins_yaml_gives_errors_naming_the_key_and_position() {
     // missing required key
     let m = cfg_err(&CFG.replace("antlever:  [ 0.136, -0.301, -0.184 ]", ""));
     assert!(m.contains("antlever"), "{m}");
-    // a vector with two elements: serde_yaml names the line and column
+    // a vector with two elements: the YAML parser names the line and column
     let m = cfg_err(&CFG.replace("initvel: [ 0.0, 0.0, 0.0 ]", "initvel: [ 0.0, 0.0 ]"));
     assert!(
         m.contains("initvel") && m.contains("line 11 column 10"),

@@ -1,4 +1,4 @@
-//! Run-configuration validation (issue 15): negative or zero noise densities, unknown effect
+//! Run-configuration validation: negative or zero noise densities, unknown effect
 //! names and unknown keys are errors naming the file and the line.
 
 use nav_io::runcfg::key_line;

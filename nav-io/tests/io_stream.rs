@@ -1,4 +1,4 @@
-//! Streaming readers and fast text (issue 17): numbers parsed bit-identically to
+//! Streaming readers and fast text: numbers parsed bit-identically to
 //! `str::parse::<f64>`, nav lines formatted byte-identically to `Display`, the streaming and
 //! whole-file readers agreeing, and no allocation per line (a counting allocator over a
 //! generated input far larger than the memory the reader may use).

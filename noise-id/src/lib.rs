@@ -49,8 +49,19 @@ pub fn gauss_markov_avar(s_b: f64, t_b_s: f64, tau_s: f64) -> f64 {
 }
 
 /// Which deviation to compute.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::VariantNames,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum Deviation {
     /// Non-overlapping Allan deviation.
     Adev,

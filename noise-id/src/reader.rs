@@ -15,8 +15,10 @@ use nav_io::{
 use std::path::Path;
 
 /// Unit of gyro columns on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, strum::Display, strum::EnumString, strum::VariantNames,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum GyroUnit {
     /// deg/s.
     Dps,
@@ -39,8 +41,10 @@ impl GyroUnit {
 }
 
 /// Unit of accelerometer columns on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, strum::Display, strum::EnumString, strum::VariantNames,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum AccelUnitArg {
     /// Standard gravity, 9.80665 m/s^2.
     G,
@@ -65,8 +69,18 @@ impl AccelUnitArg {
 /// makes the channel that sensor (datasheet units in the table, a `[noise.gyro]` or
 /// `[noise.accel]` section in `allan_params.toml`); `si` keeps it a channel of unknown
 /// quantity, reported in SI (its own unit times `--x-scale`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    strum::Display,
+    strum::EnumString,
+    strum::VariantNames,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum XUnit {
     /// Unknown quantity: SI, the column's unit times `--x-scale`.
     #[default]

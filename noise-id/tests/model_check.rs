@@ -1,4 +1,4 @@
-//! Issue 15: `allan` warns when the selected model misses the curve beyond its confidence
+//! `allan` warns when the selected model misses the curve beyond its confidence
 //! bands and names the better-fitting alternative ([`noise_id::fit::check_model`]); it stays
 //! quiet when the model fits.
 use noise_id::fit::{check_model, fit_select, FitOptions, Terms};

@@ -1,4 +1,4 @@
-//! Hampel outlier detection (issue 15): white noise with 0.3 % spikes of 50 sigma; the spikes
+//! Hampel outlier detection: white noise with 0.3 % spikes of 50 sigma; the spikes
 //! are found, and with them replaced the white-noise level (ARW) is within 3 % of the
 //! spike-free record's.
 

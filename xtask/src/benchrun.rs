@@ -1,8 +1,8 @@
 //! `cargo xtask bench-run`: wall time, CPU time and peak RSS of `host-sim run` and
 //! `host-sim diagnose` on a generated 200 Hz drive (40 min by default, `--hours 4` for the
 //! long case), against a baseline binary measured in the same invocation (ratios, not
-//! absolute times), printed beside the peer figures of issue 17 (KF-GINS, C++, on the same
-//! case size and machine class: 12.6 s wall, at most 11 MiB).
+//! absolute times), printed beside reference figures of KF-GINS (C++, on the same case size and
+//! machine class: 12.6 s wall, at most 11 MiB).
 //!
 //! The baseline is `host-sim` built from git revision `--baseline` (default `e9a1122`, the
 //! main branch before the streaming engine) in `target/bench-base` (source from `git archive`,
@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-/// KF-GINS on the 40-min 200 Hz case (issue 17): wall s, peak MiB.
+/// KF-GINS on the 40-min 200 Hz case (reference figures): wall s, peak MiB.
 const PEER_WALL_S: f64 = 12.6;
 const PEER_RSS_MIB: f64 = 11.0;
 
@@ -448,7 +448,7 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
     } else {
         let scale = hours / (40.0 / 60.0);
         println!(
-            "peer (KF-GINS, issue 17, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
+            "peer (KF-GINS reference, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
              wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
             if (scale - 1.0).abs() > 1e-9 {
                 format!(

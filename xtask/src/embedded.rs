@@ -92,10 +92,7 @@ pub fn setup() -> Result<()> {
     let missing: Vec<&str> = ns.iter().filter(|n| !n.ok).map(|n| n.package).collect();
     if !missing.is_empty() {
         if !is_root() {
-            bail!(
-                "missing packages; as root run: apt-get update && apt-get install -y {}",
-                missing.join(" ")
-            );
+            bail!("{}", not_root_message(&missing));
         }
         run(Command::new("apt-get").args(["update", "-qq"]))?;
         let mut cmd = Command::new("apt-get");
@@ -115,6 +112,31 @@ pub fn setup() -> Result<()> {
     let lld = rust_lld()?;
     eprintln!("  [ok] linker {}", lld.display());
     Ok(())
+}
+
+/// What a user without root is told when packages are missing: the packages, `cargo xtask
+/// setup` and the apt-get command to run as root.
+fn not_root_message(missing: &[&str]) -> String {
+    format!(
+        "missing packages {}: run `cargo xtask setup` as root, or as root: \
+         apt-get update && apt-get install -y {}",
+        missing.join(", "),
+        missing.join(" ")
+    )
+}
+
+/// Runs [`setup`] when a part of the embedded toolchain or the emulator is missing (it
+/// installs them as root, and otherwise fails naming `cargo xtask setup` and the apt-get
+/// command); does nothing when all is present. Every embedded build goes through it.
+pub fn ensure_toolchain() -> Result<()> {
+    if needs().iter().all(|n| n.ok) {
+        return Ok(());
+    }
+    eprintln!("  the embedded toolchain or emulator is missing: running `cargo xtask setup`");
+    setup().context(
+        "the firmware commands need the embedded toolchain and emulator (Debian rustc with its \
+         library source, qemu-system-arm, socat)",
+    )
 }
 
 /// rustup's `rust-lld` (the Debian rustc package does not ship a linker for the thumb target).
@@ -142,6 +164,7 @@ fn embedded_cargo(program: Option<&str>) -> Result<Command> {
         Some(p) => Command::new(p),
         None => cargo(),
     };
+    ensure_toolchain()?;
     let lld = rust_lld()?;
     cmd.env("RUSTC", DEB_RUSTC)
         .env("RUSTC_BOOTSTRAP", "1")
@@ -399,4 +422,19 @@ pub fn elf_size(elf: &Path) -> Result<ElfSize> {
         }
     }
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::not_root_message;
+
+    #[test]
+    fn a_user_without_root_is_told_the_setup_command_and_the_apt_get_line() {
+        let m = not_root_message(&["rustc-web", "qemu-system-arm"]);
+        assert!(m.contains("`cargo xtask setup` as root"), "{m}");
+        assert!(
+            m.ends_with("apt-get update && apt-get install -y rustc-web qemu-system-arm"),
+            "{m}"
+        );
+    }
 }

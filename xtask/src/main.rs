@@ -18,6 +18,10 @@
 //! - `fuzz [--seconds S]`: every cargo-fuzz target for S seconds (CI: 15 s each);
 //! - `soak [--seconds S]`: `hw-bridge send` -> faulty pty link -> `hw-bridge record` for S
 //!   seconds (default 600), counters balancing exactly at the end;
+//! - `lint [--update-allowlist]`: wording (no ticket references or work-log words in code and
+//!   docs), no `clap` in the library crates, function bodies of at most 120 lines (existing
+//!   longer ones listed in `xtask/long-functions.txt`, which may only shrink);
+//! - `test-host`: the host test suite only (no root, no embedded toolchain, no qemu);
 //! - `ci`: everything CI checks, each step named and timed.
 
 mod benchrun;
@@ -25,6 +29,7 @@ mod budget;
 mod embedded;
 mod fuzz;
 mod hil;
+mod lint;
 mod replaybench;
 mod soak;
 mod vectors;
@@ -64,6 +69,17 @@ enum Cmd {
     },
     /// Everything CI checks, in order, each step named and timed.
     Ci,
+    /// The project's own rules: wording of code and docs, no clap in library crates, function
+    /// length (120 lines; the listed longer functions may only shrink).
+    Lint {
+        /// Lower the entries of xtask/long-functions.txt to the functions' current lengths and
+        /// remove those within the limit (never adds or raises an entry).
+        #[arg(long)]
+        update_allowlist: bool,
+    },
+    /// The host test suite (`cargo test --workspace --release`): no root, no embedded
+    /// toolchain, no qemu needed.
+    TestHost,
     /// Run every cargo-fuzz target for a bounded time (as CI does).
     Fuzz {
         /// Seconds per target.
@@ -78,10 +94,10 @@ enum Cmd {
         seconds: u32,
     },
     /// Benchmark: wall time, CPU time and peak RSS of `host-sim run` and `diagnose` on a
-    /// generated 200 Hz drive against a baseline `host-sim` built from git (issue 17).
+    /// generated 200 Hz drive against a baseline `host-sim` built from git.
     BenchRun {
-        /// Length of the generated drive, hours (0.6667 = the 40-min case of issue 17; 4 for
-        /// the long case).
+        /// Length of the generated drive, hours (0.6667 = the 40-minute case; 4 for the long
+        /// case).
         #[arg(long, default_value_t = 40.0 / 60.0)]
         hours: f64,
         /// Git revision of the baseline `host-sim`.
@@ -174,6 +190,8 @@ fn main() -> std::process::ExitCode {
             }),
         },
         Cmd::Ci => ci(),
+        Cmd::Lint { update_allowlist } => lint::run(update_allowlist),
+        Cmd::TestHost => test_host(),
         Cmd::Fuzz { seconds } => fuzz::run(seconds).map(|_| ()),
         Cmd::Soak { seconds } => soak::run(seconds),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
@@ -267,6 +285,10 @@ fn ci() -> Result<()> {
         },
     )?;
     step(
+        "lint: wording, no clap in library crates, function length ratchet",
+        &mut || lint::run(false),
+    )?;
+    step(
         "cargo clippy -D warnings (host crates, all targets)",
         &mut || {
             run(cargo().args([
@@ -301,7 +323,7 @@ fn ci() -> Result<()> {
     )?;
     step(
         "host test suite (cargo test --workspace --release)",
-        &mut || run(cargo().args(["test", "--workspace", "--release"])),
+        &mut test_host,
     )?;
     step(
         "fuzz: each cargo-fuzz target 15 s (4 targets, 1 min), no crash",
@@ -322,6 +344,11 @@ fn ci() -> Result<()> {
         t0.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// The host test suite: every host crate's tests in release mode, as CI builds them.
+fn test_host() -> Result<()> {
+    run(cargo().args(["test", "--workspace", "--release"]))
 }
 
 /// A step runner: runs the closure under the step's name, timing it.

@@ -62,10 +62,10 @@ pub struct AllanArgs {
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,
     /// Unit of gyro columns.
-    #[arg(long, value_enum, default_value = "radps")]
+    #[arg(long, value_parser = crate::cli_enum::parser::<GyroUnit>(), default_value = "radps")]
     pub gyro_unit: GyroUnit,
     /// Unit of accelerometer columns.
-    #[arg(long, value_enum, default_value = "mps2")]
+    #[arg(long, value_parser = crate::cli_enum::parser::<AccelUnitArg>(), default_value = "mps2")]
     pub accel_unit: AccelUnitArg,
     /// Sample rate of a file without a time column (Hz).
     #[arg(long)]
@@ -79,10 +79,10 @@ pub struct AllanArgs {
     /// Unit of an `x` column: a gyro (radps, dps, dph) or accelerometer (mps2, g, ug) unit
     /// makes it that sensor (datasheet units, a `[noise.gyro]`/`[noise.accel]` section);
     /// `si` reports it in SI with SI headings.
-    #[arg(long, value_enum, default_value = "si")]
+    #[arg(long, value_parser = crate::cli_enum::parser::<XUnit>(), default_value = "si")]
     pub x_unit: XUnit,
     /// Deviation to compute and plot (the fit always uses the overlapping Allan variance).
-    #[arg(long, value_enum, default_value = "oadev")]
+    #[arg(long, value_parser = crate::cli_enum::parser::<Deviation>(), default_value = "oadev")]
     pub dev: Deviation,
     /// Tau selection.
     #[arg(long, value_enum, default_value = "octave")]

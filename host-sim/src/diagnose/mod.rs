@@ -129,7 +129,7 @@ impl Default for DiagnoseOptions {
 /// The evidence for one candidate effect in one round of the search.
 #[derive(Debug, Clone, Serialize)]
 pub struct CandidateEvidence {
-    /// Effect name (the vocabulary of issue 7).
+    /// Effect name (`Block::name` of one of `nav_core::model::EFFECT_BLOCKS`).
     pub name: String,
     /// Whether the model carried the block frozen (zero sigmas) and the candidate frees it.
     pub freed: bool,

@@ -1,5 +1,5 @@
-//! IMU noise tuning by maximum innovation likelihood (the default of `diagnose`, item 5 of
-//! issue 14): effects must not absorb noise-model error, so the base model's noise levels are
+//! IMU noise tuning by maximum innovation likelihood (the default of `diagnose`):
+//! effects must not absorb noise-model error, so the base model's noise levels are
 //! fitted first (and again with the added effects).
 //!
 //! Three stages, each adopted only when its log-likelihood gain pays the BIC penalty

@@ -44,7 +44,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = crate::cli_enum::parser::<Model>())]
     pub model: Option<Model>,
     /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable).
     #[arg(long = "outage", value_parser = parse_outage)]
@@ -97,7 +97,7 @@ pub struct RunArgs {
     pub effects: Vec<String>,
     /// IMU class giving the plausibility limits (its full-scale range + 10 %; default: the
     /// configuration's `[imu.checks] class`, else consumer-mems, the widest).
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = crate::cli_enum::parser::<ImuClassName>())]
     pub imu_class: Option<ImuClassName>,
     /// Largest plausible angular rate, deg/s on any axis (overrides the class).
     #[arg(long)]

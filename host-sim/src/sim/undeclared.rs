@@ -1,5 +1,5 @@
 //! Drives with one undeclared effect, written in the KF-GINS formats with a `kf-gins.yaml` that
-//! declares only KF-GINS's 21-state model (issue 13's robustness drives, reused by issue 14's
+//! declares only KF-GINS's 21-state model (the robust-gating drives, reused by the
 //! diagnosis tests).
 //!
 //! What a drive is:
@@ -14,7 +14,7 @@
 //!   (1e-6 m/s, 1e-8 rad), with RTK-like GNSS (white 1/1/2 cm plus a 5 mm / 60 s Gauss-Markov
 //!   error the YAML does not declare), fixes at 1 Hz and 60 s outages every 120 s
 //!   ([`drive_outages`]);
-//! - one undeclared effect ([`Effect`]) drawn per seed inside issue 13's realistic ranges
+//! - one undeclared effect ([`Effect`]) drawn per seed inside realistic ranges
 //!   (random signs per axis);
 //! - a `kf-gins.yaml` ([`kf_gins_config`]) as a KF-GINS user writes it: the
 //!   noise of the declared sensor in KF-GINS's keys, scale-factor sigmas of zero, the lever arm
@@ -347,7 +347,7 @@ fn signed(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
     }
 }
 
-/// Adds `effect` to `m` with magnitudes drawn from `seed` inside issue 13's ranges.
+/// Adds `effect` to `m` with magnitudes drawn from `seed` inside the realistic ranges.
 pub fn add_effect(m: &mut ErrorModel, effect: Effect, seed: u64, duration_s: f64) {
     let mut rng = stream(seed, DRIVE_STREAMS, 1, effect as u64);
     match effect {

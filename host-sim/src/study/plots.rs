@@ -40,7 +40,7 @@ fn display_scale(i: usize) -> f64 {
 /// Draws `pts` as a line of separate 2-point segments: a `LineSeries` wider than 1 px joins
 /// its segments with mitres that overshoot far beyond the chart (out of the picture) at a
 /// sharp spike such as the fall of the error when the fixes come back after an outage
-/// (plotters issue 549); segments without joins stay where the data are.
+/// (<https://github.com/plotters-rs/plotters/issues/549>); segments without joins stay where the data are.
 fn segments<'a, DB: DrawingBackend + 'a, CT: plotters::coord::CoordTranslate<From = (f64, f64)>>(
     ch: &mut ChartContext<'a, DB, CT>,
     pts: &[(f64, f64)],

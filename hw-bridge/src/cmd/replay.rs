@@ -73,7 +73,16 @@ pub struct ReplayArgs {
     #[arg(long, requires = "config")]
     pub case: Option<PathBuf>,
     /// Error-state model for `--config` (default: the configuration's).
-    #[arg(long, value_enum, requires = "config")]
+    #[arg(
+        long,
+        requires = "config",
+        value_parser = clap::builder::TypedValueParser::try_map(
+            clap::builder::PossibleValuesParser::new(
+                <nav_engine::run::Model as strum::VariantNames>::VARIANTS.iter().copied()
+            ),
+            |s| s.parse::<nav_engine::run::Model>()
+        )
+    )]
     pub model: Option<nav_engine::run::Model>,
     /// f32 covariance (as on the MCU) for `--config`.
     #[arg(long, requires = "config")]

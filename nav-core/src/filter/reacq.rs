@@ -1,4 +1,4 @@
-//! Probation of the first fix after an outage (issue 13).
+//! Probation of the first fix after an outage.
 //!
 //! After an outage the re-acquisition gate is widened (x100 and more, see
 //! [`super::robust`]): the unaided error has grown with whatever the model leaves out, and a

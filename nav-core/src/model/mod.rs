@@ -19,7 +19,7 @@
 //! rows and a diagonal below (see [`discrete::Transition`]): that is the sparsity the
 //! covariance prediction exploits.
 //!
-//! # Adding a block (issue 7's effects)
+//! # Adding a block (the effects)
 //!
 //! Add a variant to [`Block`] (and [`BlockKind`]) and fill its arm in each `match` below:
 //! dimension ([`Block::dim`]), per-epoch F coupling into the core ([`Block::accumulate_f`],

@@ -112,10 +112,22 @@ impl Default for ImuChecks {
     }
 }
 
-/// The error-state model (state layout) of a run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+/// The error-state model (state layout) of a run; its names (`name`, `FromStr`, `Display`,
+/// `strum::VariantNames::VARIANTS`) are those of the command line and the configuration.
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::Display,
+    strum::EnumString,
+    strum::VariantNames,
+)]
 #[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
 pub enum Model {
     /// The source's classical N model: constant biases, white noise (15 states).
     N,
@@ -125,14 +137,14 @@ pub enum Model {
     /// The source's NBK model as printed: one decaying accelerometer bias state (15 states).
     NbkSingle,
     /// KF-GINS's 21 states: Gauss-Markov biases and scale factors.
-    #[cfg_attr(feature = "clap", value(name = "kf-gins"))]
     #[serde(rename = "kf-gins")]
+    #[strum(serialize = "kf-gins")]
     KfGins21,
     /// KF-GINS's 21 states as its code runs them: bias estimates that do not decay between
     /// updates (the default for a KF-GINS YAML; layout `LAYOUT_KF_GINS_FEEDBACK`, see
     /// docs/kfgins-parity.md).
-    #[cfg_attr(feature = "clap", value(name = "kf-gins-feedback"))]
     #[serde(rename = "kf-gins-feedback")]
+    #[strum(serialize = "kf-gins-feedback")]
     KfGinsFeedback,
 }
 
