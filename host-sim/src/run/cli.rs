@@ -16,6 +16,7 @@
 
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
+use anyhow::Context;
 use nav_core::config::Gating;
 use nav_core::imu_guard::GapIncrements;
 use nav_engine::metrics;
@@ -23,7 +24,6 @@ pub use nav_engine::run::execute::{
     decimate, execute, execute_case, execute_streaming, imu_summary, metrics_json,
     threaded_imu_reader,
 };
-use anyhow::Context;
 use nav_engine::run::outdir::OutDir;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
