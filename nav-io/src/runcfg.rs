@@ -686,9 +686,9 @@ pub struct ImuFileReader {
     offset_s: f64,
 }
 
+// both readers boxed: each is large, and their sizes differ (clippy::large_enum_variant)
 enum ImuFileInner {
-    Text(super::text::ImuTextReader),
-    // boxed: the CSV reader is large (clippy::large_enum_variant)
+    Text(Box<super::text::ImuTextReader>),
     Csv(Box<super::imucsv::ImuCsvIncrements>),
 }
 
@@ -827,7 +827,9 @@ impl RunConfig {
     pub fn open_imu(&self, config_dir: &Path) -> Result<ImuFileReader, IoError> {
         let path = Self::resolve(config_dir, &self.imu.path);
         let inner = match self.imu.format {
-            ImuFileKind::Text => ImuFileInner::Text(super::text::ImuTextReader::open(&path)?),
+            ImuFileKind::Text => {
+                ImuFileInner::Text(Box::new(super::text::ImuTextReader::open(&path)?))
+            }
             ImuFileKind::Csv => {
                 let fmt = self.imu.csv.as_ref().ok_or_else(|| IoError::Config {
                     path: path.clone(),
