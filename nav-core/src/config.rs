@@ -233,6 +233,25 @@ impl EffectNoise {
     }
 }
 
+/// A time-correlated GNSS antenna-position error modelled as a first-order Gauss-Markov
+/// process per NED axis (`e' = -e/T + w`, stationary variance `sigma^2`): multipath,
+/// atmosphere and orbit/clock errors that a white position noise does not describe.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnssErrorNoise {
+    /// Stationary (and initial) 1-sigma per axis (north, east, down), m.
+    pub sigma_m: [f64; 3],
+    /// Correlation time, s.
+    pub t_s: f64,
+}
+
+impl GnssErrorNoise {
+    fn is_valid(&self) -> bool {
+        self.sigma_m.iter().all(|v| v.is_finite() && *v >= 0.0)
+            && self.t_s.is_finite()
+            && self.t_s > 0.0
+    }
+}
+
 /// The effect blocks' priors and process noise (used only by the blocks in the layout).
 /// Defaults ([`EffectsConfig::default`]) are wide tactical-grade priors, all random constants.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -244,8 +263,13 @@ pub struct EffectsConfig {
     pub gyro_misalignment: EffectNoise,
     /// `lever_arm`: correction to the configured GNSS antenna lever arm, body FRD, m.
     pub lever_arm: EffectNoise,
-    /// `time_offset`: IMU-GNSS time offset, s.
+    /// `time_offset`: IMU-GNSS time offset, s (also the offset state of `imu_clock_drift`).
     pub time_offset: EffectNoise,
+    /// `imu_clock_drift`: the rate of the IMU-GNSS time offset (IMU clock frequency error),
+    /// s/s (1e-6 = 1 ppm).
+    pub imu_clock_drift: EffectNoise,
+    /// `gnss_position_gm`: time-correlated GNSS antenna-position error, NED, m.
+    pub gnss_position_gm: GnssErrorNoise,
     /// `accel_temperature_bias`: accelerometer bias temperature coefficient, m/s^2/degC.
     pub accel_temperature: EffectNoise,
     /// `gyro_temperature_bias`: gyro bias temperature coefficient, rad/s/degC.
@@ -260,7 +284,8 @@ pub struct EffectsConfig {
 }
 
 impl Default for EffectsConfig {
-    /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, accelerometer temperature
+    /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, IMU clock drift 100 ppm, GNSS
+    /// position Gauss-Markov error 0.5 m (N, E) / 1 m (D) with 300 s, accelerometer temperature
     /// coefficient 100 ug/degC, gyro temperature coefficient 0.1 deg/h/degC, g-sensitivity
     /// 1 deg/h/g, odometer scale factor 5 %; all random constants; T_ref = the first
     /// temperature.
@@ -270,6 +295,11 @@ impl Default for EffectsConfig {
             gyro_misalignment: EffectNoise::constant(1e-3),
             lever_arm: EffectNoise::constant(1.0),
             time_offset: EffectNoise::constant(0.1),
+            imu_clock_drift: EffectNoise::constant(1e-4),
+            gnss_position_gm: GnssErrorNoise {
+                sigma_m: [0.5, 0.5, 1.0],
+                t_s: 300.0,
+            },
             accel_temperature: EffectNoise::constant(100.0 * units::UG_MPS2),
             gyro_temperature: EffectNoise::constant(units::radps_from_deg_per_h(0.1)),
             gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(1.0) / G0_MPS2),
@@ -286,6 +316,7 @@ impl EffectsConfig {
             self.gyro_misalignment,
             self.lever_arm,
             self.time_offset,
+            self.imu_clock_drift,
             self.accel_temperature,
             self.gyro_temperature,
             self.gyro_g_sensitivity,
@@ -293,6 +324,7 @@ impl EffectsConfig {
         ]
         .iter()
         .all(EffectNoise::is_valid)
+            && self.gnss_position_gm.is_valid()
             && self.temperature_ref_c.is_none_or(f64::is_finite)
     }
 }

@@ -299,7 +299,7 @@ pub struct RunConfig {
     /// Effect blocks appended to the error-state model, by their vocabulary names
     /// (`accel_scale_factor`, `gyro_scale_factor`, `accel_misalignment`, `gyro_misalignment`,
     /// `lever_arm`, `time_offset`, `accel_temperature_bias`, `gyro_temperature_bias`,
-    /// `gyro_g_sensitivity`), e.g. as written by `host-sim diagnose` into `augmented.toml`.
+    /// `gyro_g_sensitivity`, `imu_clock_drift`, `gnss_position_gm`), e.g. as written by `host-sim diagnose` into `augmented.toml`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<String>,
     /// Land-vehicle aiding (`[aiding]`, see [`super::aidingcfg`]); absent: none.

@@ -55,7 +55,11 @@
 //! (m_ij: fraction of the body-axis-j input sensed by sensor i); `lever_arm`: m, body FRD,
 //! the correction to the configured antenna lever arm; `time_offset`: s, a fix tagged t is
 //! the antenna at IMU time t + estimate; `accel_temperature_bias`: m/s^2/degC;
-//! `gyro_temperature_bias`: rad/s/degC; `gyro_g_sensitivity`: rad/s per m/s^2 (diagonal).
+//! `gyro_temperature_bias`: rad/s/degC; `gyro_g_sensitivity`: rad/s per m/s^2 (diagonal);
+//! `imu_clock_drift`: `[dt_0 s, rate s/s]`, the fix tagged t is the antenna at IMU time
+//! `t + dt_0 + rate (t - t_0)`; `gnss_position_gm`: m, NED, the GNSS position error at the
+//! end. A bias step ([`changepoint`]) is reported apart ([`Diagnosis::bias_step`]).
+pub mod changepoint;
 pub mod noise;
 pub mod prior;
 pub mod report;
@@ -340,6 +344,9 @@ pub struct Diagnosis {
     /// Time added to the IMU time stamps of the after solution in `nav_after.txt`, s: minus
     /// the time offset estimate (the output on the GNSS clock), 0 without one.
     pub output_clock_shift_s: f64,
+    /// A bias step found in the data ([`changepoint`]): removed from the data the search and
+    /// the final model use.
+    pub bias_step: Option<changepoint::BiasStep>,
     /// Position errors of the base model.
     pub error_before: ErrorSummary,
     /// Position errors of the final model.
@@ -496,6 +503,8 @@ struct Search {
     rounds: Vec<Round>,
     steps: Vec<Step>,
     warnings: Vec<String>,
+    /// The bias step removed from the data before the search ([`find_bias_step`]).
+    bias_step: Option<changepoint::BiasStep>,
 }
 
 /// Diagnoses a prepared case (see the module notes).
@@ -509,7 +518,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     };
     let plan = validate::plan_windows(&fix_times, &p.opts.outages);
     let withheld = plan.withheld_outages();
-    let ctx = Ctx {
+    let base_ctx = Ctx {
         p,
         dopts,
         plan,
@@ -519,8 +528,14 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         .candidates
         .clone()
         .unwrap_or_else(|| candidates(&p.case, &p.opts));
-    let mut s = start_search(&ctx, &before, &errors_before)?;
-    let base = s.cur.clone();
+    let base = base_eval(&base_ctx, &before, &errors_before)?;
+    let (bias_step, stepped) = find_bias_step(p, &before).unzip();
+    // the search and the final model run on the data with the step removed
+    let ctx = Ctx {
+        p: stepped.as_ref().unwrap_or(p),
+        ..base_ctx
+    };
+    let mut s = start_search(&ctx, &base, bias_step)?;
     while s.added.len() < dopts.max_effects {
         if !search_round(&ctx, &mut s, &all) {
             break;
@@ -537,20 +552,63 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     finish(&ctx, s, &all, &base, before, errors_before, final_opts)
 }
 
-/// The base model's runs: the search's (windows withheld; the full run when the diagnosis
-/// withholds nothing), the noise fitted on it, the first step.
-fn start_search(
+/// The base model's search run (windows withheld; the full run when the diagnosis withholds
+/// nothing).
+fn base_eval(
     ctx: &Ctx<'_>,
     before: &Arc<RunOutput>,
     errors_before: &Metrics,
-) -> anyhow::Result<Search> {
+) -> anyhow::Result<Eval> {
     let p = ctx.p;
     let mut se = validate::step_errors(before, errors_before);
     se.written_vs_fixes_m = validate::written_solution_vs_fixes_m(before, &p.case.gnss);
-    let cur = if ctx.withheld.is_empty() && !ctx.dopts.smooth {
+    Ok(if ctx.withheld.is_empty() && !ctx.dopts.smooth {
         ctx.scored(before.clone(), errors_before.clone(), se)
     } else {
         ctx.evaluate(&p.opts)?
+    })
+}
+
+/// A bias step is not a state: found as a change point in the base run's innovations
+/// ([`changepoint::find_bias_step`]), with the case the step is removed from.
+fn find_bias_step(p: &Prepared, before: &RunOutput) -> Option<(changepoint::BiasStep, Prepared)> {
+    let s = changepoint::find_bias_step(&p.case, &p.opts, before)?;
+    let stepped = Prepared {
+        case: s.corrected_case(&p.case),
+        ..p.clone()
+    };
+    Some((s, stepped))
+}
+
+/// The search's start on `ctx`'s data (the bias step removed): the base model's run there,
+/// the noise fitted on it, the first steps (the configuration on the recorded data, the bias
+/// step's removal).
+fn start_search(
+    ctx: &Ctx<'_>,
+    base: &Eval,
+    bias_step: Option<changepoint::BiasStep>,
+) -> anyhow::Result<Search> {
+    let p = ctx.p;
+    let mut steps = vec![Step {
+        label: "configuration".into(),
+        accepted: true,
+        reason: None,
+        errors: base.errors,
+        heldout: None,
+    }];
+    let cur = match &bias_step {
+        Some(b) => {
+            let cur = ctx.evaluate(&p.opts)?;
+            steps.push(Step {
+                label: format!("bias step removed: {}", b.describe()),
+                accepted: true,
+                reason: None,
+                errors: cur.errors,
+                heldout: Some(validate::compare_windows(&base.windows, &cur.windows)),
+            });
+            cur
+        }
+        None => base.clone(),
     };
     let mut warnings = Vec::new();
     if ctx.plan.windows.is_empty() {
@@ -571,13 +629,7 @@ fn start_search(
         .filter(|k| !k.is_one());
     Ok(Search {
         base_opts: p.opts.clone(),
-        steps: vec![Step {
-            label: "configuration".into(),
-            accepted: true,
-            reason: None,
-            errors: cur.errors,
-            heldout: None,
-        }],
+        steps,
         cur,
         noise_tuning,
         pending_noise,
@@ -586,6 +638,7 @@ fn start_search(
         added_info: Vec::new(),
         rounds: Vec::new(),
         warnings,
+        bias_step,
     })
 }
 
@@ -632,7 +685,7 @@ fn evaluate_candidate(
             ev.errors = Some(r.errors);
             let h = validate::compare_windows(&cur.windows, &r.windows);
             ev.heldout = Some(h);
-            let (decision, why) = decide(d - penalty, ev.max_z, &h);
+            let (decision, why) = decide(d - penalty, ev.max_z, is_noise_like(b), &h);
             ev.decision = decision;
             ev.refused = (decision != Decision::Eligible).then(|| why.clone());
             ev.reason = why;
@@ -647,9 +700,23 @@ fn evaluate_candidate(
     }
 }
 
+/// Whether a block is noise-like: its final estimate is one draw of a random process (a
+/// Gauss-Markov error), so its |estimate|/sigma says nothing about whether it is present;
+/// its significance is the held-out windows' paired decision.
+pub fn is_noise_like(b: Block) -> bool {
+    b == Block::GnssPositionGm
+}
+
 /// The decision on a candidate with `evidence` (log-likelihood gain minus BIC penalty, nats),
-/// its largest |estimate|/sigma and its held-out comparison, and the reason in words.
-pub fn decide(evidence: f64, max_z: f64, h: &HeldoutComparison) -> (Decision, String) {
+/// its largest |estimate|/sigma, whether it is [noise-like](is_noise_like) (no test on the
+/// estimate: the held-out decision is its significance) and its held-out comparison, and the
+/// reason in words.
+pub fn decide(
+    evidence: f64,
+    max_z: f64,
+    noise_like: bool,
+    h: &HeldoutComparison,
+) -> (Decision, String) {
     let held = h.describe();
     if h.verdict == HeldoutVerdict::Worse {
         return (
@@ -663,7 +730,7 @@ pub fn decide(evidence: f64, max_z: f64, h: &HeldoutComparison) -> (Decision, St
             format!("likelihood gain below the BIC penalty ({evidence:.1} nats); {held}"),
         );
     }
-    if max_z < validate::MIN_Z {
+    if !noise_like && max_z < validate::MIN_Z {
         return (
             Decision::NotSignificant,
             format!(
@@ -1063,7 +1130,8 @@ fn finish(
     final_opts: RunOptions,
 ) -> anyhow::Result<DiagnoseOutput> {
     let p = ctx.p;
-    let changed = final_opts.filter != p.opts.filter || !s.added.is_empty();
+    let changed =
+        final_opts.filter != p.opts.filter || !s.added.is_empty() || s.bias_step.is_some();
     let (after, errors_after) = if changed {
         execute_case(&p.case, &final_opts, &mut |_, _| {})
             .map(|(r, m)| (Arc::new(r), m))
@@ -1135,6 +1203,7 @@ fn finish(
             residuals_after,
             rounds: s.rounds,
             output_clock_shift_s,
+            bias_step: s.bias_step,
             error_before,
             error_after,
             errors_before,
@@ -1187,6 +1256,9 @@ fn verdict(s: &Search, unexplained: Option<&stats::Unexplained>) -> String {
         if let Some(a) = &r.ambiguous {
             verdict.push_str(&format!("; {a}"));
         }
+    }
+    if let Some(b) = &s.bias_step {
+        verdict.push_str(&format!("; {} at {:.1} s", b.name, b.t_s));
     }
     if let Some(u) = unexplained.filter(|u| !u.spans.is_empty()) {
         verdict.push_str(&format!(

@@ -7,6 +7,10 @@
 //! candidate, frees it ([`free`]): scale factors get the project's default prior (1000 ppm,
 //! Gauss-Markov with the configured correlation time, at least 1 h), other effect blocks the
 //! default priors of [`nav_core::config::EffectsConfig`].
+//!
+//! `imu_clock_drift` (a time offset with a rate) and `time_offset` are the same kind of state:
+//! a model that carries one does not get the other as a candidate; `gnss_position_gm` is
+//! frozen when its sigmas are all zero.
 use nav_core::config::{EffectsConfig, FilterConfig, ScaleFactorNoise};
 use nav_core::model::{Block, EFFECT_BLOCKS};
 
@@ -27,6 +31,7 @@ fn effect_noise_mut(e: &mut EffectsConfig, b: Block) -> Option<&mut nav_core::co
         Block::GyroMisalignment => &mut e.gyro_misalignment,
         Block::LeverArm => &mut e.lever_arm,
         Block::TimeOffset => &mut e.time_offset,
+        Block::ImuClockDrift => &mut e.imu_clock_drift,
         Block::AccelTemperatureBias => &mut e.accel_temperature,
         Block::GyroTemperatureBias => &mut e.gyro_temperature,
         Block::GyroGSensitivity => &mut e.gyro_g_sensitivity,
@@ -40,6 +45,7 @@ pub fn frozen_in(cfg: &FilterConfig, b: Block) -> bool {
     match b {
         Block::GyroScaleFactor => zero(&cfg.gyro_scale.sigma),
         Block::AccelScaleFactor => zero(&cfg.accel_scale.sigma),
+        Block::GnssPositionGm => zero(&cfg.effects.gnss_position_gm.sigma_m),
         other => {
             let mut e = cfg.effects;
             effect_noise_mut(&mut e, other).is_some_and(|n| n.init_sigma == 0.0 && n.rw_psd == 0.0)
@@ -47,9 +53,10 @@ pub fn frozen_in(cfg: &FilterConfig, b: Block) -> bool {
     }
 }
 
-/// Whether the run's model carries block `b` (in its layout or as an extra block).
+/// Whether the run's model carries block `b` or one of its kind (in its layout or as an
+/// extra block: `imu_clock_drift` carries the time offset).
 pub fn carried(opts: &RunOptions, b: Block) -> bool {
-    opts.model.layout().contains(b.kind()) || opts.extra_blocks.contains(&b)
+    opts.model.layout().contains(b.kind()) || opts.extra_blocks.iter().any(|e| e.kind() == b.kind())
 }
 
 /// Whether the run's model carries block `b` frozen ([`frozen_in`]): declared absent.
@@ -66,6 +73,9 @@ pub fn free(opts: &mut RunOptions, b: Block) {
     match b {
         Block::GyroScaleFactor => opts.filter.gyro_scale = sf(&opts.filter.gyro_scale),
         Block::AccelScaleFactor => opts.filter.accel_scale = sf(&opts.filter.accel_scale),
+        Block::GnssPositionGm => {
+            opts.filter.effects.gnss_position_gm = EffectsConfig::default().gnss_position_gm;
+        }
         other => {
             let d = EffectsConfig::default();
             let mut dd = d;
@@ -75,7 +85,7 @@ pub fn free(opts: &mut RunOptions, b: Block) {
             ) {
                 *dst = *src;
             }
-            if other == Block::TimeOffset {
+            if matches!(other, Block::TimeOffset | Block::ImuClockDrift) {
                 // the acceptance window of add_effect_block
                 opts.add_effect_block(other);
             }

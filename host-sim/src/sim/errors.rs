@@ -114,6 +114,11 @@ pub struct SensorErrors {
     pub turn_on_bias_sigma: Axes3,
     /// Fixed (deterministic) bias: m/s^2, rad/s.
     pub bias: Axes3,
+    /// A bias step (m/s^2, rad/s) added to every sample from `bias_step_at_s` on (an
+    /// undeclared change of the bias: a shock, a mode switch); zero = none.
+    pub bias_step: Axes3,
+    /// Time of the bias step, s after the first IMU epoch.
+    pub bias_step_at_s: f64,
     /// Quantum of the output increments: m/s, rad (0 = off).
     pub quantization_step: Axes3,
     /// Scale-factor error, ppm.
@@ -140,6 +145,8 @@ impl Default for SensorErrors {
             flicker_block_s: 600.0,
             turn_on_bias_sigma: Axes3::default(),
             bias: Axes3::default(),
+            bias_step: Axes3::default(),
+            bias_step_at_s: 0.0,
             quantization_step: Axes3::default(),
             scale_factor_ppm: Axes3::default(),
             misalignment_rad: [[0.0; 3]; 3],
@@ -316,6 +323,14 @@ pub struct ErrorModel {
     /// GNSS errors.
     #[serde(default)]
     pub gnss: GnssErrors,
+    /// IMU clock frequency error, ppm (positive: the IMU clock runs fast). The trajectory, the
+    /// truth and the IMU samples are on the IMU clock; the GNSS fix tagged `t` (GNSS clock) is
+    /// the antenna at IMU time `t + 1e-6 ppm (t - t_0)` (`t_0` the first IMU epoch): the
+    /// GNSS-IMU time offset grows by `1e-6 ppm` s per s. Each IMU increment is integrated over
+    /// the true interval, `1 / (1 + 1e-6 ppm)` of its stamped one (to first order in the
+    /// drift: a `-ppm` common scale factor, `ppm * g` of apparent vertical bias).
+    #[serde(default)]
+    pub imu_clock_drift_ppm: f64,
 }
 
 /// An error-model file: the model plus an optional `base` preset it overrides.
@@ -334,6 +349,8 @@ struct ErrorModelFile {
     temperature: Option<Temperature>,
     #[serde(default)]
     gnss: GnssErrors,
+    #[serde(default)]
+    imu_clock_drift_ppm: f64,
 }
 
 /// Micro-g in m/s^2.
@@ -376,6 +393,7 @@ impl ErrorModel {
             gyro: SensorErrors::default(),
             temperature: None,
             gnss: rtk_gnss(),
+            imu_clock_drift_ppm: 0.0,
         };
         match name {
             "none" => {
@@ -442,6 +460,7 @@ impl ErrorModel {
                     gyro: direct.gyro,
                     temperature: direct.temperature,
                     gnss: direct.gnss,
+                    imu_clock_drift_ppm: direct.imu_clock_drift_ppm,
                 };
                 m.validate()?;
                 return Ok(m);
@@ -521,6 +540,14 @@ impl ErrorModel {
             if !s.flicker_b.is_zero() && !pos(s.flicker_block_s) {
                 return bad(format!("{name}.flicker_block_s must be > 0"));
             }
+            if !(s.bias_step.all(f64::is_finite)
+                && s.bias_step_at_s.is_finite()
+                && s.bias_step_at_s >= 0.0)
+            {
+                return bad(format!(
+                    "{name}: bias_step must be finite and bias_step_at_s finite and >= 0"
+                ));
+            }
             let finite = [s.bias, s.scale_factor_ppm, s.temp_coeff_per_c];
             if !finite.iter().all(|a| a.all(f64::is_finite))
                 || !s.misalignment_rad.iter().flatten().all(|x| x.is_finite())
@@ -551,6 +578,12 @@ impl ErrorModel {
             if !pos(t.tau_s) || !t.start_c.is_finite() || !t.rise_c.is_finite() {
                 return bad("temperature: tau_s must be > 0, start_c and rise_c finite".into());
             }
+        }
+        if !below(self.imu_clock_drift_ppm, 1000.0) {
+            return bad(format!(
+                "imu_clock_drift_ppm = {} must be finite and below 1000 in magnitude",
+                self.imu_clock_drift_ppm
+            ));
         }
         let g = &self.gnss;
         if !(g.rate_hz > 0.0 && g.rate_hz <= 100.0) {
@@ -693,11 +726,13 @@ impl ErrorModel {
         let gs = Matrix3::from_fn(|i, j| self.gyro.g_sensitivity_radps_per_mps2[i][j]);
         let mut out: Vec<ImuSample> = Vec::with_capacity(n);
         let mut temp_rng = stream(seed, TEMP, SRC_WHITE, 0);
+        // the increments over the true interval of a stamped one (IMU clock drift)
+        let true_interval = 1.0 / (1.0 + self.imu_clock_drift_ppm * 1e-6);
         for (k, s) in traj.imu.iter().enumerate() {
             let dth = Vector3::from(s.dtheta_rad);
             let dv = Vector3::from(s.dv_mps);
-            let mut dth_m = mg * dth + gs * dv;
-            let mut dv_m = ma * dv;
+            let mut dth_m = (mg * dth + gs * dv) * true_interval;
+            let mut dv_m = ma * dv * true_interval;
             let mut temperature_c = f64::NAN;
             if let Some(t) = &self.temperature {
                 let (a, b) = (k as f64 * dt, (k + 1) as f64 * dt);
@@ -776,7 +811,8 @@ impl ErrorModel {
                 continue;
             }
             let t_tag = traj.t0_s + t_rel;
-            let Some(st) = traj.truth_at(t_tag - g.time_offset_s) else {
+            let drift = self.imu_clock_drift_ppm * 1e-6 * t_rel;
+            let Some(st) = traj.truth_at(t_tag - g.time_offset_s + drift) else {
                 continue;
             };
             let (r, p, y) = st.q_nb.euler_angles();
@@ -833,6 +869,14 @@ fn add_stochastic(
     if bias != 0.0 {
         for s in out.iter_mut() {
             *comp(s, sensor, axis) += bias * dt;
+        }
+    }
+    // the step: on every sample that starts at or after bias_step_at_s
+    let step = e.bias_step.0[axis];
+    if step != 0.0 {
+        let first = (e.bias_step_at_s / dt - 1e-9).ceil().max(0.0) as usize;
+        for s in out.iter_mut().skip(first) {
+            *comp(s, sensor, axis) += step * dt;
         }
     }
     let s_n = e.white_psd.0[axis];

@@ -54,22 +54,42 @@ pub enum Effect {
     LeverArm,
     /// GNSS time tags 50-100 ms late.
     TimeOffset,
+    /// IMU clock running 30-80 ppm fast or slow: the GNSS-IMU time offset grows by
+    /// 30-80 us per s (0.07-0.19 s over 40 minutes).
+    ImuClockDrift,
+    /// GNSS position errors larger than declared: the white noise 2-4 times the reported
+    /// standard deviations and a time-correlated (Gauss-Markov) error of 5-15 cm per axis with
+    /// a 100-300 s correlation time (the declared drive has 5 mm / 60 s).
+    GnssCorrelatedError,
+    /// Accelerometer bias step of 2-4 mg along a random horizontal body axis (random sign) at
+    /// [`bias_step_time_s`].
+    AccelBiasStep,
+    /// Gyro bias step of 20-50 deg/h about a random body axis (random sign) at
+    /// [`bias_step_time_s`].
+    GyroBiasStep,
 }
 
 impl Effect {
-    /// Every effect, in the order of issue 13.
-    pub const ALL: [Effect; 6] = [
+    /// Every effect: the sensor and installation effects first, then the clock, GNSS and
+    /// bias-step effects.
+    pub const ALL: [Effect; 10] = [
         Effect::GyroScaleFactor,
         Effect::AccelScaleFactor,
         Effect::AccelMisalignment,
         Effect::AccelTemperature,
         Effect::LeverArm,
         Effect::TimeOffset,
+        Effect::ImuClockDrift,
+        Effect::GnssCorrelatedError,
+        Effect::AccelBiasStep,
+        Effect::GyroBiasStep,
     ];
 
-    /// The name of the effect block of the filter's vocabulary that models it
+    /// The name of the effect in the diagnosis vocabulary: the effect block that models it
     /// (`nav_core::model::Block::effect_from_name`; the scale factors are KF-GINS's own
-    /// states, declared with a sigma of zero in the YAML).
+    /// states, declared with a sigma of zero in the YAML), or for a bias step, which is not a
+    /// state, the change point the diagnosis reports
+    /// (`host_sim::diagnose::changepoint::BiasStepSensor::name`).
     pub const fn block_name(self) -> &'static str {
         match self {
             Effect::GyroScaleFactor => "gyro_scale_factor",
@@ -78,6 +98,10 @@ impl Effect {
             Effect::AccelTemperature => "accel_temperature_bias",
             Effect::LeverArm => "lever_arm",
             Effect::TimeOffset => "time_offset",
+            Effect::ImuClockDrift => "imu_clock_drift",
+            Effect::GnssCorrelatedError => "gnss_position_gm",
+            Effect::AccelBiasStep => "accel_bias_step",
+            Effect::GyroBiasStep => "gyro_bias_step",
         }
     }
 
@@ -92,6 +116,12 @@ impl Effect {
             }
             Effect::LeverArm => "undeclared lever arm 1.5 m",
             Effect::TimeOffset => "GNSS-IMU time offset 50-100 ms",
+            Effect::ImuClockDrift => "IMU clock drift 30-80 ppm",
+            Effect::GnssCorrelatedError => {
+                "GNSS white noise 2-4x declared, Gauss-Markov 5-15 cm / 100-300 s"
+            }
+            Effect::AccelBiasStep => "accelerometer bias step 2-4 mg",
+            Effect::GyroBiasStep => "gyro bias step 20-50 deg/h",
         }
     }
 }
@@ -298,6 +328,7 @@ pub fn declared_error_model(duration_s: f64) -> ErrorModel {
         accel,
         gyro,
         temperature: None,
+        imu_clock_drift_ppm: 0.0,
         gnss: GnssErrors {
             rate_hz: 1.0,
             white_sigma_ned_m: Axes3([0.01, 0.01, 0.02]),
@@ -308,6 +339,13 @@ pub fn declared_error_model(duration_s: f64) -> ErrorModel {
             ..GnssErrors::default()
         },
     }
+}
+
+/// Time of the bias step of a drive of `duration_s`: 15 s into the GNSS window (between two
+/// outages, [`drive_outages`]) that follows the middle of the drive.
+pub fn bias_step_time_s(duration_s: f64) -> f64 {
+    let k = (0.5 * duration_s / OUTAGE_PERIOD_S).floor();
+    k * OUTAGE_PERIOD_S + OUTAGE_S + 15.0
 }
 
 /// Sensor/source id of the drive's own random streams (effect magnitudes, initial errors),
@@ -356,6 +394,29 @@ pub fn add_effect(m: &mut ErrorModel, effect: Effect, seed: u64, duration_s: f64
         }
         Effect::LeverArm => m.gnss.lever_arm_b_m = Axes3(LEVER_ARM_TRUE_M),
         Effect::TimeOffset => m.gnss.time_offset_s = 0.05 + 0.05 * rng.random::<f64>(),
+        Effect::ImuClockDrift => m.imu_clock_drift_ppm = signed(&mut rng, 30.0, 80.0),
+        Effect::GnssCorrelatedError => {
+            let white = 2.0 + 2.0 * rng.random::<f64>();
+            let reported = m.gnss.reported_std();
+            m.gnss.reported_std_ned_m = Some(Axes3(reported));
+            m.gnss.white_sigma_ned_m = Axes3(reported.map(|s| s * white));
+            m.gnss.gm_sigma_ned_m = Axes3([0; 3].map(|_| 0.05 + 0.1 * rng.random::<f64>()));
+            m.gnss.gm_tau_s = 100.0 + 200.0 * rng.random::<f64>();
+        }
+        Effect::AccelBiasStep => {
+            let mut step = [0.0; 3];
+            let axis = usize::from(rng.random::<bool>());
+            step[axis] = signed(&mut rng, 2000.0, 4000.0) * UG_MPS2;
+            m.accel.bias_step = Axes3(step);
+            m.accel.bias_step_at_s = bias_step_time_s(duration_s);
+        }
+        Effect::GyroBiasStep => {
+            let mut step = [0.0; 3];
+            let axis = rng.random_range(0..3usize);
+            step[axis] = signed(&mut rng, 20.0, 50.0) * DEG_PER_H_RADPS;
+            m.gyro.bias_step = Axes3(step);
+            m.gyro.bias_step_at_s = bias_step_time_s(duration_s);
+        }
     }
 }
 
@@ -515,6 +576,26 @@ impl UndeclaredDrive {
             Some(Effect::TimeOffset) => {
                 format!("GNSS tags {:.1} ms late", e.gnss.time_offset_s * 1e3)
             }
+            Some(Effect::ImuClockDrift) => {
+                format!("IMU clock {:+.1} ppm", e.imu_clock_drift_ppm)
+            }
+            Some(Effect::GnssCorrelatedError) => format!(
+                "GNSS white {:?} m, Gauss-Markov {:?} cm / {:.0} s (reported {:?} m)",
+                e.gnss.white_sigma_ned_m.0,
+                e.gnss.gm_sigma_ned_m.0.map(|x| r1(x * 100.0)),
+                e.gnss.gm_tau_s,
+                e.gnss.reported_std()
+            ),
+            Some(Effect::AccelBiasStep) => format!(
+                "accelerometer bias step {:?} ug at {:.0} s",
+                e.accel.bias_step.0.map(|x| r1(x / UG_MPS2)),
+                e.accel.bias_step_at_s
+            ),
+            Some(Effect::GyroBiasStep) => format!(
+                "gyro bias step {:?} deg/h at {:.0} s",
+                e.gyro.bias_step.0.map(|x| r1(x / DEG_PER_H_RADPS)),
+                e.gyro.bias_step_at_s
+            ),
         };
         format!(
             "{:.1} min at {} Hz (truth RK4 x{}), seed {}: {what}",
@@ -550,6 +631,11 @@ mod tests {
     fn block_names_are_the_filter_vocabulary() {
         use nav_core::model::{Block, EFFECT_BLOCKS};
         for e in Effect::ALL {
+            if matches!(e, Effect::AccelBiasStep | Effect::GyroBiasStep) {
+                let steps = crate::diagnose::changepoint::BiasStepSensor::ALL.map(|s| s.name());
+                assert!(steps.contains(&e.block_name()), "{e}");
+                continue;
+            }
             let known = EFFECT_BLOCKS
                 .iter()
                 .chain(&[Block::GyroScaleFactor, Block::AccelScaleFactor])
@@ -606,6 +692,31 @@ mod tests {
                     }
                     Effect::TimeOffset => {
                         assert!((0.05..=0.1).contains(&m.gnss.time_offset_s))
+                    }
+                    Effect::ImuClockDrift => {
+                        assert!((30.0..=80.0).contains(&m.imu_clock_drift_ppm.abs()))
+                    }
+                    Effect::GnssCorrelatedError => {
+                        let (w, r) = (m.gnss.white_sigma_ned_m.0, m.gnss.reported_std());
+                        for ((w, r), g) in w.iter().zip(&r).zip(&m.gnss.gm_sigma_ned_m.0) {
+                            assert!((2.0..=4.0).contains(&(w / r)), "{w} {r}");
+                            assert!((0.05..=0.15).contains(g), "{g}");
+                        }
+                        assert!((100.0..=300.0).contains(&m.gnss.gm_tau_s));
+                    }
+                    Effect::AccelBiasStep => {
+                        let s = m.accel.bias_step.0;
+                        assert_eq!(s[2], 0.0);
+                        let mg = s.iter().map(|x| x.abs()).sum::<f64>() / UG_MPS2 / 1e3;
+                        assert!((2.0..=4.0).contains(&mg), "{mg}");
+                        assert!(s.iter().filter(|x| **x != 0.0).count() == 1);
+                        assert_eq!(m.accel.bias_step_at_s, bias_step_time_s(480.0));
+                    }
+                    Effect::GyroBiasStep => {
+                        let s = m.gyro.bias_step.0;
+                        let dph = s.iter().map(|x| x.abs()).sum::<f64>() / DEG_PER_H_RADPS;
+                        assert!((20.0..=50.0).contains(&dph), "{dph}");
+                        assert!(s.iter().filter(|x| **x != 0.0).count() == 1);
                     }
                 }
             }

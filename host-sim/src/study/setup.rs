@@ -143,6 +143,7 @@ fn unreachable_preset() -> ErrorModel {
         gyro: Default::default(),
         temperature: None,
         gnss: Default::default(),
+        imu_clock_drift_ppm: 0.0,
     }
 }
 

@@ -31,12 +31,37 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         l
     }
 
-    /// The estimated IMU-GNSS time offset, s ([`crate::model::Block::TimeOffset`]; 0 without
-    /// the block).
+    /// The estimated IMU-GNSS time offset at the filter's current time, s
+    /// ([`crate::model::Block::TimeOffset`] or [`crate::model::Block::ImuClockDrift`]; 0
+    /// without either).
     pub fn time_offset_s(&self) -> f64 {
-        self.block_estimate(BlockKind::TimeOffset)
-            .and_then(|e| e.first().copied())
-            .unwrap_or(0.0)
+        self.time_offset_at_s(self.mech.state().t_s)
+    }
+
+    /// The estimated IMU-GNSS time offset at time `t_s` (s): the `time_offset` estimate, or
+    /// `dt_0 + r (t_s - t_0)` with the `imu_clock_drift` block (`t_0`: the filter's start,
+    /// [`Self::clock_ref_s`]); 0 without either block.
+    pub fn time_offset_at_s(&self, t_s: f64) -> f64 {
+        match self.block_estimate(BlockKind::TimeOffset) {
+            Some([dt0, rate]) => dt0 + rate * (t_s - self.clock_ref_s),
+            Some([dt0, ..]) => *dt0,
+            _ => 0.0,
+        }
+    }
+
+    /// The reference time `t_0` of the [`crate::model::Block::ImuClockDrift`] offset (the
+    /// filter's initial state's time), s.
+    pub fn clock_ref_s(&self) -> f64 {
+        self.clock_ref_s
+    }
+
+    /// The estimated time-correlated GNSS antenna-position error, NED, m
+    /// ([`crate::model::Block::GnssPositionGm`]; None without the block).
+    pub fn gnss_position_error_ned_m(&self) -> Option<[f64; 3]> {
+        match self.block_estimate(BlockKind::GnssPositionGm) {
+            Some([n, e, d]) => Some([*n, *e, *d]),
+            _ => None,
+        }
     }
 
     /// The reference temperature of the temperature blocks, degC (NaN until the first sample

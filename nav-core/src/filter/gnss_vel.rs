@@ -39,7 +39,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
                 step: self.last_step,
                 lever_arm_body_m: self.lever_arm_body_m(),
                 time_offset: self.layout.contains(BlockKind::TimeOffset),
-                time_offset_s: self.time_offset_s(),
+                time_offset_s: self.time_offset_at_s(fix.t_s),
+                clock_span_s: fix.t_s - self.clock_ref_s(),
+                gnss_error_ned_m: self.gnss_position_error_ned_m(),
                 temperature_offset_c: self.last_temperature_c - self.temperature_ref_c,
             },
             fix,
@@ -127,6 +129,8 @@ struct GeometryInput {
     lever_arm_body_m: [f64; 3],
     time_offset: bool,
     time_offset_s: f64,
+    clock_span_s: f64,
+    gnss_error_ned_m: Option<[f64; 3]>,
     temperature_offset_c: f64,
 }
 
@@ -186,6 +190,7 @@ fn gnss_geometry(inp: &GeometryInput, fix: &GnssFix, dt_fix: f64) -> Geometry {
         lever_bridge_s: if time_offset { tau } else { 0.0 },
         w_in_ned_radps: w_in.into(),
         f_ned_mps2: inp.step.f_ned_mps2.into(),
+        clock_span_s: inp.clock_span_s,
     };
     // predicted antenna position at the fix time minus the measured one, NED m
     let mut dlon = fix.lon_rad - nav.pos.lon_rad;
@@ -199,12 +204,16 @@ fn gnss_geometry(inp: &GeometryInput, fix: &GnssFix, dt_fix: f64) -> Geometry {
         dlon * rn * cl,
         nav.pos.h_m - fix.h_m,
     );
-    let zp = if time_offset {
+    let mut zp = if time_offset {
         // second order: 0.5 a tau^2 is 2 cm at 2 m/s^2 and 150 ms
         c_l + v_ant0 * tau + acc_n * (0.5 * tau * tau) - meas_off
     } else {
         c_l + nav.vel_ned_mps * dt_fix - meas_off
     };
+    // the predicted measurement carries the estimated GNSS position error (measured = true + e)
+    if let Some(e) = inp.gnss_error_ned_m {
+        zp += Vector3::from(e);
+    }
     let mut v_ant = nav.vel_ned_mps + c_w_x_l - w_in.cross(&c_l);
     if time_offset {
         v_ant += acc_n * tau;

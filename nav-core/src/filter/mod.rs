@@ -213,6 +213,9 @@ pub struct Filter<T: Scalar, const N: usize> {
     temperature_ref_c: f64,
     /// Temperature of the last IMU sample, degC (NaN: none).
     last_temperature_c: f64,
+    /// Start time of the filter (its initial state's), s: the reference `t_0` of the
+    /// [`crate::model::Block::ImuClockDrift`] offset `dt_0 + r (t - t_0)`.
+    clock_ref_s: f64,
     /// Error-state corrections fed back since the last covariance prediction (summed), for
     /// [`observe::PredictionRecord::correction`].
     fed_back: [T; N],
@@ -330,6 +333,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             status: STATUS_NO_FIX_YET,
             temperature_ref_c: cfg.effects.temperature_ref_c.unwrap_or(f64::NAN),
             last_temperature_c: f64::NAN,
+            clock_ref_s: init.t_s,
             fed_back: [T::ZERO; N],
             fill_var: [0.0; 9],
             tentative: reacq::Tentative::none(),

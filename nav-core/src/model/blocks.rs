@@ -85,6 +85,18 @@ pub enum Block {
     /// modelled: on a land vehicle they are driven almost only by gravity (f ~ (0, 0, -g)),
     /// i.e. they act as a constant gyro bias and are absorbed by the gyro-bias states.
     GyroGSensitivity,
+    /// `imu_clock_drift`: 2 states `[dt_0, r]`, the IMU-GNSS time offset at the filter's
+    /// start `t_0` (s) and its rate (s/s, 1e-6 = 1 ppm: an IMU clock running `r` fast): the
+    /// offset is `dt(t) = dt_0 + r (t - t_0)` and enters the GNSS measurement like
+    /// [`Block::TimeOffset`]'s (it replaces it: both are [`BlockKind::TimeOffset`]). Priors and
+    /// process noise: `EffectsConfig::time_offset` (dt_0) and `EffectsConfig::imu_clock_drift`
+    /// (r). Derivation: `docs/derivations/clock_drift_gnss_gm.md`.
+    ImuClockDrift,
+    /// `gnss_position_gm`: 3 states, a time-correlated error of the GNSS antenna position, NED,
+    /// m (measured = true + e), each axis a first-order Gauss-Markov process with the
+    /// `EffectsConfig::gnss_position_gm` sigma and correlation time. Measurement-only (position
+    /// columns `+I`). Derivation: `docs/derivations/clock_drift_gnss_gm.md`.
+    GnssPositionGm,
     /// `odometer_scale`: 1 state, the scale-factor error `k` of a wheel-speed odometer
     /// (dimensionless): measured speed = `(1 + k)` true speed ([`crate::aiding::odometer`]).
     /// Measurement-only (no IMU coupling); not in [`EFFECT_BLOCKS`] (an aiding sensor, not an
@@ -112,7 +124,8 @@ pub enum BlockKind {
     GyroMisalignment,
     /// [`Block::LeverArm`].
     LeverArm,
-    /// [`Block::TimeOffset`].
+    /// [`Block::TimeOffset`] and [`Block::ImuClockDrift`] (a time offset, constant or
+    /// drifting; the first state is the offset).
     TimeOffset,
     /// [`Block::AccelTemperatureBias`].
     AccelTemperatureBias,
@@ -120,14 +133,16 @@ pub enum BlockKind {
     GyroTemperatureBias,
     /// [`Block::GyroGSensitivity`].
     GyroGSensitivity,
+    /// [`Block::GnssPositionGm`].
+    GnssPositionGm,
     /// [`Block::OdometerScale`].
     OdometerScale,
 }
 
-/// Every effect block (issue 7's vocabulary), in the order of their names in the
+/// Every effect block (the diagnosis vocabulary), in the order of their names in the
 /// documentation: scale factors, misalignments, lever arm, time offset, temperature
-/// coefficients, g-sensitivity.
-pub const EFFECT_BLOCKS: [Block; 9] = [
+/// coefficients, g-sensitivity, IMU clock drift, GNSS position Gauss-Markov error.
+pub const EFFECT_BLOCKS: [Block; 11] = [
     Block::AccelScaleFactor,
     Block::GyroScaleFactor,
     Block::AccelMisalignment,
@@ -137,6 +152,8 @@ pub const EFFECT_BLOCKS: [Block; 9] = [
     Block::AccelTemperatureBias,
     Block::GyroTemperatureBias,
     Block::GyroGSensitivity,
+    Block::ImuClockDrift,
+    Block::GnssPositionGm,
 ];
 
 impl Block {
@@ -150,8 +167,10 @@ impl Block {
             | Self::LeverArm
             | Self::AccelTemperatureBias
             | Self::GyroTemperatureBias
-            | Self::GyroGSensitivity => 3,
+            | Self::GyroGSensitivity
+            | Self::GnssPositionGm => 3,
             Self::AccelMisalignment | Self::GyroMisalignment => 6,
+            Self::ImuClockDrift => 2,
             Self::TimeOffset | Self::OdometerScale => 1,
         }
     }
@@ -167,7 +186,8 @@ impl Block {
             Self::AccelMisalignment => BlockKind::AccelMisalignment,
             Self::GyroMisalignment => BlockKind::GyroMisalignment,
             Self::LeverArm => BlockKind::LeverArm,
-            Self::TimeOffset => BlockKind::TimeOffset,
+            Self::TimeOffset | Self::ImuClockDrift => BlockKind::TimeOffset,
+            Self::GnssPositionGm => BlockKind::GnssPositionGm,
             Self::AccelTemperatureBias => BlockKind::AccelTemperatureBias,
             Self::GyroTemperatureBias => BlockKind::GyroTemperatureBias,
             Self::GyroGSensitivity => BlockKind::GyroGSensitivity,
@@ -190,6 +210,8 @@ impl Block {
             Self::AccelTemperatureBias => "accel_temperature_bias",
             Self::GyroTemperatureBias => "gyro_temperature_bias",
             Self::GyroGSensitivity => "gyro_g_sensitivity",
+            Self::ImuClockDrift => "imu_clock_drift",
+            Self::GnssPositionGm => "gnss_position_gm",
             Self::OdometerScale => "odometer_scale",
         }
     }
@@ -208,8 +230,9 @@ impl Block {
             Self::AccelBias(_) => "m/s^2",
             Self::GyroScaleFactor | Self::AccelScaleFactor | Self::OdometerScale => "1",
             Self::AccelMisalignment | Self::GyroMisalignment => "rad",
-            Self::LeverArm => "m",
+            Self::LeverArm | Self::GnssPositionGm => "m",
             Self::TimeOffset => "s",
+            Self::ImuClockDrift => "s, s/s",
             Self::AccelTemperatureBias => "m/s^2/degC",
             Self::GyroTemperatureBias => "rad/s/degC",
             Self::GyroGSensitivity => "rad/s/(m/s^2)",
@@ -217,7 +240,9 @@ impl Block {
     }
 
     /// The effect block's prior/process noise in `cfg`, if the block is an effect block with
-    /// an [`EffectNoise`] (the scale factors have their own Gauss-Markov parameters).
+    /// an [`EffectNoise`] (the scale factors and `gnss_position_gm` have their own
+    /// Gauss-Markov parameters; for `imu_clock_drift` that of its rate state, its offset state
+    /// has `time_offset`'s).
     pub fn effect_noise(self, cfg: &FilterConfig) -> Option<EffectNoise> {
         let e = &cfg.effects;
         match self {
@@ -229,7 +254,9 @@ impl Block {
             Self::GyroTemperatureBias => Some(e.gyro_temperature),
             Self::GyroGSensitivity => Some(e.gyro_g_sensitivity),
             Self::OdometerScale => Some(e.odometer_scale),
+            Self::ImuClockDrift => Some(e.imu_clock_drift),
             Self::Core
+            | Self::GnssPositionGm
             | Self::GyroBias(_)
             | Self::AccelBias(_)
             | Self::GyroScaleFactor
@@ -293,7 +320,11 @@ impl Block {
                 add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.f_b));
             }
             // measurement-only blocks
-            Self::LeverArm | Self::TimeOffset | Self::OdometerScale => {}
+            Self::LeverArm
+            | Self::TimeOffset
+            | Self::ImuClockDrift
+            | Self::GnssPositionGm
+            | Self::OdometerScale => {}
         }
     }
 
@@ -358,6 +389,18 @@ impl Block {
                     w.gauss_markov(T::of_f64(s * s), &d);
                 }
             }
+            Self::GnssPositionGm => {
+                let g = &cfg.effects.gnss_position_gm;
+                let d = gm_decay(dt_s, T::of_f64(g.t_s));
+                for s in g.sigma_m {
+                    w.gauss_markov(T::of_f64(s * s), &d);
+                }
+            }
+            // both states random walks (the offset's growth r (t - t_0) is in the measurement)
+            Self::ImuClockDrift => {
+                w.random_walk(T::of_f64(cfg.effects.time_offset.rw_psd), dt_s);
+                w.random_walk(T::of_f64(cfg.effects.imu_clock_drift.rw_psd), dt_s);
+            }
             other => {
                 if let Some(e) = other.effect_noise(cfg) {
                     let psd = T::of_f64(e.rw_psd);
@@ -403,6 +446,17 @@ impl Block {
             Self::AccelBias(m) => bias(m, &cfg.accel, &mut put),
             Self::GyroScaleFactor => cfg.gyro_scale.sigma.iter().for_each(|s| put(s * s)),
             Self::AccelScaleFactor => cfg.accel_scale.sigma.iter().for_each(|s| put(s * s)),
+            Self::GnssPositionGm => cfg
+                .effects
+                .gnss_position_gm
+                .sigma_m
+                .iter()
+                .for_each(|s| put(s * s)),
+            Self::ImuClockDrift => {
+                let (o, r) = (cfg.effects.time_offset, cfg.effects.imu_clock_drift);
+                put(o.init_sigma * o.init_sigma);
+                put(r.init_sigma * r.init_sigma);
+            }
             other => {
                 if let Some(e) = other.effect_noise(cfg) {
                     (0..other.dim()).for_each(|_| put(e.init_sigma * e.init_sigma));
@@ -440,7 +494,11 @@ impl Block {
                     *a += *e;
                 }
             }
-            Self::LeverArm | Self::TimeOffset | Self::OdometerScale => {}
+            Self::LeverArm
+            | Self::TimeOffset
+            | Self::ImuClockDrift
+            | Self::GnssPositionGm
+            | Self::OdometerScale => {}
         }
     }
 
@@ -455,6 +513,8 @@ impl Block {
             | Self::GyroMisalignment
             | Self::LeverArm
             | Self::TimeOffset
+            | Self::ImuClockDrift
+            | Self::GnssPositionGm
             | Self::OdometerScale => None,
             other => Some(other.kind()),
         }
@@ -529,7 +589,7 @@ impl Block {
             // bridge tau = t_fix + dt_hat - t also multiplies the velocity error, and the
             // bridge's attitude dependence adds tau [(C (w x l)) x] + tau^2/2 [f_n x] (position)
             // and tau [f_n x] (velocity) to the phi columns
-            Self::TimeOffset => {
+            Self::TimeOffset | Self::ImuClockDrift => {
                 let t = ctx.bridge_s;
                 let f_x = skew(&ctx.f_ned_mps2);
                 let mut hp = skew(&ctx.c_w_x_l);
@@ -555,7 +615,22 @@ impl Block {
                         *x = T::of_f64(*a);
                     }
                 }
+                // the drift: dt = dt_0 + r (t_fix - t_0), so the rate column is the offset
+                // column times t_fix - t_0
+                if self == Self::ImuClockDrift {
+                    let s = ctx.clock_span_s;
+                    for (k, (v, a)) in ctx.v_ant_ned_mps.iter().zip(&ctx.acc_ned_mps2).enumerate() {
+                        if let Some(x) = h_pos.get_mut(k, off + 1) {
+                            *x = T::of_f64(*v * s);
+                        }
+                        if let Some(x) = h_vel.get_mut(k, off + 1) {
+                            *x = T::of_f64(*a * s);
+                        }
+                    }
+                }
             }
+            // measured = true + e: dz_pos = +I de
+            Self::GnssPositionGm => h_pos.set_block(off, &to_t(&IDENTITY3)),
             Self::AccelBias(_)
             | Self::AccelScaleFactor
             | Self::AccelMisalignment
@@ -578,6 +653,8 @@ impl Block {
             | Self::GyroMisalignment
             | Self::LeverArm
             | Self::TimeOffset
+            | Self::ImuClockDrift
+            | Self::GnssPositionGm
             | Self::AccelTemperatureBias
             | Self::GyroTemperatureBias
             | Self::GyroGSensitivity
@@ -752,4 +829,7 @@ pub struct MeasContext {
     pub w_in_ned_radps: [f64; 3],
     /// Last specific force in NED, `C f`, m/s^2 (the time-offset bridge's attitude terms).
     pub f_ned_mps2: [f64; 3],
+    /// The fix's time tag minus the filter's start time `t_fix - t_0`, s (the IMU clock
+    /// drift's rate column is its offset column times this).
+    pub clock_span_s: f64,
 }

@@ -33,8 +33,10 @@
 //! Besides the biases and scale factors, the optional *effect* blocks model what a residual
 //! analysis may find missing (their [`Block::name`]s are the vocabulary of `host-sim
 //! diagnose`): [`Block::AccelMisalignment`], [`Block::GyroMisalignment`], [`Block::LeverArm`],
-//! [`Block::TimeOffset`], [`Block::AccelTemperatureBias`], [`Block::GyroTemperatureBias`] and
-//! [`Block::GyroGSensitivity`]. Add any subset to a base layout at compile time:
+//! [`Block::TimeOffset`], [`Block::AccelTemperatureBias`], [`Block::GyroTemperatureBias`],
+//! [`Block::GyroGSensitivity`], [`Block::ImuClockDrift`] (a time offset growing with an IMU
+//! clock's frequency error; it replaces `TimeOffset`) and [`Block::GnssPositionGm`] (a
+//! time-correlated GNSS position error). Add any subset to a base layout at compile time:
 //!
 //! ```
 //! use nav_core::model::{Block, LAYOUT_NBK};
@@ -73,8 +75,8 @@ pub const IDX_ATT: usize = 0;
 pub const IDX_VEL: usize = 3;
 /// Index of the NED position error, m.
 pub const IDX_POS: usize = 6;
-/// Largest number of blocks in a layout (the 5 blocks of the KF-GINS layout plus all 7
-/// effect blocks fit with room to spare).
+/// Largest number of blocks in a layout (the 5 blocks of the KF-GINS layout plus all 11
+/// effect blocks; `time_offset` and `imu_clock_drift` exclude each other).
 pub const MAX_BLOCKS: usize = 16;
 /// Largest dimension of one block (the core's 9).
 pub const MAX_BLOCK_DIM: usize = CORE_DIM;
@@ -371,7 +373,7 @@ mod tests {
             ALL.find(BlockKind::TimeOffset).map(|(o, _)| o),
             Some(18 + 3 + 3 + 6 + 6 + 3)
         );
-        let names: heapless::Vec<&str, 9> = EFFECT_BLOCKS.iter().map(|b| b.name()).collect();
+        let names: heapless::Vec<&str, 11> = EFFECT_BLOCKS.iter().map(|b| b.name()).collect();
         assert_eq!(
             names.as_slice(),
             &[
@@ -384,6 +386,8 @@ mod tests {
                 "accel_temperature_bias",
                 "gyro_temperature_bias",
                 "gyro_g_sensitivity",
+                "imu_clock_drift",
+                "gnss_position_gm",
             ]
         );
         for b in EFFECT_BLOCKS {

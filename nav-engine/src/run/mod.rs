@@ -248,13 +248,13 @@ pub const MAX_EXTRA_DIM: usize = 40;
 
 impl RunOptions {
     /// Appends the effect block `b` to [`Self::extra_blocks`] unless it is there already; for
-    /// `time_offset` also lets the filter accept fixes further from an IMU epoch (the block's
-    /// 3-sigma prior plus 0.05 s).
+    /// `time_offset` and `imu_clock_drift` also let the filter accept fixes further from an
+    /// IMU epoch (the offset's 3-sigma prior plus 0.05 s).
     pub fn add_effect_block(&mut self, b: Block) {
         if !self.extra_blocks.contains(&b) {
             self.extra_blocks.push(b);
         }
-        if b == Block::TimeOffset {
+        if matches!(b, Block::TimeOffset | Block::ImuClockDrift) {
             let lim = 3.0 * self.filter.effects.time_offset.init_sigma + 0.05;
             self.filter.max_gnss_time_offset_s = self.filter.max_gnss_time_offset_s.max(lim);
         }

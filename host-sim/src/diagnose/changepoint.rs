@@ -1,0 +1,452 @@
+//! Change points of the IMU biases: a bias that steps at one time (a shock, a mode switch)
+//! is not a state of the error model, so the effect search cannot name it (it adds effects
+//! that absorb part of it). It is found here from the base run's GNSS innovations and fitted
+//! with the filter as the model:
+//!
+//! 1. Onset: a CUSUM of the position innovations' log-likelihood ratio for a variance
+//!    inflation ([`CUSUM_INFLATION`]) over the used fixes; the step is placed at the first fix
+//!    after the last zero of the statistic before its peak, when the peak exceeds
+//!    [`CUSUM_ALARM_NATS`]. A step needs a consistent model before it: at least
+//!    [`MIN_FIXES_BEFORE`] used fixes before the onset with a mean position NIS below
+//!    [`MAX_NIS_BEFORE`] (an effect present from the start, which inflates the innovations
+//!    throughout, is left to the effect search).
+//! 2. Magnitude: the IMU data after the onset are corrected by a candidate step `c` (body
+//!    axes) and the filter re-run. The innovations are linear in `c` to first order,
+//!    `nu(c) = nu(c0) + J (c - c0)`, with J from one re-run per axis; `c` minimises
+//!    `sum nu^T W nu` (W the inverse innovation variances of the fixes after the onset, the
+//!    withheld fixes left out), by Gauss-Newton (two iterations, the first from the base run),
+//!    for the accelerometers and the gyros; the sensor whose corrected run gains more
+//!    log-likelihood is kept. The 1-sigma of `c` is that of the weighted least squares.
+//! 3. Time: the corrected run is repeated with the step moved by up to
+//!    [`TIME_SEARCH_S`] in 1 s steps; the time of largest log-likelihood is kept. A step's
+//!    time is sharp: moving it by [`TIME_SEARCH_S`] either way must cost at least
+//!    [`MIN_SHARPNESS_NATS`] (a slowly growing error, e.g. a drifting clock, that a small step
+//!    absorbs in part has a flat profile and is left to the effect search).
+//!
+//! A step is reported when the corrected run gains more than the BIC penalty of its four
+//! parameters (3 axes and the time) plus [`MIN_GAIN_NATS`]. [`BiasStep::corrected_case`] gives
+//! the data with the step removed.
+use nav_core::types::ImuSample;
+use nav_engine::run::{run_filter, CaseData, FixUse, InnovationRecord, RunOptions, RunOutput};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::search_recording;
+use super::stats::{in_stats, residual_stats};
+
+/// Variance inflation of the CUSUM's alternative hypothesis (4: innovations twice as large).
+pub const CUSUM_INFLATION: f64 = 4.0;
+/// CUSUM level that signals a change, nats.
+pub const CUSUM_ALARM_NATS: f64 = 25.0;
+/// Half-width of the search for the step time around the CUSUM onset, s.
+pub const TIME_SEARCH_S: f64 = 6.0;
+/// Log-likelihood a step must lose when moved by [`TIME_SEARCH_S`] either way, nats.
+pub const MIN_SHARPNESS_NATS: f64 = 20.0;
+/// Used fixes needed before the onset.
+pub const MIN_FIXES_BEFORE: usize = 60;
+/// Largest mean position NIS (3 dimensions: expected 3) of the fixes before the onset.
+pub const MAX_NIS_BEFORE: f64 = 6.0;
+/// Log-likelihood gain the corrected run must have beyond the BIC penalty, nats.
+pub const MIN_GAIN_NATS: f64 = 10.0;
+
+/// Which sensor triad's bias steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BiasStepSensor {
+    /// Accelerometers: the step in m/s^2.
+    Accel,
+    /// Gyros: the step in rad/s.
+    Gyro,
+}
+
+impl BiasStepSensor {
+    /// Both sensors.
+    pub const ALL: [BiasStepSensor; 2] = [BiasStepSensor::Accel, BiasStepSensor::Gyro];
+
+    /// The name in the diagnosis vocabulary: `accel_bias_step`, `gyro_bias_step`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            BiasStepSensor::Accel => "accel_bias_step",
+            BiasStepSensor::Gyro => "gyro_bias_step",
+        }
+    }
+
+    /// SI unit of the step.
+    pub const fn unit(self) -> &'static str {
+        match self {
+            BiasStepSensor::Accel => "m/s^2",
+            BiasStepSensor::Gyro => "rad/s",
+        }
+    }
+
+    /// The perturbation used for the finite-difference columns: 1 mg, 10 deg/h.
+    const fn probe(self) -> f64 {
+        match self {
+            BiasStepSensor::Accel => 1e-3 * nav_core::earth::G0_MPS2,
+            BiasStepSensor::Gyro => 10.0 * std::f64::consts::PI / 180.0 / 3600.0,
+        }
+    }
+}
+
+/// A bias step found in the data.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BiasStep {
+    /// Which sensor.
+    pub sensor: BiasStepSensor,
+    /// `accel_bias_step` or `gyro_bias_step`.
+    pub name: String,
+    /// Time of the step, s (the IMU time stamps' clock).
+    pub t_s: f64,
+    /// Time of the step after the first IMU sample, s.
+    pub t_rel_s: f64,
+    /// Time where the CUSUM placed the onset, s.
+    pub onset_t_s: f64,
+    /// The step per body axis (x, y, z), SI ([`BiasStepSensor::unit`]).
+    pub step: [f64; 3],
+    /// Its 1-sigma per axis, SI.
+    pub sigma: [f64; 3],
+    /// Norm of the step, SI.
+    pub magnitude: f64,
+    /// SI unit.
+    pub unit: String,
+    /// Log-likelihood gain of the corrected run over the base run, nats.
+    pub delta_log_likelihood: f64,
+    /// BIC penalty of the four parameters, nats.
+    pub bic_penalty: f64,
+}
+
+impl BiasStep {
+    /// The data with the step removed from every IMU sample at or after the step time.
+    pub fn corrected_case(&self, case: &CaseData) -> CaseData {
+        corrected(case, self.sensor, self.t_s, &self.step)
+    }
+
+    /// One line for reports: name, time, magnitude per axis.
+    pub fn describe(&self) -> String {
+        let (k, u) = match self.sensor {
+            BiasStepSensor::Accel => (1.0 / (1e-3 * nav_core::earth::G0_MPS2), "mg"),
+            BiasStepSensor::Gyro => (180.0 / std::f64::consts::PI * 3600.0, "deg/h"),
+        };
+        format!(
+            "{} at {:.1} s ({:.1} s into the data): [{:.3}, {:.3}, {:.3}] {u} (1-sigma [{:.3}, \
+             {:.3}, {:.3}]), {:.1} nats",
+            self.name,
+            self.t_s,
+            self.t_rel_s,
+            self.step[0] * k,
+            self.step[1] * k,
+            self.step[2] * k,
+            self.sigma[0] * k,
+            self.sigma[1] * k,
+            self.sigma[2] * k,
+            self.delta_log_likelihood - self.bic_penalty
+        )
+    }
+}
+
+/// The data with `step` (SI, body axes) subtracted from the `sensor`'s increments of every
+/// sample whose interval starts at or after `t_s`.
+fn corrected(case: &CaseData, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3]) -> CaseData {
+    let mut c = case.clone();
+    let mut prev: Option<f64> = None;
+    for s in c.imu.iter_mut() {
+        let start = prev.unwrap_or(s.t_s);
+        let dt = s.t_s - start;
+        prev = Some(s.t_s);
+        if start < t_s || dt <= 0.0 {
+            continue;
+        }
+        let v: &mut [f64; 3] = match sensor {
+            BiasStepSensor::Accel => &mut s.dv_mps,
+            BiasStepSensor::Gyro => &mut s.dtheta_rad,
+        };
+        for (x, b) in v.iter_mut().zip(step) {
+            *x -= b * dt;
+        }
+    }
+    c
+}
+
+/// The CUSUM onset of a variance increase of the position innovations: `(onset time, peak
+/// level in nats)`, or None when the statistic never reaches [`CUSUM_ALARM_NATS`].
+pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
+    let lam = CUSUM_INFLATION;
+    let mut s = 0.0f64;
+    let mut start_t = f64::NAN;
+    let mut best: Option<(f64, f64)> = None;
+    for r in innovations.iter().filter(|r| in_stats(r)) {
+        let (nis, d) = position_nis(r);
+        let llr = 0.5 * nis * (1.0 - 1.0 / lam) - 0.5 * d as f64 * lam.ln();
+        if s <= 0.0 {
+            start_t = r.t_s;
+        }
+        s = (s + llr).max(0.0);
+        if s > best.map_or(0.0, |b| b.1) {
+            best = Some((start_t, s));
+        }
+    }
+    best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
+}
+
+/// The normalised squared position innovation of a fix (diagonal variances) and its dimension.
+fn position_nis(r: &InnovationRecord) -> (f64, usize) {
+    let d = r.dim.min(3);
+    let nis = r
+        .innovation
+        .iter()
+        .zip(&r.innovation_var)
+        .take(d)
+        .map(|(z, v)| z * z / v)
+        .sum();
+    (nis, d)
+}
+
+/// The fixes a fit uses: the used fixes (not withheld) at or after `t_from`.
+fn fit_records(out: &RunOutput, t_from: f64) -> Vec<&InnovationRecord> {
+    out.innovations
+        .iter()
+        .filter(|r| r.t_s >= t_from && in_stats(r))
+        .collect()
+}
+
+/// Position innovations (3) and their weights of `out` at the times of `recs`.
+fn innovations_at(out: &RunOutput, times: &[f64]) -> Vec<Option<[f64; 3]>> {
+    let mut it = out.innovations.iter().peekable();
+    times
+        .iter()
+        .map(|t| {
+            while it.peek().is_some_and(|r| r.t_s < *t) {
+                it.next();
+            }
+            it.peek()
+                .filter(|r| r.t_s == *t && r.dim >= 3 && !matches!(r.used, FixUse::Invalid))
+                .map(|r| [r.innovation[0], r.innovation[1], r.innovation[2]])
+        })
+        .collect()
+}
+
+fn run_ll(case: &CaseData, opts: &RunOptions) -> Option<(RunOutput, f64)> {
+    let out = run_filter(case, &search_recording(opts)).ok()?;
+    let ll = residual_stats(&out.innovations).log_likelihood;
+    Some((out, ll))
+}
+
+/// One Gauss-Newton step from the run `at` (correction `c0`): the correction minimising the
+/// weighted innovations after `t_s` and its 1-sigma, from the runs with `c0 + probe e_j`.
+fn gauss_newton(
+    case: &CaseData,
+    opts: &RunOptions,
+    sensor: BiasStepSensor,
+    t_s: f64,
+    c0: &[f64; 3],
+    at: &RunOutput,
+) -> Option<([f64; 3], [f64; 3])> {
+    let recs = fit_records(at, t_s);
+    if recs.len() < 10 {
+        return None;
+    }
+    let times: Vec<f64> = recs.iter().map(|r| r.t_s).collect();
+    let h = sensor.probe();
+    let cols: Vec<Vec<Option<[f64; 3]>>> = (0..3)
+        .into_par_iter()
+        .map(|j| {
+            let mut c = *c0;
+            c[j] += h;
+            run_filter(&corrected(case, sensor, t_s, &c), &search_recording(opts))
+                .map(|o| innovations_at(&o, &times))
+                .unwrap_or_default()
+        })
+        .collect();
+    let mut a = nalgebra::Matrix3::<f64>::zeros();
+    let mut g = nalgebra::Vector3::<f64>::zeros();
+    for (k, r) in recs.iter().enumerate() {
+        let js: Vec<[f64; 3]> = cols
+            .iter()
+            .filter_map(|c| c.get(k).copied().flatten())
+            .collect();
+        if js.len() != 3 {
+            continue;
+        }
+        for (i, (nu, var)) in r
+            .innovation
+            .iter()
+            .zip(&r.innovation_var)
+            .take(3)
+            .enumerate()
+        {
+            let (nu, w) = (*nu, 1.0 / var);
+            let col = |j: usize| {
+                js.get(j)
+                    .and_then(|v| v.get(i))
+                    .map_or(0.0, |x| (x - nu) / h)
+            };
+            let row = nalgebra::Vector3::new(col(0), col(1), col(2));
+            a += row * row.transpose() * w;
+            g += row * (w * nu);
+        }
+    }
+    let ai = a.try_inverse()?;
+    let dc = -(ai * g);
+    let c = [c0[0] + dc[0], c0[1] + dc[1], c0[2] + dc[2]];
+    let sig = [0, 1, 2].map(|i| ai[(i, i)].max(0.0).sqrt());
+    c.iter().all(|x| x.is_finite()).then_some((c, sig))
+}
+
+/// Fits a step of `sensor` at `t_s`: two Gauss-Newton iterations from the base run; returns
+/// the step, its 1-sigma, and the corrected run's log-likelihood.
+fn fit(
+    case: &CaseData,
+    opts: &RunOptions,
+    base: &RunOutput,
+    sensor: BiasStepSensor,
+    t_s: f64,
+) -> Option<([f64; 3], [f64; 3], f64)> {
+    let (c1, _) = gauss_newton(case, opts, sensor, t_s, &[0.0; 3], base)?;
+    let (r1, _) = run_ll(&corrected(case, sensor, t_s, &c1), opts)?;
+    let (c2, s2) = gauss_newton(case, opts, sensor, t_s, &c1, &r1)?;
+    let (_, ll2) = run_ll(&corrected(case, sensor, t_s, &c2), opts)?;
+    Some((c2, s2, ll2))
+}
+
+/// Looks for a bias step in the data of `case` under the model `opts`, from the base run
+/// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
+/// corrected run does not pay.
+pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
+    let (onset, _) = cusum_onset(&base.innovations)?;
+    let before: Vec<f64> = base
+        .innovations
+        .iter()
+        .filter(|r| in_stats(r) && r.t_s < onset)
+        .map(|r| position_nis(r).0)
+        .collect();
+    if before.len() < MIN_FIXES_BEFORE
+        || before.iter().sum::<f64>() / before.len() as f64 > MAX_NIS_BEFORE
+    {
+        return None;
+    }
+    let t0 = case.imu.first().map(|s: &ImuSample| s.t_s)?;
+    let rs = residual_stats(&base.innovations);
+    let base_ll = rs.log_likelihood;
+    let penalty = 0.5 * 4.0 * (rs.scalar_measurements.max(2) as f64).ln();
+    // the step is placed one fix interval before the first fix that shows it
+    let (sensor, step, sigma, ll, t_s) = BiasStepSensor::ALL
+        .par_iter()
+        .filter_map(|&s| {
+            let t = onset - 1.0;
+            fit(case, opts, base, s, t).map(|(c, sg, ll)| (s, c, sg, ll, t))
+        })
+        .max_by(|a, b| a.3.total_cmp(&b.3))?;
+    if ll - base_ll <= penalty + MIN_GAIN_NATS {
+        return None;
+    }
+    // the time: the corrected run's likelihood over +-TIME_SEARCH_S in 1 s steps
+    let n = TIME_SEARCH_S as i32;
+    let profile: Vec<(f64, f64)> = (-n..=n)
+        .into_par_iter()
+        .filter_map(|k| {
+            let t = t_s + f64::from(k);
+            run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
+        })
+        .collect();
+    let (t_best, ll_best) = profile
+        .iter()
+        .copied()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((t_s, ll));
+    // sharp in time: the profile's ends (the best time moved by TIME_SEARCH_S, or the scan's
+    // ends) lose at least MIN_SHARPNESS_NATS
+    let at = |t: f64| {
+        profile
+            .iter()
+            .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))
+            .map_or(f64::INFINITY, |p| p.1)
+    };
+    let lo = at(t_best - TIME_SEARCH_S);
+    let hi = at(t_best + TIME_SEARCH_S);
+    if ll_best - lo.max(hi) < MIN_SHARPNESS_NATS {
+        return None;
+    }
+    // refit the magnitude at the chosen time
+    let (step, sigma, ll) = if t_best != t_s {
+        fit(case, opts, base, sensor, t_best)
+            .filter(|f| f.2 >= ll_best)
+            .unwrap_or((step, sigma, ll_best))
+    } else {
+        (step, sigma, ll)
+    };
+    Some(BiasStep {
+        sensor,
+        name: sensor.name().to_string(),
+        t_s: t_best,
+        t_rel_s: t_best - t0,
+        onset_t_s: onset,
+        step,
+        sigma,
+        magnitude: step.iter().map(|x| x * x).sum::<f64>().sqrt(),
+        unit: sensor.unit().to_string(),
+        delta_log_likelihood: ll - base_ll,
+        bic_penalty: penalty,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rec(t_s: f64, z: f64) -> InnovationRecord {
+        InnovationRecord {
+            t_s,
+            used: FixUse::Accepted,
+            outage: None,
+            dim: 3,
+            innovation: [z, -z, z, 0.0, 0.0, 0.0],
+            innovation_var: [1.0, 1.0, 1.0, 0.0, 0.0, 0.0],
+            nis: 3.0 * z * z,
+            nis_threshold: 16.0,
+            quality: 4,
+        }
+    }
+
+    #[test]
+    fn cusum_places_the_onset_at_the_first_inflated_fix() {
+        // unit-variance innovations up to 100 s, three times larger from 100 s on
+        let mut v: Vec<InnovationRecord> = (0..100)
+            .map(|k| rec(f64::from(k), if k % 2 == 0 { 1.0 } else { -0.8 }))
+            .collect();
+        v.extend((100..130).map(|k| rec(f64::from(k), 3.0)));
+        let (onset, peak) = cusum_onset(&v).unwrap();
+        assert_eq!(onset, 100.0);
+        // 30 fixes of llr 0.5 * 27 * 0.75 - 1.5 ln 4
+        let llr = 0.5 * 27.0 * 0.75 - 1.5 * 4f64.ln();
+        assert!((peak - 30.0 * llr).abs() < 1e-9, "{peak}");
+        // white innovations only: no alarm
+        assert!(cusum_onset(&v[..100]).is_none());
+    }
+
+    #[test]
+    fn correction_removes_the_step_from_the_samples_after_it() {
+        let imu: Vec<ImuSample> = (0..10)
+            .map(|k| ImuSample {
+                t_s: 100.0 + 0.1 * f64::from(k),
+                dtheta_rad: [0.0; 3],
+                dv_mps: [1.0, 0.0, 0.0],
+                temperature_c: f64::NAN,
+            })
+            .collect();
+        let case = CaseData {
+            imu,
+            ..CaseData::default()
+        };
+        let c = corrected(&case, BiasStepSensor::Accel, 100.45, &[2.0, 0.0, -1.0]);
+        for (k, s) in c.imu.iter().enumerate() {
+            // sample k covers (t_k - 0.1, t_k]: corrected when it starts at or after 100.45
+            let start = 100.0 + 0.1 * (k as f64 - 1.0);
+            if k > 0 && start >= 100.45 {
+                assert!((s.dv_mps[0] - 0.8).abs() < 1e-12 && (s.dv_mps[2] - 0.1).abs() < 1e-12);
+            } else {
+                assert_eq!(s.dv_mps, [1.0, 0.0, 0.0]);
+            }
+            assert_eq!(s.dtheta_rad, [0.0; 3]);
+        }
+    }
+}
