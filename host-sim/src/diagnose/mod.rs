@@ -342,7 +342,8 @@ pub struct Diagnosis {
     /// The search, round by round.
     pub rounds: Vec<Round>,
     /// Time added to the IMU time stamps of the after solution in `nav_after.txt`, s: minus
-    /// the time offset estimate (the output on the GNSS clock), 0 without one.
+    /// the time offset estimate (the output on the GNSS clock), else minus the clock drift's
+    /// offset `dt_0` (its rate is not applied), 0 without either.
     pub output_clock_shift_s: f64,
     /// A bias step found in the data ([`changepoint`]): removed from the data the search and
     /// the final model use.
@@ -1153,6 +1154,11 @@ fn finish(
         .added_info
         .iter()
         .find(|e| e.name == Block::TimeOffset.name())
+        .or_else(|| {
+            s.added_info
+                .iter()
+                .find(|e| e.name == Block::ImuClockDrift.name())
+        })
         .and_then(|e| e.estimate.first())
         .map_or(0.0, |dt| -dt);
     let ovf = |run: &RunOutput| validate::written_solution_vs_fixes_m(run, &p.case.gnss);

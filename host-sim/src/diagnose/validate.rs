@@ -206,7 +206,9 @@ pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
             *a += d;
         }
     }
+    // the clock drift's offset dt_0 when no time offset (its rate is not applied)
     let shift = est(Block::TimeOffset.name())
+        .or_else(|| est(Block::ImuClockDrift.name()))
         .and_then(|v| v.first().copied())
         .map_or(0.0, |dt| -dt);
     output_vs_fixes_horizontal_rms_m(&run.nav, shift, arm, gnss, &run.outages)
