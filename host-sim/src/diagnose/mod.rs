@@ -269,6 +269,9 @@ pub struct Diagnosis {
     /// The final model's IMU noise PSDs (SI) when the tuning changed them:
     /// `[accel S_N, S_B, S_K, gyro S_N, S_B, S_K]`, x axis.
     pub final_noise_psd: Option<[f64; 6]>,
+    /// The final model's GNSS `sigma_scale` (the configuration's times the tuned GNSS noise
+    /// scale) when the tuning changed it.
+    pub final_gnss_sigma_scale: Option<nav_io::SigmaScale>,
     /// Every model change in order, with its errors (the first is the configuration).
     pub steps: Vec<Step>,
     /// Effects not added, with their detectability bounds on this drive.
@@ -538,11 +541,8 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         }
         if let Some(k) = pending_noise {
             let mut o = cur_opts.clone();
-            k.apply(&mut o.filter);
-            let params = [k.accel_white, k.gyro_white, k.accel_bias, k.gyro_bias]
-                .iter()
-                .filter(|x| **x != 1.0)
-                .count();
+            k.apply(&mut o);
+            let params = k.params();
             let label = format!("noise tuned: {}", k.describe());
             match evaluate(p, &o, dopts.smooth) {
                 Ok(ev) => {
@@ -567,7 +567,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
                             if let Some(t) = noise_tuning.as_mut() {
                                 t.adopted = true;
                             }
-                            k.apply(&mut base_opts.filter);
+                            k.apply(&mut base_opts);
                             pending_noise = None;
                             last_noise_refusal = None;
                             cur = ev;
@@ -671,9 +671,10 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         if let Ok(base_with) = run_filter(&p.case, &search_recording(&with)) {
             let mut t2 = noise::tune(&p.case, &with, &residual_stats(&base_with.innovations));
             let mut o = with.clone();
-            t2.chosen.apply(&mut o.filter);
+            t2.chosen.apply(&mut o);
             let label = format!("noise re-tuned with the effects: {}", t2.chosen.describe());
-            let same = o.filter == final_opts.filter;
+            let same =
+                o.filter == final_opts.filter && o.gnss_sigma_scale == final_opts.gnss_sigma_scale;
             if !same {
                 match evaluate(p, &o, dopts.smooth) {
                     Ok(ev) => match validate::check_heldout(&ev.2, &cur.2) {
@@ -703,7 +704,10 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             t.with_effects = Some(Box::new(t2));
         }
     }
-    let changed = final_opts.filter != p.opts.filter || !added.is_empty();
+    let final_gnss_sigma_scale = (final_opts.gnss_sigma_scale != p.opts.gnss_sigma_scale)
+        .then_some(final_opts.gnss_sigma_scale);
+    let changed =
+        final_opts.filter != p.opts.filter || final_gnss_sigma_scale.is_some() || !added.is_empty();
     let (after, errors_after) = if changed {
         execute_case(&p.case, &final_opts, &mut |_, _| {})
             .map(|(r, m)| (Arc::new(r), m))
@@ -760,6 +764,16 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             .collect::<Vec<_>>()
             .join(", ")
     };
+    if let Some(g) = final_gnss_sigma_scale {
+        let k = g.horizontal / p.opts.gnss_sigma_scale.horizontal;
+        let kv = g.vertical / p.opts.gnss_sigma_scale.vertical;
+        let s = format!("GNSS noise scale x{k:.2} horizontal, x{kv:.2} vertical");
+        verdict = if added_info.is_empty() {
+            s
+        } else {
+            format!("{verdict}; {s}")
+        };
+    }
     for r in &rounds {
         if let Some(a) = &r.ambiguous {
             verdict.push_str(&format!("; {a}"));
@@ -800,6 +814,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
             verdict,
             noise_tuning,
             final_noise_psd,
+            final_gnss_sigma_scale,
             steps,
             undetected,
             warnings,

@@ -354,6 +354,26 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             let _ = writeln!(s, "| {k} | {ll:.1} | {nis:.2} |");
         }
         let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "GNSS noise scale (factor on the declared sigmas, 1 when they are right): \
+             horizontal **{:.3}**, vertical **{:.3}** (stage 0 evidence {:.1} nats).\n",
+            t.chosen.gnss_horizontal, t.chosen.gnss_vertical, t.gnss_evidence
+        );
+        let _ = writeln!(
+            s,
+            "| factor on the GNSS sigmas | log-likelihood [nats] | NIS mean |"
+        );
+        let _ = writeln!(s, "|---|---|---|");
+        for ((k, ll), nis) in t
+            .gnss_scales
+            .iter()
+            .zip(&t.gnss_log_likelihood)
+            .zip(&t.gnss_nis_mean)
+        {
+            let _ = writeln!(s, "| {k:.3} | {ll:.1} | {nis:.2} |");
+        }
+        let _ = writeln!(s);
         if let Some(t2) = &t.with_effects {
             let _ = writeln!(
                 s,
@@ -594,6 +614,12 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
                     g.insert("lever_arm_m".into(), toml::Value::Array(new));
                 }
             }
+        }
+        if let Some(s) = d.final_gnss_sigma_scale {
+            // the configuration's scale times the tuned GNSS noise scale: one number when
+            // horizontal and vertical agree, else the table form
+            let v = toml::Value::try_from(s).context("GNSS sigma_scale")?;
+            g.insert("sigma_scale".into(), v);
         }
     }
     if let Some(dt) = d
