@@ -14,7 +14,7 @@
 //!    the other grid is run again on top of it (both sources inflate the innovations; the
 //!    first fit must not absorb the other's error);
 //! 1. one factor on both sensors' white-noise PSDs, grid 2^-2 .. 2^10 (13 runs);
-//! 1b. GNSS refined: the joint factor at the log-parabola vertex through the best grid point
+//!    Then the GNSS factor refined: the joint factor at the log-parabola vertex through the best grid point
 //!    and its neighbours (one run), then horizontal and vertical each times 2^(+-1/4),
 //!    2^(+-1/2) and their own vertex, each at least 1 (a second parameter, its own penalty);
 //! 2. per sensor (accelerometer, gyro) a factor 1/4, 1/2, 2, 4 on top of stage 1's;
