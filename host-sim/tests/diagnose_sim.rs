@@ -789,7 +789,7 @@ fn refusal_is_right(
     let corrected = without_scale_factor(&p.case, gyro, truth);
     let mut o = p.opts.clone();
     if let Some(t) = d.noise_tuning.as_ref().filter(|t| t.adopted) {
-        t.chosen.apply(&mut o.filter);
+        t.chosen.apply(&mut o);
     }
     let out = nav_engine::run::run_filter(&corrected, &o).map_err(|e| e.to_string())?;
     let m = nav_engine::metrics::compute(&out, p.case.truth.as_deref());

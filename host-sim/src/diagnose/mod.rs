@@ -315,6 +315,9 @@ pub struct Diagnosis {
     /// The final model's IMU noise PSDs (SI) when the tuning changed them:
     /// `[accel S_N, S_B, S_K, gyro S_N, S_B, S_K]`, x axis.
     pub final_noise_psd: Option<[f64; 6]>,
+    /// The final model's GNSS `sigma_scale` (the configuration's times the tuned GNSS noise
+    /// scale) when the tuning changed it.
+    pub final_gnss_sigma_scale: Option<nav_io::SigmaScale>,
     /// Every model change in order, with its errors (the first is the configuration).
     pub steps: Vec<Step>,
     /// Effects not added, with their detectability bounds on this drive.
@@ -842,11 +845,8 @@ fn try_noise(
         return false;
     };
     let mut o = cur_opts.clone();
-    k.apply(&mut o.filter);
-    let params = [k.accel_white, k.gyro_white, k.accel_bias, k.gyro_bias]
-        .iter()
-        .filter(|x| **x != 1.0)
-        .count();
+    k.apply(&mut o);
+    let params = k.params();
     let label = format!("noise tuned: {}", k.describe());
     let ev = match ctx.evaluate(&o) {
         Ok(ev) => ev,
@@ -880,7 +880,7 @@ fn try_noise(
             if let Some(t) = s.noise_tuning.as_mut() {
                 t.adopted = true;
             }
-            k.apply(&mut s.base_opts.filter);
+            k.apply(&mut s.base_opts);
             s.pending_noise = None;
             s.last_noise_refusal = None;
             s.cur = ev;
@@ -1046,9 +1046,9 @@ fn retune_noise(ctx: &Ctx<'_>, s: &mut Search) -> RunOptions {
             &residual_stats(&base_with.innovations),
         );
         let mut o = with.clone();
-        t2.chosen.apply(&mut o.filter);
+        t2.chosen.apply(&mut o);
         let label = format!("noise re-tuned with the effects: {}", t2.chosen.describe());
-        if o.filter != final_opts.filter {
+        if o.filter != final_opts.filter || o.gnss_sigma_scale != final_opts.gnss_sigma_scale {
             match ctx.evaluate(&o) {
                 Ok(ev) => {
                     let h = validate::compare_windows(&s.cur.windows, &ev.windows);
@@ -1131,8 +1131,12 @@ fn finish(
     final_opts: RunOptions,
 ) -> anyhow::Result<DiagnoseOutput> {
     let p = ctx.p;
-    let changed =
-        final_opts.filter != p.opts.filter || !s.added.is_empty() || s.bias_step.is_some();
+    let final_gnss_sigma_scale = (final_opts.gnss_sigma_scale != p.opts.gnss_sigma_scale)
+        .then_some(final_opts.gnss_sigma_scale);
+    let changed = final_opts.filter != p.opts.filter
+        || final_gnss_sigma_scale.is_some()
+        || !s.added.is_empty()
+        || s.bias_step.is_some();
     let (after, errors_after) = if changed {
         execute_case(&p.case, &final_opts, &mut |_, _| {})
             .map(|(r, m)| (Arc::new(r), m))
@@ -1167,7 +1171,11 @@ fn finish(
     let undetected = undetected(all, &s);
     let unexplained = unexplained_misfit(&s, &residuals_after);
     let heldout_change = validate::compare_windows(&base.windows, &s.cur.windows);
-    let verdict = verdict(&s, unexplained.as_ref());
+    let verdict = verdict(
+        &s,
+        unexplained.as_ref(),
+        final_gnss_sigma_scale.map(|g| (g, p.opts.gnss_sigma_scale)),
+    );
     warn(
         &mut s,
         &residuals_before,
@@ -1196,6 +1204,7 @@ fn finish(
             verdict,
             noise_tuning: s.noise_tuning,
             final_noise_psd,
+            final_gnss_sigma_scale,
             steps: s.steps,
             undetected,
             unexplained,
@@ -1247,8 +1256,14 @@ fn undetected(all: &[Block], s: &Search) -> Vec<Undetected> {
     v
 }
 
-/// "none detectable" or the names added, with the ambiguities and any unexplained misfit.
-fn verdict(s: &Search, unexplained: Option<&stats::Unexplained>) -> String {
+/// "none detectable" or the names added, the GNSS noise scale when the final model changed
+/// it (`gnss`: the final and the configuration's sigma_scale), with the ambiguities and any
+/// unexplained misfit.
+fn verdict(
+    s: &Search,
+    unexplained: Option<&stats::Unexplained>,
+    gnss: Option<(nav_io::SigmaScale, nav_io::SigmaScale)>,
+) -> String {
     let mut verdict = if s.added_info.is_empty() {
         "none detectable".to_string()
     } else {
@@ -1258,6 +1273,16 @@ fn verdict(s: &Search, unexplained: Option<&stats::Unexplained>) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     };
+    if let Some((g, c)) = gnss {
+        let k = g.horizontal / c.horizontal;
+        let kv = g.vertical / c.vertical;
+        let g = format!("GNSS noise scale x{k:.2} horizontal, x{kv:.2} vertical");
+        verdict = if s.added_info.is_empty() {
+            g
+        } else {
+            format!("{verdict}; {g}")
+        };
+    }
     for r in &s.rounds {
         if let Some(a) = &r.ambiguous {
             verdict.push_str(&format!("; {a}"));

@@ -430,6 +430,26 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             let _ = writeln!(s, "| {k} | {ll:.1} | {nis:.2} |");
         }
         let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "GNSS noise scale (factor on the declared sigmas, 1 when they are right): \
+             horizontal **{:.3}**, vertical **{:.3}** (stage 0 evidence {:.1} nats).\n",
+            t.chosen.gnss_horizontal, t.chosen.gnss_vertical, t.gnss_evidence
+        );
+        let _ = writeln!(
+            s,
+            "| factor on the GNSS sigmas | log-likelihood [nats] | NIS mean |"
+        );
+        let _ = writeln!(s, "|---|---|---|");
+        for ((k, ll), nis) in t
+            .gnss_scales
+            .iter()
+            .zip(&t.gnss_log_likelihood)
+            .zip(&t.gnss_nis_mean)
+        {
+            let _ = writeln!(s, "| {k:.3} | {ll:.1} | {nis:.2} |");
+        }
+        let _ = writeln!(s);
         if let Some(t2) = &t.with_effects {
             let _ = writeln!(
                 s,
@@ -672,7 +692,8 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
 /// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the
 /// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
 /// `imu.time_offset_s` (the IMU on the GNSS clock, so the run's output is on the GNSS clock),
-/// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, and its relative paths made
+/// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, the tuned GNSS noise scale as
+/// `gnss.sigma_scale` (times the configuration's), and its relative paths made
 /// absolute; a comment header lists every
 /// added effect with its estimate; the other added effects (IMU effect blocks) are listed in
 /// the top-level `effects` key, so `host-sim run --config augmented.toml` runs the augmented
@@ -714,6 +735,12 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
                     g.insert("lever_arm_m".into(), toml::Value::Array(new));
                 }
             }
+        }
+        if let Some(s) = d.final_gnss_sigma_scale {
+            // the configuration's scale times the tuned GNSS noise scale: one number when
+            // horizontal and vertical agree, else the table form
+            let v = toml::Value::try_from(s).context("GNSS sigma_scale")?;
+            g.insert("sigma_scale".into(), v);
         }
     }
     if let Some(dt) = d
