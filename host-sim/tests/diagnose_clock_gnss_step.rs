@@ -7,9 +7,9 @@
 //! * a 3 mg accelerometer bias step: the change point found within a few seconds of the truth
 //!   with its magnitude, and no effect added;
 //! * GNSS errors larger than declared (white 3x, Gauss-Markov 10 cm / 200 s): the
-//!   `gnss_position_gm` block has the strongest evidence of all candidates; the diagnosis
-//!   names its gain (refused for a final estimate that is not significant, reported as the
-//!   gain no effect explains).
+//!   `gnss_position_gm` block has the strongest evidence of all candidates and is named first
+//!   (a noise-like block: significant by the held-out paired decision, not by its final
+//!   estimate), the outage error after below the error before.
 #![allow(clippy::needless_range_loop)]
 use host_sim::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use host_sim::sim::errors::{Axes3, UG_MPS2};
@@ -215,12 +215,18 @@ fn gnss_gauss_markov_error_larger_than_declared_is_significant() {
         .filter_map(|c| c.evidence)
         .fold(f64::NEG_INFINITY, f64::max);
     assert!(gm.evidence.is_some_and(|e| e > 0.0 && e >= best));
-    // its final estimate is not significant (|estimate| / sigma about 0.1 with the default
-    // 0.5 m / 1 m prior): a Gauss-Markov error's value at the end is one draw of a zero-mean
-    // process, so the diagnosis refuses it as "not significant" and reports its gain as
-    // unexplained (see the warning)
+    // its final estimate is one draw of a zero-mean process (|estimate| / sigma about 0.1
+    // with the default 0.5 m / 1 m prior), so for this noise-like block the significance is
+    // the held-out windows' paired decision, not the estimate's z: it is named first, and the
+    // outage error falls (seed 909: 2056 nats, 1.058 -> 0.761 m)
+    assert_eq!(
+        d.added_effects.first().map(|e| e.name.as_str()),
+        Some("gnss_position_gm"),
+        "{}",
+        summary(&d)
+    );
     assert!(
-        d.warnings.iter().any(|w| w.contains("gnss_position_gm")) || gm.max_z >= 2.0,
+        d.error_after.outage_max_3d_rms_m < d.error_before.outage_max_3d_rms_m,
         "{}",
         summary(&d)
     );

@@ -63,12 +63,13 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     for e in &d.added_effects {
         assert!(e.estimate.iter().chain(&e.sigma).all(|v| v.is_finite()));
         assert!(host_sim::diagnose::validate::max_z(&e.estimate, &e.sigma) >= 2.0);
+        // added: its held-out window errors significantly lower (paired signed-rank test)
         assert!(
-            e.after.heldout_outage_m < e.before.heldout_outage_m,
-            "{}",
-            e.name
+            e.heldout.p_better < 0.05 && e.heldout.gain > 0.0,
+            "{}: {}",
+            e.name,
+            e.heldout.describe()
         );
-        assert!(e.after.gnss_prior_horizontal_rms_m <= e.before.gnss_prior_horizontal_rms_m);
     }
     for s in &d.steps {
         let e = &s.errors;
@@ -205,4 +206,43 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     );
     assert!(pr_a <= pr_b, "prior residuals {pr_b} -> {pr_a}");
     assert!(ho_a <= ho_b, "withheld fixes {ho_b} -> {ho_a}");
+}
+
+/// The default command (`host-sim diagnose --config configs/drive0708.toml`, no outage
+/// imposed): the diagnosis withholds its own held-out windows and still names the time offset
+/// first, with a significant held-out gain. NOT MET yet: measured, the time offset has 27104
+/// nats of evidence but a held-out gain of +11.8 % [-1.9, +27.1] (7 of 12 withheld windows
+/// lower, p 0.117), so the lever arm (+10.4 % [+1.4, +27.6], p 0.026) is named first.
+#[test]
+#[ignore = "not met: the time offset's held-out gain is not significant on the 12 withheld windows (p 0.117); run with --ignored"]
+fn real_drive_default_command_names_the_time_offset_first() {
+    if data_dir().is_none() {
+        println!("SKIPPED real_drive_default_command: ../shared/data not found");
+        return;
+    }
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
+    let p = prepare(&RunArgs::new(config)).expect("loading the drive");
+    assert!(p.opts.outages.is_empty());
+    let d = diagnose(&p, &DiagnoseOptions::default())
+        .expect("diagnose")
+        .diagnosis;
+    println!("{}\n{}", d.verdict, d.heldout_windows.how);
+    for r in &d.rounds {
+        for c in &r.candidates {
+            println!("  {} {:?}: {}", c.name, c.decision, c.reason);
+        }
+    }
+    assert!(d.heldout_windows.windows.len() >= 10);
+    let first = d.added_effects.first().expect("effects on the real drive");
+    assert_eq!(first.name, "time_offset");
+    assert!(
+        (0.08..0.15).contains(&first.estimate[0]),
+        "{:?}",
+        first.estimate
+    );
+    assert!(
+        first.heldout.p_better < 0.05,
+        "{}",
+        first.heldout.describe()
+    );
 }

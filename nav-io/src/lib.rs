@@ -70,7 +70,7 @@ pub use runcfg::{
     parse_run_config, read_run_config, write_run_config, AccelNoiseConfig, AlignSpec, BiasModel,
     GivenState, GnssFileKind, GnssSource, GyroNoiseConfig, ImuChecksConfig, ImuClassName,
     ImuFileKind, ImuSource, InitConfig, InitMode, NoiseConfig, RunConfig, RunInputs,
-    ScaleNoiseConfig, TruthData, TruthFileKind, TruthSource,
+    ScaleNoiseConfig, SigmaScale, TruthData, TruthFileKind, TruthSource,
 };
 pub use tag::{read_time_tag, tick_clock_fit, TickClockFit, TimeTag};
 pub use text::{

@@ -136,8 +136,95 @@ fn default_max_q() -> u8 {
     6
 }
 
-fn one() -> f64 {
-    1.0
+/// Factors on a GNSS file's standard deviations (`[gnss] sigma_scale`): `horizontal` on the
+/// north and east position and velocity sigmas, `vertical` on the down ones (dimensionless;
+/// 1 = as given). In TOML either one number for both (`sigma_scale = 10.0`) or a table
+/// (`sigma_scale = { horizontal = 10.0, vertical = 4.0 }`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(from = "SigmaScaleToml", into = "SigmaScaleToml")]
+pub struct SigmaScale {
+    /// Factor on the north and east standard deviations (position and velocity).
+    pub horizontal: f64,
+    /// Factor on the down standard deviations (position and velocity).
+    pub vertical: f64,
+}
+
+/// The two ways to write [`SigmaScale`] in TOML.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(untagged)]
+enum SigmaScaleToml {
+    Both(f64),
+    Split { horizontal: f64, vertical: f64 },
+}
+
+impl From<SigmaScaleToml> for SigmaScale {
+    fn from(t: SigmaScaleToml) -> Self {
+        match t {
+            SigmaScaleToml::Both(k) => Self::both(k),
+            SigmaScaleToml::Split {
+                horizontal,
+                vertical,
+            } => Self {
+                horizontal,
+                vertical,
+            },
+        }
+    }
+}
+
+impl From<SigmaScale> for SigmaScaleToml {
+    fn from(s: SigmaScale) -> Self {
+        if s.horizontal == s.vertical {
+            Self::Both(s.horizontal)
+        } else {
+            Self::Split {
+                horizontal: s.horizontal,
+                vertical: s.vertical,
+            }
+        }
+    }
+}
+
+impl Default for SigmaScale {
+    /// The file's sigmas as given ([`Self::ONE`]).
+    fn default() -> Self {
+        Self::ONE
+    }
+}
+
+impl SigmaScale {
+    /// The file's sigmas as given.
+    pub const ONE: Self = Self {
+        horizontal: 1.0,
+        vertical: 1.0,
+    };
+
+    /// The same factor on all three axes.
+    pub const fn both(k: f64) -> Self {
+        Self {
+            horizontal: k,
+            vertical: k,
+        }
+    }
+
+    /// Whether both factors are finite and > 0.
+    pub fn is_valid(&self) -> bool {
+        [self.horizontal, self.vertical]
+            .iter()
+            .all(|k| k.is_finite() && *k > 0.0)
+    }
+
+    /// Multiplies a fix's position and velocity standard deviations: north and east by
+    /// `horizontal`, down by `vertical`. The one place the configured scale is applied.
+    pub fn apply(&self, g: &mut GnssFix) {
+        let k = [self.horizontal, self.horizontal, self.vertical];
+        for (s, k) in g.pos_std_ned_m.iter_mut().zip(k) {
+            *s *= k;
+        }
+        for (s, k) in g.vel_std_ned_mps.iter_mut().zip(k) {
+            *s *= k;
+        }
+    }
 }
 
 /// Where the GNSS fixes come from and how to use them.
@@ -166,9 +253,10 @@ pub struct GnssSource {
     /// Use the GNSS velocities when the file has them.
     #[serde(default)]
     pub use_velocity: bool,
-    /// Factor applied to the file's standard deviations (1 = as given).
-    #[serde(default = "one")]
-    pub sigma_scale: f64,
+    /// Factors applied to the file's standard deviations (1 = as given): one number for all
+    /// axes, or `{ horizontal = .., vertical = .. }` ([`SigmaScale`]).
+    #[serde(default)]
+    pub sigma_scale: SigmaScale,
     /// Innovation gate of the filter: "off", or the acceptance probability "0.95", "0.99",
     /// "0.999", "0.9999" (default: the filter's, 0.9999).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -409,8 +497,12 @@ impl RunConfig {
                 "gnss.lever_arm_m must be finite".into(),
             );
         }
-        if !(self.gnss.sigma_scale.is_finite() && self.gnss.sigma_scale > 0.0) {
-            push("gnss", "sigma_scale", "gnss.sigma_scale must be > 0".into());
+        if !self.gnss.sigma_scale.is_valid() {
+            push(
+                "gnss",
+                "sigma_scale",
+                "gnss.sigma_scale must be > 0 (horizontal and vertical)".into(),
+            );
         }
         let sig_ok = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
         for (key, v) in [

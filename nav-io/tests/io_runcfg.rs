@@ -189,7 +189,7 @@ fn small_text_case_loads_with_offsets_mounting_and_datasheet_units() {
     assert_eq!(g.rpy_deg, [0.0, 0.0, 45.0]);
     assert_eq!(c.noise.model, BiasModel::N);
     assert_eq!(c.gnss.max_q, 6);
-    assert_eq!(c.gnss.sigma_scale, 1.0);
+    assert_eq!(c.gnss.sigma_scale, nav_io::SigmaScale::ONE);
     let acc = c.noise.accel.to_sensor_noise().unwrap();
     assert!(rel(acc.s_n[0], (0.03f64 / 60.0).powi(2)) < 1e-12);
     assert!(rel(acc.bias_init_sigma[0], 100e-6 * 9.80665) < 1e-12);
@@ -294,4 +294,54 @@ fn run_config_errors_name_the_file_and_the_problem() {
         &base.replace("lever_arm_m", "max_q = 9\nlever_arm_m"),
     );
     assert!(m.contains("max_q"), "{m}");
+}
+
+#[test]
+fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = base_toml(dir.path());
+    let with = |line: &str| {
+        base.replace(
+            "time_offset_s = -0.01\n",
+            &format!("time_offset_s = -0.01\n{line}\n"),
+        )
+    };
+    let p = Path::new("run.toml");
+    let c = nav_io::parse_run_config(p, &with("sigma_scale = 10.0")).unwrap();
+    assert_eq!(c.gnss.sigma_scale, nav_io::SigmaScale::both(10.0));
+    let c = nav_io::parse_run_config(
+        p,
+        &with("sigma_scale = { horizontal = 6.0, vertical = 4.5 }"),
+    )
+    .unwrap();
+    assert_eq!(
+        c.gnss.sigma_scale,
+        nav_io::SigmaScale {
+            horizontal: 6.0,
+            vertical: 4.5
+        }
+    );
+    // written back: one number when equal, the table otherwise; read back the same
+    let text = toml::to_string(&c).unwrap();
+    assert_eq!(
+        nav_io::parse_run_config(p, &text).unwrap().gnss.sigma_scale,
+        c.gnss.sigma_scale
+    );
+    // applied per axis: north/east horizontal, down vertical
+    let mut g = GnssFix {
+        pos_std_ned_m: [0.01, 0.02, 0.03],
+        vel_std_ned_mps: [0.1, 0.1, 0.2],
+        ..GnssFix::default()
+    };
+    c.gnss.sigma_scale.apply(&mut g);
+    assert_eq!(g.pos_std_ned_m, [0.01 * 6.0, 0.02 * 6.0, 0.03 * 4.5]);
+    assert_eq!(g.vel_std_ned_mps, [0.1 * 6.0, 0.1 * 6.0, 0.2 * 4.5]);
+    // a zero or negative factor is refused
+    let e = nav_io::parse_run_config(
+        p,
+        &with("sigma_scale = { horizontal = 0.0, vertical = 1.0 }"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("gnss.sigma_scale must be > 0"), "{e}");
 }

@@ -3,8 +3,9 @@
 //! Plots: `innovations.png` (position innovations N/E/D of the used fixes, before and after),
 //! `nis.png` (NIS per fix divided by its dimension, 60-fix running mean, before/after, with the
 //! chi-square 95 % band of that mean), `evidence.png` (first round's evidence per candidate,
-//! signed log scale), `errors.png` (3D position error over time vs truth, or vs the withheld
-//! fixes, before/after, outages shaded).
+//! signed log scale), `errors.png` (the error of every held-out window before and after, the
+//! windows shaded by kind: imposed outage grey, gap of the GNSS file orange, withheld by the
+//! diagnosis green; below it the 3D error over time vs truth when there is one).
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -23,6 +24,8 @@ fn perr<E: std::fmt::Display>(e: E) -> anyhow::Error {
 const BEFORE: RGBColor = RGBColor(214, 39, 40);
 const AFTER: RGBColor = RGBColor(31, 119, 180);
 const OUTAGE_FILL: RGBColor = RGBColor(225, 225, 225);
+const GAP_FILL: RGBColor = RGBColor(253, 215, 170);
+const WITHHELD_FILL: RGBColor = RGBColor(200, 235, 200);
 
 fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -255,24 +258,46 @@ fn error_series(
     }
 }
 
+/// Two panels: the error of each held-out window (whatever its kind) for the configuration
+/// and the final model, at the window's end, windows shaded; below, the 3D error over time
+/// against the truth when there is one.
 fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(path, (1500, 650)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1500, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(perr)?;
     let truth = p.case.truth.as_deref();
-    let sb = error_series(&d.before, truth);
-    let sa = error_series(&d.after, truth);
-    let t0 = t0_of(&d.before);
-    let (_, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([0.0]));
-    let x1 = sb.iter().chain(&sa).map(|p| p.0).fold(1e-3, f64::max);
-    let what = if truth.is_some() {
-        "3D position error vs truth [m]"
+    let (top, bottom) = if truth.is_some() {
+        root.split_vertically(480)
     } else {
-        "3D position error vs the withheld GNSS fixes [m] (outages only)"
+        (root.clone(), root.split_vertically(900).1)
     };
-    let mut ch = ChartBuilder::on(&root)
+    let dg = &d.diagnosis;
+    let t0 = t0_of(&d.before);
+    let wins = &dg.heldout_windows.windows;
+    let x1 = wins
+        .iter()
+        .map(|w| (w.end_s - t0) / 60.0)
+        .chain(d.before.nav.last().map(|n| (n.t_s - t0) / 60.0))
+        .fold(1e-3, f64::max);
+    let pts = |v: &[f64]| -> Vec<(f64, f64)> {
+        wins.iter()
+            .zip(v)
+            .filter(|(_, e)| e.is_finite())
+            .map(|(w, e)| ((w.end_s - t0) / 60.0, *e))
+            .collect()
+    };
+    let (pb, pa) = (
+        pts(&dg.window_errors_before_m),
+        pts(&dg.window_errors_after_m),
+    );
+    let (_, y1) = range(pb.iter().chain(&pa).map(|p| p.1).chain([0.0]));
+    let mut ch = ChartBuilder::on(&top)
         .caption(
-            format!("{what}: before (red), after (blue); outages shaded"),
-            ("sans-serif", 22),
+            format!(
+                "error of each held-out window (withheld fixes and the first fix after it) [m]: \
+                 before (red), after (blue); {} windows shaded",
+                wins.len()
+            ),
+            ("sans-serif", 20),
         )
         .margin(10)
         .x_label_area_size(34)
@@ -284,29 +309,80 @@ fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<
         .y_desc("m")
         .draw()
         .map_err(perr)?;
-    ch.draw_series(d.before.outages.iter().map(|o| {
+    ch.draw_series(wins.iter().map(|w| {
+        let fill = match w.kind {
+            super::WindowKind::Imposed => OUTAGE_FILL,
+            super::WindowKind::GnssGap => GAP_FILL,
+            super::WindowKind::Withheld => WITHHELD_FILL,
+        };
         Rectangle::new(
-            [
-                ((o.start_s - t0) / 60.0, 0.0),
-                ((o.end_s() - t0) / 60.0, y1),
-            ],
-            OUTAGE_FILL.filled(),
+            [((w.start_s - t0) / 60.0, 0.0), ((w.end_s - t0) / 60.0, y1)],
+            fill.filled(),
         )
     }))
     .map_err(perr)?;
-    if truth.is_some() {
+    for (a, b) in pb.iter().zip(&pa) {
+        ch.draw_series(LineSeries::new([*a, *b], BLACK.mix(0.3)))
+            .map_err(perr)?;
+    }
+    ch.draw_series(pb.iter().map(|p| Circle::new(*p, 5, BEFORE.filled())))
+        .map_err(perr)?;
+    ch.draw_series(pa.iter().map(|p| Circle::new(*p, 5, AFTER.filled())))
+        .map_err(perr)?;
+    if let Some(tr) = truth {
+        let sb = error_series(&d.before, Some(tr));
+        let sa = error_series(&d.after, Some(tr));
+        let (_, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([0.0]));
+        let mut ch = ChartBuilder::on(&bottom)
+            .caption(
+                "3D position error vs truth [m] (final run, every fix used): before (red), \
+                 after (blue); imposed outages shaded",
+                ("sans-serif", 20),
+            )
+            .margin(10)
+            .x_label_area_size(34)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..x1, 0.0..y1)
+            .map_err(perr)?;
+        ch.configure_mesh()
+            .x_desc("time [min]")
+            .y_desc("m")
+            .draw()
+            .map_err(perr)?;
+        ch.draw_series(d.before.outages.iter().map(|o| {
+            Rectangle::new(
+                [
+                    ((o.start_s - t0) / 60.0, 0.0),
+                    ((o.end_s() - t0) / 60.0, y1),
+                ],
+                OUTAGE_FILL.filled(),
+            )
+        }))
+        .map_err(perr)?;
         ch.draw_series(LineSeries::new(sb, BEFORE.stroke_width(2)))
             .map_err(perr)?;
         ch.draw_series(LineSeries::new(sa, AFTER.stroke_width(2)))
             .map_err(perr)?;
-    } else {
-        ch.draw_series(sb.iter().map(|p| Circle::new(*p, 2, BEFORE.filled())))
-            .map_err(perr)?;
-        ch.draw_series(sa.iter().map(|p| Circle::new(*p, 2, AFTER.filled())))
-            .map_err(perr)?;
     }
     root.present().map_err(perr)?;
     Ok(())
+}
+
+/// `+12.3 % [+4.0, +20.1]`.
+fn gain_ci(h: &super::HeldoutComparison) -> String {
+    let pc = |x: f64| {
+        if x.is_finite() {
+            format!("{:+.1}", 100.0 * x)
+        } else {
+            "-inf".into()
+        }
+    };
+    format!(
+        "{} % [{}, {}]",
+        pc(h.gain),
+        pc(h.gain_ci90[0]),
+        pc(h.gain_ci90[1])
+    )
 }
 
 fn fmt_vec(v: &[f64]) -> String {
@@ -354,6 +430,26 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             let _ = writeln!(s, "| {k} | {ll:.1} | {nis:.2} |");
         }
         let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "GNSS noise scale (factor on the declared sigmas, 1 when they are right): \
+             horizontal **{:.3}**, vertical **{:.3}** (stage 0 evidence {:.1} nats).\n",
+            t.chosen.gnss_horizontal, t.chosen.gnss_vertical, t.gnss_evidence
+        );
+        let _ = writeln!(
+            s,
+            "| factor on the GNSS sigmas | log-likelihood [nats] | NIS mean |"
+        );
+        let _ = writeln!(s, "|---|---|---|");
+        for ((k, ll), nis) in t
+            .gnss_scales
+            .iter()
+            .zip(&t.gnss_log_likelihood)
+            .zip(&t.gnss_nis_mean)
+        {
+            let _ = writeln!(s, "| {k:.3} | {ll:.1} | {nis:.2} |");
+        }
+        let _ = writeln!(s);
         if let Some(t2) = &t.with_effects {
             let _ = writeln!(
                 s,
@@ -367,23 +463,57 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
             );
         }
     }
+    let _ = writeln!(s, "## Held-out windows\n\n{}.\n", dg.heldout_windows.how);
     let _ = writeln!(
         s,
-        "## Steps (every model change; after is never worse than before on the fixes)\n"
+        "| window | kind | start [min] | end [min] | error before [m] | error after [m] |\n|---|---|---|---|---|---|"
+    );
+    let t0 = t0_of(&d.before);
+    let om = |x: Option<&f64>| {
+        x.filter(|v| v.is_finite())
+            .map_or("-".to_string(), |v| format!("{v:.3}"))
+    };
+    for (i, w) in dg.heldout_windows.windows.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "| {} | {:?} | {:.2} | {:.2} | {} | {} |",
+            i + 1,
+            w.kind,
+            (w.start_s - t0) / 60.0,
+            (w.end_s - t0) / 60.0,
+            om(dg.window_errors_before_m.get(i)),
+            om(dg.window_errors_after_m.get(i))
+        );
+    }
+    if let Some(h) = &dg.heldout_change {
+        let _ = writeln!(
+            s,
+            "\nFinal model against the configuration: {}.",
+            h.describe()
+        );
+    }
+    s.push('\n');
+    if let Some(u) = &dg.unexplained {
+        let _ = writeln!(s, "## Unexplained\n\n{}\n", u.summary);
+    }
+    let _ = writeln!(
+        s,
+        "## Steps (every model change; a change whose held-out errors are significantly higher is not made)\n"
     );
     let _ = writeln!(
         s,
-        "| step | kept | held-out outage error [m] | GNSS prior residual, horizontal RMS [m] | outage error vs truth [m] | 3D RMS with GNSS vs truth [m] | NIS mean | why not |\n|---|---|---|---|---|---|---|---|"
+        "| step | kept | held-out windows RMS [m] | held-out gain vs the step before | GNSS prior residual, horizontal RMS [m] | outage error vs truth [m] | 3D RMS with GNSS vs truth [m] | NIS mean | why |\n|---|---|---|---|---|---|---|---|---|"
     );
     let o = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.3}"));
     for st in &dg.steps {
         let e = &st.errors;
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {} | {} | {:.2} | {} |",
+            "| {} | {} | {} | {} | {:.3} | {} | {} | {:.2} | {} |",
             st.label,
             if st.accepted { "yes" } else { "no" },
-            o(e.heldout_outage_m),
+            o(e.heldout_windows_rms_m),
+            st.heldout.as_ref().map_or("-".into(), gain_ci),
             e.gnss_prior_horizontal_rms_m,
             o(e.truth_outage_m),
             o(e.truth_with_gnss_3d_rms_m),
@@ -431,9 +561,9 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
     if !dg.added_effects.is_empty() {
         let _ = writeln!(
             s,
-            "| effect | estimate | 1-sigma | unit | evidence [nats] | runner-up (nats behind) | held-out outage error before -> after [m] | GNSS prior residual before -> after [m] |"
+            "| effect | estimate | 1-sigma | unit | likelihood gain [nats] | evidence (gain - BIC) [nats] | held-out gain [90 % CI] | p (lower errors) | runner-up (nats behind) | held-out windows RMS before -> after [m] | GNSS prior residual before -> after [m] |"
         );
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
         for e in &dg.added_effects {
             let ru = e
                 .runner_up
@@ -441,16 +571,19 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
                 .map_or(String::from("-"), |(n, m)| format!("{n} ({m:.1})"));
             let _ = writeln!(
                 s,
-                "| {}{} | {} | {} | {} | {:.1} | {} | {} -> {} | {:.3} -> {:.3} |",
+                "| {}{} | {} | {} | {} | {:.1} | {:.1} | {} | {:.4} | {} | {} -> {} | {:.3} -> {:.3} |",
                 e.name,
                 if e.freed { " (freed)" } else { "" },
                 fmt_vec(&e.estimate),
                 fmt_vec(&e.sigma),
                 e.unit,
+                e.delta_log_likelihood,
                 e.evidence,
+                gain_ci(&e.heldout),
+                e.heldout.p_better,
                 ru,
-                o(e.before.heldout_outage_m),
-                o(e.after.heldout_outage_m),
+                o(e.before.heldout_windows_rms_m),
+                o(e.after.heldout_windows_rms_m),
                 e.before.gnss_prior_horizontal_rms_m,
                 e.after.gnss_prior_horizontal_rms_m
             );
@@ -524,21 +657,28 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
         }
         let _ = writeln!(
             s,
-            "| candidate | evidence [nats] | LL gain | BIC penalty | max z | regressor corr z | held-out outage error [m] | refused |\n|---|---|---|---|---|---|---|---|"
+            "| candidate | estimate +- sigma | evidence [nats] | LL gain | BIC penalty | max z | regressor corr z | held-out gain [90 % CI] | p lower / p higher | decision | reason |\n|---|---|---|---|---|---|---|---|---|---|---|"
         );
         for c in &r.candidates {
             let _ = writeln!(
                 s,
-                "| {}{} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |",
+                "| {}{} | {} +- {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {:?} | {} |",
                 c.name,
                 if c.freed { " (freed)" } else { "" },
+                fmt_vec(&c.estimate),
+                fmt_vec(&c.sigma),
                 c.evidence.unwrap_or(f64::NAN),
                 c.delta_log_likelihood.unwrap_or(f64::NAN),
                 c.bic_penalty,
                 c.max_z,
                 c.correlation_z,
-                o(c.errors.and_then(|e| e.heldout_outage_m)),
-                c.refused.as_deref().unwrap_or("")
+                c.heldout.as_ref().map_or("-".into(), gain_ci),
+                c.heldout.as_ref().map_or("-".into(), |h| format!(
+                    "{:.3} / {:.3}",
+                    h.p_better, h.p_worse
+                )),
+                c.decision,
+                c.reason
             );
         }
         s.push('\n');
@@ -552,7 +692,8 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
 /// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the
 /// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
 /// `imu.time_offset_s` (the IMU on the GNSS clock, so the run's output is on the GNSS clock),
-/// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, and its relative paths made
+/// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, the tuned GNSS noise scale as
+/// `gnss.sigma_scale` (times the configuration's), and its relative paths made
 /// absolute; a comment header lists every
 /// added effect with its estimate; the other added effects (IMU effect blocks) are listed in
 /// the top-level `effects` key, so `host-sim run --config augmented.toml` runs the augmented
@@ -594,6 +735,12 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
                     g.insert("lever_arm_m".into(), toml::Value::Array(new));
                 }
             }
+        }
+        if let Some(s) = d.final_gnss_sigma_scale {
+            // the configuration's scale times the tuned GNSS noise scale: one number when
+            // horizontal and vertical agree, else the table form
+            let v = toml::Value::try_from(s).context("GNSS sigma_scale")?;
+            g.insert("sigma_scale".into(), v);
         }
     }
     if let Some(dt) = d

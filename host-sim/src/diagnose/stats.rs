@@ -287,6 +287,229 @@ pub fn regressor_correlation(b: Block, imu: &[ImuSample], run: &RunOutput) -> (f
     best
 }
 
+/// Length of the bins of [`misfit_spans`], s.
+pub const MISFIT_BIN_S: f64 = 60.0;
+
+/// A stretch of the drive where the innovations do not fit the model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MisfitSpan {
+    /// Start, GPS seconds of week.
+    pub start_s: f64,
+    /// End, GPS seconds of week.
+    pub end_s: f64,
+    /// Mean NIS of its fixes.
+    pub nis_mean: f64,
+    /// Its expectation (mean measurement dimension).
+    pub nis_expected: f64,
+    /// Fixes in it.
+    pub fixes: usize,
+}
+
+/// Misfit no effect of the vocabulary explains.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// What is unexplained and where, in words.
+    pub summary: String,
+    /// Where the NIS is high, strongest first.
+    pub spans: Vec<MisfitSpan>,
+}
+
+/// The stretches where the NIS is significantly high: bins of `bin_s` whose NIS sum exceeds
+/// its chi-square expectation by more than 4 standard deviations (`sum dim + 4 sqrt(2 sum
+/// dim)`), adjacent bins merged; strongest (highest mean NIS) first.
+pub fn misfit_spans(innov: &[InnovationRecord], bin_s: f64) -> Vec<MisfitSpan> {
+    let recs: Vec<&InnovationRecord> = innov.iter().filter(|r| in_stats(r)).collect();
+    let Some(t0) = recs.first().map(|r| r.t_s) else {
+        return Vec::new();
+    };
+    let mut bins: Vec<(f64, f64, usize)> = Vec::new(); // (sum NIS, sum dim, fixes)
+    for r in &recs {
+        let i = ((r.t_s - t0) / bin_s).floor().max(0.0) as usize;
+        if bins.len() <= i {
+            bins.resize(i + 1, (0.0, 0.0, 0));
+        }
+        bins[i].0 += r.nis;
+        bins[i].1 += r.dim as f64;
+        bins[i].2 += 1;
+    }
+    let high = |b: &(f64, f64, usize)| b.2 > 0 && b.0 > b.1 + 4.0 * (2.0 * b.1).sqrt();
+    let mut spans: Vec<MisfitSpan> = Vec::new();
+    let mut open: Option<(usize, f64, f64, usize)> = None;
+    for (i, b) in bins
+        .iter()
+        .chain(std::iter::once(&(0.0, 0.0, 0)))
+        .enumerate()
+    {
+        if high(b) {
+            let o = open.get_or_insert((i, 0.0, 0.0, 0));
+            o.1 += b.0;
+            o.2 += b.1;
+            o.3 += b.2;
+        } else if let Some((s, nis, dim, n)) = open.take() {
+            spans.push(MisfitSpan {
+                start_s: t0 + s as f64 * bin_s,
+                end_s: t0 + i as f64 * bin_s,
+                nis_mean: nis / n as f64,
+                nis_expected: dim / n as f64,
+                fixes: n,
+            });
+        }
+    }
+    spans.sort_by(|a, b| b.nis_mean.total_cmp(&a.nis_mean));
+    spans
+}
+
+/// One-sided significance level of the paired held-out tests (each direction).
+pub const HELDOUT_ALPHA: f64 = 0.05;
+
+/// Wilcoxon signed-rank test and Hodges-Lehmann estimate of paired differences `d` (zeros
+/// and non-finite values dropped): `(n, W+, P(W+ >= observed), P(W+ <= observed), estimate,
+/// [lower, upper])` with the interval at confidence `1 - 2 alpha` (its ends pair with the
+/// two one-sided tests at `alpha`; infinite when `n` is too small for any bound). Exact null
+/// distribution without ties and up to 60 pairs, else the normal approximation with the tie
+/// correction.
+pub fn signed_rank(d: &[f64], alpha: f64) -> SignedRank {
+    let mut v: Vec<f64> = d
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite() && *x != 0.0)
+        .collect();
+    let n = v.len();
+    v.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
+    // mid-ranks of |d|
+    let mut ranks = vec![0.0; n];
+    let mut ties = false;
+    let mut tie_term = 0.0;
+    let mut i = 0;
+    while i < n {
+        let mut j = i;
+        while j + 1 < n && v[j + 1].abs() == v[i].abs() {
+            j += 1;
+        }
+        let r = 0.5 * ((i + 1) + (j + 1)) as f64;
+        for x in ranks.iter_mut().take(j + 1).skip(i) {
+            *x = r;
+        }
+        if j > i {
+            ties = true;
+            let t = (j - i + 1) as f64;
+            tie_term += t * t * t - t;
+        }
+        i = j + 1;
+    }
+    let w_plus: f64 = v
+        .iter()
+        .zip(&ranks)
+        .filter(|(x, _)| **x > 0.0)
+        .map(|(_, r)| r)
+        .sum();
+    let total = (n * (n + 1) / 2) as f64;
+    // null distribution of W+ (exact: counts of subsets of 1..n by their sum)
+    let exact = (!ties && n <= 60).then(|| {
+        let max = n * (n + 1) / 2;
+        let mut c = vec![0.0f64; max + 1];
+        c[0] = 1.0;
+        for k in 1..=n {
+            for s in (k..=max).rev() {
+                c[s] += c[s - k];
+            }
+        }
+        let all = 2f64.powi(n as i32);
+        c.iter().map(|x| x / all).collect::<Vec<f64>>()
+    });
+    let cdf_le = |w: f64| -> f64 {
+        match &exact {
+            Some(p) => p
+                .iter()
+                .enumerate()
+                .filter(|(s, _)| (*s as f64) <= w + 1e-9)
+                .map(|(_, x)| x)
+                .sum(),
+            None => {
+                let mean = total / 2.0;
+                let var = (n * (n + 1) * (2 * n + 1)) as f64 / 24.0 - tie_term / 48.0;
+                if var <= 0.0 {
+                    return 1.0;
+                }
+                normal_cdf((w + 0.5 - mean) / var.sqrt())
+            }
+        }
+    };
+    let p_worse = if n == 0 { 1.0 } else { cdf_le(w_plus) };
+    // P(W+ >= w) = P(W- <= total - w) (symmetric null)
+    let p_better = if n == 0 { 1.0 } else { cdf_le(total - w_plus) };
+    // Hodges-Lehmann: median of the Walsh averages; interval from the null quantile
+    let mut walsh = Vec::with_capacity(n * (n + 1) / 2);
+    for a in 0..n {
+        for b in a..n {
+            walsh.push(0.5 * (v[a] + v[b]));
+        }
+    }
+    walsh.sort_by(f64::total_cmp);
+    let estimate = median_sorted(&walsh);
+    // k: the largest count with P(W+ <= k - 1) <= alpha; the interval is the k-th smallest and
+    // k-th largest Walsh average
+    let mut k = 0usize;
+    while k < walsh.len() && cdf_le(k as f64) <= alpha {
+        k += 1;
+    }
+    let ci = if k == 0 || walsh.is_empty() {
+        [f64::NEG_INFINITY, f64::INFINITY]
+    } else {
+        let m = walsh.len();
+        [walsh[k - 1], walsh[m - k]]
+    };
+    SignedRank {
+        n,
+        w_plus,
+        p_greater: p_better,
+        p_less: p_worse,
+        estimate,
+        ci,
+    }
+}
+
+/// Result of [`signed_rank`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SignedRank {
+    /// Pairs compared (non-zero, finite differences).
+    pub n: usize,
+    /// Sum of the ranks of the positive differences.
+    pub w_plus: f64,
+    /// One-sided p-value for differences centred above zero.
+    pub p_greater: f64,
+    /// One-sided p-value for differences centred below zero.
+    pub p_less: f64,
+    /// Hodges-Lehmann estimate of the centre of the differences (NaN without pairs).
+    pub estimate: f64,
+    /// Its interval at confidence `1 - 2 alpha`.
+    pub ci: [f64; 2],
+}
+
+fn median_sorted(v: &[f64]) -> f64 {
+    match v.len() {
+        0 => f64::NAN,
+        m if m % 2 == 1 => v[m / 2],
+        m => 0.5 * (v[m / 2 - 1] + v[m / 2]),
+    }
+}
+
+/// Standard normal CDF (Abramowitz-Stegun 7.1.26 erf, |error| < 1.5e-7).
+pub fn normal_cdf(z: f64) -> f64 {
+    let x = z.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * x);
+    let y = 1.0
+        - (((((1.061_405_429 * t - 1.453_152_027) * t) + 1.421_413_741) * t - 0.284_496_736) * t
+            + 0.254_829_592)
+            * t
+            * (-x * x).exp();
+    if z >= 0.0 {
+        0.5 * (1.0 + y)
+    } else {
+        0.5 * (1.0 - y)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -317,5 +540,36 @@ mod tests {
         let at = |m: f64| a.iter().find(|p| p[0] == m).map_or(f64::NAN, |p| p[1]);
         assert!(at(64.0) > 5.0 * at(1.0), "{a:?}");
         assert!(whiteness(0, &rw).ljung_box_q > 10.0 * LJUNG_BOX_Q95);
+    }
+
+    #[test]
+    fn signed_rank_matches_the_tables() {
+        // n = 10, all positive: P(W+ >= 55) = 2^-10
+        let d: Vec<f64> = (1..=10).map(f64::from).collect();
+        let r = signed_rank(&d, HELDOUT_ALPHA);
+        assert_eq!(r.n, 10);
+        assert!((r.p_greater - 1.0 / 1024.0).abs() < 1e-12, "{r:?}");
+        assert!((r.p_less - 1.0).abs() < 1e-12);
+        // Hodges-Lehmann of 1..10 is 5.5; the 90 % interval of n = 10 uses the 11th Walsh
+        // average from each end (one-sided 5 % critical value T = 10)
+        assert!((r.estimate - 5.5).abs() < 1e-12);
+        assert!(r.ci[0] > 1.0 && r.ci[0] < 5.5 && r.ci[1] > 5.5 && r.ci[1] < 10.0);
+        // table: n = 12, one-sided 0.05 critical W- = 17 -> P(W+ >= 61) <= 0.05 < P(W+ >= 60)
+        let mut d: Vec<f64> = (1..=12).map(f64::from).collect();
+        for x in d.iter_mut().take(5) {
+            *x = -*x; // W- = 1+2+3+4+5 = 15
+        }
+        assert!(signed_rank(&d, 0.05).p_greater < 0.05);
+        d[5] = -6.0; // W- = 21
+        let r = signed_rank(&d, 0.05);
+        assert!(r.p_greater > 0.05 && r.p_greater < 0.2, "{r:?}");
+        // n = 3: no bound at 5 %
+        let r = signed_rank(&[1.0, 2.0, 3.0], 0.05);
+        assert!((r.p_greater - 0.125).abs() < 1e-12);
+        assert!(r.ci[0].is_infinite() && r.ci[1].is_infinite());
+        // ties: normal approximation, symmetric data give about 0.5
+        let r = signed_rank(&[1.0, -1.0, 2.0, -2.0, 1.0, -1.0], 0.05);
+        assert!(r.p_greater > 0.4 && r.p_less > 0.4, "{r:?}");
+        assert!((normal_cdf(1.644_853_6) - 0.95).abs() < 1e-6);
     }
 }

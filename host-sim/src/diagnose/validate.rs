@@ -1,12 +1,14 @@
 //! The checks a model change must pass on data the fit did not see, the errors recorded per
 //! step of the diagnosis, and the detectability bound of an effect.
 //!
-//! Held-out check: the fixes inside the imposed outages are withheld from the filter; the
-//! outage error against them (RMS over outages of each outage's largest 3D error of the
-//! predicted antenna position) is a prediction error on data the fit did not use. A change is
-//! accepted only when it lowers that error and does not raise the horizontal RMS of the prior
-//! residuals of the used fixes (the error with GNSS). Both use the fixes only, never a truth,
-//! so a simulated case is decided exactly as a real one.
+//! Held-out windows ([`plan_windows`]): the imposed outages, the gaps of the GNSS file, and,
+//! when those are too few for a paired test, windows the diagnosis withholds itself. A
+//! window's error ([`window_errors_m`]) is the largest 3D distance of the predicted antenna
+//! position from its withheld fixes and the first fix after it: a prediction error on data the
+//! fit did not use. A model change is compared with the current model window by window
+//! ([`compare_windows`]: Wilcoxon signed-rank test of the log error ratios, one-sided 5 % each
+//! way, and the Hodges-Lehmann gain with its 90 % interval). Only fixes are used, never a
+//! truth, so a simulated case is decided exactly as a real one.
 use nav_core::earth::{self, Llh};
 use nav_core::model::Block;
 use nav_core::types::{GnssFix, NavSolution};
@@ -14,7 +16,7 @@ use serde::Serialize;
 
 use super::stats::{c_bn, residual_stats};
 use nav_engine::metrics::{self, Metrics};
-use nav_engine::run::{FixUse, Outage, RunOutput};
+use nav_engine::run::{FixUse, InnovationRecord, Outage, RunOutput};
 
 /// RMS over the outages of each outage's largest 3D error against its withheld fixes, m
 /// (None without withheld fixes).
@@ -46,6 +48,9 @@ pub fn heldout_outage_error_m(run: &RunOutput) -> Option<f64> {
 pub struct StepErrors {
     /// Held-out outage error against the withheld fixes, m ([`heldout_outage_error_m`]).
     pub heldout_outage_m: Option<f64>,
+    /// RMS over the held-out windows of their errors ([`window_errors_m`]), m (None without
+    /// windows).
+    pub heldout_windows_rms_m: Option<f64>,
     /// The same for the smoothed solution (`diagnose --smooth`; the fixes in the outages are
     /// withheld from the forward filter and so from the smoother too), m.
     pub heldout_outage_smoothed_m: Option<f64>,
@@ -72,6 +77,7 @@ pub fn step_errors(run: &RunOutput, m: &Metrics) -> StepErrors {
     StepErrors {
         heldout_outage_m: heldout_outage_error_m(run),
         heldout_outage_smoothed_m: None,
+        heldout_windows_rms_m: None,
         gnss_prior_horizontal_rms_m: m.gnss_residuals.horizontal_m.rms,
         truth_outage_m: (truth && m.outage_summary.count > 0)
             .then_some(m.outage_summary.max_3d_m.rms),
@@ -92,40 +98,6 @@ impl StepErrors {
     pub fn scored_heldout_m(&self) -> Option<f64> {
         self.heldout_outage_smoothed_m.or(self.heldout_outage_m)
     }
-}
-
-/// Whether `new` passes the held-out check against `cur`: a lower held-out outage error
-/// (when there are outages; the smoothed one with `--smooth`) and a GNSS prior residual not
-/// above the current one. Err: why not.
-pub fn check_heldout(new: &StepErrors, cur: &StepErrors) -> Result<(), String> {
-    let smoothed =
-        new.heldout_outage_smoothed_m.is_some() && cur.heldout_outage_smoothed_m.is_some();
-    let (n, c) = if smoothed {
-        (new.heldout_outage_smoothed_m, cur.heldout_outage_smoothed_m)
-    } else {
-        (new.heldout_outage_m, cur.heldout_outage_m)
-    };
-    if let (Some(n), Some(c)) = (n, c) {
-        if n.partial_cmp(&c) != Some(std::cmp::Ordering::Less) {
-            return Err(format!(
-                "{}held-out outage error not lowered ({n:.3} m vs {c:.3} m)",
-                if smoothed { "smoothed " } else { "" }
-            ));
-        }
-    }
-    let (n, c) = (
-        new.gnss_prior_horizontal_rms_m,
-        cur.gnss_prior_horizontal_rms_m,
-    );
-    if n.is_nan() || n > c {
-        return Err(format!(
-            "error with GNSS raised (prior residual horizontal RMS {n:.4} m vs {c:.4} m)"
-        ));
-    }
-    // the written solution against the fixes is reported, not checked: it is a posterior
-    // comparison with the fixes the filter used (the base run is pulled onto them), so on the
-    // real drive it refused the time offset that lowers the held-out outage error 15.6 -> 12.8 m
-    Ok(())
 }
 
 /// Largest |estimate| / sigma over the states of an effect (0 when empty).
@@ -234,7 +206,9 @@ pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
             *a += d;
         }
     }
+    // the clock drift's offset dt_0 when no time offset (its rate is not applied)
     let shift = est(Block::TimeOffset.name())
+        .or_else(|| est(Block::ImuClockDrift.name()))
         .and_then(|v| v.first().copied())
         .map_or(0.0, |dt| -dt);
     output_vs_fixes_horizontal_rms_m(&run.nav, shift, arm, gnss, &run.outages)
@@ -243,4 +217,350 @@ pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
 /// The names of the blocks, for messages.
 pub fn names(blocks: &[Block]) -> Vec<String> {
     blocks.iter().map(|b| b.name().to_string()).collect()
+}
+
+/// How a held-out window came about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WindowKind {
+    /// An outage imposed on the run (`--outage`, `--periodic-outage`, a case's outages): its
+    /// fixes are withheld from every run.
+    Imposed,
+    /// A gap of the GNSS file itself: no fixes; the first fix after it judges the prediction
+    /// across it.
+    GnssGap,
+    /// Withheld by the diagnosis (the recording had too few windows of its own): its fixes
+    /// are withheld from the search runs; the final run uses them.
+    Withheld,
+}
+
+/// One held-out window: the fixes tagged in `[start_s, end_s)` are not used by the search
+/// runs (withheld, or absent from the file); the prediction across it is judged against the
+/// withheld fixes and the first fix after it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HeldoutWindow {
+    /// Kind.
+    pub kind: WindowKind,
+    /// Start, GPS seconds of week.
+    pub start_s: f64,
+    /// End (exclusive), GPS seconds of week.
+    pub end_s: f64,
+}
+
+/// The held-out windows of a diagnosis and how they were chosen.
+#[derive(Debug, Clone, Serialize)]
+pub struct HeldoutPlan {
+    /// The windows, in time order.
+    pub windows: Vec<HeldoutWindow>,
+    /// Length of each window the diagnosis withheld, s (0 when none).
+    pub withheld_length_s: f64,
+    /// How they were chosen, in words.
+    pub how: String,
+}
+
+/// Number of held-out windows the diagnosis aims at: with 12 paired windows a one-sided
+/// 5 % signed-rank test needs about 10 of them improved (W- <= 17).
+pub const TARGET_WINDOWS: usize = 12;
+/// Longest window the diagnosis withholds, s (and the fixes kept on each side of it).
+pub const WITHHELD_MAX_S: f64 = 20.0;
+/// Shortest window the diagnosis withholds, s.
+pub const WITHHELD_MIN_S: f64 = 8.0;
+/// Time after the first fix before the first withheld window, s (the filter converges).
+pub const WARM_UP_S: f64 = 90.0;
+
+/// The gaps of a fix sequence (times, s, increasing): pairs (last fix before, first fix
+/// after) more than 5 nominal intervals (median spacing) and at least 5 s apart.
+pub fn fix_gaps(times: &[f64]) -> Vec<(f64, f64)> {
+    let mut dts: Vec<f64> = times
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if dts.is_empty() {
+        return Vec::new();
+    }
+    dts.sort_by(f64::total_cmp);
+    let nominal = dts[dts.len() / 2];
+    let min_gap = (5.0 * nominal).max(5.0);
+    times
+        .windows(2)
+        .filter(|w| w[1] - w[0] > min_gap)
+        .map(|w| (w[0], w[1]))
+        .collect()
+}
+
+/// The held-out windows of a recording with fixes at `fix_times` (s, increasing) and the
+/// imposed `outages`: every imposed outage and every gap of the file ([`fix_gaps`]); when they
+/// number fewer than [`TARGET_WINDOWS`], windows of up to [`WITHHELD_MAX_S`] withheld by the
+/// diagnosis, spread evenly over the stretches with fixes (after [`WARM_UP_S`], keeping their
+/// own length of fixes to every other window and to the end).
+pub fn plan_windows(fix_times: &[f64], outages: &[Outage]) -> HeldoutPlan {
+    let mut windows: Vec<HeldoutWindow> = outages
+        .iter()
+        .map(|o| HeldoutWindow {
+            kind: WindowKind::Imposed,
+            start_s: o.start_s,
+            end_s: o.end_s(),
+        })
+        .collect();
+    let gaps = fix_gaps(fix_times);
+    for &(a, b) in &gaps {
+        // a gap inside an imposed outage is that outage's
+        if outages.iter().any(|o| o.contains(a) && o.contains(b)) {
+            continue;
+        }
+        windows.push(HeldoutWindow {
+            kind: WindowKind::GnssGap,
+            start_s: a + 1e-3,
+            end_s: b,
+        });
+    }
+    let own = windows.len();
+    let need = TARGET_WINDOWS.saturating_sub(own);
+    let (Some(&first), Some(&last)) = (fix_times.first(), fix_times.last()) else {
+        return HeldoutPlan {
+            windows,
+            withheld_length_s: 0.0,
+            how: "no fixes".into(),
+        };
+    };
+    let mut length = 0.0;
+    let mut added = 0;
+    if need > 0 {
+        // stretches with fixes: from the warm-up to the end, minus every window and gap
+        let mut busy: Vec<(f64, f64)> = windows.iter().map(|w| (w.start_s, w.end_s)).collect();
+        busy.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let free = |pad: f64| -> Vec<(f64, f64)> {
+            let mut v = Vec::new();
+            let mut a = first + WARM_UP_S;
+            for &(s, e) in &busy {
+                if s - pad > a {
+                    v.push((a, s - pad));
+                }
+                a = a.max(e + pad);
+            }
+            if last - pad > a {
+                v.push((a, last - pad));
+            }
+            v
+        };
+        // the longest window (with as much fix time on each side) that fits `need` windows
+        let fits = |l: f64| -> usize {
+            free(l)
+                .iter()
+                .map(|(a, b)| ((b - a + l) / (2.0 * l)).floor() as usize)
+                .sum()
+        };
+        let mut l = WITHHELD_MAX_S;
+        while l > WITHHELD_MIN_S && fits(l) < need {
+            l -= 1.0;
+        }
+        let stretches = free(l);
+        // D'Hondt: one window at a time to the stretch with the most room per window
+        let cap: Vec<usize> = stretches
+            .iter()
+            .map(|(a, b)| ((b - a + l) / (2.0 * l)).floor() as usize)
+            .collect();
+        let mut k = vec![0usize; stretches.len()];
+        for _ in 0..need {
+            let best = (0..stretches.len())
+                .filter(|&j| k[j] < cap[j])
+                .max_by(|&i, &j| {
+                    let r = |x: usize| (stretches[x].1 - stretches[x].0) / (k[x] + 1) as f64;
+                    r(i).total_cmp(&r(j))
+                });
+            let Some(j) = best else { break };
+            k[j] += 1;
+        }
+        for (&(a, b), &kj) in stretches.iter().zip(&k) {
+            let slot = (b - a) / kj.max(1) as f64;
+            for i in 0..kj {
+                let s = a + (i as f64 + 0.5) * slot - 0.5 * l;
+                windows.push(HeldoutWindow {
+                    kind: WindowKind::Withheld,
+                    start_s: s,
+                    end_s: s + l,
+                });
+                added += 1;
+            }
+        }
+        if added > 0 {
+            length = l;
+        }
+    }
+    windows.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
+    let imposed = outages.len();
+    let gap_count = own - imposed;
+    let mut how = format!(
+        "{} held-out window(s): {imposed} imposed outage(s), {gap_count} gap(s) of the GNSS file",
+        windows.len()
+    );
+    if added > 0 {
+        how.push_str(&format!(
+            ", {added} window(s) of {length:.0} s withheld by the diagnosis (too few of the \
+             recording's own for a paired test; spread over the drive after the first \
+             {WARM_UP_S:.0} s; the search runs withhold them in one fold, the final run uses \
+             every fix)"
+        ));
+    }
+    how.push_str(
+        "; each window is judged by its largest 3D error against its withheld fixes and the \
+         first fix after it (the prediction across it)",
+    );
+    HeldoutPlan {
+        windows,
+        withheld_length_s: length,
+        how,
+    }
+}
+
+impl HeldoutPlan {
+    /// The outages a search run withholds beyond the imposed ones.
+    pub fn withheld_outages(&self) -> Vec<Outage> {
+        self.windows
+            .iter()
+            .filter(|w| w.kind == WindowKind::Withheld)
+            .map(|w| Outage {
+                start_s: w.start_s,
+                duration_s: w.end_s - w.start_s,
+            })
+            .collect()
+    }
+}
+
+/// The error of a run in each held-out window, m: the largest 3D distance between the
+/// predicted antenna position and the window's withheld fixes and the first fix after it
+/// (used, forced or gate-rejected: its prior residual), NaN when the window has none of them
+/// (a window at the end of the fixes).
+pub fn window_errors_m(run: &RunOutput, windows: &[HeldoutWindow]) -> Vec<f64> {
+    let recs: Vec<&InnovationRecord> = run
+        .innovations
+        .iter()
+        .filter(|r| r.used != FixUse::Invalid && r.innovation[..3].iter().all(|x| x.is_finite()))
+        .collect();
+    let norm = |r: &InnovationRecord| {
+        (r.innovation[0].powi(2) + r.innovation[1].powi(2) + r.innovation[2].powi(2)).sqrt()
+    };
+    windows
+        .iter()
+        .map(|w| {
+            let i0 = recs.partition_point(|r| r.t_s < w.start_s);
+            let mut worst = f64::NAN;
+            for r in &recs[i0..] {
+                if r.t_s < w.end_s {
+                    if r.used == FixUse::Withheld {
+                        worst = worst.max(norm(r));
+                    }
+                    continue;
+                }
+                if r.used != FixUse::Withheld {
+                    worst = worst.max(norm(r));
+                    break;
+                }
+            }
+            worst
+        })
+        .collect()
+}
+
+/// What a paired held-out comparison decides.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HeldoutVerdict {
+    /// The candidate's held-out errors are significantly lower.
+    Better,
+    /// Significantly higher.
+    Worse,
+    /// Neither.
+    NotSignificant,
+}
+
+/// A model against the current one on the held-out windows, paired per window.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HeldoutComparison {
+    /// Windows compared (both errors finite and different).
+    pub windows: usize,
+    /// Windows where the new model's error is lower.
+    pub improved: usize,
+    /// Held-out gain: the fraction by which the new model lowers the window errors
+    /// (`1 - exp(-HL)`, HL the Hodges-Lehmann estimate of `ln(e_current / e_new)`; 0.1 = 10 %
+    /// lower, negative = higher).
+    pub gain: f64,
+    /// Its 90 % confidence interval (from the signed-rank null; pairs with the one-sided 5 %
+    /// tests).
+    pub gain_ci90: [f64; 2],
+    /// One-sided p-value of the Wilcoxon signed-rank test for lower errors.
+    pub p_better: f64,
+    /// One-sided p-value for higher errors.
+    pub p_worse: f64,
+    /// RMS over the windows of the current model's errors, m.
+    pub current_rms_m: f64,
+    /// The same for the new model, m.
+    pub new_rms_m: f64,
+    /// The decision at [`super::stats::HELDOUT_ALPHA`] per side.
+    pub verdict: HeldoutVerdict,
+}
+
+/// Compares the per-window errors of a new model with the current one's
+/// ([`window_errors_m`], same windows): Wilcoxon signed-rank test of the log error ratios.
+pub fn compare_windows(current: &[f64], new: &[f64]) -> HeldoutComparison {
+    let pairs: Vec<(f64, f64)> = current
+        .iter()
+        .zip(new)
+        .filter(|(c, n)| c.is_finite() && n.is_finite() && **c > 0.0 && **n > 0.0)
+        .map(|(c, n)| (*c, *n))
+        .collect();
+    let d: Vec<f64> = pairs.iter().map(|(c, n)| (c / n).ln()).collect();
+    let alpha = super::stats::HELDOUT_ALPHA;
+    let t = super::stats::signed_rank(&d, alpha);
+    let rms = |f: &dyn Fn(&(f64, f64)) -> f64| {
+        (pairs.iter().map(|p| f(p).powi(2)).sum::<f64>() / pairs.len().max(1) as f64).sqrt()
+    };
+    let g = |x: f64| 1.0 - (-x).exp();
+    let verdict = if t.p_greater < alpha {
+        HeldoutVerdict::Better
+    } else if t.p_less < alpha {
+        HeldoutVerdict::Worse
+    } else {
+        HeldoutVerdict::NotSignificant
+    };
+    HeldoutComparison {
+        windows: t.n,
+        improved: d.iter().filter(|x| **x > 0.0).count(),
+        gain: if t.n > 0 { g(t.estimate) } else { 0.0 },
+        gain_ci90: [g(t.ci[0]), g(t.ci[1])],
+        p_better: t.p_greater,
+        p_worse: t.p_less,
+        current_rms_m: rms(&|p| p.0),
+        new_rms_m: rms(&|p| p.1),
+        verdict,
+    }
+}
+
+impl HeldoutComparison {
+    /// `gain -3.1 % [-8.0, +1.2] (7 of 12 windows lower, p 0.21 / 0.74)`.
+    pub fn describe(&self) -> String {
+        let pc = |x: f64| {
+            if x.is_finite() {
+                format!("{:+.1}", 100.0 * x)
+            } else if x > 0.0 {
+                "+100".into()
+            } else {
+                "-inf".into()
+            }
+        };
+        format!(
+            "held-out gain {} % [{}, {}] ({} of {} windows lower, RMS {:.3} -> {:.3} m, \
+             p lower {:.3}, p higher {:.3})",
+            pc(self.gain),
+            pc(self.gain_ci90[0]),
+            pc(self.gain_ci90[1]),
+            self.improved,
+            self.windows,
+            self.current_rms_m,
+            self.new_rms_m,
+            self.p_better,
+            self.p_worse
+        )
+    }
 }

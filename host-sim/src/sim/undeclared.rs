@@ -145,6 +145,9 @@ pub struct DriveSpec {
     pub substeps: u32,
     /// Seed of the effect magnitudes, the sensor errors and the initial-state errors.
     pub seed: u64,
+    /// The GNSS file's gaps: `None` the periodic outages of [`drive_outages`]; `Some(n)`: `n`
+    /// gaps of [`OUTAGE_S`] spread over the drive ([`spread_gaps`], not on fix epochs).
+    pub file_gaps: Option<usize>,
 }
 
 impl DriveSpec {
@@ -156,6 +159,7 @@ impl DriveSpec {
             rate_hz: 200.0,
             substeps: 8,
             seed: 13,
+            file_gaps: None,
         }
     }
 }
@@ -286,6 +290,17 @@ pub fn drive_outages(duration_s: f64) -> Vec<Outage> {
         s += OUTAGE_PERIOD_S;
     }
     v
+}
+
+/// `n` GNSS gaps of [`OUTAGE_S`] for a drive of `duration_s`: centred at `k / (n + 1)` of the
+/// drive (k = 1..n), each starting 0.37 s after a whole second (between the 1 Hz fix epochs).
+pub fn spread_gaps(duration_s: f64, n: usize) -> Vec<Outage> {
+    (1..=n)
+        .map(|k| Outage {
+            start_s: (duration_s * k as f64 / (n + 1) as f64 - 0.5 * OUTAGE_S).floor() + 0.37,
+            duration_s: OUTAGE_S,
+        })
+        .collect()
 }
 
 /// The declared sensor and GNSS (no undeclared effect): see the module documentation.
@@ -421,6 +436,9 @@ pub fn generate(spec: &DriveSpec) -> Result<UndeclaredDrive, SimError> {
     let scenario = drive_scenario(spec.minutes, spec.rate_hz, spec.substeps);
     let duration_s = scenario.duration_s()?;
     let mut errors = declared_error_model(duration_s);
+    if let Some(n) = spec.file_gaps {
+        errors.gnss.outages = spread_gaps(duration_s, n);
+    }
     if let Some(e) = spec.effect {
         add_effect(&mut errors, e, spec.seed, duration_s);
     }

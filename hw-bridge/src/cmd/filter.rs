@@ -39,7 +39,6 @@ pub fn run_filter_on_frames(
     model: Option<nav_engine::run::Model>,
     f32: bool,
 ) -> anyhow::Result<FilterRun> {
-    use nav_engine::run::prepare::{read_config, ConfigKind};
     let mut spec = nav_engine::RunSpec::new(config);
     spec.case = case.map(Path::to_path_buf);
     spec.model = model;
@@ -53,27 +52,12 @@ pub fn run_filter_on_frames(
     if log.imu.is_empty() {
         bail!("the capture holds no IMU frame: nothing to run the filter on");
     }
-    let sigma_scale = match read_config(config)? {
-        ConfigKind::Run(r) => r.gnss.sigma_scale,
-        ConfigKind::KfGins(_) => 1.0,
-    };
-    let mut gnss = log.gnss.clone();
-    if sigma_scale != 1.0 {
-        for g in &mut gnss {
-            for s in g
-                .pos_std_ned_m
-                .iter_mut()
-                .chain(g.vel_std_ned_mps.iter_mut())
-            {
-                *s *= sigma_scale;
-            }
-        }
-    }
+    // the configuration's `[gnss] sigma_scale` is in `prepared.opts`: the engine applies it
     prepared.case.imu = log.imu.clone();
     // the samples are the capture's now: messages name IMU sample indices, not the
     // configuration's file lines
     prepared.case.imu_origin = None;
-    prepared.case.gnss = gnss;
+    prepared.case.gnss = log.gnss.clone();
     let t = Instant::now();
     let (output, metrics) = nav_engine::execute(&prepared, &mut |_, _| {})?;
     Ok(FilterRun {

@@ -482,7 +482,19 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     }
     let nominal = median_interval(&feed.buf).unwrap_or(MAX_DT_S);
     // the fixes, read as far ahead as the start-up looks
-    let ahead = RefCell::new(FixAhead::new(data.gnss));
+    // the configured sigma scale, on every fix as it is read
+    let scale = opts.gnss_sigma_scale;
+    let gnss: FixSource<'_> = if scale == nav_io::SigmaScale::ONE {
+        data.gnss
+    } else {
+        Box::new(data.gnss.map(move |r| {
+            r.map(|mut g| {
+                scale.apply(&mut g);
+                g
+            })
+        }))
+    };
+    let ahead = RefCell::new(FixAhead::new(gnss));
     let start = {
         let prefix: Vec<ImuSample> = feed.buf.iter().map(|i| i.sample).collect();
         init::initialise(

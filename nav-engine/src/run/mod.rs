@@ -251,6 +251,10 @@ pub struct RunOptions {
     /// Land-vehicle aiding (non-holonomic constraint, zero-velocity/rate updates, odometer,
     /// dual-antenna heading; all off by default), see [`aiding`].
     pub aiding: aiding::RunAidingConfig,
+    /// Factors on the fixes' standard deviations (`[gnss] sigma_scale`; the diagnosis's
+    /// GNSS noise scale), applied to every fix as the engine reads it (alignment and filter
+    /// alike); [`nav_io::SigmaScale::ONE`] uses the file's sigmas.
+    pub gnss_sigma_scale: nav_io::SigmaScale,
 }
 
 /// Smallest state count of a layout with extra effect blocks ([`RunOptions::extra_blocks`]).
@@ -291,6 +295,7 @@ impl RunOptions {
             imu_checks: ImuChecks::default(),
             smoother_history: false,
             aiding: aiding::RunAidingConfig::OFF,
+            gnss_sigma_scale: nav_io::SigmaScale::ONE,
         }
     }
 }

@@ -23,7 +23,7 @@
 
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
-use super::streams::{read_prefix, scale_sigmas, ConfigFiles, ImuFile};
+use super::streams::{read_prefix, ConfigFiles, ImuFile};
 pub use super::streams::{GnssStream, ImuStream};
 use super::{CaseData, Model, Precision, RunOptions};
 use anyhow::{bail, Context};
@@ -574,7 +574,7 @@ fn prepare_kf_gins(
     };
     // streamed: the IMU and the GNSS text files are read while the filter runs
     let (imu_rec, gnss, imu_stream) = if stream {
-        let g = GnssStream::check(&gnss_p, 1.0)?;
+        let g = GnssStream::check(&gnss_p)?;
         let mut st = ImuStream::new(ImuFile::Text(imu_p.clone()));
         st.gnss = Some(g);
         (nav_io::ImuRecord::default(), Vec::new(), Some(st))
@@ -660,11 +660,11 @@ fn prepare_run_config(
     let imu_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.imu.path), |c| c.imu.clone());
     let gnss_p = case_dir.map_or_else(|| RunConfig::resolve(dir, &r.gnss.path), |c| c.gnss.clone());
     let mut gaps = String::new();
-    let (imu_rec, mut gnss, truth) = match case_dir {
+    let (imu_rec, gnss, truth) = match case_dir {
         Some(c) => (
             if stream {
                 let mut st = ImuStream::new(ImuFile::Text(c.imu.clone()));
-                st.gnss = Some(GnssStream::check(&c.gnss, r.gnss.sigma_scale)?);
+                st.gnss = Some(GnssStream::check(&c.gnss)?);
                 imu_stream = Some(st);
                 nav_io::ImuRecord::default()
             } else {
@@ -690,7 +690,7 @@ fn prepare_run_config(
                 dir: dir.to_path_buf(),
             };
             let mut st = ImuStream::new(ImuFile::Config(files.clone()));
-            let g = GnssStream::check_config(files, r.gnss.sigma_scale)?;
+            let g = GnssStream::check_config(files)?;
             warnings.extend(g.summary.warnings.iter().cloned());
             if let Some(w) = g.summary.week {
                 week = u16::try_from(w).unwrap_or(0);
@@ -715,9 +715,6 @@ fn prepare_run_config(
         }
     };
     let imu = imu_rec.samples;
-    for g in &mut gnss {
-        scale_sigmas(g, r.gnss.sigma_scale);
-    }
     let accel = r
         .noise
         .accel
@@ -793,6 +790,7 @@ fn prepare_run_config(
         }
     };
     let mut opts = RunOptions::new(model, filter, init);
+    opts.gnss_sigma_scale = r.gnss.sigma_scale;
     if let Some(ch) = &r.imu.checks {
         apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
     }
@@ -943,7 +941,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn streamed_gnss_is_the_loaded_list_scaled_and_errors_before_the_run() {
+    fn streamed_gnss_is_the_loaded_list_and_errors_before_the_run() {
         let dir = std::env::temp_dir().join(format!("gnssstream-prep-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let ok = dir.join("gnss.txt");
@@ -953,19 +951,20 @@ mod tests {
              101.0 30.50001 114.30001 20.5 0.4 0.3 0.9 1.0 2.0 -0.5 0.05 0.06 0.07\n",
         )
         .unwrap();
-        let k = 1.7;
-        let st = GnssStream::check(&ok, k).unwrap();
+        let st = GnssStream::check(&ok).unwrap();
         assert_eq!(st.fixes, 2);
         let streamed: Vec<_> = st.source().unwrap().map(Result::unwrap).collect();
-        let mut loaded = read_gnss_text(&ok).unwrap();
-        for g in &mut loaded {
-            scale_sigmas(g, k);
+        assert_eq!(streamed, read_gnss_text(&ok).unwrap());
+        // the scale applied once, per axis: north/east horizontal, down vertical
+        let mut g = streamed[1];
+        nav_io::SigmaScale {
+            horizontal: 1.7,
+            vertical: 3.0,
         }
-        assert_eq!(streamed, loaded);
-        assert_eq!(
-            streamed[1].vel_std_ned_mps[2].to_bits(),
-            (0.07 * k).to_bits()
-        );
+        .apply(&mut g);
+        assert_eq!(g.pos_std_ned_m[1].to_bits(), (0.3 * 1.7f64).to_bits());
+        assert_eq!(g.pos_std_ned_m[2].to_bits(), (0.9 * 3.0f64).to_bits());
+        assert_eq!(g.vel_std_ned_mps[2].to_bits(), (0.07 * 3.0f64).to_bits());
         // a file that does not parse is refused by the check, naming file and line
         let bad = dir.join("bad.txt");
         std::fs::write(
@@ -973,7 +972,7 @@ mod tests {
             "100.0 30.5 114.3 20.0 0.5 0.6 1.1\n99.0 30.5 114.3 20.0 0.5\n",
         )
         .unwrap();
-        let e = format!("{:#}", GnssStream::check(&bad, 1.0).unwrap_err());
+        let e = format!("{:#}", GnssStream::check(&bad).unwrap_err());
         assert!(e.contains("bad.txt") && e.contains('2'), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }

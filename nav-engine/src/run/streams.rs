@@ -155,9 +155,6 @@ impl GnssFile {
 pub struct GnssStream {
     /// How it is read (its path: [`GnssFile::path`]).
     pub file: GnssFile,
-    /// Factor applied to every position and velocity standard deviation
-    /// (`[gnss] sigma_scale`; 1 for KF-GINS configurations).
-    pub sigma_scale: f64,
     /// Fixes in the file (counted by the check), after the quality filter.
     pub fixes: usize,
     /// What the check pass learnt besides the fixes: the GPS week the file states, the
@@ -167,17 +164,17 @@ pub struct GnssStream {
 
 impl GnssStream {
     /// Checks a GNSS text file (parsed to its end, nothing kept) and counts its fixes.
-    pub fn check(path: &Path, sigma_scale: f64) -> anyhow::Result<Self> {
-        Self::check_file(GnssFile::Text(path.to_path_buf()), sigma_scale)
+    pub fn check(path: &Path) -> anyhow::Result<Self> {
+        Self::check_file(GnssFile::Text(path.to_path_buf()))
     }
 
     /// Checks the GNSS file of a run configuration (read to its end through
     /// [`RunConfig::open_gnss`], nothing kept): its fixes counted, its summary kept.
-    pub fn check_config(c: ConfigFiles, sigma_scale: f64) -> anyhow::Result<Self> {
-        Self::check_file(GnssFile::Config(c), sigma_scale)
+    pub fn check_config(c: ConfigFiles) -> anyhow::Result<Self> {
+        Self::check_file(GnssFile::Config(c))
     }
 
-    fn check_file(file: GnssFile, sigma_scale: f64) -> anyhow::Result<Self> {
+    fn check_file(file: GnssFile) -> anyhow::Result<Self> {
         fn count(rd: impl Iterator<Item = Result<GnssFix, IoError>>) -> Result<usize, IoError> {
             rd.map(|r| r.map(|_| 1)).sum()
         }
@@ -190,31 +187,16 @@ impl GnssStream {
         };
         Ok(Self {
             file,
-            sigma_scale,
             fixes,
             summary,
         })
     }
 
-    /// The fixes as the engine's stream, the standard deviations scaled.
+    /// The fixes as the engine's stream, as in the file (the engine applies
+    /// [`super::RunOptions::gnss_sigma_scale`]).
     pub fn source(&self) -> Result<super::FixSource<'static>, super::RunError> {
-        let k = self.sigma_scale;
         let rd = self.file.open().map_err(super::RunError::Input)?;
-        Ok(Box::new(rd.map(move |r| {
-            let mut g = r.map_err(super::RunError::Input)?;
-            scale_sigmas(&mut g, k);
-            Ok(g)
-        })))
-    }
-}
-
-/// Multiplies a fix's position and velocity standard deviations by `k`.
-pub fn scale_sigmas(g: &mut GnssFix, k: f64) {
-    for s in &mut g.pos_std_ned_m {
-        *s *= k;
-    }
-    for s in &mut g.vel_std_ned_mps {
-        *s *= k;
+        Ok(Box::new(rd.map(|r| r.map_err(super::RunError::Input))))
     }
 }
 
