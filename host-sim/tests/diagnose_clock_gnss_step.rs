@@ -217,11 +217,18 @@ fn gnss_gauss_markov_error_larger_than_declared_is_significant() {
     assert!(gm.evidence.is_some_and(|e| e > 0.0 && e >= best));
     // its final estimate is one draw of a zero-mean process (|estimate| / sigma about 0.1
     // with the default 0.5 m / 1 m prior), so for this noise-like block the significance is
-    // the held-out windows' paired decision, not the estimate's z: it is named first, and the
-    // outage error falls (seed 909: 2056 nats, 1.058 -> 0.761 m)
-    assert_eq!(
-        d.added_effects.first().map(|e| e.name.as_str()),
-        Some("gnss_position_gm"),
+    // the held-out windows' paired decision, not the estimate's z. The drive's GNSS error is
+    // larger than declared in two ways (white 3x and a Gauss-Markov part): the diagnosis must
+    // name the GNSS side, either the Gauss-Markov block first or the GNSS noise scale fitted
+    // in the noise step (seed 909: the GM block alone, 2056 nats, 1.058 -> 0.761 m; with the
+    // GNSS noise scale in the vocabulary: scale x3.31, the white part's 3x, 1.058 -> 0.685 m),
+    // and no IMU effect is named first
+    let gm_first = d.added_effects.first().map(|e| e.name.as_str()) == Some("gnss_position_gm");
+    let scale = d
+        .final_gnss_sigma_scale
+        .map(|s| s.horizontal.min(s.vertical));
+    assert!(
+        gm_first || (scale.is_some_and(|k| (2.0..=4.5).contains(&k)) && d.added_effects.is_empty()),
         "{}",
         summary(&d)
     );
