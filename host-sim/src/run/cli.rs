@@ -10,6 +10,9 @@
 //! the data (a gap longer than `--imu-max-gap`, a numerical failure, an implausible sample
 //! with `--imu-strict`) stops the run with the outputs up to it as `*.partial` and exit code 1.
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], options `--imu-*` and `[imu.checks]`.
+//! A run that used no GNSS fix, or fewer than [`nav_engine::run::gnss_use::MIN_USED_FRACTION`]
+//! of those offered to the filter, is a dead-reckoning track: its outputs are written, and
+//! the run ends with an error naming where the fixes went (exit code 2).
 
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
@@ -42,20 +45,24 @@ pub struct RunArgs {
     /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
     #[arg(long, value_enum)]
     pub model: Option<Model>,
-    /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable).
+    /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable);
+    /// START inside the record, DURATION at least one IMU interval.
     #[arg(long = "outage", value_parser = parse_outage)]
     pub outages: Vec<Outage>,
     /// Repeating outages FIRST:DURATION:PERIOD, seconds, FIRST after the first IMU epoch
-    /// (repeatable), e.g. 120:30:60.
+    /// (repeatable), e.g. 120:30:60; FIRST inside the record, DURATION at least one IMU
+    /// interval, PERIOD at least DURATION, at most 10000 outages in a run.
     #[arg(long = "periodic-outage", value_parser = parse_periodic)]
     pub periodic_outages: Vec<PeriodicOutages>,
     /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
     #[arg(long)]
     pub kf_gins_outages: bool,
-    /// Rate of nav.txt, Hz (default: every IMU epoch).
+    /// Rate of nav.txt, Hz (default: every IMU epoch); in (0, IMU rate], a higher rate is
+    /// clamped to the IMU rate with a warning.
     #[arg(long)]
     pub nav_rate: Option<f64>,
-    /// Rate of std.txt and bias.txt, Hz.
+    /// Rate of std.txt and bias.txt, Hz; in (0, IMU rate], a higher rate is clamped to the
+    /// IMU rate with a warning.
     #[arg(long, default_value_t = 10.0)]
     pub std_rate: f64,
     /// Output directory.
@@ -64,7 +71,8 @@ pub struct RunArgs {
     /// f32 covariance (as on the MCU) instead of f64.
     #[arg(long)]
     pub f32: bool,
-    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
+    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction), in
+    /// [-60, 60].
     #[arg(long, allow_hyphen_values = true)]
     pub imu_time_offset: Option<f64>,
     /// Innovation gate: robust (default: IGG-III down-weighting and a model-mismatch
@@ -169,6 +177,7 @@ impl RunArgs {
             periodic_outages: self.periodic_outages.clone(),
             kf_gins_outages: self.kf_gins_outages,
             std_rate_hz: self.std_rate,
+            nav_rate_hz: self.nav_rate,
             f32: self.f32,
             imu_time_offset_s: self.imu_time_offset,
             gate: self.gate.as_deref().map(parse_gate).transpose()?,
@@ -227,13 +236,23 @@ fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
 /// ([`execute`]) and the smoother writes the outputs ([`super::smoothed::finish`]).
 fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
-    let p = prepare(args)?;
+    let l = load(args, false)?;
+    let p = &l.prepared;
+    // the checked (clamped) rate
+    let args = &RunArgs {
+        nav_rate: l.nav_rate_hz,
+        ..args.clone()
+    };
     println!("{}", p.description);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    let (out, m) = execute(&p, &mut |_, _| {})?;
+    let (out, m) = execute(p, &mut |_, _| {})?;
     let t_run = t.elapsed().as_secs_f64();
-    super::smoothed::finish(args, &p, out, m, t_run)
+    let c = out.counters;
+    super::smoothed::finish(args, p, out, m, t_run)?;
+    println!("{}", l.gnss_account(&c, false).summary_line());
+    l.check_gnss_use(&c)?;
+    Ok(())
 }
 
 /// Runs `host-sim run` (streaming: see [`execute_streaming`]).
@@ -242,12 +261,14 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         return run_smoothed(&args);
     }
     let t = std::time::Instant::now();
+    let loaded = prepare_streaming(&args)?;
     let Loaded {
         prepared: p,
         imu_stream: imu,
         truth_stream: truth,
+        nav_rate_hz,
         ..
-    } = prepare_streaming(&args)?;
+    } = &loaded;
     println!("{}", p.description);
     let pb = if args.quiet {
         indicatif::ProgressBar::hidden()
@@ -260,11 +281,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     );
     let dir = &args.out;
     let res = execute_streaming(
-        &p,
+        p,
         imu.as_ref(),
         truth.as_ref(),
         dir,
-        args.nav_rate,
+        *nav_rate_hz,
         &mut |done, _| pb.set_position(done as u64),
     );
     pb.finish_and_clear();
@@ -314,5 +335,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",
         dir.display()
     );
+    println!("{}", loaded.gnss_account(c, false).summary_line());
+    // a dead-reckoning track is not a navigation solution: an error (exit 2) naming why
+    loaded.check_gnss_use(c)?;
     Ok(())
 }
