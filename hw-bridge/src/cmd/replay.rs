@@ -422,6 +422,30 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         if let (Some(dir), Some(f)) = (&a.out, &out.filter) {
             write_filter_outputs(dir, f)?;
         }
+        // a dead-reckoning track is not a navigation solution: the replay is incomplete
+        if let Some(f) = &out.filter {
+            use nav_engine::run::gnss_use::{check, GnssAccount};
+            let case = &f.prepared.case;
+            let span = |t: &mut dyn Iterator<Item = f64>| {
+                t.fold(None, |acc: Option<(f64, f64)>, t| {
+                    Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+                })
+            };
+            let acc = GnssAccount {
+                counters: f.output.counters,
+                dropped_by_quality: 0,
+                fix_span_s: span(&mut case.gnss.iter().map(|g| g.t_s)),
+                imu_span_s: span(&mut case.imu.iter().map(|s| s.t_s)),
+            };
+            if let Err(e) = check(&acc) {
+                let why = format!("the filter run on the capture: {e}");
+                eprintln!("warning: {cap}: {why}");
+                out.incomplete = Some(match out.incomplete.take() {
+                    Some(w) => format!("{w}; {why}"),
+                    None => why,
+                });
+            }
+        }
     }
     Ok(out)
 }

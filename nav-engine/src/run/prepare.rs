@@ -266,9 +266,11 @@ fn check_outages(
     let record = (t_end - t0).max(0.0);
     let dt = dt_s.unwrap_or(0.0);
     for o in &args.outages {
-        if !(o.start_s < record) || !(o.duration_s >= dt) {
+        if !(o.start_s >= 0.0 && o.start_s < record)
+            || !(o.duration_s >= dt && o.duration_s.is_finite())
+        {
             bail!(
-                "--outage {}:{}: START must be in [0, {record}) s (the record after its first IMU epoch) and DURATION at least one IMU interval, {dt} s",
+                "--outage {}:{}: START must be in [0, {record}) s (the record after its first IMU epoch) and DURATION finite and at least one IMU interval, {dt} s",
                 o.start_s,
                 o.duration_s
             );
@@ -284,9 +286,12 @@ fn check_outages(
                 p.first_start_s, p.duration_s, p.period_s
             )
         };
-        if !(p.first_start_s < record) || !(p.duration_s >= dt) || !(p.period_s >= p.duration_s) {
+        if !(p.first_start_s >= 0.0 && p.first_start_s < record)
+            || !(p.duration_s >= dt && p.duration_s.is_finite())
+            || !(p.period_s >= p.duration_s && p.period_s.is_finite())
+        {
             bail!(
-                "{what}: FIRST must be in [0, {record}) s (the record after its first IMU epoch), DURATION at least one IMU interval, {dt} s, and PERIOD at least DURATION"
+                "{what}: FIRST must be in [0, {record}) s (the record after its first IMU epoch), DURATION finite and at least one IMU interval, {dt} s, and PERIOD finite and at least DURATION"
             );
         }
         // outages ending inside the record ([`PeriodicOutages::expand`])
