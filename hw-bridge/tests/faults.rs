@@ -350,7 +350,10 @@ fn a_repeated_record_is_replayed_and_its_frames_counted_backwards_by_sequence_nu
     assert_eq!(o.log.imu, clean.log.imu);
     assert_eq!(o.log.gnss, clean.log.gnss);
     assert!(o.incomplete.is_none(), "{:?}", o.incomplete);
-    assert_identity(&o, sent, "repeated record");
+    // the documented blind spot: the repeated frames are delivered twice (record 5 holds 9
+    // IMU frames and 1 GNSS frame)
+    assert_eq!(u64::from(o.stats.frames_ok_by_stream[IMU]), sent[IMU] + 9);
+    assert_eq!(u64::from(o.stats.frames_ok_by_stream[GNSS]), sent[GNSS] + 1);
     // the same bytes again 1 ms later: the frames arrive twice; the IMU samples of the second
     // copy are not after the previous sample and are left out of imu.txt
     let Record::Data { t_ns, bytes: b5 } = recs[5].clone() else {
