@@ -59,11 +59,11 @@ pub struct RunArgs {
     pub kf_gins_outages: bool,
     /// Rate of nav.txt, Hz (default: every IMU epoch); in (0, IMU rate], a higher rate is
     /// clamped to the IMU rate with a warning.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub nav_rate: Option<f64>,
     /// Rate of std.txt and bias.txt, Hz; in (0, IMU rate], a higher rate is clamped to the
     /// IMU rate with a warning.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub std_rate: f64,
     /// Output directory.
     #[arg(long, default_value = "run-out")]
@@ -90,7 +90,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub gnss_velocity: Option<bool>,
     /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub noise_scale: Option<f64>,
     /// No progress bar.
     #[arg(long)]

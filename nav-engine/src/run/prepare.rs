@@ -237,14 +237,25 @@ fn check_rate(
     warnings: &mut Vec<String>,
 ) -> anyhow::Result<f64> {
     let imu_hz = dt_s.map(|d| 1.0 / d);
-    let range = imu_hz.map_or("(0, IMU rate]".to_string(), |r| format!("(0, {r}] Hz"));
+    // the value as a user would type it: 1e300, not three hundred digits
+    let given = if hz.abs() >= 1e6 || (hz != 0.0 && hz.abs() < 1e-4) {
+        format!("{hz:e}")
+    } else {
+        format!("{hz}")
+    };
+    // shown to the millihertz: the median interval of text time tags carries rounding noise
+    let shown = |r: f64| (r * 1e3).round() / 1e3;
+    let range = imu_hz.map_or("(0, IMU rate]".to_string(), |r| {
+        format!("(0, {}] Hz", shown(r))
+    });
     if !(hz.is_finite() && hz > 0.0) {
-        bail!("{name} {hz}: an output rate must be in {range}");
+        bail!("{name} {given}: an output rate must be in {range}");
     }
     match imu_hz {
         Some(r) if hz > r * (1.0 + 1e-6) => {
             warnings.push(format!(
-                "{name} {hz} Hz is above the IMU rate, {r} Hz: clamped to it (every IMU epoch; allowed {range})"
+                "{name} {given} Hz is above the IMU rate, {} Hz: clamped to it (every IMU epoch; allowed {range})",
+                shown(r)
             ));
             Ok(r)
         }
