@@ -227,15 +227,16 @@ fn imu_interval_s(times: impl Iterator<Item = f64>) -> Option<f64> {
     steps.get(steps.len() / 2).copied()
 }
 
-/// An output rate option checked against the IMU rate `1 / dt_s`: `Err` outside (0, inf),
-/// clamped to the IMU rate (with a warning) above it: a rate above the IMU's writes every
-/// epoch, exactly as the IMU rate does.
+/// An output rate option checked against the IMU rate `1 / dt_s`: `Err` outside (0, inf);
+/// above the IMU rate clamped to it with a warning, returned as `None` (every IMU epoch, which
+/// is what any rate above the IMU's writes; the measured IMU rate itself carries rounding
+/// noise and would drop epochs as a decimation rate).
 fn check_rate(
     name: &str,
     hz: f64,
     dt_s: Option<f64>,
     warnings: &mut Vec<String>,
-) -> anyhow::Result<f64> {
+) -> anyhow::Result<Option<f64>> {
     let imu_hz = dt_s.map(|d| 1.0 / d);
     // the value as a user would type it: 1e300, not three hundred digits
     let given = if hz.abs() >= 1e6 || (hz != 0.0 && hz.abs() < 1e-4) {
@@ -257,9 +258,9 @@ fn check_rate(
                 "{name} {given} Hz is above the IMU rate, {} Hz: clamped to it (every IMU epoch; allowed {range})",
                 shown(r)
             ));
-            Ok(r)
+            Ok(None)
         }
-        _ => Ok(hz),
+        _ => Ok(Some(hz)),
     }
 }
 
@@ -658,16 +659,12 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         None => imu_interval_s(case.imu.iter().map(|s| s.t_s)),
     };
     opts.record.nav_rate_hz = None;
-    opts.record.epoch_rate_hz = Some(check_rate(
-        "--std-rate",
-        args.std_rate_hz,
-        dt_s,
-        &mut warnings,
-    )?);
+    opts.record.epoch_rate_hz = check_rate("--std-rate", args.std_rate_hz, dt_s, &mut warnings)?;
     let nav_rate_hz = args
         .nav_rate_hz
         .map(|r| check_rate("--nav-rate", r, dt_s, &mut warnings))
-        .transpose()?;
+        .transpose()?
+        .flatten();
     let mut periodic = args.periodic_outages.clone();
     if args.kf_gins_outages {
         periodic.push(PeriodicOutages::KF_GINS);
