@@ -96,7 +96,6 @@ fn run_config(cfg: &Path, out: &Path, extra: &[&str], bound: Duration) -> Ran {
 }
 
 #[test]
-#[ignore = "fails: nav.txt at a --nav-rate clamped to the IMU rate differs from the default run's"]
 fn option_values_out_of_range_are_refused_naming_the_option_and_the_range() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
