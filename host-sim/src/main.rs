@@ -49,11 +49,18 @@ fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));
-            // stopped by a signal: 128 + its number, as a shell reports it
-            nav_engine::run::interrupt::exit_code().map_or(
-                std::process::ExitCode::FAILURE,
-                std::process::ExitCode::from,
-            )
+            // stopped by a signal: 128 + its number, as a shell reports it; outputs written
+            // but a dead-reckoning track ("incomplete"): 2
+            if let Some(code) = nav_engine::run::interrupt::exit_code() {
+                std::process::ExitCode::from(code)
+            } else if e
+                .downcast_ref::<nav_engine::run::gnss_use::NotANavigationSolution>()
+                .is_some()
+            {
+                std::process::ExitCode::from(2)
+            } else {
+                std::process::ExitCode::FAILURE
+            }
         }
     }
 }

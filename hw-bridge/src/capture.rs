@@ -15,7 +15,14 @@
 //! ```
 //!
 //! A recorder killed mid-write leaves a truncated last record: the reader reports it as
-//! [`CaptureError::TruncatedRecord`] after returning every complete record. Bytes before the
+//! [`CaptureError::TruncatedRecord`] after returning every complete record. A corrupt record
+//! header (an impossible length) is skipped: the reader resynchronises on the next valid
+//! record header and counts the bytes it skipped ([`CaptureReader::resync_stats`]).
+//!
+//! Records carry no sequence number: two records with the same time and the same bytes are
+//! two reads that returned the same bytes (a sender repeating a 16-byte pattern, 1-byte reads
+//! of a constant stream), not a duplicate. Duplicated frames are recognised by the wire
+//! protocol's sequence numbers (`docs/wire-protocol.md`), not here. Bytes before the
 //! magic (a capture glued after other data, a damaged start) are skipped: the reader scans up
 //! to [`MAX_RESYNC_SCAN`] bytes for the magic and reports how many it skipped.
 
@@ -203,13 +210,50 @@ impl<W: Write> CaptureWriter<W> {
     }
 }
 
+/// Latest time a record found by resynchronisation may have, ns after the last good record's
+/// (one day): a candidate header with a later time is taken for data bytes.
+pub const MAX_RESYNC_TIME_STEP_NS: u64 = 86_400_000_000_000;
+
+/// How the reader got past corrupt record headers ([`CaptureReader::resync_stats`]).
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct ResyncStats {
+    /// Corrupt stretches skipped (each one starting at a record header that was not valid,
+    /// or whose record ran past the end of the file, and ending at a valid record header).
+    pub resyncs: u64,
+    /// Bytes skipped in them.
+    pub skipped_bytes: u64,
+    /// The first corrupt stretch: (0-based record index, file offset of its header, bytes
+    /// skipped).
+    pub first: Option<(u64, u64, u64)>,
+}
+
 /// Reads a capture record by record.
+///
+/// A record header that cannot be valid (a data length over [`MAX_RECORD_LEN`], a link-reset
+/// flag with length bits set), whose record runs past the end of the file, or whose time is
+/// more than [`MAX_RESYNC_TIME_STEP_NS`] from the last record's while the header after its
+/// record is not valid (the previous record's length was too short) is not the end:
+/// the reader scans on (up to [`MAX_RESYNC_SCAN`] bytes) for the next valid record header and
+/// goes on from there, counting what it skipped ([`CaptureReader::resync_stats`]). The capture
+/// format has no record marker, so a position is taken as a record header when its time is at
+/// or after the last good record's and at most [`MAX_RESYNC_TIME_STEP_NS`] later, its length
+/// field is valid, and the record it announces ends exactly at the end of the file or at
+/// another such header. Only when no such position exists does the reader return
+/// [`CaptureError::BadRecord`] or [`CaptureError::TruncatedRecord`].
 pub struct CaptureReader<R: Read> {
-    r: io::Chain<Cursor<Vec<u8>>, R>,
+    inner: R,
+    /// Bytes read from `inner` and not consumed yet start at `buf[pos]`.
+    buf: Vec<u8>,
+    pos: usize,
+    eof: bool,
     header: CaptureHeader,
     offset: u64,
     record: u64,
     skipped: u64,
+    last_t_ns: u64,
+    resync: ResyncStats,
+    /// An error ended the reading: later calls return `Ok(None)`.
+    failed: bool,
 }
 
 /// Reads exactly `buf.len()` bytes; `Ok(false)` at a clean end of file before any byte,
@@ -286,7 +330,7 @@ impl<R: Read> CaptureReader<R> {
     /// before it.
     pub fn new(mut r: R) -> Result<Self, CaptureError> {
         let (skipped, rest) = find_magic(&mut r)?;
-        let mut r = Cursor::new(rest).chain(r);
+        let mut c = Cursor::new(rest).chain(r);
         let base = skipped + 8;
         let eof = |e: io::Error, at: u64| {
             if e.kind() == io::ErrorKind::UnexpectedEof {
@@ -296,7 +340,7 @@ impl<R: Read> CaptureReader<R> {
             }
         };
         let mut len = [0u8; 4];
-        if !read_full(&mut r, &mut len).map_err(|e| eof(e, base))? {
+        if !read_full(&mut c, &mut len).map_err(|e| eof(e, base))? {
             return Err(CaptureError::TruncatedHeader { offset: base });
         }
         let len = u32::from_le_bytes(len);
@@ -306,7 +350,7 @@ impl<R: Read> CaptureReader<R> {
             )));
         }
         let mut text = Vec::new();
-        (&mut r)
+        (&mut c)
             .take(u64::from(len))
             .read_to_end(&mut text)
             .map_err(CaptureError::Io)?;
@@ -315,12 +359,21 @@ impl<R: Read> CaptureReader<R> {
         }
         let text = String::from_utf8(text).map_err(|e| CaptureError::BadHeader(e.to_string()))?;
         let header = CaptureHeader::parse(&text)?;
+        let (cur, inner) = c.into_inner();
+        let at = usize::try_from(cur.position()).unwrap_or(usize::MAX);
+        let buf = cur.into_inner().get(at..).unwrap_or_default().to_vec();
         Ok(Self {
-            r,
+            inner,
+            buf,
+            pos: 0,
+            eof: false,
             header,
             offset: base + 4 + u64::from(len),
             record: 0,
             skipped,
+            last_t_ns: 0,
+            resync: ResyncStats::default(),
+            failed: false,
         })
     }
 
@@ -334,50 +387,172 @@ impl<R: Read> CaptureReader<R> {
         self.skipped
     }
 
+    /// Corrupt stretches between records skipped so far, and their bytes.
+    pub fn resync_stats(&self) -> ResyncStats {
+        self.resync
+    }
+
     /// File offset of the next record.
     pub fn offset(&self) -> u64 {
         self.offset
     }
 
-    /// The next record, `Ok(None)` at the end of the file.
-    pub fn next_record(&mut self) -> Result<Option<Record>, CaptureError> {
-        let (record, offset) = (self.record, self.offset);
-        let truncated = |e: io::Error| {
-            if e.kind() == io::ErrorKind::UnexpectedEof {
-                CaptureError::TruncatedRecord { record, offset }
-            } else {
-                CaptureError::Io(e)
+    /// Unconsumed bytes buffered.
+    fn avail(&self) -> usize {
+        self.buf.len() - self.pos
+    }
+
+    /// Buffers at least `n` unconsumed bytes, fewer only at the end of the file.
+    fn fill(&mut self, n: usize) -> io::Result<()> {
+        if self.avail() >= n || self.eof {
+            return Ok(());
+        }
+        if self.pos > 0 {
+            self.buf.drain(..self.pos);
+            self.pos = 0;
+        }
+        let mut block = [0u8; 1 << 14];
+        while self.buf.len() < n && !self.eof {
+            // never more than asked for plus one block: a corrupt length cannot make the
+            // reader allocate ahead of the data
+            match self.inner.read(&mut block) {
+                Ok(0) => self.eof = true,
+                Ok(k) => self
+                    .buf
+                    .extend_from_slice(block.get(..k).unwrap_or_default()),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
             }
-        };
-        let mut head = [0u8; 12];
-        if !read_full(&mut self.r, &mut head).map_err(truncated)? {
+        }
+        Ok(())
+    }
+
+    /// The unconsumed bytes `from..to` (relative to the read position), if buffered.
+    fn peek(&self, from: usize, to: usize) -> Option<&[u8]> {
+        self.buf
+            .get(self.pos.checked_add(from)?..self.pos.checked_add(to)?)
+    }
+
+    /// The record header (time, `len_flags`) `at` bytes ahead, if buffered.
+    fn header_at(&self, at: usize) -> Option<(u64, u32)> {
+        let h = self.peek(at, at + 12)?;
+        let t = u64::from_le_bytes(h.get(..8)?.try_into().ok()?);
+        let lf = u32::from_le_bytes(h.get(8..12)?.try_into().ok()?);
+        Some((t, lf))
+    }
+
+    /// Bytes of data a valid `len_flags` announces, `None` when it cannot be valid.
+    fn data_len(len_flags: u32) -> Option<usize> {
+        match len_flags {
+            LINK_RESET => Some(0),
+            l if l <= MAX_RECORD_LEN => Some(l as usize),
+            _ => None,
+        }
+    }
+
+    /// Whether a record header `at` bytes ahead is plausible after a record at `after_t`.
+    fn plausible(&self, at: usize, after_t: u64) -> Option<usize> {
+        let (t, lf) = self.header_at(at)?;
+        let len = Self::data_len(lf)?;
+        (t >= after_t && t - after_t <= MAX_RESYNC_TIME_STEP_NS).then_some(len)
+    }
+
+    /// Scans for the next valid record header after a corrupt one at the read position;
+    /// consumes the bytes before it and returns how many, or `None` when there is none
+    /// within [`MAX_RESYNC_SCAN`] bytes.
+    fn resync(&mut self) -> io::Result<Option<u64>> {
+        let limit = usize::try_from(MAX_RESYNC_SCAN).unwrap_or(usize::MAX);
+        let mut q = 1usize;
+        while q <= limit {
+            self.fill(q + 12)?;
+            if self.avail() < q + 12 {
+                return Ok(None);
+            }
+            if let Some(len) = self.plausible(q, self.last_t_ns) {
+                let end = q + 12 + len;
+                self.fill(end + 12)?;
+                let t = self.header_at(q).map_or(0, |h| h.0);
+                let ok = self.avail() == end
+                    || (self.avail() >= end + 12 && self.plausible(end, t).is_some());
+                if ok {
+                    self.pos += q;
+                    return Ok(Some(q as u64));
+                }
+            }
+            q += 1;
+        }
+        Ok(None)
+    }
+
+    /// The next record, `Ok(None)` at the end of the file (and after an error).
+    pub fn next_record(&mut self) -> Result<Option<Record>, CaptureError> {
+        if self.failed {
             return Ok(None);
         }
-        let t_ns = u64::from_le_bytes(head[..8].try_into().unwrap_or_default());
-        let len_flags = u32::from_le_bytes(head[8..].try_into().unwrap_or_default());
-        self.record += 1;
-        if len_flags & LINK_RESET != 0 {
-            self.offset += 12;
-            return Ok(Some(Record::LinkReset { t_ns }));
+        let r = self.read_record();
+        self.failed = r.is_err();
+        r
+    }
+
+    fn read_record(&mut self) -> Result<Option<Record>, CaptureError> {
+        loop {
+            let (record, offset) = (self.record, self.offset);
+            self.fill(12)?;
+            if self.avail() == 0 {
+                return Ok(None);
+            }
+            let Some((t_ns, len_flags)) = self.header_at(0) else {
+                return Err(CaptureError::TruncatedRecord { record, offset });
+            };
+            let len = Self::data_len(len_flags);
+            let mut corrupt = len.is_none();
+            if let Some(len) = len {
+                self.fill(12 + len + 12)?;
+                // a time far from the last record's is allowed (a damaged clock, a long link
+                // loss) when the record is followed by a valid header or the end of the file;
+                // otherwise the header is a misread (the previous length was wrong)
+                let far = t_ns.abs_diff(self.last_t_ns) > MAX_RESYNC_TIME_STEP_NS;
+                let broken = far
+                    && self.avail() >= 12 + len + 12
+                    && self
+                        .header_at(12 + len)
+                        .is_some_and(|(_, lf)| Self::data_len(lf).is_none());
+                if self.avail() >= 12 + len && !broken {
+                    let rec = if len_flags == LINK_RESET {
+                        Record::LinkReset { t_ns }
+                    } else {
+                        Record::Data {
+                            t_ns,
+                            bytes: self.peek(12, 12 + len).unwrap_or_default().to_vec(),
+                        }
+                    };
+                    self.pos += 12 + len;
+                    self.offset += 12 + len as u64;
+                    self.record += 1;
+                    self.last_t_ns = t_ns;
+                    return Ok(Some(rec));
+                }
+                corrupt = broken;
+            }
+            // an invalid header, or a record running past the end of the file
+            match self.resync()? {
+                Some(n) => {
+                    self.resync.resyncs += 1;
+                    self.resync.skipped_bytes += n;
+                    self.resync.first.get_or_insert((record, offset, n));
+                    self.offset += n;
+                    self.record += 1;
+                }
+                None if corrupt => {
+                    return Err(CaptureError::BadRecord {
+                        record,
+                        offset,
+                        len: len_flags,
+                    })
+                }
+                None => return Err(CaptureError::TruncatedRecord { record, offset }),
+            }
         }
-        if len_flags > MAX_RECORD_LEN {
-            return Err(CaptureError::BadRecord {
-                record,
-                offset,
-                len: len_flags,
-            });
-        }
-        // Read through `take` so a corrupt length cannot make us allocate before data arrives.
-        let mut bytes = Vec::new();
-        (&mut self.r)
-            .take(u64::from(len_flags))
-            .read_to_end(&mut bytes)
-            .map_err(truncated)?;
-        if bytes.len() != len_flags as usize {
-            return Err(CaptureError::TruncatedRecord { record, offset });
-        }
-        self.offset += 12 + u64::from(len_flags);
-        Ok(Some(Record::Data { t_ns, bytes }))
     }
 }
 

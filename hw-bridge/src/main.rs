@@ -91,9 +91,6 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
                 cmd::InputKind::Frames => print!("{}", hw_bridge::status::decoder_report(&o.stats)),
                 cmd::InputKind::Gnss => println!("{} GNSS fixes", o.gnss_fixes.len()),
             }
-            if o.duplicate_records > 0 {
-                println!("{} duplicate records skipped", o.duplicate_records);
-            }
             if let Some(why) = &o.incomplete {
                 println!("incomplete: {why}");
                 complete = false;

@@ -86,20 +86,45 @@ fn truncated_capture_returns_every_complete_record_then_says_where() {
 }
 
 #[test]
-fn bad_magic_and_absurd_lengths_are_rejected() {
+fn bad_magic_is_rejected_and_an_absurd_length_is_skipped_to_the_next_valid_record() {
     assert!(matches!(
         CaptureReader::new(&b"NOTACAPTURE....."[..]),
         Err(CaptureError::BadMagic(_))
     ));
-    let mut bytes = write_all();
-    let hlen = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+    let good = write_all();
+    let hlen = u32::from_le_bytes(good[8..12].try_into().unwrap()) as usize;
     let at = 12 + hlen + 8;
-    bytes[at..at + 4].copy_from_slice(&0x7FFF_FFFFu32.to_le_bytes());
+    // record 0 (4 data bytes) claims 2^31 - 1 bytes, then 1000 (past the end of the file),
+    // then a link reset with length bits: each time the reader skips record 0's 16 bytes and
+    // goes on with record 1
+    for bad in [0x7FFF_FFFFu32, 1000, LINK_RESET | 4] {
+        let mut bytes = good.clone();
+        bytes[at..at + 4].copy_from_slice(&bad.to_le_bytes());
+        let rd = CaptureReader::new(&bytes[..]).unwrap();
+        let mut rd = rd;
+        let got: Vec<Record> = (&mut rd).map(|r| r.unwrap()).collect();
+        assert_eq!(got, records()[1..], "length {bad:#x}");
+        let rs = rd.resync_stats();
+        assert_eq!(rs.resyncs, 1, "length {bad:#x}");
+        assert_eq!(rs.skipped_bytes, 16, "length {bad:#x}");
+        assert_eq!(rs.first, Some((0, (12 + hlen) as u64, 16)));
+    }
+    // an absurd length in the last record: nothing valid follows it
+    let mut bytes = good.clone();
+    let last = bytes.len() - 3 - 12 + 8;
+    bytes[last..last + 4].copy_from_slice(&0x7FFF_FFFFu32.to_le_bytes());
     let mut rd = CaptureReader::new(&bytes[..]).unwrap();
+    for want in &records()[..3] {
+        assert_eq!(&rd.next_record().unwrap().unwrap(), want);
+    }
     assert!(matches!(
         rd.next_record(),
-        Err(CaptureError::BadRecord { record: 0, .. })
+        Err(CaptureError::BadRecord { record: 3, .. })
     ));
+    assert!(
+        rd.next_record().unwrap().is_none(),
+        "an error ends the reading"
+    );
 }
 
 #[test]

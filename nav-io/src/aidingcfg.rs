@@ -157,9 +157,12 @@ impl HeadingSection {
         use crate::heading::HeadingFormat;
         match self.format.as_deref().unwrap_or("text") {
             "text" => Ok(HeadingFormat::Text),
-            "nmea" => Ok(HeadingFormat::Nmea {
-                leap_seconds: self.leap_seconds.unwrap_or(18),
-            }),
+            "nmea" => {
+                let leap_seconds = self.leap_seconds.unwrap_or(18);
+                crate::runcfg::check_leap_seconds(leap_seconds)
+                    .map_err(|e| format!("aiding: heading.leap_seconds {e}"))?;
+                Ok(HeadingFormat::Nmea { leap_seconds })
+            }
             other => Err(format!(
                 "aiding: heading.format `{other}`: expected \"text\" or \"nmea\""
             )),

@@ -63,6 +63,9 @@ const LEAP_TABLE: [(i64, u32, u32, i32); 18] = [
     (2017, 1, 1, 18),
 ];
 
+/// The largest GPST - UTC of the leap-second table, s (18, from 2017-01-01 on).
+pub const MAX_GPST_MINUS_UTC_S: i32 = LEAP_TABLE[LEAP_TABLE.len() - 1].3;
+
 /// GPST - UTC in seconds at the UTC date `y-m-d` (0 before 1981-07-01; 18 from 2017 on, the
 /// last leap second announced when this table was written).
 pub fn gpst_minus_utc_s(y: i64, m: u32, d: u32) -> i32 {

@@ -578,6 +578,34 @@ impl RunConfig {
     /// names that are not effects.
     pub fn located_problems(&self) -> Vec<(&'static str, String, String)> {
         let mut out = self.noise.located_problems();
+        let lever = self.gnss.lever_arm_m;
+        let norm = lever.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !(norm <= MAX_LEVER_ARM_M) {
+            out.push((
+                "gnss",
+                "lever_arm_m".to_string(),
+                format!(
+                    "{lever:?} is {norm} m long; a lever arm must be finite and at most {MAX_LEVER_ARM_M} m"
+                ),
+            ));
+        }
+        for (table, v) in [
+            ("imu", self.imu.time_offset_s),
+            ("gnss", self.gnss.time_offset_s),
+        ] {
+            if !(v.abs() <= MAX_TIME_OFFSET_S) {
+                out.push((
+                    table,
+                    "time_offset_s".to_string(),
+                    format!("{v} s is outside [-{MAX_TIME_OFFSET_S}, {MAX_TIME_OFFSET_S}] s"),
+                ));
+            }
+        }
+        if let Some(l) = self.gnss.log.as_ref().and_then(|l| l.leap_seconds) {
+            if let Err(e) = check_leap_seconds(l) {
+                out.push(("gnss.log", "leap_seconds".to_string(), e));
+            }
+        }
         for name in &self.effects {
             if nav_core::model::Block::effect_from_name(name.trim()).is_none() {
                 let known: Vec<&str> = nav_core::model::EFFECT_BLOCKS
@@ -648,6 +676,28 @@ pub fn table_line(text: &str, table: &str) -> Option<usize> {
                 })
         })
         .map(|i| i + 1)
+}
+
+/// Longest GNSS lever arm accepted (`[gnss] lever_arm_m`), m: an antenna further than this from
+/// the IMU is a unit or sign mistake.
+pub const MAX_LEVER_ARM_M: f64 = 100.0;
+
+/// Largest time offset accepted (`[imu] time_offset_s`, `[gnss] time_offset_s`, `host-sim run
+/// --imu-time-offset`), s, either sign: a logging delay or a time-scale slip (GPS - UTC is
+/// 18 s) is well inside it; beyond it the data do not overlap the way the offset means.
+pub const MAX_TIME_OFFSET_S: f64 = 60.0;
+
+/// Checks a GPS - UTC leap-second count against the leap-second table's range (0 before
+/// 1981-07-01 up to the table's last value): `Err` names the range.
+pub fn check_leap_seconds(l: i64) -> Result<(), String> {
+    let max = i64::from(crate::gpstime::MAX_GPST_MINUS_UTC_S);
+    if (0..=max).contains(&l) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{l} s is outside the leap-second table's range [0, {max}] s (GPS - UTC)"
+        ))
+    }
 }
 
 /// Parses and validates a run configuration from TOML text (`name` is used in errors).

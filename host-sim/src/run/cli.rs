@@ -13,6 +13,9 @@
 //! the data (a gap longer than `--imu-max-gap`, a numerical failure, an implausible sample
 //! with `--imu-strict`) stops the run with the outputs up to it as `*.partial` and exit code 1.
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], options `--imu-*` and `[imu.checks]`.
+//! A run that used no GNSS fix, or fewer than [`nav_engine::run::gnss_use::MIN_USED_FRACTION`]
+//! of those offered to the filter, is a dead-reckoning track: its outputs are written, and
+//! the run ends with an error naming where the fixes went (exit code 2).
 
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
@@ -46,21 +49,25 @@ pub struct RunArgs {
     /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
     #[arg(long, value_parser = crate::cli_enum::parser::<Model>())]
     pub model: Option<Model>,
-    /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable).
+    /// GNSS outage START:DURATION, seconds, START after the first IMU epoch (repeatable);
+    /// START inside the record, DURATION at least one IMU interval.
     #[arg(long = "outage", value_parser = parse_outage)]
     pub outages: Vec<Outage>,
     /// Repeating outages FIRST:DURATION:PERIOD, seconds, FIRST after the first IMU epoch
-    /// (repeatable), e.g. 120:30:60.
+    /// (repeatable), e.g. 120:30:60; FIRST inside the record, DURATION at least one IMU
+    /// interval, PERIOD at least DURATION, at most 10000 outages in a run.
     #[arg(long = "periodic-outage", value_parser = parse_periodic)]
     pub periodic_outages: Vec<PeriodicOutages>,
     /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
     #[arg(long)]
     pub kf_gins_outages: bool,
-    /// Rate of nav.txt, Hz (default: every IMU epoch).
-    #[arg(long)]
+    /// Rate of nav.txt, Hz (default: every IMU epoch); in (0, IMU rate], a higher rate is
+    /// clamped to the IMU rate with a warning.
+    #[arg(long, allow_negative_numbers = true)]
     pub nav_rate: Option<f64>,
-    /// Rate of std.txt and bias.txt, Hz.
-    #[arg(long, default_value_t = 10.0)]
+    /// Rate of std.txt and bias.txt, Hz; in (0, IMU rate], a higher rate is clamped to the
+    /// IMU rate with a warning.
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub std_rate: f64,
     /// Output directory.
     #[arg(long, default_value = "run-out")]
@@ -68,7 +75,8 @@ pub struct RunArgs {
     /// f32 covariance (as on the MCU) instead of f64.
     #[arg(long)]
     pub f32: bool,
-    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
+    /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction), in
+    /// [-60, 60].
     #[arg(long, allow_hyphen_values = true)]
     pub imu_time_offset: Option<f64>,
     /// Innovation gate: robust (default: IGG-III down-weighting and a model-mismatch
@@ -86,7 +94,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub gnss_velocity: Option<bool>,
     /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub noise_scale: Option<f64>,
     /// No progress bar.
     #[arg(long)]
@@ -173,6 +181,7 @@ impl RunArgs {
             periodic_outages: self.periodic_outages.clone(),
             kf_gins_outages: self.kf_gins_outages,
             std_rate_hz: self.std_rate,
+            nav_rate_hz: self.nav_rate,
             f32: self.f32,
             imu_time_offset_s: self.imu_time_offset,
             gate: self.gate.as_deref().map(parse_gate).transpose()?,
@@ -238,11 +247,21 @@ fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
     let l = prepare_streaming(args)?;
     let od = OutDir::open(&args.out, &l.inputs)?;
+    // the checked (clamped) rate
+    let args = &RunArgs {
+        nav_rate: l.nav_rate_hz,
+        ..args.clone()
+    };
     println!("{}", l.prepared.description);
-    super::smoothed::finish(args, &l, od.stage(), t)?;
-    let _moving = nav_engine::run::interrupt::Stoppable::enter();
-    od.commit()
-        .with_context(|| format!("moving the outputs into {}", args.out.display()))?;
+    let c = super::smoothed::finish(args, &l, od.stage(), t)?;
+    {
+        let _moving = nav_engine::run::interrupt::Stoppable::enter();
+        od.commit()
+            .with_context(|| format!("moving the outputs into {}", args.out.display()))?;
+    }
+    println!("{}", l.gnss_account(&c, false).summary_line());
+    // a dead-reckoning track is not a navigation solution: an error (exit 2) naming why
+    l.check_gnss_use(&c)?;
     Ok(())
 }
 
@@ -252,13 +271,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         return run_smoothed(&args);
     }
     let t = std::time::Instant::now();
+    let loaded = prepare_streaming(&args)?;
     let Loaded {
         prepared: p,
         imu_stream: imu,
         truth_stream: truth,
         inputs,
+        nav_rate_hz,
         ..
-    } = prepare_streaming(&args)?;
+    } = &loaded;
     println!("{}", p.description);
     let pb = if args.quiet {
         indicatif::ProgressBar::hidden()
@@ -271,12 +292,12 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     );
     let dir = &args.out;
     let res = execute_streaming(
-        &p,
+        p,
         imu.as_ref(),
         truth.as_ref(),
         dir,
-        &inputs,
-        args.nav_rate,
+        inputs,
+        *nav_rate_hz,
         &mut |done, _| pb.set_position(done as u64),
     );
     pb.finish_and_clear();
@@ -326,5 +347,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         "wrote {}/{{nav.txt, std.txt, bias.txt, innovations.txt, metrics.json}}",
         dir.display()
     );
+    println!("{}", loaded.gnss_account(c, false).summary_line());
+    // a dead-reckoning track is not a navigation solution: an error (exit 2) naming why
+    loaded.check_gnss_use(c)?;
     Ok(())
 }

@@ -45,7 +45,7 @@ pub fn finish(
     l: &Loaded,
     dir: &std::path::Path,
     t0: std::time::Instant,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<nav_engine::run::RunCounters> {
     let SmoothedRun {
         forward: fwd,
         forward_metrics: m,
@@ -103,5 +103,5 @@ pub fn finish(
          innovations.txt (vs smoothed), metrics.json}}",
         args.out.display()
     );
-    Ok(())
+    Ok(fwd.counters)
 }

@@ -1,7 +1,7 @@
 //! `replay`: a capture decoded into text files, or streamed back out to a port.
 
 use super::*;
-use crate::capture::{CaptureError, CaptureReader, Record};
+use crate::capture::{CaptureError, CaptureReader, Record, ResyncStats};
 use crate::frames::FrameLog;
 use crate::outputs::{open_out, partial_name, rename, write_atomically, FrameFiles};
 use crate::serial;
@@ -55,8 +55,8 @@ pub struct ReplayArgs {
     /// What the capture contains.
     #[arg(long, value_enum, default_value_t = InputKind::Frames)]
     pub input: InputKind,
-    /// GPS - UTC leap seconds for NMEA input.
-    #[arg(long, default_value_t = 18)]
+    /// GPS - UTC leap seconds for NMEA input, in the leap-second table's range [0, 18].
+    #[arg(long, default_value_t = 18, allow_hyphen_values = true)]
     pub leap_seconds: i64,
     /// Print every rejected chunk with its byte offset.
     #[arg(long)]
@@ -129,13 +129,17 @@ pub struct ReplayOutcome {
     /// A truncated last record, if any (every complete record was replayed).
     pub truncated: Option<String>,
     /// Why the replay is incomplete (a truncated or corrupt record ended it: every record
-    /// before it was replayed); `None` when the whole capture was replayed.
+    /// before it was replayed; corrupt stretches were skipped; the capture ends with the link
+    /// lost); `None` when the whole capture was replayed.
     pub incomplete: Option<String>,
     /// Bytes of garbage skipped before the capture's magic.
     pub skipped_bytes: u64,
-    /// Records identical to the previous one (same time and bytes, which a recorder cannot
-    /// write): skipped, not replayed.
-    pub duplicate_records: u64,
+    /// Corrupt stretches of the capture skipped by resynchronising on the next valid record
+    /// header, and their bytes (each one makes the replay incomplete).
+    pub resync: ResyncStats,
+    /// The capture ends with a link-reset record: the port was lost and the recording
+    /// stopped before it came back (the replay is incomplete).
+    pub ended_link_lost: bool,
     /// Pacing: timestamps at or before the previous record's (replayed without waiting) and
     /// jumps longer than `--max-gap` (paced as `--max-gap`).
     pub timing: TimingStats,
@@ -215,6 +219,8 @@ fn in_order(t: f64, last: Option<f64>) -> bool {
 /// [`ReplayOutcome::incomplete`].
 pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
     let cap = a.capture.display();
+    nav_io::check_leap_seconds(a.leap_seconds)
+        .map_err(|e| anyhow::anyhow!("--leap-seconds {e}"))?;
     let file = std::fs::File::open(&a.capture).with_context(|| format!("opening capture {cap}"))?;
     let mut rd = CaptureReader::new(std::io::BufReader::new(file))
         .with_context(|| format!("reading capture {cap}"))?;
@@ -263,7 +269,6 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         ..NmeaOptions::default()
     });
     let mut pacer = Pacer::new(a.max_gap);
-    let mut prev_data: Option<(u64, Vec<u8>)> = None;
     let (mut last_imu_t, mut last_gnss_t) = (None, None);
     let start = Instant::now();
     loop {
@@ -280,16 +285,13 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
                 break;
             }
         };
-        if let Record::Data { t_ns, bytes } = &rec {
-            if prev_data
-                .as_ref()
-                .is_some_and(|(t, b)| t == t_ns && b == bytes)
-            {
-                out.duplicate_records += 1;
-                continue;
-            }
-            prev_data = Some((*t_ns, bytes.clone()));
+        // bytes skipped to resynchronise: a frame in progress is cut
+        let rs = rd.resync_stats();
+        if rs.resyncs != out.resync.resyncs {
+            out.resync = rs;
+            dec.reset_link();
         }
+        out.ended_link_lost = matches!(rec, Record::LinkReset { .. });
         out.records += 1;
         out.recorded_s = rec.t_ns() as f64 * 1e-9;
         let paced_ns = pacer.advance(rec.t_ns());
@@ -374,6 +376,28 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             }
         }
     }
+    out.resync = rd.resync_stats();
+    let mut why = Vec::new();
+    if let Some((rec, off, n)) = out.resync.first {
+        why.push(format!(
+            "skipped {} corrupt byte(s) in {} stretch(es) by resynchronising on the next valid record header (the first at record {rec}, byte {off}: {n} bytes)",
+            out.resync.skipped_bytes, out.resync.resyncs
+        ));
+    }
+    if out.ended_link_lost {
+        why.push(
+            "the capture ends with the link lost (a link-reset record): the recording stopped before the port came back"
+                .to_string(),
+        );
+    }
+    if !why.is_empty() {
+        let why = why.join("; ");
+        eprintln!("warning: {cap}: {why}");
+        out.incomplete = Some(match out.incomplete.take() {
+            Some(w) => format!("{w}; {why}"),
+            None => why,
+        });
+    }
     if a.input == InputKind::Gnss {
         out.gnss_fixes
             .extend(gnss.finish().into_iter().filter_map(|e| match e {
@@ -396,26 +420,33 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         );
     }
     out.wall_s = start.elapsed().as_secs_f64();
-    // The decoded files and the summary first: a filter run that fails leaves them in place.
+    // The filter first, so that the summary says whether its result is a navigation solution;
+    // a filter run that fails still leaves the decoded files and the summary in place.
+    let filter = match &a.config {
+        Some(_) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
+            "--config runs the filter on wire frames: not with --input gnss"
+        )),
+        Some(cfg) => run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some),
+        None => Ok(None),
+    };
+    if let Ok(Some(f)) = &filter {
+        if let Some(why) = not_a_navigation_solution(f) {
+            eprintln!("warning: {cap}: {why}");
+            out.incomplete = Some(match out.incomplete.take() {
+                Some(w) => format!("{w}; {why}"),
+                None => why,
+            });
+        }
+    }
     if let Some(od) = &od {
         if let Some(w) = files.take() {
             w.finish(&out.log.imu)?;
         }
         write_outputs(od.stage(), &out, a.input, &gnss)?;
+        if let Ok(Some(f)) = &filter {
+            write_filter_outputs(od.stage(), f)?;
+        }
     }
-    let filter = match &a.config {
-        Some(_) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
-            "--config runs the filter on wire frames: not with --input gnss"
-        )),
-        Some(cfg) => run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32)
-            .and_then(|f| {
-                if let Some(od) = &od {
-                    write_filter_outputs(od.stage(), &f)?;
-                }
-                Ok(Some(f))
-            }),
-        None => Ok(None),
-    };
     // everything written moved into the output folder, the filter's outputs when it ran
     if let Some(od) = od {
         let _moving = nav_engine::run::interrupt::Stoppable::enter();
@@ -426,6 +457,27 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         out.wall_s = start.elapsed().as_secs_f64();
     }
     Ok(out)
+}
+
+/// Why the filter's result on a capture is not a navigation solution (no GNSS fix used, or
+/// too few: [`nav_engine::run::gnss_use::check`]), or None when it is one.
+fn not_a_navigation_solution(f: &FilterRun) -> Option<String> {
+    use nav_engine::run::gnss_use::{check, GnssAccount};
+    let case = &f.prepared.case;
+    let span = |t: &mut dyn Iterator<Item = f64>| {
+        t.fold(None, |acc: Option<(f64, f64)>, t| {
+            Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+        })
+    };
+    let acc = GnssAccount {
+        counters: f.output.counters,
+        dropped_by_quality: 0,
+        fix_span_s: span(&mut case.gnss.iter().map(|g| g.t_s)),
+        imu_span_s: span(&mut case.imu.iter().map(|s| s.t_s)),
+    };
+    check(&acc)
+        .err()
+        .map(|e| format!("the filter run on the capture: {e}"))
 }
 
 /// Writes `replay-summary.txt` (and, for GNSS input, `gnss.txt`), each through a `.partial`
@@ -448,8 +500,13 @@ fn write_outputs(
         o.recorded_s
     );
     summary.push_str(&format!(
-        "skipped bytes before header {}\nduplicate records skipped {}\nrecord times backwards {}\ngaps over --max-gap {}\n",
-        o.skipped_bytes, o.duplicate_records, o.timing.backwards, o.timing.clamped_gaps
+        "skipped bytes before header {}\ncorrupt stretches skipped {} ({} bytes)\nends with link lost {}\nrecord times backwards {}\ngaps over --max-gap {}\n",
+        o.skipped_bytes,
+        o.resync.resyncs,
+        o.resync.skipped_bytes,
+        if o.ended_link_lost { "yes" } else { "no" },
+        o.timing.backwards,
+        o.timing.clamped_gaps
     ));
     if let Some(t) = &o.truncated {
         summary.push_str(&format!("warning: {t}\n"));

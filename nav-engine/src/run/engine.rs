@@ -621,6 +621,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             // the total once the stream is read to its end
             gnss_total: 0,
             gnss_outside_run: gi0 as u64,
+            gnss_before_run: gi0 as u64,
             ..Default::default()
         },
         status_seen: 0,

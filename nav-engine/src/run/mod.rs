@@ -28,6 +28,7 @@ pub mod engine;
 pub mod execute;
 mod fault;
 pub mod gating_report;
+pub mod gnss_use;
 pub mod init;
 pub mod interrupt;
 pub mod outage;
@@ -417,6 +418,9 @@ pub struct RunCounters {
     pub gnss_total: u64,
     /// Fixes before the initial epoch or after the end.
     pub gnss_outside_run: u64,
+    /// Of `gnss_outside_run`, the fixes before the initial epoch (the rest are after the
+    /// end of the IMU data).
+    pub gnss_before_run: u64,
     /// Fixes used.
     pub gnss_accepted: u64,
     /// Fixes that re-initialised position and velocity after consecutive rejections (reset).
@@ -427,6 +431,10 @@ pub struct RunCounters {
     pub gnss_withheld: u64,
     /// Fixes refused as invalid / mistimed.
     pub gnss_invalid: u64,
+    /// Of `gnss_invalid`, the fixes refused as mistimed (too far from the IMU epoch they were
+    /// due at); the rest have invalid values (a standard deviation zero or not finite, a
+    /// non-finite position, no-fix quality).
+    pub gnss_mistimed: u64,
     /// Numerical failures of the filter.
     pub numerical_failures: u64,
     /// IMU time gaps bridged (intervals beyond 1.5 nominal intervals).

@@ -21,6 +21,7 @@
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], [`RunSpec`]'s `imu_*` fields and
 //! `[imu.checks]`. Running a prepared case and writing its outputs: [`super::execute`].
 
+use super::gnss_use::GnssAccount;
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
 use super::streams::{read_prefix, ConfigFiles, ImuFile};
@@ -59,8 +60,12 @@ pub struct RunSpec {
     pub periodic_outages: Vec<PeriodicOutages>,
     /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
     pub kf_gins_outages: bool,
-    /// Rate of the standard deviations and block estimates (std.txt, bias.txt), Hz.
+    /// Rate of the standard deviations and block estimates (std.txt, bias.txt), Hz: in
+    /// (0, IMU rate]; a higher one is clamped to the IMU rate with a warning.
     pub std_rate_hz: f64,
+    /// Rate of the navigation output (nav.txt), Hz (None: every IMU epoch): checked like
+    /// `std_rate_hz`, the value to use is [`Loaded::nav_rate_hz`].
+    pub nav_rate_hz: Option<f64>,
     /// f32 covariance (as on the MCU) instead of f64.
     pub f32: bool,
     /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
@@ -108,6 +113,7 @@ impl RunSpec {
             periodic_outages: Vec::new(),
             kf_gins_outages: false,
             std_rate_hz: 10.0,
+            nav_rate_hz: None,
             f32: false,
             imu_time_offset_s: None,
             gate: None,
@@ -144,6 +150,181 @@ pub struct Loaded {
     /// files, IMU (and its time-tag file), GNSS, truth, aiding. An output folder must hold
     /// none of them ([`super::outdir::check_inputs`]).
     pub inputs: Vec<PathBuf>,
+    /// [`RunSpec::nav_rate_hz`], checked and clamped to the IMU rate.
+    pub nav_rate_hz: Option<f64>,
+    /// GNSS records the reader dropped by the quality filter (`[gnss] max_q`, no fix).
+    pub gnss_dropped_by_quality: u64,
+}
+
+impl Loaded {
+    /// Where the run's fixes went ([`GnssAccount`]) from its counters; with `spans` the
+    /// time spans of the fixes and of the IMU data too (a pass over each streamed file).
+    pub fn gnss_account(&self, counters: &super::RunCounters, spans: bool) -> GnssAccount {
+        let mut a = GnssAccount {
+            counters: *counters,
+            dropped_by_quality: self.gnss_dropped_by_quality,
+            ..GnssAccount::default()
+        };
+        if !spans {
+            return a;
+        }
+        let case = &self.prepared.case;
+        let span = |it: &mut dyn Iterator<Item = f64>| {
+            it.fold(None, |acc: Option<(f64, f64)>, t| {
+                Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+            })
+        };
+        a.fix_span_s = match self.imu_stream.as_ref().and_then(|st| st.gnss.as_ref()) {
+            Some(g) => g
+                .source()
+                .ok()
+                .and_then(|src| span(&mut src.map_while(Result::ok).map(|f| f.t_s))),
+            None => span(&mut case.gnss.iter().map(|f| f.t_s)),
+        };
+        a.imu_span_s = match &self.imu_stream {
+            Some(st) => st
+                .file
+                .time_span(true)
+                .ok()
+                .map(|(x, y)| (x + st.time_offset_s, y + st.time_offset_s)),
+            None => span(&mut case.imu.iter().map(|s| s.t_s)),
+        };
+        a
+    }
+
+    /// `Err` when the run is not a navigation solution ([`super::gnss_use::check`]), the
+    /// causes with the fix and IMU time spans.
+    pub fn check_gnss_use(
+        &self,
+        counters: &super::RunCounters,
+    ) -> Result<(), super::gnss_use::NotANavigationSolution> {
+        super::gnss_use::check(&self.gnss_account(counters, false))
+            .or_else(|_| super::gnss_use::check(&self.gnss_account(counters, true)))
+    }
+}
+
+/// Most GNSS outages a run accepts (explicit, periodic and the case's together): each one is
+/// tracked, coasted and reported on its own.
+pub const MAX_OUTAGES: usize = 10_000;
+
+/// Largest `--noise-scale` factor (and 1 / the smallest).
+pub const MAX_NOISE_SCALE: f64 = 1e6;
+
+/// Longest `--imu-max-gap`, s.
+pub const MAX_IMU_MAX_GAP_S: f64 = 3600.0;
+
+/// The IMU sampling interval: the median of the first 200 positive time steps, s (`None`
+/// with fewer than two samples).
+fn imu_interval_s(times: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut prev: Option<f64> = None;
+    let mut steps = Vec::new();
+    for t in times.take(201) {
+        if let Some(p) = prev {
+            let d = t - p;
+            if d.is_finite() && d > 0.0 {
+                steps.push(d);
+            }
+        }
+        prev = Some(t);
+    }
+    steps.sort_by(f64::total_cmp);
+    steps.get(steps.len() / 2).copied()
+}
+
+/// An output rate option checked against the IMU rate `1 / dt_s`: `Err` outside (0, inf);
+/// above the IMU rate clamped to it with a warning, returned as `None` (every IMU epoch, which
+/// is what any rate above the IMU's writes; the measured IMU rate itself carries rounding
+/// noise and would drop epochs as a decimation rate).
+fn check_rate(
+    name: &str,
+    hz: f64,
+    dt_s: Option<f64>,
+    warnings: &mut Vec<String>,
+) -> anyhow::Result<Option<f64>> {
+    let imu_hz = dt_s.map(|d| 1.0 / d);
+    // the value as a user would type it: 1e300, not three hundred digits
+    let given = if hz.abs() >= 1e6 || (hz != 0.0 && hz.abs() < 1e-4) {
+        format!("{hz:e}")
+    } else {
+        format!("{hz}")
+    };
+    // shown to the millihertz: the median interval of text time tags carries rounding noise
+    let shown = |r: f64| (r * 1e3).round() / 1e3;
+    let range = imu_hz.map_or("(0, IMU rate]".to_string(), |r| {
+        format!("(0, {}] Hz", shown(r))
+    });
+    if !(hz.is_finite() && hz > 0.0) {
+        bail!("{name} {given}: an output rate must be in {range}");
+    }
+    match imu_hz {
+        Some(r) if hz > r * (1.0 + 1e-6) => {
+            warnings.push(format!(
+                "{name} {given} Hz is above the IMU rate, {} Hz: clamped to it (every IMU epoch; allowed {range})",
+                shown(r)
+            ));
+            Ok(None)
+        }
+        _ => Ok(Some(hz)),
+    }
+}
+
+/// Checks the outage options against the record `[t0, t_end]` and the IMU interval `dt_s`:
+/// every outage starts inside the record and lasts at least one IMU interval, and the
+/// periodic ones expand to at most [`MAX_OUTAGES`] in all (`existing` already present).
+fn check_outages(
+    args: &RunSpec,
+    periodic: &[PeriodicOutages],
+    t0: f64,
+    t_end: f64,
+    dt_s: Option<f64>,
+    existing: usize,
+) -> anyhow::Result<()> {
+    let record = (t_end - t0).max(0.0);
+    let dt = dt_s.unwrap_or(0.0);
+    for o in &args.outages {
+        if !(o.start_s >= 0.0 && o.start_s < record)
+            || !(o.duration_s >= dt && o.duration_s.is_finite())
+        {
+            bail!(
+                "--outage {}:{}: START must be in [0, {record}) s (the record after its first IMU epoch) and DURATION finite and at least one IMU interval, {dt} s",
+                o.start_s,
+                o.duration_s
+            );
+        }
+    }
+    let mut n = existing + args.outages.len();
+    for p in periodic {
+        let what = if *p == PeriodicOutages::KF_GINS {
+            "--kf-gins-outages (180:60:180)".to_string()
+        } else {
+            format!(
+                "--periodic-outage {}:{}:{}",
+                p.first_start_s, p.duration_s, p.period_s
+            )
+        };
+        if !(p.first_start_s >= 0.0 && p.first_start_s < record)
+            || !(p.duration_s >= dt && p.duration_s.is_finite())
+            || !(p.period_s >= p.duration_s && p.period_s.is_finite())
+        {
+            bail!(
+                "{what}: FIRST must be in [0, {record}) s (the record after its first IMU epoch), DURATION finite and at least one IMU interval, {dt} s, and PERIOD finite and at least DURATION"
+            );
+        }
+        // outages ending inside the record ([`PeriodicOutages::expand`])
+        let room = record - p.first_start_s - p.duration_s;
+        let count = if room < 0.0 {
+            0.0
+        } else {
+            (room / p.period_s).floor() + 1.0
+        };
+        if count > (MAX_OUTAGES - n.min(MAX_OUTAGES)) as f64 {
+            bail!(
+                "{what}: {count} outages over the {record} s record; at most {MAX_OUTAGES} outages in a run (use a longer PERIOD)"
+            );
+        }
+        n += count as usize;
+    }
+    Ok(())
 }
 
 /// Parses `--imu-gaps`.
@@ -377,6 +558,7 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
+    let mut dropped_by_quality = 0u64;
     // the readers' errors name the file (and line/column): not repeated here
     let kind = read_config(&args.config).context("reading the run configuration")?;
     let cfg_dir = args
@@ -412,7 +594,14 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
             if stream {
                 r.truth = None;
             }
-            prepare_run_config(&r, &cfg_dir, case_dir.as_ref(), stream, &mut warnings)?
+            prepare_run_config(
+                &r,
+                &cfg_dir,
+                case_dir.as_ref(),
+                stream,
+                &mut warnings,
+                &mut dropped_by_quality,
+            )?
         }
     };
     let mut imu_stream = streams;
@@ -447,6 +636,12 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         description.push_str(&format!("; truth {}", t.display()));
     }
     if let Some(dt) = args.imu_time_offset_s {
+        if !(dt.abs() <= nav_io::MAX_TIME_OFFSET_S) {
+            bail!(
+                "--imu-time-offset {dt}: must be in [-{m}, {m}] s",
+                m = nav_io::MAX_TIME_OFFSET_S
+            );
+        }
         for s in &mut case.imu {
             s.t_s += dt;
         }
@@ -489,8 +684,8 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         opts.imu_checks.limits = ImuLimits::none();
     }
     if let Some(g) = args.imu_max_gap_s {
-        if !(g.is_finite() && g > 0.0) {
-            bail!("--imu-max-gap {g}: must be positive");
+        if !(g > 0.0 && g <= MAX_IMU_MAX_GAP_S) {
+            bail!("--imu-max-gap {g}: must be in (0, {MAX_IMU_MAX_GAP_S}] s");
         }
         opts.imu_checks.max_gap_s = g;
     }
@@ -502,13 +697,18 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         opts.filter.use_gnss_velocity = v;
     }
     if let Some(k) = args.noise_scale {
-        if !(k.is_finite() && k > 0.0) {
-            bail!("--noise-scale {k}: must be positive");
+        if !((1.0 / MAX_NOISE_SCALE..=MAX_NOISE_SCALE).contains(&k)) {
+            bail!(
+                "--noise-scale {k}: must be in [{}, {MAX_NOISE_SCALE}]",
+                1.0 / MAX_NOISE_SCALE
+            );
         }
         scale_white_noise(&mut opts.filter, k);
         description.push_str(&format!("; white-noise PSDs x{k}"));
     }
-    let periodic_wanted = !args.periodic_outages.is_empty() || args.kf_gins_outages;
+    // the last IMU time only when outages are checked against it (a pass over the file)
+    let periodic_wanted =
+        !args.periodic_outages.is_empty() || args.kf_gins_outages || !args.outages.is_empty();
     let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
         (Some(st), _, _) => {
             // the last time only when periodic outages need it (a pass over the whole file)
@@ -523,17 +723,27 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     };
     let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
     let t_end = opts.end_s.map_or(t_end, |e| e.min(t_end));
-    opts.outages
-        .extend(args.outages.iter().map(|o| o.shifted(t0)));
+    let dt_s = match &imu_stream {
+        Some(st) => imu_interval_s(st.file.open()?.map_while(Result::ok).map(|(s, _)| s.t_s)),
+        None => imu_interval_s(case.imu.iter().map(|s| s.t_s)),
+    };
+    opts.record.nav_rate_hz = None;
+    opts.record.epoch_rate_hz = check_rate("--std-rate", args.std_rate_hz, dt_s, &mut warnings)?;
+    let nav_rate_hz = args
+        .nav_rate_hz
+        .map(|r| check_rate("--nav-rate", r, dt_s, &mut warnings))
+        .transpose()?
+        .flatten();
     let mut periodic = args.periodic_outages.clone();
     if args.kf_gins_outages {
         periodic.push(PeriodicOutages::KF_GINS);
     }
+    check_outages(args, &periodic, t0, t_end, dt_s, opts.outages.len())?;
+    opts.outages
+        .extend(args.outages.iter().map(|o| o.shifted(t0)));
     for p in &periodic {
         opts.outages.extend(p.expand(t0, t_end));
     }
-    opts.record.nav_rate_hz = None;
-    opts.record.epoch_rate_hz = Some(args.std_rate_hz);
     opts.smoother_history = args.smoother_history;
     inputs.extend(opts.aiding.odometer_file.iter().cloned());
     inputs.extend(opts.aiding.heading_file.iter().cloned());
@@ -553,6 +763,8 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         warnings,
         truth_stream,
         inputs,
+        nav_rate_hz,
+        gnss_dropped_by_quality: dropped_by_quality,
     })
 }
 
@@ -654,6 +866,7 @@ fn prepare_run_config(
     case_dir: Option<&CaseDir>,
     stream: bool,
     warnings: &mut Vec<String>,
+    dropped_by_quality: &mut u64,
 ) -> anyhow::Result<(CaseData, RunOptions, u16, String, Option<ImuStream>)> {
     let mut week = 0u16;
     let mut imu_stream: Option<ImuStream> = None;
@@ -692,6 +905,7 @@ fn prepare_run_config(
             let mut st = ImuStream::new(ImuFile::Config(files.clone()));
             let g = GnssStream::check_config(files)?;
             warnings.extend(g.summary.warnings.iter().cloned());
+            *dropped_by_quality = g.summary.dropped_by_quality as u64;
             if let Some(w) = g.summary.week {
                 week = u16::try_from(w).unwrap_or(0);
             }
@@ -704,6 +918,7 @@ fn prepare_run_config(
         None => {
             let inp = r.load_inputs(dir)?;
             warnings.extend(inp.warnings.iter().map(ToString::to_string));
+            *dropped_by_quality = inp.gnss_dropped_by_quality as u64;
             if let Some(w) = inp.gnss_week {
                 week = u16::try_from(w).unwrap_or(0);
             }

@@ -224,6 +224,15 @@ impl<T: Scalar, const N: usize> NavHooks<T, N> for EngineHooks<'_, '_, T> {
                 ..
             } => {
                 self.counters.gnss_invalid += 1;
+                if matches!(
+                    ev,
+                    FixEvent::Refused {
+                        error: FilterError::GnssTime { .. },
+                        ..
+                    }
+                ) {
+                    self.counters.gnss_mistimed += 1;
+                }
                 InnovationRecord {
                     t_s: fix.t_s,
                     used: FixUse::Invalid,
