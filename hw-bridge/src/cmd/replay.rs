@@ -426,7 +426,9 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         Some(_) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
             "--config runs the filter on wire frames: not with --input gnss"
         )),
-        Some(cfg) => run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some),
+        Some(cfg) => {
+            run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some)
+        }
         None => Ok(None),
     };
     if let Ok(Some(f)) = &filter {
