@@ -580,7 +580,7 @@ impl RunConfig {
         let mut out = self.noise.located_problems();
         let lever = self.gnss.lever_arm_m;
         let norm = lever.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !(norm <= MAX_LEVER_ARM_M) {
+        if norm.is_nan() || norm > MAX_LEVER_ARM_M {
             out.push((
                 "gnss",
                 "lever_arm_m".to_string(),
@@ -593,7 +593,7 @@ impl RunConfig {
             ("imu", self.imu.time_offset_s),
             ("gnss", self.gnss.time_offset_s),
         ] {
-            if !(v.abs() <= MAX_TIME_OFFSET_S) {
+            if v.is_nan() || v.abs() > MAX_TIME_OFFSET_S {
                 out.push((
                     table,
                     "time_offset_s".to_string(),

@@ -282,9 +282,8 @@ fn check_outages(
     let record = (t_end - t0).max(0.0);
     let dt = dt_s.unwrap_or(0.0);
     for o in &args.outages {
-        if !(o.start_s >= 0.0 && o.start_s < record)
-            || !(o.duration_s >= dt && o.duration_s.is_finite())
-        {
+        let inside = (0.0..record).contains(&o.start_s);
+        if !inside || !o.duration_s.is_finite() || o.duration_s < dt {
             bail!(
                 "--outage {}:{}: START must be in [0, {record}) s (the record after its first IMU epoch) and DURATION finite and at least one IMU interval, {dt} s",
                 o.start_s,
@@ -302,9 +301,12 @@ fn check_outages(
                 p.first_start_s, p.duration_s, p.period_s
             )
         };
-        if !(p.first_start_s >= 0.0 && p.first_start_s < record)
-            || !(p.duration_s >= dt && p.duration_s.is_finite())
-            || !(p.period_s >= p.duration_s && p.period_s.is_finite())
+        let inside = (0.0..record).contains(&p.first_start_s);
+        if !inside
+            || !p.duration_s.is_finite()
+            || p.duration_s < dt
+            || !p.period_s.is_finite()
+            || p.period_s < p.duration_s
         {
             bail!(
                 "{what}: FIRST must be in [0, {record}) s (the record after its first IMU epoch), DURATION finite and at least one IMU interval, {dt} s, and PERIOD finite and at least DURATION"
@@ -636,7 +638,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         description.push_str(&format!("; truth {}", t.display()));
     }
     if let Some(dt) = args.imu_time_offset_s {
-        if !(dt.abs() <= nav_io::MAX_TIME_OFFSET_S) {
+        if dt.is_nan() || dt.abs() > nav_io::MAX_TIME_OFFSET_S {
             bail!(
                 "--imu-time-offset {dt}: must be in [-{m}, {m}] s",
                 m = nav_io::MAX_TIME_OFFSET_S
