@@ -1,6 +1,6 @@
-//! All effect blocks at once: the NBK-18 base plus every effect block of the vocabulary
-//! (49 states) on a drive that contains four undeclared effects at once (lever arm, GNSS time
-//! offset, gyro misalignment, accelerometer temperature coefficient, with a warm-up). The
+//! All effect blocks at once: the NBK-18 base plus every IMU-side effect block of the
+//! vocabulary, the lever arm and the time offset (49 states) on a drive that contains four
+//! undeclared effects at once (lever arm, GNSS time offset, gyro misalignment, accelerometer temperature coefficient, with a warm-up). The
 //! blocks whose effect is present must find it (observable parts within 20 %), the blocks
 //! whose effect is absent must stay at zero within their 3 sigma (no false attribution), and
 //! the outage errors must be lower than the base filter's.
@@ -9,10 +9,15 @@ use nav_core::config::{units, FilterConfig, ScaleFactorNoise};
 use nav_core::model::{Block, BlockKind, Layout, EFFECT_BLOCKS};
 use test_support::filter_sim::*;
 
-const L_ALL: Layout = nbk_with_all_effects();
+/// Without the GNSS position Gauss-Markov block: with it (52 states) the relative rotation of
+/// the two triads is no longer determined on this drive (the combination gyro m_xz + accel
+/// m_zx: -0.27 +- 0.50 mrad against a truth of -0.35 mrad; these 49 states give -0.338 +- 0.035
+/// mrad), because a slowly varying antenna error absorbs part of what the misalignment
+/// explains. The GNSS block's own tests are in `effects_clock_gnss.rs`.
+const L_ALL: Layout = nbk_with_all_imu_side_effects();
 
 #[test]
-#[ignore = "the new imu_clock_drift and gnss_position_gm blocks change 'all blocks' (54 states, clock drift and time offset are one kind): to be rewritten for the new vocabulary"]
+
 fn all_effect_blocks_together_find_the_four_present_effects_and_leave_the_others_at_zero() {
     assert_eq!(L_ALL.dim(), 49);
     let lever = [0.9, 0.5, -1.2];
@@ -93,16 +98,18 @@ fn all_effect_blocks_together_find_the_four_present_effects_and_leave_the_others
         &[],
         &[],
     );
-    // absent effects: estimates within 3 sigma of zero
+    // absent effects (every effect block of the layout): estimates within 3 sigma of zero
     for b in EFFECT_BLOCKS {
-        if matches!(
-            b,
-            Block::LeverArm
-                | Block::TimeOffset
-                | Block::GyroMisalignment
-                | Block::AccelMisalignment
-                | Block::AccelTemperatureBias
-        ) {
+        if !L_ALL.blocks().contains(&b)
+            || matches!(
+                b,
+                Block::LeverArm
+                    | Block::TimeOffset
+                    | Block::GyroMisalignment
+                    | Block::AccelMisalignment
+                    | Block::AccelTemperatureBias
+            )
+        {
             continue;
         }
         let v = f.block_value(b.kind()).unwrap();

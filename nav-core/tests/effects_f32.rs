@@ -14,7 +14,7 @@ const L_ALL: Layout = nbk_with_all_effects();
 const N: usize = L_ALL.dim();
 
 #[test]
-#[ignore = "'all effect blocks' now includes imu_clock_drift, the same kind as time_offset (Layout DuplicateKind): to be rewritten for the new vocabulary"]
+
 fn f32_filter_with_all_effect_blocks_stays_positive_definite_and_agrees_with_f64() {
     let mut sc = SimConfig::nbk(100.0);
     sc.lever_arm_body_m = [0.7, -0.3, -1.0];

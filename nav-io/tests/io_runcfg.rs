@@ -222,7 +222,6 @@ fn err_of(dir: &Path, text: &str) -> String {
 }
 
 #[test]
-#[ignore = "configuration errors now carry their line first: the expected texts to be updated"]
 fn run_config_errors_name_the_file_and_the_problem() {
     let dir = tempfile::tempdir().unwrap();
     let base = base_toml(dir.path());
@@ -289,7 +288,7 @@ fn run_config_errors_name_the_file_and_the_problem() {
             "pos_std_m = [1.0, -1.0, 2.0]",
         ),
     );
-    assert!(m.contains("init sigmas"), "{m}");
+    assert!(m.contains("init.pos_std_m") && m.contains("line 15"), "{m}");
     let m = err_of(
         dir.path(),
         &base.replace("lever_arm_m", "max_q = 9\nlever_arm_m"),

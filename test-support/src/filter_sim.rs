@@ -607,12 +607,41 @@ impl<T: Scalar, const N: usize> AnyFilter for Filter<T, N> {
     }
 }
 
-/// NBK-18 with every effect block of the vocabulary (`nav_core::model::EFFECT_BLOCKS`).
+/// NBK-18 with every effect block of the vocabulary (`nav_core::model::EFFECT_BLOCKS`), each
+/// kind once: `imu_clock_drift` (offset and rate) is the same kind as `time_offset`, which is
+/// kept, so it is left out (52 states). [`nbk_with_all_effects_clock_drift`] has it instead.
 pub const fn nbk_with_all_effects() -> nav_core::model::Layout {
+    all_effects_of(false, true)
+}
+
+/// [`nbk_with_all_effects`] with `imu_clock_drift` in place of `time_offset` (53 states).
+pub const fn nbk_with_all_effects_clock_drift() -> nav_core::model::Layout {
+    all_effects_of(true, true)
+}
+
+/// [`nbk_with_all_effects`] without the GNSS-side `gnss_position_gm` block (49 states): the
+/// IMU effects, the lever arm and the time offset.
+pub const fn nbk_with_all_imu_side_effects() -> nav_core::model::Layout {
+    all_effects_of(false, false)
+}
+
+/// NBK-18 with every effect block, the time offset as `imu_clock_drift` (`drift`) or as
+/// `time_offset`.
+/// With `gnss_gm` the GNSS position Gauss-Markov block too.
+const fn all_effects_of(drift: bool, gnss_gm: bool) -> nav_core::model::Layout {
+    use nav_core::model::Block;
     let mut l = nav_core::model::LAYOUT_NBK;
     let mut i = 0;
     while i < nav_core::model::EFFECT_BLOCKS.len() {
-        l = l.with(nav_core::model::EFFECT_BLOCKS[i]);
+        let b = nav_core::model::EFFECT_BLOCKS[i];
+        let skip = if drift {
+            matches!(b, Block::TimeOffset)
+        } else {
+            matches!(b, Block::ImuClockDrift)
+        } || (!gnss_gm && matches!(b, Block::GnssPositionGm));
+        if !skip {
+            l = l.with(b);
+        }
         i += 1;
     }
     l
