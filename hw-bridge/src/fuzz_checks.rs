@@ -1,5 +1,5 @@
 //! The properties the fuzz targets (`fuzz/`) check, as plain functions so the saved corpus and
-//! any crasher also run as ordinary regression tests (`tests/fuzz_corpus.rs`). Each function
+//! any crasher also run as ordinary regression tests (`tests/it/fuzz_corpus.rs`). Each function
 //! panics when a property is violated; bad input itself must only ever produce errors.
 
 use crate::capture::CaptureReader;

@@ -289,7 +289,7 @@ pub struct GapFill {
 /// half the span is added (root sum square): the tilt the fill's attitude error builds up during
 /// the gap.
 ///
-/// Measured on the 4-minute tactical drive of `host-sim/tests/run_faults.rs` (50 samples lost
+/// Measured on the 4-minute tactical drive of `host-sim/tests/it/run_faults.rs` (50 samples lost
 /// in the turn): roll error of the fill 1.54e-3 rad; the band rule gives 3.6e-3 rad there but
 /// also 1.3e-2 rad in yaw (error 1.5e-4) and 0.14 m/s in the lateral velocity (error 1e-4),
 /// and that over-widening cost 1.5x the gapless run's maximum error after the gap.

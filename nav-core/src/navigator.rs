@@ -14,7 +14,7 @@
 //! `t_f < t_k + (t_{k+1} - t_k) / 2`. [`Navigator::flush`] applies what is due after the last
 //! sample (with `dt_next` = the last interval). The filter bridges the remaining offset of at
 //! most half an IMU interval ([`Filter::update_gnss`]). Used this way the results are bit
-//! for bit those of the host's loop on the same data (`nav-core/tests/navigator.rs`).
+//! for bit those of the host's loop on the same data (`nav-core/tests/it/navigator.rs`).
 //! A sample rejected by the guard or the filter does not move the epoch: the fixes wait for
 //! the next integrated one, as in the host loop.
 //!

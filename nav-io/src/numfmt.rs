@@ -19,7 +19,7 @@
 //!   `core::fmt` itself. So the text is always `core::fmt`'s.
 //!
 //! All three are checked against `format!` over random bit patterns, tie-prone values and the
-//! value ranges of the run outputs in the tests (`tests/numfmt.rs`).
+//! value ranges of the run outputs in the tests (`tests/it/numfmt.rs`).
 
 use std::io::Write;
 

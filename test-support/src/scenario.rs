@@ -33,8 +33,8 @@ pub fn four_minute_drive(name: &str) -> ScenarioToml {
         .stationary(10.0)
 }
 
-/// The short drive of the bridge's replay tests (`hw-bridge/tests/e2e_pty.rs`,
-/// `tests/tests/bridge_replay.rs`), named `name`: 200 Hz, 20 s static, accelerate to 12 m/s,
+/// The short drive of the bridge's replay tests (`hw-bridge/tests/it/e2e_pty.rs`,
+/// `tests/tests/it/bridge_replay.rs`), named `name`: 200 Hz, 20 s static, accelerate to 12 m/s,
 /// 90 deg right on 40 m, cruise 40 s, 60 deg left on 50 m, brake to a stop, 5 s static
 /// (about 90 s).
 pub fn bridge_replay_drive(name: &str) -> ScenarioToml {
@@ -52,7 +52,7 @@ pub fn bridge_replay_drive(name: &str) -> ScenarioToml {
         .stationary(5.0)
 }
 
-/// The 6-minute drive of the run and smoother simulation tests (`host-sim/tests/run_sim.rs`,
+/// The 6-minute drive of the run and smoother simulation tests (`host-sim/tests/it/run_sim.rs`,
 /// `smooth_sim.rs`), named `name`: 100 Hz, 60 s static, accelerate to 12 m/s, cruise, 90 deg
 /// right on 40 m, a 5 m hill over 300 m, 120 deg left on 30 m, accelerate to 18 m/s, 60 deg
 /// right on 60 m, brake to a stop, 20 s static.

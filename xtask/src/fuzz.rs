@@ -2,7 +2,7 @@
 //! sanitizer) for a fixed time, seeded with the committed corpus, into a scratch corpus
 //! directory (so the committed one stays small). A crash fails the step; libFuzzer saves the
 //! input under `fuzz/artifacts/<target>/` and it belongs in `fuzz/regressions/<target>/`,
-//! which `hw-bridge/tests/fuzz_corpus.rs` replays in the ordinary test suite.
+//! which `hw-bridge/tests/it/fuzz_corpus.rs` replays in the ordinary test suite.
 //!
 //! cargo-fuzz needs nightly compiler features (`-Zsanitizer`); the stable toolchain accepts
 //! them with `RUSTC_BOOTSTRAP=1`. When `cargo fuzz` is missing it is installed from crates.io

@@ -1,7 +1,7 @@
 //! `cargo xtask soak [--seconds S]`: the long soak of `hw-bridge send` and `hw-bridge record`
 //! over a pty pair with random link faults (bit flips, dropped byte runs, garbage, stalls, the
 //! port vanishing and coming back), the ignored test `soak_10_minutes` of
-//! `hw-bridge/tests/link.rs`. It passes when, per stream, frames sent = delivered + lost
+//! `hw-bridge/tests/it/link.rs`. It passes when, per stream, frames sent = delivered + lost
 //! exactly at the end; it prints the counts. The normal test suite runs a 20-second one.
 
 use anyhow::Result;

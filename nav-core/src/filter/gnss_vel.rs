@@ -6,7 +6,7 @@
 //!
 //! Without gates the two sequential updates equal the joint 6-dimensional update (block
 //! diagonal R) to first order in the position correction (test
-//! `nav-core/tests/gnss_velocity_gate.rs`).
+//! `nav-core/tests/it/gnss_velocity_gate.rs`).
 
 use super::gated::Gate;
 use super::{dcm_f64, Filter, FilterError, UpdateOutcome};

@@ -1,7 +1,7 @@
 //! Property tests of the streaming decoder: any sequence of valid frames, cut into arbitrary
 //! chunks, decodes to the same frames; arbitrary bytes never panic and every chunk is
 //! accounted for exactly once.
-mod wire_common;
+use crate::wire_common;
 
 use nav_core::wire::{Decoder, Frame, FrameDecoder, MsgType, NUM_STREAMS};
 use proptest::prelude::*;

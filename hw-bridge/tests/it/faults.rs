@@ -19,7 +19,7 @@ use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 use test_support::scenario::ScenarioToml;
 
-mod simcase;
+use crate::simcase;
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 const IMU: usize = 0;

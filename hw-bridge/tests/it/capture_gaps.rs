@@ -8,7 +8,7 @@ use nav_core::wire::{Encoder, Payload, MAX_FRAME_LEN};
 use std::path::Path;
 use test_support::scenario::ScenarioToml;
 
-mod simcase;
+use crate::simcase;
 
 fn scenario() -> nav_sim::Scenario {
     ScenarioToml::new("capture-gaps")

@@ -28,7 +28,7 @@ struct Errors {
 }
 
 /// `seconds` of 200 Hz samples at rest (exact increments: at rest the body-frame rate and
-/// specific force are constant, see tests/mechanization.rs) plus sensor errors; n + 1 samples.
+/// specific force are constant, see tests/it/mechanization.rs) plus sensor errors; n + 1 samples.
 fn static_window(pos: &Llh, rpy: [f64; 3], seconds: f64, e: Errors, seed: u64) -> Vec<ImuSample> {
     let q = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
     let q_bn = q.inverse();

@@ -1,5 +1,5 @@
 //! Round-trip, golden-byte and error tests of the wire codec, one per frame type.
-mod wire_common;
+use crate::wire_common;
 
 use nav_core::types::FixQuality;
 use nav_core::wire::{

@@ -6,7 +6,7 @@
 //! `frames sent = frames delivered + frames lost by sequence`, with `rejected` equal to the
 //! number of damaged chunks computed independently (an oracle that splits the faulted stream on
 //! 0x00 and compares each chunk with the sent frames' bytes).
-mod wire_common;
+use crate::wire_common;
 
 use nav_core::types::{GnssFix, ImuSample};
 use nav_core::wire::{Encoder, Frame, FrameDecoder, ImuFrame, Payload, MAX_FRAME_LEN};

@@ -12,7 +12,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use test_support::scenario::bridge_replay_drive;
 
-mod simcase;
+use crate::simcase;
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 
