@@ -135,11 +135,14 @@ impl Drop for EndOnDrop {
 #[error("the run has ended; finishing the live run says why")]
 pub struct Ended;
 
+/// The engine's thread of a live run, returning the run's summary and metrics.
+type Worker = JoinHandle<anyhow::Result<(RunOutput, Metrics)>>;
+
 /// One run fed sample by sample (module notes).
 #[derive(Debug)]
 pub struct LiveRun {
     shared: Arc<Shared>,
-    worker: Option<Result<JoinHandle<anyhow::Result<(RunOutput, Metrics)>>, String>>,
+    worker: Option<Result<Worker, String>>,
     /// Samples pushed so far.
     imu_pushed: usize,
 }
