@@ -1,6 +1,6 @@
 //! The streaming engine's memory does not grow with the record, GNSS fixes included: two
 //! hours of 200 Hz IMU data AND of 10 Hz GNSS fixes, both generated on the fly (never stored,
-//! never written to disk), run through `nav_engine::run::run_stream_fixes` with imposed
+//! never written to disk), run through `nav_engine::run::run_engine` with imposed
 //! outages and their coasting baselines (the engine reads the fixes ahead to each outage's
 //! end) while a counting global allocator tracks the live heap. Holding the fixes alone would
 //! take `n_fix * size_of::<GnssFix>()` bytes; the test asserts the peak stays below a small
@@ -17,8 +17,8 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, NavSolution};
 use nav_engine::run::{
-    run_stream_fixes, CoastPlan, CoastTrack, EpochRecord, FixUse, ImuItem, ImuSourceInfo, InitSpec,
-    InnovationRecord, Model, Outage, RunError, RunOptions, RunSink,
+    run_engine, CoastPlan, CoastTrack, EpochRecord, FixUse, ImuItem, ImuSourceInfo, InitSpec,
+    InnovationRecord, Model, Outage, RunError, RunOptions, RunSink, Streams,
 };
 use test_support::{alloc, standing};
 
@@ -102,11 +102,13 @@ fn hours_of_imu_and_gnss_run_in_bounded_memory() {
     let mut sink = Count::default();
     let base = alloc::reset_peak();
     let t = std::time::Instant::now();
-    let out = run_stream_fixes(
-        &mut imu,
-        ImuSourceInfo::default(),
-        Box::new(gnss),
-        None,
+    let out = run_engine(
+        Streams {
+            imu: Box::new(&mut imu),
+            info: ImuSourceInfo::default(),
+            gnss: Box::new(gnss),
+            truth: None,
+        },
         &opts,
         CoastPlan {
             raw: true,

@@ -1,6 +1,6 @@
 //! The streaming engine's memory does not grow with the record: hours of 200 Hz IMU data
 //! generated on the fly (never stored, never written to disk) run through
-//! `nav_engine::run::run_stream` while a counting global allocator tracks the live heap.
+//! `nav_engine::run::run_engine` while a counting global allocator tracks the live heap.
 //! Loading the same record would take `n * size_of::<ImuSample>()` bytes for the samples
 //! alone (plus a navigation record per sample); the test asserts the peak stays below a
 //! small fixed bound instead, and that the run was a real one (every sample integrated, the
@@ -13,8 +13,8 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_engine::run::{
-    run_stream, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
-    RunData, RunError, RunOptions, RunSink,
+    run_engine, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
+    RunError, RunOptions, RunSink, Streams,
 };
 use test_support::{alloc, standing};
 
@@ -80,11 +80,11 @@ fn hours_of_imu_run_in_bounded_memory() {
     let mut sink = Count::default();
     let base = alloc::reset_peak();
     let t = std::time::Instant::now();
-    let out = run_stream(
-        &mut gen,
-        ImuSourceInfo::default(),
-        RunData {
-            gnss: &fixes,
+    let out = run_engine(
+        Streams {
+            imu: Box::new(&mut gen),
+            info: ImuSourceInfo::default(),
+            gnss: Box::new(fixes.iter().copied().map(Ok)),
             truth: None,
         },
         &opts,

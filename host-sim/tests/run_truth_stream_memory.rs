@@ -18,7 +18,7 @@ use nav_engine::run::execute::metrics_json;
 use nav_engine::run::sink::FileSink;
 use nav_engine::run::truth::{self, start_records, TruthFile};
 use nav_engine::run::{
-    run_stream_fixes, CoastPlan, ImuItem, ImuSourceInfo, InitSpec, Model, Outage, RunOptions,
+    run_engine, CoastPlan, ImuItem, ImuSourceInfo, InitSpec, Model, Outage, RunOptions, Streams,
 };
 use std::io::Write;
 use std::path::Path;
@@ -110,11 +110,13 @@ fn run(dir: &Path, minutes: f64) -> Measured {
     );
     let mut sink =
         FileSink::create(&out_dir, 2300, None, &opts.outages, Some(truth.records())).unwrap();
-    let out = run_stream_fixes(
-        &mut imu,
-        ImuSourceInfo::default(),
-        Box::new(gnss),
-        Some(&start),
+    let out = run_engine(
+        Streams {
+            imu: Box::new(&mut imu),
+            info: ImuSourceInfo::default(),
+            gnss: Box::new(gnss),
+            truth: Some(&start),
+        },
         &opts,
         CoastPlan {
             raw: true,

@@ -99,6 +99,49 @@ impl Stream {
     }
 }
 
+/// `imu.txt` written without a temperature column, rewritten with it (as
+/// `nav_io::write_imu_line` writes it): NaN up to line `from`, then the temperatures of
+/// `temps` (one per line, formatted as that writer formats them).
+fn with_temperatures(mut imu: Stream, mut temps: Stream, from: u64) -> anyhow::Result<PathBuf> {
+    use std::io::BufRead;
+    imu.flush()?;
+    temps.flush()?;
+    let (src, t_src) = (
+        partial_name(&imu.final_path),
+        partial_name(&temps.final_path),
+    );
+    drop((imu.w, temps.w));
+    let open = |p: &Path| {
+        File::open(p)
+            .map(std::io::BufReader::new)
+            .with_context(|| format!("reading {}", p.display()))
+    };
+    let (lines, mut t_lines) = (open(&src)?.lines(), open(&t_src)?.lines());
+    let tmp = partial_name(&imu.final_path.with_extension("txt.rewrite"));
+    let mut w = BufWriter::new(
+        create_new_file(&tmp).with_context(|| format!("creating {}", tmp.display()))?,
+    );
+    for (i, line) in (0u64..).zip(lines) {
+        let line = line.with_context(|| format!("reading {}", src.display()))?;
+        let t = if i < from {
+            "NaN".to_string()
+        } else {
+            t_lines
+                .next()
+                .transpose()
+                .with_context(|| format!("reading {}", t_src.display()))?
+                .unwrap_or_else(|| "NaN".to_string())
+        };
+        io(writeln!(w, "{line} {t}"), &imu.final_path)?;
+    }
+    io(w.flush(), &imu.final_path)?;
+    drop(w);
+    rename(&tmp, &imu.final_path)?;
+    std::fs::remove_file(&src).with_context(|| format!("removing {}", src.display()))?;
+    std::fs::remove_file(&t_src).with_context(|| format!("removing {}", t_src.display()))?;
+    Ok(imu.final_path)
+}
+
 /// The header line of `health.txt`.
 pub const HEALTH_HEADER: &str = "# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status";
 
@@ -111,6 +154,12 @@ pub struct FrameFiles {
     imu_temperature: bool,
     /// Whether any IMU sample had a finite temperature (host-sim's rule for the column).
     imu_any_temperature: bool,
+    /// IMU lines written.
+    imu_lines: u64,
+    /// While `imu.txt` has no temperature column: from the first sample with a temperature
+    /// on, every sample's temperature (`imu.temperature.partial`, one per line) and the line
+    /// it starts at, for the rewrite at the end.
+    temps: Option<(Stream, u64)>,
     gnss: Option<Stream>,
     nav: Option<Stream>,
     health: Option<Stream>,
@@ -131,6 +180,8 @@ impl FrameFiles {
             imu: None,
             imu_temperature: false,
             imu_any_temperature: false,
+            imu_lines: 0,
+            temps: None,
             gnss: None,
             nav: None,
             health: None,
@@ -152,6 +203,17 @@ impl FrameFiles {
             let r = nav_io::write_imu_line(&mut st.w, s, with_temp);
             io(r, &st.final_path)?;
         }
+        if !with_temp && (finite_t || self.temps.is_some()) {
+            if self.temps.is_none() {
+                let st = Stream::create(&self.dir, "imu.temperature")?;
+                self.temps = Some((st, self.imu_lines));
+            }
+            if let Some((st, _)) = self.temps.as_mut() {
+                let r = writeln!(st.w, "{}", s.temperature_c);
+                io(r, &st.final_path)?;
+            }
+        }
+        self.imu_lines += 1;
         self.maybe_checkpoint()
     }
 
@@ -234,27 +296,14 @@ impl FrameFiles {
 
     /// Flushes and renames every file to its final name. `imu` is every sample appended:
     /// when the temperature column decided by the first sample differs from host-sim's rule
-    /// (any sample with a finite temperature), `imu.txt` is rewritten with host-sim's writer.
-    pub fn finish(mut self, imu: &[ImuSample]) -> anyhow::Result<Vec<PathBuf>> {
+    /// (any sample with a finite temperature), `imu.txt` is rewritten as host-sim's writer
+    /// writes it (its lines with the temperatures kept aside).
+    pub fn finish(mut self) -> anyhow::Result<Vec<PathBuf>> {
         let mut done = Vec::new();
         if let Some(st) = self.imu.take() {
-            if self.imu_temperature == self.imu_any_temperature {
-                done.push(st.finish()?);
-            } else {
-                let path = st.final_path.clone();
-                drop(st);
-                // host-sim's writer's text (nav_io::write_imu_text), into a file created new
-                let tmp = partial_name(&path);
-                let with_temp = self.imu_any_temperature;
-                let mut w = BufWriter::new(
-                    create_new_file(&tmp).with_context(|| format!("creating {}", tmp.display()))?,
-                );
-                for s in imu {
-                    io(nav_io::write_imu_line(&mut w, s, with_temp), &path)?;
-                }
-                io(w.flush(), &path)?;
-                rename(&tmp, &path)?;
-                done.push(path);
+            match self.temps.take() {
+                None => done.push(st.finish()?),
+                Some((temps, from)) => done.push(with_temperatures(st, temps, from)?),
             }
         }
         for s in [self.gnss.take(), self.nav.take(), self.health.take()]

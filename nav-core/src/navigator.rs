@@ -87,6 +87,14 @@ pub const DEFAULT_FIX_QUEUE: usize = 4;
 /// Fixes earlier than the initial epoch by more than this are not used, s.
 pub const START_TOLERANCE_S: f64 = 1e-9;
 
+/// The nearest-epoch rule (module notes): the time before which a fix is due at the IMU epoch
+/// `t_k_s`, given the interval `dt_next_s` to the next sample (s, GPS seconds of week): a fix
+/// tagged `t_f` is applied at `t_k` when `t_f < nearest_epoch_horizon(t_k, dt_next)`.
+#[inline]
+pub fn nearest_epoch_horizon(t_k_s: f64, dt_next_s: f64) -> f64 {
+    t_k_s + 0.5 * dt_next_s
+}
+
 /// The firmware's alignment: first valid fix plus levelling (module notes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FirstFixAlign {
@@ -488,7 +496,7 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
         let Some(t_k) = self.epoch_s else {
             return;
         };
-        let horizon = t_k + 0.5 * (t_next_s - t_k);
+        let horizon = nearest_epoch_horizon(t_k, t_next_s - t_k);
         self.apply_before(horizon, events, hooks);
         self.epoch_s = None;
         if let Some(f) = self.filter.as_ref() {
@@ -868,7 +876,11 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     pub fn flush_with<H: NavHooks<T, N>>(&mut self, hooks: &mut H) -> FixEvents<Q> {
         let mut events = FixEvents::new();
         if let Some(t_k) = self.epoch_s.take() {
-            self.apply_before(t_k + 0.5 * self.epoch_dt_s, &mut events, hooks);
+            self.apply_before(
+                nearest_epoch_horizon(t_k, self.epoch_dt_s),
+                &mut events,
+                hooks,
+            );
             if let Some(f) = self.filter.as_ref() {
                 hooks.on_epoch_done(f);
             }

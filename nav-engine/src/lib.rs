@@ -8,5 +8,6 @@ pub mod smooth;
 
 pub use metrics::Metrics;
 pub use run::execute::{execute, execute_case, execute_streaming};
+pub use run::live::LiveRun;
 pub use run::prepare::{load, Loaded, Prepared, RunSpec};
-pub use run::{run_filter, run_stream, CaseData, RunError, RunOptions, RunOutput};
+pub use run::{run_engine, run_filter, CaseData, RunError, RunOptions, RunOutput, Streams};

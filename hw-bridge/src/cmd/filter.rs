@@ -1,37 +1,54 @@
 //! `replay --config`: the run engine (`nav_engine`) on a replay's frames, as `host-sim run`
-//! runs it on files.
+//! runs it on files: pushed into a live run ([`nav_engine::LiveRun`]) as they are decoded
+//! ([`FilterFeed`]), or on frames decoded into memory ([`run_filter_on_frames`]).
 
 use super::*;
 use crate::frames::FrameLog;
-use crate::outputs::{partial_name, rename};
 use anyhow::{bail, Context};
+use nav_core::types::{GnssFix, ImuSample};
 use std::path::Path;
 use std::time::Instant;
 
 /// The host filter run on a replay's frames (`replay --config`).
 #[derive(Debug)]
 pub struct FilterRun {
-    /// Inputs and options as `host-sim run` prepares them (`nav_engine::load`), with the capture's IMU samples and
-    /// GNSS fixes in place of the files'.
-    pub prepared: nav_engine::Prepared,
-    /// The filter's output.
+    /// The filter's output (the record lists are empty when the records went to files).
     pub output: nav_engine::RunOutput,
     /// Metrics (against the truth when there is one).
     pub metrics: nav_engine::Metrics,
-    /// Wall time of the filter run alone, s.
+    /// Wall time of the filter run, s.
     pub wall_s: f64,
+    /// First and last time of the IMU samples given to the filter, s (None: none).
+    pub imu_span_s: Option<(f64, f64)>,
+    /// First and last time of the GNSS fixes given to the filter, s (None: none).
+    pub fix_span_s: Option<(f64, f64)>,
 }
 
-/// Decodes a capture as frames, feeding the recorded chunks in order (no timing, no port).
+/// Decodes a capture as frames, feeding the recorded chunks in order (no timing, no port);
+/// every frame is kept in [`ReplayOutcome::log`].
 pub fn decode_capture(path: &Path) -> anyhow::Result<ReplayOutcome> {
     replay(&ReplayArgs::new(path))
 }
 
-/// Runs the host filter on decoded frames the way `host-sim run --config CONFIG [--case DIR]`
-/// runs it on files: the configuration is loaded by the run engine (`nav_engine::load`), then its IMU samples
-/// and GNSS fixes are replaced by the frames' (with the configuration's GNSS sigma scale
-/// applied, as `host-sim` applies it to its files). Same samples, same options: the same
-/// solution, bit for bit.
+/// The options of `host-sim run --config CONFIG [--case DIR]` for a capture's frames.
+fn spec(
+    config: &Path,
+    case: Option<&Path>,
+    model: Option<nav_engine::run::Model>,
+    f32: bool,
+) -> nav_engine::RunSpec {
+    let mut spec = nav_engine::RunSpec::new(config);
+    spec.case = case.map(Path::to_path_buf);
+    spec.model = model;
+    spec.f32 = f32;
+    spec
+}
+
+/// Runs the host filter on decoded frames in memory the way `host-sim run --config CONFIG
+/// [--case DIR]` runs it on files: the configuration is loaded by the run engine
+/// (`nav_engine::load`), then its IMU samples and GNSS fixes are replaced by the frames' (the
+/// configuration's GNSS sigma scale applied by the engine, as on files). Same samples, same
+/// options: the same solution, bit for bit. The output holds every record.
 pub fn run_filter_on_frames(
     log: &FrameLog,
     config: &Path,
@@ -39,11 +56,7 @@ pub fn run_filter_on_frames(
     model: Option<nav_engine::run::Model>,
     f32: bool,
 ) -> anyhow::Result<FilterRun> {
-    let mut spec = nav_engine::RunSpec::new(config);
-    spec.case = case.map(Path::to_path_buf);
-    spec.model = model;
-    spec.f32 = f32;
-    let loaded = nav_engine::load(&spec, false)
+    let loaded = nav_engine::load(&spec(config, case, model, f32), false)
         .with_context(|| format!("preparing the filter from {}", config.display()))?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
@@ -52,7 +65,6 @@ pub fn run_filter_on_frames(
     if log.imu.is_empty() {
         bail!("the capture holds no IMU frame: nothing to run the filter on");
     }
-    // the configuration's `[gnss] sigma_scale` is in `prepared.opts`: the engine applies it
     prepared.case.imu = log.imu.clone();
     // the samples are the capture's now: messages name IMU sample indices, not the
     // configuration's file lines
@@ -61,37 +73,111 @@ pub fn run_filter_on_frames(
     let t = Instant::now();
     let (output, metrics) = nav_engine::execute(&prepared, &mut |_, _| {})?;
     Ok(FilterRun {
-        prepared,
         output,
         metrics,
         wall_s: t.elapsed().as_secs_f64(),
+        imu_span_s: span(log.imu.iter().map(|s| s.t_s)),
+        fix_span_s: span(log.gnss.iter().map(|g| g.t_s)),
     })
 }
 
-/// Writes a filter run's outputs under the names `host-sim run` uses.
-pub fn write_filter_outputs(dir: &Path, f: &FilterRun) -> anyhow::Result<()> {
-    use nav_engine::run::output;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    // each file under its `.partial` name first, renamed when written completely
-    let p = |name: &str| partial_name(&dir.join(name));
-    output::write_nav(&p("nav.txt"), &f.output.nav, f.prepared.week)?;
-    output::write_std(&p("std.txt"), &f.output)?;
-    output::write_bias(&p("bias.txt"), &f.output)?;
-    output::write_innovations(&p("innovations.txt"), &f.output.innovations)?;
-    let mp = p("metrics.json");
-    std::fs::write(
-        &mp,
-        nav_engine::run::execute::metrics_json(&f.metrics, &f.output, None)?,
-    )
-    .with_context(|| format!("writing {}", mp.display()))?;
-    for name in [
-        "nav.txt",
-        "std.txt",
-        "bias.txt",
-        "innovations.txt",
-        "metrics.json",
-    ] {
-        rename(&p(name), &dir.join(name))?;
+/// First and last of a sequence of times (None when empty).
+fn span(t: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    t.fold(None, |acc: Option<(f64, f64)>, t| {
+        Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+    })
+}
+
+/// The host filter fed a replay's frames as they are decoded: a live run writing the
+/// outputs of `host-sim run` (`nav.txt`, `std.txt`, `bias.txt`, `innovations.txt`,
+/// `metrics.json`) into a folder as the filter goes. Memory does not grow with the capture.
+pub struct FilterFeed {
+    run: Option<nav_engine::LiveRun>,
+    stage: std::path::PathBuf,
+    started: Instant,
+    imu_span_s: Option<(f64, f64)>,
+    fix_span_s: Option<(f64, f64)>,
+}
+
+impl FilterFeed {
+    /// Loads the configuration as `host-sim run --config CONFIG [--case DIR]` does (its IMU
+    /// and GNSS files are not read: the frames replace them; its truth file is read as the
+    /// solution advances) and starts the live run writing into `stage` (the stage folder of
+    /// the replay's output folder, moved into place by the replay).
+    pub fn start(
+        config: &Path,
+        case: Option<&Path>,
+        model: Option<nav_engine::run::Model>,
+        f32: bool,
+        stage: &Path,
+    ) -> anyhow::Result<Self> {
+        let loaded = nav_engine::load(&spec(config, case, model, f32), true)
+            .with_context(|| format!("preparing the filter from {}", config.display()))?;
+        for w in &loaded.warnings {
+            eprintln!("warning: {w}");
+        }
+        std::fs::create_dir_all(stage).with_context(|| format!("creating {}", stage.display()))?;
+        let run = nav_engine::LiveRun::to_dir(
+            loaded.prepared,
+            loaded.truth_stream,
+            stage.to_path_buf(),
+            loaded.inputs,
+            loaded.nav_rate_hz,
+            true,
+        );
+        Ok(Self {
+            run: Some(run),
+            stage: stage.to_path_buf(),
+            started: Instant::now(),
+            imu_span_s: None,
+            fix_span_s: None,
+        })
     }
-    Ok(())
+
+    /// Gives the filter the next IMU sample (a run that has ended takes no more: its error
+    /// comes with [`Self::finish`]).
+    pub fn imu(&mut self, s: &ImuSample) {
+        self.imu_span_s = widen(self.imu_span_s, s.t_s);
+        if let Some(ses) = self.run.as_mut() {
+            // a run that has ended takes no more (`finish` gives its error)
+            let _ = ses.push_imu(*s);
+        }
+    }
+
+    /// Gives the filter the next GNSS fix.
+    pub fn fix(&mut self, f: &GnssFix) {
+        self.fix_span_s = widen(self.fix_span_s, f.t_s);
+        if let Some(ses) = self.run.as_mut() {
+            let _ = ses.push_fix(*f);
+        }
+    }
+
+    /// Ends the input and waits for the filter: its summary and metrics, with its outputs
+    /// written in the stage folder.
+    pub fn finish(mut self) -> anyhow::Result<FilterRun> {
+        let Some(ses) = self.run.take() else {
+            bail!("the filter has finished already");
+        };
+        if self.imu_span_s.is_none() {
+            // nothing run: the live run's empty files are not outputs
+            let _ = ses.finish();
+            for name in nav_engine::run::output::OUTPUT_NAMES {
+                let _ =
+                    std::fs::remove_file(nav_engine::run::output::partial_path(&self.stage, name));
+            }
+            bail!("the capture holds no IMU frame: nothing to run the filter on");
+        }
+        let (output, metrics) = ses.finish()?;
+        Ok(FilterRun {
+            output,
+            metrics,
+            wall_s: self.started.elapsed().as_secs_f64(),
+            imu_span_s: self.imu_span_s,
+            fix_span_s: self.fix_span_s,
+        })
+    }
+}
+
+fn widen(span: Option<(f64, f64)>, t: f64) -> Option<(f64, f64)> {
+    Some(span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
 }

@@ -8,7 +8,7 @@ use crate::serial;
 use crate::status::decoder_report;
 use anyhow::{bail, Context};
 use nav_core::types::GnssFix;
-use nav_core::wire::{DecoderStats, FrameDecoder, Payload};
+use nav_core::wire::{DecoderStats, Frame, FrameDecoder, Payload};
 use nav_io::gnss::{GnssEvent, GnssStream, NmeaOptions};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -87,6 +87,11 @@ pub struct ReplayArgs {
     /// f32 covariance (as on the MCU) for `--config`.
     #[arg(long, requires = "config")]
     pub f32: bool,
+    /// Keep every decoded frame in [`ReplayOutcome::log`] (for programmatic use; the
+    /// command line keeps only what its outputs need: memory independent of the capture's
+    /// length with `--out`).
+    #[arg(skip)]
+    pub keep_frames: bool,
 }
 
 impl ReplayArgs {
@@ -107,6 +112,7 @@ impl ReplayArgs {
             case: None,
             model: None,
             f32: false,
+            keep_frames: true,
         }
     }
 }
@@ -114,7 +120,8 @@ impl ReplayArgs {
 /// The result of a replay.
 #[derive(Debug, Default)]
 pub struct ReplayOutcome {
-    /// Decoded frames (frame input).
+    /// Decoded frames (frame input): all of them with [`ReplayArgs::keep_frames`], else only
+    /// what the outputs need.
     pub log: FrameLog,
     /// Decoder counters (frame input).
     pub stats: DecoderStats,
@@ -214,9 +221,10 @@ fn in_order(t: f64, last: Option<f64>) -> bool {
 
 /// `replay`: decode a capture (reproducing its chunking, and its timing with `--speed`), write
 /// the frames it contains in the project's text formats as they are decoded (under `.partial`
-/// names, renamed at the end), optionally stream it to a port. A truncated or corrupt record
-/// ends the replay early: every record before it is replayed and the outcome says
-/// [`ReplayOutcome::incomplete`].
+/// names, renamed at the end), optionally stream it to a port, and with `--config` and
+/// `--out` push the IMU samples and GNSS fixes into the host filter as they are decoded. A
+/// truncated or corrupt record ends the replay early: every record before it is replayed and
+/// the outcome says [`ReplayOutcome::incomplete`].
 pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
     let cap = a.capture.display();
     nav_io::check_leap_seconds(a.leap_seconds)
@@ -230,20 +238,10 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
             rd.skipped_bytes()
         );
     }
-    let speed = match (a.as_fast_as_possible, a.speed, &a.to_port) {
-        (true, _, _) => None,
-        (false, Some(s), _) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Some(s),
-        (false, Some(s), _) => bail!("--speed {s} is outside [{MIN_SPEED}, {MAX_SPEED}]"),
-        (false, None, Some(_)) => Some(1.0),
-        (false, None, None) => None,
-    };
-    let mut port = match &a.to_port {
+    let speed = replay_speed(a)?;
+    let port = match &a.to_port {
         Some(p) => Some(serial::open_for_writing(p, a.baud, TO_PORT_TIMEOUT, false)?),
         None => None,
-    };
-    let mut out = ReplayOutcome {
-        skipped_bytes: rd.skipped_bytes(),
-        ..ReplayOutcome::default()
     };
     // the output folder checked (none of the inputs in it) and locked before anything is
     // written in it
@@ -256,21 +254,9 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
         )?),
         None => None,
     };
-    let mut files = match &a.out {
-        Some(dir) if a.input == InputKind::Frames => Some(FrameFiles::new(dir, CHECKPOINT)?),
-        _ => None,
-    };
-    let mut dec = FrameDecoder::new();
-    if rd.header().streams_from_start {
-        dec.expect_stream_starts();
-    }
-    let mut gnss = GnssStream::new(NmeaOptions {
-        leap_seconds: a.leap_seconds,
-        ..NmeaOptions::default()
-    });
-    let mut pacer = Pacer::new(a.max_gap);
-    let (mut last_imu_t, mut last_gnss_t) = (None, None);
+    let mut dec = Decoding::new(a, &rd, port, od.as_ref())?;
     let start = Instant::now();
+    let mut pacer = Pacer::new(a.max_gap);
     loop {
         let rec = match rd.next_record() {
             Ok(Some(r)) => r,
@@ -279,21 +265,18 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
                 let what = format!("{e}; replayed every record before it");
                 eprintln!("warning: {cap}: {what}");
                 if matches!(e, CaptureError::TruncatedRecord { .. }) {
-                    out.truncated = Some(e.to_string());
+                    dec.out.truncated = Some(e.to_string());
                 }
-                out.incomplete = Some(what);
+                dec.out.incomplete = Some(what);
                 break;
             }
         };
         // bytes skipped to resynchronise: a frame in progress is cut
         let rs = rd.resync_stats();
-        if rs.resyncs != out.resync.resyncs {
-            out.resync = rs;
-            dec.reset_link();
+        if rs.resyncs != dec.out.resync.resyncs {
+            dec.out.resync = rs;
+            dec.frames.reset_link();
         }
-        out.ended_link_lost = matches!(rec, Record::LinkReset { .. });
-        out.records += 1;
-        out.recorded_s = rec.t_ns() as f64 * 1e-9;
         let paced_ns = pacer.advance(rec.t_ns());
         if let Some(s) = speed {
             let due = secs(paced_ns as f64 * 1e-9 / s);
@@ -301,73 +284,124 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
                 std::thread::sleep(wait);
             }
         }
+        dec.record(rec)?;
+    }
+    dec.out.resync = rd.resync_stats();
+    dec.out.timing = pacer.stats;
+    dec.finish(a, od, start)
+}
+
+/// The pacing of a replay: `Some(speed)`, or None as fast as possible.
+fn replay_speed(a: &ReplayArgs) -> anyhow::Result<Option<f64>> {
+    Ok(match (a.as_fast_as_possible, a.speed, &a.to_port) {
+        (true, _, _) => None,
+        (false, Some(s), _) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Some(s),
+        (false, Some(s), _) => bail!("--speed {s} is outside [{MIN_SPEED}, {MAX_SPEED}]"),
+        (false, None, Some(_)) => Some(1.0),
+        (false, None, None) => None,
+    })
+}
+
+/// A replay in progress: the decoders, the outputs written as it goes, the filter fed as it
+/// goes, and the outcome so far.
+struct Decoding {
+    out: ReplayOutcome,
+    input: InputKind,
+    verbose: bool,
+    port: Option<Box<dyn serialport::SerialPort>>,
+    frames: FrameDecoder,
+    gnss: GnssStream,
+    files: Option<FrameFiles>,
+    /// The host filter fed as the frames are decoded (`--config` with `--out`); a
+    /// configuration that does not load is reported after the decoded files are written.
+    filter: Option<anyhow::Result<FilterFeed>>,
+    /// Keep every frame in [`ReplayOutcome::log`] (else only what the outputs need).
+    keep_frames: bool,
+    /// Keep the IMU samples and GNSS fixes (`--config` without `--out`: the filter runs on
+    /// them at the end).
+    keep_samples: bool,
+    last_imu_t: Option<f64>,
+    last_gnss_t: Option<f64>,
+}
+
+impl Decoding {
+    fn new<R: std::io::Read>(
+        a: &ReplayArgs,
+        rd: &CaptureReader<R>,
+        port: Option<Box<dyn serialport::SerialPort>>,
+        od: Option<&nav_engine::run::outdir::OutDir>,
+    ) -> anyhow::Result<Self> {
+        let files = match &a.out {
+            Some(dir) if a.input == InputKind::Frames => Some(FrameFiles::new(dir, CHECKPOINT)?),
+            _ => None,
+        };
+        let mut frames = FrameDecoder::new();
+        if rd.header().streams_from_start {
+            frames.expect_stream_starts();
+        }
+        let filter = match (&a.config, od) {
+            (Some(cfg), Some(od)) if a.input == InputKind::Frames => Some(FilterFeed::start(
+                cfg,
+                a.case.as_deref(),
+                a.model,
+                a.f32,
+                od.stage(),
+            )),
+            _ => None,
+        };
+        Ok(Self {
+            out: ReplayOutcome {
+                skipped_bytes: rd.skipped_bytes(),
+                ..ReplayOutcome::default()
+            },
+            input: a.input,
+            verbose: a.verbose,
+            port,
+            frames,
+            gnss: GnssStream::new(NmeaOptions {
+                leap_seconds: a.leap_seconds,
+                ..NmeaOptions::default()
+            }),
+            files,
+            filter,
+            keep_frames: a.keep_frames,
+            keep_samples: a.config.is_some() && a.out.is_none(),
+            last_imu_t: None,
+            last_gnss_t: None,
+        })
+    }
+
+    /// One capture record: counted, written to the port, decoded.
+    fn record(&mut self, rec: Record) -> anyhow::Result<()> {
+        self.out.ended_link_lost = matches!(rec, Record::LinkReset { .. });
+        self.out.records += 1;
+        self.out.recorded_s = rec.t_ns() as f64 * 1e-9;
         match rec {
-            Record::LinkReset { .. } => dec.reset_link(),
+            Record::LinkReset { .. } => self.frames.reset_link(),
             Record::Data { bytes, .. } => {
-                out.bytes += bytes.len() as u64;
-                if let Some(p) = port.as_mut() {
+                self.out.bytes += bytes.len() as u64;
+                if let Some(p) = self.port.as_mut() {
                     serial::write_all_within(p.as_mut(), &bytes, TO_PORT_TIMEOUT).with_context(
                         || format!("writing to --to-port (no byte taken for {TO_PORT_TIMEOUT:?}?)"),
                     )?;
                 }
-                match a.input {
+                match self.input {
                     InputKind::Frames => {
-                        for r in dec.feed(&bytes) {
-                            let f = match r {
-                                Ok(f) => f,
-                                Err(e) => {
-                                    if a.verbose {
-                                        eprintln!("rejected chunk: {e}");
-                                    }
-                                    continue;
-                                }
-                            };
-                            out.log.frames.push(f);
-                            match f.payload {
-                                Payload::Imu(i) => {
-                                    if !in_order(i.sample.t_s, last_imu_t) {
-                                        out.imu_out_of_order += 1;
-                                        continue;
-                                    }
-                                    last_imu_t = Some(i.sample.t_s);
-                                    out.log.imu.push(i.sample);
-                                    out.log.imu_status.push(i.status);
-                                    if let Some(w) = files.as_mut() {
-                                        w.imu(&i.sample)?;
-                                    }
-                                }
-                                Payload::Gnss(g) => {
-                                    if !in_order(g.t_s, last_gnss_t) {
-                                        out.gnss_out_of_order += 1;
-                                        continue;
-                                    }
-                                    last_gnss_t = Some(g.t_s);
-                                    out.log.gnss.push(g);
-                                    if let Some(w) = files.as_mut() {
-                                        w.gnss(&g)?;
-                                    }
-                                }
-                                Payload::Nav(n) => {
-                                    out.log.nav.push(n);
-                                    if let Some(w) = files.as_mut() {
-                                        w.nav(&n)?;
-                                    }
-                                }
-                                Payload::Health(h) => {
-                                    out.log.health.push(h);
-                                    if let Some(w) = files.as_mut() {
-                                        w.health(&h)?;
-                                    }
-                                }
-                                Payload::Config(c) => out.log.config.push(c),
+                        // decoded first (a record holds a few frames), then handled
+                        let decoded: Vec<_> = self.frames.feed(&bytes).collect();
+                        for r in decoded {
+                            match r {
+                                Ok(f) => self.frame(f)?,
+                                Err(e) if self.verbose => eprintln!("rejected chunk: {e}"),
+                                Err(_) => {}
                             }
                         }
                     }
                     InputKind::Gnss => {
-                        for ev in gnss.feed(&bytes) {
+                        for ev in self.gnss.feed(&bytes) {
                             match ev {
-                                GnssEvent::Fix(f) => out.gnss_fixes.push(f),
-                                GnssEvent::Error(e) if a.verbose => eprintln!("{e}"),
+                                GnssEvent::Fix(f) => self.out.gnss_fixes.push(f),
+                                GnssEvent::Error(e) if self.verbose => eprintln!("{e}"),
                                 GnssEvent::Error(_) => {}
                             }
                         }
@@ -375,107 +409,181 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
                 }
             }
         }
+        Ok(())
     }
-    out.resync = rd.resync_stats();
-    let mut why = Vec::new();
-    if let Some((rec, off, n)) = out.resync.first {
-        why.push(format!(
-            "skipped {} corrupt byte(s) in {} stretch(es) by resynchronising on the next valid record header (the first at record {rec}, byte {off}: {n} bytes)",
-            out.resync.skipped_bytes, out.resync.resyncs
-        ));
-    }
-    if out.ended_link_lost {
-        why.push(
-            "the capture ends with the link lost (a link-reset record): the recording stopped before the port came back"
-                .to_string(),
-        );
-    }
-    if !why.is_empty() {
-        let why = why.join("; ");
-        eprintln!("warning: {cap}: {why}");
-        out.incomplete = Some(match out.incomplete.take() {
-            Some(w) => format!("{w}; {why}"),
-            None => why,
-        });
-    }
-    if a.input == InputKind::Gnss {
-        out.gnss_fixes
-            .extend(gnss.finish().into_iter().filter_map(|e| match e {
-                GnssEvent::Fix(f) => Some(f),
-                GnssEvent::Error(_) => None,
-            }));
-    }
-    out.stats = *dec.stats();
-    out.timing = pacer.stats;
-    if out.timing.backwards + out.timing.clamped_gaps > 0 {
-        eprintln!(
-            "warning: {cap}: {} record time(s) went backwards, {} gap(s) over --max-gap {} s (paced as --max-gap)",
-            out.timing.backwards, out.timing.clamped_gaps, a.max_gap
-        );
-    }
-    if out.imu_out_of_order + out.gnss_out_of_order > 0 {
-        eprintln!(
-            "warning: {cap}: left out {} IMU sample(s) and {} GNSS fix(es) whose time is not after the previous one (duplicated or reordered frames)",
-            out.imu_out_of_order, out.gnss_out_of_order
-        );
-    }
-    out.wall_s = start.elapsed().as_secs_f64();
-    // The filter first, so that the summary says whether its result is a navigation solution;
-    // a filter run that fails still leaves the decoded files and the summary in place.
-    let filter = match &a.config {
-        Some(_) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
-            "--config runs the filter on wire frames: not with --input gnss"
-        )),
-        Some(cfg) => {
-            run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some)
+
+    /// One decoded frame: into its file, to the filter, and into the log when kept.
+    fn frame(&mut self, f: Frame) -> anyhow::Result<()> {
+        let log = &mut self.out.log;
+        if self.keep_frames {
+            log.frames.push(f);
         }
-        None => Ok(None),
-    };
-    if let Ok(Some(f)) = &filter {
-        if let Some(why) = not_a_navigation_solution(f) {
+        match f.payload {
+            Payload::Imu(i) => {
+                if !in_order(i.sample.t_s, self.last_imu_t) {
+                    self.out.imu_out_of_order += 1;
+                    return Ok(());
+                }
+                self.last_imu_t = Some(i.sample.t_s);
+                if let Some(w) = self.files.as_mut() {
+                    w.imu(&i.sample)?;
+                }
+                if self.keep_frames || self.keep_samples {
+                    log.imu.push(i.sample);
+                    log.imu_status.push(i.status);
+                }
+                if let Some(Ok(feed)) = self.filter.as_mut() {
+                    feed.imu(&i.sample);
+                }
+            }
+            Payload::Gnss(g) => {
+                if !in_order(g.t_s, self.last_gnss_t) {
+                    self.out.gnss_out_of_order += 1;
+                    return Ok(());
+                }
+                self.last_gnss_t = Some(g.t_s);
+                if self.keep_frames || self.keep_samples {
+                    log.gnss.push(g);
+                }
+                if let Some(w) = self.files.as_mut() {
+                    w.gnss(&g)?;
+                }
+                if let Some(Ok(feed)) = self.filter.as_mut() {
+                    feed.fix(&g);
+                }
+            }
+            Payload::Nav(n) => {
+                if self.keep_frames {
+                    log.nav.push(n);
+                }
+                if let Some(w) = self.files.as_mut() {
+                    w.nav(&n)?;
+                }
+            }
+            Payload::Health(h) => {
+                if self.keep_frames {
+                    log.health.push(h);
+                }
+                if let Some(w) = self.files.as_mut() {
+                    w.health(&h)?;
+                }
+            }
+            Payload::Config(c) if self.keep_frames => log.config.push(c),
+            Payload::Config(_) => {}
+        }
+        Ok(())
+    }
+
+    /// The end of the capture: why the replay is incomplete, the filter's result, the
+    /// outputs written and moved into place.
+    fn finish(
+        mut self,
+        a: &ReplayArgs,
+        od: Option<nav_engine::run::outdir::OutDir>,
+        start: Instant,
+    ) -> anyhow::Result<ReplayOutcome> {
+        let cap = a.capture.display();
+        self.warn_incomplete(a);
+        let mut out = self.out;
+        if a.input == InputKind::Gnss {
+            out.gnss_fixes
+                .extend(self.gnss.finish().into_iter().filter_map(|e| match e {
+                    GnssEvent::Fix(f) => Some(f),
+                    GnssEvent::Error(_) => None,
+                }));
+        }
+        out.stats = *self.frames.stats();
+        out.wall_s = start.elapsed().as_secs_f64();
+        // The filter first, so that the summary says whether its result is a navigation
+        // solution; a filter run that fails still leaves the decoded files and the summary in
+        // place.
+        let filter = match (&a.config, self.filter) {
+            (Some(_), _) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
+                "--config runs the filter on wire frames: not with --input gnss"
+            )),
+            (Some(_), Some(feed)) => feed.and_then(FilterFeed::finish).map(Some),
+            (Some(cfg), None) => {
+                run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some)
+            }
+            (None, _) => Ok(None),
+        };
+        if let Ok(Some(f)) = &filter {
+            if let Some(why) = not_a_navigation_solution(f) {
+                eprintln!("warning: {cap}: {why}");
+                out.incomplete = Some(match out.incomplete.take() {
+                    Some(w) => format!("{w}; {why}"),
+                    None => why,
+                });
+            }
+        }
+        if let Some(od) = &od {
+            if let Some(w) = self.files.take() {
+                w.finish()?;
+            }
+            write_outputs(od.stage(), &out, a.input, &self.gnss)?;
+        }
+        // everything written moved into the output folder, the filter's outputs when it ran
+        if let Some(od) = od {
+            let _moving = nav_engine::run::interrupt::Stoppable::enter();
+            od.commit()?;
+        }
+        out.filter = filter?;
+        if out.filter.is_some() {
+            out.wall_s = start.elapsed().as_secs_f64();
+        }
+        Ok(out)
+    }
+
+    /// Warnings (and [`ReplayOutcome::incomplete`]) for a capture that was cut, corrupt,
+    /// irregular in time or carried frames out of order.
+    fn warn_incomplete(&mut self, a: &ReplayArgs) {
+        let cap = a.capture.display();
+        let out = &mut self.out;
+        let mut why = Vec::new();
+        if let Some((rec, off, n)) = out.resync.first {
+            why.push(format!(
+                "skipped {} corrupt byte(s) in {} stretch(es) by resynchronising on the next valid record header (the first at record {rec}, byte {off}: {n} bytes)",
+                out.resync.skipped_bytes, out.resync.resyncs
+            ));
+        }
+        if out.ended_link_lost {
+            why.push(
+                "the capture ends with the link lost (a link-reset record): the recording stopped before the port came back"
+                    .to_string(),
+            );
+        }
+        if !why.is_empty() {
+            let why = why.join("; ");
             eprintln!("warning: {cap}: {why}");
             out.incomplete = Some(match out.incomplete.take() {
                 Some(w) => format!("{w}; {why}"),
                 None => why,
             });
         }
-    }
-    if let Some(od) = &od {
-        if let Some(w) = files.take() {
-            w.finish(&out.log.imu)?;
+        if out.timing.backwards + out.timing.clamped_gaps > 0 {
+            eprintln!(
+                "warning: {cap}: {} record time(s) went backwards, {} gap(s) over --max-gap {} s (paced as --max-gap)",
+                out.timing.backwards, out.timing.clamped_gaps, a.max_gap
+            );
         }
-        write_outputs(od.stage(), &out, a.input, &gnss)?;
-        if let Ok(Some(f)) = &filter {
-            write_filter_outputs(od.stage(), f)?;
+        if out.imu_out_of_order + out.gnss_out_of_order > 0 {
+            eprintln!(
+                "warning: {cap}: left out {} IMU sample(s) and {} GNSS fix(es) whose time is not after the previous one (duplicated or reordered frames)",
+                out.imu_out_of_order, out.gnss_out_of_order
+            );
         }
     }
-    // everything written moved into the output folder, the filter's outputs when it ran
-    if let Some(od) = od {
-        let _moving = nav_engine::run::interrupt::Stoppable::enter();
-        od.commit()?;
-    }
-    out.filter = filter?;
-    if out.filter.is_some() {
-        out.wall_s = start.elapsed().as_secs_f64();
-    }
-    Ok(out)
 }
 
 /// Why the filter's result on a capture is not a navigation solution (no GNSS fix used, or
 /// too few: [`nav_engine::run::gnss_use::check`]), or None when it is one.
 fn not_a_navigation_solution(f: &FilterRun) -> Option<String> {
     use nav_engine::run::gnss_use::{check, GnssAccount};
-    let case = &f.prepared.case;
-    let span = |t: &mut dyn Iterator<Item = f64>| {
-        t.fold(None, |acc: Option<(f64, f64)>, t| {
-            Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
-        })
-    };
     let acc = GnssAccount {
         counters: f.output.counters,
         dropped_by_quality: 0,
-        fix_span_s: span(&mut case.gnss.iter().map(|g| g.t_s)),
-        imu_span_s: span(&mut case.imu.iter().map(|s| s.t_s)),
+        fix_span_s: f.fix_span_s,
+        imu_span_s: f.imu_span_s,
     };
     check(&acc)
         .err()

@@ -17,6 +17,7 @@
 
 use super::{position_innovation, CaseData, FixUse, InnovationRecord, RunOutput};
 use nav_core::model::ImuCorrection;
+use nav_core::navigator::nearest_epoch_horizon;
 use nav_core::strapdown::Strapdown;
 use nav_core::types::NavSolution;
 
@@ -86,7 +87,7 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
             nav.push(st.to_solution());
             let dt_next = case.imu.get(k + 1).map_or(dt, |n| n.t_s - st.t_s);
             while let Some(f) = fixes_by_t.get(fi) {
-                if f.t_s >= st.t_s + 0.5 * dt_next {
+                if f.t_s >= nearest_epoch_horizon(st.t_s, dt_next) {
                     break;
                 }
                 fi += 1;

@@ -47,8 +47,8 @@ use crate::run::FaultCause;
 use nav_core::imu_guard::{GapIncrements, GuardConfig, ImuGuard};
 use nav_core::model::{ImuCorrection, Layout};
 use nav_core::navigator::{
-    AlignMode, ImuEvent as ImuEventNav, Navigator, NavigatorConfig, NavigatorError,
-    START_TOLERANCE_S,
+    nearest_epoch_horizon, AlignMode, ImuEvent as ImuEventNav, Navigator, NavigatorConfig,
+    NavigatorError, START_TOLERANCE_S,
 };
 use nav_core::scalar::Scalar;
 use nav_core::strapdown::{NavState, Strapdown, MAX_DT_S};
@@ -240,7 +240,7 @@ impl Coaster {
         self.nav.push(st.to_solution());
         let dt_next = next_t_s.map_or(dt, |n| n - st.t_s);
         while let Some(f) = self.fixes.get(self.next_fix) {
-            if f.t_s >= st.t_s + 0.5 * dt_next {
+            if f.t_s >= nearest_epoch_horizon(st.t_s, dt_next) {
                 break;
             }
             self.next_fix += 1;
@@ -397,31 +397,6 @@ fn median_interval(buf: &VecDeque<ImuItem>) -> Option<f64> {
     super::median_imu_interval_s(&v)
 }
 
-/// The data of a run besides the IMU stream.
-#[derive(Debug, Clone, Copy)]
-pub struct RunData<'a> {
-    /// GNSS fixes in time order.
-    pub gnss: &'a [GnssFix],
-    /// Truth (for the initialisation from the truth), when known.
-    pub truth: Option<&'a [NavSolution]>,
-}
-
-/// The data of a run besides the IMU stream, as the engine reads it: the fixes as a stream
-/// ([`FixSource`], read with a bounded look-ahead) and the truth.
-pub(crate) struct RunInput<'a> {
-    /// GNSS fixes in time order.
-    pub gnss: FixSource<'a>,
-    /// Truth (for the initialisation from the truth), when known.
-    pub truth: Option<&'a [NavSolution]>,
-}
-
-impl<'a> RunData<'a> {
-    /// The fixes as the engine's stream ([`FixSource`]).
-    pub fn gnss_source(&self) -> FixSource<'a> {
-        Box::new(self.gnss.iter().copied().map(Ok))
-    }
-}
-
 /// Capacity of the navigator's fix queue in host runs: fixes due at one IMU epoch (more is
 /// a fault: an IMU gap longer than the queue at the GNSS rate, which the guard's longest gap
 /// rules out at ordinary rates).
@@ -432,12 +407,9 @@ pub const FIX_QUEUE: usize = 128;
 ///
 /// Returns the run's summary as a [`RunOutput`] whose record lists are empty (the records
 /// went to `sink`); a fault mid-run returns [`RunError::Fault`] with that summary.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     layout: Layout,
-    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
-    info: ImuSourceInfo,
-    data: RunInput<'_>,
+    data: super::Streams<'_>,
     opts: &RunOptions,
     coast: CoastPlan,
     sink: &mut dyn RunSink,
@@ -449,8 +421,164 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     let mut outages = opts.outages.clone();
     outage::normalise(&mut outages).map_err(RunError::Options)?;
 
-    let mut feed = Feed::new(imu, info);
-    // the start-up buffer: the nominal-interval window, and the static window when longer
+    let mut feed = Feed::new(data.imu, data.info);
+    fill_start_window(&mut feed, opts)?;
+    let nominal = median_interval(&feed.buf).unwrap_or(MAX_DT_S);
+    let (start, mut gnss) = initialise(&feed, data.gnss, data.truth, opts, &cfg)?;
+    if let Some(fl) = start.gyro_bias_sigma_floor {
+        for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
+            *s = s.max(f);
+        }
+    }
+    let InitReport { t_s: t0, .. } = start.report;
+    let guard_cfg = guard_config(opts, &feed.info, nominal, t0)?;
+    let mut nav = navigator::<T, N>(layout, cfg, guard_cfg, &start, opts)?;
+    let coast_modes = coast_modes(coast, &start.report);
+
+    let end_s = opts.end_s.unwrap_or(f64::INFINITY);
+    skip_to_initial_epoch(&mut feed, &mut nav, t0)?;
+    let first = feed.index;
+    let has_imu = feed.peek()?.is_some_and(|it| it.sample.t_s <= end_s);
+    if !has_imu {
+        return Err(RunError::NoImu);
+    }
+    let state_names = state_names(&layout);
+    sink.start(&RunHead {
+        model: opts.model,
+        state_names: &state_names,
+        coast_modes: coast_modes.len(),
+    })?;
+    // fixes before the initial epoch are not used (nor kept)
+    let gi0 = gnss.first_at_or_after(t0 - START_TOLERANCE_S);
+    gnss.release(gi0, f64::INFINITY);
+    let mut hooks =
+        engine_hooks::<T, N>(sink, opts, &outages, &coast_modes, gnss, (t0, first, gi0))?;
+    hooks.want_epochs = hooks.sink.wants_epochs();
+    if let Some(f) = nav.filter() {
+        hooks.record(f);
+    }
+    if let Some(e) = hooks.err.take() {
+        return Err(e);
+    }
+    let mut imu_report = ImuReport {
+        nominal_dt_s: guard_cfg.nominal_dt_s,
+        ..ImuReport::default()
+    };
+    let mut run = Loop {
+        feed: &mut feed,
+        nav: &mut nav,
+        hooks: &mut hooks,
+        imu_report: &mut imu_report,
+        opts,
+        done: 0,
+        gi: gi0,
+    };
+    let mut fault = run.integrate(end_s, progress)?;
+    if fault.is_none() {
+        fault = run.last_epoch()?;
+    }
+    progress(run.done, run.done);
+    if fault.is_none() {
+        finish_coasters(&mut feed, &mut hooks)?;
+    }
+    let Some(filter) = nav.filter() else {
+        return Err(RunError::Options("the navigator did not start".into()));
+    };
+    let counters = final_counters(&mut hooks, &nav, filter, &mut feed, &mut imu_report)?;
+    let out = RunOutput {
+        model: opts.model,
+        state_names,
+        nav: Vec::new(),
+        epochs: Vec::new(),
+        innovations: Vec::new(),
+        counters,
+        snapshots: Vec::new(),
+        init: start.report,
+        final_blocks: block_estimates(filter),
+        final_effects: effect_estimates(filter),
+        lever_arm_m: opts.lever_arm_m,
+        gating: gating_report::GatingReport::new(
+            &cfg.gating,
+            filter.counters(),
+            filter.robust_stats(),
+            hooks.status_seen,
+        ),
+        imu_report,
+        history: hooks.rec.finish(
+            filter.covariance(),
+            filter.pending_correction(),
+            u64::from(filter.counters().cov_predictions),
+        ),
+        aiding: hooks.aid.report(),
+        // last: the hooks hold the outages until here
+        outages,
+    };
+    match fault {
+        None => Ok(out),
+        Some((location, t_s, cause)) => Err(RunError::Fault {
+            location,
+            t_s,
+            cause,
+            partial: Box::new(out),
+        }),
+    }
+}
+
+/// The engine's hooks at the start of the loop: `at` = (the initial epoch, the index of the
+/// first sample after it, the index of the first fix used).
+fn engine_hooks<'a, 'g, T: Scalar, const N: usize>(
+    sink: &'a mut dyn RunSink,
+    opts: &RunOptions,
+    outages: &'a [outage::Outage],
+    coast_modes: &'a [CoastMode],
+    gnss: FixAhead<'g>,
+    at: (f64, usize, usize),
+) -> Result<EngineHooks<'a, 'g, T>, RunError> {
+    let (t0, first, gi0) = at;
+    Ok(EngineHooks::<T> {
+        sink,
+        err: None,
+        fault: None,
+        rec: if opts.smoother_history {
+            crate::smooth::Recorder::new(N)
+        } else {
+            crate::smooth::Recorder::disabled()
+        },
+        aid: super::aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?,
+        outages,
+        next_outage: outages.partition_point(|o| o.start_s < t0),
+        counters: RunCounters {
+            imu_before_start: first as u64,
+            // the total once the stream is read to its end
+            gnss_total: 0,
+            gnss_outside_run: gi0 as u64,
+            gnss_before_run: gi0 as u64,
+            ..Default::default()
+        },
+        status_seen: 0,
+        processed: 0,
+        nav_dec: Decimator::new(opts.record.nav_rate_hz, t0),
+        ep_dec: Decimator::new(opts.record.epoch_rate_hz, t0),
+        want_epochs: false,
+        coast_modes,
+        coasters: Vec::new(),
+        raw: None,
+        next_index: first,
+        gnss,
+        gi0,
+        lever_arm_m: opts.lever_arm_m,
+    })
+}
+
+/// A fault that ends a run: where (`file line N`), when (s) and why.
+type Fault = (String, f64, FaultCause);
+
+/// Reads the start-up buffer: the nominal-interval window, and the static alignment window
+/// when longer (from the start time on).
+fn fill_start_window<I: Iterator<Item = Result<ImuItem, RunError>>>(
+    feed: &mut Feed<I>,
+    opts: &RunOptions,
+) -> Result<(), RunError> {
     feed.fill(|b| b.len() >= NOMINAL_WINDOW)?;
     if let init::InitSpec::StaticAlignment(sa) = &opts.init {
         let start_s = opts.start_s.unwrap_or(f64::NEG_INFINITY);
@@ -480,14 +608,23 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             }
         }
     }
-    let nominal = median_interval(&feed.buf).unwrap_or(MAX_DT_S);
-    // the fixes, read as far ahead as the start-up looks
-    // the configured sigma scale, on every fix as it is read
+    Ok(())
+}
+
+/// The initial state from the start-up buffer, the fixes (read as far ahead as the start-up
+/// looks, the configured sigma scale applied to every fix as it is read) and the truth.
+fn initialise<'g, I: Iterator<Item = Result<ImuItem, RunError>>>(
+    feed: &Feed<I>,
+    gnss: FixSource<'g>,
+    truth: Option<&[NavSolution]>,
+    opts: &RunOptions,
+    cfg: &nav_core::config::FilterConfig,
+) -> Result<(init::Start, FixAhead<'g>), RunError> {
     let scale = opts.gnss_sigma_scale;
-    let gnss: FixSource<'_> = if scale == nav_io::SigmaScale::ONE {
-        data.gnss
+    let gnss: FixSource<'g> = if scale == nav_io::SigmaScale::ONE {
+        gnss
     } else {
-        Box::new(data.gnss.map(move |r| {
+        Box::new(gnss.map(move |r| {
             r.map(|mut g| {
                 scale.apply(&mut g);
                 g
@@ -501,38 +638,54 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
             &InitData {
                 imu: &prefix,
                 gnss: &ahead,
-                truth: data.truth,
+                truth,
             },
             opts,
-            &cfg,
+            cfg,
         )
     };
     let mut gnss = ahead.into_inner();
     if let Some(e) = gnss.take_err() {
         return Err(e);
     }
-    let start = start?;
-    if let Some(fl) = start.gyro_bias_sigma_floor {
-        for (s, f) in cfg.gyro.bias_init_sigma.iter_mut().zip(fl) {
-            *s = s.max(f);
-        }
-    }
-    let InitReport { t_s: t0, .. } = start.report;
+    Ok((start?, gnss))
+}
+
+/// The IMU guard's settings (checked now: the guard starts with the first sample after the
+/// initial epoch `t0`).
+fn guard_config(
+    opts: &RunOptions,
+    info: &ImuSourceInfo,
+    nominal_dt_s: f64,
+    t0: f64,
+) -> Result<GuardConfig, RunError> {
     let guard_cfg = GuardConfig {
         increments: opts
             .imu_checks
             .increments
-            .unwrap_or(if feed.info.increments_span_gaps {
+            .unwrap_or(if info.increments_span_gaps {
                 GapIncrements::Span
             } else {
                 GapIncrements::Auto
             }),
         limits: opts.imu_checks.limits,
         max_gap_s: opts.imu_checks.max_gap_s,
-        ..GuardConfig::new(nominal)
+        ..GuardConfig::new(nominal_dt_s)
     };
-    // the guard starts with the first sample after the start; its settings are checked now
     ImuGuard::new(guard_cfg, t0, None).map_err(RunError::Guard)?;
+    Ok(guard_cfg)
+}
+
+/// The navigator started at the initialisation's state, with its initial sensor-error
+/// estimates (the initialisation's and the options').
+fn navigator<T: Scalar, const N: usize>(
+    layout: Layout,
+    cfg: nav_core::config::FilterConfig,
+    guard_cfg: GuardConfig,
+    start: &init::Start,
+    opts: &RunOptions,
+) -> Result<Box<Navigator<T, N, FIX_QUEUE>>, RunError> {
+    let t0 = start.report.t_s;
     let mut nav = Box::new(
         Navigator::<T, N, FIX_QUEUE>::new(
             layout,
@@ -562,25 +715,36 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 .map_err(|e| filter_err(t0, e))?;
         }
     }
-    let coast_modes: Vec<CoastMode> = {
-        let mut v = Vec::new();
-        if coast.raw {
-            v.push(CoastMode::Raw);
-        }
-        if coast.static_gyro_bias {
-            if let Some(b) = start.report.static_gyro_bias_radps {
-                v.push(CoastMode::Fixed(Box::new(ImuCorrection {
-                    gyro_bias_radps: b,
-                    ..ImuCorrection::default()
-                })));
-            }
-        }
-        v
-    };
+    Ok(nav)
+}
 
-    let end_s = opts.end_s.unwrap_or(f64::INFINITY);
-    // samples up to the initial epoch are not integrated (the navigator keeps the last two
-    // for the guard)
+/// The coasting modes of a plan (the static gyro bias only when the start-up measured one).
+fn coast_modes(coast: CoastPlan, report: &InitReport) -> Vec<CoastMode> {
+    let mut v = Vec::new();
+    if coast.raw {
+        v.push(CoastMode::Raw);
+    }
+    if coast.static_gyro_bias {
+        if let Some(b) = report.static_gyro_bias_radps {
+            v.push(CoastMode::Fixed(Box::new(ImuCorrection {
+                gyro_bias_radps: b,
+                ..ImuCorrection::default()
+            })));
+        }
+    }
+    v
+}
+
+/// Samples up to the initial epoch `t0` are not integrated (the navigator keeps the last two
+/// for the guard).
+fn skip_to_initial_epoch<T: Scalar, const N: usize, I>(
+    feed: &mut Feed<I>,
+    nav: &mut Navigator<T, N, FIX_QUEUE>,
+    t0: f64,
+) -> Result<(), RunError>
+where
+    I: Iterator<Item = Result<ImuItem, RunError>>,
+{
     while let Some(it) = feed.peek()? {
         if it.sample.t_s > t0 {
             break;
@@ -590,85 +754,88 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 .map_err(|e| RunError::Options(e.to_string()))?;
         }
     }
-    let first = feed.index;
-    let has_imu = feed.peek()?.is_some_and(|it| it.sample.t_s <= end_s);
-    if !has_imu {
-        return Err(RunError::NoImu);
-    }
-    let state_names = state_names(&layout);
-    sink.start(&RunHead {
-        model: opts.model,
-        state_names: &state_names,
-        coast_modes: coast_modes.len(),
-    })?;
-    // fixes before the initial epoch are not used (nor kept)
-    let gi0 = gnss.first_at_or_after(t0 - START_TOLERANCE_S);
-    gnss.release(gi0, f64::INFINITY);
-    let mut hooks = EngineHooks::<T> {
-        sink,
-        err: None,
-        fault: None,
-        rec: if opts.smoother_history {
-            crate::smooth::Recorder::new(N)
-        } else {
-            crate::smooth::Recorder::disabled()
-        },
-        aid: super::aiding::RunAiding::<T>::new(&opts.aiding).map_err(RunError::Options)?,
-        outages: &outages,
-        next_outage: outages.partition_point(|o| o.start_s < t0),
-        counters: RunCounters {
-            imu_before_start: first as u64,
-            // the total once the stream is read to its end
-            gnss_total: 0,
-            gnss_outside_run: gi0 as u64,
-            gnss_before_run: gi0 as u64,
-            ..Default::default()
-        },
-        status_seen: 0,
-        processed: 0,
-        nav_dec: Decimator::new(opts.record.nav_rate_hz, t0),
-        ep_dec: Decimator::new(opts.record.epoch_rate_hz, t0),
-        want_epochs: false,
-        coast_modes: &coast_modes,
-        coasters: Vec::new(),
-        raw: None,
-        next_index: first,
-        gnss,
-        gi0,
-        lever_arm_m: opts.lever_arm_m,
-    };
-    hooks.want_epochs = hooks.sink.wants_epochs();
-    if let Some(f) = nav.filter() {
-        hooks.record(f);
-    }
-    if let Some(e) = hooks.err.take() {
-        return Err(e);
-    }
-    let mut imu_report = ImuReport {
-        nominal_dt_s: guard_cfg.nominal_dt_s,
-        ..ImuReport::default()
-    };
-    let mut fault: Option<(String, f64, FaultCause)> = None;
-    let mut done = 0usize;
-    // fixes pushed to the navigator (it applies them at the nearest epoch)
-    let mut gi = gi0;
-    let mut imu_step = nav_core::navigator::ImuStep::default();
-    while let Some((k, it)) = feed.next()? {
-        let s = it.sample;
-        if s.t_s > end_s {
-            // not integrated; the coasters may still want it
-            feed.peeked = Some(it);
-            feed.index -= 1;
-            break;
+    Ok(())
+}
+
+/// The integration loop's state: the samples, the navigator with the engine's hooks, the IMU
+/// report, the samples integrated and the fixes pushed to the navigator.
+struct Loop<'r, 'a, 'g, I, T: Scalar, const N: usize> {
+    feed: &'r mut Feed<I>,
+    nav: &'r mut Navigator<T, N, FIX_QUEUE>,
+    hooks: &'r mut EngineHooks<'a, 'g, T>,
+    imu_report: &'r mut ImuReport,
+    opts: &'r RunOptions,
+    /// Samples integrated.
+    done: usize,
+    /// Fixes pushed to the navigator (it applies them at the nearest epoch).
+    gi: usize,
+}
+
+impl<I, T: Scalar, const N: usize> Loop<'_, '_, '_, I, T, N>
+where
+    I: Iterator<Item = Result<ImuItem, RunError>>,
+{
+    /// Integrates the samples up to `end_s` (or a fault, returned).
+    fn integrate(
+        &mut self,
+        end_s: f64,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Option<Fault>, RunError> {
+        let mut imu_step = nav_core::navigator::ImuStep::default();
+        while let Some((k, it)) = self.feed.next()? {
+            let s = it.sample;
+            if s.t_s > end_s {
+                // not integrated; the coasters may still want it
+                self.feed.peeked = Some(it);
+                self.feed.index -= 1;
+                break;
+            }
+            let next_t = self.feed.peek()?.map(|n| n.sample.t_s);
+            self.done += 1;
+            if self.done.is_multiple_of(4096) {
+                progress(self.done, 0);
+            }
+            if let Some(f) = self.push_fixes_before(s.t_s)? {
+                return Ok(Some(f));
+            }
+            self.hooks.release_fixes(self.gi);
+            let dt = self.nav.state().map_or(0.0, |st| s.t_s - st.t_s);
+            self.hooks.raw = Some((s, next_t));
+            self.hooks.next_index = k;
+            // one account kept across samples (no copy of its fix list per sample)
+            let step = self
+                .nav
+                .push_imu_into(&s, &mut *self.hooks, &mut imu_step)
+                .map(|()| imu_step.imu);
+            // the coasters step on every sample (in the epoch call when there was one)
+            self.hooks.step_coasters();
+            if let Some(e) = self.hooks.err.take() {
+                return Err(e);
+            }
+            if let Some(f) = self.hooks.fault.take() {
+                return Ok(Some(f));
+            }
+            let at = || self.feed.info.locate(k, it.line);
+            match step {
+                Ok(ImuEventNav::Rejected(why)) if self.opts.imu_checks.stop_on_implausible => {
+                    return Ok(Some((at(), s.t_s, FaultCause::Implausible(why))));
+                }
+                Ok(ev) => {
+                    let location = at();
+                    self.imu_event(ev, s.t_s, dt, location);
+                }
+                Err(e) => return Ok(Some((at(), s.t_s, e.into()))),
+            }
         }
-        let next_t = feed.peek()?.map(|n| n.sample.t_s);
-        done += 1;
-        if done.is_multiple_of(4096) {
-            progress(done, 0);
-        }
-        // every fix before this sample can be due at the epoch before it
-        while let Some(fix) = hooks.gnss.get(gi).filter(|g| g.t_s < s.t_s) {
-            if let Err(e) = nav.push_gnss(&fix) {
+        Ok(None)
+    }
+
+    /// Pushes every fix before `t_s` to the navigator (they can be due at the epoch before
+    /// the sample at `t_s`); a fix the navigator refuses is a fault.
+    fn push_fixes_before(&mut self, t_s: f64) -> Result<Option<Fault>, RunError> {
+        let mut fault = None;
+        while let Some(fix) = self.hooks.gnss.get(self.gi).filter(|g| g.t_s < t_s) {
+            if let Err(e) = self.nav.push_gnss(&fix) {
                 fault = Some((
                     format!("GNSS fix at t = {:.3} s", fix.t_s),
                     fix.t_s,
@@ -676,129 +843,126 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
                 ));
                 break;
             }
-            gi += 1;
+            self.gi += 1;
         }
-        if let Some(e) = hooks.gnss.take_err() {
+        if let Some(e) = self.hooks.gnss.take_err() {
             return Err(e);
         }
-        if fault.is_some() {
-            break;
-        }
-        hooks.release_fixes(gi);
-        let dt = nav.state().map_or(0.0, |st| s.t_s - st.t_s);
-        hooks.raw = Some((s, next_t));
-        hooks.next_index = k;
-        // one account kept across samples (no copy of its fix list per sample)
-        let step = nav
-            .push_imu_into(&s, &mut hooks, &mut imu_step)
-            .map(|()| imu_step.imu);
-        // the coasters step on every sample (in the epoch call when there was one)
-        hooks.step_coasters();
-        if let Some(e) = hooks.err.take() {
-            return Err(e);
-        }
-        if let Some(f) = hooks.fault.take() {
-            fault = Some(f);
-            break;
-        }
-        match step {
-            Ok(imu) => match imu {
-                ImuEventNav::Rejected(why) if opts.imu_checks.stop_on_implausible => {
-                    fault = Some((
-                        feed.info.locate(k, it.line),
-                        s.t_s,
-                        FaultCause::Implausible(why),
-                    ));
-                    break;
-                }
-                ImuEventNav::Rejected(why) => {
-                    hooks.counters.imu_implausible += 1;
-                    if imu_report.events.len() < MAX_IMU_EVENTS {
-                        imu_report.events.push(ImuEvent {
-                            t_s: s.t_s,
-                            location: feed.info.locate(k, it.line),
-                            what: format!("rejected: {why}"),
-                        });
-                    }
-                }
-                ImuEventNav::Refused(_) => hooks.counters.imu_rejected += 1,
-                ImuEventNav::GapBridged {
-                    missing, spanned, ..
-                } if imu_report.events.len() < MAX_IMU_EVENTS => {
-                    imu_report.events.push(ImuEvent {
-                        t_s: s.t_s,
-                        location: feed.info.locate(k, it.line),
-                        what: format!(
-                            "gap of {dt:.4} s ({missing} sample(s) missing): {}",
-                            if spanned {
-                                "increment spans the gap"
-                            } else {
-                                "lost increments filled by interpolation"
-                            }
-                        ),
+        Ok(fault)
+    }
+
+    /// Counts and reports what the guard or the filter did with a sample.
+    fn imu_event(&mut self, ev: ImuEventNav, t_s: f64, dt: f64, location: String) {
+        let report = &mut *self.imu_report;
+        match ev {
+            ImuEventNav::Rejected(why) => {
+                self.hooks.counters.imu_implausible += 1;
+                if report.events.len() < MAX_IMU_EVENTS {
+                    report.events.push(ImuEvent {
+                        t_s,
+                        location,
+                        what: format!("rejected: {why}"),
                     });
                 }
-                _ => {}
-            },
-            Err(e) => {
-                fault = Some((feed.info.locate(k, it.line), s.t_s, e.into()));
-                break;
             }
+            ImuEventNav::Refused(_) => self.hooks.counters.imu_rejected += 1,
+            ImuEventNav::GapBridged {
+                missing, spanned, ..
+            } if report.events.len() < MAX_IMU_EVENTS => {
+                report.events.push(ImuEvent {
+                    t_s,
+                    location,
+                    what: format!(
+                        "gap of {dt:.4} s ({missing} sample(s) missing): {}",
+                        if spanned {
+                            "increment spans the gap"
+                        } else {
+                            "lost increments filled by interpolation"
+                        }
+                    ),
+                });
+            }
+            _ => {}
         }
     }
-    if fault.is_none() {
-        // the last epoch's fixes
-        if let Some((t_k, dt)) = nav.pending_epoch() {
-            while let Some(fix) = hooks.gnss.get(gi).filter(|g| g.t_s < t_k + 0.5 * dt) {
-                if nav.push_gnss(&fix).is_err() {
+
+    /// The last epoch's fixes (with the last interval as the next one) and its records.
+    fn last_epoch(&mut self) -> Result<Option<Fault>, RunError> {
+        if let Some((t_k, dt)) = self.nav.pending_epoch() {
+            while let Some(fix) = self
+                .hooks
+                .gnss
+                .get(self.gi)
+                .filter(|g| g.t_s < nearest_epoch_horizon(t_k, dt))
+            {
+                if self.nav.push_gnss(&fix).is_err() {
                     break;
                 }
-                gi += 1;
+                self.gi += 1;
             }
-            if let Some(e) = hooks.gnss.take_err() {
+            if let Some(e) = self.hooks.gnss.take_err() {
                 return Err(e);
             }
         }
-        hooks.next_index = feed.index;
-        nav.flush_with(&mut hooks);
-        if let Some(e) = hooks.err.take() {
+        self.hooks.next_index = self.feed.index;
+        self.nav.flush_with(&mut *self.hooks);
+        if let Some(e) = self.hooks.err.take() {
             return Err(e);
         }
-        fault = hooks.fault.take();
+        Ok(self.hooks.fault.take())
     }
-    progress(done, done);
-    let gi = gi0 + hooks.processed;
+}
+
+/// After the run: the coasters see only the fixes the run reached and continue on the rest of
+/// the record until their outage ends (or the record does).
+fn finish_coasters<T: Scalar, I>(
+    feed: &mut Feed<I>,
+    hooks: &mut EngineHooks<'_, '_, T>,
+) -> Result<(), RunError>
+where
+    I: Iterator<Item = Result<ImuItem, RunError>>,
+{
+    let gi = hooks.gi0 + hooks.processed;
     let mut coasters = std::mem::take(&mut hooks.coasters);
-    if fault.is_none() && !coasters.is_empty() {
-        // the run has ended: the coasters see only the fixes the run reached
-        for c in &mut coasters {
-            c.keep_fixes_before(gi);
-        }
-        // and continue on the rest of the record until their outage ends
-        while !coasters.is_empty() {
-            let Some((_, it)) = feed.next()? else {
-                break;
-            };
-            let next_t = feed.peek()?.map(|n| n.sample.t_s);
-            let mut i = 0;
-            while let Some(c) = coasters.get_mut(i) {
-                if c.step(&it.sample, next_t) {
-                    let (m, t) = coasters.swap_remove(i).finish();
-                    hooks.sink.coast(m, t);
-                } else {
-                    i += 1;
-                }
+    if coasters.is_empty() {
+        return Ok(());
+    }
+    for c in &mut coasters {
+        c.keep_fixes_before(gi);
+    }
+    while !coasters.is_empty() {
+        let Some((_, it)) = feed.next()? else {
+            break;
+        };
+        let next_t = feed.peek()?.map(|n| n.sample.t_s);
+        let mut i = 0;
+        while let Some(c) = coasters.get_mut(i) {
+            if c.step(&it.sample, next_t) {
+                let (m, t) = coasters.swap_remove(i).finish();
+                hooks.sink.coast(m, t);
+            } else {
+                i += 1;
             }
         }
-        // record ended before the outage did
-        for c in coasters.drain(..) {
-            let (m, t) = c.finish();
-            hooks.sink.coast(m, t);
-        }
     }
-    let Some(filter) = nav.filter() else {
-        return Err(RunError::Options("the navigator did not start".into()));
-    };
+    // record ended before the outage did
+    for c in coasters.drain(..) {
+        let (m, t) = c.finish();
+        hooks.sink.coast(m, t);
+    }
+    Ok(())
+}
+
+/// The run's counters and IMU report at its end (the rest of the fix stream read, not kept,
+/// to count it).
+fn final_counters<T: Scalar, const N: usize, I>(
+    hooks: &mut EngineHooks<'_, '_, T>,
+    nav: &Navigator<T, N, FIX_QUEUE>,
+    filter: &nav_core::filter::Filter<T, N>,
+    feed: &mut Feed<I>,
+    imu_report: &mut ImuReport,
+) -> Result<RunCounters, RunError> {
+    let gi = hooks.gi0 + hooks.processed;
     let mut counters = hooks.counters;
     // the fixes after the last one reached are read (not kept) to count them
     let total = hooks.gnss.count();
@@ -828,43 +992,5 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     }
     imu_report.events.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
     imu_report.rejected = counters.imu_implausible;
-    let history = hooks.rec.finish(
-        filter.covariance(),
-        filter.pending_correction(),
-        u64::from(filter.counters().cov_predictions),
-    );
-    let aiding = hooks.aid.report();
-    let status_seen = hooks.status_seen;
-    let out = RunOutput {
-        model: opts.model,
-        state_names,
-        nav: Vec::new(),
-        epochs: Vec::new(),
-        innovations: Vec::new(),
-        counters,
-        outages,
-        snapshots: Vec::new(),
-        init: start.report,
-        final_blocks: block_estimates(filter),
-        final_effects: effect_estimates(filter),
-        lever_arm_m: opts.lever_arm_m,
-        gating: gating_report::GatingReport::new(
-            &cfg.gating,
-            filter.counters(),
-            filter.robust_stats(),
-            status_seen,
-        ),
-        imu_report,
-        history,
-        aiding,
-    };
-    match fault {
-        None => Ok(out),
-        Some((location, t_s, cause)) => Err(RunError::Fault {
-            location,
-            t_s,
-            cause,
-            partial: Box::new(out),
-        }),
-    }
+    Ok(counters)
 }

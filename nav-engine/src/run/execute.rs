@@ -20,14 +20,15 @@ use super::output;
 use super::prepare::{ImuStream, Prepared};
 use super::streams::ImuFile;
 use super::truth::TruthFile;
-use super::{run_filter_with_progress, CaseData, RunOptions, RunOutput};
+use super::{CaseData, CoastPlan, FixSource, RunOptions, RunOutput, Streams};
 use crate::metrics::{self, Metrics};
 use anyhow::Context;
 use nav_core::model::ImuCorrection;
 use nav_core::types::NavSolution;
 use std::path::{Path, PathBuf};
 
-/// Runs the filter and computes the metrics (with coasting baselines when there are outages).
+/// Runs the filter on a prepared case in memory and computes the metrics (with coasting
+/// baselines when there are outages).
 pub fn execute(
     p: &Prepared,
     progress: &mut dyn FnMut(usize, usize),
@@ -41,7 +42,7 @@ pub fn execute_case(
     opts: &RunOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
-    let out = run_filter_with_progress(case, opts, progress)?;
+    let (out, _) = super::run_case(case, opts, CoastPlan::default(), progress)?;
     let truth = case.truth.as_deref();
     let mut m = metrics::compute(&out, truth);
     if !out.snapshots.is_empty() {
@@ -67,6 +68,60 @@ pub fn execute_case(
         }
     }
     Ok((out, m))
+}
+
+/// Where the IMU samples and GNSS fixes of a run come from.
+pub enum Source<'a> {
+    /// The prepared run's files ([`ImuStream`], with its GNSS stream when it has one: read as
+    /// the filter goes), or the case in memory when `None`.
+    Files(Option<&'a ImuStream>),
+    /// Samples and fixes pushed into a [`super::live::LiveRun`].
+    Pushed(super::live::Feeds),
+}
+
+impl<'a> Source<'a> {
+    /// The engine's streams over this source (`truth`: records the initialisation may start
+    /// from).
+    pub fn open<'b>(
+        self,
+        p: &'b Prepared,
+        truth: Option<&'b [NavSolution]>,
+    ) -> Result<Streams<'b>, super::RunError>
+    where
+        'a: 'b,
+    {
+        let case_fixes = || -> FixSource<'b> { Box::new(p.case.gnss.iter().copied().map(Ok)) };
+        match self {
+            Source::Files(Some(st)) => {
+                let info = super::ImuSourceInfo {
+                    path: Some(st.file.path()),
+                    increments_span_gaps: st.file.increments_span_gaps(),
+                };
+                let imu = Box::new(threaded_file_reader(st.file.clone(), st.time_offset_s));
+                let gnss = match &st.gnss {
+                    // the fixes read as the filter goes (memory independent of the length)
+                    Some(g) => g.source()?,
+                    None => case_fixes(),
+                };
+                Ok(Streams {
+                    imu,
+                    info,
+                    gnss,
+                    truth,
+                })
+            }
+            Source::Files(None) => {
+                let (it, info) = super::case_imu_stream(&p.case);
+                Ok(Streams {
+                    imu: Box::new(it),
+                    info,
+                    gnss: case_fixes(),
+                    truth,
+                })
+            }
+            Source::Pushed(feeds) => Ok(feeds.streams(truth)),
+        }
+    }
 }
 
 /// Runs the filter on a prepared case with the IMU streamed from `imu` (or from the case's
@@ -96,146 +151,169 @@ pub fn execute_streaming(
     nav_rate_hz: Option<f64>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<(RunOutput, Metrics)> {
+    let to = DirOutput {
+        dir,
+        inputs,
+        nav_rate_hz,
+        staged: false,
+    };
+    run_to_dir(p, Source::Files(imu), truth, &to, progress)
+}
+
+/// The output folder of a run and what `nav.txt` holds.
+#[derive(Debug, Clone, Copy)]
+pub struct DirOutput<'a> {
+    /// The output folder: opened as an [`OutDir`] (stage folder, lock, moved in at the end),
+    /// or written into directly when `staged`.
+    pub dir: &'a Path,
+    /// The files the run reads (refused as outputs).
+    pub inputs: &'a [PathBuf],
+    /// Rate of `nav.txt`, Hz (None: every IMU epoch).
+    pub nav_rate_hz: Option<f64>,
+    /// `dir` is the stage folder of an [`OutDir`] the caller holds and commits (the files
+    /// are written in it under `*.partial` names, renamed when complete).
+    pub staged: bool,
+}
+
+/// [`execute_streaming`] on any [`Source`]: the run's records written into `to.dir` as they
+/// are made, the metrics computed online.
+pub fn run_to_dir(
+    p: &Prepared,
+    source: Source<'_>,
+    truth: Option<&TruthFile>,
+    to: &DirOutput<'_>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<(RunOutput, Metrics)> {
     let _stoppable = super::interrupt::Stoppable::enter();
-    let od = OutDir::open(dir, inputs)?;
-    let opts = p.opts.clone();
+    let od = if to.staged {
+        None
+    } else {
+        Some(OutDir::open(to.dir, to.inputs)?)
+    };
+    let stage = od.as_ref().map_or(to.dir, |o| o.stage());
+    let opts = &p.opts;
     // the truth: the metrics' stream, and the records the initialisation looks at
     let truth_file = truth;
-    let start = super::truth::start_records(&opts, truth_file)?;
+    let start = super::truth::start_records(opts, truth_file)?;
     let truth = start.as_deref().or(p.case.truth.as_deref());
     let metrics_truth: Option<super::truth::TruthSource<'_>> = match (truth_file, &p.case.truth) {
         (Some(f), _) => Some(f.records()),
         (None, Some(v)) => Some(Box::new(v.iter().copied().map(Ok))),
         (None, None) => None,
     };
-    let mut sink = super::sink::FileSink::create(
-        od.stage(),
-        p.week,
-        nav_rate_hz,
-        &opts.outages,
-        metrics_truth,
-    )?;
-    let data = super::RunData {
-        gnss: &p.case.gnss,
-        truth,
-    };
+    let mut sink =
+        super::sink::FileSink::create(stage, p.week, to.nav_rate_hz, &opts.outages, metrics_truth)?;
     let coast = super::CoastPlan {
         raw: true,
         static_gyro_bias: true,
     };
     // a read error of the streamed IMU ends its samples; the run up to it is kept
     let mut read_err = None;
-    let res = match imu {
-        Some(st) => {
-            let info = super::ImuSourceInfo {
-                path: Some(st.file.path()),
-                increments_span_gaps: st.file.increments_span_gaps(),
-            };
-            let mut it = StopAtError {
-                inner: threaded_file_reader(st.file.clone(), st.time_offset_s),
-                err: &mut read_err,
-            };
-            match &st.gnss {
-                // the fixes read as the filter goes (memory independent of the length)
-                Some(g) => match g.source() {
-                    Ok(src) => super::run_stream_fixes(
-                        &mut it, info, src, truth, &opts, coast, &mut sink, progress,
-                    ),
-                    Err(e) => Err(e),
-                },
-                None => super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress),
-            }
-        }
-        None => {
-            let (it, info) = super::case_imu_stream(&p.case);
-            let mut it = StopAtError {
-                inner: it,
-                err: &mut read_err,
-            };
-            super::run_stream(&mut it, info, data, &opts, coast, &mut sink, progress)
-        }
+    let res = source.open(p, truth).and_then(|mut st| {
+        st.imu = Box::new(StopAtError {
+            inner: st.imu,
+            err: &mut read_err,
+        });
+        super::run_engine(st, opts, coast, &mut sink, progress)
+    });
+    let end = Ended {
+        sink,
+        od,
+        dir: to.dir,
     };
-    let res = match (res, read_err) {
-        (Ok(out), Some(e)) => {
-            // the record ended at a read error: the outputs up to it, marked incomplete
-            let fault = e.to_string();
-            let t_last = sink.last_nav_t();
-            let written = sink
-                .finish(&out, Some(&fault), |m| metrics_json(m, &out, Some(&fault)))
-                .and_then(|m| Ok((m, od.commit()?)));
-            return Err(match written {
-                Ok(_) => anyhow::anyhow!(
-                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
-                     {}/*{} (incomplete)",
-                    dir.display(),
-                    output::PARTIAL_SUFFIX
-                ),
-                Err(w) => anyhow::anyhow!(
-                    "{fault}; the run stopped there, and writing the partial outputs failed \
-                     too: {w:#}"
-                ),
-            });
-        }
+    match (res, read_err) {
+        // the record ended at a read error: the outputs up to it, marked incomplete
+        (Ok(out), Some(e)) => Err(end.stopped(&out, e.to_string())),
         // nothing run (e.g. the file unreadable from its first sample): the read error
-        (Err(super::RunError::NoImu), Some(e)) => Err(e),
-        (res, _) => res,
-    };
-    // a complete run: the rest of the truth file checked (as when it was loaded whole)
-    let res = res.and_then(|out| sink.check_truth_rest().map(|()| out));
-    match res {
-        Ok(out) => {
-            let m = sink
-                .finish(&out, None, |m| metrics_json(m, &out, None))
-                .and_then(|m| Ok((m, od.commit()?)))
-                .map(|(m, _)| m)
-                .with_context(|| {
-                    format!(
-                        "writing the outputs in {}: incomplete, left as *{} (no file under its \
-                         final name)",
-                        dir.display(),
-                        output::PARTIAL_SUFFIX
-                    )
-                })?;
-            Ok((out, m))
+        (Err(super::RunError::NoImu), Some(e)) => Err(e.into()),
+        (res, _) => end.conclude(res),
+    }
+}
+
+/// A run's file sink and output folder once the engine has returned.
+struct Ended<'s, 'd> {
+    sink: super::sink::FileSink<'s>,
+    od: Option<OutDir>,
+    dir: &'d Path,
+}
+
+impl Ended<'_, '_> {
+    fn commit(od: Option<OutDir>) -> anyhow::Result<()> {
+        if let Some(od) = od {
+            od.commit()?;
         }
-        Err(super::RunError::Fault {
-            location,
-            t_s,
-            cause,
-            partial,
-        }) => {
-            let fault = format!("{location} (t = {t_s:.6} s): {cause}");
-            let t_last = sink.last_nav_t();
-            let written = sink
-                .finish(&partial, Some(&fault), |m| {
-                    metrics_json(m, &partial, Some(&fault))
-                })
-                .and_then(|m| Ok((m, od.commit()?)));
-            Err(match written {
-                Ok(_) => anyhow::anyhow!(
-                    "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
-                     {}/*{} (incomplete)",
+        Ok(())
+    }
+
+    /// The outputs of a complete run, or of one the engine stopped.
+    fn conclude(
+        mut self,
+        res: Result<RunOutput, super::RunError>,
+    ) -> anyhow::Result<(RunOutput, Metrics)> {
+        // a complete run: the rest of the truth file checked (as when it was loaded whole)
+        let res = res.and_then(|out| self.sink.check_truth_rest().map(|()| out));
+        let dir = self.dir;
+        match res {
+            Ok(out) => {
+                let od = self.od;
+                let m = self
+                    .sink
+                    .finish(&out, None, |m| metrics_json(m, &out, None))
+                    .and_then(|m| Ok((m, Self::commit(od)?)))
+                    .map(|(m, _)| m)
+                    .with_context(|| {
+                        format!(
+                            "writing the outputs in {}: incomplete, left as *{} (no file under \
+                             its final name)",
+                            dir.display(),
+                            output::PARTIAL_SUFFIX
+                        )
+                    })?;
+                Ok((out, m))
+            }
+            Err(super::RunError::Fault {
+                location,
+                t_s,
+                cause,
+                partial,
+            }) => Err(self.stopped(&partial, format!("{location} (t = {t_s:.6} s): {cause}"))),
+            Err(e @ super::RunError::Output(_)) => {
+                // what was written, moved in as *.partial (best effort: the disk may be full)
+                drop(self.sink);
+                let _ = Self::commit(self.od);
+                Err(anyhow::Error::new(e).context(format!(
+                    "writing the outputs in {}: incomplete, left as *{} (no file under its final \
+                     name)",
                     dir.display(),
                     output::PARTIAL_SUFFIX
-                ),
-                Err(w) => anyhow::anyhow!(
-                    "{fault}; the run stopped there, and writing the partial outputs failed \
-                     too: {w:#}"
-                ),
-            })
+                )))
+            }
+            // the stage folder removed with `od`: the output folder as it was
+            Err(e) => Err(e.into()),
         }
-        Err(e @ super::RunError::Output(_)) => {
-            // what was written, moved in as *.partial (best effort: the disk may be full)
-            drop(sink);
-            let _ = od.commit();
-            Err(anyhow::Error::new(e).context(format!(
-                "writing the outputs in {}: incomplete, left as *{} (no file under its final name)",
-                dir.display(),
+    }
+
+    /// The outputs up to a fault (`*.partial`, `metrics.json` saying `"complete": false`)
+    /// and the error naming it.
+    fn stopped(self, out: &RunOutput, fault: String) -> anyhow::Error {
+        let t_last = self.sink.last_nav_t();
+        let od = self.od;
+        let written = self
+            .sink
+            .finish(out, Some(&fault), |m| metrics_json(m, out, Some(&fault)))
+            .and_then(|m| Ok((m, Self::commit(od)?)));
+        match written {
+            Ok(_) => anyhow::anyhow!(
+                "{fault}; the run stopped there. Outputs up to t = {t_last:.3} s are in \
+                 {}/*{} (incomplete)",
+                self.dir.display(),
                 output::PARTIAL_SUFFIX
-            )))
+            ),
+            Err(w) => anyhow::anyhow!(
+                "{fault}; the run stopped there, and writing the partial outputs failed too: \
+                 {w:#}"
+            ),
         }
-        // the stage folder removed with `od`: the output folder as it was
-        Err(e) => Err(e.into()),
     }
 }
 

@@ -1,6 +1,6 @@
-//! The run engine: the `nav-core` filter on any case (simulated or real), in memory
-//! ([`run_filter`]), as a stream ([`run_stream`], [`engine`]) and from files ([`prepare`],
-//! [`execute`]).
+//! The run engine: the `nav-core` filter on any case (simulated or real), on streams
+//! ([`run_engine`], [`engine`]), pushed sample by sample ([`live::LiveRun`]), in memory
+//! ([`run_filter`]) and from files ([`prepare`], [`execute`]).
 //!
 //! # The run loop
 //!
@@ -20,7 +20,7 @@
 //!
 //! [`Model`] selects the state layout at compile time (`Filter<T, { LAYOUT.dim() }>`), the
 //! covariance scalar ([`Precision`]) is f64 by default, f32 allowed. Adding a model is one line
-//! in [`run_filter_with_progress`]'s dispatch macro.
+//! in [`run_engine`]'s dispatch macro.
 
 pub mod aiding;
 pub mod coast;
@@ -31,6 +31,7 @@ pub mod gating_report;
 pub mod gnss_use;
 pub mod init;
 pub mod interrupt;
+pub mod live;
 pub mod outage;
 pub mod outdir;
 pub mod output;
@@ -43,7 +44,7 @@ pub mod truth;
 pub use coast::{coast_outages, CoastMode, CoastTrack};
 pub use engine::ahead::{FixAhead, FixLookup, FixSource};
 pub use engine::{
-    CoastPlan, Coaster, Collect, ImuItem, ImuSourceInfo, RunData, RunHead, RunSink, NOMINAL_WINDOW,
+    CoastPlan, Coaster, Collect, ImuItem, ImuSourceInfo, RunHead, RunSink, NOMINAL_WINDOW,
 };
 pub use fault::FaultCause;
 pub use init::{InitData, InitReport, InitSpec, StaticAlign};
@@ -635,66 +636,35 @@ fn filter_err(t_s: f64, source: FilterError) -> RunError {
     RunError::Filter { t_s, source }
 }
 
-/// Runs the filter on a case (see the module notes).
+/// Runs the filter on a case in memory (see the module notes): [`run_engine`] over the
+/// case's samples and fixes with the in-memory sink ([`Collect`]); the returned output holds
+/// every record. After a fault, [`RunError::Fault`]'s `partial` holds the records up to it.
 pub fn run_filter(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, RunError> {
-    run_filter_with_progress(case, opts, &mut |_, _| {})
+    run_case(case, opts, CoastPlan::default(), &mut |_, _| {}).map(|(out, _)| out)
 }
 
-/// The samples of a case in memory as the engine's IMU stream (with their file lines when the
-/// case has an origin of the same length).
-pub fn case_imu_stream(
-    case: &CaseData,
-) -> (
-    impl Iterator<Item = Result<ImuItem, RunError>> + '_,
-    ImuSourceInfo,
-) {
-    let lines = case
-        .imu_origin
-        .as_ref()
-        .filter(|o| o.lines.len() == case.imu.len())
-        .map(|o| o.lines.as_slice());
-    let info = ImuSourceInfo {
-        path: case.imu_origin.as_ref().map(|o| o.path.clone()),
-        increments_span_gaps: case
-            .imu_origin
-            .as_ref()
-            .is_some_and(|o| o.increments_span_gaps),
-    };
-    let it = case.imu.iter().enumerate().map(move |(i, s)| {
-        Ok(ImuItem {
-            sample: *s,
-            line: lines.and_then(|l| l.get(i)).copied().unwrap_or(0),
-        })
-    });
-    (it, info)
-}
-
-/// [`run_filter`] calling `progress(done, total)` (IMU samples; `total` 0 while unknown)
-/// now and then.
-pub fn run_filter_with_progress(
+/// [`run_filter`] with a coasting plan and `progress(done, total)` (IMU samples; `total` 0
+/// while unknown) called now and then; also returns the coasting tracks the plan made.
+pub(crate) fn run_case(
     case: &CaseData,
     opts: &RunOptions,
+    coast: CoastPlan,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<RunOutput, RunError> {
-    let (mut it, info) = case_imu_stream(case);
+) -> Result<(RunOutput, Vec<(usize, CoastTrack)>), RunError> {
+    let (it, info) = case_imu_stream(case);
     let mut sink = Collect::default();
-    let data = RunData {
-        gnss: &case.gnss,
+    let streams = Streams {
+        imu: Box::new(it),
+        info,
+        gnss: Box::new(case.gnss.iter().copied().map(Ok)),
         truth: case.truth.as_deref(),
     };
-    let res = run_stream(
-        &mut it,
-        info,
-        data,
-        opts,
-        CoastPlan::default(),
-        &mut sink,
-        progress,
-    );
+    let res = run_engine(streams, opts, coast, &mut sink, progress);
     match res {
         Ok(mut out) => {
+            let coast = std::mem::take(&mut sink.coast);
             sink.fill(&mut out);
-            Ok(out)
+            Ok((out, coast))
         }
         Err(RunError::Fault {
             location,
@@ -726,6 +696,35 @@ pub fn run_filter_with_progress(
     }
 }
 
+/// The samples of a case in memory as the engine's IMU stream (with their file lines when the
+/// case has an origin of the same length).
+pub fn case_imu_stream(
+    case: &CaseData,
+) -> (
+    impl Iterator<Item = Result<ImuItem, RunError>> + '_,
+    ImuSourceInfo,
+) {
+    let lines = case
+        .imu_origin
+        .as_ref()
+        .filter(|o| o.lines.len() == case.imu.len())
+        .map(|o| o.lines.as_slice());
+    let info = ImuSourceInfo {
+        path: case.imu_origin.as_ref().map(|o| o.path.clone()),
+        increments_span_gaps: case
+            .imu_origin
+            .as_ref()
+            .is_some_and(|o| o.increments_span_gaps),
+    };
+    let it = case.imu.iter().enumerate().map(move |(i, s)| {
+        Ok(ImuItem {
+            sample: *s,
+            line: lines.and_then(|l| l.get(i)).copied().unwrap_or(0),
+        })
+    });
+    (it, info)
+}
+
 /// True when every navigation quantity of a record is finite.
 pub fn solution_is_finite(s: &NavSolution) -> bool {
     s.lat_rad.is_finite()
@@ -735,85 +734,51 @@ pub fn solution_is_finite(s: &NavSolution) -> bool {
         && s.rpy_rad.iter().all(|v| v.is_finite())
 }
 
-/// Runs the filter on a stream of IMU samples, handing every record to `sink` as it is made
-/// (see [`engine`]). Returns the run's summary with empty record lists.
-pub fn run_stream(
-    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
-    info: ImuSourceInfo,
-    data: RunData<'_>,
-    opts: &RunOptions,
-    coast: CoastPlan,
-    sink: &mut dyn RunSink,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<RunOutput, RunError> {
-    run_stream_fixes(
-        imu,
-        info,
-        data.gnss_source(),
-        data.truth,
-        opts,
-        coast,
-        sink,
-        progress,
-    )
+/// The inputs of one run of the engine, as streams: the IMU samples and the GNSS fixes in
+/// time order (a read error in either ends the run with that error) and the truth the
+/// initialisation may start from. The engine keeps only the fixes it may still need
+/// ([`FixAhead`]) and a bounded window of samples: memory independent of the record's length.
+pub struct Streams<'a> {
+    /// IMU samples with their file lines.
+    pub imu: Box<dyn Iterator<Item = Result<ImuItem, RunError>> + 'a>,
+    /// Where the samples come from (messages, the gap rule).
+    pub info: ImuSourceInfo,
+    /// GNSS fixes (antenna positions).
+    pub gnss: FixSource<'a>,
+    /// Truth records at the IMU point (for the initialisation from the truth), when known.
+    pub truth: Option<&'a [NavSolution]>,
 }
 
-/// [`run_stream`] with the GNSS fixes streamed too: `gnss` yields them in time order (a
-/// reader over a file; a read error ends the run with that error). The engine keeps only the
-/// fixes it may still need ([`FixAhead`]): memory independent of the record's length.
-#[allow(clippy::too_many_arguments)]
-pub fn run_stream_fixes(
-    imu: &mut dyn Iterator<Item = Result<ImuItem, RunError>>,
-    info: ImuSourceInfo,
-    gnss: FixSource<'_>,
-    truth: Option<&[NavSolution]>,
+/// Runs the filter on streams of IMU samples and fixes, handing every record to `sink` as it
+/// is made (see [`engine`]): dispatches on the state layout (the model's, or the model plus
+/// [`RunOptions::extra_blocks`]) and the covariance scalar. Returns the run's summary with
+/// empty record lists; `progress(done, 0)` is called every 4096 IMU samples.
+pub fn run_engine(
+    input: Streams<'_>,
     opts: &RunOptions,
     coast: CoastPlan,
     sink: &mut dyn RunSink,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RunOutput, RunError> {
-    let data = engine::RunInput { gnss, truth };
     macro_rules! go {
         ($layout:expr) => {
             match opts.precision {
                 Precision::F64 => engine::run_layout_stream::<f64, { $layout.dim() }>(
-                    $layout, imu, info, data, opts, coast, sink, progress,
+                    $layout, input, opts, coast, sink, progress,
                 ),
                 Precision::F32 => engine::run_layout_stream::<f32, { $layout.dim() }>(
-                    $layout, imu, info, data, opts, coast, sink, progress,
+                    $layout, input, opts, coast, sink, progress,
                 ),
             }
         };
     }
     if !opts.extra_blocks.is_empty() {
-        if opts.precision != Precision::F64 {
-            return Err(RunError::Options(
-                "extra effect blocks need f64 precision".into(),
-            ));
-        }
-        let mut layout = opts.model.layout();
-        for b in &opts.extra_blocks {
-            // the odometer's scale factor: an aiding state, appended like an effect block
-            if !EFFECT_BLOCKS.contains(b) && *b != Block::OdometerScale {
-                return Err(RunError::Options(format!(
-                    "{} is not an effect block",
-                    b.name()
-                )));
-            }
-            if layout.contains(b.kind()) {
-                return Err(RunError::Options(format!(
-                    "effect block {} is already in the layout",
-                    b.name()
-                )));
-            }
-            layout = layout.with(*b);
-        }
-        layout.validate(layout.dim()).map_err(RunError::Layout)?;
+        let layout = extended_layout(opts)?;
         macro_rules! dims {
             ($($n:literal)*) => {
                 match layout.dim() {
                     $($n => engine::run_layout_stream::<f64, $n>(
-                        layout, imu, info, data, opts, coast, sink, progress,
+                        layout, input, opts, coast, sink, progress,
                     ),)*
                     d => Err(RunError::Options(format!(
                         "layout of {d} states: run supports {MIN_EXTRA_DIM} to {MAX_EXTRA_DIM} \
@@ -831,6 +796,34 @@ pub fn run_stream_fixes(
         Model::KfGins21 => go!(LAYOUT_KF_GINS),
         Model::KfGinsFeedback => go!(LAYOUT_KF_GINS_FEEDBACK),
     }
+}
+
+/// The model's layout with [`RunOptions::extra_blocks`] appended (f64 only), validated.
+fn extended_layout(opts: &RunOptions) -> Result<Layout, RunError> {
+    if opts.precision != Precision::F64 {
+        return Err(RunError::Options(
+            "extra effect blocks need f64 precision".into(),
+        ));
+    }
+    let mut layout = opts.model.layout();
+    for b in &opts.extra_blocks {
+        // the odometer's scale factor: an aiding state, appended like an effect block
+        if !EFFECT_BLOCKS.contains(b) && *b != Block::OdometerScale {
+            return Err(RunError::Options(format!(
+                "{} is not an effect block",
+                b.name()
+            )));
+        }
+        if layout.contains(b.kind()) {
+            return Err(RunError::Options(format!(
+                "effect block {} is already in the layout",
+                b.name()
+            )));
+        }
+        layout = layout.with(*b);
+    }
+    layout.validate(layout.dim()).map_err(RunError::Layout)?;
+    Ok(layout)
 }
 
 /// Names (with units) of the error states of a layout.

@@ -35,6 +35,7 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind};
 use nav_core::strapdown::NavState;
+use nav_core::types::ImuSample;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
     ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
@@ -623,13 +624,59 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     });
     if let Some(cd) = &case_dir {
         week = cd.week;
+        opts.outages.extend(cd.outages.iter().copied());
+    }
+    add_truth(args, case_dir.as_ref(), stream, &mut case, &mut description)?;
+    apply_time_offset(args, &mut case, imu_stream.as_mut(), &mut description)?;
+    apply_overrides(args, &mut opts, &mut description)?;
+    let nav_rate_hz = schedule(
+        args,
+        &case,
+        imu_stream.as_ref(),
+        prefix.as_ref(),
+        &mut opts,
+        &mut warnings,
+    )?;
+    opts.smoother_history = args.smoother_history;
+    inputs.extend(opts.aiding.odometer_file.iter().cloned());
+    inputs.extend(opts.aiding.heading_file.iter().cloned());
+    if let Some(st) = &imu_stream {
+        inputs.push(st.file.path());
+        inputs.extend(st.gnss.as_ref().map(|g| g.file.path()));
+    }
+    inputs.extend(truth_stream.as_ref().map(|t| t.path.clone()));
+    Ok(Loaded {
+        prepared: Prepared {
+            case,
+            opts,
+            week,
+            description,
+        },
+        imu_stream,
+        warnings,
+        truth_stream,
+        inputs,
+        nav_rate_hz,
+        gnss_dropped_by_quality: dropped_by_quality,
+    })
+}
+
+/// The truth of the case folder or `--truth` (loaded unless `stream`: then read as the
+/// solution advances) named in the description.
+fn add_truth(
+    args: &RunSpec,
+    case_dir: Option<&CaseDir>,
+    stream: bool,
+    case: &mut CaseData,
+    description: &mut String,
+) -> anyhow::Result<()> {
+    if let Some(cd) = case_dir {
         if case.truth.is_none() && args.truth.is_none() && cd.truth.exists() {
             if !stream {
                 case.truth = Some(read_nav_text(&cd.truth)?);
             }
             description.push_str(&format!("; truth {}", cd.truth.display()));
         }
-        opts.outages.extend(cd.outages.iter().copied());
     }
     if let Some(t) = &args.truth {
         if !stream {
@@ -637,6 +684,16 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         }
         description.push_str(&format!("; truth {}", t.display()));
     }
+    Ok(())
+}
+
+/// `--imu-time-offset`: added to every IMU time (loaded samples, or the stream's).
+fn apply_time_offset(
+    args: &RunSpec,
+    case: &mut CaseData,
+    imu_stream: Option<&mut ImuStream>,
+    description: &mut String,
+) -> anyhow::Result<()> {
     if let Some(dt) = args.imu_time_offset_s {
         if dt.is_nan() || dt.abs() > nav_io::MAX_TIME_OFFSET_S {
             bail!(
@@ -647,16 +704,26 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         for s in &mut case.imu {
             s.t_s += dt;
         }
-        if let Some(st) = &mut imu_stream {
+        if let Some(st) = imu_stream {
             st.time_offset_s = dt;
         }
         description.push_str(&format!("; IMU time offset {dt:+} s"));
     }
+    Ok(())
+}
+
+/// The command line's overrides of the configuration's options (model, effects, precision,
+/// gates, IMU checks, GNSS velocity, noise scale), checked.
+fn apply_overrides(
+    args: &RunSpec,
+    opts: &mut RunOptions,
+    description: &mut String,
+) -> anyhow::Result<()> {
     if let Some(m) = args.model {
         opts.model = m;
     }
     for name in &args.effects {
-        add_effect(&mut opts, name).with_context(|| {
+        add_effect(opts, name).with_context(|| {
             format!("--effects {name}: not an effect name (see host-sim diagnose)")
         })?;
     }
@@ -708,13 +775,27 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         scale_white_noise(&mut opts.filter, k);
         description.push_str(&format!("; white-noise PSDs x{k}"));
     }
+    Ok(())
+}
+
+/// The run's time window and rates: the epoch rate set in `opts`, the outages of the
+/// command line (relative to the first IMU epoch) checked and added; returns the checked
+/// rate of `nav.txt`.
+fn schedule(
+    args: &RunSpec,
+    case: &CaseData,
+    imu_stream: Option<&ImuStream>,
+    prefix: Option<&super::streams::Prefix>,
+    opts: &mut RunOptions,
+    warnings: &mut Vec<String>,
+) -> anyhow::Result<Option<f64>> {
     // the last IMU time only when outages are checked against it (a pass over the file)
     let periodic_wanted =
         !args.periodic_outages.is_empty() || args.kf_gins_outages || !args.outages.is_empty();
-    let (t0, t_end) = match (&imu_stream, case.imu.first(), case.imu.last()) {
+    let (t0, t_end) = match (imu_stream, case.imu.first(), case.imu.last()) {
         (Some(st), _, _) => {
             // the last time only when periodic outages need it (a pass over the whole file)
-            let (a, b) = match &prefix {
+            let (a, b) = match prefix {
                 Some(p) if !periodic_wanted => (p.first_t_s, p.first_t_s),
                 _ => st.file.time_span(periodic_wanted)?,
             };
@@ -725,15 +806,15 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     };
     let t0 = opts.start_s.map_or(t0, |s| s.max(t0));
     let t_end = opts.end_s.map_or(t_end, |e| e.min(t_end));
-    let dt_s = match &imu_stream {
+    let dt_s = match imu_stream {
         Some(st) => imu_interval_s(st.file.open()?.map_while(Result::ok).map(|(s, _)| s.t_s)),
         None => imu_interval_s(case.imu.iter().map(|s| s.t_s)),
     };
     opts.record.nav_rate_hz = None;
-    opts.record.epoch_rate_hz = check_rate("--std-rate", args.std_rate_hz, dt_s, &mut warnings)?;
+    opts.record.epoch_rate_hz = check_rate("--std-rate", args.std_rate_hz, dt_s, warnings)?;
     let nav_rate_hz = args
         .nav_rate_hz
-        .map(|r| check_rate("--nav-rate", r, dt_s, &mut warnings))
+        .map(|r| check_rate("--nav-rate", r, dt_s, warnings))
         .transpose()?
         .flatten();
     let mut periodic = args.periodic_outages.clone();
@@ -746,28 +827,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     for p in &periodic {
         opts.outages.extend(p.expand(t0, t_end));
     }
-    opts.smoother_history = args.smoother_history;
-    inputs.extend(opts.aiding.odometer_file.iter().cloned());
-    inputs.extend(opts.aiding.heading_file.iter().cloned());
-    if let Some(st) = &imu_stream {
-        inputs.push(st.file.path());
-        inputs.extend(st.gnss.as_ref().map(|g| g.file.path()));
-    }
-    inputs.extend(truth_stream.as_ref().map(|t| t.path.clone()));
-    Ok(Loaded {
-        prepared: Prepared {
-            case,
-            opts,
-            week,
-            description,
-        },
-        imu_stream,
-        warnings,
-        truth_stream,
-        inputs,
-        nav_rate_hz,
-        gnss_dropped_by_quality: dropped_by_quality,
-    })
+    Ok(nav_rate_hz)
 }
 
 fn prepare_kf_gins(
@@ -862,6 +922,94 @@ fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
     Some(())
 }
 
+/// The filter configuration and model of a run configuration (`[noise]`, `[gnss]` gates).
+fn run_config_filter(r: &RunConfig) -> anyhow::Result<(FilterConfig, Model)> {
+    let accel = r
+        .noise
+        .accel
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let gyro = r
+        .noise
+        .gyro
+        .to_sensor_noise()
+        .map_err(|e| anyhow::anyhow!(e))?;
+    let mut filter = FilterConfig::with_noise(accel, gyro);
+    if let Some(k) = r.noise.white_noise_scale {
+        if !(k.is_finite() && k > 0.0) {
+            bail!("noise.white_noise_scale = {k}: must be positive");
+        }
+        scale_white_noise(&mut filter, k);
+    }
+    if let Some(s) = &r.noise.accel_scale {
+        filter.accel_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    if let Some(s) = &r.noise.gyro_scale {
+        filter.gyro_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
+    }
+    filter.use_gnss_velocity = r.gnss.use_velocity;
+    if let Some(g) = &r.gnss.gate {
+        filter.gating = parse_gate(g).context("gnss.gate")?;
+    }
+    if let Some(v) = &r.gnss.velocity_gate {
+        filter.gating.velocity = parse_velocity_gate(v).context("gnss.velocity_gate")?;
+    }
+    let model = match r.noise.model {
+        BiasModel::N => Model::N,
+        BiasModel::Nbk => Model::Nbk,
+        BiasModel::NbkSingleState => Model::NbkSingle,
+    };
+    Ok((filter, model))
+}
+
+/// The initialisation of a run configuration (`[init]`): a given state at the start time (or
+/// the first IMU time), or a static alignment.
+fn run_config_init(
+    r: &RunConfig,
+    imu: &[ImuSample],
+    imu_stream: Option<&ImuStream>,
+) -> anyhow::Result<InitSpec> {
+    let ic = &r.init;
+    let att_std = ic.att_std_deg.map(f64::to_radians);
+    let unc = InitialUncertainty {
+        att_sigma_rad: rpy_sigma_to_phi(att_std),
+        vel_sigma_mps: ic.vel_std_mps,
+        pos_sigma_m: ic.pos_std_m,
+    };
+    Ok(match ic.mode().map_err(|e| anyhow::anyhow!(e))? {
+        InitMode::Given(g) => {
+            let [lat, lon, h] = g.pos_deg_deg_m;
+            let t = r
+                .start_s
+                .or_else(|| imu.first().map(|s| s.t_s))
+                .or_else(|| {
+                    let st = imu_stream?;
+                    st.file.time_span(false).ok().map(|(a, _)| a)
+                })
+                .unwrap_or(0.0);
+            InitSpec::Given(
+                NavState::from_rpy(
+                    t,
+                    Llh::from_deg(lat, lon, h),
+                    Vector3::from(g.vel_ned_mps),
+                    g.rpy_deg.map(f64::to_radians),
+                ),
+                unc,
+            )
+        }
+        InitMode::Align(a) => {
+            let mut sa = StaticAlign::new(a.static_s);
+            sa.heading_rad = a.yaw_deg.map(f64::to_radians);
+            sa.heading_std_rad = att_std[2];
+            sa.course_min_speed_mps = Some(a.yaw_from_gnss_min_speed_mps);
+            sa.align.max_gravity_mismatch_mps2 = a.max_gravity_mismatch_mps2;
+            sa.vel_sigma_mps = ic.vel_std_mps.iter().fold(0.0, |m, v| m.max(*v));
+            sa.tilt_std_rad = Some(att_std[0].max(att_std[1]));
+            InitSpec::StaticAlignment(sa)
+        }
+    })
+}
+
 fn prepare_run_config(
     r: &RunConfig,
     dir: &Path,
@@ -932,80 +1080,8 @@ fn prepare_run_config(
         }
     };
     let imu = imu_rec.samples;
-    let accel = r
-        .noise
-        .accel
-        .to_sensor_noise()
-        .map_err(|e| anyhow::anyhow!(e))?;
-    let gyro = r
-        .noise
-        .gyro
-        .to_sensor_noise()
-        .map_err(|e| anyhow::anyhow!(e))?;
-    let mut filter = FilterConfig::with_noise(accel, gyro);
-    if let Some(k) = r.noise.white_noise_scale {
-        if !(k.is_finite() && k > 0.0) {
-            bail!("noise.white_noise_scale = {k}: must be positive");
-        }
-        scale_white_noise(&mut filter, k);
-    }
-    if let Some(s) = &r.noise.accel_scale {
-        filter.accel_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
-    }
-    if let Some(s) = &r.noise.gyro_scale {
-        filter.gyro_scale = ScaleFactorNoise::from_ppm(s.sigma_ppm, s.t_s);
-    }
-    filter.use_gnss_velocity = r.gnss.use_velocity;
-    if let Some(g) = &r.gnss.gate {
-        filter.gating = parse_gate(g).context("gnss.gate")?;
-    }
-    if let Some(v) = &r.gnss.velocity_gate {
-        filter.gating.velocity = parse_velocity_gate(v).context("gnss.velocity_gate")?;
-    }
-    let model = match r.noise.model {
-        BiasModel::N => Model::N,
-        BiasModel::Nbk => Model::Nbk,
-        BiasModel::NbkSingleState => Model::NbkSingle,
-    };
-    let ic = &r.init;
-    let att_std = ic.att_std_deg.map(f64::to_radians);
-    let unc = InitialUncertainty {
-        att_sigma_rad: rpy_sigma_to_phi(att_std),
-        vel_sigma_mps: ic.vel_std_mps,
-        pos_sigma_m: ic.pos_std_m,
-    };
-    let init = match ic.mode().map_err(|e| anyhow::anyhow!(e))? {
-        InitMode::Given(g) => {
-            let [lat, lon, h] = g.pos_deg_deg_m;
-            let t = r
-                .start_s
-                .or_else(|| imu.first().map(|s| s.t_s))
-                .or_else(|| {
-                    let st = imu_stream.as_ref()?;
-                    st.file.time_span(false).ok().map(|(a, _)| a)
-                })
-                .unwrap_or(0.0);
-            InitSpec::Given(
-                NavState::from_rpy(
-                    t,
-                    Llh::from_deg(lat, lon, h),
-                    Vector3::from(g.vel_ned_mps),
-                    g.rpy_deg.map(f64::to_radians),
-                ),
-                unc,
-            )
-        }
-        InitMode::Align(a) => {
-            let mut sa = StaticAlign::new(a.static_s);
-            sa.heading_rad = a.yaw_deg.map(f64::to_radians);
-            sa.heading_std_rad = att_std[2];
-            sa.course_min_speed_mps = Some(a.yaw_from_gnss_min_speed_mps);
-            sa.align.max_gravity_mismatch_mps2 = a.max_gravity_mismatch_mps2;
-            sa.vel_sigma_mps = ic.vel_std_mps.iter().fold(0.0, |m, v| m.max(*v));
-            sa.tilt_std_rad = Some(att_std[0].max(att_std[1]));
-            InitSpec::StaticAlignment(sa)
-        }
-    };
+    let (filter, model) = run_config_filter(r)?;
+    let init = run_config_init(r, &imu, imu_stream.as_ref())?;
     let mut opts = RunOptions::new(model, filter, init);
     opts.gnss_sigma_scale = r.gnss.sigma_scale;
     if let Some(ch) = &r.imu.checks {

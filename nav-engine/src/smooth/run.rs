@@ -24,13 +24,13 @@ use super::apply::{antenna, correct, nearest, recomputed, reinnovate, smooth_epo
 use super::{smooth, SmoothError, Smoothed, SmoothedCursor};
 use crate::metrics::Metrics;
 use crate::run::engine::{RunHead, RunSink};
-use crate::run::execute::{execute_streaming, threaded_file_reader};
+use crate::run::execute::{execute_streaming, Source};
 use crate::run::prepare::{ImuStream, Prepared};
 use crate::run::sink::FileSink;
 use crate::run::truth::{self, TruthFile, TruthSource};
 use crate::run::{
-    case_imu_stream, run_stream, run_stream_fixes, CoastPlan, EpochRecord, FixSource,
-    ImuSourceInfo, InnovationRecord, OutageSnapshot, RunData, RunError, RunOutput,
+    run_engine, CoastPlan, EpochRecord, FixSource, InnovationRecord, OutageSnapshot, RunError,
+    RunOutput,
 };
 use anyhow::Context;
 use nav_core::types::{GnssFix, NavSolution};
@@ -121,37 +121,9 @@ pub fn execute_smoothed(
         static_gyro_bias: false,
     };
     let quiet = &mut |_: usize, _: usize| {};
-    let res = match imu {
-        Some(st) => {
-            let info = ImuSourceInfo {
-                path: Some(st.file.path()),
-                increments_span_gaps: st.file.increments_span_gaps(),
-            };
-            let mut it = threaded_file_reader(st.file.clone(), st.time_offset_s);
-            match gnss {
-                Some(g) => g.source().and_then(|src| {
-                    run_stream_fixes(
-                        &mut it, info, src, init_truth, opts, coast, &mut sink, quiet,
-                    )
-                }),
-                None => {
-                    let data = RunData {
-                        gnss: &p.case.gnss,
-                        truth: init_truth,
-                    };
-                    run_stream(&mut it, info, data, opts, coast, &mut sink, quiet)
-                }
-            }
-        }
-        None => {
-            let (mut it, info) = case_imu_stream(&p.case);
-            let data = RunData {
-                gnss: &p.case.gnss,
-                truth: init_truth,
-            };
-            run_stream(&mut it, info, data, opts, coast, &mut sink, quiet)
-        }
-    };
+    let res = Source::Files(imu)
+        .open(p, init_truth)
+        .and_then(|st| run_engine(st, opts, coast, &mut sink, quiet));
     let res = res.and_then(|_| sink.end());
     if let Some(e) = sink.err.take() {
         return Err(e.into());

@@ -92,6 +92,27 @@ fn replay_with_config_on_a_capture_of_a_simulated_case_equals_host_sim_run_byte_
         assert!(!a.is_empty(), "{f} is empty");
         assert!(a == b, "{f}: replay differs from host-sim run");
     }
+    // the command line's replay keeps no frame (the filter is fed as the frames are decoded,
+    // in both): the same outputs
+    let out_cli = d.join("out-replay-cli");
+    a.keep_frames = false;
+    a.out = Some(out_cli.clone());
+    let o = replay(&a).unwrap();
+    assert!(o.log.frames.is_empty() && o.log.imu.is_empty() && o.log.gnss.is_empty());
+    assert!(o.filter.is_some());
+    for f in [
+        "nav.txt",
+        "std.txt",
+        "bias.txt",
+        "innovations.txt",
+        "metrics.json",
+        "imu.txt",
+        "gnss.txt",
+    ] {
+        let a = std::fs::read(out_rep.join(f)).unwrap();
+        let b = std::fs::read(out_cli.join(f)).unwrap();
+        assert!(a == b, "{f}: the replay keeping no frame differs");
+    }
     // the run used the outage and the fixes around it
     let m: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_rep.join("metrics.json")).unwrap()).unwrap();
