@@ -20,8 +20,16 @@ pub trait Scalar: nalgebra::RealField + Copy + Default + Debug + Display + 'stat
     const ONE: Self;
     /// One half.
     const HALF: Self;
+    /// Whether a filter with this covariance scalar runs the single-precision mechanization
+    /// ([`crate::strapdown::Strapdown::update_single`], the increments in `f32`, the nominal
+    /// state's sums in `f64`) instead of the mixed-precision one
+    /// ([`crate::strapdown::Strapdown::update`]): true for `f32` (the MCU build, and the
+    /// host's `f32` mode, which must match it bit for bit), false for `f64`.
+    const SINGLE_PRECISION_MECHANIZATION: bool;
     /// Rounds an `f64` to this type (round-to-nearest for `f32`).
     fn of_f64(x: f64) -> Self;
+    /// An `f32` as this type (exact).
+    fn of_f32(x: f32) -> Self;
     /// The value as `f64` (exact).
     fn to_f64(self) -> f64;
     /// Square root (`libm`, correctly rounded); NaN for negative input.
@@ -44,9 +52,14 @@ impl Scalar for f32 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const HALF: Self = 0.5;
+    const SINGLE_PRECISION_MECHANIZATION: bool = true;
     #[inline]
     fn of_f64(x: f64) -> Self {
         x as f32
+    }
+    #[inline]
+    fn of_f32(x: f32) -> Self {
+        x
     }
     #[inline]
     fn to_f64(self) -> f64 {
@@ -86,9 +99,14 @@ impl Scalar for f64 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const HALF: Self = 0.5;
+    const SINGLE_PRECISION_MECHANIZATION: bool = false;
     #[inline]
     fn of_f64(x: f64) -> Self {
         x
+    }
+    #[inline]
+    fn of_f32(x: f32) -> Self {
+        f64::from(x)
     }
     #[inline]
     fn to_f64(self) -> f64 {

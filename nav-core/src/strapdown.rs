@@ -253,6 +253,9 @@ struct EarthRef {
     tan32: f32,
     inv_m32: f32,
     inv_n32: f32,
+    /// Gravity and `lon_f` rounded to single precision (for [`Strapdown::update_single`]).
+    g32: f32,
+    lon_f32: f32,
     /// d ln(1/(R_M+h)) / d lat and its second derivative.
     m_l: f32,
     m_ll: f32,
@@ -341,6 +344,8 @@ impl EarthRef {
             tan32: tan as f32,
             inv_m32: inv_m as f32,
             inv_n32: inv_n as f32,
+            g32: g as f32,
+            lon_f32: (inv_n / c) as f32,
             m_l: m_l as f32,
             m_ll: m_ll as f32,
             n_l: n_l as f32,
@@ -683,6 +688,9 @@ impl Strapdown {
 /// The previous, straightforward `f64` implementation of the same algorithm (one `sin`, `cos`,
 /// `sqrt` per step, every term in `f64`), kept as the reference the optimised step is checked
 /// against.
+mod single;
+pub use single::StepInfo32;
+
 #[cfg(test)]
 mod plain;
 

@@ -92,6 +92,10 @@ const CASES: &[Case] = &[
         run: |m, n| strapdown(m, n),
     },
     Case {
+        name: "strapdown_single",
+        run: |m, n| strapdown_single(m, n),
+    },
+    Case {
         name: "wire_decode",
         run: |m, n| wire_decode(m, n),
     },
@@ -296,6 +300,26 @@ fn strapdown(m: &mut Meter, case: &'static str) -> bool {
         "BENCH size what=Strapdown bytes={}",
         core::mem::size_of::<Strapdown>()
     );
+    true
+}
+
+/// [`Strapdown::update_single`] (the `f32` filter's mechanization) on the same samples,
+/// the increments rounded to `f32` outside the timed call.
+fn strapdown_single(m: &mut Meter, case: &'static str) -> bool {
+    let mut mech = Strapdown::new(init_state());
+    let mut rng = Lcg(1);
+    let mut acc = Acc::default();
+    for k in 1..=EPOCHS {
+        let s = imu_sample(k, T0_S, IMU_HZ, &mut rng);
+        let (dth, dv) = (s.dtheta_rad.map(|x| x as f32), s.dv_mps.map(|x| x as f32));
+        let (r, t) = m.time(|| mech.update_single(s.t_s, dth, dv));
+        if r.is_err() {
+            error!("bench {}: mechanization failed at epoch {}", case, k);
+            return false;
+        }
+        acc.add(t);
+    }
+    acc.print(case, "update_per_epoch");
     true
 }
 

@@ -35,7 +35,7 @@ use crate::model::{
     IDX_POS, IDX_VEL, MAX_BLOCK_DIM,
 };
 use crate::scalar::Scalar;
-use crate::strapdown::{MechError, NavState, StepInfo, Strapdown, MAX_DT_S};
+use crate::strapdown::{MechError, NavState, StepInfo, StepInfo32, Strapdown, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
 use linalg::{all_finite, cholesky_in_place};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -363,12 +363,50 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
             return Err(FilterError::ImuTimeStep { dt_s: dt });
         }
-        let mut s = *imu;
         if self.temperature_ref_c.is_nan() && imu.temperature_c.is_finite() {
             // T_ref = the first temperature (EffectsConfig::temperature_ref_c = None)
             self.temperature_ref_c = imu.temperature_c;
             self.corr.temperature_ref_c = imu.temperature_c;
         }
+        let (dt_s, f_b, omega_b, f_n) = if T::SINGLE_PRECISION_MECHANIZATION {
+            let step = self.mech_step_single(imu, dt)?;
+            self.last_step = step.to_f64();
+            (
+                step.dt_s,
+                step.f_body_mps2.map(T::of_f32),
+                step.omega_ib_body_radps.map(T::of_f32),
+                step.f_ned_mps2.map(T::of_f32),
+            )
+        } else {
+            let step = self.mech_step(imu, dt)?;
+            self.last_step = step;
+            (
+                step.dt_s,
+                vec_t(&step.f_body_mps2),
+                vec_t(&step.omega_ib_body_radps),
+                vec_t(&step.f_ned_mps2),
+            )
+        };
+        self.last_temperature_c = imu.temperature_c;
+        let reg = Regressors {
+            dt: T::of_f64(dt_s),
+            c_nb: dcm_t(&self.mech.state().q_nb),
+            f_b,
+            omega_b,
+            temperature_c: T::of_f64(imu.temperature_c - self.temperature_ref_c),
+        };
+        self.acc.add(&self.layout, &reg, dt_s, &f_n);
+        self.counters.imu_epochs = self.counters.imu_epochs.saturating_add(1);
+        if self.acc.dt_s + 0.5 * dt_s >= self.cfg.cov_predict_interval_s {
+            self.predict_covariance_observed(obs)?;
+        }
+        Ok(())
+    }
+
+    /// The sensor-error correction and the mixed-precision mechanization of one sample
+    /// (`f64` increments) of [`Self::propagate_observed`]; `dt` = sample time - filter time, s.
+    fn mech_step(&mut self, imu: &ImuSample, dt: f64) -> Result<StepInfo, FilterError> {
+        let mut s = *imu;
         self.corr.apply_with(
             &self.inv_scales,
             &mut s.dtheta_rad,
@@ -380,32 +418,40 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
             return Err(FilterError::NonFiniteImu);
         }
-        let step = match self.mech.update(&s) {
-            Ok(st) => st,
+        match self.mech.update(&s) {
+            Ok(st) => Ok(st),
             Err(e) => {
                 self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
-                return Err(match e {
+                Err(match e {
                     MechError::NonFinite => FilterError::NonFiniteImu,
                     MechError::BadTimeStep => FilterError::ImuTimeStep { dt_s: dt },
-                });
+                })
             }
-        };
-        self.last_step = step;
-        self.last_temperature_c = imu.temperature_c;
-        let reg = Regressors {
-            dt: T::of_f64(step.dt_s),
-            c_nb: dcm_t(&self.mech.state().q_nb),
-            f_b: vec_t(&step.f_body_mps2),
-            omega_b: vec_t(&step.omega_ib_body_radps),
-            temperature_c: T::of_f64(imu.temperature_c - self.temperature_ref_c),
-        };
-        let f_n = vec_t(&step.f_ned_mps2);
-        self.acc.add(&self.layout, &reg, step.dt_s, &f_n);
-        self.counters.imu_epochs = self.counters.imu_epochs.saturating_add(1);
-        if self.acc.dt_s + 0.5 * step.dt_s >= self.cfg.cov_predict_interval_s {
-            self.predict_covariance_observed(obs)?;
         }
-        Ok(())
+    }
+
+    /// [`Self::mech_step`] in single precision: the increments rounded to `f32`, corrected and
+    /// integrated by [`Strapdown::update_single`].
+    fn mech_step_single(&mut self, imu: &ImuSample, dt: f64) -> Result<StepInfo32, FilterError> {
+        let mut dth = imu.dtheta_rad.map(|v| v as f32);
+        let mut dv = imu.dv_mps.map(|v| v as f32);
+        self.corr.apply_single(
+            &self.inv_scales,
+            &mut dth,
+            &mut dv,
+            dt as f32,
+            imu.temperature_c,
+        );
+        match self.mech.update_single(imu.t_s, dth, dv) {
+            Ok(st) => Ok(st),
+            Err(e) => {
+                self.counters.imu_rejected = self.counters.imu_rejected.saturating_add(1);
+                Err(match e {
+                    MechError::NonFinite => FilterError::NonFiniteImu,
+                    MechError::BadTimeStep => FilterError::ImuTimeStep { dt_s: dt },
+                })
+            }
+        }
     }
 
     /// Predicts the covariance over the IMU epochs accumulated since the last prediction (a

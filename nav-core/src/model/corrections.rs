@@ -98,9 +98,13 @@ impl ImuCorrection {
             d
         };
         let f32s = |a: &[f64; 3]| a.map(|v| v as f32);
+        let gyro = self.gyro_scale.map(|s| 1.0 / (1.0 + s));
+        let accel = self.accel_scale.map(|s| 1.0 / (1.0 + s));
         InverseScales {
-            gyro: self.gyro_scale.map(|s| 1.0 / (1.0 + s)),
-            accel: self.accel_scale.map(|s| 1.0 / (1.0 + s)),
+            gyro,
+            accel,
+            gyro32: f32s(&gyro),
+            accel32: f32s(&accel),
             general,
             gyro_delta: delta(&self.gyro_scale, &self.gyro_misalignment_rad),
             accel_delta: delta(&self.accel_scale, &self.accel_misalignment_rad),
@@ -184,6 +188,64 @@ impl ImuCorrection {
     }
 }
 
+impl ImuCorrection {
+    /// [`Self::apply_with`] on single-precision increments (the single-precision
+    /// mechanization's input, [`crate::strapdown::Strapdown::update_single`]): the same
+    /// corrections, every term in `f32`; `dt_s` in s, `temperature_c` in degC (NaN: none).
+    pub fn apply_single(
+        &self,
+        inv: &InverseScales,
+        dtheta_rad: &mut [f32; 3],
+        dv_mps: &mut [f32; 3],
+        dt_s: f32,
+        temperature_c: f64,
+    ) {
+        if !inv.general {
+            for ((d, b), k) in dtheta_rad.iter_mut().zip(inv.gyro_bias).zip(inv.gyro32) {
+                *d = (*d - b * dt_s) * k;
+            }
+            for ((d, b), k) in dv_mps.iter_mut().zip(inv.accel_bias).zip(inv.accel32) {
+                *d = (*d - b * dt_s) * k;
+            }
+            return;
+        }
+        let d_t = temperature_c - self.temperature_ref_c;
+        let d_t = if d_t.is_finite() { d_t as f32 } else { 0.0 };
+        // accelerometer: e = (b + k dT) dt; x_hat = x + D (x - e) - e
+        let mut ea = [0.0f32; 3];
+        for ((e, b), k) in ea.iter_mut().zip(inv.accel_bias).zip(inv.accel_temp) {
+            *e = (b + k * d_t) * dt_s;
+        }
+        let mut ua = [0.0f32; 3];
+        for ((u, d), e) in ua.iter_mut().zip(dv_mps.iter()).zip(ea) {
+            *u = *d - e;
+        }
+        let ca = effects::mat_vec(&inv.accel_delta, &ua);
+        for ((d, c), e) in dv_mps.iter_mut().zip(ca).zip(ea) {
+            *d += c - e;
+        }
+        // gyro: e = (b + k dT) dt + diag(g_s) dv_hat
+        let mut eg = [0.0f32; 3];
+        for ((((e, b), k), g), dv) in eg
+            .iter_mut()
+            .zip(inv.gyro_bias)
+            .zip(inv.gyro_temp)
+            .zip(inv.g_sens)
+            .zip(dv_mps.iter())
+        {
+            *e = (b + k * d_t) * dt_s + g * *dv;
+        }
+        let mut ug = [0.0f32; 3];
+        for ((u, d), e) in ug.iter_mut().zip(dtheta_rad.iter()).zip(eg) {
+            *u = *d - e;
+        }
+        let cg = effects::mat_vec(&inv.gyro_delta, &ug);
+        for ((d, c), e) in dtheta_rad.iter_mut().zip(cg).zip(eg) {
+            *d += c - e;
+        }
+    }
+}
+
 /// Reciprocal scale factors `1 / (1 + s)` of an [`ImuCorrection`], and what its general
 /// correction needs (in `f32`, see [`ImuCorrection::apply_with`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -192,6 +254,10 @@ pub struct InverseScales {
     pub gyro: [f64; 3],
     /// Accelerometer x, y, z.
     pub accel: [f64; 3],
+    /// Gyro x, y, z rounded to `f32` (for [`ImuCorrection::apply_single`]).
+    pub gyro32: [f32; 3],
+    /// Accelerometer x, y, z rounded to `f32`.
+    pub accel32: [f32; 3],
     /// Whether the general (matrix, temperature, g-sensitivity) correction applies.
     pub general: bool,
     /// `(I + diag(s_g) + M_g)^-1 - I` (row-major; zero when not `general`).
