@@ -51,7 +51,9 @@ pub enum TimeScale {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum GnssCsvTime {
-    /// GPS seconds of week in `columns.time` (no week known).
+    /// GPS seconds of week in `columns.time` (no week known): `kind = "gps_sow"` (`"seconds"`,
+    /// the IMU CSV's older name for it, is accepted as well).
+    #[serde(alias = "seconds")]
     GpsSow,
     /// GPS week in `columns.week`, seconds of week in `columns.time`.
     WeekSow,

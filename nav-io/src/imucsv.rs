@@ -9,7 +9,8 @@
 //!   names are its comma- or space-separated fields, leading `#`/`%` removed, each reduced to
 //!   its first word, matched case-insensitively);
 //! - gyro unit `deg/s` or `rad/s`; accelerometer unit `g` (9.80665 m/s^2) or `m/s^2`;
-//! - time ([`CsvTime`]): a column in seconds (GPS seconds of week), a tick column in ms
+//! - time ([`CsvTime`]): a column of GPS seconds of week (`kind = "gps_sow"`, as for the GNSS
+//!   CSV; `"seconds"` also accepted), a tick column in ms
 //!   (optionally placed in GPS time with an RTKLIB time-tag file, see below), or a fixed rate
 //!   without a time column (row k at `start_s + k / rate_hz`);
 //! - `time_offset_s` added to every time stamp last (e.g. a logging delay correction).
@@ -114,7 +115,9 @@ impl AccelUnit {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum CsvTime {
-    /// The time column holds seconds (GPS seconds of week).
+    /// The time column holds GPS seconds of week: `kind = "gps_sow"`, the name the GNSS CSV
+    /// uses for the same thing (`"seconds"` is accepted as well).
+    #[serde(rename = "gps_sow", alias = "seconds")]
     Seconds,
     /// The time column holds ticks in milliseconds. Without a tag file t = tick / 1000 s.
     TicksMs {

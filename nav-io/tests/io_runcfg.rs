@@ -271,7 +271,7 @@ fn run_config_errors_name_the_file_and_the_problem() {
         dir.path(),
         &base.replace("[noise]\n", "[init.align]\nstatic_s = 10.0\n[noise]\n"),
     );
-    assert!(m.contains("exactly one"), "{m}");
+    assert!(m.contains("at most one"), "{m}");
     // csv without mapping
     let m = err_of(
         dir.path(),
@@ -345,4 +345,59 @@ fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("gnss.sigma_scale must be > 0"), "{e}");
+}
+
+/// The IMU and the GNSS CSV name GPS seconds of week the same: `gps_sow` (canonical) and
+/// `seconds` (the IMU's older name) are accepted in both sections.
+#[test]
+fn time_kinds_share_one_vocabulary_in_imu_and_gnss() {
+    let p = Path::new("run.toml");
+    for (imu_kind, gnss_kind) in [
+        ("gps_sow", "gps_sow"),
+        ("seconds", "seconds"),
+        ("seconds", "gps_sow"),
+    ] {
+        let text = format!(
+            r#"
+[imu]
+path = "imu.csv"
+format = "csv"
+[imu.csv]
+gyro_unit = "rad/s"
+accel_unit = "m/s^2"
+[imu.csv.columns]
+time = 1
+gyro = [2, 3, 4]
+accel = [5, 6, 7]
+[imu.csv.time]
+kind = "{imu_kind}"
+[gnss]
+path = "gnss.csv"
+format = "csv"
+[gnss.csv]
+default_sigma_ned_m = [1.0, 1.0, 2.0]
+[gnss.csv.columns]
+time = 1
+lat = 2
+lon = 3
+h = 4
+[gnss.csv.time]
+kind = "{gnss_kind}"
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.2
+"#
+        );
+        let c = nav_io::parse_run_config(p, &text).unwrap();
+        assert_eq!(c.imu.csv.as_ref().unwrap().time, CsvTime::Seconds);
+        assert_eq!(
+            c.gnss.csv.as_ref().unwrap().time,
+            nav_io::gnsscsv::GnssCsvTime::GpsSow
+        );
+        // written with the canonical name
+        let back = toml::to_string(&c).unwrap();
+        assert!(back.contains("kind = \"gps_sow\""), "{back}");
+        assert!(!back.contains("\"seconds\""), "{back}");
+    }
 }
