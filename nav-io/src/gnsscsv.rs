@@ -465,7 +465,7 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
 }
 
 /// GPS (week, seconds of week) of `secs` whole + `frac` seconds since 1970 in `scale`.
-fn week_sow_of_epoch(secs: i64, frac: f64, scale: TimeScale) -> Option<(i64, f64)> {
+pub(crate) fn week_sow_of_epoch(secs: i64, frac: f64, scale: TimeScale) -> Option<(i64, f64)> {
     let leap = match scale {
         TimeScale::Gps => 0,
         TimeScale::Utc => {

@@ -401,3 +401,71 @@ arw_deg_per_sqrt_h = 0.2
         assert!(!back.contains("\"seconds\""), "{back}");
     }
 }
+
+/// A phone log stamps the IMU and the fixes in Unix milliseconds (UTC): `unix_ms` reads the
+/// same in both sections, and both land on the same GPS seconds of week.
+#[test]
+fn imu_and_gnss_unix_ms_land_on_the_same_gps_time() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2025-07-08 19:34:03.854 UTC = 19:34:21.854 GPST = week 2374, 243261.854 s
+    let t0_ms: u64 = 1_752_003_243_854;
+    let mut imu = String::from("t,gx,gy,gz,ax,ay,az\n");
+    for k in 0..5u64 {
+        imu.push_str(&format!("{},0,0,0.1,0,0,-9.8\n", t0_ms + 10 * k));
+    }
+    std::fs::write(dir.path().join("imu.csv"), imu).unwrap();
+    std::fs::write(
+        dir.path().join("gnss.csv"),
+        format!("t,lat,lon,h\n{},40.0,-105.0,1600.0\n", t0_ms + 20),
+    )
+    .unwrap();
+    let text = r#"
+[imu]
+path = "imu.csv"
+format = "csv"
+[imu.csv]
+skip_lines = 1
+gyro_unit = "rad/s"
+accel_unit = "m/s^2"
+[imu.csv.columns]
+time = "t"
+gyro = ["gx", "gy", "gz"]
+accel = ["ax", "ay", "az"]
+[imu.csv.time]
+kind = "unix_ms"
+[gnss]
+path = "gnss.csv"
+format = "csv"
+[gnss.csv]
+skip_lines = 1
+default_sigma_ned_m = [1.0, 1.0, 2.0]
+[gnss.csv.columns]
+time = "t"
+lat = "lat"
+lon = "lon"
+h = "h"
+[gnss.csv.time]
+kind = "unix_ms"
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.2
+"#;
+    let p = dir.path().join("run.toml");
+    std::fs::write(&p, text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    let inp = c.load_inputs(dir.path()).unwrap();
+    assert_eq!(inp.gnss_week, Some(2374));
+    assert!(
+        (inp.gnss[0].t_s - 243_261.874).abs() < 1e-6,
+        "{}",
+        inp.gnss[0].t_s
+    );
+    // the IMU's second row closes the first increment
+    assert!(
+        (inp.imu.samples[0].t_s - 243_261.864).abs() < 1e-6,
+        "{}",
+        inp.imu.samples[0].t_s
+    );
+    assert!((inp.imu.samples[1].t_s - inp.gnss[0].t_s).abs() < 1e-6);
+}
