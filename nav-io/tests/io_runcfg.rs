@@ -469,3 +469,66 @@ arw_deg_per_sqrt_h = 0.2
     );
     assert!((inp.imu.samples[1].t_s - inp.gnss[0].t_s).abs() < 1e-6);
 }
+
+/// The start-up check: a gyro bias 100 x the configured initial sigma at a 10 s rest is
+/// warned about with the measured value; the same data with a sigma that covers it are not;
+/// a start in motion gives no rest window.
+#[test]
+fn rest_bias_check_warns_when_the_bias_at_rest_exceeds_the_configured_sigma() {
+    use nav_io::restcheck::{bias_warnings, gnss_motion_start, rest_stats};
+    let dt = 0.01;
+    let g = 9.79;
+    // 10 s at rest with a 0.5 deg/s x-gyro bias and 0.05 m/s^2 of vertical accel bias, then
+    // a turn at 20 deg/s
+    let imu: Vec<ImuSample> = (1..=2000)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let wob = 1e-4 * (k as f64 * 0.731).sin();
+            let turn = if t > 10.0 { 20f64.to_radians() } else { 0.0 };
+            ImuSample {
+                t_s: t,
+                dtheta_rad: [
+                    (0.5f64.to_radians() + wob) * dt,
+                    wob * dt,
+                    (turn - wob) * dt,
+                ],
+                dv_mps: [wob * dt, -wob * dt, -(g + 0.05) * dt],
+                temperature_c: f64::NAN,
+            }
+        })
+        .collect();
+    let st = rest_stats(imu.iter().copied(), None, g).expect("a rest window");
+    assert!(st.duration_s > 9.0 && st.duration_s < 10.0, "{st:?}");
+    assert_eq!(st.ended_by, "IMU motion");
+    assert!(
+        (st.mean_rate_radps[0].to_degrees() - 0.5).abs() < 1e-3,
+        "{st:?}"
+    );
+    assert!((st.gravity_mismatch_mps2() - 0.05).abs() < 1e-3, "{st:?}");
+    let w = bias_warnings(&st, [0.005f64.to_radians(); 3], [0.001; 3]);
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(w[0].contains("+0.5000 deg/s on the x axis"), "{w:?}");
+    assert!(w[1].contains("+0.0500 m/s^2"), "{w:?}");
+    assert!(bias_warnings(&st, [0.5f64.to_radians(); 3], [0.02; 3]).is_empty());
+    // GNSS says the vehicle moves from 4 s on: the window ends there
+    let fix = |t: f64, v: f64| GnssFix {
+        t_s: t,
+        lat_rad: 0.7,
+        lon_rad: 0.2,
+        h_m: 100.0,
+        pos_std_ned_m: [0.02, 0.02, 0.05],
+        vel_ned_mps: [v, 0.0, 0.0],
+        vel_std_ned_mps: [0.05; 3],
+        has_velocity: true,
+        quality: nav_core::types::FixQuality::RtkFixed,
+        ..GnssFix::default()
+    };
+    let fixes: Vec<GnssFix> = (0..10)
+        .map(|k| fix(k as f64, if k >= 4 { 1.0 } else { 0.0 }))
+        .collect();
+    assert_eq!(gnss_motion_start(&fixes), Some(4.0));
+    let st = rest_stats(imu.iter().copied(), gnss_motion_start(&fixes), g).unwrap();
+    assert!(st.duration_s > 3.0 && st.duration_s < 4.0, "{st:?}");
+    // moving from the first fix: no rest
+    assert!(rest_stats(imu.iter().copied(), Some(0.0), g).is_none());
+}
