@@ -216,7 +216,7 @@ pub fn rest_stats(
         all.merge(b);
     }
     let duration = all.dt;
-    if !(duration >= MIN_REST_S) || all.n < 10 {
+    if duration.is_nan() || duration < MIN_REST_S || all.n < 10 {
         return None;
     }
     let (mw, sw) = Sums::mean_std(all.w, all.w2, all.n);
