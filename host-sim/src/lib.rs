@@ -11,6 +11,7 @@
 pub mod allan;
 pub mod cli_enum;
 pub mod diagnose;
+pub mod init;
 pub mod mounting;
 pub mod noise;
 pub mod run;

@@ -27,6 +27,9 @@ enum Cmd {
     /// Estimate the IMU-to-body rotation from the data (the configured [imu.mounting] is
     /// ignored) and print the [imu.mounting] section to paste.
     Mounting(host_sim::mounting::MountingArgs),
+    /// Write a run configuration from the IMU and GNSS files (formats, columns, units, time
+    /// kind, rest, mounting, initial sigmas), each guess commented with its evidence.
+    Init(host_sim::init::InitArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -44,6 +47,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Run(a) => host_sim::run::cli::run(a),
         Cmd::Diagnose(a) => host_sim::diagnose::run(a),
         Cmd::Mounting(a) => host_sim::mounting::run(a),
+        Cmd::Init(a) => host_sim::init::run(a),
     };
     match res {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -51,7 +51,9 @@ pub enum TimeScale {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum GnssCsvTime {
-    /// GPS seconds of week in `columns.time` (no week known).
+    /// GPS seconds of week in `columns.time` (no week known): `kind = "gps_sow"` (`"seconds"`,
+    /// the IMU CSV's older name for it, is accepted as well).
+    #[serde(alias = "seconds")]
     GpsSow,
     /// GPS week in `columns.week`, seconds of week in `columns.time`.
     WeekSow,
@@ -463,7 +465,7 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
 }
 
 /// GPS (week, seconds of week) of `secs` whole + `frac` seconds since 1970 in `scale`.
-fn week_sow_of_epoch(secs: i64, frac: f64, scale: TimeScale) -> Option<(i64, f64)> {
+pub(crate) fn week_sow_of_epoch(secs: i64, frac: f64, scale: TimeScale) -> Option<(i64, f64)> {
     let leap = match scale {
         TimeScale::Gps => 0,
         TimeScale::Utc => {

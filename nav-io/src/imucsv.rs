@@ -9,7 +9,9 @@
 //!   names are its comma- or space-separated fields, leading `#`/`%` removed, each reduced to
 //!   its first word, matched case-insensitively);
 //! - gyro unit `deg/s` or `rad/s`; accelerometer unit `g` (9.80665 m/s^2) or `m/s^2`;
-//! - time ([`CsvTime`]): a column in seconds (GPS seconds of week), a tick column in ms
+//! - time ([`CsvTime`]): a column of GPS seconds of week (`kind = "gps_sow"`, as for the GNSS
+//!   CSV; `"seconds"` also accepted), Unix seconds or milliseconds (`unix_s`, `unix_ms`, in
+//!   the time scale `scale`, UTC by default, as for the GNSS CSV), a tick column in ms
 //!   (optionally placed in GPS time with an RTKLIB time-tag file, see below), or a fixed rate
 //!   without a time column (row k at `start_s + k / rate_hz`);
 //! - `time_offset_s` added to every time stamp last (e.g. a logging delay correction).
@@ -48,6 +50,8 @@
 //! increment spans the whole gap (nothing is invented); gaps are reported in the record.
 //! The temperature of an increment is that of its end row.
 
+use super::gnsscsv::{week_sow_of_epoch, TimeScale};
+use super::gpstime::SECONDS_PER_WEEK;
 use super::lines::{open_text, split_fields, LineReader, MonotonicTime};
 use super::tag::{read_time_tag, TimeTag};
 use super::text::{ImuRecord, TimeGapReport};
@@ -114,7 +118,9 @@ impl AccelUnit {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum CsvTime {
-    /// The time column holds seconds (GPS seconds of week).
+    /// The time column holds GPS seconds of week: `kind = "gps_sow"`, the name the GNSS CSV
+    /// uses for the same thing (`"seconds"` is accepted as well).
+    #[serde(rename = "gps_sow", alias = "seconds")]
     Seconds,
     /// The time column holds ticks in milliseconds. Without a tag file t = tick / 1000 s.
     TicksMs {
@@ -126,6 +132,19 @@ pub enum CsvTime {
         /// before trusting it); default true, as the source's converter does.
         #[serde(default = "yes")]
         stretch_to_tag_end: bool,
+    },
+    /// Seconds since 1970-01-01 00:00:00 in `columns.time` (as for the GNSS CSV), placed in
+    /// GPS seconds of the first row's week (continuing past 604800 across a rollover).
+    UnixS {
+        /// Time scale of the count (`utc`, the default, or `gps`).
+        #[serde(default)]
+        scale: TimeScale,
+    },
+    /// Milliseconds since 1970-01-01 00:00:00 in `columns.time`, as `unix_s`.
+    UnixMs {
+        /// Time scale of the count (`utc`, the default, or `gps`).
+        #[serde(default)]
+        scale: TimeScale,
     },
     /// No time column: row k (0-based, after skipping) is at `start_s + k / rate_hz`.
     FixedRate {
@@ -546,6 +565,13 @@ enum TimeMap {
     Tagged { t0: f64, tick0: f64, stretch: f64 },
     /// Row k at start + k / rate.
     Fixed { rate_hz: f64, start_s: f64 },
+    /// Unix seconds (`ms`: milliseconds) in `scale`, as GPS seconds of the week `week0` (the
+    /// first row's, set by it).
+    Unix {
+        ms: bool,
+        scale: TimeScale,
+        week0: Option<i64>,
+    },
 }
 
 /// An IMU CSV log read one row at a time, in SI units (sensor axes), with the final time
@@ -600,6 +626,13 @@ impl ImuCsvReader {
         let mut r = Self::open_mapped(path, fmt, TimeMap::Column)?;
         match &fmt.time {
             CsvTime::Seconds => {}
+            CsvTime::UnixS { scale } | CsvTime::UnixMs { scale } => {
+                r.map = TimeMap::Unix {
+                    ms: matches!(fmt.time, CsvTime::UnixMs { .. }),
+                    scale: *scale,
+                    week0: None,
+                }
+            }
             CsvTime::FixedRate { rate_hz, start_s } => {
                 r.map = TimeMap::Fixed {
                     rate_hz: *rate_hz,
@@ -770,11 +803,36 @@ impl ImuCsvReader {
         let Some((mut s, line)) = self.held.pop_front() else {
             return Ok(None);
         };
-        s.t_s = match self.map {
+        s.t_s = match &mut self.map {
+            TimeMap::Unix { ms, scale, week0 } => {
+                let v = s.t_s;
+                let (whole, frac) = if *ms {
+                    // keep the millisecond digits exact
+                    let w = (v / 1000.0).floor();
+                    (w, (v - w * 1000.0) * 1e-3)
+                } else {
+                    let w = v.floor();
+                    (w, v - w)
+                };
+                let (w, sow) = (0.0..7.3e9)
+                    .contains(&whole)
+                    .then(|| week_sow_of_epoch(whole as i64, frac, *scale))
+                    .flatten()
+                    .ok_or_else(|| IoError::Format {
+                        path: self.path.clone(),
+                        line,
+                        message: format!(
+                            "time {v} [Unix {}] is outside 1970..2200",
+                            if *ms { "ms" } else { "s" }
+                        ),
+                    })?;
+                let w0 = *week0.get_or_insert(w);
+                sow + (w - w0) as f64 * SECONDS_PER_WEEK
+            }
             TimeMap::Column => s.t_s,
             TimeMap::Ticks => s.t_s * 1e-3,
-            TimeMap::Tagged { t0, tick0, stretch } => t0 + (s.t_s - tick0) * stretch * 1e-3,
-            TimeMap::Fixed { rate_hz, start_s } => start_s + self.row as f64 / rate_hz,
+            TimeMap::Tagged { t0, tick0, stretch } => *t0 + (s.t_s - *tick0) * *stretch * 1e-3,
+            TimeMap::Fixed { rate_hz, start_s } => *start_s + self.row as f64 / *rate_hz,
         };
         if self.offset_s != 0.0 {
             s.t_s += self.offset_s;

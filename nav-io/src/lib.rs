@@ -32,6 +32,7 @@ pub mod noisecfg;
 pub mod numfmt;
 pub mod odometer;
 pub mod pos;
+pub mod restcheck;
 pub mod runcfg;
 pub mod tag;
 pub mod text;

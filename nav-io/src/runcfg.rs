@@ -309,7 +309,9 @@ pub struct GivenState {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AlignSpec {
-    /// Length of the static window at the start, s.
+    /// Length of the static window at the start, s (default [`DEFAULT_STATIC_S`]; ignored
+    /// when the GNSS speed at the start gives an in-motion alignment).
+    #[serde(default = "default_static_s")]
     pub static_s: f64,
     /// Known initial yaw, deg (None: from the GNSS course over ground).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -327,6 +329,31 @@ fn default_gravity_mismatch() -> f64 {
     0.1
 }
 
+/// Static window of the default alignment, s (`[init.align] static_s` when not given).
+pub const DEFAULT_STATIC_S: f64 = 5.0;
+
+fn default_static_s() -> f64 {
+    DEFAULT_STATIC_S
+}
+
+/// The alignment used when `[init]` names neither `[init.given]` nor `[init.align]`: levelling
+/// over the first [`DEFAULT_STATIC_S`] s when the vehicle is at rest there, an in-motion
+/// alignment when the GNSS speed at the start is high enough (the engine chooses from the
+/// data); yaw from the GNSS course.
+pub const DEFAULT_ALIGN: AlignSpec = AlignSpec {
+    static_s: DEFAULT_STATIC_S,
+    yaw_deg: None,
+    yaw_from_gnss_min_speed_mps: 0.5,
+    max_gravity_mismatch_mps2: 0.1,
+};
+
+impl Default for AlignSpec {
+    /// [`DEFAULT_ALIGN`].
+    fn default() -> Self {
+        DEFAULT_ALIGN
+    }
+}
+
 /// How the initial state is obtained.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum InitMode<'a> {
@@ -340,31 +367,65 @@ fn half() -> f64 {
     0.5
 }
 
-/// Initial state and its uncertainty.
+/// Initial state and its uncertainty (`[init]`, optional: every key has a default, and
+/// without `[init.given]` or `[init.align]` the run aligns from the data, [`DEFAULT_ALIGN`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitConfig {
-    /// Initial position 1-sigma north, east, down, m.
+    /// Initial position 1-sigma north, east, down, m (default 1, 1, 2).
+    #[serde(default = "default_pos_std")]
     pub pos_std_m: [f64; 3],
-    /// Initial velocity 1-sigma north, east, down, m/s.
+    /// Initial velocity 1-sigma north, east, down, m/s (default 0.1 each).
+    #[serde(default = "default_vel_std")]
     pub vel_std_mps: [f64; 3],
-    /// Initial attitude 1-sigma roll, pitch, yaw, deg.
+    /// Initial attitude 1-sigma roll, pitch, yaw, deg (default 2, 2, 10).
+    #[serde(default = "default_att_std")]
     pub att_std_deg: [f64; 3],
-    /// A given initial state (exactly one of `given` and `align`).
+    /// A given initial state (at most one of `given` and `align`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub given: Option<GivenState>,
-    /// Alignment from the data (exactly one of `given` and `align`).
+    /// Alignment from the data (at most one of `given` and `align`; neither:
+    /// [`DEFAULT_ALIGN`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub align: Option<AlignSpec>,
 }
 
+fn default_pos_std() -> [f64; 3] {
+    [1.0, 1.0, 2.0]
+}
+
+fn default_vel_std() -> [f64; 3] {
+    [0.1; 3]
+}
+
+fn default_att_std() -> [f64; 3] {
+    [2.0, 2.0, 10.0]
+}
+
+impl Default for InitConfig {
+    /// The defaults of every key: alignment from the data ([`DEFAULT_ALIGN`]).
+    fn default() -> Self {
+        Self {
+            pos_std_m: default_pos_std(),
+            vel_std_mps: default_vel_std(),
+            att_std_deg: default_att_std(),
+            given: None,
+            align: None,
+        }
+    }
+}
+
 impl InitConfig {
-    /// Which initialisation is configured (an error unless exactly one is).
+    /// Which initialisation is configured: the given state, the configured alignment, or
+    /// [`DEFAULT_ALIGN`] when neither is (an error when both are).
     pub fn mode(&self) -> Result<InitMode<'_>, String> {
         match (&self.given, &self.align) {
             (Some(g), None) => Ok(InitMode::Given(g)),
             (None, Some(a)) => Ok(InitMode::Align(a)),
-            _ => Err("init: give exactly one of [init.given] and [init.align]".into()),
+            (None, None) => Ok(InitMode::Align(&DEFAULT_ALIGN)),
+            (Some(_), Some(_)) => {
+                Err("init: give at most one of [init.given] and [init.align]".into())
+            }
         }
     }
 }
@@ -392,7 +453,8 @@ pub struct RunConfig {
     /// Optional reference trajectory.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthSource>,
-    /// Initial state.
+    /// Initial state (optional: [`InitConfig::default`]).
+    #[serde(default)]
     pub init: InitConfig,
     /// IMU noise model.
     pub noise: NoiseConfig,
@@ -700,12 +762,39 @@ pub fn check_leap_seconds(l: i64) -> Result<(), String> {
     }
 }
 
+/// For a TOML error about an unknown key or value (`unknown field `X`, expected one of `a`,
+/// `b`` or `unknown variant ...`), "did you mean `a`?" naming the valid name nearest to `X` by
+/// edit distance, when it is near enough to be a misspelling (at most a third of its length
+/// edited, at least 2 edits allowed).
+pub fn nearest_name_hint(message: &str) -> Option<String> {
+    let (_, rest) = message
+        .split_once("unknown field `")
+        .or_else(|| message.split_once("unknown variant `"))?;
+    let (bad, rest) = rest.split_once('`')?;
+    let (_, list) = rest.split_once("expected")?;
+    let list = list.lines().next().unwrap_or("");
+    let best = list
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(|cand| (strsim::levenshtein(bad, cand), cand))
+        .min()?;
+    let allowed = (bad.chars().count() / 3).max(2);
+    (best.0 <= allowed).then(|| format!("did you mean `{}`?", best.1))
+}
+
 /// Parses and validates a run configuration from TOML text (`name` is used in errors).
 pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
-    let cfg: RunConfig = toml::from_str(text).map_err(|e| IoError::Config {
-        path: name.to_path_buf(),
-        message: e.to_string(),
-        source: Some(Box::new(e)),
+    let cfg: RunConfig = toml::from_str(text).map_err(|e| {
+        let mut message = e.to_string();
+        if let Some(hint) = nearest_name_hint(&message) {
+            message = format!("{}; {hint}", message.trim_end());
+        }
+        IoError::Config {
+            path: name.to_path_buf(),
+            message,
+            source: Some(Box::new(e)),
+        }
     })?;
     let located = cfg.located_problems();
     if !located.is_empty() {

@@ -36,3 +36,4 @@ mod smooth_rts;
 mod smooth_sim;
 mod study_reduced;
 mod undeclared_effects;
+mod init;

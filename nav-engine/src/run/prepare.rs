@@ -36,6 +36,7 @@ use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind};
 use nav_core::strapdown::NavState;
 use nav_core::types::ImuSample;
+use nav_io::restcheck::check_config_biases as rest_check;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
     ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
@@ -1054,7 +1055,7 @@ fn prepare_run_config(
             };
             let mut st = ImuStream::new(ImuFile::Config(files.clone()));
             let g = GnssStream::check_config(files)?;
-            warnings.extend(g.summary.warnings.iter().cloned());
+            warnings.extend(g.summary.warnings.iter().cloned().chain(rest_check(r, dir)));
             *dropped_by_quality = g.summary.dropped_by_quality as u64;
             if let Some(w) = g.summary.week {
                 week = u16::try_from(w).unwrap_or(0);
@@ -1067,7 +1068,7 @@ fn prepare_run_config(
         }
         None => {
             let inp = r.load_inputs(dir)?;
-            warnings.extend(inp.warnings.iter().map(ToString::to_string));
+            warnings.extend(inp.warnings.iter().cloned().chain(rest_check(r, dir)));
             *dropped_by_quality = inp.gnss_dropped_by_quality as u64;
             if let Some(w) = inp.gnss_week {
                 week = u16::try_from(w).unwrap_or(0);

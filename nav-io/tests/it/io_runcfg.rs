@@ -270,7 +270,7 @@ fn run_config_errors_name_the_file_and_the_problem() {
         dir.path(),
         &base.replace("[noise]\n", "[init.align]\nstatic_s = 10.0\n[noise]\n"),
     );
-    assert!(m.contains("exactly one"), "{m}");
+    assert!(m.contains("at most one"), "{m}");
     // csv without mapping
     let m = err_of(
         dir.path(),
@@ -344,4 +344,190 @@ fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("gnss.sigma_scale must be > 0"), "{e}");
+}
+
+/// The IMU and the GNSS CSV name GPS seconds of week the same: `gps_sow` (canonical) and
+/// `seconds` (the IMU's older name) are accepted in both sections.
+#[test]
+fn time_kinds_share_one_vocabulary_in_imu_and_gnss() {
+    let p = Path::new("run.toml");
+    for (imu_kind, gnss_kind) in [
+        ("gps_sow", "gps_sow"),
+        ("seconds", "seconds"),
+        ("seconds", "gps_sow"),
+    ] {
+        let text = format!(
+            r#"
+[imu]
+path = "imu.csv"
+format = "csv"
+[imu.csv]
+gyro_unit = "rad/s"
+accel_unit = "m/s^2"
+[imu.csv.columns]
+time = 1
+gyro = [2, 3, 4]
+accel = [5, 6, 7]
+[imu.csv.time]
+kind = "{imu_kind}"
+[gnss]
+path = "gnss.csv"
+format = "csv"
+[gnss.csv]
+default_sigma_ned_m = [1.0, 1.0, 2.0]
+[gnss.csv.columns]
+time = 1
+lat = 2
+lon = 3
+h = 4
+[gnss.csv.time]
+kind = "{gnss_kind}"
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.2
+"#
+        );
+        let c = nav_io::parse_run_config(p, &text).unwrap();
+        assert_eq!(c.imu.csv.as_ref().unwrap().time, CsvTime::Seconds);
+        assert_eq!(
+            c.gnss.csv.as_ref().unwrap().time,
+            nav_io::gnsscsv::GnssCsvTime::GpsSow
+        );
+        // written with the canonical name
+        let back = toml::to_string(&c).unwrap();
+        assert!(back.contains("kind = \"gps_sow\""), "{back}");
+        assert!(!back.contains("\"seconds\""), "{back}");
+    }
+}
+
+/// A phone log stamps the IMU and the fixes in Unix milliseconds (UTC): `unix_ms` reads the
+/// same in both sections, and both land on the same GPS seconds of week.
+#[test]
+fn imu_and_gnss_unix_ms_land_on_the_same_gps_time() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2025-07-08 19:34:03.854 UTC = 19:34:21.854 GPST = week 2374, 243261.854 s
+    let t0_ms: u64 = 1_752_003_243_854;
+    let mut imu = String::from("t,gx,gy,gz,ax,ay,az\n");
+    for k in 0..5u64 {
+        imu.push_str(&format!("{},0,0,0.1,0,0,-9.8\n", t0_ms + 10 * k));
+    }
+    std::fs::write(dir.path().join("imu.csv"), imu).unwrap();
+    std::fs::write(
+        dir.path().join("gnss.csv"),
+        format!("t,lat,lon,h\n{},40.0,-105.0,1600.0\n", t0_ms + 20),
+    )
+    .unwrap();
+    let text = r#"
+[imu]
+path = "imu.csv"
+format = "csv"
+[imu.csv]
+skip_lines = 1
+gyro_unit = "rad/s"
+accel_unit = "m/s^2"
+[imu.csv.columns]
+time = "t"
+gyro = ["gx", "gy", "gz"]
+accel = ["ax", "ay", "az"]
+[imu.csv.time]
+kind = "unix_ms"
+[gnss]
+path = "gnss.csv"
+format = "csv"
+[gnss.csv]
+skip_lines = 1
+default_sigma_ned_m = [1.0, 1.0, 2.0]
+[gnss.csv.columns]
+time = "t"
+lat = "lat"
+lon = "lon"
+h = "h"
+[gnss.csv.time]
+kind = "unix_ms"
+[noise.accel]
+vrw_mps_per_sqrt_h = 0.03
+[noise.gyro]
+arw_deg_per_sqrt_h = 0.2
+"#;
+    let p = dir.path().join("run.toml");
+    std::fs::write(&p, text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    let inp = c.load_inputs(dir.path()).unwrap();
+    assert_eq!(inp.gnss_week, Some(2374));
+    assert!(
+        (inp.gnss[0].t_s - 243_261.874).abs() < 1e-6,
+        "{}",
+        inp.gnss[0].t_s
+    );
+    // the IMU's second row closes the first increment
+    assert!(
+        (inp.imu.samples[0].t_s - 243_261.864).abs() < 1e-6,
+        "{}",
+        inp.imu.samples[0].t_s
+    );
+    assert!((inp.imu.samples[1].t_s - inp.gnss[0].t_s).abs() < 1e-6);
+}
+
+/// The start-up check: a gyro bias 100 x the configured initial sigma at a 10 s rest is
+/// warned about with the measured value; the same data with a sigma that covers it are not;
+/// a start in motion gives no rest window.
+#[test]
+fn rest_bias_check_warns_when_the_bias_at_rest_exceeds_the_configured_sigma() {
+    use nav_io::restcheck::{bias_warnings, gnss_motion_start, rest_stats};
+    let dt = 0.01;
+    let g = 9.79;
+    // 10 s at rest with a 0.5 deg/s x-gyro bias and 0.05 m/s^2 of vertical accel bias, then
+    // a turn at 20 deg/s
+    let imu: Vec<ImuSample> = (1..=2000)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let wob = 1e-4 * (k as f64 * 0.731).sin();
+            let turn = if t > 10.0 { 20f64.to_radians() } else { 0.0 };
+            ImuSample {
+                t_s: t,
+                dtheta_rad: [
+                    (0.5f64.to_radians() + wob) * dt,
+                    wob * dt,
+                    (turn - wob) * dt,
+                ],
+                dv_mps: [wob * dt, -wob * dt, -(g + 0.05) * dt],
+                temperature_c: f64::NAN,
+            }
+        })
+        .collect();
+    let st = rest_stats(imu.iter().copied(), None, g).expect("a rest window");
+    assert!(st.duration_s > 9.0 && st.duration_s < 10.0, "{st:?}");
+    assert_eq!(st.ended_by, "IMU motion");
+    assert!(
+        (st.mean_rate_radps[0].to_degrees() - 0.5).abs() < 1e-3,
+        "{st:?}"
+    );
+    assert!((st.gravity_mismatch_mps2() - 0.05).abs() < 1e-3, "{st:?}");
+    let w = bias_warnings(&st, [0.005f64.to_radians(); 3], [0.001; 3]);
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(w[0].contains("+0.5000 deg/s on the x axis"), "{w:?}");
+    assert!(w[1].contains("+0.0500 m/s^2"), "{w:?}");
+    assert!(bias_warnings(&st, [0.5f64.to_radians(); 3], [0.02; 3]).is_empty());
+    // GNSS says the vehicle moves from 4 s on: the window ends there
+    let fix = |t: f64, v: f64| GnssFix {
+        t_s: t,
+        lat_rad: 0.7,
+        lon_rad: 0.2,
+        h_m: 100.0,
+        pos_std_ned_m: [0.02, 0.02, 0.05],
+        vel_ned_mps: [v, 0.0, 0.0],
+        vel_std_ned_mps: [0.05; 3],
+        has_velocity: true,
+        quality: nav_core::types::FixQuality::RtkFixed,
+        ..GnssFix::default()
+    };
+    let fixes: Vec<GnssFix> = (0..10)
+        .map(|k| fix(k as f64, if k >= 4 { 1.0 } else { 0.0 }))
+        .collect();
+    assert_eq!(gnss_motion_start(&fixes), Some(4.0));
+    let st = rest_stats(imu.iter().copied(), gnss_motion_start(&fixes), g).unwrap();
+    assert!(st.duration_s > 3.0 && st.duration_s < 4.0, "{st:?}");
+    // moving from the first fix: no rest
+    assert!(rest_stats(imu.iter().copied(), Some(0.0), g).is_none());
 }

@@ -158,3 +158,52 @@ fn per_axis_noise_values_are_read_and_checked() {
     let e = err_of(&text.replace("[1.0e-6, 2.0e-6, 3.0e-6]", "[1.0e-6, 0.0, 3.0e-6]"));
     assert!(e.to_string().contains("trust the sensor absolutely"), "{e}");
 }
+
+#[test]
+fn unknown_key_suggests_the_nearest_valid_one_with_its_line() {
+    let e = err_of(&BASE.replace("static_s = 10.0", "statc_s = 10.0"));
+    let m = e.to_string();
+    assert!(
+        m.contains("statc_s") && m.contains("line 18") && m.contains("did you mean `static_s`?"),
+        "{m}"
+    );
+    let e = err_of(&BASE.replace("format = \"text\"\n\n[gnss]", "fromat = \"text\"\n\n[gnss]"));
+    let m = e.to_string();
+    assert!(m.contains("did you mean `format`?"), "{m}");
+    let e = err_of(&BASE.replace("arw_deg_per_sqrt_h", "arw_deg_per_sqr_h"));
+    let m = e.to_string();
+    assert!(m.contains("did you mean `arw_deg_per_sqrt_h`?"), "{m}");
+    // a misspelt value of a closed list: the nearest value
+    let e = err_of(&BASE.replace("format = \"text\"\n\n[gnss]", "format = \"txt\"\n\n[gnss]"));
+    assert!(e.to_string().contains("did you mean `text`?"), "{e}");
+    // nothing near: no guess
+    let e = err_of(&BASE.replace("static_s = 10.0", "colour = 3"));
+    assert!(!e.to_string().contains("did you mean"), "{e}");
+}
+
+#[test]
+fn init_is_optional_and_defaults_to_an_alignment_from_the_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("no_init.toml");
+    let start = BASE.find("[init]").unwrap();
+    let end = BASE.find("[noise.accel]").unwrap();
+    let text = format!("{}{}", &BASE[..start], &BASE[end..]);
+    std::fs::write(&p, &text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    assert_eq!(c.init, nav_io::runcfg::InitConfig::default());
+    let nav_io::InitMode::Align(a) = c.init.mode().unwrap() else {
+        panic!("default init is an alignment")
+    };
+    assert_eq!(*a, nav_io::runcfg::DEFAULT_ALIGN);
+    assert_eq!(a.static_s, nav_io::runcfg::DEFAULT_STATIC_S);
+    // [init.align] with its window only; the sigmas default
+    let text = BASE
+        .replace("pos_std_m = [1.0, 1.0, 2.0]\n", "")
+        .replace("vel_std_mps = [0.1, 0.1, 0.1]\n", "")
+        .replace("att_std_deg = [1.0, 1.0, 5.0]\n", "");
+    std::fs::write(&p, &text).unwrap();
+    let c = read_run_config(&p).unwrap();
+    assert_eq!(c.init.pos_std_m, [1.0, 1.0, 2.0]);
+    assert_eq!(c.init.att_std_deg, [2.0, 2.0, 10.0]);
+    assert_eq!(c.init.align.as_ref().unwrap().static_s, 10.0);
+}

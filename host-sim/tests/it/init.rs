@@ -1,0 +1,371 @@
+//! `host-sim init` on files written the way devices write them (the project's text from the
+//! simulator, a phone CSV with a header in Unix ms / deg/s / g with a u-blox-style fix CSV, a
+//! rover's text lines, RTKLIB `.pos`, NMEA): each written configuration is read by `run`, and
+//! its solution equals that of a hand-written configuration with the same `[init]`, `[noise]`
+//! and mounting (the readers' mapping is what `init` found). The real drive0708: `init` then
+//! `run` (CI only, SKIPPED without the data).
+
+use host_sim::sim::{simulate, ErrorModel};
+use nav_core::types::{GnssFix, ImuSample};
+use nav_io::gnss::encode::{nmea_epoch, utc_of_gps};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use test_support::scenario::ScenarioToml;
+
+// 2025-07-08 is in GPS week 2374; GPS - UTC = 18 s
+const WEEK: u16 = 2374;
+const SOW0: f64 = 2.0 * 86400.0 + 19.0 * 3600.0;
+const LEAP: i32 = 18;
+/// Unix seconds of GPS week 0, second 0 (1980-01-06).
+const GPS_EPOCH_UNIX: f64 = 315_964_800.0;
+
+struct Sim {
+    imu: Vec<ImuSample>,
+    gnss: Vec<GnssFix>,
+}
+
+fn sim() -> Sim {
+    let sc = ScenarioToml::new("init")
+        .start(40.0966, -105.1474, 1600.0, 30.0)
+        .gps_time(WEEK, SOW0)
+        .imu_rate_hz(100.0)
+        .stationary(15.0)
+        .accelerate(10.0, 5.0)
+        .turn(90.0, 30.0)
+        .cruise(10.0)
+        .turn(-90.0, 30.0)
+        .cruise(10.0);
+    let case = simulate(&sc.scenario(), &ErrorModel::preset("tactical").unwrap(), 3).unwrap();
+    Sim {
+        imu: case.meas.imu,
+        gnss: case.meas.gnss,
+    }
+}
+
+fn host_sim(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.success(), text)
+}
+
+fn init(dir: &Path, imu: &str, gnss: &str) -> (PathBuf, String) {
+    let out = dir.join("init.toml");
+    let (ok, text) = host_sim(&[
+        "init",
+        "--imu",
+        dir.join(imu).to_str().unwrap(),
+        "--gnss",
+        dir.join(gnss).to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    (out, text)
+}
+
+/// Runs a configuration; returns the solution.
+fn run(cfg: &Path, out: &Path) -> Vec<nav_core::types::NavSolution> {
+    let (ok, text) = host_sim(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    nav_io::read_nav_text(out.join("nav.txt")).unwrap()
+}
+
+/// The hand-written `[imu]` and `[gnss]` mapping with the init's mounting, `[init]` and
+/// `[noise]`: run both, the same solution.
+fn same_solution_as_hand(dir: &Path, written: &Path, hand_imu_gnss: &str) {
+    let init_cfg = nav_io::read_run_config(written).unwrap();
+    let hand: nav_io::RunConfig = nav_io::parse_run_config(
+        Path::new("hand.toml"),
+        &format!("{hand_imu_gnss}\n[noise.accel]\nn_ug_per_sqrt_hz = 1.0\n[noise.gyro]\nn_deg_per_s_per_sqrt_hz = 0.001\n"),
+    )
+    .unwrap();
+    let mut cfg = init_cfg.clone();
+    cfg.imu = nav_io::ImuSource {
+        mounting: init_cfg.imu.mounting,
+        ..hand.imu
+    };
+    cfg.gnss = hand.gnss;
+    let hand_path = dir.join("hand.toml");
+    nav_io::write_run_config(&hand_path, &cfg).unwrap();
+    let a = run(written, &dir.join("out_init"));
+    let b = run(&hand_path, &dir.join("out_hand"));
+    assert!(a.len() > 1000, "{} epochs", a.len());
+    assert_eq!(a.len(), b.len());
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| {
+            assert_eq!(x.t_s, y.t_s);
+            ((x.lat_rad - y.lat_rad).abs() + (x.lon_rad - y.lon_rad).abs()) * 6.4e6
+                + (x.h_m - y.h_m).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3, "solutions differ by {worst} m");
+}
+
+fn text_of(p: &Path) -> String {
+    std::fs::read_to_string(p).unwrap()
+}
+
+#[test]
+fn init_on_the_project_text_from_the_simulator_runs_as_the_hand_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    nav_io::write_imu_text(d.join("imu.txt"), &s.imu).unwrap();
+    nav_io::write_gnss_text(d.join("gnss.txt"), &s.gnss).unwrap();
+    let (cfg, _) = init(d, "imu.txt", "gnss.txt");
+    let t = text_of(&cfg);
+    assert!(
+        t.contains("format = \"text\"  # 7 white-space columns"),
+        "{t}"
+    );
+    assert!(t.contains("static_s = "), "{t}");
+    assert!(t.contains("the project's GNSS text"), "{t}");
+    // the mounting: the simulator's IMU is in body axes, the estimate within 0.1 deg of it
+    let c = nav_io::read_run_config(&cfg).unwrap();
+    for a in c.imu.mounting.rpy_deg {
+        let a = (a + 180.0).rem_euclid(360.0) - 180.0;
+        assert!(a.abs() < 0.1, "{:?}\n{t}", c.imu.mounting);
+    }
+    same_solution_as_hand(
+        d,
+        &cfg,
+        "[imu]\npath = \"imu.txt\"\nformat = \"text\"\n[gnss]\npath = \"gnss.txt\"\nformat = \"text\"\nuse_velocity = true\n",
+    );
+    // an existing file is kept without --force
+    let (ok, text) = host_sim(&[
+        "init",
+        "--imu",
+        d.join("imu.txt").to_str().unwrap(),
+        "--gnss",
+        d.join("gnss.txt").to_str().unwrap(),
+        "-o",
+        cfg.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("exists: give --force"), "{text}");
+}
+
+/// A phone: IMU CSV with a header, Unix ms, deg/s and g; fixes in a u-blox-style CSV with
+/// accuracy, speed and bearing columns.
+#[test]
+fn init_on_a_phone_csv_and_a_ublox_style_csv_finds_units_and_time_kind() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    let unix_ms = |sow: f64| {
+        ((f64::from(WEEK) * 604_800.0 + sow + GPS_EPOCH_UNIX - f64::from(LEAP)) * 1000.0).round()
+    };
+    let mut imu = String::from("time_ms,gx,gy,gz,ax,ay,az\n");
+    let mut prev = s.imu[0].t_s - 0.01;
+    for x in &s.imu {
+        let dt = x.t_s - prev;
+        prev = x.t_s;
+        let w = x.dtheta_rad.map(|v| (v / dt).to_degrees());
+        let f = x.dv_mps.map(|v| v / dt / 9.806_65);
+        let _ = writeln!(
+            imu,
+            "{:.0},{:.6},{:.6},{:.6},{:.7},{:.7},{:.7}",
+            unix_ms(x.t_s),
+            w[0],
+            w[1],
+            w[2],
+            f[0],
+            f[1],
+            f[2]
+        );
+    }
+    std::fs::write(d.join("phone_imu.csv"), imu).unwrap();
+    let mut g = String::from("time_ms,lat,lon,alt,acc,vacc,speed,bearing,speed_acc\n");
+    for f in &s.gnss {
+        let v = f.vel_ned_mps;
+        let _ = writeln!(
+            g,
+            "{:.0},{:.9},{:.9},{:.4},{:.3},{:.3},{:.3},{:.3},0.100",
+            unix_ms(f.t_s),
+            f.lat_rad.to_degrees(),
+            f.lon_rad.to_degrees(),
+            f.h_m,
+            f.pos_std_ned_m[0],
+            f.pos_std_ned_m[2],
+            v[0].hypot(v[1]),
+            v[1].atan2(v[0]).to_degrees().rem_euclid(360.0)
+        );
+    }
+    std::fs::write(d.join("fixes.csv"), g).unwrap();
+    let (cfg, _) = init(d, "phone_imu.csv", "fixes.csv");
+    let t = text_of(&cfg);
+    for want in [
+        "gyro_unit = \"deg/s\"",
+        "accel_unit = \"g\"",
+        "kind = \"unix_ms\"",
+        "skip_lines = 1",
+        "gyro = [\"gx\", \"gy\", \"gz\"]",
+        "sigma_h = \"acc\"",
+        "speed = \"speed\"",
+    ] {
+        assert!(t.contains(want), "{want} not in\n{t}");
+    }
+    same_solution_as_hand(
+        d,
+        &cfg,
+        r#"[imu]
+path = "phone_imu.csv"
+format = "csv"
+[imu.csv]
+skip_lines = 1
+gyro_unit = "deg/s"
+accel_unit = "g"
+[imu.csv.columns]
+time = "time_ms"
+gyro = ["gx", "gy", "gz"]
+accel = ["ax", "ay", "az"]
+[imu.csv.time]
+kind = "unix_ms"
+[gnss]
+path = "fixes.csv"
+format = "csv"
+use_velocity = true
+[gnss.csv]
+skip_lines = 1
+[gnss.csv.columns]
+time = "time_ms"
+lat = "lat"
+lon = "lon"
+h = "alt"
+sigma_h = "acc"
+sigma_v = "vacc"
+speed = "speed"
+course = "bearing"
+speed_sigma = "speed_acc"
+[gnss.csv.time]
+kind = "unix_ms"
+"#,
+    );
+}
+
+/// A rover's text lines `2015_11_26_15_00_02_617 RTK_FIXED lat lon h sN sE sD` (UTC), an RTKLIB
+/// `.pos` and an NMEA log of the same fixes, with the simulator's IMU text.
+#[test]
+fn init_on_rover_lines_rtklib_pos_and_nmea() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    nav_io::write_imu_text(d.join("imu.txt"), &s.imu).unwrap();
+    let mut rover = String::new();
+    let mut pos = String::from("%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)  sdne(m)  sdeu(m)  sdun(m) age(s)  ratio\n");
+    let mut nmea = String::new();
+    for f in &s.gnss {
+        let (y, mo, dd, h, mi, sec) = utc_of_gps(i64::from(WEEK), f.t_s, LEAP);
+        let ms = (sec * 1000.0).round() as u32;
+        let [sn, se, sd] = f.pos_std_ned_m;
+        let (la, lo) = (f.lat_rad.to_degrees(), f.lon_rad.to_degrees());
+        let _ = writeln!(rover, "{y}_{mo:02}_{dd:02}_{h:02}_{mi:02}_{:02}_{:03} RTK_FIXED {la:.9} {lo:.9} {:.4} {sn:.4} {se:.4} {sd:.4}", ms / 1000, ms % 1000, f.h_m);
+        let _ = writeln!(pos, "{WEEK} {:.3}   {la:.9}  {lo:.9} {:10.4}   1  12   {sn:.4}   {se:.4}   {sd:.4}   0.0000   0.0000   0.0000   0.00    0.0", f.t_s, f.h_m);
+        for l in nmea_epoch(f, i64::from(WEEK), LEAP) {
+            nmea.push_str(&l);
+            nmea.push('\n');
+        }
+    }
+    std::fs::write(d.join("rover.txt"), rover).unwrap();
+    std::fs::write(d.join("gnss.pos"), pos).unwrap();
+    std::fs::write(d.join("gnss.nmea"), nmea).unwrap();
+    let imu = "[imu]\npath = \"imu.txt\"\nformat = \"text\"\n";
+
+    let (cfg, _) = init(d, "imu.txt", "rover.txt");
+    let t = text_of(&cfg);
+    for want in [
+        "format = \"%Y_%m_%d_%H_%M_%S_%3f\"",
+        "scale = \"utc\"",
+        "column = 2",
+        "sigma_ned = [6, 7, 8]",
+        "lat = 3",
+    ] {
+        assert!(t.contains(want), "{want} not in\n{t}");
+    }
+    same_solution_as_hand(d, &cfg, &format!("{imu}[gnss]\npath = \"rover.txt\"\nformat = \"csv\"\n[gnss.csv]\n[gnss.csv.columns]\ntime = 1\nlat = 3\nlon = 4\nh = 5\nsigma_ned = [6, 7, 8]\n[gnss.csv.time]\nkind = \"text\"\nformat = \"%Y_%m_%d_%H_%M_%S_%3f\"\nscale = \"utc\"\n[gnss.csv.quality]\ncolumn = 2\n"));
+
+    std::fs::remove_file(&cfg).unwrap();
+    let (cfg, _) = init(d, "imu.txt", "gnss.pos");
+    assert!(text_of(&cfg).contains("format = \"rtklib_pos\""));
+    same_solution_as_hand(
+        d,
+        &cfg,
+        &format!("{imu}[gnss]\npath = \"gnss.pos\"\nformat = \"rtklib_pos\"\n"),
+    );
+
+    std::fs::remove_file(&cfg).unwrap();
+    let (cfg, _) = init(d, "imu.txt", "gnss.nmea");
+    assert!(text_of(&cfg).contains("format = \"nmea\""));
+    same_solution_as_hand(
+        d,
+        &cfg,
+        &format!("{imu}[gnss]\npath = \"gnss.nmea\"\nformat = \"nmea\"\n"),
+    );
+}
+
+/// The real drive: `init` on the raw IMU log (with its time tag) and the RTKLIB `.pos`, then
+/// `run` with the outage protocol of `configs/drive0708.toml`'s figures.
+#[test]
+fn init_then_run_on_the_real_drive0708() {
+    let data =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/rtklibexplorer-drive0708");
+    if !data.join("imu_1934.csv").exists() {
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI=true but {} is missing",
+            data.display()
+        );
+        eprintln!("SKIPPED: {} not found", data.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("drive.toml");
+    let (ok, text) = host_sim(&[
+        "init",
+        "--imu",
+        data.join("imu_1934.csv").to_str().unwrap(),
+        "--gnss",
+        data.join("gnss_1934_sf.pos").to_str().unwrap(),
+        "-o",
+        cfg.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let t = text_of(&cfg);
+    for want in [
+        "gyro_unit = \"deg/s\"",
+        "accel_unit = \"g\"",
+        "kind = \"ticks_ms\"",
+        "tag_file = \"imu_1934.csv.tag\"",
+        "static_s = 19.0",
+        "format = \"rtklib_pos\"",
+    ] {
+        assert!(t.contains(want), "{want} not in\n{t}");
+    }
+    let out = dir.path().join("out");
+    let (ok, text) = host_sim(&[
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--periodic-outage",
+        "120:10:60",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    assert!(text.contains("static_alignment"), "{text}");
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metrics.json")).unwrap()).unwrap();
+    println!("{text}\n{m}");
+}
