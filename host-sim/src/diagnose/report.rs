@@ -836,9 +836,35 @@ pub fn write_augmented_config(dir: &Path, config: &Path, d: &Diagnosis) -> anyho
             e.name, e.estimate, e.sigma, e.unit
         ));
     }
-    head.push_str("# run with: host-sim run --config augmented.toml\n");
+    head.push_str(&closing_comments(d));
     let out = format!("{head}{}", toml::to_string_pretty(&doc).unwrap_or_default());
     let path = dir.join("augmented.toml");
     std::fs::write(&path, out).with_context(|| format!("writing {}", path.display()))?;
     Ok(())
+}
+
+/// The last comment lines of `augmented.toml`: a named clock drift's rate as a recommendation
+/// (the run configuration has no clock-rate key: only the constant `imu.time_offset_s`), then
+/// how to run it.
+fn closing_comments(d: &Diagnosis) -> String {
+    let mut out = String::new();
+    if let Some(e) = d.added_effects.iter().find(|e| e.name == "imu_clock_drift") {
+        // the run configuration has no key for a clock rate (nav_io::RunConfig: only the
+        // constant imu.time_offset_s), so the rate is a recommendation, not a setting
+        let (dt0, rate) = (
+            e.estimate.first().copied().unwrap_or(f64::NAN),
+            e.estimate.get(1).copied().unwrap_or(f64::NAN),
+        );
+        let sr = e.sigma.get(1).copied().unwrap_or(f64::NAN);
+        out.push_str(&format!(
+            "# imu clock drift (recommendation, not applied: the run configuration has no \
+             clock-rate key): imu_clock_rate_ppm = {:.2} (1-sigma {:.2}), offset at the start \
+             {dt0:.4} s (IMU time tau is GNSS time tau - dt_0 - rate (tau - t_0)); the `effects` \
+             list keeps imu_clock_drift so the run estimates it\n",
+            rate * 1e6,
+            sr * 1e6
+        ));
+    }
+    out.push_str("# run with: host-sim run --config augmented.toml\n");
+    out
 }
