@@ -169,86 +169,10 @@ fn csv(t: &Table, shown: &str, g: &mut Guess) -> anyhow::Result<String> {
     if time_toml.contains("week_sow") {
         writeln!(cols, "week = {}", r(tc - 1))?;
     }
-    let lat = named(t, &["lat", "latitude", "lat_deg"]);
-    let lon = named(t, &["lon", "lng", "longitude", "lon_deg"]);
-    let h = named(t, &["alt", "h", "height", "altitude", "height_m", "alt_m"]);
-    let (lat, lon, h) = match (lat, lon, h) {
-        (Some(a), Some(b), Some(c)) => (a, b, c),
-        _ => {
-            // content: the first numeric pair lat (|v| <= 90) and lon (|v| <= 180) with a
-            // fraction, then the height
-            let c = (0..t.width.saturating_sub(2))
-                .find(|c| {
-                    *c != tc
-                        && t.numeric(*c)
-                        && t.numeric(c + 1)
-                        && t.col(*c)
-                            .iter()
-                            .all(|v| v.abs() <= 90.0 && v.fract() != 0.0)
-                        && t.col(c + 1)
-                            .iter()
-                            .all(|v| v.abs() <= 180.0 && v.fract() != 0.0)
-                })
-                .ok_or_else(|| anyhow::anyhow!("no latitude/longitude columns found"))?;
-            (c, c + 1, c + 2)
-        }
-    };
+    let (lat, lon, h) = lat_lon_h(t, tc)?;
     writeln!(cols, "lat = {}\nlon = {}\nh = {}", r(lat), r(lon), r(h))?;
     let mut extra = String::new();
-    let sig = [
-        named(t, &["sdn", "sigma_n", "sn", "std_n"]),
-        named(t, &["sde", "sigma_e", "se", "std_e"]),
-        named(
-            t,
-            &["sdu", "sdd", "sigma_d", "sigma_u", "sd", "std_d", "std_u"],
-        ),
-    ];
-    let hacc = named(
-        t,
-        &[
-            "acc",
-            "accuracy",
-            "hacc",
-            "horizontal_accuracy",
-            "h_acc",
-            "eph",
-        ],
-    );
-    let vacc = named(t, &["vacc", "vertical_accuracy", "v_acc", "epv"]);
-    if let [Some(a), Some(b), Some(c)] = sig {
-        writeln!(cols, "sigma_ned = [{}, {}, {}]", r(a), r(b), r(c))?;
-    } else if let Some(a) = hacc {
-        writeln!(cols, "sigma_h = {}", r(a))?;
-        match vacc {
-            Some(v) => writeln!(cols, "sigma_v = {}", r(v))?,
-            None => {
-                writeln!(
-                    extra,
-                    "default_sigma_ned_m = [3.0, 3.0, 6.0]  # GUESS: no vertical accuracy column"
-                )?;
-                g.unknown
-                    .push("GNSS vertical sigma: no column; 6 m assumed".into());
-            }
-        }
-    } else if t.names.is_none()
-        && h + 3 < t.width
-        && (h + 1..h + 4).all(|c| t.numeric(c) && t.col(c).iter().all(|v| *v > 0.0 && *v < 100.0))
-    {
-        writeln!(
-            cols,
-            "sigma_ned = [{}, {}, {}]  # three positive columns after the height: sigmas N/E/D, m",
-            r(h + 1),
-            r(h + 2),
-            r(h + 3)
-        )?;
-    } else {
-        writeln!(
-            extra,
-            "default_sigma_ned_m = [3.0, 3.0, 6.0]  # GUESS: no accuracy column found"
-        )?;
-        g.unknown
-            .push("GNSS sigmas: no accuracy column; 3 m horizontal, 6 m vertical assumed".into());
-    }
+    sigma_columns(t, h, &mut cols, &mut extra, g)?;
     let speed = named(t, &["speed", "spd", "speed_mps", "ground_speed"]);
     let course = named(t, &["bearing", "course", "cog", "heading", "track"]);
     let mut use_vel = false;
@@ -303,4 +227,105 @@ fn csv(t: &Table, shown: &str, g: &mut Guess) -> anyhow::Result<String> {
         "[gnss.csv.columns]\n{cols}[gnss.csv.time]\n{time_toml}\n{quality}"
     )?;
     Ok(s)
+}
+
+/// The latitude, longitude and height columns: by the header's names, else the first numeric
+/// pair with fractions within +-90 and +-180 and the column after it.
+fn lat_lon_h(t: &Table, tc: usize) -> anyhow::Result<(usize, usize, usize)> {
+    let lat = named(t, &["lat", "latitude", "lat_deg"]);
+    let lon = named(t, &["lon", "lng", "longitude", "lon_deg"]);
+    let h = named(t, &["alt", "h", "height", "altitude", "height_m", "alt_m"]);
+    Ok(match (lat, lon, h) {
+        (Some(a), Some(b), Some(c)) => (a, b, c),
+        _ => {
+            // content: the first numeric pair lat (|v| <= 90) and lon (|v| <= 180) with a
+            // fraction, then the height
+            let c = (0..t.width.saturating_sub(2))
+                .find(|c| {
+                    *c != tc
+                        && t.numeric(*c)
+                        && t.numeric(c + 1)
+                        && t.col(*c)
+                            .iter()
+                            .all(|v| v.abs() <= 90.0 && v.fract() != 0.0)
+                        && t.col(c + 1)
+                            .iter()
+                            .all(|v| v.abs() <= 180.0 && v.fract() != 0.0)
+                })
+                .ok_or_else(|| anyhow::anyhow!("no latitude/longitude columns found"))?;
+            (c, c + 1, c + 2)
+        }
+    })
+}
+
+/// The GNSS sigma columns (N/E/D sigmas, horizontal and vertical accuracies, or three positive
+/// columns after the height) into `cols`, or a guessed default into `extra`.
+fn sigma_columns(
+    t: &Table,
+    h: usize,
+    cols: &mut String,
+    extra: &mut String,
+    g: &mut Guess,
+) -> std::fmt::Result {
+    let sig = [
+        named(t, &["sdn", "sigma_n", "sn", "std_n"]),
+        named(t, &["sde", "sigma_e", "se", "std_e"]),
+        named(
+            t,
+            &["sdu", "sdd", "sigma_d", "sigma_u", "sd", "std_d", "std_u"],
+        ),
+    ];
+    let hacc = named(
+        t,
+        &[
+            "acc",
+            "accuracy",
+            "hacc",
+            "horizontal_accuracy",
+            "h_acc",
+            "eph",
+        ],
+    );
+    let vacc = named(t, &["vacc", "vertical_accuracy", "v_acc", "epv"]);
+    if let [Some(a), Some(b), Some(c)] = sig {
+        writeln!(
+            cols,
+            "sigma_ned = [{}, {}, {}]",
+            t.column_ref(a),
+            t.column_ref(b),
+            t.column_ref(c)
+        )?;
+    } else if let Some(a) = hacc {
+        writeln!(cols, "sigma_h = {}", t.column_ref(a))?;
+        match vacc {
+            Some(v) => writeln!(cols, "sigma_v = {}", t.column_ref(v))?,
+            None => {
+                writeln!(
+                    extra,
+                    "default_sigma_ned_m = [3.0, 3.0, 6.0]  # GUESS: no vertical accuracy column"
+                )?;
+                g.unknown
+                    .push("GNSS vertical sigma: no column; 6 m assumed".into());
+            }
+        }
+    } else if t.names.is_none()
+        && h + 3 < t.width
+        && (h + 1..h + 4).all(|c| t.numeric(c) && t.col(c).iter().all(|v| *v > 0.0 && *v < 100.0))
+    {
+        writeln!(
+            cols,
+            "sigma_ned = [{}, {}, {}]  # three positive columns after the height: sigmas N/E/D, m",
+            t.column_ref(h + 1),
+            t.column_ref(h + 2),
+            t.column_ref(h + 3)
+        )?;
+    } else {
+        writeln!(
+            extra,
+            "default_sigma_ned_m = [3.0, 3.0, 6.0]  # GUESS: no accuracy column found"
+        )?;
+        g.unknown
+            .push("GNSS sigmas: no accuracy column; 3 m horizontal, 6 m vertical assumed".into());
+    }
+    Ok(())
 }
