@@ -28,6 +28,11 @@ pub const REST_PREFIX_S: f64 = 120.0;
 /// A configured bias sigma exceeded this many times by the bias seen at rest is warned about.
 pub const BIAS_SIGMA_FACTOR: f64 = 5.0;
 
+/// How far the local gravity may differ from the normal gravity model the accelerometer check
+/// compares with (gravity anomalies reach a few hundred mGal), m/s^2: a smaller mismatch says
+/// nothing about the accelerometer bias (0.5 mg).
+pub const GRAVITY_MODEL_TOLERANCE_MPS2: f64 = 0.5e-3 * 9.806_65;
+
 const BLOCK_S: f64 = 0.25;
 const MARGIN_S: f64 = 0.5;
 const REF_S: f64 = 1.0;
@@ -236,8 +241,9 @@ pub fn rest_stats(
 }
 
 /// The warnings when the biases seen at rest exceed [`BIAS_SIGMA_FACTOR`] times the configured
-/// initial bias sigmas: the gyro's mean rate per axis (less the earth rate, which it may hold)
-/// against `gyro_sigma_radps`, the accelerometer's gravity mismatch against the largest of
+/// initial bias sigmas: the gyro's mean rate per axis (less the earth rate, which it may hold,
+/// and three standard errors of its mean) against `gyro_sigma_radps`, the accelerometer's
+/// gravity mismatch beyond [`GRAVITY_MODEL_TOLERANCE_MPS2`] against the largest of
 /// `accel_sigma_mps2` (its vertical axis is not known before levelling).
 pub fn bias_warnings(
     st: &RestStats,
@@ -248,7 +254,9 @@ pub fn bias_warnings(
     let axes = ["x", "y", "z"];
     let worst = (0..3)
         .map(|k| {
-            let seen = (st.mean_rate_radps[k].abs() - OMEGA_IE_RADPS).max(0.0);
+            // less the earth rate and three standard errors of the mean: what the data show
+            let sem = 3.0 * st.std_rate_radps[k] / (st.samples.max(1) as f64).sqrt();
+            let seen = (st.mean_rate_radps[k].abs() - OMEGA_IE_RADPS - sem).max(0.0);
             (seen / gyro_sigma_radps[k].max(1e-12), k)
         })
         .max_by(|a, b| a.0.total_cmp(&b.0));
@@ -270,7 +278,7 @@ pub fn bias_warnings(
     }
     let mis = st.gravity_mismatch_mps2();
     let sig = accel_sigma_mps2.iter().fold(0.0f64, |m, v| m.max(*v));
-    if mis.abs() > BIAS_SIGMA_FACTOR * sig {
+    if mis.abs() > BIAS_SIGMA_FACTOR * sig && mis.abs() > GRAVITY_MODEL_TOLERANCE_MPS2 {
         out.push(format!(
             "accelerometer bias: |mean specific force| at rest over the first {:.1} s is \
              {:.4} m/s^2 against normal gravity {:.4} ({:+.4} m/s^2 = {:+.1} mg, {:.0} x the \

@@ -509,6 +509,14 @@ fn rest_bias_check_warns_when_the_bias_at_rest_exceeds_the_configured_sigma() {
     assert!(w[0].contains("+0.5000 deg/s on the x axis"), "{w:?}");
     assert!(w[1].contains("+0.0500 m/s^2"), "{w:?}");
     assert!(bias_warnings(&st, [0.5f64.to_radians(); 3], [0.02; 3]).is_empty());
+    // biases fixed in the model (sigmas 0) and data that show none: nothing to warn about (the
+    // gravity model's tolerance and the mean's standard error are what "none" means)
+    let clean = nav_io::restcheck::RestStats {
+        mean_rate_radps: [1e-7, -1e-7, 0.0],
+        mean_f_mps2: [0.0, 0.0, st.gravity_mps2 + 1e-4],
+        ..st
+    };
+    assert!(bias_warnings(&clean, [0.0; 3], [0.0; 3]).is_empty());
     // GNSS says the vehicle moves from 4 s on: the window ends there
     let fix = |t: f64, v: f64| GnssFix {
         t_s: t,
