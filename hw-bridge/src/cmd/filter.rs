@@ -6,6 +6,7 @@ use super::*;
 use crate::frames::FrameLog;
 use anyhow::{bail, Context};
 use nav_core::types::{GnssFix, ImuSample};
+use nav_engine::run::gnss_use::{time_span, widen_span};
 use std::path::Path;
 use std::time::Instant;
 
@@ -76,15 +77,8 @@ pub fn run_filter_on_frames(
         output,
         metrics,
         wall_s: t.elapsed().as_secs_f64(),
-        imu_span_s: span(log.imu.iter().map(|s| s.t_s)),
-        fix_span_s: span(log.gnss.iter().map(|g| g.t_s)),
-    })
-}
-
-/// First and last of a sequence of times (None when empty).
-fn span(t: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
-    t.fold(None, |acc: Option<(f64, f64)>, t| {
-        Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+        imu_span_s: time_span(log.imu.iter().map(|s| s.t_s)),
+        fix_span_s: time_span(log.gnss.iter().map(|g| g.t_s)),
     })
 }
 
@@ -137,7 +131,7 @@ impl FilterFeed {
     /// Gives the filter the next IMU sample (a run that has ended takes no more: its error
     /// comes with [`Self::finish`]).
     pub fn imu(&mut self, s: &ImuSample) {
-        self.imu_span_s = widen(self.imu_span_s, s.t_s);
+        self.imu_span_s = widen_span(self.imu_span_s, s.t_s);
         if let Some(ses) = self.run.as_mut() {
             // a run that has ended takes no more (`finish` gives its error)
             let _ = ses.push_imu(*s);
@@ -146,7 +140,7 @@ impl FilterFeed {
 
     /// Gives the filter the next GNSS fix.
     pub fn fix(&mut self, f: &GnssFix) {
-        self.fix_span_s = widen(self.fix_span_s, f.t_s);
+        self.fix_span_s = widen_span(self.fix_span_s, f.t_s);
         if let Some(ses) = self.run.as_mut() {
             let _ = ses.push_fix(*f);
         }
@@ -176,8 +170,4 @@ impl FilterFeed {
             fix_span_s: self.fix_span_s,
         })
     }
-}
-
-fn widen(span: Option<(f64, f64)>, t: f64) -> Option<(f64, f64)> {
-    Some(span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
 }

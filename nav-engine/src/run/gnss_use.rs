@@ -16,6 +16,17 @@ pub const MIN_USED_FRACTION: f64 = 0.1;
 /// Seconds in a GPS week.
 const WEEK_S: f64 = 604_800.0;
 
+/// `span` (first and last time, s) widened to hold `t_s`.
+pub fn widen_span(span: Option<(f64, f64)>, t_s: f64) -> Option<(f64, f64)> {
+    Some(span.map_or((t_s, t_s), |(a, b)| (a.min(t_s), b.max(t_s))))
+}
+
+/// First and last of a sequence of times, s (None when empty): the spans of
+/// [`GnssAccount`].
+pub fn time_span(t_s: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    t_s.fold(None, widen_span)
+}
+
 /// Where the fixes of a run went, from the reader to the filter.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct GnssAccount {

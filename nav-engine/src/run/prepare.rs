@@ -21,7 +21,7 @@
 //! IMU gaps and plausibility: [`nav_core::imu_guard`], [`RunSpec`]'s `imu_*` fields and
 //! `[imu.checks]`. Running a prepared case and writing its outputs: [`super::execute`].
 
-use super::gnss_use::GnssAccount;
+use super::gnss_use::{time_span, GnssAccount};
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
 use super::streams::{read_prefix, ConfigFiles, ImuFile};
@@ -171,17 +171,12 @@ impl Loaded {
             return a;
         }
         let case = &self.prepared.case;
-        let span = |it: &mut dyn Iterator<Item = f64>| {
-            it.fold(None, |acc: Option<(f64, f64)>, t| {
-                Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
-            })
-        };
         a.fix_span_s = match self.imu_stream.as_ref().and_then(|st| st.gnss.as_ref()) {
             Some(g) => g
                 .source()
                 .ok()
-                .and_then(|src| span(&mut src.map_while(Result::ok).map(|f| f.t_s))),
-            None => span(&mut case.gnss.iter().map(|f| f.t_s)),
+                .and_then(|src| time_span(src.map_while(Result::ok).map(|f| f.t_s))),
+            None => time_span(case.gnss.iter().map(|f| f.t_s)),
         };
         a.imu_span_s = match &self.imu_stream {
             Some(st) => st
@@ -189,7 +184,7 @@ impl Loaded {
                 .time_span(true)
                 .ok()
                 .map(|(x, y)| (x + st.time_offset_s, y + st.time_offset_s)),
-            None => span(&mut case.imu.iter().map(|s| s.t_s)),
+            None => time_span(case.imu.iter().map(|s| s.t_s)),
         };
         a
     }
