@@ -1,73 +1,89 @@
-//! The bounded fuzz run of CI: every cargo-fuzz target of `fuzz/` (libFuzzer, address
-//! sanitizer) for a fixed time, seeded with the committed corpus, into a scratch corpus
+//! The bounded fuzz run of CI: every libFuzzer target of `fuzz/` (address sanitizer, coverage
+//! instrumentation) for a fixed time, seeded with the committed corpus, into a scratch corpus
 //! directory (so the committed one stays small). A crash fails the step; libFuzzer saves the
 //! input under `fuzz/artifacts/<target>/` and it belongs in `fuzz/regressions/<target>/`,
 //! which `hw-bridge/tests/it/fuzz_corpus.rs` replays in the ordinary test suite.
 //!
-//! cargo-fuzz needs nightly compiler features (`-Zsanitizer`); the stable toolchain accepts
-//! them with `RUSTC_BOOTSTRAP=1`. When `cargo fuzz` is missing it is installed from crates.io
-//! (`cargo install cargo-fuzz --locked`); when that fails too, the step says so and skips
-//! (the bounded random-input tests of `fuzz_corpus.rs` still run in the test suite).
+//! The targets are built the way `cargo fuzz build` builds them (the same instrumentation
+//! flags, for the host triple so build scripts and proc-macros stay uninstrumented, into
+//! `fuzz/target/`), by cargo itself: nothing to install first, so a fresh machine does not
+//! compile cargo-fuzz before it can fuzz. `cargo fuzz run <target>` works on the same tree for
+//! a longer hand run. The sanitizer flag is a nightly compiler feature; the stable toolchain
+//! accepts it with `RUSTC_BOOTSTRAP=1`.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
 /// The targets in `fuzz/fuzz_targets/`.
 pub const TARGETS: [&str; 4] = ["wire_decoder", "nmea", "gnss_stream", "capture"];
 
+/// The instrumentation of `cargo fuzz build` (coverage counters and comparisons for
+/// libFuzzer, the `fuzzing` cfg, the address sanitizer, debug assertions and overflow checks).
+const RUSTFLAGS: &str = "-Cpasses=sancov-module \
+     -Cllvm-args=-sanitizer-coverage-level=4 \
+     -Cllvm-args=-sanitizer-coverage-inline-8bit-counters \
+     -Cllvm-args=-sanitizer-coverage-pc-table \
+     -Cllvm-args=-sanitizer-coverage-trace-compares \
+     -Cllvm-args=-sanitizer-coverage-stack-depth \
+     --cfg fuzzing -Zsanitizer=address -Cdebug-assertions -Coverflow-checks";
+
 fn cargo() -> Command {
     Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
 }
 
-fn have_cargo_fuzz() -> bool {
-    cargo()
-        .args(["fuzz", "--version"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
+/// The host's target triple (`rustc -vV`).
+fn host_triple() -> Result<String> {
+    let rustc = std::env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    let out = Command::new(&rustc)
+        .arg("-vV")
+        .output()
+        .with_context(|| format!("running {rustc} -vV"))?;
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .find_map(|l| l.strip_prefix("host: "))
+        .map(|h| h.trim().to_string())
+        .context("rustc -vV printed no host triple")
 }
 
-/// Runs every target for `seconds_each` seconds. Returns false when it had to skip.
-pub fn run(seconds_each: u32) -> Result<bool> {
-    if !have_cargo_fuzz() {
-        eprintln!("  cargo-fuzz not found: installing it from crates.io");
-        let ok = crate::run(cargo().args(["install", "cargo-fuzz", "--locked"])).is_ok();
-        if !ok || !have_cargo_fuzz() {
-            eprintln!(
-                "  SKIPPED fuzz run: cargo-fuzz is not available and could not be installed \
-                 (the corpus and bounded random-input tests ran in the test suite)"
-            );
-            return Ok(false);
-        }
-    }
+/// Runs every target for `seconds_each` seconds.
+pub fn run(seconds_each: u32) -> Result<()> {
     let fuzz_dir = crate::root().join("fuzz");
+    let triple = host_triple()?;
     let scratch = std::env::temp_dir().join(format!("navcore-fuzz-{}", std::process::id()));
     let mut build = cargo();
     build
-        .args(["fuzz", "build"])
+        .args(["build", "--release", "--bins", "--target", &triple])
+        .env(
+            "RUSTFLAGS",
+            RUSTFLAGS.split_whitespace().collect::<Vec<_>>().join(" "),
+        )
         .env("RUSTC_BOOTSTRAP", "1")
+        .env("CARGO_TARGET_DIR", fuzz_dir.join("target"))
         .current_dir(&fuzz_dir);
-    eprintln!("  $ (in fuzz/) RUSTC_BOOTSTRAP=1 {}", crate::show(&build));
+    eprintln!(
+        "  $ (in fuzz/) RUSTC_BOOTSTRAP=1 RUSTFLAGS=<cargo fuzz's instrumentation> {}",
+        crate::show(&build)
+    );
     if !build.status()?.success() {
-        bail!("cargo fuzz build failed");
+        bail!("building the fuzz targets failed");
     }
+    let bin_dir = fuzz_dir.join("target").join(&triple).join("release");
     for t in TARGETS {
         let work = scratch.join(t);
         std::fs::create_dir_all(&work)?;
-        let mut c = cargo();
-        c.args(["fuzz", "run", t])
-            .arg(&work)
-            .arg(fuzz_dir.join("corpus").join(t))
-            .arg("--")
+        let artifacts = fuzz_dir.join("artifacts").join(t);
+        std::fs::create_dir_all(&artifacts)?;
+        let mut c = Command::new(bin_dir.join(t));
+        c.arg(format!("-artifact_prefix={}/", artifacts.display()))
             .arg(format!("-max_total_time={seconds_each}"))
             .arg("-print_final_stats=1")
-            .env("RUSTC_BOOTSTRAP", "1")
+            .arg(&work)
+            .arg(fuzz_dir.join("corpus").join(t))
             .current_dir(&fuzz_dir)
             .stdout(Stdio::null())
             .stderr(Stdio::piped());
-        eprintln!("  $ (in fuzz/) RUSTC_BOOTSTRAP=1 {}", crate::show(&c));
+        eprintln!("  $ (in fuzz/) {}", crate::show(&c));
         let t0 = Instant::now();
         let out = c.output()?;
         let err = String::from_utf8_lossy(&out.stderr);
@@ -96,5 +112,5 @@ pub fn run(seconds_each: u32) -> Result<bool> {
         );
     }
     let _ = std::fs::remove_dir_all(&scratch);
-    Ok(true)
+    Ok(())
 }

@@ -15,7 +15,7 @@
 //!   on a socket and a socat pty, compared with the host;
 //! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
 //!   `host-sim run` on the same case (wall times, ratio, identical output);
-//! - `fuzz [--seconds S]`: every cargo-fuzz target for S seconds (CI: 15 s each);
+//! - `fuzz [--seconds S]`: every libFuzzer target of `fuzz/` for S seconds (CI: 15 s each);
 //! - `soak [--seconds S]`: `hw-bridge send` -> faulty pty link -> `hw-bridge record` for S
 //!   seconds (default 600), counters balancing exactly at the end;
 //! - `lint [--update-allowlist]`: wording (no ticket references or work-log words in code and
@@ -80,7 +80,7 @@ enum Cmd {
     /// The host test suite (`cargo test --workspace --release`): no root, no embedded
     /// toolchain, no qemu needed.
     TestHost,
-    /// Run every cargo-fuzz target for a bounded time (as CI does).
+    /// Run every libFuzzer target of `fuzz/` for a bounded time (as CI does).
     Fuzz {
         /// Seconds per target.
         #[arg(long, default_value_t = 15)]
@@ -192,7 +192,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Ci => ci(),
         Cmd::Lint { update_allowlist } => lint::run(update_allowlist),
         Cmd::TestHost => test_host(),
-        Cmd::Fuzz { seconds } => fuzz::run(seconds).map(|_| ()),
+        Cmd::Fuzz { seconds } => fuzz::run(seconds),
         Cmd::Soak { seconds } => soak::run(seconds),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
         Cmd::BenchRun {
@@ -314,7 +314,7 @@ fn ci() -> Result<()> {
         },
     )?;
     step(
-        "cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf)",
+        "cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf with core only: no alloc, no std)",
         &mut || embedded::clippy_nav_core_thumb(),
     )?;
     step(
@@ -326,12 +326,8 @@ fn ci() -> Result<()> {
         &mut test_host,
     )?;
     step(
-        "fuzz: each cargo-fuzz target 15 s (4 targets, 1 min), no crash",
-        &mut || fuzz::run(15).map(|_| ()),
-    )?;
-    step(
-        "nav-core builds for thumbv7em-none-eabihf with core only (no alloc, no std)",
-        &mut || embedded::nav_core_thumb_build(),
+        "fuzz: each libFuzzer target 15 s (4 targets, 1 min), no crash",
+        &mut || fuzz::run(15),
     )?;
     firmware_steps(&mut step)?;
     eprintln!("\n[ci] summary");
