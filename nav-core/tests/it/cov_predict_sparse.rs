@@ -4,6 +4,8 @@
 //! and the largest layout (every block), in f64 and f32: equal within the rounding bound of
 //! the products (`4 N eps` times the sum of the absolute terms), exactly symmetric, and on
 //! random states, epochs and covariances (proptest).
+// the reference is written with matrix indices, as the formula reads
+#![allow(clippy::needless_range_loop)]
 
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::config::FilterConfig;
@@ -44,8 +46,7 @@ fn case<T: Scalar, const N: usize>(layout: &Layout, seed: u64) -> (Cov<T, N>, Di
         let y = yaw + 0.01 * f64::from(k);
         let (s, c) = y.sin_cos();
         let c_nb = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]].map(|r| r.map(T::of_f64));
-        let f_b = [0.0; 3].map(|_: f64| T::of_f64(rng.random_range(-3.0..3.0)));
-        let mut f_b = f_b;
+        let mut f_b = [0.0; 3].map(|_: f64| T::of_f64(rng.random_range(-3.0..3.0)));
         f_b[2] = T::of_f64(-9.8 + rng.random_range(-0.5..0.5));
         let omega_b = [0.0; 3].map(|_: f64| T::of_f64(rng.random_range(-0.5..0.5)));
         let reg = Regressors {
