@@ -143,7 +143,7 @@ fn with_temperatures(mut imu: Stream, mut temps: Stream, from: u64) -> anyhow::R
 }
 
 /// The header line of `health.txt`.
-pub const HEALTH_HEADER: &str = "# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status";
+pub const HEALTH_HEADER: &str = "# uptime_ms rx_frames_ok rx_rejected rx_crc_errors rx_lost imu_epochs gnss_updates gnss_rejected epoch_ticks_max stack_peak_bytes filter_status imu_implausible imu_gaps nhc_updates zupt_updates zaru_updates";
 
 /// The decoded frames of a replay as text files (`imu.txt`, `gnss.txt`, `board-nav.txt`,
 /// `health.txt`), each created at its first line.
@@ -252,7 +252,7 @@ impl FrameFiles {
         if let Some(st) = self.health.as_mut() {
             let r = writeln!(
                 st.w,
-                "{} {} {} {} {} {} {} {} {} {} {}",
+                "{} {} {} {} {} {} {} {} {} {} {} {} {} {} {} {}",
                 x.uptime_ms,
                 x.rx_frames_ok,
                 x.rx_rejected,
@@ -263,7 +263,12 @@ impl FrameFiles {
                 x.gnss_rejected,
                 x.epoch_ticks_max,
                 x.stack_peak_bytes,
-                x.filter_status
+                x.filter_status,
+                x.imu_implausible,
+                x.imu_gaps,
+                x.nhc_updates,
+                x.zupt_updates,
+                x.zaru_updates
             );
             io(r, &st.final_path)?;
         }

@@ -179,9 +179,10 @@ impl<const N: usize> NavApp<N> {
         self.time_offset_s
     }
 
-    /// The health frame content now.
+    /// The health frame content now: link, filter, IMU guard and aiding counters.
     pub fn health<C: TimeBase>(&self, clock: &mut C) -> Health {
         let st = self.dec.stats();
+        let aid = self.aiding_counters();
         Health {
             uptime_ms: clock.now_ms(),
             rx_frames_ok: st.frames_ok,
@@ -194,6 +195,11 @@ impl<const N: usize> NavApp<N> {
             epoch_ticks_max: self.counters.epoch_ticks_max,
             stack_peak_bytes: self.stack_probe.map_or(0, |p| p() as u32),
             filter_status: self.nav.status(),
+            imu_implausible: sat_u32(self.nav.counters().imu_implausible),
+            imu_gaps: sat_u32(self.nav.guard_counters().gaps),
+            nhc_updates: aid.map_or(0, |a| a.nhc.used),
+            zupt_updates: aid.map_or(0, |a| a.zupt.used),
+            zaru_updates: aid.map_or(0, |a| a.zaru.used),
         }
     }
 
@@ -371,6 +377,11 @@ impl<const N: usize> NavApp<N> {
         }
         Ok(())
     }
+}
+
+/// `v` as u32, saturated (a health counter).
+fn sat_u32(v: u64) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
 }
 
 /// Serves the frame link forever: reads what the link has, feeds it to the app. The

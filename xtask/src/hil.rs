@@ -345,8 +345,11 @@ fn decode_all(bytes: &[u8]) -> Result<Vec<Payload>> {
     Ok(out)
 }
 
+/// The host's copy of the firmware's `nav` application.
+type HostApp = NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
+
 /// The same application the firmware's `nav` binary runs (default model NBK, 18 states).
-fn host_app() -> Result<NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>> {
+fn host_app() -> Result<HostApp> {
     let layout: Layout = nav_core::model::LAYOUT_NBK;
     NavApp::new(
         layout,
@@ -491,23 +494,86 @@ fn nav_bits(n: &nav_core::types::NavSolution) -> Vec<u64> {
 }
 
 /// The drive of the bridge HIL test: 10 s static (levelling, first fix), then driving with
-/// turns and speed changes at 100 Hz; `host-sim simulate` adds two GNSS outages.
+/// turns and speed changes at 100 Hz, a 6 s stop in the middle and one at the end (the land
+/// aiding's zero-velocity and zero-rate updates; the non-holonomic constraint while moving);
+/// `host-sim simulate` adds two GNSS outages.
 fn bridge_scenario() -> String {
     nav_sim::ScenarioBuilder::new("hil-bridge")
-        .description("70 s drive for the hw-bridge HIL test")
+        .description("75 s drive with two stops for the hw-bridge HIL test")
         .start(48.1990, 16.3700, 220.0, 30.0)
         .gps_time(2227, 118800.0)
         .imu_rate_hz(100.0)
         .stationary(10.0)
         .accelerate(12.0, 8.0)
         .turn(90.0, 40.0)
-        .cruise(15.0)
+        .cruise(5.0)
+        .brake(0.0, 4.0)
+        .stationary(6.0)
+        .accelerate(12.0, 5.0)
         .turn(-120.0, 35.0)
         .accelerate(18.0, 6.0)
-        .cruise(10.0)
+        .cruise(6.0)
         .brake(0.0, 8.0)
-        .stationary(3.0)
+        .stationary(6.0)
         .build()
+}
+
+/// The IMU samples removed from the bridge drive's record (a gap of 5 samples, 50 ms, in the
+/// first turn: the IMU guard fills it), as indices into the simulated record.
+const BRIDGE_GAP: std::ops::Range<usize> = 2_000..2_005;
+/// The sample made implausible (a 150 rad/s rate, in the second turn: the guard rejects it
+/// and bridges its interval), as an index into the simulated record.
+const BRIDGE_IMPLAUSIBLE: usize = 4_500;
+
+/// Degrades the simulated drive's `imu.txt` in place for the IMU guard ([`BRIDGE_GAP`],
+/// [`BRIDGE_IMPLAUSIBLE`]).
+fn degrade_imu(case: &Path) -> Result<()> {
+    let path = case.join("imu.txt");
+    let mut imu = nav_io::read_imu_text(&path)
+        .with_context(|| format!("reading {}", path.display()))?
+        .samples;
+    if imu.len() <= BRIDGE_IMPLAUSIBLE {
+        bail!("{}: only {} IMU samples", path.display(), imu.len());
+    }
+    let bad = &mut imu[BRIDGE_IMPLAUSIBLE];
+    let dt = 0.01;
+    bad.dtheta_rad[2] = 150.0 * dt;
+    imu.drain(BRIDGE_GAP);
+    nav_io::write_imu_text(&path, &imu).with_context(|| format!("writing {}", path.display()))
+}
+
+/// The frames xtask itself writes around `hw-bridge send`'s: the configuration the bridge
+/// drive starts with (land-vehicle aiding on) and the health request after the drive.
+fn bridge_extra_frames() -> Result<(Vec<u8>, Vec<u8>)> {
+    let mut enc = Encoder::new();
+    let mut frame = |p: &Payload| -> Result<Vec<u8>> {
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let n = enc
+            .encode(p, &mut buf)
+            .map_err(|e| anyhow::anyhow!("encoding {p:?}: {e}"))?;
+        Ok(buf[..n].to_vec())
+    };
+    let cfg = frame(&Payload::Config(wire::Config {
+        model: wire::model::NBK,
+        flags: wire::CONFIG_LAND_AIDING,
+        nav_divider: FW_NAV_DIVIDER,
+        imu_rate_hz: 100.0,
+        gnss_rate_hz: 1.0,
+        lever_arm_frd_m: [0.0; 3],
+    }))?;
+    let req = frame(&Payload::Health(Health::default()))?;
+    Ok((cfg, req))
+}
+
+/// Writes `bytes` to the pty (opened without the exclusive lock, like `--shared`).
+fn write_pty(tty: &Path, bytes: &[u8]) -> Result<()> {
+    let mut f = OpenOptions::new()
+        .write(true)
+        .open(tty)
+        .with_context(|| format!("opening {}", tty.display()))?;
+    f.write_all(bytes)
+        .and_then(|()| f.flush())
+        .with_context(|| format!("writing to {}", tty.display()))
 }
 /// The drive's GNSS outages, START:DURATION s after the first IMU epoch.
 const BRIDGE_OUTAGES: [&str; 2] = ["25:8", "48:10"];
@@ -618,6 +684,8 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     sim.arg("--out").arg(&case);
     let said = run_quiet(&mut sim)?;
     eprint!("  {said}");
+    degrade_imu(&case)?;
+    let (cfg_frame, health_req) = bridge_extra_frames()?;
 
     let q = QemuPty::start(elf, "bridge")?;
     let cap = dir.join("firmware-out.cap");
@@ -655,6 +723,8 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
         bail!("hw-bridge record did not start: {line:?}");
     }
     let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    // the configuration first (the board answers it with a health frame), then the drive
+    write_pty(&q.tty, &cfg_frame)?;
     let mut send = Command::new(&bins.hw_bridge);
     send.args([
         "send",
@@ -671,6 +741,8 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     .arg("--copy-to")
     .arg(&sent);
     let said = run_quiet(&mut send)?;
+    // the health request: the board's counters after the whole drive
+    write_pty(&q.tty, &health_req)?;
     let t_send = t0.elapsed().as_secs_f64();
     let child = rec.0.take().context("recorder gone")?;
     let out = child.wait_with_output()?;
@@ -682,7 +754,8 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     drop(q);
 
     // the host: the same application code on the bytes `send` wrote
-    let input = std::fs::read(&sent).with_context(|| format!("reading {}", sent.display()))?;
+    let sent_bytes = std::fs::read(&sent).with_context(|| format!("reading {}", sent.display()))?;
+    let input = [cfg_frame, sent_bytes, health_req].concat();
     let mut host = host_app()?;
     let mut host_out: Vec<u8> = Vec::new();
     let mut clk = HostClock(0);
@@ -690,16 +763,7 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
         .map_err(|e| anyhow::anyhow!("host app: {e:?}"))?;
     let want = decode_all(&host_out)?;
     // the firmware: what `record` captured, in its recorded chunks
-    let mut got_bytes = Vec::new();
-    let f = File::open(&cap).with_context(|| format!("opening {}", cap.display()))?;
-    let mut rd = hw_bridge::capture::CaptureReader::new(std::io::BufReader::new(f))?;
-    let mut records = 0usize;
-    while let Some(r) = rd.next_record()? {
-        if let hw_bridge::capture::Record::Data { bytes, .. } = r {
-            got_bytes.extend_from_slice(&bytes);
-            records += 1;
-        }
-    }
+    let (got_bytes, records) = read_capture(&cap)?;
     let got = decode_all(&got_bytes)?;
     let (nav_exact, last) = compare_with_host(&got, &want)?;
     let h = last.context("no health frame received")?;
@@ -745,5 +809,73 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     if h.rx_rejected != 0 || h.rx_lost != 0 {
         bail!("the firmware lost or rejected frames on the link: {h:?}");
     }
+    check_guard_and_aiding(&host, &h)?;
     Ok(u64::from(h.stack_peak_bytes))
+}
+
+/// The bytes of a capture's data records, and the number of records.
+fn read_capture(cap: &Path) -> Result<(Vec<u8>, usize)> {
+    let mut got_bytes = Vec::new();
+    let f = File::open(cap).with_context(|| format!("opening {}", cap.display()))?;
+    let mut rd = hw_bridge::capture::CaptureReader::new(std::io::BufReader::new(f))?;
+    let mut records = 0usize;
+    while let Some(r) = rd.next_record()? {
+        if let hw_bridge::capture::Record::Data { bytes, .. } = r {
+            got_bytes.extend_from_slice(&bytes);
+            records += 1;
+        }
+    }
+    Ok((got_bytes, records))
+}
+
+/// The bridge drive's IMU guard and land-aiding counts on both sides: the host app's own
+/// counters and the firmware's health frame after the drive (equal to the host's health
+/// frame at the same point, compared above), each must show the gap bridged, the implausible
+/// sample rejected, and non-holonomic, zero-velocity and zero-rate updates used.
+fn check_guard_and_aiding(host: &HostApp, fw: &Health) -> Result<()> {
+    let aid = host
+        .aiding_counters()
+        .context("the host app runs without the aiding: the configuration frame was not used")?;
+    let g = host.navigator().guard_counters();
+    let host_implausible = host.navigator().counters().imu_implausible;
+    eprintln!(
+        "  IMU guard: host {} gap(s) bridged ({} samples filled), {} implausible rejected; firmware {} gap(s), {} rejected",
+        g.gaps, g.synthetic_samples, host_implausible, fw.imu_gaps, fw.imu_implausible
+    );
+    eprintln!(
+        "  land aiding (updates used): host NHC {} ZUPT {} ZARU {} ({} stationary of {} aiding epochs); firmware NHC {} ZUPT {} ZARU {}",
+        aid.nhc.used,
+        aid.zupt.used,
+        aid.zaru.used,
+        aid.stationary_epochs,
+        aid.epochs,
+        fw.nhc_updates,
+        fw.zupt_updates,
+        fw.zaru_updates
+    );
+    let host_counts = [
+        g.gaps,
+        host_implausible,
+        u64::from(aid.nhc.used),
+        u64::from(aid.zupt.used),
+        u64::from(aid.zaru.used),
+    ];
+    let fw_counts = [
+        fw.imu_gaps,
+        fw.imu_implausible,
+        fw.nhc_updates,
+        fw.zupt_updates,
+        fw.zaru_updates,
+    ]
+    .map(u64::from);
+    if host_counts.contains(&0) || fw_counts.contains(&0) {
+        bail!(
+            "the drive must exercise the guard and every land-aiding update on both sides \
+             (gaps, implausible, NHC, ZUPT, ZARU): host {host_counts:?}, firmware {fw_counts:?}"
+        );
+    }
+    if host_counts != fw_counts {
+        bail!("guard and aiding counts differ: host {host_counts:?}, firmware {fw_counts:?}");
+    }
+    Ok(())
 }

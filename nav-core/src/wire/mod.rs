@@ -52,7 +52,7 @@ pub const NAV_PAYLOAD_LEN: usize = 2 + 8 * 4 + 24 * 2 + 12 * 3 + 4;
 /// Payload length of a configuration frame, bytes.
 pub const CONFIG_PAYLOAD_LEN: usize = 1 + 1 + 2 + 4 + 4 + 24;
 /// Payload length of a health frame, bytes.
-pub const HEALTH_PAYLOAD_LEN: usize = 4 * 11;
+pub const HEALTH_PAYLOAD_LEN: usize = 4 * 16;
 
 /// Longest payload of any message type, bytes.
 pub const MAX_PAYLOAD_LEN: usize = max5(
@@ -213,7 +213,7 @@ pub const CONFIG_USE_GNSS_VELOCITY: u8 = 0x01;
 /// zero-velocity / zero-rate updates at stops, with `nav_core::aiding`'s default settings.
 pub const CONFIG_LAND_AIDING: u8 = 0x02;
 
-/// Health and counters of a board. Fixed layout, 44 bytes, all u32.
+/// Health and counters of a board. Fixed layout, 64 bytes, all u32.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Health {
@@ -239,6 +239,16 @@ pub struct Health {
     pub stack_peak_bytes: u32,
     /// Filter status bits (0 = nominal).
     pub filter_status: u32,
+    /// IMU samples the IMU guard rejected as implausible (not integrated).
+    pub imu_implausible: u32,
+    /// Time gaps in the IMU stream the IMU guard bridged.
+    pub imu_gaps: u32,
+    /// Non-holonomic-constraint updates used by the land-vehicle aiding.
+    pub nhc_updates: u32,
+    /// Zero-velocity updates used by the land-vehicle aiding.
+    pub zupt_updates: u32,
+    /// Zero-angular-rate updates used by the land-vehicle aiding.
+    pub zaru_updates: u32,
 }
 
 /// The content of a frame.
@@ -457,6 +467,11 @@ fn write_payload(w: &mut Writer<'_>, p: &Payload) -> Option<()> {
                 h.epoch_ticks_max,
                 h.stack_peak_bytes,
                 h.filter_status,
+                h.imu_implausible,
+                h.imu_gaps,
+                h.nhc_updates,
+                h.zupt_updates,
+                h.zaru_updates,
             ] {
                 w.u32(v)?;
             }
@@ -546,6 +561,11 @@ fn read_health(r: &mut Reader<'_>) -> Option<Payload> {
         epoch_ticks_max: r.u32()?,
         stack_peak_bytes: r.u32()?,
         filter_status: r.u32()?,
+        imu_implausible: r.u32()?,
+        imu_gaps: r.u32()?,
+        nhc_updates: r.u32()?,
+        zupt_updates: r.u32()?,
+        zaru_updates: r.u32()?,
     }))
 }
 

@@ -4,6 +4,7 @@
 
 mod align;
 mod allan_stream;
+mod cov_predict_sparse;
 mod effects_clock_gnss;
 mod effects_combined;
 mod effects_error_model;

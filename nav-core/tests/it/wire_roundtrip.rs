@@ -41,7 +41,8 @@ const GOLDEN: [(MsgType, &str); 5] = [
     (
         MsgType::Health,
         "03 01 11 02 2e 04 80 ee 36 04 80 fc 0a 02 03 01 01 02 02 01 01 02 04 01 01 04 76 fc \
-         0a 03 10 0e 01 02 01 01 01 03 28 a0 01 01 02 18 01 01 01 01 01 05 d0 9e 80 d7 00",
+         0a 03 10 0e 01 02 01 01 01 03 28 a0 01 01 02 18 01 01 01 01 01 02 02 01 01 02 05 01 \
+         01 03 30 75 01 03 b0 04 01 03 7e 04 01 05 13 aa f1 99 00",
     ),
 ];
 
@@ -141,7 +142,7 @@ fn frame_lengths_are_the_documented_constants() {
     assert_eq!(MsgType::Gnss.frame_len(), 118);
     assert_eq!(MsgType::Nav.frame_len(), 133);
     assert_eq!(MsgType::Config.frame_len(), 47);
-    assert_eq!(MsgType::Health.frame_len(), 55);
+    assert_eq!(MsgType::Health.frame_len(), 75);
     assert_eq!(MAX_RAW_LEN, 131);
     assert_eq!(MAX_ENCODED_LEN, 132);
     assert_eq!(MAX_FRAME_LEN, 133);

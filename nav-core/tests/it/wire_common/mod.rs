@@ -81,6 +81,11 @@ pub fn sample_health() -> Payload {
         epoch_ticks_max: 41_000,
         stack_peak_bytes: 6144,
         filter_status: 0,
+        imu_implausible: 2,
+        imu_gaps: 5,
+        nhc_updates: 30_000,
+        zupt_updates: 1_200,
+        zaru_updates: 1_150,
     })
 }
 
@@ -208,7 +213,7 @@ pub fn payload() -> impl Strategy<Value = Payload> {
                 lever_arm_frd_m: lever,
             })
         });
-    let health = proptest::array::uniform11(any::<u32>()).prop_map(|v| {
+    let health = proptest::array::uniform16(any::<u32>()).prop_map(|v| {
         Payload::Health(Health {
             uptime_ms: v[0],
             rx_frames_ok: v[1],
@@ -221,6 +226,11 @@ pub fn payload() -> impl Strategy<Value = Payload> {
             epoch_ticks_max: v[8],
             stack_peak_bytes: v[9],
             filter_status: v[10],
+            imu_implausible: v[11],
+            imu_gaps: v[12],
+            nhc_updates: v[13],
+            zupt_updates: v[14],
+            zaru_updates: v[15],
         })
     });
     prop_oneof![6 => imu, 2 => gnss, 2 => nav, 1 => config, 1 => health]

@@ -1,0 +1,191 @@
+//! The covariance prediction `discrete::predict_covariance` (block-sparse: the known-zero
+//! blocks of Phi's core rows skipped, the sensor-error diagonal as a vector) against the dense
+//! product `Phi (P + Q/2) Phi^T + Q/2` computed in f64, for the 15-, 18- and 21-state layouts
+//! and the largest layout (every block), in f64 and f32: equal within the rounding bound of
+//! the products (`4 N eps` times the sum of the absolute terms), exactly symmetric, and on
+//! random states, epochs and covariances (proptest).
+// the reference is written with matrix indices, as the formula reads
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{UnitQuaternion, Vector3};
+use nav_core::config::FilterConfig;
+use nav_core::earth::Llh;
+use nav_core::model::discrete::{self, Accumulator, Cov, Discrete};
+use nav_core::model::{
+    Block, Layout, Regressors, CORE_DIM, IDX_ATT, IDX_VEL, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK,
+};
+use nav_core::scalar::Scalar;
+use nav_core::strapdown::NavState;
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Every block (the largest layout).
+const LAYOUT_ALL: Layout = LAYOUT_NBK
+    .with(Block::GyroScaleFactor)
+    .with(Block::AccelScaleFactor)
+    .with(Block::AccelMisalignment)
+    .with(Block::GyroMisalignment)
+    .with(Block::LeverArm)
+    .with(Block::TimeOffset)
+    .with(Block::AccelTemperatureBias)
+    .with(Block::GyroTemperatureBias)
+    .with(Block::GyroGSensitivity)
+    .with(Block::GnssPositionGm)
+    .with(Block::OdometerScale);
+
+/// A discretised model over 20 epochs of a moving, turning vehicle (every coupling block
+/// non-zero) and a random covariance (`A A^T` plus a diagonal, SPD).
+fn case<T: Scalar, const N: usize>(layout: &Layout, seed: u64) -> (Cov<T, N>, Discrete<T, N>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let cfg = FilterConfig::source_nbk_model();
+    let mut acc = Accumulator::<T, N>::default();
+    let dt = 0.005;
+    let yaw: f64 = rng.random_range(-3.0..3.0);
+    for k in 0..20 {
+        let y = yaw + 0.01 * f64::from(k);
+        let (s, c) = y.sin_cos();
+        let c_nb = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]].map(|r| r.map(T::of_f64));
+        let mut f_b = [0.0; 3].map(|_: f64| T::of_f64(rng.random_range(-3.0..3.0)));
+        f_b[2] = T::of_f64(-9.8 + rng.random_range(-0.5..0.5));
+        let omega_b = [0.0; 3].map(|_: f64| T::of_f64(rng.random_range(-0.5..0.5)));
+        let reg = Regressors {
+            dt: T::of_f64(dt),
+            c_nb,
+            f_b,
+            omega_b,
+            temperature_c: T::of_f64(rng.random_range(-10.0..10.0)),
+        };
+        let f_ned = [
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-3.0..3.0),
+            -9.8,
+        ]
+        .map(T::of_f64);
+        acc.add(layout, &reg, dt, &f_ned);
+    }
+    let nav = NavState {
+        t_s: 1000.0,
+        pos: Llh::from_deg(rng.random_range(-60.0..60.0), 11.0, 300.0),
+        vel_ned_mps: Vector3::new(
+            rng.random_range(-30.0..30.0),
+            rng.random_range(-30.0..30.0),
+            rng.random_range(-1.0..1.0),
+        ),
+        q_nb: UnitQuaternion::identity(),
+    };
+    let d = discrete::discretize(layout, &cfg, &nav, &acc);
+    let scale: [f64; N] = core::array::from_fn(|i| match i {
+        0..3 => 1e-2,
+        3..6 => 0.3,
+        6..9 => 3.0,
+        _ => 1e-3 * rng.random_range(0.5..2.0),
+    });
+    let a: [[f64; N]; N] =
+        core::array::from_fn(|i| core::array::from_fn(|_| scale[i] * rng.random_range(-1.0..1.0)));
+    let p: Cov<T, N> = core::array::from_fn(|i| {
+        core::array::from_fn(|j| {
+            let s: f64 = (0..N).map(|k| a[i][k] * a[j][k]).sum();
+            T::of_f64(s + if i == j { scale[i] * scale[i] } else { 0.0 })
+        })
+    });
+    (p, d)
+}
+
+/// The noise added before and after the transition, as a dense matrix (f64).
+fn noise_half<T: Scalar, const N: usize>(d: &Discrete<T, N>) -> [[f64; N]; N] {
+    let mut q = [[0.0; N]; N];
+    let h = T::HALF;
+    for r in 0..3 {
+        for c in 0..3 {
+            q[IDX_ATT + r][IDX_ATT + c] = (d.q_att[r][c] * h).to_f64();
+            q[IDX_VEL + r][IDX_VEL + c] = (d.q_vel[r][c] * h).to_f64();
+        }
+    }
+    for i in CORE_DIM..N {
+        let phi = d.phi.diag[i];
+        q[i][i] = (d.q_diag[i] / (T::ONE + phi * phi)).to_f64();
+    }
+    q
+}
+
+/// Checks the structured prediction against the dense product: returns the largest error
+/// relative to its rounding bound and how many entries of Phi's core rows are exactly zero.
+fn check<T: Scalar, const N: usize>(layout: &Layout, seed: u64) -> (f64, usize) {
+    assert_eq!(layout.dim(), N);
+    let (p0, d) = case::<T, N>(layout, seed);
+    let phi = d.phi.to_dense().map(|r| r.map(|v| v.to_f64()));
+    let qh = noise_half(&d);
+    // inputs as the structured code sees them, after the first half of the noise
+    let pa: [[f64; N]; N] = core::array::from_fn(|i| {
+        core::array::from_fn(|j| (p0[i][j] + T::of_f64(qh[i][j])).to_f64())
+    });
+    let mut got = p0;
+    discrete::predict_covariance(&mut got, &d);
+    let eps = if core::mem::size_of::<T>() == 4 {
+        f64::from(f32::EPSILON)
+    } else {
+        f64::EPSILON
+    };
+    let mut worst: f64 = 0.0;
+    for i in 0..N {
+        for j in 0..N {
+            let (mut want, mut bound) = (qh[i][j], qh[i][j].abs());
+            for k in 0..N {
+                for l in 0..N {
+                    let t = phi[i][k] * pa[k][l] * phi[j][l];
+                    want += t;
+                    bound += t.abs();
+                }
+            }
+            let g = got[i][j].to_f64();
+            assert!(g.is_finite(), "{i},{j}");
+            assert!(got[i][j] == got[j][i], "not symmetric at {i},{j}");
+            let tol = 4.0 * N as f64 * eps * bound + f64::MIN_POSITIVE;
+            let e = (g - want).abs() / tol;
+            assert!(
+                e <= 1.0,
+                "N = {N}, seed {seed}: P[{i}][{j}] = {g:e}, dense {want:e} (bound {tol:e})"
+            );
+            worst = worst.max(e);
+        }
+    }
+    let zeros = d
+        .phi
+        .top
+        .iter()
+        .map(|r| r.iter().filter(|v| **v == T::ZERO).count())
+        .sum();
+    (worst, zeros)
+}
+
+#[test]
+fn structured_prediction_equals_the_dense_product_for_every_layout_f64_and_f32() {
+    for seed in 0..3 {
+        let r = [
+            check::<f64, { LAYOUT_N.dim() }>(&LAYOUT_N, seed),
+            check::<f64, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed),
+            check::<f64, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed),
+            check::<f64, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed),
+            check::<f32, { LAYOUT_N.dim() }>(&LAYOUT_N, seed),
+            check::<f32, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed),
+            check::<f32, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed),
+            check::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed),
+        ];
+        // the known-zero blocks exist (the position rows do not see the gyro errors, ...)
+        for (worst, zeros) in r {
+            assert!(worst <= 1.0);
+            assert!(zeros >= 9, "{zeros} zero entries in Phi's core rows");
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn structured_prediction_equals_the_dense_product_on_random_cases(seed in any::<u64>()) {
+        check::<f64, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        check::<f32, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        check::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
+    }
+}
