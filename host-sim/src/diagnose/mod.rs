@@ -484,19 +484,45 @@ impl Ctx<'_> {
             }
             out.history = None;
         }
-        Ok(self.scored(Arc::new(out), m, e))
+        Ok(self.scored(out, m, e))
     }
 
-    fn scored(&self, run: Arc<RunOutput>, metrics: Metrics, mut errors: StepErrors) -> Eval {
+    /// The run scored on the held-out windows; its navigation thinned to what the search
+    /// reads of it afterwards ([`nav_at_fixes`]).
+    fn scored(&self, mut run: RunOutput, metrics: Metrics, mut errors: StepErrors) -> Eval {
         let windows = validate::window_errors_m(&run, &self.plan.windows);
         errors.heldout_windows_rms_m = rms_finite(&windows);
+        nav_at_fixes(&mut run);
         Eval {
-            run,
+            run: Arc::new(run),
             metrics,
             errors,
             windows,
         }
     }
+}
+
+/// Keeps of a search run's navigation only the records the search reads once the run is
+/// scored: the first one (the time origin of the misfit spans) and, for each innovation
+/// record, the one nearest its fix ([`regressor_correlation`]: the nearest record in the
+/// thinned list is the nearest in the whole one). At most one record (168 bytes) per fix
+/// plus one, instead of one per navigation epoch.
+fn nav_at_fixes(run: &mut RunOutput) {
+    let nav = std::mem::take(&mut run.nav);
+    let mut keep = vec![false; nav.len()];
+    if let Some(k) = keep.first_mut() {
+        *k = true;
+    }
+    for r in &run.innovations {
+        if let Some(k) = stats::nearest(&nav, r.t_s, |s| s.t_s).and_then(|i| keep.get_mut(i)) {
+            *k = true;
+        }
+    }
+    run.nav = nav
+        .into_iter()
+        .zip(keep)
+        .filter_map(|(s, k)| k.then_some(s))
+        .collect();
 }
 
 fn rms_finite(v: &[f64]) -> Option<f64> {
@@ -594,7 +620,7 @@ fn base_eval(
             nav: before_nav.load()?,
             ..before.clone()
         };
-        ctx.scored(Arc::new(run), errors_before.clone(), se)
+        ctx.scored(run, errors_before.clone(), se)
     } else {
         ctx.evaluate(&p.opts)?
     })
@@ -1152,7 +1178,7 @@ fn retune_noise(ctx: &Ctx<'_>, s: &mut Search) -> RunOptions {
         return final_opts;
     }
     let with = options_with(&p.opts, &s.added);
-    if let Ok(base_with) = run_filter(&p.case, &ctx.searching(&with)) {
+    if let Ok(base_with) = spill::run_innovations(&p.case, &ctx.searching(&with)) {
         let mut t2 = noise::tune(
             &p.case,
             &ctx.searching(&with),
@@ -1236,15 +1262,21 @@ fn unexplained_misfit(s: &Search, residuals_after: &ResidualStats) -> Option<sta
 type BaseRun = (Arc<RunOutput>, spill::NavFile, Metrics);
 
 /// The final run with every fix (its navigation to a file, [`spill`]); when it fails, the
-/// current search run stands for it.
+/// current search run stands for it, with a warning (its navigation is the search's record
+/// of it: the records nearest the fixes).
 fn final_run(
     ctx: &Ctx<'_>,
-    s: &Search,
+    s: &mut Search,
     final_opts: &RunOptions,
 ) -> anyhow::Result<(Arc<RunOutput>, spill::NavFile, Metrics)> {
     match spill::run_to_file(&ctx.p.case, final_opts, &ctx.folder, "after") {
         Ok((r, nav, m)) => Ok((Arc::new(r), nav, m)),
-        Err(_) => {
+        Err(e) => {
+            s.warnings.push(format!(
+                "the final run with every fix failed ({e:#}): the after figures are the last \
+                 search run's (held-out windows withheld), nav_after.txt its records nearest \
+                 the fixes"
+            ));
             let nav = spill::NavFile::from_slice(&ctx.folder, "after-search", &s.cur.run.nav)?;
             Ok((s.cur.run.clone(), nav, s.cur.metrics.clone()))
         }
@@ -1269,7 +1301,7 @@ fn finish(
         || !s.added.is_empty()
         || s.bias_step.is_some();
     let (after, after_nav, errors_after) = if changed {
-        final_run(ctx, &s, &final_opts)?
+        final_run(ctx, &mut s, &final_opts)?
     } else {
         (before.clone(), before_nav.clone(), errors_before.clone())
     };

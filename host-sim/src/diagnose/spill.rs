@@ -298,6 +298,52 @@ impl RunSink for SpillSink {
     }
 }
 
+/// The sink of a run the search reads only the innovations of.
+#[derive(Default)]
+struct InnovationsOnly {
+    innovations: Vec<InnovationRecord>,
+}
+
+impl RunSink for InnovationsOnly {
+    fn nav(&mut self, _s: &NavSolution) -> Result<(), RunError> {
+        Ok(())
+    }
+    fn epoch(&mut self, _r: EpochRecord) -> Result<(), RunError> {
+        Ok(())
+    }
+    fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
+        self.innovations.push(*r);
+        Ok(())
+    }
+    fn wants_epochs(&self) -> bool {
+        false
+    }
+}
+
+/// A run of `opts` on `case` keeping only its innovation records (in the returned summary;
+/// its `nav`, `epochs` and `snapshots` empty): what the noise trials, the bias-step fit and
+/// the re-tuning read of a run, in memory proportional to the fixes. The same records and
+/// errors as [`nav_engine::run::run_filter`]'s.
+pub fn run_innovations(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, RunError> {
+    let mut sink = InnovationsOnly::default();
+    let (it, info) = case_imu_stream(case);
+    let streams = Streams {
+        imu: Box::new(it),
+        info,
+        gnss: Box::new(case.gnss.iter().copied().map(Ok)),
+        truth: case.truth.as_deref(),
+    };
+    let mut out = nav_engine::run::run_engine(
+        streams,
+        opts,
+        CoastPlan::default(),
+        &mut sink,
+        &mut |_, _| {},
+    )?;
+    out.innovations = sink.innovations;
+    Ok(out)
+}
+
 /// A full-rate run of `opts` on `case` (every navigation record, as `host-sim run` records
 /// them) with its navigation in the file `name` of `folder`: the run's summary (its `nav`
 /// and `epochs` empty, its innovations and snapshots kept), the records and the metrics
@@ -384,54 +430,4 @@ fn metrics_of(case: &CaseData, run: &RunOutput, nav: &NavFile) -> Result<Metrics
         }
     }
     Ok(m)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn records_read_back_bit_for_bit() {
-        let folder = temp_folder().unwrap();
-        let nav: Vec<NavSolution> = (0..1000)
-            .map(|i| {
-                let x = f64::from(i);
-                NavSolution {
-                    week: 2227,
-                    t_s: 1000.0 + x * 0.005,
-                    lat_rad: 0.5 + x * 1e-9,
-                    lon_rad: -1.2 - x * 1e-9,
-                    h_m: 100.0 + x / 7.0,
-                    vel_ned_mps: [x / 3.0, -x, f64::NAN],
-                    rpy_rad: [0.1, -0.2, x.sin()],
-                    pos_std_ned_m: [1.0 / (x + 1.0); 3],
-                    vel_std_ned_mps: [f64::INFINITY, 0.0, -0.0],
-                    att_std_rad: [1e-300, 1e300, 3.0],
-                    status: i,
-                }
-            })
-            .collect();
-        let f = NavFile::from_slice(&folder, "t", &nav).unwrap();
-        assert_eq!(f.len(), nav.len());
-        assert_eq!(f.first_t_s(), Some(1000.0));
-        let back = f.load().unwrap();
-        let bits = |s: &NavSolution| encode(s).to_vec();
-        assert!(nav.iter().zip(&back).all(|(a, b)| bits(a) == bits(b)));
-        assert_eq!(back.len(), nav.len());
-        // a file cut short: the records before the cut, then an error naming the file
-        let p = f.path().to_path_buf();
-        let bytes = std::fs::read(&p).unwrap();
-        std::fs::write(&p, &bytes[..bytes.len() - 10]).unwrap();
-        let r: Vec<_> = f.records().unwrap().collect();
-        assert_eq!(r.len(), nav.len());
-        assert!(r[..nav.len() - 1].iter().all(Result::is_ok));
-        let e = r[nav.len() - 1].as_ref().unwrap_err().to_string();
-        assert!(e.contains("t.nav.bin"), "{e}");
-        // the folder goes with the last holder
-        let dir = folder.path().to_path_buf();
-        drop(folder);
-        assert!(dir.exists());
-        drop(f);
-        assert!(!dir.exists());
-    }
 }
