@@ -6,11 +6,12 @@
 //!
 //! What the diagnosis holds per fix (innovation records of the base, search and candidate
 //! runs, the search runs' navigation records nearest the fixes, the withheld fixes' error
-//! samples) is allowed [`PER_FIX_BYTES`]; a search run's navigation at the search rate
-//! (`SEARCH_NAV_RATE_HZ`) lives while the run is scored, for at most [`SEARCH_RUNS_AT_ONCE`]
-//! runs at a time. The full-rate navigation of the base and final runs (168 bytes a sample
-//! each, what `nav_before.txt` and `nav_after.txt` hold) must not be in memory: it is in the
-//! diagnosis's temporary files.
+//! samples) is allowed [`PER_FIX_BYTES`]; while a search run is thinned to its records
+//! nearest the fixes, the times of its navigation at the search rate (`SEARCH_NAV_RATE_HZ`,
+//! [`THINNING_BYTES`] a record) are held, for at most [`SEARCH_RUNS_AT_ONCE`] runs at a time.
+//! The navigation itself (168 bytes a record: every IMU epoch for the base and final runs,
+//! what `nav_before.txt` and `nav_after.txt` hold, the search rate for the search runs) must
+//! not be in memory: it is in the diagnosis's temporary files.
 
 use host_sim::diagnose::{diagnose, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
 use nalgebra::Vector3;
@@ -37,6 +38,10 @@ const PER_FIX_BYTES: usize = 8
     * (std::mem::size_of::<InnovationRecord>()
         + std::mem::size_of::<NavSolution>()
         + std::mem::size_of::<GnssFix>());
+
+/// Bytes held per search-rate navigation record while a search run is thinned: its time and
+/// a flag.
+const THINNING_BYTES: usize = 9;
 
 /// Search runs alive at once while they are scored (the rayon pool of the candidates and a
 /// current one).
@@ -138,15 +143,13 @@ fn diagnosis_memory_does_not_grow_with_the_record_beyond_the_fixes() {
     let (short, short_fixes) = peak_of(5.0, tmp.path());
     let (long, long_fixes) = peak_of(40.0, tmp.path());
     let extra_s = (long_fixes - short_fixes) as f64;
-    let search_nav = SEARCH_RUNS_AT_ONCE
-        * (extra_s * SEARCH_NAV_RATE_HZ) as usize
-        * std::mem::size_of::<NavSolution>();
+    let search_nav = SEARCH_RUNS_AT_ONCE * (extra_s * SEARCH_NAV_RATE_HZ) as usize * THINNING_BYTES;
     let allowance = (long_fixes - short_fixes) * PER_FIX_BYTES + search_nav;
     // what the full-rate navigation of the base run alone would add
     let full_rate = (extra_s * RATE_HZ) as usize * std::mem::size_of::<NavSolution>();
     println!(
         "growth {:.2} MiB for {extra_s} s more: allowed {:.2} MiB ({:.2} MiB of it the search \
-         runs' navigation); one full-rate navigation would be {:.2} MiB",
+         runs' thinning); one full-rate navigation would be {:.2} MiB",
         long.saturating_sub(short) as f64 / 1048576.0,
         allowance as f64 / 1048576.0,
         search_nav as f64 / 1048576.0,

@@ -46,6 +46,12 @@
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects), the search's base run when the diagnosis withholds windows, and
 //! the final run; see the README for a 40-minute 200 Hz drive.
+//! Memory: the case is held as loaded (its IMU samples, 64 bytes each, its fixes, the truth
+//! when given; a bias step's corrected copy while it is searched for); the runs' navigation
+//! records go to temporary files ([`spill`], removed at the end, also on error); what the
+//! diagnosis keeps of a run grows with the GNSS fixes only: its innovation records and, for a
+//! search run, its navigation record nearest each fix (about 320 bytes a fix for each run
+//! kept: the base and final runs, the current model's and each candidate's of a round).
 //! The filter's state count is a compile-time constant: [`nav_engine::run::run_filter`] dispatches
 //! layouts with extra blocks on their dimension (16 to [`MAX_EXTRA_DIM`] states).
 //!
@@ -456,8 +462,10 @@ struct Ctx<'a> {
     plan: HeldoutPlan,
     /// The outages the diagnosis withholds beyond the imposed ones.
     withheld: Vec<Outage>,
-    /// The temporary folder of the full-rate runs' navigation ([`spill`]).
+    /// The temporary folder of the runs' navigation files ([`spill`]).
     folder: spill::TempFolder,
+    /// Search runs so far (names their files).
+    runs: std::sync::atomic::AtomicUsize,
 }
 
 impl Ctx<'_> {
@@ -473,6 +481,9 @@ impl Ctx<'_> {
         let p = self.p;
         let mut ro = self.searching(o);
         ro.smoother_history |= self.dopts.smooth;
+        if !self.dopts.smooth {
+            return self.evaluate_from_file(&ro);
+        }
         let mut out = run_filter(&p.case, &ro)?;
         let m = metrics::compute(&out, p.case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
@@ -484,6 +495,31 @@ impl Ctx<'_> {
             }
             out.history = None;
         }
+        Ok(self.scored(out, m, e))
+    }
+
+    /// [`Self::evaluate`] without the smoother: the run's navigation (search rate) in a file
+    /// of its own ([`spill`]), read for the metrics and the written-solution check, and its
+    /// records nearest the fixes kept: the same numbers, memory proportional to the fixes.
+    fn evaluate_from_file(&self, ro: &RunOptions) -> Result<Eval, nav_engine::run::RunError> {
+        use nav_engine::run::RunError;
+        let p = self.p;
+        let name = format!(
+            "search-{}",
+            self.runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        );
+        let (mut out, nav) = spill::run_nav_to_file(&p.case, ro, &self.folder, &name)?;
+        let read = |out: &RunOutput| -> Result<_, nav_io::IoError> {
+            let m = spill::metrics_of(&p.case, out, &nav, false)?;
+            let mut e = validate::step_errors(out, &m);
+            e.written_vs_fixes_m =
+                validate::written_solution_vs_fixes_file(out, &nav, &p.case.gnss)?;
+            Ok((m, e, spill::nav_at_fixes(&nav, &out.innovations)?))
+        };
+        let res = read(&out);
+        spill::remove(nav);
+        let (m, e, kept) = res.map_err(RunError::Output)?;
+        out.nav = kept;
         Ok(self.scored(out, m, e))
     }
 
@@ -567,6 +603,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         plan,
         withheld,
         folder,
+        runs: Default::default(),
     };
     let all = dopts
         .candidates

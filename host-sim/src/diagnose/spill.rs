@@ -1,10 +1,13 @@
-//! The diagnosis's full-rate runs (the configuration's and the final model's, whose
-//! navigation at every IMU epoch becomes `nav_before.txt` and `nav_after.txt`) with their
-//! navigation records in a temporary file instead of memory ([`NavFile`]): a record of
-//! [`NAV_RECORD_BYTES`] per IMU epoch on disk, and in memory only what is proportional to the
-//! GNSS fixes (the innovation records) and the outage snapshots. The metrics are computed
-//! from the file as [`nav_engine::run::execute::execute_case`] computes them from memory
-//! (the same online accumulators as a streamed `host-sim run`: identical numbers).
+//! The diagnosis's runs with their navigation records in temporary files instead of memory
+//! ([`NavFile`]: [`NAV_RECORD_BYTES`] a record). The full-rate runs (the configuration's and
+//! the final model's, every IMU epoch: `nav_before.txt`, `nav_after.txt`) keep their file to
+//! the end; a search run's file (search rate) is read for its metrics, its written-solution
+//! check and its records nearest the fixes, then removed. In memory stays what is
+//! proportional to the GNSS fixes (innovation records, records nearest the fixes) and the
+//! outage snapshots. The metrics are computed from the file as
+//! [`nav_engine::run::execute::execute_case`] and [`metrics::compute`] compute them from
+//! memory (the online accumulators of a streamed `host-sim run`: identical numbers). The runs
+//! the search reads only the innovations of keep nothing else ([`run_innovations`]).
 //!
 //! The files live in a temporary folder ([`tempfile::TempDir`]) shared by the [`NavFile`]s
 //! made in it, removed when the last of them (and the diagnosis holding the folder) is
@@ -354,8 +357,21 @@ pub fn run_to_file(
     folder: &TempFolder,
     name: &str,
 ) -> anyhow::Result<(RunOutput, NavFile, Metrics)> {
+    let (out, nav) = run_nav_to_file(case, opts, folder, name)?;
+    let m = metrics_of(case, &out, &nav, true)?;
+    Ok((out, nav, m))
+}
+
+/// A run of `opts` on `case` with its navigation records in the file `name` of `folder`
+/// (the run's summary: its `nav` and `epochs` empty, its innovations and snapshots kept).
+pub fn run_nav_to_file(
+    case: &CaseData,
+    opts: &RunOptions,
+    folder: &TempFolder,
+    name: &str,
+) -> Result<(RunOutput, NavFile), RunError> {
     let mut sink = SpillSink {
-        nav: NavWriter::create(folder, name)?,
+        nav: NavWriter::create(folder, name).map_err(RunError::Output)?,
         innovations: Vec::new(),
         snapshots: Vec::new(),
     };
@@ -375,16 +391,20 @@ pub fn run_to_file(
     )?;
     out.innovations = sink.innovations;
     out.snapshots = sink.snapshots;
-    let nav = sink.nav.finish()?;
-    let m = metrics_of(case, &out, &nav)?;
-    Ok((out, nav, m))
+    let nav = sink.nav.finish().map_err(RunError::Output)?;
+    Ok((out, nav))
 }
 
 /// The metrics of a run whose navigation is in `nav` (`run`'s own `nav` unused), as
-/// [`nav_engine::run::execute::execute_case`] computes them: against the case's truth when it
-/// has one (read with the records), else against the withheld fixes, with the coasting
-/// baselines through the outages.
-fn metrics_of(case: &CaseData, run: &RunOutput, nav: &NavFile) -> Result<Metrics, IoError> {
+/// [`nav_engine::run::execute::execute_case`] computes them (`coasting`: with the coasting
+/// baselines through the outages) or [`metrics::compute`] (without): against the case's
+/// truth when it has one (read with the records), else against the withheld fixes.
+pub fn metrics_of(
+    case: &CaseData,
+    run: &RunOutput,
+    nav: &NavFile,
+    coasting: bool,
+) -> Result<Metrics, IoError> {
     let truth = case.truth.as_deref();
     let mut residuals = ResidualAcc::default();
     for r in &run.innovations {
@@ -407,7 +427,7 @@ fn metrics_of(case: &CaseData, run: &RunOutput, nav: &NavFile) -> Result<Metrics
         }
     }
     let mut m = metrics::assemble(run, &residuals, &samples, truth.is_some(), Vec::new());
-    if !run.snapshots.is_empty() {
+    if coasting && !run.snapshots.is_empty() {
         let raw = coast_outages(case, run, CoastMode::Raw);
         m.coasting.push(metrics::coasting_metrics(
             "raw: no sensor-error correction",
@@ -430,4 +450,42 @@ fn metrics_of(case: &CaseData, run: &RunOutput, nav: &NavFile) -> Result<Metrics
         }
     }
     Ok(m)
+}
+
+/// The records of `nav` a search run keeps once scored: the first one and, for each of
+/// `innovations`, the one nearest its fix time (as [`crate::diagnose::stats`] picks it in the
+/// whole list). Reads the file twice, holding its times (8 bytes a record) meanwhile.
+pub fn nav_at_fixes(
+    nav: &NavFile,
+    innovations: &[InnovationRecord],
+) -> Result<Vec<NavSolution>, IoError> {
+    let times: Vec<f64> = nav
+        .records()?
+        .map(|r| r.map(|s| s.t_s))
+        .collect::<Result<_, _>>()?;
+    let mut keep = vec![false; times.len()];
+    if let Some(k) = keep.first_mut() {
+        *k = true;
+    }
+    for r in innovations {
+        let i = super::stats::nearest(&times, r.t_s, |t| *t);
+        if let Some(k) = i.and_then(|i| keep.get_mut(i)) {
+            *k = true;
+        }
+    }
+    drop(times);
+    let mut out = Vec::new();
+    for (r, k) in nav.records()?.zip(keep) {
+        let s = r?;
+        if k {
+            out.push(s);
+        }
+    }
+    Ok(out)
+}
+
+/// Removes a run's file before the folder goes (a search run's, once scored).
+pub fn remove(nav: NavFile) {
+    // the folder's removal at the end takes it if this fails
+    let _ = std::fs::remove_file(&nav.path);
 }
