@@ -465,7 +465,6 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
         s,
         "| window | kind | start [min] | end [min] | error before [m] | error after [m] |\n|---|---|---|---|---|---|"
     );
-    let t0 = t0_of(&d.before_nav);
     let om = |x: Option<&f64>| {
         x.filter(|v| v.is_finite())
             .map_or("-".to_string(), |v| format!("{v:.3}"))
