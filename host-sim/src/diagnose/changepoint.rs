@@ -27,7 +27,7 @@
 //! parameters (3 axes and the time) plus [`MIN_GAIN_NATS`]. [`BiasStep::corrected_case`] gives
 //! the data with the step removed.
 use nav_core::types::ImuSample;
-use nav_engine::run::{run_filter, CaseData, FixUse, InnovationRecord, RunOptions, RunOutput};
+use nav_engine::run::{CaseData, FixUse, InnovationRecord, RunOptions, RunOutput};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -226,7 +226,7 @@ fn innovations_at(out: &RunOutput, times: &[f64]) -> Vec<Option<[f64; 3]>> {
 }
 
 fn run_ll(case: &CaseData, opts: &RunOptions) -> Option<(RunOutput, f64)> {
-    let out = run_filter(case, &search_recording(opts)).ok()?;
+    let out = super::spill::run_innovations(case, &search_recording(opts)).ok()?;
     let ll = residual_stats(&out.innovations).log_likelihood;
     Some((out, ll))
 }
@@ -252,9 +252,12 @@ fn gauss_newton(
         .map(|j| {
             let mut c = *c0;
             c[j] += h;
-            run_filter(&corrected(case, sensor, t_s, &c), &search_recording(opts))
-                .map(|o| innovations_at(&o, &times))
-                .unwrap_or_default()
+            super::spill::run_innovations(
+                &corrected(case, sensor, t_s, &c),
+                &search_recording(opts),
+            )
+            .map(|o| innovations_at(&o, &times))
+            .unwrap_or_default()
         })
         .collect();
     let mut a = nalgebra::Matrix3::<f64>::zeros();

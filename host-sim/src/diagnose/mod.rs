@@ -46,6 +46,12 @@
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects), the search's base run when the diagnosis withholds windows, and
 //! the final run; see the README for a 40-minute 200 Hz drive.
+//! Memory: the case is held as loaded (its IMU samples, 64 bytes each, its fixes, the truth
+//! when given; a bias step's corrected copy while it is searched for); the runs' navigation
+//! records go to temporary files ([`spill`], removed at the end, also on error); what the
+//! diagnosis keeps of a run grows with the GNSS fixes only: its innovation records and, for a
+//! search run, its navigation record nearest each fix (about 320 bytes a fix for each run
+//! kept: the base and final runs, the current model's and each candidate's of a round).
 //! The filter's state count is a compile-time constant: [`nav_engine::run::run_filter`] dispatches
 //! layouts with extra blocks on their dimension (16 to [`MAX_EXTRA_DIM`] states).
 //!
@@ -63,6 +69,7 @@ pub mod changepoint;
 pub mod noise;
 pub mod prior;
 pub mod report;
+pub mod spill;
 pub mod stats;
 pub mod validate;
 
@@ -74,7 +81,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-use crate::run::cli::{execute, execute_case, Prepared, RunArgs};
+use crate::run::cli::{Prepared, RunArgs};
 use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::outdir::OutDir;
 use nav_engine::run::{output, run_filter, Outage, RunOptions, RunOutput, MAX_EXTRA_DIM};
@@ -363,15 +370,22 @@ pub struct Diagnosis {
     pub errors_after: Metrics,
 }
 
-/// Result of [`diagnose`] with the two runs.
+/// Result of [`diagnose`] with the two runs. Their navigation at every IMU epoch is in
+/// temporary files ([`spill::NavFile`], removed when the output is dropped), not in the runs'
+/// `nav` (empty), nor are their epoch records kept: memory proportional to the GNSS fixes.
 pub struct DiagnoseOutput {
     /// The diagnosis (diagnosis.json).
     pub diagnosis: Diagnosis,
-    /// The base run (shared: the search starts from it without a copy).
+    /// The base run: innovations, snapshots, final estimates (`nav` and `epochs` empty).
     pub before: Arc<RunOutput>,
+    /// Navigation records of the base run (`nav_before.txt`).
+    pub before_nav: spill::NavFile,
     /// The run of the final model (the base run again when nothing changed), on the IMU
-    /// clock (`nav_after.txt` adds [`Diagnosis::output_clock_shift_s`]).
+    /// clock (`nav_after.txt` adds [`Diagnosis::output_clock_shift_s`]); `nav` and `epochs`
+    /// empty.
     pub after: Arc<RunOutput>,
+    /// Navigation records of the final model's run, IMU clock.
+    pub after_nav: spill::NavFile,
 }
 
 /// The outage position error of a run: RMS over the outages of each outage's largest 3D
@@ -448,6 +462,10 @@ struct Ctx<'a> {
     plan: HeldoutPlan,
     /// The outages the diagnosis withholds beyond the imposed ones.
     withheld: Vec<Outage>,
+    /// The temporary folder of the runs' navigation files ([`spill`]).
+    folder: spill::TempFolder,
+    /// Search runs so far (names their files).
+    runs: std::sync::atomic::AtomicUsize,
 }
 
 impl Ctx<'_> {
@@ -463,6 +481,9 @@ impl Ctx<'_> {
         let p = self.p;
         let mut ro = self.searching(o);
         ro.smoother_history |= self.dopts.smooth;
+        if !self.dopts.smooth {
+            return self.evaluate_from_file(&ro);
+        }
         let mut out = run_filter(&p.case, &ro)?;
         let m = metrics::compute(&out, p.case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
@@ -474,19 +495,70 @@ impl Ctx<'_> {
             }
             out.history = None;
         }
-        Ok(self.scored(Arc::new(out), m, e))
+        Ok(self.scored(out, m, e))
     }
 
-    fn scored(&self, run: Arc<RunOutput>, metrics: Metrics, mut errors: StepErrors) -> Eval {
+    /// [`Self::evaluate`] without the smoother: the run's navigation (search rate) in a file
+    /// of its own ([`spill`]), read for the metrics and the written-solution check, and its
+    /// records nearest the fixes kept: the same numbers, memory proportional to the fixes.
+    fn evaluate_from_file(&self, ro: &RunOptions) -> Result<Eval, nav_engine::run::RunError> {
+        use nav_engine::run::RunError;
+        let p = self.p;
+        let name = format!(
+            "search-{}",
+            self.runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        );
+        let (mut out, nav) = spill::run_nav_to_file(&p.case, ro, &self.folder, &name)?;
+        let read = |out: &RunOutput| -> Result<_, nav_io::IoError> {
+            let m = spill::metrics_of(&p.case, out, &nav, false)?;
+            let mut e = validate::step_errors(out, &m);
+            e.written_vs_fixes_m =
+                validate::written_solution_vs_fixes_file(out, &nav, &p.case.gnss)?;
+            Ok((m, e, spill::nav_at_fixes(&nav, &out.innovations)?))
+        };
+        let res = read(&out);
+        spill::remove(nav);
+        let (m, e, kept) = res.map_err(RunError::Output)?;
+        out.nav = kept;
+        Ok(self.scored(out, m, e))
+    }
+
+    /// The run scored on the held-out windows; its navigation thinned to what the search
+    /// reads of it afterwards ([`nav_at_fixes`]).
+    fn scored(&self, mut run: RunOutput, metrics: Metrics, mut errors: StepErrors) -> Eval {
         let windows = validate::window_errors_m(&run, &self.plan.windows);
         errors.heldout_windows_rms_m = rms_finite(&windows);
+        nav_at_fixes(&mut run);
         Eval {
-            run,
+            run: Arc::new(run),
             metrics,
             errors,
             windows,
         }
     }
+}
+
+/// Keeps of a search run's navigation only the records the search reads once the run is
+/// scored: the first one (the time origin of the misfit spans) and, for each innovation
+/// record, the one nearest its fix ([`regressor_correlation`]: the nearest record in the
+/// thinned list is the nearest in the whole one). At most one record (168 bytes) per fix
+/// plus one, instead of one per navigation epoch.
+fn nav_at_fixes(run: &mut RunOutput) {
+    let nav = std::mem::take(&mut run.nav);
+    let mut keep = vec![false; nav.len()];
+    if let Some(k) = keep.first_mut() {
+        *k = true;
+    }
+    for r in &run.innovations {
+        if let Some(k) = stats::nearest(&nav, r.t_s, |s| s.t_s).and_then(|i| keep.get_mut(i)) {
+            *k = true;
+        }
+    }
+    run.nav = nav
+        .into_iter()
+        .zip(keep)
+        .filter_map(|(s, k)| k.then_some(s))
+        .collect();
 }
 
 fn rms_finite(v: &[f64]) -> Option<f64> {
@@ -514,7 +586,9 @@ struct Search {
 
 /// Diagnoses a prepared case (see the module notes).
 pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
-    let (before, errors_before) = execute(p, &mut |_, _| {})?;
+    let folder = spill::temp_folder()?;
+    let (before, before_nav, errors_before) =
+        spill::run_to_file(&p.case, &p.opts, &folder, "before")?;
     let before = Arc::new(before);
     let fix_times: Vec<f64> = if p.case.gnss.is_empty() {
         before.innovations.iter().map(|r| r.t_s).collect()
@@ -528,12 +602,14 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         dopts,
         plan,
         withheld,
+        folder,
+        runs: Default::default(),
     };
     let all = dopts
         .candidates
         .clone()
         .unwrap_or_else(|| candidates(&p.case, &p.opts));
-    let base = base_eval(&base_ctx, &before, &errors_before)?;
+    let base = base_eval(&base_ctx, &before, &before_nav, &errors_before)?;
     let (bias_step, stepped) = find_bias_step(p, &before).unzip();
     // the search and the final model run on the data with the step removed
     let ctx = Ctx {
@@ -554,21 +630,34 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
         s.steps.push(st);
     }
     let final_opts = retune_noise(&ctx, &mut s);
-    finish(&ctx, s, &all, &base, before, errors_before, final_opts)
+    finish(
+        &ctx,
+        s,
+        &all,
+        &base,
+        (before, before_nav, errors_before),
+        final_opts,
+    )
 }
 
-/// The base model's search run (windows withheld; the full run when the diagnosis withholds
-/// nothing).
+/// The base model's search run (windows withheld; the full run, its navigation read back
+/// into memory, when the diagnosis withholds nothing).
 fn base_eval(
     ctx: &Ctx<'_>,
-    before: &Arc<RunOutput>,
+    before: &RunOutput,
+    before_nav: &spill::NavFile,
     errors_before: &Metrics,
 ) -> anyhow::Result<Eval> {
     let p = ctx.p;
     let mut se = validate::step_errors(before, errors_before);
-    se.written_vs_fixes_m = validate::written_solution_vs_fixes_m(before, &p.case.gnss);
+    se.written_vs_fixes_m =
+        validate::written_solution_vs_fixes_file(before, before_nav, &p.case.gnss)?;
     Ok(if ctx.withheld.is_empty() && !ctx.dopts.smooth {
-        ctx.scored(before.clone(), errors_before.clone(), se)
+        let run = RunOutput {
+            nav: before_nav.load()?,
+            ..before.clone()
+        };
+        ctx.scored(run, errors_before.clone(), se)
     } else {
         ctx.evaluate(&p.opts)?
     })
@@ -1126,7 +1215,7 @@ fn retune_noise(ctx: &Ctx<'_>, s: &mut Search) -> RunOptions {
         return final_opts;
     }
     let with = options_with(&p.opts, &s.added);
-    if let Ok(base_with) = run_filter(&p.case, &ctx.searching(&with)) {
+    if let Ok(base_with) = spill::run_innovations(&p.case, &ctx.searching(&with)) {
         let mut t2 = noise::tune(
             &p.case,
             &ctx.searching(&with),
@@ -1206,6 +1295,31 @@ fn unexplained_misfit(s: &Search, residuals_after: &ResidualStats) -> Option<sta
     })
 }
 
+/// The base run: its summary, its navigation records, its metrics.
+type BaseRun = (Arc<RunOutput>, spill::NavFile, Metrics);
+
+/// The final run with every fix (its navigation to a file, [`spill`]); when it fails, the
+/// current search run stands for it, with a warning (its navigation is the search's record
+/// of it: the records nearest the fixes).
+fn final_run(
+    ctx: &Ctx<'_>,
+    s: &mut Search,
+    final_opts: &RunOptions,
+) -> anyhow::Result<(Arc<RunOutput>, spill::NavFile, Metrics)> {
+    match spill::run_to_file(&ctx.p.case, final_opts, &ctx.folder, "after") {
+        Ok((r, nav, m)) => Ok((Arc::new(r), nav, m)),
+        Err(e) => {
+            s.warnings.push(format!(
+                "the final run with every fix failed ({e:#}): the after figures are the last \
+                 search run's (held-out windows withheld), nav_after.txt its records nearest \
+                 the fixes"
+            ));
+            let nav = spill::NavFile::from_slice(&ctx.folder, "after-search", &s.cur.run.nav)?;
+            Ok((s.cur.run.clone(), nav, s.cur.metrics.clone()))
+        }
+    }
+}
+
 /// The final run with every fix, the figures before and after, what was not added, the
 /// verdict and the warnings.
 fn finish(
@@ -1213,8 +1327,7 @@ fn finish(
     mut s: Search,
     all: &[Block],
     base: &Eval,
-    before: Arc<RunOutput>,
-    errors_before: Metrics,
+    (before, before_nav, errors_before): BaseRun,
     final_opts: RunOptions,
 ) -> anyhow::Result<DiagnoseOutput> {
     let p = ctx.p;
@@ -1224,12 +1337,10 @@ fn finish(
         || final_gnss_sigma_scale.is_some()
         || !s.added.is_empty()
         || s.bias_step.is_some();
-    let (after, errors_after) = if changed {
-        execute_case(&p.case, &final_opts, &mut |_, _| {})
-            .map(|(r, m)| (Arc::new(r), m))
-            .unwrap_or((s.cur.run.clone(), s.cur.metrics.clone()))
+    let (after, after_nav, errors_after) = if changed {
+        final_run(ctx, &mut s, &final_opts)?
     } else {
-        (before.clone(), errors_before.clone())
+        (before.clone(), before_nav.clone(), errors_before.clone())
     };
     // the added effects' estimates in the final model
     for e in &mut s.added_info {
@@ -1252,9 +1363,11 @@ fn finish(
         })
         .and_then(|e| e.estimate.first())
         .map_or(0.0, |dt| -dt);
-    let ovf = |run: &RunOutput| validate::written_solution_vs_fixes_m(run, &p.case.gnss);
-    let error_before = error_summary(&errors_before, ovf(&before));
-    let error_after = error_summary(&errors_after, ovf(&after));
+    let ovf = |run: &RunOutput, nav: &spill::NavFile| {
+        validate::written_solution_vs_fixes_file(run, nav, &p.case.gnss)
+    };
+    let error_before = error_summary(&errors_before, ovf(&before, &before_nav)?);
+    let error_after = error_summary(&errors_after, ovf(&after, &after_nav)?);
     let undetected = undetected(all, &s);
     let unexplained = unexplained_misfit(&s, &residuals_after);
     let heldout_change = validate::compare_windows(&base.windows, &s.cur.windows);
@@ -1312,7 +1425,9 @@ fn finish(
             errors_after,
         },
         before,
+        before_nav,
         after,
+        after_nav,
     })
 }
 
@@ -1427,11 +1542,21 @@ pub fn write_outputs(
     config: Option<&std::path::Path>,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    output::write_nav(&dir.join("nav_before.txt"), &d.before.nav, p.week)?;
+    output::write_nav_records(
+        &dir.join("nav_before.txt"),
+        d.before_nav.records()?,
+        p.week,
+        0.0,
+    )?;
     // the after solution on the GNSS clock when a time offset was added (written record by
-    // record: no second copy of the solution)
+    // record from the file: no copy of the solution in memory)
     let shift = d.diagnosis.output_clock_shift_s;
-    output::write_nav_with(&dir.join("nav_after.txt"), &d.after.nav, p.week, shift)?;
+    output::write_nav_records(
+        &dir.join("nav_after.txt"),
+        d.after_nav.records()?,
+        p.week,
+        shift,
+    )?;
     let jp = dir.join("diagnosis.json");
     std::fs::write(&jp, serde_json::to_string_pretty(&d.diagnosis)?)
         .with_context(|| format!("writing {}", jp.display()))?;

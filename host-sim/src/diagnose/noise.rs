@@ -27,7 +27,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::stats::{residual_stats, ResidualStats};
-use nav_engine::run::{run_filter, CaseData, RunOptions};
+use nav_engine::run::{CaseData, RunOptions};
 
 /// Multipliers on the IMU noise PSDs of a configuration and on its GNSS sigmas.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -219,7 +219,7 @@ impl NoiseTuning {
 fn trial(case: &CaseData, opts: &RunOptions, k: NoiseFactors) -> NoiseTrial {
     let mut o = super::search_recording(opts);
     k.apply(&mut o);
-    match run_filter(case, &o) {
+    match super::spill::run_innovations(case, &o) {
         Ok(out) => {
             let r = residual_stats(&out.innovations);
             NoiseTrial {

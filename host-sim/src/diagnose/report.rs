@@ -12,6 +12,7 @@ use std::path::Path;
 use anyhow::Context;
 use plotters::prelude::*;
 
+use super::spill::NavFile;
 use super::{DiagnoseOutput, Diagnosis};
 use crate::run::cli::Prepared;
 use nav_engine::metrics;
@@ -55,16 +56,21 @@ fn robust_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     range([q(0.005), q(0.995)].into_iter())
 }
 
-fn t0_of(run: &RunOutput) -> f64 {
-    run.nav.first().map_or(0.0, |s| s.t_s)
+fn t0_of(nav: &NavFile) -> f64 {
+    nav.first_t_s().unwrap_or(0.0)
 }
 
 /// Position innovations (N, E, D) of the used fixes, before and after.
-fn plot_innovations(path: &Path, before: &RunOutput, after: &RunOutput) -> anyhow::Result<()> {
+/// `t0`: time of the first record, s (the plots' origin).
+fn plot_innovations(
+    path: &Path,
+    before: &RunOutput,
+    after: &RunOutput,
+    t0: f64,
+) -> anyhow::Result<()> {
     let root = BitMapBackend::new(path, (1500, 1000)).into_drawing_area();
     root.fill(&WHITE).map_err(perr)?;
     let areas = root.split_evenly((3, 1));
-    let t0 = t0_of(before);
     let used = |r: &&nav_engine::run::InnovationRecord| {
         matches!(r.used, FixUse::Accepted | FixUse::Forced)
     };
@@ -111,11 +117,10 @@ fn plot_innovations(path: &Path, before: &RunOutput, after: &RunOutput) -> anyho
 
 /// NIS / dim of every used fix as a 60-fix running mean, before and after, with the 95 %
 /// band of that mean.
-fn plot_nis(path: &Path, before: &RunOutput, after: &RunOutput) -> anyhow::Result<()> {
+fn plot_nis(path: &Path, before: &RunOutput, after: &RunOutput, t0: f64) -> anyhow::Result<()> {
     const W: usize = 60;
     let root = BitMapBackend::new(path, (1500, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(perr)?;
-    let t0 = t0_of(before);
     let series = |run: &RunOutput| -> (Vec<(f64, f64)>, f64) {
         let recs: Vec<(f64, f64, f64)> = run
             .innovations
@@ -228,34 +233,25 @@ fn plot_evidence(path: &Path, d: &Diagnosis) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// 3D position error over time: vs truth (IMU point) or vs the withheld fixes (antenna).
+/// 3D position error over time against the truth (IMU point), the run's navigation read
+/// from its file: about 4000 points (min since its first record, m).
 fn error_series(
-    run: &RunOutput,
-    truth: Option<&[nav_core::types::NavSolution]>,
-) -> Vec<(f64, f64)> {
-    let t0 = t0_of(run);
-    match truth {
-        Some(tr) => {
-            let e = metrics::errors_vs_truth(&run.nav, tr);
-            let step = (e.len() / 4000).max(1);
-            e.iter()
-                .step_by(step)
-                .map(|s| ((s.t_s - t0) / 60.0, s.d3_m()))
-                .collect()
-        }
-        None => run
-            .innovations
-            .iter()
-            .filter(|r| r.used == FixUse::Withheld)
-            .map(|r| {
-                let e = r.pos_error_ned_m();
-                (
-                    (r.t_s - t0) / 60.0,
-                    (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt(),
-                )
-            })
-            .collect(),
+    nav: &NavFile,
+    truth: &[nav_core::types::NavSolution],
+) -> anyhow::Result<Vec<(f64, f64)>> {
+    let t0 = t0_of(nav);
+    let step = (nav.len() / 4000).max(1);
+    let mut m = metrics::TruthMatcher::new(truth.iter().copied());
+    let (mut k, mut v) = (0usize, Vec::new());
+    for s in nav.records()? {
+        m.push(&s?, |e| {
+            if k % step == 0 {
+                v.push(((e.t_s - t0) / 60.0, e.d3_m()));
+            }
+            k += 1;
+        });
     }
+    Ok(v)
 }
 
 /// Two panels: the error of each held-out window (whatever its kind) for the configuration
@@ -271,12 +267,12 @@ fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<
         (root.clone(), root.split_vertically(900).1)
     };
     let dg = &d.diagnosis;
-    let t0 = t0_of(&d.before);
+    let t0 = t0_of(&d.before_nav);
     let wins = &dg.heldout_windows.windows;
     let x1 = wins
         .iter()
         .map(|w| (w.end_s - t0) / 60.0)
-        .chain(d.before.nav.last().map(|n| (n.t_s - t0) / 60.0))
+        .chain(d.before_nav.last_t_s().map(|t| (t - t0) / 60.0))
         .fold(1e-3, f64::max);
     let pts = |v: &[f64]| -> Vec<(f64, f64)> {
         wins.iter()
@@ -330,8 +326,8 @@ fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<
     ch.draw_series(pa.iter().map(|p| Circle::new(*p, 5, AFTER.filled())))
         .map_err(perr)?;
     if let Some(tr) = truth {
-        let sb = error_series(&d.before, Some(tr));
-        let sa = error_series(&d.after, Some(tr));
+        let sb = error_series(&d.before_nav, tr)?;
+        let sa = error_series(&d.after_nav, tr)?;
         let (_, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([0.0]));
         let mut ch = ChartBuilder::on(&bottom)
             .caption(
@@ -392,8 +388,9 @@ fn fmt_vec(v: &[f64]) -> String {
 
 /// Writes `report.md` and its PNG plots into `dir`.
 pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<()> {
-    plot_innovations(&dir.join("innovations.png"), &d.before, &d.after)?;
-    plot_nis(&dir.join("nis.png"), &d.before, &d.after)?;
+    let t0 = t0_of(&d.before_nav);
+    plot_innovations(&dir.join("innovations.png"), &d.before, &d.after, t0)?;
+    plot_nis(&dir.join("nis.png"), &d.before, &d.after, t0)?;
     plot_evidence(&dir.join("evidence.png"), &d.diagnosis)?;
     plot_errors(&dir.join("errors.png"), p, d)?;
     let dg = &d.diagnosis;
@@ -468,7 +465,6 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Res
         s,
         "| window | kind | start [min] | end [min] | error before [m] | error after [m] |\n|---|---|---|---|---|---|"
     );
-    let t0 = t0_of(&d.before);
     let om = |x: Option<&f64>| {
         x.filter(|v| v.is_finite())
             .map_or("-".to_string(), |v| format!("{v:.3}"))

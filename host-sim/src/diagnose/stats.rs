@@ -192,7 +192,9 @@ pub fn c_bn(rpy: [f64; 3]) -> [[f64; 3]; 3] {
     ]
 }
 
-fn nearest<T>(v: &[T], t: f64, key: impl Fn(&T) -> f64) -> Option<usize> {
+/// Index of the element of `v` (sorted by `key`) whose key is nearest `t` (the later one on a
+/// tie); None when `v` is empty.
+pub(crate) fn nearest<T>(v: &[T], t: f64, key: impl Fn(&T) -> f64) -> Option<usize> {
     if v.is_empty() {
         return None;
     }

@@ -142,17 +142,36 @@ pub fn output_vs_fixes_horizontal_rms_m(
     gnss: &[GnssFix],
     outages: &[Outage],
 ) -> f64 {
+    let records = nav.iter().copied().map(Ok::<_, std::convert::Infallible>);
+    match output_vs_fixes_streamed(records, shift_s, lever_arm_m, gnss, outages) {
+        Ok(v) => v,
+        Err(e) => match e {},
+    }
+}
+
+/// [`output_vs_fixes_horizontal_rms_m`] on navigation records read one by one (time order;
+/// two held at a time): the same number, or the first read error.
+pub fn output_vs_fixes_streamed<E>(
+    nav: impl IntoIterator<Item = Result<NavSolution, E>>,
+    shift_s: f64,
+    lever_arm_m: [f64; 3],
+    gnss: &[GnssFix],
+    outages: &[Outage],
+) -> Result<f64, E> {
     let mut sum = 0.0;
     let mut n = 0usize;
-    let mut i = 0usize;
+    let mut nav = nav.into_iter();
+    let mut a = nav.next().transpose()?;
+    let mut b = nav.next().transpose()?;
     for f in gnss {
         if outages.iter().any(|o| o.contains(f.t_s)) || !f.lat_rad.is_finite() {
             continue;
         }
-        while nav.get(i + 1).is_some_and(|s| s.t_s + shift_s <= f.t_s) {
-            i += 1;
+        while b.is_some_and(|s| s.t_s + shift_s <= f.t_s) {
+            a = b;
+            b = nav.next().transpose()?;
         }
-        let (Some(a), Some(b)) = (nav.get(i), nav.get(i + 1)) else {
+        let (Some(a), Some(b)) = (&a, &b) else {
             continue;
         };
         let (ta, tb) = (a.t_s + shift_s, b.t_s + shift_s);
@@ -181,11 +200,11 @@ pub fn output_vs_fixes_horizontal_rms_m(
         sum += d.x * d.x + d.y * d.y;
         n += 1;
     }
-    if n == 0 {
+    Ok(if n == 0 {
         f64::NAN
     } else {
         (sum / n as f64).sqrt()
-    }
+    })
 }
 
 /// The written solution of a run against the GNSS fixes outside the outages (horizontal RMS,
@@ -194,6 +213,24 @@ pub fn output_vs_fixes_horizontal_rms_m(
 /// `nav_after.txt` is written. Measured on simulated drives with an undeclared 0.86 m lever
 /// arm: 0.011 m with the estimate added, 0.764 m with the configured arm alone.
 pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
+    let (arm, shift) = written_arm_and_shift(run);
+    output_vs_fixes_horizontal_rms_m(&run.nav, shift, arm, gnss, &run.outages)
+}
+
+/// [`written_solution_vs_fixes_m`] of a run whose navigation records are in `nav` (read
+/// from the file; `run`'s own `nav` unused): the same number, or the read error.
+pub fn written_solution_vs_fixes_file(
+    run: &RunOutput,
+    nav: &super::spill::NavFile,
+    gnss: &[GnssFix],
+) -> Result<f64, nav_io::IoError> {
+    let (arm, shift) = written_arm_and_shift(run);
+    output_vs_fixes_streamed(nav.records()?, shift, arm, gnss, &run.outages)
+}
+
+/// The antenna lever arm (configured plus any estimate, body FRD, m) and the clock shift
+/// (s) of a run's written solution.
+fn written_arm_and_shift(run: &RunOutput) -> ([f64; 3], f64) {
     let est = |name: &str| {
         run.final_effects
             .iter()
@@ -211,7 +248,7 @@ pub fn written_solution_vs_fixes_m(run: &RunOutput, gnss: &[GnssFix]) -> f64 {
         .or_else(|| est(Block::ImuClockDrift.name()))
         .and_then(|v| v.first().copied())
         .map_or(0.0, |dt| -dt);
-    output_vs_fixes_horizontal_rms_m(&run.nav, shift, arm, gnss, &run.outages)
+    (arm, shift)
 }
 
 /// The names of the blocks, for messages.

@@ -128,7 +128,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
         .map_or([0.0; 3], |e| [e.estimate[0], e.estimate[1], e.estimate[2]]);
     let arm: [f64; 3] = [0, 1, 2].map(|i| out.after.lever_arm_m[i] + la[i]);
     let imu_clock = host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
-        &out.after.nav,
+        &out.after_nav.load().unwrap(),
         0.0,
         arm,
         &p.case.gnss,

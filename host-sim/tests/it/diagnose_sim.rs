@@ -293,7 +293,7 @@ fn undeclared_lever_arm_is_found() {
     for f in ["nav_before.txt", "nav_after.txt"] {
         let text = std::fs::read_to_string(dir.path().join(f)).unwrap();
         let rows = text.lines().filter(|l| !l.starts_with('#')).count();
-        assert_eq!(rows, out.before.nav.len(), "{f}");
+        assert_eq!(rows, out.before_nav.len(), "{f}");
     }
     for f in [
         "report.md",
@@ -1049,9 +1049,13 @@ fn check_written_solution_metric(
         .map_or(configured, |e| {
             [0, 1, 2].map(|i| configured[i] + e.estimate[i])
         });
-    let f = |run: &nav_engine::run::RunOutput, shift: f64, l: [f64; 3]| {
+    let (nav_before, nav_after) = (
+        out.before_nav.load().unwrap(),
+        out.after_nav.load().unwrap(),
+    );
+    let f = |run: &nav_engine::run::RunOutput, nav, shift: f64, l: [f64; 3]| {
         host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
-            &run.nav,
+            nav,
             shift,
             l,
             &p.case.gnss,
@@ -1060,9 +1064,9 @@ fn check_written_solution_metric(
     };
     let sh = d.output_clock_shift_s;
     let (before, cfg, est) = (
-        f(&out.before, 0.0, configured),
-        f(&out.after, sh, configured),
-        f(&out.after, sh, la),
+        f(&out.before, &nav_before, 0.0, configured),
+        f(&out.after, &nav_after, sh, configured),
+        f(&out.after, &nav_after, sh, la),
     );
     println!(
         "undeclared lever {undeclared:?}: {} configured + estimate {la:?} shift {sh:+.4}: before {before:.4} after \

@@ -13,6 +13,7 @@ mod diagnose_gnss_noise;
 mod diagnose_heldout;
 mod diagnose_real;
 mod diagnose_sim;
+mod diagnose_spill;
 mod init;
 mod kfgins_parity;
 mod mounting_check;

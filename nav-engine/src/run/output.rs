@@ -35,17 +35,41 @@ pub fn write_nav_with(
     week: u16,
     shift_s: f64,
 ) -> Result<(), IoError> {
-    nav_io::text::write_with(path, |w| {
-        for s in nav {
+    write_nav_records(path, nav.iter().copied().map(Ok), week, shift_s)
+}
+
+/// [`write_nav_with`] on records read one by one (e.g. from a file of records): the same
+/// text; the first read error ends the writing and is returned (the file then holds the
+/// records before it).
+pub fn write_nav_records(
+    path: &Path,
+    nav: impl IntoIterator<Item = Result<NavSolution, IoError>>,
+    week: u16,
+    shift_s: f64,
+) -> Result<(), IoError> {
+    let mut read_err = None;
+    let written = nav_io::text::write_with(path, |w| {
+        for r in nav {
+            let s = match r {
+                Ok(s) => s,
+                Err(e) => {
+                    read_err = Some(e);
+                    return Err(std::io::Error::other("the records could not be read"));
+                }
+            };
             let t_s = if shift_s == 0.0 {
                 s.t_s
             } else {
                 s.t_s + shift_s
             };
-            nav_io::write_nav_line(w, &NavSolution { week, t_s, ..*s })?;
+            nav_io::write_nav_line(w, &NavSolution { week, t_s, ..s })?;
         }
         Ok(())
-    })
+    });
+    match read_err {
+        Some(e) => Err(e),
+        None => written,
+    }
 }
 
 /// The two header lines of `std.txt`.
