@@ -364,7 +364,7 @@ mod tests {
                 "kf-gins, kf-gins-feedback",
             ),
         ] {
-            let e = Cmd::try_parse_from(std::iter::once("hw-bridge").chain(args))
+            let e = Cmd::try_parse_from(std::iter::once("hw-bridge").chain(args.iter().copied()))
                 .err()
                 .map(|e| e.to_string())
                 .unwrap_or_default();

@@ -29,6 +29,7 @@ pub use nav_engine::run::execute::{
     threaded_imu_reader,
 };
 use nav_engine::run::outdir::OutDir;
+use nav_engine::run::prepare::DEFAULT_STD_RATE_HZ;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
 };
@@ -70,7 +71,7 @@ pub struct RunArgs {
     pub nav_rate: Option<f64>,
     /// Rate of std.txt and bias.txt, Hz; in (0, IMU rate], a higher rate is clamped to the
     /// IMU rate with a warning.
-    #[arg(long, default_value_t = nav_engine::run::prepare::DEFAULT_STD_RATE_HZ, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DEFAULT_STD_RATE_HZ, allow_negative_numbers = true)]
     pub std_rate: f64,
     /// Output directory.
     #[arg(long, default_value = "run-out")]

@@ -35,9 +35,6 @@ pub struct StreamOptions {
 /// Default of `stream --gnss-baud`, bit/s.
 pub const DEFAULT_GNSS_BAUD: u32 = 38_400;
 
-/// Default GPS - UTC leap seconds for NMEA input (`--leap-seconds`), s.
-pub const DEFAULT_LEAP_SECONDS: i64 = 18;
-
 impl StreamOptions {
     /// Streaming the board on `port` at [`DEFAULT_BAUD`], no GNSS receiver, no time limit, no
     /// host filter.
