@@ -3,6 +3,8 @@ use clap::{Parser, Subcommand};
 use hw_bridge::cmd;
 use std::process::ExitCode;
 
+mod cli;
+
 /// Serial bridge between a navigation board or GNSS receiver and nav-core.
 #[derive(Parser, Debug)]
 #[command(name = "hw-bridge", version, about)]
@@ -16,14 +18,14 @@ enum Cmd {
     /// List serial ports (pseudo-terminals can always be opened by path).
     Ports,
     /// Record raw bytes with receive timestamps into a capture file.
-    Record(cmd::RecordArgs),
+    Record(cli::RecordArgs),
     /// Decode a capture (its chunking and, with --speed, its timing) into text files, or
     /// stream it back out to a port.
-    Replay(cmd::ReplayArgs),
+    Replay(cli::ReplayArgs),
     /// Stream a simulated case (imu.txt, gnss.txt) into a port as frames.
-    Send(cmd::SendArgs),
+    Send(cli::SendArgs),
     /// Live decode of a board's frames and a GNSS receiver, with health.
-    Stream(cmd::StreamArgs),
+    Stream(cli::StreamArgs),
 }
 
 /// Exit status: 0 complete, 2 finished but incomplete (outputs hold everything up to the
@@ -65,7 +67,7 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
             }
         }
         Cmd::Record(a) => {
-            let o = cmd::record(&a)?;
+            let o = cmd::record(&(&a).into())?;
             println!(
                 "recorded {} records, {} bytes, {} link resets",
                 o.records, o.bytes, o.link_resets
@@ -77,7 +79,7 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
             }
         }
         Cmd::Replay(a) => {
-            let o = cmd::replay(&a)?;
+            let o = cmd::replay(&(&a).into())?;
             let mb = o.bytes as f64 / 1e6;
             println!(
                 "replayed {} records, {} bytes ({:.3} s recorded) in {:.3} s wall ({:.1} MB/s)",
@@ -112,14 +114,14 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
             }
         }
         Cmd::Send(a) => {
-            let o = cmd::send(&a)?;
+            let o = cmd::send(&(&a).into())?;
             println!(
                 "sent {} frames, {} bytes in {:.3} s",
                 o.frames, o.bytes, o.wall_s
             );
         }
         Cmd::Stream(a) => {
-            let s = cmd::stream(&a)?;
+            let s = cmd::stream(&(&a).into())?;
             print!("{}", hw_bridge::status::decoder_report(&s.stats));
             if let Some(n) = s.host_solution {
                 println!(

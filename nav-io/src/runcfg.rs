@@ -773,10 +773,18 @@ pub fn nearest_name_hint(message: &str) -> Option<String> {
     let (bad, rest) = rest.split_once('`')?;
     let (_, list) = rest.split_once("expected")?;
     let list = list.lines().next().unwrap_or("");
-    let best = list
-        .split('`')
-        .skip(1)
-        .step_by(2)
+    did_you_mean(bad, list.split('`').skip(1).step_by(2))
+}
+
+/// "did you mean `a`?" naming the candidate nearest to `bad` by edit distance, when it is
+/// near enough to be a misspelling (at most a third of its length edited, at least 2 edits
+/// allowed); `None` otherwise.
+pub fn did_you_mean<'a>(
+    bad: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<String> {
+    let best = candidates
+        .into_iter()
         .map(|cand| (strsim::levenshtein(bad, cand), cand))
         .min()?;
     let allowed = (bad.chars().count() / 3).max(2);

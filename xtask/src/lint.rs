@@ -7,7 +7,13 @@
 //! 2. The library crates ([`LIBRARY_CRATES`]) do not depend on `clap`: their option enums
 //!    implement `FromStr` and `Display` (with `strum`) and the binaries turn them into clap
 //!    values, so no clap type is part of a library's public API.
-//! 3. A function in a `src/` file has a body of at most [`MAX_FN_LINES`] lines (measured with
+//! 3. The crates with a library and a command line ([`CLI_CRATES`]) keep their clap argument
+//!    structs at the command line: a `pub fn` of the library (every `src/` file but `main.rs`
+//!    and the modules `main.rs` declares) may not take a struct deriving clap's `Args` or
+//!    `Parser` (by value, by reference or inside another type): it takes a typed options
+//!    struct, which the arguments convert into. The one exception is a free function `run`
+//!    taking the struct by value, a sub-command's entry point that the binary calls.
+//! 4. A function in a `src/` file has a body of at most [`MAX_FN_LINES`] lines (measured with
 //!    `syn` from the opening to the closing brace). The functions that were longer when the
 //!    rule came in are listed with their length in [`ALLOWLIST`]: such a function may shrink
 //!    but not grow, and when it shrinks its entry must follow
@@ -26,6 +32,10 @@ pub const MAX_FN_LINES: usize = 120;
 
 /// The library crates that must not depend on `clap`.
 pub const LIBRARY_CRATES: [&str; 5] = ["nav-core", "nav-io", "nav-engine", "noise-id", "nav-sim"];
+
+/// The crates with both a library and a binary whose library functions may not take the
+/// binary's clap argument structs (rule 3).
+pub const CLI_CRATES: [&str; 2] = ["host-sim", "hw-bridge"];
 
 /// The allowlist of functions longer than [`MAX_FN_LINES`], relative to the workspace root:
 /// one `LINES PATH NAME` a line, `#` comments.
@@ -209,6 +219,179 @@ impl<'ast> Visit<'ast> for FnVisitor {
     }
 }
 
+/// Whether an item's attributes derive clap's `Args` or `Parser` (any path ending so).
+fn derives_clap_args(attrs: &[syn::Attribute]) -> bool {
+    attrs
+        .iter()
+        .filter(|a| a.path().is_ident("derive"))
+        .any(|a| {
+            let mut found = false;
+            let _ = a.parse_nested_meta(|m| {
+                let last = last_ident(&m.path);
+                found |= last == "Args" || last == "Parser";
+                Ok(())
+            });
+            found
+        })
+}
+
+/// The names of the structs deriving clap's `Args` or `Parser` in a source file.
+pub fn clap_arg_structs(src: &str) -> Result<Vec<String>, syn::Error> {
+    struct V(Vec<String>);
+    impl<'ast> Visit<'ast> for V {
+        fn visit_item_struct(&mut self, s: &'ast syn::ItemStruct) {
+            if derives_clap_args(&s.attrs) {
+                self.0.push(s.ident.to_string());
+            }
+        }
+    }
+    let mut v = V(Vec::new());
+    v.visit_file(&syn::parse_file(src)?);
+    Ok(v.0)
+}
+
+/// The identifiers of every path in a type (`&Option<cli::RunArgs>`: `Option`, `cli`,
+/// `RunArgs`).
+fn type_idents(ty: &syn::Type) -> Vec<String> {
+    struct V(Vec<String>);
+    impl<'ast> Visit<'ast> for V {
+        fn visit_path_segment(&mut self, s: &'ast syn::PathSegment) {
+            self.0.push(s.ident.to_string());
+            syn::visit::visit_path_segment(self, s);
+        }
+    }
+    let mut v = V(Vec::new());
+    v.visit_type(ty);
+    v.0
+}
+
+/// The `pub fn`s of a library source file that take one of the clap argument structs
+/// `args` (rule 3): (line, column, message), 1-based. A free function `run` taking the struct
+/// by value (a sub-command's entry point) is allowed.
+pub fn args_in_library_api(
+    src: &str,
+    args: &[String],
+) -> Result<Vec<(usize, usize, String)>, syn::Error> {
+    struct V<'a> {
+        args: &'a [String],
+        out: Vec<(usize, usize, String)>,
+    }
+    impl V<'_> {
+        fn check(&mut self, vis: &syn::Visibility, sig: &syn::Signature, free: bool) {
+            if !matches!(vis, syn::Visibility::Public(_)) {
+                return;
+            }
+            for input in &sig.inputs {
+                let syn::FnArg::Typed(pt) = input else {
+                    continue;
+                };
+                let Some(name) = type_idents(&pt.ty)
+                    .into_iter()
+                    .find(|i| self.args.contains(i))
+                else {
+                    continue;
+                };
+                let entry_point = free
+                    && sig.ident == "run"
+                    && matches!(&*pt.ty, syn::Type::Path(p) if last_ident(&p.path) == name);
+                if entry_point {
+                    continue;
+                }
+                let at = sig.ident.span().start();
+                self.out.push((
+                    at.line,
+                    at.column + 1,
+                    format!(
+                        "pub fn {} takes the command-line struct `{name}` (clap): take a typed \
+                         options struct that `{name}` converts into (only a sub-command's \
+                         `pub fn run({name})` entry point takes it)",
+                        sig.ident
+                    ),
+                ));
+            }
+        }
+    }
+    impl<'ast> Visit<'ast> for V<'_> {
+        fn visit_item_fn(&mut self, f: &'ast syn::ItemFn) {
+            self.check(&f.vis, &f.sig, true);
+            syn::visit::visit_item_fn(self, f);
+        }
+        fn visit_item_impl(&mut self, i: &'ast syn::ItemImpl) {
+            if i.trait_.is_none() {
+                for item in &i.items {
+                    if let syn::ImplItem::Fn(f) = item {
+                        self.check(&f.vis, &f.sig, false);
+                    }
+                }
+            }
+            syn::visit::visit_item_impl(self, i);
+        }
+    }
+    let mut v = V {
+        args,
+        out: Vec::new(),
+    };
+    v.visit_file(&syn::parse_file(src)?);
+    Ok(v.out)
+}
+
+/// The modules `main.rs` declares (`mod cli;`): the binary's own files, not the library's.
+fn binary_modules(main_rs: &str) -> Result<Vec<String>, syn::Error> {
+    Ok(syn::parse_file(main_rs)?
+        .items
+        .iter()
+        .filter_map(|i| match i {
+            syn::Item::Mod(m) if m.content.is_none() => Some(m.ident.to_string()),
+            _ => None,
+        })
+        .collect())
+}
+
+/// Rule 3 over one crate of [`CLI_CRATES`] at `root`.
+fn check_cli_crate(root: &Path, krate: &str) -> Result<Vec<Finding>> {
+    let src = root.join(krate).join("src");
+    let main_rs = std::fs::read_to_string(src.join("main.rs"))
+        .with_context(|| format!("reading {krate}/src/main.rs"))?;
+    let bin_mods = binary_modules(&main_rs).with_context(|| format!("{krate}/src/main.rs"))?;
+    let mut all = Vec::new();
+    files(&src, &[".rs"], &mut all)?;
+    let lib: Vec<(String, String)> = all
+        .iter()
+        .filter(|p| {
+            let r = p.strip_prefix(&src).unwrap_or(p);
+            let first = r
+                .components()
+                .next()
+                .map(|c| {
+                    c.as_os_str()
+                        .to_string_lossy()
+                        .trim_end_matches(".rs")
+                        .to_string()
+                })
+                .unwrap_or_default();
+            first != "main" && first != "bin" && !bin_mods.contains(&first)
+        })
+        .map(|p| Ok((rel(root, p), std::fs::read_to_string(p)?)))
+        .collect::<Result<_>>()?;
+    let mut args = Vec::new();
+    for (_, text) in &lib {
+        // a file that does not parse is reported by the length rule
+        args.extend(clap_arg_structs(text).unwrap_or_default());
+    }
+    let mut findings = Vec::new();
+    for (r, text) in &lib {
+        for (line, col, message) in args_in_library_api(text, &args).unwrap_or_default() {
+            findings.push(Finding {
+                path: PathBuf::from(r),
+                line,
+                col,
+                message,
+            });
+        }
+    }
+    Ok(findings)
+}
+
 /// Every function with a body in `src` (Rust source), in order of appearance.
 pub fn functions(src: &str) -> Result<Vec<FnLen>, syn::Error> {
     let file = syn::parse_file(src)?;
@@ -368,7 +551,7 @@ fn in_src(rel: &str) -> bool {
     rel.starts_with("src/") || rel.contains("/src/")
 }
 
-/// All three checks over the repository at `root`. With `update_allowlist`, writes the
+/// All four checks over the repository at `root`. With `update_allowlist`, writes the
 /// lowered allowlist first.
 pub fn check_repo(root: &Path, update_allowlist: bool) -> Result<Vec<Finding>> {
     let mut findings = Vec::new();
@@ -416,6 +599,9 @@ pub fn check_repo(root: &Path, update_allowlist: bool) -> Result<Vec<Finding>> {
                 ),
             });
         }
+    }
+    for krate in CLI_CRATES {
+        findings.extend(check_cli_crate(root, krate)?);
     }
     let allow_path = root.join(ALLOWLIST);
     let allow = match std::fs::read_to_string(&allow_path) {
@@ -557,6 +743,37 @@ mod tests {
         let (f, updated) = check_lengths(&long, &allow);
         assert!(f[0].message.contains("grew to 130"), "{}", f[0]);
         assert_eq!(updated, allow, "never raised");
+    }
+
+    #[test]
+    fn a_pub_fn_taking_a_clap_struct_is_flagged_but_an_entry_point_run_is_not() {
+        let src = r#"
+            #[derive(clap::Args, Debug)]
+            pub struct XArgs { pub a: u32 }
+            #[derive(Parser)]
+            struct YArgs;
+            #[derive(Debug, Clone)]
+            pub struct XOptions { pub a: u32 }
+            pub fn run(args: XArgs) {}
+            pub fn load(args: &XArgs, stream: bool) {}
+            pub(crate) fn internal(args: &XArgs) {}
+            fn private(args: &XArgs) {}
+            pub fn typed(o: &XOptions) {}
+            pub fn inside(o: Option<&cli::YArgs>) {}
+            impl XArgs { pub fn to_options(&self) -> XOptions { XOptions { a: self.a } } }
+            impl Thing { pub fn with(&self, a: &XArgs) {} }
+            mod m { pub fn run(args: &XArgs) {} }
+        "#;
+        let args = clap_arg_structs(src).unwrap();
+        assert_eq!(args, ["XArgs", "YArgs"]);
+        let found: Vec<String> = args_in_library_api(src, &args)
+            .unwrap()
+            .into_iter()
+            .map(|(_, _, m)| m.split_whitespace().nth(2).unwrap_or("").to_string())
+            .collect();
+        assert_eq!(found, ["load", "inside", "with", "run"], "{found:?}");
+        let main_rs = "mod cli;\nmod inline { }\nfn main() {}\n";
+        assert_eq!(binary_modules(main_rs).unwrap(), ["cli"]);
     }
 
     #[test]

@@ -520,7 +520,7 @@ fn terms_from(args: &[TermArg]) -> Terms {
 }
 
 /// Reads the input described by `args`.
-pub fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
+fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
     let fmt = match args.format {
         Format::Auto if !args.columns.is_empty() => Format::Csv,
         Format::Auto => Format::ImuText,

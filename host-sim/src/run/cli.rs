@@ -1,7 +1,8 @@
 //! `host-sim run --config FILE [--case DIR] ...`: the command line over the run engine
-//! (`nav_engine`): the arguments become a [`RunSpec`] (configuration plus overrides), the
-//! engine loads and runs it ([`nav_engine::load`], [`execute_streaming`]) and this module
-//! prints the summary.
+//! (`nav_engine`): the arguments ([`RunArgs`], parsed and checked by clap) become a [`RunSpec`]
+//! (configuration plus overrides, [`RunArgs::to_spec`]), the engine loads and runs it
+//! ([`nav_engine::load`], [`execute_streaming`]) and this module prints the summary. Programs
+//! and tests build a [`RunSpec`] and call the engine themselves.
 //!
 //! The configuration is the project's run configuration (TOML) or a KF-GINS YAML file
 //! ([`nav_engine::run::prepare`]). Outputs in `--out` (default `run-out`): `nav.txt`,
@@ -20,7 +21,7 @@
 use super::outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
 use super::Model;
 use anyhow::Context;
-use nav_core::config::Gating;
+use nav_core::config::{Gating, VelocityGating};
 use nav_core::imu_guard::GapIncrements;
 use nav_engine::metrics;
 pub use nav_engine::run::execute::{
@@ -28,14 +29,17 @@ pub use nav_engine::run::execute::{
     threaded_imu_reader,
 };
 use nav_engine::run::outdir::OutDir;
+use nav_engine::run::prepare::DEFAULT_STD_RATE_HZ;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
 };
+use nav_engine::run::Effect;
 use nav_io::ImuClassName;
 use std::path::PathBuf;
 
-/// Arguments of `host-sim run`.
-#[derive(clap::Args, Debug, Clone)]
+/// Arguments of `host-sim run` (a `clap::Parser` too, so that a test can parse a command line
+/// with `RunArgs::try_parse_from(["run", "--config", ...])`).
+#[derive(clap::Parser, Debug, Clone)]
 pub struct RunArgs {
     /// Run configuration: the project's TOML, or a KF-GINS YAML file.
     #[arg(long)]
@@ -67,7 +71,7 @@ pub struct RunArgs {
     pub nav_rate: Option<f64>,
     /// Rate of std.txt and bias.txt, Hz; in (0, IMU rate], a higher rate is clamped to the
     /// IMU rate with a warning.
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DEFAULT_STD_RATE_HZ, allow_negative_numbers = true)]
     pub std_rate: f64,
     /// Output directory.
     #[arg(long, default_value = "run-out")]
@@ -82,14 +86,14 @@ pub struct RunArgs {
     /// Innovation gate: robust (default: IGG-III down-weighting and a model-mismatch
     /// monitor, docs/robust-gating.md), off, or a hard gate at the acceptance probability
     /// 0.95, 0.99, 0.999, 0.9999.
-    #[arg(long)]
-    pub gate: Option<String>,
+    #[arg(long, value_parser = parse_gate)]
+    pub gate: Option<Gating>,
     /// The GNSS velocity's own gate (with GNSS velocities): joint (position and velocity in
     /// one update under --gate), or a separate velocity update gated robust, hard (0.9999),
     /// 0.95, 0.99, 0.999, 0.9999, or off (no gate). Default: the configuration's
     /// `[gnss] velocity_gate`, else joint.
-    #[arg(long)]
-    pub velocity_gate: Option<String>,
+    #[arg(long, value_parser = parse_velocity_gate)]
+    pub velocity_gate: Option<VelocityGate>,
     /// Use the GNSS velocities: on/off (default: the configuration's).
     #[arg(long)]
     pub gnss_velocity: Option<bool>,
@@ -100,9 +104,12 @@ pub struct RunArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Effect blocks to append to the model, comma-separated names of the vocabulary
-    /// (`accel_scale_factor,...,gyro_g_sensitivity`; e.g. what `host-sim diagnose` added).
-    #[arg(long, value_delimiter = ',')]
-    pub effects: Vec<String>,
+    /// (accel_scale_factor, gyro_scale_factor, accel_misalignment, gyro_misalignment,
+    /// lever_arm, time_offset, accel_temperature_bias, gyro_temperature_bias,
+    /// gyro_g_sensitivity, imu_clock_drift, gnss_position_gm; e.g. what `host-sim diagnose`
+    /// added).
+    #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
+    pub effects: Vec<Effect>,
     /// IMU class giving the plausibility limits (its full-scale range + 10 %; default: the
     /// configuration's `[imu.checks] class`, else consumer-mems, the widest).
     #[arg(long, value_parser = crate::cli_enum::parser::<ImuClassName>())]
@@ -136,43 +143,17 @@ pub struct RunArgs {
     pub smooth: bool,
 }
 
-impl RunArgs {
-    /// Arguments with defaults for a configuration file (for programmatic use).
-    pub fn new(config: impl Into<PathBuf>) -> Self {
-        Self {
-            config: config.into(),
-            case: None,
-            truth: None,
-            model: None,
-            outages: Vec::new(),
-            periodic_outages: Vec::new(),
-            kf_gins_outages: false,
-            nav_rate: None,
-            std_rate: 10.0,
-            out: PathBuf::from("run-out"),
-            f32: false,
-            imu_time_offset: None,
-            gate: None,
-            velocity_gate: None,
-            gnss_velocity: None,
-            noise_scale: None,
-            quiet: true,
-            effects: Vec::new(),
-            imu_class: None,
-            imu_max_rate_dps: None,
-            imu_max_accel_g: None,
-            no_imu_limits: false,
-            imu_max_gap: None,
-            imu_gaps: None,
-            imu_strict: false,
-            smooth: false,
-        }
-    }
+/// A `--velocity-gate` value ([`parse_velocity_gate`]): `None` joint position + velocity
+/// updates, `Some(g)` a separate velocity update gated by `g`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityGate(pub Option<VelocityGating>);
 
-    /// The engine's run specification of these arguments (the output options, `--out`,
-    /// `--nav-rate` and `--quiet`, stay with the command line).
-    pub fn spec(&self) -> anyhow::Result<RunSpec> {
-        Ok(RunSpec {
+impl RunArgs {
+    /// The engine's run specification of these arguments (the output options, `--out` and
+    /// `--quiet`, stay with the command line; `--smooth` asks the engine for the smoother's
+    /// history).
+    pub fn to_spec(&self) -> RunSpec {
+        RunSpec {
             config: self.config.clone(),
             case: self.case.clone(),
             truth: self.truth.clone(),
@@ -184,12 +165,8 @@ impl RunArgs {
             nav_rate_hz: self.nav_rate,
             f32: self.f32,
             imu_time_offset_s: self.imu_time_offset,
-            gate: self.gate.as_deref().map(parse_gate).transpose()?,
-            velocity_gate: self
-                .velocity_gate
-                .as_deref()
-                .map(nav_engine::run::prepare::parse_velocity_gate)
-                .transpose()?,
+            gate: self.gate,
+            velocity_gate: self.velocity_gate.map(|v| v.0),
             gnss_velocity: self.gnss_velocity,
             noise_scale: self.noise_scale,
             effects: self.effects.clone(),
@@ -201,7 +178,7 @@ impl RunArgs {
             imu_gaps: self.imu_gaps,
             imu_strict: self.imu_strict,
             smoother_history: self.smooth,
-        })
+        }
     }
 }
 
@@ -215,24 +192,23 @@ pub fn parse_gate(s: &str) -> anyhow::Result<Gating> {
     nav_engine::run::prepare::parse_gate(s)
 }
 
-/// Loads everything a run needs from the arguments; the warnings about the data go to
-/// stderr.
-pub fn prepare(args: &RunArgs) -> anyhow::Result<Prepared> {
-    Ok(load(args, false)?.prepared)
+/// Parses a `--velocity-gate` value.
+pub fn parse_velocity_gate(s: &str) -> anyhow::Result<VelocityGate> {
+    nav_engine::run::prepare::parse_velocity_gate(s).map(VelocityGate)
 }
 
-/// [`prepare`] without loading the IMU and GNSS files (any the configuration names) nor the
-/// truth: the case's lists stay empty and the files are returned, to be read while the filter
-/// runs ([`execute_streaming`]).
-pub fn prepare_streaming(args: &RunArgs) -> anyhow::Result<Loaded> {
-    load(args, true)
+/// Parses one `--effects` name (blanks around it ignored): an unknown name lists the
+/// vocabulary and suggests the nearest.
+pub fn parse_effect(s: &str) -> Result<Effect, nav_engine::run::UnknownEffect> {
+    s.parse()
 }
 
-/// Loads a run from the arguments ([`nav_engine::load`]; `stream`: see
-/// [`prepare_streaming`]) and prints the warnings about the data to stderr; the files it
-/// reads are in [`Loaded::inputs`].
-pub fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
-    let l = nav_engine::load(&args.spec()?, stream)?;
+/// Loads a run from the arguments ([`nav_engine::load`] of [`RunArgs::to_spec`]; `stream`:
+/// the IMU, GNSS and truth files are read while the filter runs, [`execute_streaming`]) and
+/// prints the warnings about the data to stderr; the files it reads are in
+/// [`Loaded::inputs`].
+pub(crate) fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
+    let l = nav_engine::load(&args.to_spec(), stream)?;
     for w in &l.warnings {
         eprintln!("warning: {w}");
     }
@@ -245,15 +221,10 @@ pub fn load(args: &RunArgs, stream: bool) -> anyhow::Result<Loaded> {
 /// smoothed run stopped by SIGINT/SIGTERM leaves `--out` as it was.
 fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let t = std::time::Instant::now();
-    let l = prepare_streaming(args)?;
+    let l = load(args, true)?;
     let od = OutDir::open(&args.out, &l.inputs)?;
-    // the checked (clamped) rate
-    let args = &RunArgs {
-        nav_rate: l.nav_rate_hz,
-        ..args.clone()
-    };
     println!("{}", l.prepared.description);
-    let c = super::smoothed::finish(args, &l, od.stage(), t)?;
+    let c = super::smoothed::finish(&l, &args.out, od.stage(), t)?;
     {
         let _moving = nav_engine::run::interrupt::Stoppable::enter();
         od.commit()
@@ -271,7 +242,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         return run_smoothed(&args);
     }
     let t = std::time::Instant::now();
-    let loaded = prepare_streaming(&args)?;
+    let loaded = load(&args, true)?;
     let Loaded {
         prepared: p,
         imu_stream: imu,

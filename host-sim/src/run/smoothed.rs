@@ -2,7 +2,7 @@
 //! bounded memory: [`nav_engine::smooth::run`]) written beside the forward one, and both
 //! summaries printed.
 
-use super::cli::{imu_summary, Loaded, RunArgs};
+use super::cli::{imu_summary, Loaded};
 use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::{ImuReport, RunOutput};
 use nav_engine::smooth::apply::SmootherReport;
@@ -38,11 +38,12 @@ fn metrics_json(
 /// `run --smooth`: runs the loaded case smoothed, writes the smoothed `nav.txt`, `std.txt`
 /// (and the other outputs), the forward solution as `nav_forward.txt`, and `metrics.json`
 /// with the forward metrics at the top level and the smoothed ones under `smoothed` (with
-/// `smoother`: sizes and times) in `dir` (the stage folder of `--out`); prints both summaries.
-/// `t0`: start of the command.
+/// `smoother`: sizes and times) in `dir` (the stage folder of the output folder `out`, named
+/// in the summary), `nav.txt` at the loaded (checked) rate [`Loaded::nav_rate_hz`]; prints
+/// both summaries. `t0`: start of the command.
 pub fn finish(
-    args: &RunArgs,
     l: &Loaded,
+    out: &std::path::Path,
     dir: &std::path::Path,
     t0: std::time::Instant,
 ) -> anyhow::Result<nav_engine::run::RunCounters> {
@@ -56,7 +57,7 @@ pub fn finish(
         l.imu_stream.as_ref(),
         l.truth_stream.as_ref(),
         dir,
-        args.nav_rate,
+        l.nav_rate_hz,
         &metrics_json,
         &mut |_, _| {},
     )?;
@@ -101,7 +102,7 @@ pub fn finish(
     println!(
         "wrote {}/{{nav.txt, std.txt (smoothed), nav_forward.txt, bias.txt (forward), \
          innovations.txt (vs smoothed), metrics.json}}",
-        args.out.display()
+        out.display()
     );
     Ok(fwd.counters)
 }

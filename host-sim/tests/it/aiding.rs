@@ -2,7 +2,6 @@
 //! zero-rate updates (ZUPT/ZARU) on a simulated urban drive with stops, side slip and bounce
 //! (`scenarios/land_stops.toml`, consumer MEMS IMU, RTK GNSS), and on the real drive
 //! (`configs/drive0708_aided.toml`, the reference 20 s outage protocol).
-use host_sim::run::cli::{prepare, RunArgs};
 use host_sim::sim::{simulate, Case, ErrorModel, Scenario};
 use nav_core::aiding::AidingConfig;
 use nav_core::config::{units, FilterConfig, SensorNoise};
@@ -10,6 +9,7 @@ use nav_core::filter::InitialUncertainty;
 use nav_engine::execute;
 use nav_engine::metrics::{self, errors_vs_truth};
 use nav_engine::run::{run_filter, CaseData, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
+use nav_engine::RunSpec;
 use std::path::Path;
 
 fn scenario() -> Scenario {
@@ -240,19 +240,19 @@ fn real_drive_with_aiding_meets_the_issue_targets() {
         "/../configs/drive0708_aided.toml"
     );
     // without outages: the prior residuals of the RTK fixes
-    let p = prepare(&RunArgs::new(cfg)).expect("loading the drive");
+    let p = RunSpec::new(cfg).prepare().expect("loading the drive");
     let (out0, m0) = execute(&p, &mut |_, _| {}).expect("run");
     let with_gnss = m0.gnss_residuals.horizontal_m.rms;
     // outages relative to the first IMU epoch: shift by (first fix - first IMU sample)
     let first_fix = p.case.gnss.first().unwrap().t_s;
     let first_imu = p.case.imu.first().unwrap().t_s;
-    let mut a = RunArgs::new(cfg);
+    let mut a = RunSpec::new(cfg);
     a.periodic_outages = vec![PeriodicOutages {
         first_start_s: first_fix + 120.0 - first_imu,
         duration_s: 20.0,
         period_s: 60.0,
     }];
-    let p = prepare(&a).unwrap();
+    let p = a.prepare().unwrap();
     let (out, m) = execute(&p, &mut |_, _| {}).expect("run");
     println!("{}", metrics::summary_table(&m));
     println!("{}", out.aiding.summary_line());

@@ -14,8 +14,9 @@
 //! The drives are 10 minutes at 100 Hz (4 RK4 substeps) to keep the suite fast; the sweep
 //! takes `DIAGNOSE_HELDOUT_MINUTES` (default 10).
 use host_sim::diagnose::{diagnose, validate, DiagnoseOptions, Diagnosis, WindowKind};
-use host_sim::run::cli::{prepare, Prepared, RunArgs};
+use host_sim::run::cli::Prepared;
 use host_sim::sim::undeclared::{generate, DriveSpec, Effect};
+use nav_engine::RunSpec;
 use rayon::prelude::*;
 
 /// A drive with `effect` and three gaps in its GNSS file, prepared from its `kf-gins.yaml`
@@ -37,7 +38,9 @@ fn drive(
     let d = generate(&spec).expect("generate");
     let dir = tempfile::tempdir().expect("tempdir");
     d.write(dir.path()).expect("write");
-    let mut p = prepare(&RunArgs::new(dir.path().join("kf-gins.yaml"))).expect("prepare");
+    let mut p = RunSpec::new(dir.path().join("kf-gins.yaml"))
+        .prepare()
+        .expect("prepare");
     // the gaps are the file's: no outage imposed on the run
     p.opts.outages.clear();
     assert!(p.case.truth.is_some());

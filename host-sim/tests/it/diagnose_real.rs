@@ -11,9 +11,9 @@
 //! model being the augmented configuration (time offset as `imu.time_offset_s`, so its
 //! solution is on the GNSS clock).
 use host_sim::diagnose::{diagnose, write_outputs, Decision, DiagnoseOptions};
-use host_sim::run::cli::{prepare, RunArgs};
 use nav_engine::execute;
 use nav_engine::run::{parse_periodic, Outage};
+use nav_engine::RunSpec;
 use std::path::Path;
 
 fn data_dir() -> Option<&'static Path> {
@@ -35,9 +35,9 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
         return;
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
-    let mut a = RunArgs::new(config);
+    let mut a = RunSpec::new(config);
     a.periodic_outages = vec![parse_periodic("116.645:20:60").unwrap()];
-    let p = prepare(&a).expect("loading the drive");
+    let p = a.prepare().expect("loading the drive");
     let out = diagnose(&p, &DiagnoseOptions::default()).expect("diagnose");
     let d = &out.diagnosis;
     println!("{}", d.verdict);
@@ -154,9 +154,9 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
         .filter(|n| n != "lever_arm" && n != "time_offset")
         .collect();
     assert_eq!(aug.effects, imu_effects);
-    let mut a2 = RunArgs::new(dir.path().join("augmented.toml"));
+    let mut a2 = RunSpec::new(dir.path().join("augmented.toml"));
     a2.periodic_outages = a.periodic_outages.clone();
-    let p2 = prepare(&a2).expect("the augmented configuration loads");
+    let p2 = a2.prepare().expect("the augmented configuration loads");
     assert_eq!(p2.opts.extra_blocks.len(), imu_effects.len());
     let (_, m2) = execute(&p2, &mut |_, _| {}).expect("and runs");
     let e2 = host_sim::diagnose::outage_error_m(&m2);
@@ -168,7 +168,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     // (2) every fourth fix withheld (absolute windows of 0.1 s around it, the same fixes for
     // both runs), the written solution at the withheld fixes
     let with_gnss = |config: &Path, thin: bool| {
-        let mut p = prepare(&RunArgs::new(config)).expect("loads");
+        let mut p = RunSpec::new(config).prepare().expect("loads");
         if thin {
             p.opts.outages = p
                 .case
@@ -220,7 +220,7 @@ fn real_drive_default_command_names_the_time_offset_first() {
         return;
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
-    let p = prepare(&RunArgs::new(config)).expect("loading the drive");
+    let p = RunSpec::new(config).prepare().expect("loading the drive");
     assert!(p.opts.outages.is_empty());
     let d = diagnose(&p, &DiagnoseOptions::default())
         .expect("diagnose")

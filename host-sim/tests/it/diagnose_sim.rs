@@ -526,9 +526,9 @@ fn kf_gins_prepared(v: u32, e: &ErrorModel, seed: u64, dir: &std::path::Path) ->
         .collect::<Vec<_>>()
         .join("\n");
     std::fs::write(&yp, y).unwrap();
-    let mut a = host_sim::run::cli::RunArgs::new(&yp);
+    let mut a = nav_engine::RunSpec::new(&yp);
     a.periodic_outages = vec![nav_engine::run::parse_periodic("150:30:100").unwrap()];
-    let p = host_sim::run::cli::prepare(&a).unwrap();
+    let p = a.prepare().unwrap();
     assert_eq!(p.opts.model, Model::KfGinsFeedback);
     assert_eq!(p.opts.filter.gyro_scale.sigma, [0.0; 3]);
     assert_eq!(p.opts.filter.accel_scale.sigma, [0.0; 3]);

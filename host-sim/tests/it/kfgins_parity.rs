@@ -18,11 +18,11 @@
 //! that the default mapping stays closer to KF-GINS than that reading.
 //!
 //! Reads the data in place; skips with a visible "SKIPPED" when it is missing unless CI=true.
-use host_sim::run::cli::{prepare, RunArgs};
 use nav_core::types::NavSolution;
 use nav_engine::execute;
 use nav_engine::metrics::{errors_vs_truth, outage_metrics, ErrSample, OutageSummary};
 use nav_engine::run::{Model, Outage};
+use nav_engine::RunSpec;
 use nav_io::read_nav_text;
 use std::path::PathBuf;
 
@@ -90,11 +90,11 @@ struct Ours {
 }
 
 fn run(dir: &std::path::Path, model: Option<Model>, gate: Option<&str>) -> Ours {
-    let mut args = RunArgs::new(dir.join("kf-gins.yaml"));
+    let mut args = RunSpec::new(dir.join("kf-gins.yaml"));
     args.truth = Some(dir.join("truth.nav.gz"));
-    args.gate = gate.map(String::from);
+    args.gate = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
     args.model = model;
-    let mut p = prepare(&args).expect("prepare");
+    let mut p = args.prepare().expect("prepare");
     // the outages are rows removed from gnss.txt; declaring them lets the metrics cover them
     p.opts.outages = outages(dir);
     let (out, m) = execute(&p, &mut |_, _| {}).expect("run");

@@ -180,3 +180,95 @@ fn run_imposes_outages_and_decimates_nav() {
     // coasting baselines are in the metrics
     assert_eq!(m["coasting"].as_array().unwrap().len(), 1);
 }
+
+/// The command line's options are parsed and typed by clap: a wrong effect name, gate or
+/// velocity gate fails at argument parsing (exit 2, the valid names listed), before any file
+/// is read (the configuration named does not exist).
+#[test]
+fn wrong_option_values_fail_at_argument_parsing_before_any_file_is_read() {
+    let missing = "no-such-folder/run.toml";
+    for (args, want) in [
+        (
+            ["--effects", "time_offset,lever_arms"],
+            "`lever_arms` is not an effect name; the effects are accel_scale_factor",
+        ),
+        (["--effects", "lever_arms"], "did you mean `lever_arm`?"),
+        (["--gate", "0.5"], "expected robust, off, 0.95"),
+        (["--velocity-gate", "soft"], "expected joint, robust, hard"),
+    ] {
+        let out = host_sim()
+            .args(["run", "--config", missing])
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("for '{} <", args[0])),
+            "names the option: {err}"
+        );
+        assert!(!err.contains("no-such-folder"), "nothing read: {err}");
+    }
+}
+
+/// `RunArgs::to_spec`: each command-line option lands in its typed `RunSpec` field.
+#[test]
+fn run_arguments_become_the_typed_run_spec() {
+    use clap::Parser;
+    use host_sim::run::cli::RunArgs;
+    use nav_core::config::{GateProbability, Gating, VelocityGating};
+    use nav_engine::run::{Effect, Model};
+    let a = RunArgs::try_parse_from([
+        "run",
+        "--config",
+        "c.toml",
+        "--effects",
+        "time_offset, lever_arm",
+        "--effects",
+        "imu_clock_drift",
+        "--gate",
+        "0.99",
+        "--velocity-gate",
+        "hard",
+        "--model",
+        "nbk",
+        "--std-rate",
+        "5",
+        "--nav-rate",
+        "20",
+        "--smooth",
+        "--imu-time-offset",
+        "-0.125",
+    ])
+    .unwrap();
+    let s = a.to_spec();
+    assert_eq!(s.config, Path::new("c.toml"));
+    assert_eq!(
+        s.effects,
+        [Effect::TimeOffset, Effect::LeverArm, Effect::ImuClockDrift]
+    );
+    let max_rej = Gating::default().max_consecutive_rejections;
+    assert_eq!(
+        s.gate,
+        Some(Gating::with_probability(GateProbability::P99, max_rej))
+    );
+    assert_eq!(
+        s.velocity_gate,
+        Some(Some(VelocityGating::hard(GateProbability::P9999)))
+    );
+    assert_eq!(s.model, Some(Model::Nbk));
+    assert_eq!((s.std_rate_hz, s.nav_rate_hz), (5.0, Some(20.0)));
+    assert_eq!(s.imu_time_offset_s, Some(-0.125));
+    assert!(s.smoother_history);
+    // the defaults are the engine's
+    let d = RunArgs::try_parse_from(["run", "--config", "c.toml", "--velocity-gate", "joint"])
+        .unwrap()
+        .to_spec();
+    let e = nav_engine::RunSpec::new("c.toml");
+    assert_eq!(d.velocity_gate, Some(None));
+    assert_eq!(
+        (d.std_rate_hz, d.nav_rate_hz, d.gate, d.effects.len(), d.f32),
+        (e.std_rate_hz, e.nav_rate_hz, e.gate, e.effects.len(), e.f32)
+    );
+}

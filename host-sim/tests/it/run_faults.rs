@@ -5,11 +5,12 @@
 //! Gap tests compare the run on the gapped record with the run on the same record without
 //! the gap (position and height errors against the truth), with the default gate, the hard
 //! 0.9999 chi-square gate set explicitly and the gate off.
-use host_sim::run::cli::{parse_gate, prepare, RunArgs};
+use host_sim::run::cli::parse_gate;
 use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::imu_guard::GapIncrements;
 use nav_engine::metrics::Metrics;
 use nav_engine::run::{RunError, RunOutput};
+use nav_engine::RunSpec;
 use nav_engine::{execute, Prepared};
 use nav_io::{
     read_imu_csv, read_nav_text, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit,
@@ -44,7 +45,7 @@ fn write_case(dir: &Path) -> PathBuf {
 }
 
 fn prepared(case: &Path) -> Prepared {
-    prepare(&RunArgs::new(case.join("kf-gins.yaml"))).unwrap()
+    RunSpec::new(case.join("kf-gins.yaml")).prepare().unwrap()
 }
 
 struct Errs {
@@ -566,7 +567,7 @@ fn run_configuration_sets_the_imu_checks() {
     let t = text.replace("../../shared", shared.to_str().unwrap()) + extra;
     let p = dir.path().join("drive.toml");
     std::fs::write(&p, t).unwrap();
-    let prep = prepare(&RunArgs::new(&p)).unwrap();
+    let prep = RunSpec::new(&p).prepare().unwrap();
     let c = prep.opts.imu_checks;
     assert!((c.limits.max_rate_radps.to_degrees() - 550.0).abs() < 1e-9);
     assert!((c.limits.max_accel_mps2 - 8.0 * 9.806_65).abs() < 1e-12);

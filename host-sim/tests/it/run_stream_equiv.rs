@@ -3,12 +3,12 @@
 //! every record kept, metrics and coasting computed after the run, files written by
 //! `output::write_all`) on a generated case with imposed outages: all five output files must
 //! be byte-identical, at the IMU rate and decimated.
-use host_sim::run::cli::{prepare, RunArgs};
 use nav_engine::execute;
 use nav_engine::run::execute::{decimate, metrics_json};
 use nav_engine::run::output;
 use nav_engine::run::Outage;
 use nav_engine::run::PeriodicOutages;
+use nav_engine::RunSpec;
 use std::path::Path;
 use std::process::Command;
 use test_support::cli::{run_ok, Bin};
@@ -23,7 +23,7 @@ fn host_sim() -> Command {
 }
 
 fn in_memory(yaml: &Path, out: &Path, nav_rate: Option<f64>) {
-    let mut args = RunArgs::new(yaml);
+    let mut args = RunSpec::new(yaml);
     args.outages = vec![Outage {
         start_s: 60.0,
         duration_s: 20.0,
@@ -33,7 +33,7 @@ fn in_memory(yaml: &Path, out: &Path, nav_rate: Option<f64>) {
         duration_s: 10.0,
         period_s: 40.0,
     }];
-    let p = prepare(&args).unwrap();
+    let p = args.prepare().unwrap();
     let (run, m) = execute(&p, &mut |_, _| {}).unwrap();
     let nav = match nav_rate {
         Some(r) => decimate(&run.nav, r),

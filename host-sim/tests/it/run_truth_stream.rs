@@ -10,12 +10,12 @@
 //! part-way (read only as the run gets there, or after its end) still stops the run with the
 //! file and line named, and no output under a final name.
 
-use host_sim::run::cli::{prepare, RunArgs};
 use nav_core::filter::InitialUncertainty;
 use nav_engine::run::execute::{execute_streaming, metrics_json};
 use nav_engine::run::output;
 use nav_engine::run::truth::TruthFile;
 use nav_engine::run::{InitSpec, Outage};
+use nav_engine::RunSpec;
 use nav_engine::{execute, Prepared};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -134,11 +134,11 @@ fn a_streamed_truth_gives_the_in_memory_engines_files() {
     std::fs::write(&cfg, config("case/imu.txt", "case/gnss.txt", None)).unwrap();
 
     // 1. the case directory's truth (at the IMU rate) and its two outages
-    let mut args = RunArgs::new(&cfg);
+    let mut args = RunSpec::new(&cfg);
     args.case = Some(case.clone());
     let (a, b) = (d.join("case-stream"), d.join("case-memory"));
     streamed(&["--config", s(&cfg), "--case", s(&case)], &a);
-    in_memory(&prepare(&args).unwrap(), &b);
+    in_memory(&args.prepare().unwrap(), &b);
     let m = same_files(&a, &b, "case truth");
     assert_eq!(m["reference"], "truth");
     // every truth epoch compared (the solution starts after the static alignment)
@@ -181,7 +181,7 @@ fn a_streamed_truth_gives_the_in_memory_engines_files() {
         ],
         &a,
     );
-    in_memory(&prepare(&args2).unwrap(), &b);
+    in_memory(&args2.prepare().unwrap(), &b);
     let m2 = same_files(&a, &b, "truth at a third of the rate, 2.1 ms late");
     let n2 = m2["overall"]["pos_3d_m"]["n"].as_u64().unwrap() as usize;
     assert!(n2 > n / 4 && n2 < n / 2, "{n2} interpolated comparisons");
@@ -195,21 +195,21 @@ fn a_streamed_truth_gives_the_in_memory_engines_files() {
         config("case/imu.txt", "case/gnss.txt", Some("case/truth.nav")),
     )
     .unwrap();
-    let mut args3 = RunArgs::new(&cfg3);
+    let mut args3 = RunSpec::new(&cfg3);
     args3.outages = vec![Outage {
         start_s: 100.0,
         duration_s: 15.0,
     }];
     let (a, b) = (d.join("cfg-stream"), d.join("cfg-memory"));
     streamed(&["--config", s(&cfg3), "--outage", "100:15"], &a);
-    in_memory(&prepare(&args3).unwrap(), &b);
+    in_memory(&args3.prepare().unwrap(), &b);
     let m3 = same_files(&a, &b, "[truth] of the configuration");
     assert_eq!(m3["reference"], "truth");
     assert_eq!(m3["coasting"][0]["outages"].as_array().unwrap().len(), 1);
 
     // 4. the initialisation from the truth, the IMU from memory (streaming engine, in
     // process): the first truth record at or after the start from a short read
-    let mut p = prepare(&args).unwrap();
+    let mut p = args.prepare().unwrap();
     p.opts.init = InitSpec::FromTruth {
         pos_err_m: [0.3, -0.2, 0.5],
         vel_err_mps: [0.02, 0.0, -0.01],

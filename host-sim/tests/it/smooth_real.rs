@@ -3,8 +3,8 @@
 //! every 60 s from 120 s (`--periodic-outage 120:20:60`), the IMU logging delay applied
 //! (`--imu-time-offset -0.125`), errors against the withheld RTK fixes. The target:
 //! smoothed outage RMS-of-max horizontal <= 2.0 m.
+use clap::Parser;
 use host_sim::run::cli::{run, RunArgs};
-use nav_engine::run::parse_periodic;
 use std::path::Path;
 
 fn data_present() -> bool {
@@ -28,15 +28,23 @@ fn real_drive_smoothed_outage_error_meets_the_target() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let mut a = RunArgs::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../configs/drive0708.toml"
-    ));
-    a.periodic_outages = vec![parse_periodic("120:20:60").unwrap()];
-    a.imu_time_offset = Some(-0.125);
-    a.smooth = true;
-    a.out = dir.path().to_path_buf();
-    run(a).unwrap();
+    let out = dir.path().display().to_string();
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
+    run(RunArgs::try_parse_from([
+        "run",
+        "--config",
+        cfg,
+        "--periodic-outage",
+        "120:20:60",
+        "--imu-time-offset",
+        "-0.125",
+        "--smooth",
+        "--quiet",
+        "--out",
+        out.as_str(),
+    ])
+    .unwrap())
+    .unwrap();
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("metrics.json")).unwrap())
             .unwrap();
@@ -71,14 +79,24 @@ fn real_drive_with_aiding_is_smoothed() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let mut a = RunArgs::new(concat!(
+    let out = dir.path().display().to_string();
+    let cfg = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../configs/drive0708_aided.toml"
-    ));
-    a.periodic_outages = vec![parse_periodic("120:20:60").unwrap()];
-    a.smooth = true;
-    a.out = dir.path().to_path_buf();
-    run(a).unwrap();
+    );
+    run(RunArgs::try_parse_from([
+        "run",
+        "--config",
+        cfg,
+        "--periodic-outage",
+        "120:20:60",
+        "--smooth",
+        "--quiet",
+        "--out",
+        out.as_str(),
+    ])
+    .unwrap())
+    .unwrap();
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("metrics.json")).unwrap())
             .unwrap();

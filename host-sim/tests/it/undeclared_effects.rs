@@ -10,9 +10,9 @@
 //!   1.1x of the gate-off run.
 //!
 //! Each test prints its row of the table (`cargo test --release -- --nocapture`).
-use host_sim::run::cli::{prepare, RunArgs};
 use host_sim::sim::undeclared::{generate, DriveSpec, Effect};
 use nav_engine::execute;
+use nav_engine::RunSpec;
 
 /// What one run gave.
 #[derive(Debug, Clone, Copy)]
@@ -25,9 +25,9 @@ struct Row {
 }
 
 fn run(dir: &std::path::Path, gate: Option<&str>) -> Row {
-    let mut args = RunArgs::new(dir.join("kf-gins.yaml"));
-    args.gate = gate.map(String::from);
-    let p = prepare(&args).expect("prepare");
+    let mut args = RunSpec::new(dir.join("kf-gins.yaml"));
+    args.gate = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
+    let p = args.prepare().expect("prepare");
     assert!(
         p.case.truth.is_some(),
         "the case's truth.nav was not picked up"

@@ -28,7 +28,7 @@ pub struct FilterRun {
 /// Decodes a capture as frames, feeding the recorded chunks in order (no timing, no port);
 /// every frame is kept in [`ReplayOutcome::log`].
 pub fn decode_capture(path: &Path) -> anyhow::Result<ReplayOutcome> {
-    replay(&ReplayArgs::new(path))
+    replay(&ReplayOptions::new(path))
 }
 
 /// The options of `host-sim run --config CONFIG [--case DIR]` for a capture's frames.

@@ -21,6 +21,9 @@ use std::time::Duration;
 /// Default baud rate (a 200 Hz IMU stream needs at least 230400, see docs/wire-protocol.md).
 pub const DEFAULT_BAUD: u32 = 921_600;
 
+/// Default GPS - UTC leap seconds for NMEA input (`stream`, `replay --input gnss`), s.
+pub const DEFAULT_LEAP_SECONDS: i64 = 18;
+
 /// Slowest replay speed factor accepted (`--speed`, `--rate-x`).
 pub const MIN_SPEED: f64 = 1e-3;
 /// Fastest replay speed factor accepted (`--speed`, `--rate-x`).

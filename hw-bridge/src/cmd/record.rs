@@ -10,61 +10,49 @@ use std::io::{BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// `record` options.
-#[derive(clap::Args, Debug, Clone)]
-pub struct RecordArgs {
+/// `record` options (the command line's `hw-bridge record` arguments convert into them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordOptions {
     /// Serial port (device path; pseudo-terminals by path).
-    #[arg(long)]
     pub port: String,
-    /// Baud rate.
-    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    /// Baud rate of `port`, bit/s.
     pub baud: u32,
     /// Capture file to write.
-    #[arg(long)]
     pub out: PathBuf,
-    /// Stop after this many seconds.
-    #[arg(long, value_parser = parse_seconds)]
-    pub duration: Option<f64>,
+    /// Stop after this many seconds (None: no time limit).
+    pub duration_s: Option<f64>,
     /// Stop when no byte arrived for this many seconds after the first byte (before it, only
-    /// `--duration` and `--first-byte-timeout` stop the recording).
-    #[arg(long, value_parser = parse_timeout)]
-    pub idle_exit: Option<f64>,
-    /// Fail (exit 1) when no byte at all arrived within this many seconds of the start.
-    #[arg(long, value_parser = parse_timeout)]
-    pub first_byte_timeout: Option<f64>,
+    /// `duration_s` and `first_byte_timeout_s` stop the recording).
+    pub idle_exit_s: Option<f64>,
+    /// Fail when no byte at all arrived within this many seconds of the start.
+    pub first_byte_timeout_s: Option<f64>,
     /// When the port is lost, try to reopen it for at most this many seconds, then stop and
-    /// report the capture incomplete (exit 2); without it, retry until another stop condition.
-    #[arg(long, value_parser = parse_timeout)]
-    pub reopen_timeout: Option<f64>,
+    /// report the capture incomplete; None: retry until another stop condition.
+    pub reopen_timeout_s: Option<f64>,
     /// The recording starts before the sender: every stream begins at sequence number 0, so
     /// frames lost before a stream's first delivered frame are counted too (stored in the
     /// capture header, used by `replay`).
-    #[arg(long)]
     pub streams_from_start: bool,
     /// Do not decode frames for the status line (e.g. when recording a GNSS receiver).
-    #[arg(long)]
     pub raw: bool,
-    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge send`
-    /// on the same emulated board's pty) can use it at the same time.
-    #[arg(long)]
+    /// Open the port without the exclusive lock, so another program can use it too.
     pub shared: bool,
     /// No live status line.
-    #[arg(long)]
     pub quiet: bool,
 }
 
-impl RecordArgs {
-    /// Recording `port` into `out` with the defaults of the command line (no stop condition
-    /// set: set `duration` or `idle_exit`).
+impl RecordOptions {
+    /// Recording `port` into `out` at [`DEFAULT_BAUD`], quiet, no stop condition set (set
+    /// `duration_s` or `idle_exit_s`).
     pub fn new(port: impl Into<String>, out: impl Into<PathBuf>) -> Self {
         Self {
             port: port.into(),
             baud: DEFAULT_BAUD,
             out: out.into(),
-            duration: None,
-            idle_exit: None,
-            first_byte_timeout: None,
-            reopen_timeout: None,
+            duration_s: None,
+            idle_exit_s: None,
+            first_byte_timeout_s: None,
+            reopen_timeout_s: None,
             streams_from_start: false,
             raw: false,
             shared: false,
@@ -98,7 +86,7 @@ pub struct RecordOutcome {
 /// `record`: raw bytes with receive timestamps into a capture file, live status on stderr.
 /// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
 /// reopened until it comes back or a stop condition is met.
-pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
+pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
     // the capture must not be written over its own input (the port's device file)
     nav_engine::run::outdir::check_not_input(&a.out, Path::new(&a.port))?;
     let file = std::fs::File::create(&a.out)
@@ -127,10 +115,10 @@ pub fn record(a: &RecordArgs) -> anyhow::Result<RecordOutcome> {
     let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
     let mut buf = vec![0u8; 8192];
     let mut out = RecordOutcome::default();
-    let duration = a.duration.map(secs);
-    let idle = a.idle_exit.map(secs);
-    let first_byte = a.first_byte_timeout.map(secs);
-    let reopen = a.reopen_timeout.map(secs);
+    let duration = a.duration_s.map(secs);
+    let idle = a.idle_exit_s.map(secs);
+    let first_byte = a.first_byte_timeout_s.map(secs);
+    let reopen = a.reopen_timeout_s.map(secs);
     let t_ns = |start: Instant| u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
     loop {
         let now = Instant::now();

@@ -16,8 +16,19 @@ use std::time::{Duration, Instant};
 /// Default of `replay --max-gap`, s.
 pub const DEFAULT_MAX_GAP_S: f64 = 10.0;
 
-/// What `replay` decodes the capture as.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// What `replay` decodes the capture as (`--input`: `frames`, `gnss`).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    strum::Display,
+    strum::EnumString,
+    strum::VariantNames,
+)]
+#[strum(serialize_all = "kebab-case")]
 pub enum InputKind {
     /// Wire-protocol frames (a navigation board or `hw-bridge send`).
     #[default]
@@ -26,87 +37,61 @@ pub enum InputKind {
     Gnss,
 }
 
-/// `replay` options.
-#[derive(clap::Args, Debug, Clone)]
-pub struct ReplayArgs {
+/// `replay` options (the command line's `hw-bridge replay` arguments convert into them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayOptions {
     /// Capture file written by `record`.
     pub capture: PathBuf,
-    /// Replay at this multiple of the recorded timing, in [0.001, 1e6] (default: 1 with
-    /// `--to-port`, else as fast as possible).
-    #[arg(long, conflicts_with = "as_fast_as_possible", value_parser = parse_speed)]
+    /// Replay at this multiple of the recorded timing, in [[`MIN_SPEED`], [`MAX_SPEED`]]
+    /// (None: 1 with `to_port`, else as fast as possible).
     pub speed: Option<f64>,
     /// Longest pause between two records when pacing, in recorded seconds: a larger jump of
-    /// the recorded time (a link down for minutes, a damaged timestamp) is paced as this long
-    /// and counted. Timestamps going backwards are counted and not waited for.
-    #[arg(long, default_value_t = DEFAULT_MAX_GAP_S, value_parser = parse_timeout)]
-    pub max_gap: f64,
+    /// the recorded time is paced as this long and counted.
+    pub max_gap_s: f64,
     /// Ignore the recorded timing.
-    #[arg(long)]
     pub as_fast_as_possible: bool,
     /// Also write the recorded bytes, in the recorded chunks, to this port.
-    #[arg(long)]
     pub to_port: Option<String>,
-    /// Baud rate of `--to-port`.
-    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    /// Baud rate of `to_port`, bit/s.
     pub baud: u32,
-    /// Directory for imu.txt, gnss.txt, nav.txt, health.txt and replay-summary.txt.
-    #[arg(long)]
+    /// Directory for imu.txt, gnss.txt, nav.txt, health.txt and replay-summary.txt (and the
+    /// filter's outputs with `config`).
     pub out: Option<PathBuf>,
     /// What the capture contains.
-    #[arg(long, value_enum, default_value_t = InputKind::Frames)]
     pub input: InputKind,
-    /// GPS - UTC leap seconds for NMEA input, in the leap-second table's range [0, 18].
-    #[arg(long, default_value_t = 18, allow_hyphen_values = true)]
+    /// GPS - UTC leap seconds for NMEA input, s, in the leap-second table's range [0, 18].
     pub leap_seconds: i64,
     /// Print every rejected chunk with its byte offset.
-    #[arg(long)]
     pub verbose: bool,
     /// Run the host filter on the decoded IMU and GNSS frames as `host-sim run --config`
-    /// does on files (same model, noise, initialisation, outages), writing its `nav.txt`,
-    /// `std.txt`, `bias.txt`, `innovations.txt` and `metrics.json` into `--out`. The
-    /// configuration's own data files (or `--case`'s) are read for the truth, week and
-    /// outages; the IMU samples and GNSS fixes come from the capture.
-    #[arg(long)]
+    /// does on files, with this run configuration (its outputs in `out`).
     pub config: Option<PathBuf>,
     /// A case directory written by `host-sim simulate` (truth, outages, GPS week), as in
-    /// `host-sim run --case`.
-    #[arg(long, requires = "config")]
+    /// `host-sim run --case`; only with `config`.
     pub case: Option<PathBuf>,
-    /// Error-state model for `--config` (default: the configuration's).
-    #[arg(
-        long,
-        requires = "config",
-        value_parser = clap::builder::TypedValueParser::try_map(
-            clap::builder::PossibleValuesParser::new(
-                <nav_engine::run::Model as strum::VariantNames>::VARIANTS.iter().copied()
-            ),
-            |s| s.parse::<nav_engine::run::Model>()
-        )
-    )]
+    /// Error-state model for `config` (None: the configuration's).
     pub model: Option<nav_engine::run::Model>,
-    /// f32 covariance (as on the MCU) for `--config`.
-    #[arg(long, requires = "config")]
+    /// f32 covariance (as on the MCU) for `config`.
     pub f32: bool,
-    /// Keep every decoded frame in [`ReplayOutcome::log`] (for programmatic use; the
-    /// command line keeps only what its outputs need: memory independent of the capture's
-    /// length with `--out`).
-    #[arg(skip)]
+    /// Keep every decoded frame in [`ReplayOutcome::log`] (the command line keeps only what
+    /// its outputs need: memory independent of the capture's length with `out`).
     pub keep_frames: bool,
 }
 
-impl ReplayArgs {
-    /// Arguments for decoding `capture` as fast as possible, without a port or outputs.
+impl ReplayOptions {
+    /// Decoding `capture` as frames as fast as possible, without a port or outputs, keeping
+    /// every frame.
     pub fn new(capture: impl Into<PathBuf>) -> Self {
         Self {
             capture: capture.into(),
             speed: None,
-            max_gap: DEFAULT_MAX_GAP_S,
+            max_gap_s: DEFAULT_MAX_GAP_S,
             as_fast_as_possible: true,
             to_port: None,
             baud: DEFAULT_BAUD,
             out: None,
             input: InputKind::Frames,
-            leap_seconds: 18,
+            leap_seconds: DEFAULT_LEAP_SECONDS,
             verbose: false,
             config: None,
             case: None,
@@ -120,7 +105,7 @@ impl ReplayArgs {
 /// The result of a replay.
 #[derive(Debug, Default)]
 pub struct ReplayOutcome {
-    /// Decoded frames (frame input): all of them with [`ReplayArgs::keep_frames`], else only
+    /// Decoded frames (frame input): all of them with [`ReplayOptions::keep_frames`], else only
     /// what the outputs need.
     pub log: FrameLog,
     /// Decoder counters (frame input).
@@ -225,7 +210,7 @@ fn in_order(t: f64, last: Option<f64>) -> bool {
 /// `--out` push the IMU samples and GNSS fixes into the host filter as they are decoded. A
 /// truncated or corrupt record ends the replay early: every record before it is replayed and
 /// the outcome says [`ReplayOutcome::incomplete`].
-pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
+pub fn replay(a: &ReplayOptions) -> anyhow::Result<ReplayOutcome> {
     let cap = a.capture.display();
     nav_io::check_leap_seconds(a.leap_seconds)
         .map_err(|e| anyhow::anyhow!("--leap-seconds {e}"))?;
@@ -256,7 +241,7 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
     };
     let mut dec = Decoding::new(a, &rd, port, od.as_ref())?;
     let start = Instant::now();
-    let mut pacer = Pacer::new(a.max_gap);
+    let mut pacer = Pacer::new(a.max_gap_s);
     loop {
         let rec = match rd.next_record() {
             Ok(Some(r)) => r,
@@ -292,7 +277,7 @@ pub fn replay(a: &ReplayArgs) -> anyhow::Result<ReplayOutcome> {
 }
 
 /// The pacing of a replay: `Some(speed)`, or None as fast as possible.
-fn replay_speed(a: &ReplayArgs) -> anyhow::Result<Option<f64>> {
+fn replay_speed(a: &ReplayOptions) -> anyhow::Result<Option<f64>> {
     Ok(match (a.as_fast_as_possible, a.speed, &a.to_port) {
         (true, _, _) => None,
         (false, Some(s), _) if (MIN_SPEED..=MAX_SPEED).contains(&s) => Some(s),
@@ -326,7 +311,7 @@ struct Decoding {
 
 impl Decoding {
     fn new<R: std::io::Read>(
-        a: &ReplayArgs,
+        a: &ReplayOptions,
         rd: &CaptureReader<R>,
         port: Option<Box<dyn serialport::SerialPort>>,
         od: Option<&nav_engine::run::outdir::OutDir>,
@@ -478,7 +463,7 @@ impl Decoding {
     /// outputs written and moved into place.
     fn finish(
         mut self,
-        a: &ReplayArgs,
+        a: &ReplayOptions,
         od: Option<nav_engine::run::outdir::OutDir>,
         start: Instant,
     ) -> anyhow::Result<ReplayOutcome> {
@@ -536,7 +521,7 @@ impl Decoding {
 
     /// Warnings (and [`ReplayOutcome::incomplete`]) for a capture that was cut, corrupt,
     /// irregular in time or carried frames out of order.
-    fn warn_incomplete(&mut self, a: &ReplayArgs) {
+    fn warn_incomplete(&mut self, a: &ReplayOptions) {
         let cap = a.capture.display();
         let out = &mut self.out;
         let mut why = Vec::new();
@@ -563,7 +548,7 @@ impl Decoding {
         if out.timing.backwards + out.timing.clamped_gaps > 0 {
             eprintln!(
                 "warning: {cap}: {} record time(s) went backwards, {} gap(s) over --max-gap {} s (paced as --max-gap)",
-                out.timing.backwards, out.timing.clamped_gaps, a.max_gap
+                out.timing.backwards, out.timing.clamped_gaps, a.max_gap_s
             );
         }
         if out.imu_out_of_order + out.gnss_out_of_order > 0 {

@@ -10,49 +10,41 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// `send` options.
-#[derive(clap::Args, Debug, Clone)]
-pub struct SendArgs {
+/// `send` options (the command line's `hw-bridge send` arguments convert into them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SendOptions {
     /// Case directory with imu.txt and optionally gnss.txt (as `host-sim simulate` writes).
-    #[arg(long)]
     pub case: PathBuf,
     /// Serial port to send to.
-    #[arg(long)]
     pub port: String,
-    /// Baud rate.
-    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    /// Baud rate of `port`, bit/s.
     pub baud: u32,
-    /// Speed-up over real time (sample times), in [0.001, 1e6].
-    #[arg(long, default_value_t = 1.0, conflicts_with = "as_fast_as_possible", value_parser = parse_speed)]
+    /// Speed-up over real time (sample times), in [[`MIN_SPEED`], [`MAX_SPEED`]].
     pub rate_x: f64,
-    /// Send as fast as the port takes it.
-    #[arg(long)]
+    /// Send as fast as the port takes it (`rate_x` ignored).
     pub as_fast_as_possible: bool,
     /// Keep the port open this long after the last byte so the receiver drains it, s.
-    #[arg(long, default_value_t = 0.5, value_parser = parse_seconds)]
     pub linger_s: f64,
-    /// Fail (exit 1) when the port takes no byte for this many seconds (nothing reads it),
-    /// also while waiting at the end for the bytes written to drain.
-    #[arg(long, default_value_t = DEFAULT_WRITE_TIMEOUT_S, value_parser = parse_timeout)]
-    pub write_timeout: f64,
+    /// Fail when the port takes no byte for this many seconds (nothing reads it), also while
+    /// waiting at the end for the bytes written to drain.
+    pub write_timeout_s: f64,
     /// No live status line.
-    #[arg(long)]
     pub quiet: bool,
-    /// Also write every byte sent, exactly as written to the port, to this file (e.g. to run
-    /// the same bytes through a host model of the receiver).
-    #[arg(long)]
+    /// Also write every byte sent, exactly as written to the port, to this file.
     pub copy_to: Option<PathBuf>,
-    /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge record`
-    /// on the same emulated board's pty) can use it at the same time.
-    #[arg(long)]
+    /// Open the port without the exclusive lock, so another program can use it too.
     pub shared: bool,
 }
 
 /// Default of `send --write-timeout`, s.
 pub const DEFAULT_WRITE_TIMEOUT_S: f64 = 10.0;
 
-impl SendArgs {
-    /// Sending the case in `case` to `port` with the command line's defaults.
+/// Default of `send --linger-s`, s.
+pub const DEFAULT_LINGER_S: f64 = 0.5;
+
+impl SendOptions {
+    /// Sending the case in `case` to `port` in real time at [`DEFAULT_BAUD`], quiet, with the
+    /// default linger and write timeout.
     pub fn new(case: impl Into<PathBuf>, port: impl Into<String>) -> Self {
         Self {
             case: case.into(),
@@ -60,8 +52,8 @@ impl SendArgs {
             baud: DEFAULT_BAUD,
             rate_x: 1.0,
             as_fast_as_possible: false,
-            linger_s: 0.5,
-            write_timeout: DEFAULT_WRITE_TIMEOUT_S,
+            linger_s: DEFAULT_LINGER_S,
+            write_timeout_s: DEFAULT_WRITE_TIMEOUT_S,
             quiet: true,
             copy_to: None,
             shared: false,
@@ -110,7 +102,7 @@ pub fn read_case(dir: &Path) -> anyhow::Result<Vec<(f64, Payload)>> {
 }
 
 /// `send`: stream a simulated case into a port as frames, paced by the sample times.
-pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
+pub fn send(a: &SendOptions) -> anyhow::Result<SendOutcome> {
     if !(MIN_SPEED..=MAX_SPEED).contains(&a.rate_x) {
         bail!(
             "--rate-x {} is outside [{MIN_SPEED}, {MAX_SPEED}]",
@@ -118,7 +110,7 @@ pub fn send(a: &SendArgs) -> anyhow::Result<SendOutcome> {
         );
     }
     let payloads = read_case(&a.case)?;
-    let write_timeout = secs(a.write_timeout);
+    let write_timeout = secs(a.write_timeout_s);
     let mut port = serial::open_for_writing(&a.port, a.baud, write_timeout, a.shared)?;
     let timeout_s = write_timeout.as_secs_f64();
     let mut copy = match &a.copy_to {

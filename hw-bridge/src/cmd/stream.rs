@@ -11,32 +11,44 @@ use std::io::Read;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-/// `stream` options.
-#[derive(clap::Args, Debug, Clone)]
-pub struct StreamArgs {
+/// `stream` options (the command line's `hw-bridge stream` arguments convert into them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamOptions {
     /// Port of the navigation board (wire-protocol frames).
-    #[arg(long)]
     pub port: String,
-    /// Baud rate of `--port`.
-    #[arg(long, default_value_t = DEFAULT_BAUD)]
+    /// Baud rate of `port`, bit/s.
     pub baud: u32,
     /// Port of a separate GNSS receiver (NMEA and/or UBX).
-    #[arg(long)]
     pub gnss_port: Option<String>,
-    /// Baud rate of `--gnss-port`.
-    #[arg(long, default_value_t = 38_400)]
+    /// Baud rate of `gnss_port`, bit/s.
     pub gnss_baud: u32,
-    /// GPS - UTC leap seconds for NMEA input.
-    #[arg(long, default_value_t = 18)]
+    /// GPS - UTC leap seconds for NMEA input, s.
     pub leap_seconds: i64,
-    /// Stop after this many seconds.
-    #[arg(long, value_parser = parse_seconds)]
-    pub duration: Option<f64>,
+    /// Stop after this many seconds (None: until the ports close).
+    pub duration_s: Option<f64>,
     /// Run the filter on the host too: the firmware's own application (18-state NBK, f32
-    /// covariance, started at the first fix) on the IMU frames of `--port` and the GNSS fixes
-    /// of both ports; its solution is shown next to the board's.
-    #[arg(long)]
+    /// covariance, started at the first fix) on the IMU frames of `port` and the GNSS fixes
+    /// of both ports.
     pub host_filter: bool,
+}
+
+/// Default of `stream --gnss-baud`, bit/s.
+pub const DEFAULT_GNSS_BAUD: u32 = 38_400;
+
+impl StreamOptions {
+    /// Streaming the board on `port` at [`DEFAULT_BAUD`], no GNSS receiver, no time limit, no
+    /// host filter.
+    pub fn new(port: impl Into<String>) -> Self {
+        Self {
+            port: port.into(),
+            baud: DEFAULT_BAUD,
+            gnss_port: None,
+            gnss_baud: DEFAULT_GNSS_BAUD,
+            leap_seconds: DEFAULT_LEAP_SECONDS,
+            duration_s: None,
+            host_filter: false,
+        }
+    }
 }
 
 /// The wall clock as the application's time base (only its health timing fields use it).
@@ -111,7 +123,7 @@ fn reader_thread(
 
 /// `stream`: live decode of a board's frames (and a GNSS receiver's fixes) with a status
 /// line showing the latest solution, GNSS fix and link health.
-pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
+pub fn stream(a: &StreamOptions) -> anyhow::Result<StreamOutcome> {
     let (tx, rx) = mpsc::channel();
     reader_thread(
         a.port.clone(),
@@ -136,7 +148,7 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
     let mut clock = WallClock(Instant::now());
     let start = Instant::now();
     loop {
-        if a.duration.is_some_and(|d| start.elapsed() >= secs(d)) {
+        if a.duration_s.is_some_and(|d| start.elapsed() >= secs(d)) {
             break;
         }
         match rx.recv_timeout(Duration::from_millis(100)) {
@@ -241,7 +253,7 @@ pub fn stream(a: &StreamArgs) -> anyhow::Result<StreamOutcome> {
 pub struct StreamOutcome {
     /// Decoder counters of the board port.
     pub stats: DecoderStats,
-    /// The host filter's last solution (`--host-filter`, once started).
+    /// The host filter's last solution ([`StreamOptions::host_filter`], once started).
     pub host_solution: Option<nav_core::types::NavSolution>,
     /// IMU epochs the host filter ran.
     pub host_imu_epochs: u32,

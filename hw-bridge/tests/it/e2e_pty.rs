@@ -427,14 +427,10 @@ fn stream_host_filter_live_over_a_pty_equals_the_same_filter_offline_on_the_case
     let port = d.join("B").display().to_string();
     // live: stream --host-filter on one end (library call in a thread), send on the other
     let live = std::thread::spawn(move || {
-        hw_bridge::cmd::stream(&hw_bridge::cmd::StreamArgs {
-            port,
-            baud: hw_bridge::cmd::DEFAULT_BAUD,
-            gnss_port: None,
-            gnss_baud: 38_400,
-            leap_seconds: 18,
-            duration: Some(6.0),
+        hw_bridge::cmd::stream(&hw_bridge::cmd::StreamOptions {
+            duration_s: Some(6.0),
             host_filter: true,
+            ..hw_bridge::cmd::StreamOptions::new(port)
         })
         .unwrap()
     });

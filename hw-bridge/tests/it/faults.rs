@@ -9,7 +9,7 @@
 use hw_bridge::capture::{
     CaptureHeader, CaptureWriter, Record, LINK_RESET as LINK_RESET_FLAG, MAGIC,
 };
-use hw_bridge::cmd::{replay, ReplayArgs};
+use hw_bridge::cmd::{replay, ReplayOptions};
 use hw_bridge::frames::case_payloads;
 use nav_core::types::{FixQuality, GnssFix, ImuSample};
 use nav_core::wire::{encode_raw, Encoder, Frame, MsgType, Payload, MAX_FRAME_LEN, MAX_RAW_LEN};
@@ -207,7 +207,7 @@ fn truncation_at_every_byte_replays_every_complete_record_and_says_incomplete() 
     let mut checked = 0;
     for cut in 0..=full.len() {
         let p = put(dir.path(), "cut.cap", &full[..cut]);
-        let r = replay(&ReplayArgs::new(&p));
+        let r = replay(&ReplayOptions::new(&p));
         if cut == 0 {
             let e = format!("{:#}", r.unwrap_err());
             assert!(e.ends_with("empty file"), "{e}");
@@ -265,7 +265,7 @@ fn bit_flips_in_the_data_keep_sent_equal_delivered_plus_lost_exactly() {
         }
         let cap = capture_bytes(&header(true), &records_random(&b, 500, trial + 1));
         let p = put(dir.path(), "flip.cap", &cap);
-        let o = replay(&ReplayArgs::new(&p)).unwrap();
+        let o = replay(&ReplayOptions::new(&p)).unwrap();
         assert!(o.incomplete.is_none());
         assert_identity(&o, sent, &format!("trial {trial}"));
         let delivered = u64::from(o.stats.frames_ok);
@@ -287,7 +287,7 @@ fn a_lost_first_frame_is_counted_when_the_capture_holds_the_streams_from_the_sta
     for from_start in [true, false] {
         let cap = capture_bytes(&header(from_start), &records_random(&b, 200, 5));
         let p = put(dir.path(), "first.cap", &cap);
-        let o = replay(&ReplayArgs::new(&p)).unwrap();
+        let o = replay(&ReplayOptions::new(&p)).unwrap();
         assert_eq!(o.stats.frames_ok_by_stream[IMU] as u64, sent[IMU] - 1);
         if from_start {
             assert_identity(&o, sent, "first IMU frame lost, streams from start");
@@ -311,7 +311,7 @@ fn a_lost_first_frame_is_counted_when_the_capture_holds_the_streams_from_the_sta
         }
     }
     let cap = capture_bytes(&header(true), &records_random(&b, 300, 6));
-    let o = replay(&ReplayArgs::new(put(dir.path(), "first2.cap", &cap))).unwrap();
+    let o = replay(&ReplayOptions::new(put(dir.path(), "first2.cap", &cap))).unwrap();
     assert_eq!(o.stats.lost_by_stream[IMU], 5);
     assert_eq!(o.stats.lost_by_stream[GNSS], 1);
     assert_identity(&o, sent, "first frames lost");
@@ -326,7 +326,7 @@ fn a_repeated_record_is_replayed_and_its_frames_counted_backwards_by_sequence_nu
     let cuts: Vec<usize> = ends.iter().step_by(10).copied().collect();
     let recs = records_at(&bytes, &cuts);
     let dir = tempfile::tempdir().unwrap();
-    let clean = replay(&ReplayArgs::new(put(
+    let clean = replay(&ReplayOptions::new(put(
         dir.path(),
         "clean.cap",
         &capture_bytes(&header(true), &recs),
@@ -337,7 +337,7 @@ fn a_repeated_record_is_replayed_and_its_frames_counted_backwards_by_sequence_nu
     // sequence number, so both are replayed; the frames' sequence numbers say it
     let mut dup = recs.clone();
     dup.insert(6, recs[5].clone());
-    let o = replay(&ReplayArgs::new(put(
+    let o = replay(&ReplayOptions::new(put(
         dir.path(),
         "dup.cap",
         &capture_bytes(&header(true), &dup),
@@ -373,7 +373,7 @@ fn a_repeated_record_is_replayed_and_its_frames_counted_backwards_by_sequence_nu
             bytes: b5,
         },
     );
-    let o = replay(&ReplayArgs::new(put(
+    let o = replay(&ReplayOptions::new(put(
         dir.path(),
         "dup2.cap",
         &capture_bytes(&header(true), &shifted),
@@ -413,7 +413,7 @@ fn reordered_records_deliver_every_frame_and_the_counters_say_what_happened() {
             .count() as u64
     };
     let dir = tempfile::tempdir().unwrap();
-    let o = replay(&ReplayArgs::new(put(
+    let o = replay(&ReplayOptions::new(put(
         dir.path(),
         "swap.cap",
         &capture_bytes(&header(true), &recs),
@@ -464,10 +464,10 @@ fn hostile_timestamps_are_paced_within_max_gap_and_counted() {
         "hostile.cap",
         &capture_bytes(&header(true), &recs),
     );
-    let mut a = ReplayArgs::new(&p);
+    let mut a = ReplayOptions::new(&p);
     a.as_fast_as_possible = false;
     a.speed = Some(1.0);
-    a.max_gap = 0.05;
+    a.max_gap_s = 0.05;
     let t = Instant::now();
     let o = replay(&a).unwrap();
     let wall = t.elapsed();
@@ -522,7 +522,7 @@ fn empty_header_only_and_garbage_prefixed_files() {
     for cut in [8usize, 10] {
         let h = capture_bytes(&header(false), &[]);
         let p = put(d, "short.cap", &h[..cut]);
-        let e = format!("{:#}", replay(&ReplayArgs::new(&p)).unwrap_err());
+        let e = format!("{:#}", replay(&ReplayOptions::new(&p)).unwrap_err());
         assert!(
             e.ends_with("file ends in the header field at byte 8"),
             "{e}"
@@ -555,7 +555,7 @@ fn empty_header_only_and_garbage_prefixed_files() {
     g.extend_from_slice(&MAGIC[..5]); // a false start too
     let skipped = g.len() as u64;
     g.extend_from_slice(&cap);
-    let o = replay(&ReplayArgs::new(put(d, "garbage.cap", &g))).unwrap();
+    let o = replay(&ReplayOptions::new(put(d, "garbage.cap", &g))).unwrap();
     assert_eq!(o.skipped_bytes, skipped);
     assert_eq!(o.log.frames.len(), frames.len());
     assert!(o.incomplete.is_none());
@@ -563,7 +563,7 @@ fn empty_header_only_and_garbage_prefixed_files() {
     let t = Instant::now();
     let junk = vec![0x55u8; (64 << 20) + 64];
     let p = put(d, "junk.cap", &junk);
-    let e = format!("{:#}", replay(&ReplayArgs::new(&p)).unwrap_err());
+    let e = format!("{:#}", replay(&ReplayOptions::new(&p)).unwrap_err());
     assert!(e.contains("not a hw-bridge capture"), "{e}");
     assert!(t.elapsed() < Duration::from_secs(20), "{:?}", t.elapsed());
 }
@@ -706,7 +706,7 @@ fn a_truncated_capture_exits_2_with_complete_outputs_marked_incomplete() {
         "{summary}"
     );
     let imu = nav_io::read_imu_text(out.join("imu.txt")).unwrap().samples;
-    let lib = replay(&ReplayArgs::new(&p)).unwrap();
+    let lib = replay(&ReplayOptions::new(&p)).unwrap();
     assert_eq!(imu, lib.log.imu);
     // records are at most 300 bytes: at most 4 frames go with the truncated one
     assert!(imu.len() > 195, "{} IMU samples", imu.len());
@@ -749,7 +749,7 @@ fn streamed_outputs_equal_nav_io_writers_byte_for_byte() {
             "s.cap",
             &capture_bytes(&header(true), &records_random(&bytes, 500, 8)),
         );
-        let mut a = ReplayArgs::new(&p);
+        let mut a = ReplayOptions::new(&p);
         let out = dir.path().join("out");
         a.out = Some(out.clone());
         let o = replay(&a).unwrap();
@@ -804,7 +804,7 @@ fn a_killed_replay_leaves_checkpointed_partial_files_and_no_final_names() {
     assert!(lines < 1000, "{lines} lines: the replay was not paced");
     // the lines are the complete replay's first lines
     let full = dir.path().join("full");
-    let mut a = ReplayArgs::new(&p);
+    let mut a = ReplayOptions::new(&p);
     a.out = Some(full.clone());
     replay(&a).unwrap();
     let want = std::fs::read_to_string(full.join("imu.txt")).unwrap();
@@ -896,7 +896,7 @@ proptest! {
         let dir = tempfile::tempdir().unwrap();
         let p = put(dir.path(), "p.cap", &capture_bytes(&header(true), &recs));
         let start = Instant::now();
-        let o = replay(&ReplayArgs::new(&p)).unwrap();
+        let o = replay(&ReplayOptions::new(&p)).unwrap();
         prop_assert!(start.elapsed() < Duration::from_secs(5));
         for s in [IMU, GNSS] {
             prop_assert_eq!(
@@ -920,10 +920,10 @@ proptest! {
         f.extend_from_slice(&body);
         let dir = tempfile::tempdir().unwrap();
         let p = put(dir.path(), "a.cap", &f);
-        let mut a = ReplayArgs::new(&p);
+        let mut a = ReplayOptions::new(&p);
         a.as_fast_as_possible = false;
         a.speed = Some(1.0);
-        a.max_gap = 0.01;
+        a.max_gap_s = 0.01;
         let start = Instant::now();
         let _ = replay(&a);
         prop_assert!(start.elapsed() < Duration::from_secs(10));
@@ -1034,7 +1034,7 @@ fn captures_chunked_in_1_and_16_byte_records_at_one_time_stamp_decode_every_fix(
     let sent = sent_per_stream(&frames);
     assert_eq!(sent[GNSS], 116);
     let dir = tempfile::tempdir().unwrap();
-    let whole = replay(&ReplayArgs::new(put(
+    let whole = replay(&ReplayOptions::new(put(
         dir.path(),
         "whole.cap",
         &capture_bytes(&header(true), &records_fixed(&bytes, bytes.len(), 1)),
@@ -1051,7 +1051,7 @@ fn captures_chunked_in_1_and_16_byte_records_at_one_time_stamp_decode_every_fix(
         );
         let name = format!("chunk{len}-{per_tick}.cap");
         let p = put(dir.path(), &name, &capture_bytes(&header(true), &recs));
-        let o = replay(&ReplayArgs::new(&p)).unwrap();
+        let o = replay(&ReplayOptions::new(&p)).unwrap();
         assert_eq!(o.records, recs.len() as u64, "{name}");
         assert_eq!(o.bytes, bytes.len() as u64, "{name}");
         assert_eq!(o.log.gnss, whole.log.gnss, "{name}: every fix decodes");
@@ -1089,7 +1089,7 @@ fn a_capture_ending_with_the_link_lost_is_incomplete_and_exits_2() {
     let mid = recs.len() / 2;
     let t_mid = recs[mid].t_ns();
     recs.insert(mid, Record::LinkReset { t_ns: t_mid });
-    let o = replay(&ReplayArgs::new(put(
+    let o = replay(&ReplayOptions::new(put(
         dir.path(),
         "mid.cap",
         &capture_bytes(&header(true), &recs),
@@ -1100,7 +1100,7 @@ fn a_capture_ending_with_the_link_lost_is_incomplete_and_exits_2() {
     // the same capture ending with the link lost: incomplete, every frame still decoded
     recs.push(Record::LinkReset { t_ns: t_end + 1 });
     let p = put(dir.path(), "lost.cap", &capture_bytes(&header(true), &recs));
-    let o = replay(&ReplayArgs::new(&p)).unwrap();
+    let o = replay(&ReplayOptions::new(&p)).unwrap();
     assert!(o.ended_link_lost);
     let why = o.incomplete.clone().expect("incomplete");
     assert!(why.contains("link lost"), "{why}");
@@ -1150,7 +1150,7 @@ fn a_bad_length_in_record_0_resynchronises_on_the_next_record_and_counts_the_ski
         let mut cap = good.clone();
         cap[hlen + 8..hlen + 12].copy_from_slice(&bad.to_le_bytes());
         let p = put(dir.path(), &format!("bad{bad:x}.cap"), &cap);
-        let o = replay(&ReplayArgs::new(&p)).unwrap();
+        let o = replay(&ReplayOptions::new(&p)).unwrap();
         assert_eq!(o.resync.resyncs, 1, "length {bad:#x}");
         // too short: the reader takes len0 - 7 bytes, then finds the next header invalid
         let skipped = if bad == len0 - 7 { 7 } else { 12 + len0 as u64 };

@@ -24,6 +24,7 @@
 
 pub mod aiding;
 pub mod coast;
+pub mod effect;
 pub mod engine;
 pub mod execute;
 mod fault;
@@ -42,6 +43,7 @@ pub mod streams;
 pub mod truth;
 
 pub use coast::{coast_outages, CoastMode, CoastTrack};
+pub use effect::{Effect, UnknownEffect};
 pub use engine::ahead::{FixAhead, FixLookup, FixSource};
 pub use engine::{
     CoastPlan, Coaster, Collect, ImuItem, ImuSourceInfo, RunHead, RunSink, NOMINAL_WINDOW,

@@ -26,7 +26,7 @@ use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
 use super::streams::{read_prefix, ConfigFiles, ImuFile};
 pub use super::streams::{GnssStream, ImuStream};
-use super::{CaseData, Model, Precision, RunOptions};
+use super::{CaseData, Effect, Model, Precision, RunOptions};
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise, VelocityGating};
@@ -83,8 +83,8 @@ pub struct RunSpec {
     pub gnss_velocity: Option<bool>,
     /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
     pub noise_scale: Option<f64>,
-    /// Effect blocks to append to the model (names of the effect vocabulary).
-    pub effects: Vec<String>,
+    /// Effect blocks to append to the model, in order (after the configuration's own).
+    pub effects: Vec<Effect>,
     /// IMU class giving the plausibility limits (its full-scale range + 10 %).
     pub imu_class: Option<ImuClassName>,
     /// Largest plausible angular rate, deg/s on any axis (overrides the class).
@@ -103,8 +103,12 @@ pub struct RunSpec {
     pub smoother_history: bool,
 }
 
+/// Default rate of std.txt and bias.txt ([`RunSpec::std_rate_hz`]), Hz.
+pub const DEFAULT_STD_RATE_HZ: f64 = 10.0;
+
 impl RunSpec {
-    /// The configuration `config` as it is: no overrides, standard deviations at 10 Hz.
+    /// The configuration `config` as it is: no overrides, standard deviations at
+    /// [`DEFAULT_STD_RATE_HZ`].
     pub fn new(config: impl Into<PathBuf>) -> Self {
         Self {
             config: config.into(),
@@ -114,7 +118,7 @@ impl RunSpec {
             outages: Vec::new(),
             periodic_outages: Vec::new(),
             kf_gins_outages: false,
-            std_rate_hz: 10.0,
+            std_rate_hz: DEFAULT_STD_RATE_HZ,
             nav_rate_hz: None,
             f32: false,
             imu_time_offset_s: None,
@@ -132,6 +136,15 @@ impl RunSpec {
             imu_strict: false,
             smoother_history: false,
         }
+    }
+}
+
+impl RunSpec {
+    /// Everything loaded into memory ([`load`] without streaming), the warnings about the
+    /// data dropped: for programs and tests that run the prepared case themselves
+    /// ([`super::execute::execute`]).
+    pub fn prepare(&self) -> anyhow::Result<Prepared> {
+        Ok(load(self, false)?.prepared)
     }
 }
 
@@ -718,13 +731,11 @@ fn apply_overrides(
     if let Some(m) = args.model {
         opts.model = m;
     }
-    for name in &args.effects {
-        add_effect(opts, name).with_context(|| {
-            format!("--effects {name}: not an effect name (see host-sim diagnose)")
-        })?;
+    for e in &args.effects {
+        opts.add_effect_block(e.block());
     }
     if !args.effects.is_empty() {
-        description.push_str(&format!("; effects {}", args.effects.join(",")));
+        description.push_str(&format!("; effects {}", Effect::join(&args.effects)));
     }
     if args.f32 {
         opts.precision = Precision::F32;
@@ -911,13 +922,6 @@ pub fn scale_white_noise(filter: &mut FilterConfig, k: f64) {
     }
 }
 
-/// Appends the effect block named `name` (vocabulary name) with
-/// [`RunOptions::add_effect_block`]. None: not an effect name.
-fn add_effect(opts: &mut RunOptions, name: &str) -> Option<()> {
-    opts.add_effect_block(Block::effect_from_name(name.trim())?);
-    Some(())
-}
-
 /// The filter configuration and model of a run configuration (`[noise]`, `[gnss]` gates).
 fn run_config_filter(r: &RunConfig) -> anyhow::Result<(FilterConfig, Model)> {
     let accel = r
@@ -1090,9 +1094,8 @@ fn prepare_run_config(
     opts.start_s = r.start_s;
     opts.end_s = r.end_s;
     for name in &r.effects {
-        add_effect(&mut opts, name).with_context(|| {
-            format!("effects: `{name}` is not an effect name (see host-sim diagnose --help)")
-        })?;
+        let e: Effect = name.parse().context("effects")?;
+        opts.add_effect_block(e.block());
     }
     let mut d = format!(
         "run configuration `{}`: IMU {}, GNSS {}{gaps}",

@@ -5,9 +5,11 @@
 //! byte. (hw-bridge's own end-to-end test, `e2e_pty`, checks the serial link and the replay
 //! against the run engine on a case of its own; this one needs host-sim's simulator and CLI,
 //! which hw-bridge does not depend on.)
+use clap::Parser;
 use hw_bridge::capture::{CaptureHeader, CaptureWriter, Record};
-use hw_bridge::cmd::{read_case, replay, ReplayArgs};
+use hw_bridge::cmd::{read_case, replay, ReplayOptions};
 use nav_core::wire::{Encoder, MAX_FRAME_LEN};
+use std::ffi::OsStr;
 use std::path::Path;
 use test_support::scenario::bridge_replay_drive;
 
@@ -64,12 +66,19 @@ fn replay_with_config_on_a_capture_of_a_simulated_case_equals_host_sim_run_byte_
 
     // host-sim run on the case files (the CLI function: the files it writes) ...
     let out_sim = d.join("out-sim");
-    let mut ra = host_sim::run::cli::RunArgs::new(&config);
-    ra.out = out_sim.clone();
+    let ra = host_sim::run::cli::RunArgs::try_parse_from([
+        OsStr::new("run"),
+        OsStr::new("--config"),
+        config.as_os_str(),
+        OsStr::new("--quiet"),
+        OsStr::new("--out"),
+        out_sim.as_os_str(),
+    ])
+    .unwrap();
     host_sim::run::cli::run(ra).unwrap();
     // ... and hw-bridge replay --config on the capture
     let out_rep = d.join("out-replay");
-    let mut a = ReplayArgs::new(&cap);
+    let mut a = ReplayOptions::new(&cap);
     a.config = Some(config.clone());
     a.out = Some(out_rep.clone());
     let o = replay(&a).unwrap();
