@@ -437,11 +437,6 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
             .map_or(SEARCH_NAV_RATE_HZ, |r| r.min(SEARCH_NAV_RATE_HZ)),
     );
     o.record.epoch_rate_hz = Some(0.0);
-    // the diagnosis judges the declared GNSS sigmas (and fits their scale): the gate does not
-    // learn a sigma scale in its runs
-    if let Some(r) = o.filter.gating.robust.as_mut() {
-        r.scale_window = 0;
-    }
     o
 }
 

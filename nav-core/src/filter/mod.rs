@@ -716,7 +716,9 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             }
         }
         out.forced = !g.accepted && force;
-        if let (Some(r), false) = (&self.cfg.gating.robust, self.redo) {
+        // only fixes used by an update teach the scale (not an outlier, a jump or the fixes
+        // of a diverged filter, which are rejected and end in a reset)
+        if let (Some(r), false, true) = (&self.cfg.gating.robust, self.redo, g.accepted) {
             let k = self.gate.sigma_scale();
             let inp = ScaleInput {
                 z: z64,

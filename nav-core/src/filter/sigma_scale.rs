@@ -13,10 +13,12 @@
 //! `(1/dof) sum_i ((u_i,k - u_i,k-1)^2 - h_i,k - h_i,k-1) / 2` (`u = z / sqrt(R)`,
 //! `h = (H P H^T)_ii / R_ii`): for white innovations it estimates the same ratio, for a
 //! systematic error (a jump of all fixes, an undeclared lever arm in a turn, a multipath bias,
-//! the drift after an outage) the difference cancels it. The scale is the window median of the
-//! samples, or, when the median of the difference samples is below half of it (a mostly
-//! systematic excess), that median: a model mismatch is the monitor's business (gate
-//! widening), not R's.
+//! the drift after an outage, the transient after a jump) the difference cancels it. While the
+//! median of the difference samples is below [`SYSTEMATIC_FRACTION`] of the median of the
+//! samples (a mostly systematic excess), the factor is frozen: a model mismatch is the
+//! monitor's business (gate widening), not R's. Only fixes used by an update teach the scale
+//! (the caller feeds no rejected fix): a diverged filter or a jump of all fixes is rejected
+//! and reset, as before.
 //!
 //! Fixed-size windows, per fix O(K^2) comparisons for the two medians with K <= 16, no
 //! allocation, no panic, no unchecked indexing (see `docs/robust-gating.md`).
@@ -31,7 +33,8 @@ const CHI2_MEDIAN_PER_DOF_6: f64 = 5.348_120_6 / 6.0;
 /// Fewest samples for a scale: with 3 one outlier is not the median.
 const MIN_SAMPLES: usize = 3;
 
-/// The window's excess is called systematic when its white part is below this fraction of it.
+/// The window's excess is called systematic (the factor frozen) when its white part is below
+/// this fraction of it.
 const SYSTEMATIC_FRACTION: f64 = 0.15;
 
 /// Largest measurement dimension of a GNSS update (position + velocity).
@@ -106,7 +109,7 @@ pub(super) struct SigmaScale {
     prev_dim: usize,
     /// R multiplier in use (1 = none).
     factor: f64,
-    /// The last estimated variance ratio of the white part (NaN: too few samples).
+    /// The last window median of the samples, the estimated variance ratio (NaN: too few).
     pub estimate: f64,
     /// Whether the last window's excess was mostly systematic (a mismatch, not noise).
     pub systematic: bool,
@@ -200,14 +203,13 @@ impl SigmaScale {
         }
         let total = median_of(&self.samples, self.len);
         let white = median_of(&self.diffs, self.len);
-        // mostly white: the total (the better estimate: no differencing noise); mostly
-        // systematic: only its white part
+        // mostly systematic (a jump, a transient, a mismatch): the factor stays as it is
         self.systematic = white < SYSTEMATIC_FRACTION * total;
-        let est = if self.systematic { white } else { total };
-        self.estimate = est;
-        if !est.is_finite() {
+        self.estimate = total;
+        if self.systematic || !total.is_finite() {
             return;
         }
+        let est = total;
         let on = self.factor > 1.0;
         self.factor = if est >= r.scale_on || (on && est >= r.scale_off) {
             est.min(r.max_scale).max(1.0)
@@ -232,6 +234,14 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, StandardNormal};
+
+    /// The robust gate's parameters with the learning on (16 fixes; off by default).
+    fn on() -> RobustGating {
+        RobustGating {
+            scale_window: 16,
+            ..RobustGating::default()
+        }
+    }
 
     /// Feeds `n` position fixes with white innovations of `true_sigma` against a declared
     /// sigma of 1 (H P H^T negligible), `bad(k)` added to fix k; returns the factors after
@@ -269,7 +279,7 @@ mod tests {
 
     #[test]
     fn persistent_10x_understatement_gives_a_scale_near_100_after_the_window() {
-        let r = RobustGating::default();
+        let r = on();
         let mut all = [0.0; 200];
         let mut early = 0;
         for (seed, a) in all.iter_mut().enumerate() {
@@ -301,7 +311,7 @@ mod tests {
 
     #[test]
     fn an_isolated_outlier_does_not_move_the_scale_and_good_sigmas_get_none() {
-        let r = RobustGating::default();
+        let r = on();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let mut s = SigmaScale::default();
         // consistent fixes with a 30-sigma outlier at fix 20: no scale, before and after
@@ -328,7 +338,7 @@ mod tests {
 
     #[test]
     fn a_burst_or_a_jump_is_not_learned() {
-        let r = RobustGating::default();
+        let r = on();
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         // 5 bad fixes (independent 30-sigma errors) among 16: the median stays with the good
         let mut s = SigmaScale::default();
@@ -356,7 +366,7 @@ mod tests {
 
     #[test]
     fn the_scale_is_given_up_when_the_sigmas_become_right() {
-        let r = RobustGating::default();
+        let r = on();
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let mut s = SigmaScale::default();
         feed(&mut s, &r, &mut rng, 20, 10.0, |_| [0.0; 3]);
@@ -364,10 +374,8 @@ mod tests {
         let f = feed(&mut s, &r, &mut rng, 20, 1.0, |_| [0.0; 3]);
         assert_eq!(f[19], 1.0, "{f:?}");
         // off: no learning at all
-        let off = RobustGating {
-            scale_window: 0,
-            ..RobustGating::default()
-        };
+        let off = RobustGating::default();
+        assert_eq!(off.scale_window, 0);
         let mut s = SigmaScale::default();
         let f = feed(&mut s, &off, &mut rng, 20, 10.0, |_| [0.0; 3]);
         assert!(f[..20].iter().all(|x| *x == 1.0));
