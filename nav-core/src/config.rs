@@ -484,6 +484,17 @@ pub struct RobustGating {
     /// innovation that grows steadily (a mismatch building up) is not rejected, an isolated
     /// jump is.
     pub growth_per_fix: f64,
+    /// Fixes in the window of the learned GNSS sigma scale (0..=[`MAX_NIS_WINDOW`]; 0 = no
+    /// learning, the default; 16 is the tested setting): per fix a covariance-matching sample of true over declared variance, of the
+    /// innovation and of the difference of consecutive innovations; the smaller window median
+    /// is the scale (the white part of the excess; see `docs/robust-gating.md`).
+    pub scale_window: usize,
+    /// R is multiplied by the learned scale (a variance ratio) once it reaches this, >= 1.
+    pub scale_on: f64,
+    /// ... and until it drops below this (in `1..=scale_on`).
+    pub scale_off: f64,
+    /// Largest R multiplier (variance ratio), >= 1.
+    pub max_scale: f64,
 }
 
 impl Default for RobustGating {
@@ -492,7 +503,10 @@ impl Default for RobustGating {
     /// the median NIS/dof, to twice the last used fix's NIS, and x1.5 per rejection in a run
     /// (at most x100), easing /1.1 per fix; the gate fully widened for a fix that ends a gap of
     /// more than 2.5 fix intervals and 2 s; no process-noise inflation (`max_q_inflation` 1:
-    /// it made the outage errors 1.7x worse, see `docs/robust-gating.md`).
+    /// it made the outage errors 1.7x worse, see `docs/robust-gating.md`); no learned GNSS
+    /// sigma scale (`scale_window` 0: on the undeclared-effect drives it learned the model
+    /// mismatch as noise; with `scale_window` 16: R multiplied by the scale from 4, i.e. 2x in
+    /// sigma, until it drops below 2, at most 1e4).
     fn default() -> Self {
         Self {
             downweight_nis_pos: chi2::DIM3_P99,
@@ -507,6 +521,10 @@ impl Default for RobustGating {
             reacquisition_gap_intervals: 2.5,
             reacquisition_min_gap_s: 2.0,
             growth_per_fix: 2.0,
+            scale_window: 0,
+            scale_on: 4.0,
+            scale_off: 2.0,
+            max_scale: 1e4,
         }
     }
 }
@@ -532,6 +550,11 @@ impl RobustGating {
             && self.reacquisition_min_gap_s >= 0.0
             && self.growth_per_fix.is_finite()
             && self.growth_per_fix >= 1.0
+            && self.scale_window <= MAX_NIS_WINDOW
+            && self.scale_off >= 1.0
+            && self.scale_on >= self.scale_off
+            && self.max_scale.is_finite()
+            && self.max_scale >= 1.0
     }
 }
 

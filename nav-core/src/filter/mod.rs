@@ -23,6 +23,7 @@ pub(crate) mod linalg;
 pub mod observe;
 mod reacq;
 pub mod robust;
+mod sigma_scale;
 
 pub use aiding_update::AidingOutcome;
 
@@ -41,6 +42,7 @@ use linalg::{all_finite, cholesky_in_place};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use observe::{CovObserver, PredictionRecord};
 use robust::{GateState, RejectedFix, RobustStats};
+use sigma_scale::ScaleInput;
 
 /// Status bit of [`NavSolution::status`]: the last GNSS fix was rejected by the gate.
 pub const STATUS_LAST_FIX_REJECTED: u32 = 1;
@@ -541,7 +543,10 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
         }
         self.predict_covariance()?;
         let m = self.gnss_model(fix, dt_fix);
-        let rp = fix.pos_std_ned_m.map(|s| s * s);
+        // the learned GNSS sigma scale (robust gating; 1 otherwise) multiplies R before the
+        // gate and the IGG-III weights
+        let k = self.gate.sigma_scale();
+        let rp = fix.pos_std_ned_m.map(|s| s * s * k);
         let force = self.cfg.gating.max_consecutive_rejections > 0
             && self.consecutive_rejections >= self.cfg.gating.max_consecutive_rejections;
         if let (true, true, Some(vg)) = (
@@ -552,7 +557,7 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             return self.update_gnss_separate(fix, dt_fix, &m, &rp, force, vg);
         }
         let (out, zv) = if self.cfg.use_gnss_velocity && fix.has_velocity {
-            let rv = fix.vel_std_ned_mps.map(|s| s * s);
+            let rv = fix.vel_std_ned_mps.map(|s| s * s * k);
             let [rv0, rv1, rv2] = rv;
             let [rp0, rp1, rp2] = rp;
             let [zp0, zp1, zp2] = m.zp;
@@ -711,6 +716,17 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             }
         }
         out.forced = !g.accepted && force;
+        // only fixes used by an update teach the scale (not an outlier, a jump or the fixes
+        // of a diverged filter, which are rejected and end in a reset)
+        if let (Some(r), false, true) = (&self.cfg.gating.robust, self.redo, g.accepted) {
+            let k = self.gate.sigma_scale();
+            let inp = ScaleInput {
+                z: z64,
+                s_diag: &g.s_diag,
+                r_used: r64,
+            };
+            self.gate.learn_scale(r, t_s, k, &inp);
+        }
         Ok(out)
     }
 

@@ -10,6 +10,7 @@
 //! [`RobustGating::mismatch_ratio_off`] both are divided by it again down to 1. A single
 //! outlier moves the median by one rank and cannot trigger it.
 
+use super::sigma_scale::{median_of, ScaleInput, SigmaScale};
 use super::{HEADING_RESET_SIDESLIP_VAR_RAD2, RESET_MAX_FIX_INTERVAL_S};
 use crate::config::{Gating, RobustGating, MAX_NIS_WINDOW};
 use crate::model::{IDX_ATT, IDX_POS, IDX_VEL};
@@ -82,6 +83,16 @@ pub struct RobustStats {
     /// First fixes after an outage that were used on probation and taken back because the
     /// next fix disagreed with them (outliers; see `Filter::update_gnss`).
     pub reacquisitions_undone: u32,
+    /// Current R multiplier of the learned GNSS sigma scale (variance ratio; 1 = none).
+    pub sigma_scale: f64,
+    /// Largest R multiplier applied.
+    pub max_sigma_scale: f64,
+    /// Mean R multiplier over the fixes processed with one (1 when none was).
+    pub mean_sigma_scale: f64,
+    /// Fixes processed with R multiplied by the learned scale.
+    pub sigma_scaled_fixes: u32,
+    /// Fix time when R was first multiplied, s (NaN: never).
+    pub first_sigma_scale_t_s: f64,
 }
 
 impl Default for RobustStats {
@@ -103,6 +114,11 @@ impl Default for RobustStats {
             gate_widening: 1.0,
             mismatch: false,
             reacquisitions_undone: 0,
+            sigma_scale: 1.0,
+            max_sigma_scale: 1.0,
+            mean_sigma_scale: 1.0,
+            sigma_scaled_fixes: 0,
+            first_sigma_scale_t_s: f64::NAN,
         }
     }
 }
@@ -136,6 +152,8 @@ pub(super) struct GateState {
     episode_start_t_s: f64,
     /// Remembered NIS/dof level of a persistent mismatch (floor of the widening, >= 1).
     level: f64,
+    /// The learned GNSS sigma scale.
+    pub scale: SigmaScale,
     pub stats: RobustStats,
 }
 
@@ -155,6 +173,7 @@ impl Default for GateState {
             nominal_interval_s: f64::NAN,
             episode_start_t_s: f64::NAN,
             level: 1.0,
+            scale: SigmaScale::default(),
             stats: RobustStats::default(),
         }
     }
@@ -506,6 +525,7 @@ impl GateState {
         }
         self.stats.resets = self.stats.resets.saturating_add(1);
         self.clear_window();
+        self.scale.clear();
         plan
     }
 
@@ -518,31 +538,35 @@ impl GateState {
         self.earlier_rejected = None;
     }
 
-    /// Median of the window (insertion sort of at most [`MAX_NIS_WINDOW`] values).
+    /// Median of the window.
     fn median(&self) -> f64 {
-        let mut a = [0.0f64; MAX_NIS_WINDOW];
-        let n = self.len.min(MAX_NIS_WINDOW);
-        for (i, v) in self.window.iter().take(n).enumerate() {
-            let mut j = i;
-            while j > 0 && a.get(j - 1).is_some_and(|p| *p > *v) {
-                if let Some(p) = a.get(j - 1).copied() {
-                    if let Some(x) = a.get_mut(j) {
-                        *x = p;
-                    }
-                }
-                j -= 1;
-            }
-            if let Some(x) = a.get_mut(j) {
-                *x = *v;
+        median_of(&self.window, self.len)
+    }
+
+    /// The R multiplier of the learned GNSS sigma scale for the next fix (1 = none).
+    pub fn sigma_scale(&self) -> f64 {
+        self.scale.factor()
+    }
+
+    /// Feeds one GNSS fix (accepted or not) into the sigma-scale estimator; `t_s` the fix
+    /// time, `factor` the R multiplier the fix was processed with.
+    pub fn learn_scale(&mut self, r: &RobustGating, t_s: f64, factor: f64, inp: &ScaleInput<'_>) {
+        let s = &mut self.stats;
+        if factor > 1.0 {
+            let n = f64::from(s.sigma_scaled_fixes);
+            s.mean_sigma_scale = if s.sigma_scaled_fixes == 0 {
+                factor
+            } else {
+                (s.mean_sigma_scale * n + factor) / (n + 1.0)
+            };
+            s.sigma_scaled_fixes = s.sigma_scaled_fixes.saturating_add(1);
+            s.max_sigma_scale = s.max_sigma_scale.max(factor);
+            if s.first_sigma_scale_t_s.is_nan() {
+                s.first_sigma_scale_t_s = t_s;
             }
         }
-        let mid = n / 2;
-        let hi = a.get(mid).copied().unwrap_or(f64::NAN);
-        if n & 1 == 1 {
-            hi
-        } else {
-            0.5 * (a.get(mid.wrapping_sub(1)).copied().unwrap_or(hi) + hi)
-        }
+        self.scale.learn(r, inp);
+        self.stats.sigma_scale = self.scale.factor();
     }
 }
 

@@ -23,6 +23,7 @@ mod mechanization;
 mod navigator;
 mod odometer;
 mod robust_gating;
+mod understated_sigmas;
 mod wire_common;
 mod wire_faults;
 mod wire_roundtrip;

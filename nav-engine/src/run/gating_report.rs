@@ -35,6 +35,16 @@ pub struct GatingReport {
     pub max_q_inflation: f64,
     /// Largest gate widening factor applied.
     pub max_gate_widening: f64,
+    /// Fixes processed with R multiplied by the learned GNSS sigma scale (the declared sigmas
+    /// looked understated: a persistent, white excess of the innovations).
+    pub sigma_scaled_fixes: u64,
+    /// Mean R multiplier over those fixes (variance ratio; its square root is the sigma
+    /// factor); 1 when none.
+    pub mean_sigma_scale: f64,
+    /// Largest R multiplier applied (variance ratio).
+    pub max_sigma_scale: f64,
+    /// Fix time when R was first multiplied, s of week.
+    pub first_sigma_scale_t_s: Option<f64>,
     /// Status bits (`nav_core::filter::STATUS_*`) seen after any fix, OR-ed.
     pub status_bits_seen: u32,
     /// What happened, in words.
@@ -70,6 +80,13 @@ impl GatingReport {
             max_innovation_ratio: ratio,
             max_q_inflation: st.max_q_inflation,
             max_gate_widening: st.max_gate_widening,
+            sigma_scaled_fixes: u64::from(st.sigma_scaled_fixes),
+            mean_sigma_scale: st.mean_sigma_scale,
+            max_sigma_scale: st.max_sigma_scale,
+            first_sigma_scale_t_s: st
+                .first_sigma_scale_t_s
+                .is_finite()
+                .then_some(st.first_sigma_scale_t_s),
             status_bits_seen,
             message: String::new(),
         };
@@ -79,6 +96,21 @@ impl GatingReport {
 
     fn words(&self, g: &Gating, c: &Counters) -> String {
         let mut parts = Vec::new();
+        if self.sigma_scaled_fixes > 0 {
+            parts.push(format!(
+                "GNSS sigmas look understated by about {:.1}x: the innovations were persistently \
+                 {:.0}x their predicted variance, white from fix to fix (noise, not a model \
+                 mismatch); the gate used them inflated (R x{:.0} on average, up to x{:.0}) for \
+                 {} fix(es) from t = {:.1} s; declare larger sigmas or a GNSS noise scale \
+                 (`host-sim diagnose` fits one)",
+                self.mean_sigma_scale.sqrt(),
+                self.mean_sigma_scale,
+                self.mean_sigma_scale,
+                self.max_sigma_scale,
+                self.sigma_scaled_fixes,
+                self.first_sigma_scale_t_s.unwrap_or(f64::NAN)
+            ));
+        }
         if self.mismatch_episodes > 0 {
             let ratio = self.max_innovation_ratio.unwrap_or(f64::NAN);
             let q = if self.max_q_inflation > 1.0 {
@@ -206,5 +238,41 @@ mod tests {
             0,
         );
         assert_eq!(off.mode, "off");
+        assert_eq!(off.sigma_scaled_fixes, 0);
+        assert!(!off.message.contains("understated"));
+    }
+
+    #[test]
+    fn understated_sigmas_are_told_with_their_factor() {
+        let st = RobustStats {
+            sigma_scaled_fixes: 90,
+            mean_sigma_scale: 100.0,
+            max_sigma_scale: 180.0,
+            sigma_scale: 95.0,
+            first_sigma_scale_t_s: 118_826.0,
+            ..RobustStats::default()
+        };
+        let c = Counters {
+            gnss_rejected: 2,
+            ..Counters::default()
+        };
+        let r = GatingReport::new(&Gating::robust(), &c, &st, 0);
+        assert_eq!(r.sigma_scaled_fixes, 90);
+        assert_eq!(r.first_sigma_scale_t_s, Some(118_826.0));
+        for needle in [
+            "GNSS sigmas look understated by about 10.0x",
+            "persistently 100x their predicted variance",
+            "R x100 on average, up to x180",
+            "for 90 fix(es) from t = 118826.0 s",
+            "2 fix(es) rejected",
+        ] {
+            assert!(
+                r.message.contains(needle),
+                "{needle:?} not in {:?}",
+                r.message
+            );
+        }
+        let json = serde_json::to_value(&r).unwrap();
+        assert_eq!(json["mean_sigma_scale"], 100.0);
     }
 }
