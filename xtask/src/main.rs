@@ -391,7 +391,7 @@ fn firmware_steps(step: &mut StepFn) -> Result<()> {
         },
     )?;
     step(
-        "HIL: hw-bridge send/record of a simulated drive (GNSS outages, stops, an IMU gap and an implausible sample, land aiding on) through the nav firmware vs host, bit-exact",
+        "HIL: hw-bridge send/record of a simulated drive (GNSS outages, stops, missing IMU samples and an implausible sample, land aiding on) through the nav firmware vs host, bit-exact",
         &mut || {
             let bins = hil::host_bins()?;
             nav_stack = nav_stack.max(hil::bridge_drive(&fw.elf("nav"), &bins)?);
