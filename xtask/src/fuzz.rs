@@ -1,6 +1,6 @@
-//! The bounded fuzz run of CI: every libFuzzer target of `fuzz/` (address sanitizer, coverage
-//! instrumentation) for a fixed time, seeded with the committed corpus, into a scratch corpus
-//! directory (so the committed one stays small). A crash fails the step; libFuzzer saves the
+//! The bounded fuzz run (`cargo xtask fuzz`): every libFuzzer target of `fuzz/` (address
+//! sanitizer, coverage instrumentation) for a fixed time, seeded with the committed corpus, into a scratch corpus
+//! directory (so the committed one stays small). A crash fails the command; libFuzzer saves the
 //! input under `fuzz/artifacts/<target>/` and it belongs in `fuzz/regressions/<target>/`,
 //! which `hw-bridge/tests/it/fuzz_corpus.rs` replays in the ordinary test suite.
 //!

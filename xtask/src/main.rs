@@ -9,13 +9,17 @@
 //!   (mps2-an386), report sizes;
 //! - `fw test`: the on-target unit tests (covariance SPD in f32 over a long run, gating,
 //!   reset) on qemu;
+//! - `fw clippy`: clippy on nav-core for the thumb target with core only (the embedded
+//!   toolchain's clippy);
 //! - `fw bench`: instruction counts, sizes, stack and budgets on qemu `-icount shift=5`;
 //! - `fw hil`: UART loopback, the navigation application's frame link, and `hw-bridge send`
 //!   / `hw-bridge record` of a simulated drive through the `nav` firmware, over qemu's UART
 //!   on a socket and a socat pty, compared with the host;
 //! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
 //!   `host-sim run` on the same case (wall times, ratio, identical output);
-//! - `fuzz [--seconds S]`: every libFuzzer target of `fuzz/` for S seconds (CI: 15 s each);
+//! - `fuzz [--seconds S]`: every libFuzzer target of `fuzz/` for S seconds (default 60; not a CI
+//!   step: the test suite replays the corpus and the regressions and runs each property on
+//!   random inputs);
 //! - `soak [--seconds S]`: `hw-bridge send` -> faulty pty link -> `hw-bridge record` for S
 //!   seconds (default 600), counters balancing exactly at the end;
 //! - `lint [--update-allowlist]`: wording (no ticket references or work-log words in code and
@@ -82,10 +86,11 @@ enum Cmd {
     /// The host test suite (`cargo test --workspace --release`): no root, no embedded
     /// toolchain, no qemu needed.
     TestHost,
-    /// Run every libFuzzer target of `fuzz/` for a bounded time (as CI does).
+    /// Run every libFuzzer target of `fuzz/` for a bounded time (coverage-guided, address
+    /// sanitizer; builds the instrumented targets first, about 2.5 CPU-minutes).
     Fuzz {
         /// Seconds per target.
-        #[arg(long, default_value_t = 15)]
+        #[arg(long, default_value_t = 60)]
         seconds: u32,
     },
     /// The 10-minute soak: `hw-bridge send` and `record` over a pty link with random faults;
@@ -147,6 +152,9 @@ enum FwCmd {
     },
     /// Build, then run the self-test on qemu-system-arm -machine mps2-an386.
     Run,
+    /// `cargo clippy -D warnings` on nav-core for thumbv7em-none-eabihf with core only (the
+    /// embedded toolchain's clippy; CI's firmware build already proves nav-core core-only).
+    Clippy,
     /// Build, then run the on-target unit tests (covariance SPD, gating, reset) on qemu.
     Test,
     /// Flash (text + rodata + data) and static RAM (data + bss) of the firmware ELFs.
@@ -171,6 +179,7 @@ fn main() -> std::process::ExitCode {
         Cmd::GenVectors { check } => vectors::generate(check),
         Cmd::Fw { cmd } => match cmd {
             FwCmd::Build { board } => embedded::fw_build(board).map(|_| ()),
+            FwCmd::Clippy => embedded::clippy_nav_core_thumb(),
             FwCmd::Run => embedded::fw_build(Board::Mps2An386)
                 .and_then(|b| embedded::fw_run(&b.elf("firmware"))),
             FwCmd::Test => embedded::fw_build(Board::Mps2An386)
@@ -316,20 +325,12 @@ fn ci() -> Result<()> {
         },
     )?;
     step(
-        "cargo clippy -D warnings (nav-core for thumbv7em-none-eabihf with core only: no alloc, no std)",
-        &mut || embedded::clippy_nav_core_thumb(),
-    )?;
-    step(
         "self-test vector is what the host computes now",
         &mut || vectors::generate(true),
     )?;
     step(
         "host test suite (cargo test --workspace --release)",
         &mut test_host,
-    )?;
-    step(
-        "fuzz: each libFuzzer target 15 s (4 targets, 1 min), no crash",
-        &mut || fuzz::run(15),
     )?;
     firmware_steps(&mut step)?;
     eprintln!("\n[ci] summary");
