@@ -17,10 +17,10 @@
 //! files.
 //!
 //! ```
-//! use nav_core::config::FilterConfig;
-//! use nav_core::model::LAYOUT_NBK;
-//! use nav_core::navigator::{AlignMode, FirstFixAlign, NavigatorConfig, NavigatorNbk};
-//! use nav_core::types::{FixQuality, GnssFix, ImuSample};
+//! use nav_core::{
+//!     AlignMode, FilterConfig, FirstFixAlign, FixQuality, GnssFix, ImuSample, NavigatorConfig,
+//!     NavigatorNbk, LAYOUT_NBK,
+//! };
 //!
 //! let cfg = NavigatorConfig::new(
 //!     FilterConfig::source_nbk_model(),
@@ -58,7 +58,7 @@
 //! let sol = nav.solution().expect("started on the first fix");
 //! assert_eq!(used, 19); // every fix but the first, which started the filter
 //! assert!((sol.h_m - h).abs() < 0.5 && sol.vel_ned_mps.iter().all(|v| v.abs() < 0.05));
-//! # Ok::<(), nav_core::navigator::NavigatorError>(())
+//! # Ok::<(), nav_core::NavigatorError>(())
 //! ```
 #![no_std]
 #![forbid(unsafe_code)]
@@ -91,3 +91,16 @@ pub mod selftest;
 pub mod strapdown;
 pub mod types;
 pub mod wire;
+
+// The user API at the crate root: the navigator and its configuration, the samples, fixes and
+// solutions it takes and gives, the state layouts and the errors. The modules hold the rest.
+pub use config::{ConfigError, FilterConfig};
+pub use filter::FilterError;
+pub use imu_guard::{GuardConfig, GuardError};
+pub use model::{Block, Layout, LAYOUT_KF_GINS, LAYOUT_N, LAYOUT_NBK, LAYOUT_NBK_SINGLE};
+pub use navigator::{
+    AlignMode, FirstFixAlign, FixEvent, ImuStep, Navigator, NavigatorConfig, NavigatorError,
+    NavigatorKfGins, NavigatorN, NavigatorNbk, NavigatorNbkSingle,
+};
+pub use scalar::Scalar;
+pub use types::{FixQuality, GnssFix, ImuSample, NavSolution};
