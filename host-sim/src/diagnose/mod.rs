@@ -1214,6 +1214,7 @@ fn try_noise_with_effect(
     }
     c.decision = Decision::Added;
     c.reason = format!("added with the tuned noise ({}): {why}", k.describe());
+    c.refused = None;
     s.steps.push(Step {
         label: format!("noise tuned: {} + {}", k.describe(), b.name()),
         accepted: true,
