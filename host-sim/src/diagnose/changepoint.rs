@@ -184,7 +184,7 @@ fn corrected(case: &CaseData, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3])
 /// The CUSUM onset of a variance increase of the position innovations: `(onset time, peak
 /// level in nats)`, or None when the statistic never reaches [`CUSUM_ALARM_NATS`]. The fixes
 /// of the [`SETTLE_S`] after a gap in the used fixes (a gap of the file, an outage, a
-/// withheld window: [`settled`]) are left out and the statistic restarts after them: the
+/// withheld window) are left out and the statistic restarts after them: the
 /// prediction error across a gap is not a change of the model.
 pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     let lam = CUSUM_INFLATION;
@@ -504,6 +504,21 @@ mod tests {
         assert!((peak - 30.0 * llr).abs() < 1e-9, "{peak}");
         // white innovations only: no alarm
         assert!(cusum_onset(&v[..100]).is_none());
+    }
+
+    #[test]
+    fn cusum_leaves_out_the_fixes_just_after_a_gap() {
+        // white innovations at 1 Hz, a 60 s gap, five fixes three times larger within
+        // SETTLE_S of its end (the prediction error across the gap), then white again
+        let white = |k: i32| rec(f64::from(k), if k % 2 == 0 { 1.0 } else { -0.8 });
+        let mut v: Vec<InnovationRecord> = (0..100).map(white).collect();
+        v.extend((160..165).map(|k| rec(f64::from(k), 3.0)));
+        v.extend((165..260).map(white));
+        assert!(cusum_onset(&v).is_none());
+        // the same five fixes without the gap: a change
+        let mut w: Vec<InnovationRecord> = (0..100).map(white).collect();
+        w.extend((100..105).map(|k| rec(f64::from(k), 3.0)));
+        assert_eq!(cusum_onset(&w).map(|o| o.0), Some(100.0));
     }
 
     #[test]
