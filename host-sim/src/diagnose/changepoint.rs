@@ -18,8 +18,12 @@
 //!    for the accelerometers and the gyros; the sensor whose corrected run gains more
 //!    log-likelihood is kept. The 1-sigma of `c` is that of the weighted least squares.
 //! 3. Time: the corrected run is repeated with the step moved by up to
-//!    [`TIME_SEARCH_S`] in 1 s steps; the time of largest log-likelihood is kept. A step's
-//!    time is sharp: moving it by [`TIME_SEARCH_S`] either way must cost at least
+//!    [`TIME_SEARCH_S`] in 1 s steps (the scan extended by [`TIME_SEARCH_S`], up to
+//!    [`MAX_TIME_EXTENSIONS`] times, while its best time is at an end: the CUSUM's onset lags
+//!    a step whose error grows slowly); the time of largest log-likelihood is kept. A step's
+//!    time is sharp: moving it by [`TIME_SEARCH_S`] either way (beyond the ends of a gap in
+//!    the used fixes when it lies in one: there it can only be placed within the gap) must
+//!    cost at least
 //!    [`MIN_SHARPNESS_NATS`] (a slowly growing error, e.g. a drifting clock, that a small step
 //!    absorbs in part has a flat profile and is left to the effect search).
 //!
@@ -33,6 +37,7 @@ use serde::Serialize;
 
 use super::search_recording;
 use super::stats::{in_stats, residual_stats};
+use super::validate::HeldoutComparison;
 
 /// Variance inflation of the CUSUM's alternative hypothesis (4: innovations twice as large).
 pub const CUSUM_INFLATION: f64 = 4.0;
@@ -42,6 +47,9 @@ pub const CUSUM_ALARM_NATS: f64 = 25.0;
 pub const TIME_SEARCH_S: f64 = 6.0;
 /// Log-likelihood a step must lose when moved by [`TIME_SEARCH_S`] either way, nats.
 pub const MIN_SHARPNESS_NATS: f64 = 20.0;
+/// How many times the time scan is extended by [`TIME_SEARCH_S`] while its best time is at an
+/// end of it.
+pub const MAX_TIME_EXTENSIONS: usize = 4;
 /// Used fixes needed before the onset.
 pub const MIN_FIXES_BEFORE: usize = 60;
 /// Largest mean position NIS (3 dimensions: expected 3) of the fixes before the onset.
@@ -113,6 +121,12 @@ pub struct BiasStep {
     pub delta_log_likelihood: f64,
     /// BIC penalty of the four parameters, nats.
     pub bic_penalty: f64,
+    /// The held-out windows of the data with the step removed against the recorded data's,
+    /// paired (None until judged): the step is kept only when they are significantly lower,
+    /// as an effect is added.
+    pub heldout: Option<HeldoutComparison>,
+    /// The decision on the held-out windows in words (None until judged).
+    pub reason: Option<String>,
 }
 
 impl BiasStep {
@@ -168,13 +182,22 @@ fn corrected(case: &CaseData, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3])
 }
 
 /// The CUSUM onset of a variance increase of the position innovations: `(onset time, peak
-/// level in nats)`, or None when the statistic never reaches [`CUSUM_ALARM_NATS`].
+/// level in nats)`, or None when the statistic never reaches [`CUSUM_ALARM_NATS`]. The fixes
+/// of the [`SETTLE_S`] after a gap in the used fixes (a gap of the file, an outage, a
+/// withheld window) are left out and the statistic restarts after them: the
+/// prediction error across a gap is not a change of the model.
 pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     let lam = CUSUM_INFLATION;
     let mut s = 0.0f64;
     let mut start_t = f64::NAN;
     let mut best: Option<(f64, f64)> = None;
-    for r in innovations.iter().filter(|r| in_stats(r)) {
+    let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
+    let keep = settled(&used);
+    for (r, k) in used.iter().zip(&keep) {
+        if !*k {
+            s = 0.0;
+            continue;
+        }
         let (nis, d) = position_nis(r);
         let llr = 0.5 * nis * (1.0 - 1.0 / lam) - 0.5 * d as f64 * lam.ln();
         if s <= 0.0 {
@@ -186,6 +209,33 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
         }
     }
     best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
+}
+
+/// Time after a gap in the used fixes whose fixes the CUSUM and the consistency check before
+/// the onset leave out, s: the filter's error grown across the gap shows in them.
+pub const SETTLE_S: f64 = 10.0;
+
+/// Per used fix (in time order), whether it is outside the [`SETTLE_S`] after a gap: two
+/// consecutive used fixes more than 5 nominal intervals and 5 s apart
+/// ([`super::validate::fix_gaps`]).
+fn settled(used: &[&InnovationRecord]) -> Vec<bool> {
+    let times: Vec<f64> = used.iter().map(|r| r.t_s).collect();
+    let gaps = super::validate::fix_gaps(&times);
+    let mut g = gaps.iter().peekable();
+    let mut settle_until = f64::NEG_INFINITY;
+    times
+        .iter()
+        .map(|&t| {
+            while let Some(&&(_, end)) = g.peek() {
+                if end > t {
+                    break;
+                }
+                settle_until = end + SETTLE_S;
+                g.next();
+            }
+            t >= settle_until
+        })
+        .collect()
 }
 
 /// The normalised squared position innovation of a fix (diagonal variances) and its dimension.
@@ -316,11 +366,12 @@ fn fit(
 /// corrected run does not pay.
 pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
     let (onset, _) = cusum_onset(&base.innovations)?;
-    let before: Vec<f64> = base
-        .innovations
+    let used: Vec<&InnovationRecord> = base.innovations.iter().filter(|r| in_stats(r)).collect();
+    let before: Vec<f64> = used
         .iter()
-        .filter(|r| in_stats(r) && r.t_s < onset)
-        .map(|r| position_nis(r).0)
+        .zip(settled(&used))
+        .filter(|(r, k)| *k && r.t_s < onset)
+        .map(|(r, _)| position_nis(r).0)
         .collect();
     if before.len() < MIN_FIXES_BEFORE
         || before.iter().sum::<f64>() / before.len() as f64 > MAX_NIS_BEFORE
@@ -342,15 +393,30 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
     if ll - base_ll <= penalty + MIN_GAIN_NATS {
         return None;
     }
-    // the time: the corrected run's likelihood over +-TIME_SEARCH_S in 1 s steps
+    // the time: the corrected run's likelihood over +-TIME_SEARCH_S in 1 s steps, extended
+    // by TIME_SEARCH_S while the best time is at an end of the scan (the CUSUM's onset lags
+    // a step whose position error grows slowly)
     let n = TIME_SEARCH_S as i32;
-    let profile: Vec<(f64, f64)> = (-n..=n)
-        .into_par_iter()
-        .filter_map(|k| {
-            let t = t_s + f64::from(k);
-            run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
-        })
-        .collect();
+    let ll_at = |k: i32| {
+        let t = t_s + f64::from(k);
+        run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
+    };
+    let mut profile: Vec<(f64, f64)> = (-n..=n).into_par_iter().filter_map(ll_at).collect();
+    let (mut lo_k, mut hi_k) = (-n, n);
+    for _ in 0..MAX_TIME_EXTENSIONS {
+        let best = profile.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((tb, _)) = best else { break };
+        let more: Vec<i32> = if tb <= t_s + f64::from(lo_k) {
+            lo_k -= n;
+            (lo_k..lo_k + n).collect()
+        } else if tb >= t_s + f64::from(hi_k) {
+            hi_k += n;
+            (hi_k - n + 1..=hi_k).collect()
+        } else {
+            break;
+        };
+        profile.extend(more.into_par_iter().filter_map(ll_at).collect::<Vec<_>>());
+    }
     let (t_best, ll_best) = profile
         .iter()
         .copied()
@@ -364,8 +430,20 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
             .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))
             .map_or(f64::INFINITY, |p| p.1)
     };
-    let lo = at(t_best - TIME_SEARCH_S);
-    let hi = at(t_best + TIME_SEARCH_S);
+    // a step inside a gap of the used fixes can only be placed within the gap: moved by
+    // TIME_SEARCH_S beyond the gap's ends
+    let used: Vec<f64> = used.iter().map(|r| r.t_s).collect();
+    let (lo_t, hi_t) = super::validate::fix_gaps(&used)
+        .into_iter()
+        .find(|&(a, b)| a < t_best && t_best < b)
+        .map_or(
+            (t_best - TIME_SEARCH_S, t_best + TIME_SEARCH_S),
+            |(a, b)| (a - TIME_SEARCH_S, b + TIME_SEARCH_S),
+        );
+    let ll_or_profile = |t: f64| {
+        run_ll(&corrected(case, sensor, t, &step), opts).map_or_else(|| at(t), |(_, ll)| ll)
+    };
+    let (lo, hi) = (ll_or_profile(lo_t), ll_or_profile(hi_t));
     if ll_best - lo.max(hi) < MIN_SHARPNESS_NATS {
         return None;
     }
@@ -389,6 +467,8 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
         unit: sensor.unit().to_string(),
         delta_log_likelihood: ll - base_ll,
         bic_penalty: penalty,
+        heldout: None,
+        reason: None,
     })
 }
 
@@ -424,6 +504,21 @@ mod tests {
         assert!((peak - 30.0 * llr).abs() < 1e-9, "{peak}");
         // white innovations only: no alarm
         assert!(cusum_onset(&v[..100]).is_none());
+    }
+
+    #[test]
+    fn cusum_leaves_out_the_fixes_just_after_a_gap() {
+        // white innovations at 1 Hz, a 60 s gap, five fixes three times larger within
+        // SETTLE_S of its end (the prediction error across the gap), then white again
+        let white = |k: i32| rec(f64::from(k), if k % 2 == 0 { 1.0 } else { -0.8 });
+        let mut v: Vec<InnovationRecord> = (0..100).map(white).collect();
+        v.extend((160..165).map(|k| rec(f64::from(k), 3.0)));
+        v.extend((165..260).map(white));
+        assert!(cusum_onset(&v).is_none());
+        // the same five fixes without the gap: a change
+        let mut w: Vec<InnovationRecord> = (0..100).map(white).collect();
+        w.extend((100..105).map(|k| rec(f64::from(k), 3.0)));
+        assert_eq!(cusum_onset(&w).map(|o| o.0), Some(100.0));
     }
 
     #[test]
