@@ -540,6 +540,7 @@ impl Decoding {
                 }));
         }
         out.stats = *self.frames.stats();
+        warn_rejected(a, &out.stats);
         out.wall_s = start.elapsed().as_secs_f64();
         // The filter first, so that the summary says whether its result is a navigation
         // solution; a filter run that fails still leaves the decoded files and the summary in
@@ -632,6 +633,37 @@ impl Decoding {
                 out.imu_out_of_order, out.gnss_out_of_order
             );
         }
+    }
+}
+
+/// A warning on stderr when the decoder rejected chunks or frames were lost by sequence (the
+/// decoded files hold every frame that passed; the counters are in the summary).
+fn warn_rejected(a: &ReplayOptions, s: &DecoderStats) {
+    if a.input != InputKind::Frames {
+        return;
+    }
+    let rejected = [
+        s.cobs_errors,
+        s.overflows,
+        s.length_errors,
+        s.crc_errors,
+        s.version_mismatches,
+        s.unknown_types,
+        s.invalid_fields,
+        s.truncated,
+    ]
+    .iter()
+    .map(|&n| u64::from(n))
+    .sum::<u64>();
+    let lost = s.lost_by_stream.iter().map(|&n| u64::from(n)).sum::<u64>();
+    if rejected + lost > 0 {
+        eprintln!(
+            "warning: {}: {rejected} chunk(s) rejected by the frame decoder ({} CRC errors) and \
+             {lost} frame(s) lost by sequence number; the outputs hold the frames that passed \
+             (--verbose prints each rejected chunk with its byte offset)",
+            a.capture.display(),
+            s.crc_errors
+        );
     }
 }
 
