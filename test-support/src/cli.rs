@@ -147,6 +147,8 @@ impl Bounded {
 /// Measures its own peak resident set and CPU time with `wait4` (that child only, not the
 /// other children of the test).
 #[cfg(unix)]
+// the child is reaped by `wait4` (std's `wait` would lose its resource usage)
+#[allow(clippy::zombie_processes)]
 pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;

@@ -441,8 +441,14 @@ fn careless(b: &Bins, root: &Path, c: &Case, t: &mut Tally) -> Result<()> {
         let r = bounded(&mut run_cmd(b, cfg, &cfg.with_file_name("out")));
         t.judge(F, name, &r, e);
     }
-    // damage that must change nothing: a duplicated IMU line (counted, named in metrics.json
-    // with its line), UTF-8 byte-order marks
+    unchanged(b, root, c, t, &want)
+}
+
+/// Damage that must change nothing: a duplicated IMU line (counted, named in metrics.json
+/// with its line), UTF-8 byte-order marks; `want` is the undamaged run's `nav.txt`.
+fn unchanged(b: &Bins, root: &Path, c: &Case, t: &mut Tally, want: &[u8]) -> Result<()> {
+    const F: &str = "careless data";
+    let (imu, gnss) = (join(&c.imu), join(&c.gnss));
     let mut dup = c.imu.clone();
     if let Some(r) = dup.get(9000).cloned() {
         dup.insert(9001, r);
