@@ -143,17 +143,21 @@ impl Bounded {
     }
 }
 
-/// Runs `cmd` (its standard input empty) for at most `limit`: killed (SIGKILL) past it.
+/// Runs `cmd` (its standard input empty, in a process group of its own) for at most `limit`:
+/// killed (SIGKILL, with the processes it started) past it.
 /// Measures its own peak resident set and CPU time with `wait4` (that child only, not the
 /// other children of the test).
 #[cfg(unix)]
 // the child is reaped by `wait4` (std's `wait` would lose its resource usage)
 #[allow(clippy::zombie_processes)]
 pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
-    use std::os::unix::process::ExitStatusExt;
+    use std::os::unix::process::{CommandExt, ExitStatusExt};
     use std::process::Stdio;
     let t = std::time::Instant::now();
+    // a process group of its own: killed at the limit with whatever it started (which would
+    // hold the output pipes open)
     let mut child = cmd
+        .process_group(0)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -184,7 +188,8 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
         }
         assert!(r >= 0, "wait4: {}", std::io::Error::last_os_error());
         if t.elapsed() > limit {
-            let _ = child.kill();
+            // SAFETY: signalling the process group of our own child, not reaped yet.
+            unsafe { libc::kill(-pid, libc::SIGKILL) };
             killed = true;
         } else {
             std::thread::sleep(std::time::Duration::from_millis(5));
