@@ -30,9 +30,18 @@ pub struct RecordArgs {
     /// Baud rate.
     #[arg(long, default_value_t = DEFAULT_BAUD)]
     pub baud: u32,
-    /// Capture file to write.
+    /// Capture file to write. It is written as OUT.partial (locked: a second recorder of the
+    /// same file refuses) and moved to OUT when the recording ends: at --duration,
+    /// --idle-exit, --reopen-timeout, or Ctrl-C / SIGTERM, which end a recording normally
+    /// (exit 0, the capture complete up to there). An existing OUT is refused unless --force;
+    /// a link at OUT is replaced, never written through. A recording killed outright leaves
+    /// what it received in OUT.partial.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace an existing capture (or link) at --out, and remove a leftover OUT.partial no
+    /// recorder is writing (an interrupted recording's data).
+    #[arg(long)]
+    pub force: bool,
     /// Stop after this many seconds.
     #[arg(long, value_parser = parse_seconds)]
     pub duration: Option<f64>,
@@ -78,6 +87,7 @@ impl From<&RecordArgs> for cmd::RecordOptions {
             raw: a.raw,
             shared: a.shared,
             quiet: a.quiet,
+            force: a.force,
         }
     }
 }

@@ -29,7 +29,8 @@ enum Cmd {
 }
 
 /// Exit status: 0 complete, 2 finished but incomplete (outputs hold everything up to the
-/// fault and say so), 1 error (the message names the cause once).
+/// fault and say so), 1 error (the message names the cause once), 128 + the signal when
+/// SIGINT/SIGTERM stopped a replay (130, 143: its outputs kept as `*.partial`).
 fn main() -> ExitCode {
     // clap's own usage errors exit 2, which means "incomplete" here: they exit 1.
     let cli = match Cli::try_parse() {
@@ -43,12 +44,22 @@ fn main() -> ExitCode {
             };
         }
     };
+    if matches!(cli.cmd, Cmd::Record(_) | Cmd::Replay(_)) {
+        // SIGINT/SIGTERM: a recording ends with its capture complete, a replay keeps what it
+        // decoded as *.partial (else the system's default)
+        if let Err(e) = nav_engine::run::interrupt::install() {
+            eprintln!("warning: SIGINT/SIGTERM handling not installed: {e}");
+        }
+    }
     match run(cli.cmd) {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(2),
         Err(e) => {
             eprintln!("error: {}", hw_bridge::status::error_chain(&e));
-            ExitCode::FAILURE
+            match nav_engine::run::interrupt::exit_code() {
+                Some(code) => ExitCode::from(code),
+                None => ExitCode::FAILURE,
+            }
         }
     }
 }
@@ -73,6 +84,9 @@ fn run(cmd: Cmd) -> anyhow::Result<bool> {
                 o.records, o.bytes, o.link_resets
             );
             println!("{}", hw_bridge::status::decoder_report(&o.stats));
+            if let Some(sig) = &o.stopped_by {
+                println!("stopped by {sig}; capture {} complete", a.out.display());
+            }
             if let Some(why) = &o.incomplete {
                 eprintln!("incomplete: {why}");
                 complete = false;

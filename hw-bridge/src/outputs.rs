@@ -100,9 +100,14 @@ impl Stream {
 }
 
 /// `imu.txt` written without a temperature column, rewritten with it (as
-/// `nav_io::write_imu_line` writes it): NaN up to line `from`, then the temperatures of
-/// `temps` (one per line, formatted as that writer formats them).
-fn with_temperatures(mut imu: Stream, mut temps: Stream, from: u64) -> anyhow::Result<PathBuf> {
+/// `nav_io::write_imu_line` writes it) into `dest`: NaN up to line `from`, then the
+/// temperatures of `temps` (one per line, formatted as that writer formats them).
+fn with_temperatures(
+    mut imu: Stream,
+    mut temps: Stream,
+    from: u64,
+    dest: &Path,
+) -> anyhow::Result<PathBuf> {
     use std::io::BufRead;
     imu.flush()?;
     temps.flush()?;
@@ -136,10 +141,12 @@ fn with_temperatures(mut imu: Stream, mut temps: Stream, from: u64) -> anyhow::R
     }
     io(w.flush(), &imu.final_path)?;
     drop(w);
-    rename(&tmp, &imu.final_path)?;
-    std::fs::remove_file(&src).with_context(|| format!("removing {}", src.display()))?;
+    rename(&tmp, dest)?;
+    if src != dest {
+        std::fs::remove_file(&src).with_context(|| format!("removing {}", src.display()))?;
+    }
     std::fs::remove_file(&t_src).with_context(|| format!("removing {}", t_src.display()))?;
-    Ok(imu.final_path)
+    Ok(dest.to_path_buf())
 }
 
 /// The header line of `health.txt`.
@@ -308,7 +315,10 @@ impl FrameFiles {
         if let Some(st) = self.imu.take() {
             match self.temps.take() {
                 None => done.push(st.finish()?),
-                Some((temps, from)) => done.push(with_temperatures(st, temps, from)?),
+                Some((temps, from)) => {
+                    let dest = st.final_path.clone();
+                    done.push(with_temperatures(st, temps, from, &dest)?);
+                }
             }
         }
         for s in [self.gnss.take(), self.nav.take(), self.health.take()]
@@ -318,5 +328,27 @@ impl FrameFiles {
             done.push(s.finish()?);
         }
         Ok(done)
+    }
+
+    /// Flushes every file and leaves it under its `.partial` name (a replay stopped before
+    /// the end of its capture: the files hold everything decoded so far, `imu.txt.partial`
+    /// with the temperature column as [`Self::finish`] writes it). Returns the paths kept.
+    pub fn keep_partial(mut self) -> anyhow::Result<Vec<PathBuf>> {
+        self.flush()?;
+        let mut kept = Vec::new();
+        if let Some(st) = self.imu.take() {
+            let dest = partial_name(&st.final_path);
+            match self.temps.take() {
+                None => kept.push(dest),
+                Some((temps, from)) => kept.push(with_temperatures(st, temps, from, &dest)?),
+            }
+        }
+        for s in [self.gnss.take(), self.nav.take(), self.health.take()]
+            .into_iter()
+            .flatten()
+        {
+            kept.push(partial_name(&s.final_path));
+        }
+        Ok(kept)
     }
 }

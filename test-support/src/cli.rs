@@ -108,9 +108,124 @@ pub fn run_ok(cmd: &mut Command) -> String {
     ran.stdout
 }
 
+/// What a run of a binary under a time limit did ([`run_bounded`]).
+#[derive(Debug, Clone)]
+pub struct Bounded {
+    /// The exit status (None: killed at the time limit).
+    pub status: Option<ExitStatus>,
+    /// Standard output (lossy UTF-8).
+    pub stdout: String,
+    /// Standard error (lossy UTF-8).
+    pub stderr: String,
+    /// Wall time to the end (or to the kill), s.
+    pub wall_s: f64,
+    /// Peak resident set of the process, KiB (`ru_maxrss` of `wait4`; 0 elsewhere than on
+    /// unix).
+    pub max_rss_kib: u64,
+    /// CPU time of the process (user + system), s.
+    pub cpu_s: f64,
+}
+
+impl Bounded {
+    /// The exit code (None: killed, by the limit or a signal).
+    pub fn code(&self) -> Option<i32> {
+        self.status.and_then(|s| s.code())
+    }
+
+    /// Whether it was killed at the time limit.
+    pub fn timed_out(&self) -> bool {
+        self.status.is_none()
+    }
+
+    /// Whether it panicked (exit code 101 or a panic message on stderr).
+    pub fn panicked(&self) -> bool {
+        self.code() == Some(101) || self.stderr.contains("panicked at")
+    }
+}
+
+/// Runs `cmd` (its standard input empty, in a process group of its own) for at most `limit`:
+/// killed (SIGKILL, with the processes it started) past it.
+/// Measures its own peak resident set and CPU time with `wait4` (that child only, not the
+/// other children of the test).
+#[cfg(unix)]
+// the child is reaped by `wait4` (std's `wait` would lose its resource usage)
+#[allow(clippy::zombie_processes)]
+pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
+    use std::os::unix::process::{CommandExt, ExitStatusExt};
+    use std::process::Stdio;
+    let t = std::time::Instant::now();
+    // a process group of its own: killed at the limit with whatever it started (which would
+    // hold the output pipes open)
+    let mut child = cmd
+        .process_group(0)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{cmd:?} could not be started: {e}"));
+    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut b = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut b);
+            }
+            String::from_utf8_lossy(&b).into_owned()
+        })
+    };
+    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
+    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    let pid = libc::pid_t::try_from(child.id()).expect("a pid");
+    let mut killed = false;
+    let (status, ru) = loop {
+        let mut st = 0;
+        // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child.
+        let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+        let flags = if killed { 0 } else { libc::WNOHANG };
+        // SAFETY: `pid` is our child, not reaped yet (std's `Child` never waits here).
+        let r = unsafe { libc::wait4(pid, &mut st, flags, &mut ru) };
+        if r == pid {
+            break (st, ru);
+        }
+        assert!(r >= 0, "wait4: {}", std::io::Error::last_os_error());
+        if t.elapsed() > limit {
+            // SAFETY: signalling the process group of our own child, not reaped yet.
+            unsafe { libc::kill(-pid, libc::SIGKILL) };
+            killed = true;
+        } else {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+    };
+    let secs = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    Bounded {
+        status: (!killed).then(|| ExitStatus::from_raw(status)),
+        stdout: out.join().unwrap_or_default(),
+        stderr: err.join().unwrap_or_default(),
+        wall_s: t.elapsed().as_secs_f64(),
+        max_rss_kib: u64::try_from(ru.ru_maxrss).unwrap_or(0),
+        cpu_s: secs(ru.ru_utime) + secs(ru.ru_stime),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn a_bounded_run_is_killed_at_its_limit_and_measured() {
+        let limit = std::time::Duration::from_millis(300);
+        let r = run_bounded(Command::new("/bin/sh").args(["-c", "sleep 20"]), limit);
+        assert!(r.timed_out() && r.wall_s < 10.0, "{r:?}");
+        let r = run_bounded(
+            Command::new("/bin/sh").args(["-c", "echo out; echo err >&2; exit 3"]),
+            std::time::Duration::from_secs(20),
+        );
+        assert_eq!(
+            (r.code(), r.stdout.as_str(), r.stderr.as_str()),
+            (Some(3), "out\n", "err\n")
+        );
+        assert!(r.max_rss_kib > 0 && !r.panicked(), "{r:?}");
+    }
 
     #[cfg(unix)]
     #[test]

@@ -22,6 +22,10 @@
 //!   random inputs);
 //! - `soak [--seconds S]`: `hw-bridge send` -> faulty pty link -> `hw-bridge record` for S
 //!   seconds (default 600), counters balancing exactly at the end;
+//! - `hostile [--keep]`: careless and hostile inputs of `host-sim run` and `hw-bridge
+//!   replay` / `record` by family, each run of the release binaries bounded in time, and the
+//!   table of tries, panics, hangs, silent wrong results, lost or clobbered files and
+//!   messages without file and line;
 //! - `lint [--update-allowlist]`: wording (no ticket references or work-log words in code and
 //!   docs), no `clap` in the library crates, no clap argument struct taken by a `pub fn` of
 //!   host-sim's or hw-bridge's library, function bodies of at most 120 lines (existing
@@ -34,6 +38,7 @@ mod budget;
 mod embedded;
 mod fuzz;
 mod hil;
+mod hostile;
 mod lint;
 mod replaybench;
 mod soak;
@@ -130,6 +135,14 @@ enum Cmd {
         #[arg(long)]
         peer_kfgins: Option<std::path::PathBuf>,
     },
+    /// Careless and hostile inputs of `host-sim run` and `hw-bridge replay` / `record` by
+    /// family (release binaries, each run bounded in time): a table of tries, panics, hangs,
+    /// silent wrong results, lost or clobbered files, messages without file and line.
+    Hostile {
+        /// Keep the generated inputs and outputs (the folder is printed).
+        #[arg(long)]
+        keep: bool,
+    },
     /// Benchmark: `hw-bridge replay --as-fast-as-possible --config` of a 1-hour 200 Hz
     /// capture (sent and recorded over a pty pair) against `host-sim run` on the same case.
     BenchReplay {
@@ -206,6 +219,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Fuzz { seconds } => fuzz::run(seconds),
         Cmd::Soak { seconds } => soak::run(seconds),
         Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
+        Cmd::Hostile { keep } => hostile::run(keep),
         Cmd::BenchRun {
             hours,
             baseline,

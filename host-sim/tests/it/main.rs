@@ -25,6 +25,7 @@ mod run_config_stream;
 mod run_faults;
 mod run_gnss_logs;
 mod run_motion_align;
+mod run_option_values;
 mod run_outputs_safety;
 mod run_sim;
 mod run_slow_rover;

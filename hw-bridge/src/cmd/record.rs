@@ -4,8 +4,10 @@ use super::*;
 use crate::capture::{CaptureHeader, CaptureWriter, Record};
 use crate::serial;
 use crate::status::{decoder_summary, StatusLine};
-use anyhow::{bail, Context};
+use anyhow::Context;
 use nav_core::wire::{DecoderStats, FrameDecoder};
+use nav_engine::run::interrupt;
+use nav_engine::run::outdir::StagedFile;
 use std::io::{BufWriter, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -39,6 +41,9 @@ pub struct RecordOptions {
     pub shared: bool,
     /// No live status line.
     pub quiet: bool,
+    /// Replace an existing file (or link) at `out`, and remove a leftover `OUT.partial` that
+    /// no recorder is writing (without it both are refused, nothing written).
+    pub force: bool,
 }
 
 impl RecordOptions {
@@ -57,6 +62,7 @@ impl RecordOptions {
             raw: false,
             shared: false,
             quiet: true,
+            force: false,
         }
     }
 }
@@ -81,16 +87,82 @@ pub struct RecordOutcome {
     /// Why the capture is incomplete (the port vanished and did not come back within
     /// `--reopen-timeout`); `None` when the recording ended by a stop condition.
     pub incomplete: Option<String>,
+    /// The signal (`SIGINT`: Ctrl-C, `SIGTERM`) that ended the recording, once
+    /// [`nav_engine::run::interrupt::install`] is in place: a stop condition like
+    /// `duration_s`, the capture complete up to it.
+    pub stopped_by: Option<String>,
 }
 
 /// `record`: raw bytes with receive timestamps into a capture file, live status on stderr.
 /// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
-/// reopened until it comes back or a stop condition is met.
+/// reopened until it comes back or a stop condition is met; SIGINT (Ctrl-C) and SIGTERM are
+/// stop conditions once [`nav_engine::run::interrupt::install`] is in place.
+///
+/// The capture is written as `OUT.partial` (created new, locked: a second recorder of the
+/// same file refuses) and moved to `OUT` at the end ([`StagedFile`]): an existing `OUT` is
+/// refused unless [`RecordOptions::force`], a link there is replaced and never written
+/// through, and a recording that fails or is killed after data arrived leaves them in
+/// `OUT.partial` (the error says so).
 pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
+    let _stoppable = interrupt::Stoppable::enter();
     // the capture must not be written over its own input (the port's device file)
     nav_engine::run::outdir::check_not_input(&a.out, Path::new(&a.port))?;
-    let file = std::fs::File::create(&a.out)
-        .with_context(|| format!("creating capture {}", a.out.display()))?;
+    let staged = StagedFile::create(&a.out, a.force)?;
+    let mut out = RecordOutcome::default();
+    match record_into(a, &staged, &mut out) {
+        Ok(no_byte) => {
+            staged.commit()?;
+            if let Some(e) = no_byte {
+                return Err(e);
+            }
+            Ok(out)
+        }
+        Err(e) if out.records + out.link_resets == 0 => {
+            // nothing received: no capture
+            let _ = std::fs::remove_file(staged.partial());
+            Err(e)
+        }
+        Err(e) => Err(e.context(format!(
+            "the {} record(s) received so far are kept in {}",
+            out.records,
+            staged.partial().display()
+        ))),
+    }
+}
+
+/// The port lost at `lost_at`: waits a little and tries to reopen it (`Ok(None)`: not back
+/// yet); `Err(why)` once `reopen` (`--reopen-timeout`) has passed.
+fn try_reopen(
+    a: &RecordOptions,
+    reopen: Option<Duration>,
+    lost_at: Option<Instant>,
+    timeout: Duration,
+) -> Result<Option<Box<dyn serialport::SerialPort>>, String> {
+    if let (Some(d), Some(t)) = (reopen, lost_at) {
+        if t.elapsed() >= d {
+            return Err(format!(
+                "port {} lost and not back within --reopen-timeout {} s",
+                a.port,
+                d.as_secs_f64()
+            ));
+        }
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    Ok(serial::open_with(&a.port, a.baud, timeout, a.shared).ok())
+}
+
+/// How long a read of the port waits for bytes.
+const READ_TIMEOUT: Duration = Duration::from_millis(50);
+
+/// The capture writer of [`record`] on `staged` (its header written) and the port opened.
+#[allow(clippy::type_complexity)]
+fn start_capture(
+    a: &RecordOptions,
+    staged: &StagedFile,
+) -> anyhow::Result<(
+    CaptureWriter<BufWriter<std::fs::File>>,
+    Box<dyn serialport::SerialPort>,
+)> {
     let header = CaptureHeader {
         port: a.port.clone(),
         baud: a.baud,
@@ -98,13 +170,32 @@ pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
         tool: format!("hw-bridge {}", env!("CARGO_PKG_VERSION")),
         streams_from_start: a.streams_from_start,
     };
-    let werr =
-        |e: std::io::Error| anyhow::Error::new(e).context(format!("writing {}", a.out.display()));
-    let mut w = CaptureWriter::new(BufWriter::new(file), &header).map_err(werr)?;
-    let timeout = Duration::from_millis(50);
-    let mut port = Some(serial::open_with(&a.port, a.baud, timeout, a.shared)?);
+    let w = CaptureWriter::new(BufWriter::new(staged.writer()?), &header)
+        .with_context(|| format!("writing {}", staged.partial().display()))?;
+    let port = serial::open_with(&a.port, a.baud, READ_TIMEOUT, a.shared)?;
     // One line, even with --quiet: scripts (and the pty test) wait for it before sending.
-    eprintln!("recording {} -> {}", a.port, a.out.display());
+    eprintln!(
+        "recording {} -> {} (written as {} until the recording ends; Ctrl-C ends it)",
+        a.port,
+        a.out.display(),
+        staged.partial().display()
+    );
+    Ok((w, port))
+}
+
+/// The recording loop of [`record`] into `staged`: `Ok(Some(error))` when no byte arrived
+/// within `--first-byte-timeout` (the capture, without data, is still moved into place).
+fn record_into(
+    a: &RecordOptions,
+    staged: &StagedFile,
+    out: &mut RecordOutcome,
+) -> anyhow::Result<Option<anyhow::Error>> {
+    let part = staged.partial();
+    let werr =
+        |e: std::io::Error| anyhow::Error::new(e).context(format!("writing {}", part.display()));
+    let timeout = READ_TIMEOUT;
+    let (mut w, port) = start_capture(a, staged)?;
+    let mut port = Some(port);
     let start = Instant::now();
     let mut last_data: Option<Instant> = None;
     let mut lost_at: Option<Instant> = None;
@@ -114,13 +205,16 @@ pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
     }
     let mut status = StatusLine::new(Duration::from_millis(500), !a.quiet);
     let mut buf = vec![0u8; 8192];
-    let mut out = RecordOutcome::default();
     let duration = a.duration_s.map(secs);
     let idle = a.idle_exit_s.map(secs);
     let first_byte = a.first_byte_timeout_s.map(secs);
     let reopen = a.reopen_timeout_s.map(secs);
     let t_ns = |start: Instant| u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
     loop {
+        if let Some(sig) = interrupt::requested() {
+            out.stopped_by = Some(interrupt::signal_name(sig));
+            break;
+        }
         let now = Instant::now();
         let elapsed = now.saturating_duration_since(start);
         if duration.is_some_and(|d| elapsed >= d) {
@@ -134,29 +228,26 @@ pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
         if let (Some(d), None) = (first_byte, last_data) {
             if elapsed >= d {
                 w.flush().map_err(werr)?;
-                bail!(
+                return Ok(Some(anyhow::anyhow!(
                     "no byte from {} within --first-byte-timeout {} s (the capture {} holds no data)",
                     a.port,
                     d.as_secs_f64(),
                     a.out.display()
-                );
+                )));
             }
         }
         let Some(p) = port.as_mut() else {
-            if let (Some(d), Some(t)) = (reopen, lost_at) {
-                if now.saturating_duration_since(t) >= d {
-                    out.incomplete = Some(format!(
-                        "port {} lost and not back within --reopen-timeout {} s",
-                        a.port,
-                        d.as_secs_f64()
-                    ));
+            match try_reopen(a, reopen, lost_at, timeout) {
+                Err(why) => {
+                    out.incomplete = Some(why);
                     break;
                 }
-            }
-            std::thread::sleep(Duration::from_millis(100));
-            port = serial::open_with(&a.port, a.baud, timeout, a.shared).ok();
-            if port.is_some() {
-                lost_at = None;
+                Ok(p) => {
+                    if p.is_some() {
+                        lost_at = None;
+                    }
+                    port = p;
+                }
             }
             continue;
         };
@@ -211,5 +302,5 @@ pub fn record(a: &RecordOptions) -> anyhow::Result<RecordOutcome> {
     status.finish();
     w.flush().map_err(werr)?;
     out.stats = s;
-    Ok(out)
+    Ok(None)
 }

@@ -9,6 +9,8 @@ use crate::status::decoder_report;
 use anyhow::{bail, Context};
 use nav_core::types::GnssFix;
 use nav_core::wire::{DecoderStats, Frame, FrameDecoder, Payload};
+use nav_engine::run::interrupt;
+use nav_engine::run::outdir::create_new_file;
 use nav_io::gnss::{GnssEvent, GnssStream, NmeaOptions};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -144,6 +146,10 @@ pub struct ReplayOutcome {
     pub wall_s: f64,
     /// The host filter's run on the decoded frames (`--config`).
     pub filter: Option<FilterRun>,
+    /// The signal (`SIGINT`, `SIGTERM`) that stopped the replay before the end of the
+    /// capture, once [`nav_engine::run::interrupt::install`] is in place: the outputs hold
+    /// every record before it, under their `.partial` names.
+    pub interrupted: Option<String>,
 }
 
 /// Irregular timestamps met while replaying.
@@ -210,7 +216,14 @@ fn in_order(t: f64, last: Option<f64>) -> bool {
 /// `--out` push the IMU samples and GNSS fixes into the host filter as they are decoded. A
 /// truncated or corrupt record ends the replay early: every record before it is replayed and
 /// the outcome says [`ReplayOutcome::incomplete`].
+///
+/// SIGINT or SIGTERM (once [`nav_engine::run::interrupt::install`] is in place) stops the
+/// replay before its next record: the outputs hold every record before it, under their
+/// `.partial` names (`replay-summary.txt.partial` says `incomplete` and why, the filter's
+/// `metrics.json.partial` `"complete": false`), the complete outputs of an earlier replay stay
+/// in place, and the result is [`ReplayInterrupted`].
 pub fn replay(a: &ReplayOptions) -> anyhow::Result<ReplayOutcome> {
+    let _stoppable = interrupt::Stoppable::enter();
     let cap = a.capture.display();
     nav_io::check_leap_seconds(a.leap_seconds)
         .map_err(|e| anyhow::anyhow!("--leap-seconds {e}"))?;
@@ -243,6 +256,10 @@ pub fn replay(a: &ReplayOptions) -> anyhow::Result<ReplayOutcome> {
     let start = Instant::now();
     let mut pacer = Pacer::new(a.max_gap_s);
     loop {
+        if let Some(sig) = interrupt::requested() {
+            dec.out.interrupted = Some(interrupt::signal_name(sig));
+            break;
+        }
         let rec = match rd.next_record() {
             Ok(Some(r)) => r,
             Ok(None) => break,
@@ -265,15 +282,49 @@ pub fn replay(a: &ReplayOptions) -> anyhow::Result<ReplayOutcome> {
         let paced_ns = pacer.advance(rec.t_ns());
         if let Some(s) = speed {
             let due = secs(paced_ns as f64 * 1e-9 / s);
-            if let Some(wait) = due.checked_sub(start.elapsed()) {
-                std::thread::sleep(wait);
-            }
+            sleep_until_or_stop(start, due);
         }
         dec.record(rec)?;
     }
     dec.out.resync = rd.resync_stats();
     dec.out.timing = pacer.stats;
     dec.finish(a, od, start)
+}
+
+/// Sleeps until `due` after `start`, in slices short enough to see a stop request
+/// ([`interrupt::requested`]) at once.
+fn sleep_until_or_stop(start: Instant, due: Duration) {
+    const SLICE: Duration = Duration::from_millis(20);
+    while let Some(wait) = due.checked_sub(start.elapsed()) {
+        if wait.is_zero() || interrupt::requested().is_some() {
+            break;
+        }
+        std::thread::sleep(wait.min(SLICE));
+    }
+}
+
+/// A replay stopped by SIGINT or SIGTERM before the end of its capture (see [`replay`]).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "replay: interrupted by {signal} after {records} record(s) ({recorded_s:.3} s recorded){}",
+    match out {
+        Some(o) => format!(
+            "; everything replayed so far is in {}/*.partial (replay-summary.txt.partial says \
+             incomplete; earlier complete outputs there are unchanged)",
+            o.display()
+        ),
+        None => String::new(),
+    }
+)]
+pub struct ReplayInterrupted {
+    /// The signal's name.
+    pub signal: String,
+    /// Capture records replayed.
+    pub records: u64,
+    /// Recorded time of the last record replayed, s.
+    pub recorded_s: f64,
+    /// The output folder holding the `.partial` outputs (`--out`).
+    pub out: Option<PathBuf>,
 }
 
 /// The pacing of a replay: `Some(speed)`, or None as fast as possible.
@@ -469,6 +520,17 @@ impl Decoding {
     ) -> anyhow::Result<ReplayOutcome> {
         let cap = a.capture.display();
         self.warn_incomplete(a);
+        if let Some(sig) = &self.out.interrupted {
+            let why = format!(
+                "interrupted by {sig} after {} record(s) ({:.3} s recorded): the rest of the \
+                 capture was not replayed",
+                self.out.records, self.out.recorded_s
+            );
+            self.out.incomplete = Some(match self.out.incomplete.take() {
+                Some(w) => format!("{w}; {why}"),
+                None => why,
+            });
+        }
         let mut out = self.out;
         if a.input == InputKind::Gnss {
             out.gnss_fixes
@@ -478,6 +540,7 @@ impl Decoding {
                 }));
         }
         out.stats = *self.frames.stats();
+        warn_rejected(a, &out.stats);
         out.wall_s = start.elapsed().as_secs_f64();
         // The filter first, so that the summary says whether its result is a navigation
         // solution; a filter run that fails still leaves the decoded files and the summary in
@@ -501,16 +564,29 @@ impl Decoding {
                 });
             }
         }
+        let interrupted = out.interrupted.is_some();
         if let Some(od) = &od {
-            if let Some(w) = self.files.take() {
-                w.finish()?;
+            match self.files.take() {
+                Some(w) if interrupted => drop(w.keep_partial()?),
+                Some(w) => drop(w.finish()?),
+                None => {}
             }
             write_outputs(od.stage(), &out, a.input, &self.gnss)?;
         }
         // everything written moved into the output folder, the filter's outputs when it ran
         if let Some(od) = od {
-            let _moving = nav_engine::run::interrupt::Stoppable::enter();
+            let _moving = interrupt::Stoppable::enter();
             od.commit()?;
+        }
+        if let Some(signal) = out.interrupted.clone() {
+            // the filter's own error says the same (it saw the signal too)
+            return Err(ReplayInterrupted {
+                signal,
+                records: out.records,
+                recorded_s: out.recorded_s,
+                out: a.out.clone(),
+            }
+            .into());
         }
         out.filter = filter?;
         if out.filter.is_some() {
@@ -560,6 +636,37 @@ impl Decoding {
     }
 }
 
+/// A warning on stderr when the decoder rejected chunks or frames were lost by sequence (the
+/// decoded files hold every frame that passed; the counters are in the summary).
+fn warn_rejected(a: &ReplayOptions, s: &DecoderStats) {
+    if a.input != InputKind::Frames {
+        return;
+    }
+    let rejected = [
+        s.cobs_errors,
+        s.overflows,
+        s.length_errors,
+        s.crc_errors,
+        s.version_mismatches,
+        s.unknown_types,
+        s.invalid_fields,
+        s.truncated,
+    ]
+    .iter()
+    .map(|&n| u64::from(n))
+    .sum::<u64>();
+    let lost = s.lost_by_stream.iter().map(|&n| u64::from(n)).sum::<u64>();
+    if rejected + lost > 0 {
+        eprintln!(
+            "warning: {}: {rejected} chunk(s) rejected by the frame decoder ({} CRC errors) and \
+             {lost} frame(s) lost by sequence number; the outputs hold the frames that passed \
+             (--verbose prints each rejected chunk with its byte offset)",
+            a.capture.display(),
+            s.crc_errors
+        );
+    }
+}
+
 /// Why the filter's result on a capture is not a navigation solution (no GNSS fix used, or
 /// too few: [`nav_engine::run::gnss_use::check`]), or None when it is one.
 fn not_a_navigation_solution(f: &FilterRun) -> Option<String> {
@@ -576,7 +683,7 @@ fn not_a_navigation_solution(f: &FilterRun) -> Option<String> {
 }
 
 /// Writes `replay-summary.txt` (and, for GNSS input, `gnss.txt`), each through a `.partial`
-/// name and a rename.
+/// name and a rename; an interrupted replay's stay under their `.partial` names.
 fn write_outputs(
     dir: &Path,
     o: &ReplayOutcome,
@@ -618,9 +725,18 @@ fn write_outputs(
             let p = dir.join("gnss.txt");
             let tmp = partial_name(&p);
             nav_io::write_gnss_text(&tmp, &o.gnss_fixes)?;
-            rename(&tmp, &p)?;
+            if o.interrupted.is_none() {
+                rename(&tmp, &p)?;
+            }
             summary.push_str(&format!("{:?}\n", gnss.stats()));
         }
     }
-    write_atomically(&dir.join("replay-summary.txt"), summary.as_bytes())
+    let p = dir.join("replay-summary.txt");
+    if o.interrupted.is_some() {
+        let tmp = partial_name(&p);
+        return create_new_file(&tmp)
+            .and_then(|mut f| std::io::Write::write_all(&mut f, summary.as_bytes()))
+            .with_context(|| format!("writing {}", tmp.display()));
+    }
+    write_atomically(&p, summary.as_bytes())
 }

@@ -66,7 +66,7 @@ fn write_case(dir: &Path, seconds: usize) -> (u64, u64) {
 /// after the test closes it.
 /// The slave side is only held open (so the master never sees a hang-up before the program
 /// under test opens the slave by its path).
-fn pair() -> (TTYPort, OwnedFd, PathBuf) {
+pub(crate) fn pair() -> (TTYPort, OwnedFd, PathBuf) {
     let (m, s) = TTYPort::pair().expect("pty pair");
     let name = PathBuf::from(s.name().expect("pty name"));
     let m = cloexec(m);
@@ -94,7 +94,9 @@ fn relink(link: &Path, target: &Path) {
 
 /// Starts `hw-bridge record` with `args` and waits for its "recording" line; returns the child
 /// and a thread collecting the rest of its stderr.
-fn start_record(args: &[&str]) -> (std::process::Child, std::thread::JoinHandle<String>) {
+pub(crate) fn start_record(
+    args: &[&str],
+) -> (std::process::Child, std::thread::JoinHandle<String>) {
     let mut rec = Command::new(BIN)
         .arg("record")
         .args(args)

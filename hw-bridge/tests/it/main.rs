@@ -9,4 +9,5 @@ mod faults;
 mod fuzz_corpus;
 mod link;
 mod outputs_safety;
+mod record_safety;
 mod simcase;

@@ -244,3 +244,89 @@ fn two_replays_into_one_folder_one_refuses_with_the_owners_pid() {
     assert!(err.contains("another run (pid "), "{err}");
     assert_eq!(decoded(&out), want, "the outputs mix two replays");
 }
+
+/// SIGTERM / SIGINT in the middle of a paced replay into a folder holding a complete earlier
+/// replay: the replay stops at the next record, keeps what it decoded as `*.partial` with
+/// `replay-summary.txt.partial` saying why it is incomplete, leaves the earlier outputs as
+/// they were and exits 128 + the signal.
+#[cfg(unix)]
+fn interrupt_mid_replay(sig: &str, code: i32) {
+    let dir = tempfile::tempdir().unwrap();
+    // 10 s at --speed 1
+    let cap = capture(dir.path(), 2000);
+    let out = dir.path().join("out");
+    assert!(replay(&["--as-fast-as-possible"], &cap, &out)
+        .status
+        .success());
+    let before = hashes(&out);
+    let full = std::fs::read_to_string(out.join("imu.txt")).unwrap();
+    let mut child = Command::new(BIN)
+        .args(["replay", "--speed", "1", "--out"])
+        .arg(&out)
+        .arg(&cap)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // the first checkpoint of the decoded files (after 1 s)
+    let t = std::time::Instant::now();
+    let started = loop {
+        let written = std::fs::metadata(out.join("imu.txt.partial")).is_ok_and(|m| m.len() > 0);
+        if written || t.elapsed() > std::time::Duration::from_secs(30) {
+            break written;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    assert!(started, "the replay wrote nothing within 30 s");
+    let k = Command::new("kill")
+        .args([&format!("-{sig}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(k.success());
+    let st = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert!(t.elapsed() < std::time::Duration::from_secs(8), "{err}");
+    assert_eq!(st.code(), Some(code), "{err}");
+    assert!(err.contains(&format!("interrupted by SIG{sig}")), "{err}");
+    assert!(err.contains(".partial"), "{err}");
+    // the earlier complete outputs unchanged (the lock file holds the last owner's pid)
+    let after = hashes(&out);
+    for (k, v) in before.iter().filter(|(k, _)| *k != ".nav-out.lock") {
+        assert_eq!(after.get(k), Some(v), "{k} changed");
+    }
+    // what was decoded, marked incomplete with the signal
+    let summary = std::fs::read_to_string(out.join("replay-summary.txt.partial")).unwrap();
+    assert!(
+        summary.starts_with(&format!("status incomplete: interrupted by SIG{sig}")),
+        "{summary}"
+    );
+    let part = std::fs::read_to_string(out.join("imu.txt.partial")).unwrap();
+    let n = part.lines().count();
+    assert!(n > 0 && n < full.lines().count(), "{n} lines");
+    assert!(
+        full.starts_with(&part),
+        "imu.txt.partial is not a prefix of the whole"
+    );
+    assert!(out.join("gnss.txt.partial").exists());
+    assert!(
+        after.keys().all(|n| !n.starts_with(".nav-out-stage")),
+        "{after:?}"
+    );
+    println!(
+        "SIG{sig}: exit {code}, {n} of {} IMU lines kept as partial",
+        full.lines().count()
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
+    interrupt_mid_replay("TERM", 143);
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
+    interrupt_mid_replay("INT", 130);
+}

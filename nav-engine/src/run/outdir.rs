@@ -76,6 +76,48 @@ pub enum OutDirError {
         /// The lock file.
         path: PathBuf,
     },
+    /// The output file exists and replacing it was not asked for.
+    #[error(
+        "{} exists ({what}); pass --force to replace it, or choose another name (nothing was \
+         written)",
+        path.display()
+    )]
+    Exists {
+        /// The output file.
+        path: PathBuf,
+        /// What it is (its size, or a link and where it points).
+        what: String,
+    },
+    /// Another process is writing the same output file (it holds the lock on its
+    /// `.partial` file).
+    #[error(
+        "{}: another process is writing this file (it holds {}); wait for it to end or choose \
+         another name (nothing was written)",
+        path.display(),
+        partial.display()
+    )]
+    FileBusy {
+        /// The output file.
+        path: PathBuf,
+        /// Its `.partial` file, locked by the other writer.
+        partial: PathBuf,
+    },
+    /// The output file's `.partial` name holds something no process is writing: the data
+    /// of an interrupted writer, or a link.
+    #[error(
+        "{} holds {what}; move it away (or pass --force to remove it) before writing {} \
+         (nothing was written)",
+        partial.display(),
+        path.display()
+    )]
+    Leftover {
+        /// The output file.
+        path: PathBuf,
+        /// Its `.partial` name.
+        partial: PathBuf,
+        /// What is there.
+        what: String,
+    },
     /// A file-system operation failed.
     #[error("{}: {what}: {source}", path.display())]
     Io {
@@ -219,6 +261,174 @@ pub fn create_new_file(path: &Path) -> std::io::Result<File> {
         .write(true)
         .create_new(true)
         .open(path)
+}
+
+/// What is at `path` without following a link, for a message (None: nothing).
+fn describe(path: &Path) -> Option<String> {
+    let m = std::fs::symlink_metadata(path).ok()?;
+    Some(if m.file_type().is_symlink() {
+        match std::fs::read_link(path) {
+            Ok(t) => format!("a link to {}", t.display()),
+            Err(_) => "a link".to_string(),
+        }
+    } else if m.is_dir() {
+        "a folder".to_string()
+    } else if m.is_file() {
+        format!("a file of {} bytes", m.len())
+    } else {
+        "a special file".to_string()
+    })
+}
+
+/// An output file written under its `.partial` name (`NAME.partial` beside it) and moved to
+/// its name by [`StagedFile::commit`]:
+/// - an existing file or link under the name is refused unless `force` (then replaced by
+///   the rename, a link never written through);
+/// - the `.partial` file is created new (`O_EXCL`: a link there is never followed) and
+///   locked (`flock`) while written: a second writer of the same name refuses; a `.partial`
+///   file nobody holds (an interrupted writer's data) or a link there is refused unless
+///   `force` (then removed);
+/// - [`StagedFile::commit`] syncs the file and moves it to its name; without `force` a file
+///   that appeared under the name meanwhile is not replaced (the data stay in `.partial`,
+///   and the error says so);
+/// - dropped without [`StagedFile::commit`] (an error, a kill): the `.partial` file stays,
+///   holding what was written.
+#[derive(Debug)]
+pub struct StagedFile {
+    dest: PathBuf,
+    partial: PathBuf,
+    force: bool,
+    file: File,
+}
+
+impl StagedFile {
+    /// Creates `NAME.partial` for the output file `dest` (see the type's notes).
+    pub fn create(dest: &Path, force: bool) -> Result<Self, OutDirError> {
+        let mut p = dest.as_os_str().to_os_string();
+        p.push(".partial");
+        let partial = PathBuf::from(p);
+        if let Ok(m) = std::fs::symlink_metadata(dest) {
+            if m.is_dir() || !force {
+                return Err(OutDirError::Exists {
+                    path: dest.to_path_buf(),
+                    what: describe(dest).unwrap_or_default(),
+                });
+            }
+        }
+        if let Some(what) = describe(&partial) {
+            let m = std::fs::symlink_metadata(&partial).map_err(io_err(&partial, "reading"))?;
+            if m.is_file() {
+                // a writer holding it?
+                let f = std::fs::OpenOptions::new()
+                    .read(true)
+                    .open(&partial)
+                    .map_err(io_err(&partial, "opening"))?;
+                if let Err(std::fs::TryLockError::WouldBlock) = f.try_lock() {
+                    return Err(OutDirError::FileBusy {
+                        path: dest.to_path_buf(),
+                        partial,
+                    });
+                }
+            }
+            if !force || m.is_dir() {
+                let what = if m.is_file() {
+                    format!("{what}, the data of an interrupted writer")
+                } else {
+                    what
+                };
+                return Err(OutDirError::Leftover {
+                    path: dest.to_path_buf(),
+                    partial,
+                    what,
+                });
+            }
+            std::fs::remove_file(&partial).map_err(io_err(&partial, "removing"))?;
+        }
+        let mut o = std::fs::OpenOptions::new();
+        o.read(true).write(true).create_new(true);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::OpenOptionsExt;
+            o.custom_flags(libc::O_NOFOLLOW | libc::O_CLOEXEC);
+        }
+        let file = o.open(&partial).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::AlreadyExists {
+                // created by another writer between the look and the creation
+                OutDirError::FileBusy {
+                    path: dest.to_path_buf(),
+                    partial: partial.clone(),
+                }
+            } else {
+                io_err(&partial, "creating")(e)
+            }
+        })?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(OutDirError::FileBusy {
+                    path: dest.to_path_buf(),
+                    partial,
+                })
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(io_err(&partial, "locking")(e)),
+        }
+        Ok(Self {
+            dest: dest.to_path_buf(),
+            partial,
+            force,
+            file,
+        })
+    }
+
+    /// The `.partial` file being written.
+    pub fn partial(&self) -> &Path {
+        &self.partial
+    }
+
+    /// The output file's name.
+    pub fn dest(&self) -> &Path {
+        &self.dest
+    }
+
+    /// A handle to write the `.partial` file through (the same open file: the lock holds
+    /// while either is open).
+    pub fn writer(&self) -> Result<File, OutDirError> {
+        self.file
+            .try_clone()
+            .map_err(io_err(&self.partial, "opening for writing"))
+    }
+
+    /// Syncs the `.partial` file and moves it to its name (see the type's notes).
+    pub fn commit(self) -> Result<PathBuf, OutDirError> {
+        self.file
+            .sync_all()
+            .map_err(io_err(&self.partial, "syncing"))?;
+        if !self.force {
+            // no replacement: a hard link fails when the name exists
+            match std::fs::hard_link(&self.partial, &self.dest) {
+                Ok(()) => {
+                    std::fs::remove_file(&self.partial)
+                        .map_err(io_err(&self.partial, "removing"))?;
+                    return Ok(self.dest);
+                }
+                Err(_) if describe(&self.dest).is_some() => {
+                    return Err(OutDirError::Exists {
+                        path: self.dest.clone(),
+                        what: format!(
+                            "{}, which appeared while writing; the new data are kept in {}",
+                            describe(&self.dest).unwrap_or_default(),
+                            self.partial.display()
+                        ),
+                    })
+                }
+                // a file system without hard links: the rename below
+                Err(_) => {}
+            }
+        }
+        std::fs::rename(&self.partial, &self.dest)
+            .map_err(io_err(&self.dest, "moving into place"))?;
+        Ok(self.dest)
+    }
 }
 
 /// Opens the lock file without following a link and checks that it is a regular file with a
@@ -421,6 +631,31 @@ mod tests {
         // a folder that does not exist holds nothing
         assert!(check_inputs(&d.path().join("none"), &[input]).is_ok());
         assert!(!d.path().join("none").exists());
+    }
+
+    #[test]
+    fn a_staged_file_never_replaces_a_file_that_appeared_without_force() {
+        let d = tempfile::tempdir().unwrap();
+        let dest = d.path().join("c.cap");
+        let f = StagedFile::create(&dest, false).unwrap();
+        f.writer().unwrap().write_all(b"new").unwrap();
+        // a second writer of the same name refuses while the first holds it, even forced
+        let e = StagedFile::create(&dest, true).unwrap_err();
+        assert!(matches!(e, OutDirError::FileBusy { .. }), "{e}");
+        std::fs::write(&dest, b"appeared").unwrap();
+        let e = f.commit().unwrap_err();
+        assert!(e.to_string().contains("kept in"), "{e}");
+        assert_eq!(std::fs::read(&dest).unwrap(), b"appeared");
+        assert_eq!(
+            std::fs::read(d.path().join("c.cap.partial")).unwrap(),
+            b"new"
+        );
+        // forced: the leftover removed, the file replaced
+        let f = StagedFile::create(&dest, true).unwrap();
+        f.writer().unwrap().write_all(b"newer").unwrap();
+        assert_eq!(f.commit().unwrap(), dest);
+        assert_eq!(std::fs::read(&dest).unwrap(), b"newer");
+        assert!(!d.path().join("c.cap.partial").exists());
     }
 
     #[cfg(unix)]

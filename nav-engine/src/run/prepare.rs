@@ -637,6 +637,12 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     }
     add_truth(args, case_dir.as_ref(), stream, &mut case, &mut description)?;
     apply_time_offset(args, &mut case, imu_stream.as_mut(), &mut description)?;
+    // a given state timed at the first IMU sample (no start_s) moves with the IMU times
+    if let (Some(dt), None, InitSpec::Given(state, _)) =
+        (args.imu_time_offset_s, opts.start_s, &mut opts.init)
+    {
+        state.t_s += dt;
+    }
     apply_overrides(args, &mut opts, &mut description)?;
     let nav_rate_hz = schedule(
         args,
