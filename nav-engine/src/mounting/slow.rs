@@ -31,7 +31,7 @@ pub const MIN_SLOW_SPEED_MPS: f64 = 0.05;
 pub const MAX_WINDOW_S: f64 = 12.0;
 /// Largest turn of the sensor since the anchor fix for the velocity to be used, deg (the
 /// body's forward axis must not have moved).
-pub const MAX_WINDOW_TURN_DEG: f64 = 3.0;
+pub const MAX_WINDOW_TURN_DEG: f64 = 1.0;
 /// Fewest starts and stops for a yaw.
 pub const MIN_STARTS_STOPS: usize = 2;
 
@@ -214,7 +214,7 @@ fn start_stop_directions(imu: &[ImuSample], iv: &[Interval], rs: &[Rest]) -> Vec
             (iv[r.last].t0, starts.collect::<Vec<_>>()),
             (iv[r.first].t1, stops.collect::<Vec<_>>()),
         ] {
-            let mut best: Option<(f64, Vector3<f64>)> = None;
+            let mut best: Option<Vector3<f64>> = None;
             for k in ks {
                 let it = &iv[k];
                 if (it.t1 - anchor).abs().max((it.t0 - anchor).abs()) > MAX_WINDOW_S {
@@ -231,11 +231,11 @@ fn start_stop_directions(imu: &[ImuSample], iv: &[Interval], rs: &[Rest]) -> Vec
                 if size < 0.3 * it.speed || size > 2.0 * it.speed + 0.05 {
                     continue;
                 }
-                if best.is_none_or(|b| it.speed > b.0) {
-                    best = Some((it.speed, dv / size));
-                }
+                // the nearest: the shortest integration
+                best = Some(dv / size);
+                break;
             }
-            if let Some((_, u)) = best {
+            if let Some(u) = best {
                 out.push(u);
             }
         }
