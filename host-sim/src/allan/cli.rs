@@ -555,26 +555,16 @@ fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
     Ok(ch)
 }
 
-/// Runs `host-sim allan`.
-pub fn run(args: AllanArgs) -> anyhow::Result<()> {
-    let spinner = (!args.quiet).then(|| {
-        let pb = ProgressBar::new_spinner();
-        pb.set_message(format!("reading {}", args.input.display()));
-        pb.enable_steady_tick(std::time::Duration::from_millis(120));
-        pb
-    });
-    let mut ch = read_input(&args)?;
-    if let Some(pb) = spinner {
-        pb.finish_and_clear();
-    }
+/// Finds the outliers of each channel (Hampel, threshold from `--outlier-rate`) and prints
+/// them.
+fn report_outliers(
+    args: &AllanArgs,
+    ch: &Channels,
+) -> anyhow::Result<(
+    noise_id::outliers::HampelOptions,
+    Vec<noise_id::outliers::Outliers>,
+)> {
     let n = ch.data.first().map_or(0, Vec::len);
-    if n < 16 {
-        anyhow::bail!("{}: only {n} samples", args.input.display());
-    }
-    for note in &ch.notes {
-        eprintln!("{note}");
-    }
-    // outliers: reported always, removed with --exclude-outliers
     if !(args.outlier_rate > 0.0 && args.outlier_rate < 0.5) {
         anyhow::bail!(
             "--outlier-rate {}: a fraction of the samples, above 0 and below 0.5",
@@ -629,6 +619,30 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
             }
         );
     }
+    Ok((hopt, outliers))
+}
+
+/// Runs `host-sim allan`.
+pub fn run(args: AllanArgs) -> anyhow::Result<()> {
+    let spinner = (!args.quiet).then(|| {
+        let pb = ProgressBar::new_spinner();
+        pb.set_message(format!("reading {}", args.input.display()));
+        pb.enable_steady_tick(std::time::Duration::from_millis(120));
+        pb
+    });
+    let mut ch = read_input(&args)?;
+    if let Some(pb) = spinner {
+        pb.finish_and_clear();
+    }
+    let n = ch.data.first().map_or(0, Vec::len);
+    if n < 16 {
+        anyhow::bail!("{}: only {n} samples", args.input.display());
+    }
+    for note in &ch.notes {
+        eprintln!("{note}");
+    }
+    // outliers: reported always, removed with --exclude-outliers
+    let (hopt, outliers) = report_outliers(&args, &ch)?;
     if args.exclude_outliers {
         for (y, o) in ch.data.iter_mut().zip(&outliers) {
             *y = o.replaced(y);
