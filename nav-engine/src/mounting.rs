@@ -51,6 +51,11 @@ use nav_core::earth::{self, Llh};
 use nav_core::types::{GnssFix, ImuSample};
 use std::collections::VecDeque;
 
+mod slow;
+pub use slow::{
+    MAX_WINDOW_S, MAX_WINDOW_TURN_DEG, MIN_REST_INTERVALS, MIN_SLOW_SPEED_MPS, MIN_STARTS_STOPS,
+};
+
 /// Lowest GNSS horizontal speed for the course to be used, m/s.
 pub const MIN_SPEED_MPS: f64 = 3.0;
 /// Lowest course rate of an interval used in the turn test, deg/s.
@@ -669,8 +674,10 @@ pub struct MountingEstimate {
     pub final_residual_mps2: f64,
     /// Intervals used at rest and while moving.
     pub rest_intervals: usize,
-    /// Intervals used while moving.
+    /// Intervals used while moving (for a slow vehicle: the starts and stops used).
     pub moving_intervals: usize,
+    /// What was determined from what, and what could not be (printed as comments).
+    pub notes: Vec<String>,
 }
 
 fn pairs(imu: &[ImuSample], gnss: &[GnssFix]) -> Vec<Pair> {
@@ -806,14 +813,22 @@ fn roll_to_data(p: &mut Pair, m: &Matrix3<f64>) {
 /// Why the mounting could not be estimated ([`estimate_mounting`]): what the data lack.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum MountingError {
-    /// Too few GNSS intervals while moving.
+    /// Too few GNSS intervals while moving, and too few starts and stops of a slow vehicle.
     #[error(
-        "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s: the mounting \
-         needs a drive with accelerations and turns (a few minutes)"
+        "only {moving} GNSS intervals while moving at >= {MIN_SPEED_MPS} m/s (10 needed), and \
+         {starts_stops} starts or stops next to {rests} rests of >= {MIN_REST_INTERVALS} GNSS \
+         intervals ({MIN_STARTS_STOPS} needed, with a rest for roll and pitch): the mounting \
+         needs a drive with accelerations and turns (a few minutes), or for a slow vehicle a \
+         few stops of some seconds between straight drives forwards"
     )]
     TooLittleMotion {
-        /// GNSS intervals while moving (at least 10 are needed).
+        /// GNSS intervals while moving at car speed (at least 10 are needed).
         moving: usize,
+        /// Rests found (GNSS slower than [`REST_SPEED_MPS`] for >= [`MIN_REST_INTERVALS`]
+        /// intervals).
+        rests: usize,
+        /// Starts and stops next to them whose velocity change gave a direction.
+        starts_stops: usize,
     },
     /// The specific forces do not determine a rotation (the SVD failed).
     #[error("the specific forces do not determine a rotation")]
@@ -830,7 +845,7 @@ pub fn estimate_mounting(
     let rest = ps.iter().filter(|p| !p.moving).count();
     let moving = ps.len() - rest;
     if moving < 10 {
-        return Err(MountingError::TooLittleMotion { moving });
+        return slow::estimate(imu, gnss, moving);
     }
     let mut scored: Vec<(f64, Matrix3<f64>)> = axis_layouts()
         .into_iter()
@@ -872,26 +887,32 @@ pub fn estimate_mounting(
         final_residual_mps2: final_res,
         rest_intervals: rest,
         moving_intervals: moving,
+        notes: vec![format!(
+            "roll, pitch and yaw from gravity at {rest} rest intervals and the GNSS \
+             accelerations and course of {moving} intervals at >= {MIN_SPEED_MPS} m/s"
+        )],
     })
 }
 
 impl MountingEstimate {
-    /// The `[imu.mounting]` section to paste, with the uncertainty and the runner-up as
-    /// comments.
+    /// The `[imu.mounting]` section to paste, with the uncertainty, the runner-up and the
+    /// notes as comments.
     pub fn toml_section(&self) -> String {
         let [r, p, y] = self.rpy_deg;
         let [sr, sp, sy] = self.sigma_deg;
-        format!(
-            "# estimated by `host-sim mounting` from {} rest and {} moving GNSS intervals\n\
+        let notes: String = self.notes.iter().map(|n| format!("# {n}\n")).collect();
+        notes
+            + &format!(
+                "# estimated by `host-sim mounting` from {} rest and {} moving GNSS intervals\n\
              # 1-sigma roll {sr:.2}, pitch {sp:.2}, yaw {sy:.2} deg; residual {:.3} m/s^2 \
              (best axis layout {:.3}, runner-up layout {:.3})\n\
              [imu.mounting]\nrpy_deg = [{r:.2}, {p:.2}, {y:.2}]\n",
-            self.rest_intervals,
-            self.moving_intervals,
-            self.final_residual_mps2,
-            self.best_residual_mps2,
-            self.runner_up_residual_mps2
-        )
+                self.rest_intervals,
+                self.moving_intervals,
+                self.final_residual_mps2,
+                self.best_residual_mps2,
+                self.runner_up_residual_mps2
+            )
     }
 }
 

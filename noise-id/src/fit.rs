@@ -640,6 +640,33 @@ fn search_tb(pts: &[Pt], terms: &Terms, wmodel: &DMatrix<f64>) -> (f64, [f64; 5]
     }
 }
 
+/// Block means per tau below which the noise type identified at that tau is not trusted
+/// for the fit's weights: the lag-1 autocorrelation of `n` block means has a standard error
+/// of about `1 / sqrt(n)`, 0.03 at 1,000, enough to move the identified exponent by one.
+pub const RELIABLE_ID_BLOCKS: usize = 1000;
+
+/// The equivalent degrees of freedom the fit and its checks give an OADEV point: the
+/// curve's EDF (for the noise type identified at that tau), but where fewer than
+/// [`RELIABLE_ID_BLOCKS`] block means identified it (or it was carried over from a shorter
+/// tau, below 30 block means), the smaller of that and the EDF of the next lower noise
+/// exponent. A chance white- or flicker-phase identification at a long tau otherwise gives
+/// EDFs tens of times too large there (one Gauss-Markov record of 30 min: 711 instead of
+/// 66 at tau 41 s), which makes a correct model look like it misses the curve and inflates
+/// the model-error floor of every candidate.
+pub fn fit_edf(p: &DevPoint) -> f64 {
+    let n_phase = p.n_terms + 2 * p.m;
+    let blocks = n_phase.saturating_sub(1) / p.m.max(1);
+    if blocks >= RELIABLE_ID_BLOCKS || !p.edf.is_finite() {
+        return p.edf;
+    }
+    let lower = crate::edf::edf_for(crate::Deviation::Oadev, p.alpha - 1, p.m, n_phase);
+    if lower.is_finite() {
+        p.edf.min(lower)
+    } else {
+        p.edf
+    }
+}
+
 /// Fits the model to a deviation curve (normally OADEV with EDF from [`super::deviation_curve`]).
 pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError> {
     let pts: Vec<Pt> = points
@@ -647,14 +674,14 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
         .filter(|p| {
             p.tau_s >= opt.tau_range_s.0
                 && p.tau_s <= opt.tau_range_s.1
-                && p.edf.is_finite()
-                && p.edf >= opt.min_edf
+                && fit_edf(p).is_finite()
+                && fit_edf(p) >= opt.min_edf
                 && p.dev > 0.0
         })
         .map(|p| Pt {
             tau: p.tau_s,
             avar: p.dev * p.dev,
-            edf: p.edf,
+            edf: fit_edf(p),
             m: p.m,
             n_terms: p.n_terms,
         })

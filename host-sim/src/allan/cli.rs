@@ -127,10 +127,16 @@ pub struct AllanArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Replace the outliers (Hampel filter: more than 8 robust sigmas from the median of 51
-    /// samples, always reported) by their window median before the statistics.
+    /// Replace the outliers (Hampel filter: farther from the median of 51 samples than the
+    /// threshold of `--outlier-rate`, always reported) by their window median before the
+    /// statistics.
     #[arg(long)]
     pub exclude_outliers: bool,
+    /// False-positive rate of the outlier test: the fraction of the samples of spike-free
+    /// Gaussian noise it flags. The threshold in robust sigmas is calibrated to it (1e-6:
+    /// 6.96 sigma; 1e-7: 8.07; 1e-4: 4.83); the output states both.
+    #[arg(long, default_value_t = noise_id::outliers::DEFAULT_FALSE_POSITIVE_RATE)]
+    pub outlier_rate: f64,
 }
 
 /// The analysis of one channel.
@@ -549,36 +555,42 @@ fn read_input(args: &AllanArgs) -> anyhow::Result<Channels> {
     Ok(ch)
 }
 
-/// Runs `host-sim allan`.
-pub fn run(args: AllanArgs) -> anyhow::Result<()> {
-    let spinner = (!args.quiet).then(|| {
-        let pb = ProgressBar::new_spinner();
-        pb.set_message(format!("reading {}", args.input.display()));
-        pb.enable_steady_tick(std::time::Duration::from_millis(120));
-        pb
-    });
-    let mut ch = read_input(&args)?;
-    if let Some(pb) = spinner {
-        pb.finish_and_clear();
-    }
+/// Finds the outliers of each channel (Hampel, threshold from `--outlier-rate`) and prints
+/// them.
+fn report_outliers(
+    args: &AllanArgs,
+    ch: &Channels,
+) -> anyhow::Result<(
+    noise_id::outliers::HampelOptions,
+    Vec<noise_id::outliers::Outliers>,
+)> {
     let n = ch.data.first().map_or(0, Vec::len);
-    if n < 16 {
-        anyhow::bail!("{}: only {n} samples", args.input.display());
+    if !(args.outlier_rate > 0.0 && args.outlier_rate < 0.5) {
+        anyhow::bail!(
+            "--outlier-rate {}: a fraction of the samples, above 0 and below 0.5",
+            args.outlier_rate
+        );
     }
-    for note in &ch.notes {
-        eprintln!("{note}");
-    }
-    // outliers: reported always, removed with --exclude-outliers
-    let hopt = noise_id::outliers::HampelOptions::default();
+    let hopt = if args.outlier_rate == noise_id::outliers::DEFAULT_FALSE_POSITIVE_RATE {
+        noise_id::outliers::HampelOptions::default()
+    } else {
+        noise_id::outliers::HampelOptions::with_false_positive_rate(
+            noise_id::outliers::DEFAULT_HALF_WINDOW,
+            args.outlier_rate,
+        )
+    };
     let outliers: Vec<noise_id::outliers::Outliers> = ch
         .data
         .par_iter()
         .map(|y| noise_id::outliers::hampel(y, &hopt))
         .collect();
     println!(
-        "Outliers (Hampel: > {} robust sigma from the median of {} samples){}:",
+        "Outliers (Hampel: > {:.2} robust sigma from the median of {} samples, a threshold that \
+         flags {:.0e} of the samples of spike-free Gaussian noise, {:.1} expected here){}:",
         hopt.n_sigma,
         2 * hopt.half_window + 1,
+        args.outlier_rate,
+        args.outlier_rate * n as f64,
         if args.exclude_outliers {
             ", replaced by the window median"
         } else {
@@ -607,6 +619,30 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
             }
         );
     }
+    Ok((hopt, outliers))
+}
+
+/// Runs `host-sim allan`.
+pub fn run(args: AllanArgs) -> anyhow::Result<()> {
+    let spinner = (!args.quiet).then(|| {
+        let pb = ProgressBar::new_spinner();
+        pb.set_message(format!("reading {}", args.input.display()));
+        pb.enable_steady_tick(std::time::Duration::from_millis(120));
+        pb
+    });
+    let mut ch = read_input(&args)?;
+    if let Some(pb) = spinner {
+        pb.finish_and_clear();
+    }
+    let n = ch.data.first().map_or(0, Vec::len);
+    if n < 16 {
+        anyhow::bail!("{}: only {n} samples", args.input.display());
+    }
+    for note in &ch.notes {
+        eprintln!("{note}");
+    }
+    // outliers: reported always, removed with --exclude-outliers
+    let (hopt, outliers) = report_outliers(&args, &ch)?;
     if args.exclude_outliers {
         for (y, o) in ch.data.iter_mut().zip(&outliers) {
             *y = o.replaced(y);
@@ -715,6 +751,7 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
                         "sizes_sigma": out.sizes_sigma,
                         "half_window": hopt.half_window,
                         "n_sigma": hopt.n_sigma,
+                        "gaussian_false_positive_rate": args.outlier_rate,
                     }),
                 );
             }

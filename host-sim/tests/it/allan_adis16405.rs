@@ -123,6 +123,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
         no_plot: false,
         quiet: true,
         exclude_outliers: false,
+        outlier_rate: noise_id::outliers::DEFAULT_FALSE_POSITIVE_RATE,
         accel_bias_init_ug: None,
         gyro_bias_init_deg_per_h: None,
     })

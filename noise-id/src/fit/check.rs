@@ -63,7 +63,7 @@ fn normalized(f: &FitResult, points: &[DevPoint], eps: f64) -> Vec<(f64, f64, f6
             let edf = points
                 .iter()
                 .find(|p| p.tau_s == tau)
-                .map_or(f64::INFINITY, |p| p.edf);
+                .map_or(f64::INFINITY, fit_edf);
             let r = (meas - model) / (model * (2.0 / edf + eps * eps).sqrt());
             (tau, meas, model, r)
         })
@@ -115,20 +115,13 @@ fn kept_terms(f: &FitResult) -> Terms {
     }
 }
 
-/// Checks whether `selected` (fitted to `points` with `opt`) follows the curve: its
-/// residuals against the 95 % band of each estimate (statistical, from the EDF, widened by
-/// the model-error floor the fullest five-term model needs, as [`fit_select`] estimates it).
-/// When it misses ([`MIN_RUN`] or more consecutive taus beyond the band on one side), every
-/// subset of the five terms with white noise is fitted and the one with the fewest misses,
-/// then the fewest parameters, then the smallest BIC (`chi2 + p ln n`), is named if it does
-/// better (the simplest model that follows the curve). Candidates whose T_B
-/// ends at the edge of its search range are skipped (the Gauss-Markov term is then only a
-/// second white-noise or random-walk term).
-pub fn check_model(
+/// The model-error floor of the check's band: the relative error the fullest five-term
+/// model needs for a reduced chi-square of 1 (iterated with the refit), and the options
+/// (diagonal EDF weights, all five terms, that floor) the check fits candidates with.
+pub(super) fn band_floor(
     points: &[DevPoint],
-    selected: &FitResult,
     opt: &FitOptions,
-) -> Result<ModelCheck, FitError> {
+) -> Result<(f64, FitOptions), FitError> {
     let all = Terms {
         quant: true,
         white: true,
@@ -149,7 +142,7 @@ pub fn check_model(
                 points
                     .iter()
                     .find(|p| p.tau_s == r.0)
-                    .map_or(f64::INFINITY, |p| p.edf)
+                    .map_or(f64::INFINITY, fit_edf)
             })
             .collect()
     };
@@ -162,7 +155,31 @@ pub fn check_model(
         o.model_error_rel = eps;
         full = fit(points, &o)?;
     }
-    let eps = o.model_error_rel;
+    Ok((o.model_error_rel, o))
+}
+
+/// Whether `f` follows the curve: no run of [`MIN_RUN`] or more consecutive fitted taus
+/// beyond the 95 % band (floor `eps`, from [`band_floor`]) on one side.
+pub(super) fn follows_curve(points: &[DevPoint], f: &FitResult, eps: f64) -> bool {
+    misses_of(&normalized(f, points, eps)).0.is_empty()
+}
+
+/// Checks whether `selected` (fitted to `points` with `opt`) follows the curve: its
+/// residuals against the 95 % band of each estimate (statistical, from the EDF, widened by
+/// the model-error floor the fullest five-term model needs, as [`fit_select`] estimates it).
+/// When it misses ([`MIN_RUN`] or more consecutive taus beyond the band on one side), every
+/// subset of the five terms with white noise is fitted and the one with the fewest misses,
+/// then the fewest parameters, then the smallest BIC (`chi2 + p ln n`), is named if it does
+/// better (the simplest model that follows the curve). Candidates whose T_B
+/// ends at the edge of its search range are skipped (the Gauss-Markov term is then only a
+/// second white-noise or random-walk term).
+pub fn check_model(
+    points: &[DevPoint],
+    selected: &FitResult,
+    opt: &FitOptions,
+) -> Result<ModelCheck, FitError> {
+    let (eps, o) = band_floor(points, opt)?;
+    let all = o.terms;
     let res = normalized(selected, points, eps);
     let chi2 = res.iter().map(|r| r.3 * r.3).sum::<f64>();
     let (misses, n_outside) = misses_of(&res);

@@ -113,7 +113,8 @@ fn significant(e: Est) -> bool {
 }
 
 /// Term selection: fits every subset of `opt.terms` (keeping the white-noise term if it is
-/// in the set) and returns the eligible one with the smallest Bayesian information criterion.
+/// in the set) and returns the eligible one with the smallest Bayesian information criterion
+/// among those that follow the curve within the 95 % band of [`check_model`].
 ///
 /// Real curves deviate from any few-term power-law model by more than the tiny statistical
 /// scatter of the short-tau estimates (EDF ~ 1e5), which would make every extra term look
@@ -123,7 +124,14 @@ fn significant(e: Est) -> bool {
 /// this is the ordinary weighted least squares. A candidate is not eligible when NNLS put
 /// one of its terms at zero (it is then a smaller candidate), when its T_B ends at the edge
 /// of the search range (then the Gauss-Markov term is only a second white-noise or
-/// random-walk term), or when a parameter is less than twice its uncertainty.
+/// random-walk term), or when a parameter is less than twice its uncertainty. Of the
+/// eligible candidates in BIC order, the first that also follows the curve ([`MIN_RUN`] or
+/// more consecutive taus beyond the band on one side is a miss) is selected: a simpler
+/// model that misses the curve gives biased coefficients (white noise alone on a curve with
+/// a Gauss-Markov bump puts the bump's power into the white-noise level). When no
+/// significant candidate follows the curve, the first that follows it is taken (its
+/// candidate line says a parameter is below twice its uncertainty); when none does, the
+/// first significant one, and [`check_model`] says where it misses.
 pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, FitError> {
     let edf_of = |f: &FitResult| -> Vec<f64> {
         f.residuals
@@ -132,7 +140,7 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
                 points
                     .iter()
                     .find(|p| p.tau_s == r.0)
-                    .map_or(f64::INFINITY, |p| p.edf)
+                    .map_or(f64::INFINITY, fit_edf)
             })
             .collect()
     };
@@ -180,7 +188,8 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
         });
     }
     // In BIC order, the first eligible candidate whose parameters are all significant with
-    // the requested covariance.
+    // the requested covariance and that follows the curve within the check's band; failing
+    // that, the first that follows the curve; failing that, the first significant one.
     let mut order: Vec<usize> = (0..candidates.len())
         .filter(|&k| candidates[k].rejected.is_none())
         .collect();
@@ -189,6 +198,9 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
         weighting: opt.weighting,
         ..o.clone()
     };
+    let (band_eps, _) = super::check::band_floor(points, opt)?;
+    let mut significant_first: Option<(usize, FitResult)> = None;
+    let mut following_first: Option<(usize, FitResult)> = None;
     let mut chosen = None;
     for k in order {
         let f = fit(
@@ -200,13 +212,26 @@ pub fn fit_select(points: &[DevPoint], opt: &FitOptions) -> Result<Selection, Fi
         )?;
         let sig = nonzero(&f).iter().all(|(on, e)| !*on || significant(*e))
             && (!f.terms.gm || significant(f.t_b_s));
-        if sig {
+        let follows = super::check::follows_curve(points, &f, band_eps);
+        if sig && follows {
             chosen = Some(f);
             break;
         }
-        candidates[k].rejected = Some("a parameter is below twice its uncertainty".into());
+        if sig {
+            candidates[k].rejected = Some("misses the curve beyond its 95 % band".into());
+            significant_first.get_or_insert((k, f));
+        } else {
+            candidates[k].rejected = Some("a parameter is below twice its uncertainty".into());
+            if follows {
+                following_first.get_or_insert((k, f));
+            }
+        }
     }
-    let fit = match chosen {
+    let fit = match chosen.or_else(|| {
+        let (k, f) = following_first.or(significant_first)?;
+        candidates[k].rejected = None;
+        Some(f)
+    }) {
         Some(f) => f,
         None => fit(points, &fin)?,
     };
