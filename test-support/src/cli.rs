@@ -119,8 +119,11 @@ pub struct Bounded {
     pub stderr: String,
     /// Wall time to the end (or to the kill), s.
     pub wall_s: f64,
-    /// Peak resident set of the process, KiB (`ru_maxrss` of `wait4`; 0 elsewhere than on
-    /// unix).
+    /// Peak resident set of the process's own image, KiB: its `VmHWM` (Linux
+    /// `/proc/PID/status`) read every 5 ms while it runs, so a peak in its last 5 ms may be
+    /// missed; 0 when it ended before the first reading or elsewhere than on Linux. Not
+    /// `wait4`'s `ru_maxrss`: that one keeps the high-water mark of the address space the
+    /// child left at `exec`, the test process's own (hundreds of MiB while other tests run).
     pub max_rss_kib: u64,
     /// CPU time of the process (user + system), s.
     pub cpu_s: f64,
@@ -145,8 +148,8 @@ impl Bounded {
 
 /// Runs `cmd` (its standard input empty, in a process group of its own) for at most `limit`:
 /// killed (SIGKILL, with the processes it started) past it.
-/// Measures its own peak resident set and CPU time with `wait4` (that child only, not the
-/// other children of the test).
+/// Measures its own CPU time with `wait4` (that child only, not the other children of the
+/// test) and its peak resident set from `/proc` ([`Bounded::max_rss_kib`]).
 #[cfg(unix)]
 // the child is reaped by `wait4` (std's `wait` would lose its resource usage)
 #[allow(clippy::zombie_processes)]
@@ -176,7 +179,9 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
     let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
     let pid = libc::pid_t::try_from(child.id()).expect("a pid");
     let mut killed = false;
+    let mut max_rss_kib = 0u64;
     let (status, ru) = loop {
+        max_rss_kib = max_rss_kib.max(vm_hwm_kib(pid).unwrap_or(0));
         let mut st = 0;
         // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child.
         let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
@@ -201,9 +206,18 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
         stdout: out.join().unwrap_or_default(),
         stderr: err.join().unwrap_or_default(),
         wall_s: t.elapsed().as_secs_f64(),
-        max_rss_kib: u64::try_from(ru.ru_maxrss).unwrap_or(0),
+        max_rss_kib,
         cpu_s: secs(ru.ru_utime) + secs(ru.ru_stime),
     }
+}
+
+/// The high-water mark of a running process's resident set (`VmHWM` of `/proc/PID/status`),
+/// KiB; None once it has ended (a zombie has no address space) or without `/proc`.
+#[cfg(unix)]
+fn vm_hwm_kib(pid: libc::pid_t) -> Option<u64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 #[cfg(test)]
@@ -217,7 +231,8 @@ mod tests {
         let r = run_bounded(Command::new("/bin/sh").args(["-c", "sleep 20"]), limit);
         assert!(r.timed_out() && r.wall_s < 10.0, "{r:?}");
         let r = run_bounded(
-            Command::new("/bin/sh").args(["-c", "echo out; echo err >&2; exit 3"]),
+            // the sleep: alive at the first readings of its resident set
+            Command::new("/bin/sh").args(["-c", "sleep 0.1; echo out; echo err >&2; exit 3"]),
             std::time::Duration::from_secs(20),
         );
         assert_eq!(
@@ -225,6 +240,19 @@ mod tests {
             (Some(3), "out\n", "err\n")
         );
         assert!(r.max_rss_kib > 0 && !r.panicked(), "{r:?}");
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_peak_resident_set_is_the_childs_own_not_the_test_processs() {
+        // the test process holds 256 MiB, touched; the child (a shell sleeping) a few MiB
+        let big = vec![1u8; 256 << 20];
+        let r = run_bounded(
+            Command::new("/bin/sh").args(["-c", "sleep 0.2"]),
+            std::time::Duration::from_secs(20),
+        );
+        assert!(big.iter().step_by(4096).all(|&b| b == 1));
+        assert!(r.max_rss_kib > 0 && r.max_rss_kib < 64 << 10, "{r:?}");
     }
 
     #[cfg(unix)]
