@@ -2,5 +2,6 @@
 
 mod allan_covariance;
 mod allan_reference;
+mod common;
 mod model_check;
 mod outliers;

@@ -1,24 +1,9 @@
 //! `allan` warns when the selected model misses the curve beyond its confidence
 //! bands and names the better-fitting alternative ([`noise_id::fit::check_model`]); it stays
 //! quiet when the model fits.
+use crate::common::normals;
 use noise_id::fit::{check_model, fit_select, FitOptions, Terms};
 use noise_id::{deviation_curve, edf, CurveOptions, DevPoint};
-
-/// Deterministic standard normal samples (xorshift64* + Box-Muller).
-fn normals(n: usize, mut s: u64) -> Vec<f64> {
-    let mut u = || {
-        s ^= s >> 12;
-        s ^= s << 25;
-        s ^= s >> 27;
-        ((s.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let (a, b) = (u(), u());
-            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        })
-        .collect()
-}
 
 const TAU0: f64 = 0.01;
 const N: usize = 360_000; // one hour at 100 Hz

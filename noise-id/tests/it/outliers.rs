@@ -2,24 +2,9 @@
 //! are found, and with them replaced the white-noise level (ARW) is within 3 % of the
 //! spike-free record's.
 
+use crate::common::normals;
 use noise_id::outliers::{hampel, HampelOptions};
 use noise_id::{deviation_curve, CurveOptions};
-
-/// Deterministic standard normal samples (xorshift64* + Box-Muller).
-fn normals(n: usize, mut s: u64) -> Vec<f64> {
-    let mut u = || {
-        s ^= s >> 12;
-        s ^= s << 25;
-        s ^= s >> 27;
-        ((s.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let (a, b) = (u(), u());
-            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        })
-        .collect()
-}
 
 fn arw(y: &[f64], tau0: f64) -> f64 {
     let opt = CurveOptions {
