@@ -699,92 +699,16 @@ pub fn run(args: AllanArgs) -> anyhow::Result<()> {
         }
     }
     if !args.no_select {
-        println!("Term selection (BIC = chi2 + p ln n with the model-error floor; * = selected):");
-        for a in &an.axes {
-            let sel = a.fit.as_ref().ok().map(|f| f.terms);
-            for c in &a.candidates {
-                println!(
-                    "  {:3} {}{:26} chi2 {:10.1} p {} BIC {:10.1}  {}",
-                    a.name,
-                    if Some(c.terms) == sel { '*' } else { ' ' },
-                    c.terms.label(),
-                    c.chi2,
-                    c.n_params,
-                    c.bic,
-                    c.rejected.as_deref().unwrap_or("")
-                );
-            }
-        }
+        print_selection(&an);
     }
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating {}", args.out_dir.display()))?;
-    let bias = super::params::BiasInit {
-        accel_ug: args.accel_bias_init_ug,
-        gyro_deg_per_h: args.gyro_bias_init_deg_per_h,
-    };
-    for (name, text) in [
-        (
-            "allan_params.toml",
-            super::params::noise_section_toml(&an, &args.input, &bias),
-        ),
-        (
-            "allan_sim_errors.toml",
-            super::params::sim_errors_toml(&an, &args.input),
-        ),
-    ] {
-        let path = args.out_dir.join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        println!("wrote {}", path.display());
-    }
+    write_params(&args, &an)?;
     if let Some(j) = &args.json {
-        let mut v: serde_json::Value = serde_json::from_str(&to_json(&an)?)?;
-        if let Some(obj) = v.as_object_mut() {
-            let mut o = serde_json::Map::new();
-            for (name, out) in ch.names.iter().zip(&outliers) {
-                o.insert(
-                    name.clone(),
-                    serde_json::json!({
-                        "count": out.indices.len(),
-                        "fraction": out.fraction(),
-                        "excluded": args.exclude_outliers,
-                        "times_s": out.indices.iter().map(|&i| i as f64 * ch.tau0_s).collect::<Vec<_>>(),
-                        "sizes_sigma": out.sizes_sigma,
-                        "half_window": hopt.half_window,
-                        "n_sigma": hopt.n_sigma,
-                        "gaussian_false_positive_rate": args.outlier_rate,
-                    }),
-                );
-            }
-            obj.insert("outliers".into(), serde_json::Value::Object(o));
-        }
-        std::fs::write(j, serde_json::to_string_pretty(&v)?)
-            .with_context(|| format!("writing {}", j.display()))?;
-        println!("wrote {}", j.display());
+        write_json(j, &an, &ch, &outliers, &hopt, &args)?;
     }
     if !args.no_plot {
-        for a in &an.axes {
-            let (unit, scale) = match a.kind {
-                SensorKind::Gyro => ("deg/s", 180.0 / std::f64::consts::PI),
-                SensorKind::Accel => ("m/s^2", 1.0),
-                SensorKind::Other => ("input unit", 1.0),
-            };
-            let stem = args.out_dir.join(format!("allan_{}", a.name));
-            let input = super::plot::PlotInput {
-                title: format!(
-                    "{}: {} ({})",
-                    a.name,
-                    a.curve_title(an.dev),
-                    args.input.display()
-                ),
-                unit: unit.into(),
-                scale,
-                points: &a.curve,
-                fit: a.fit.as_ref().ok(),
-            };
-            super::plot::plot_allan(&input, &stem)
-                .with_context(|| format!("plotting {}", stem.display()))?;
-            println!("wrote {}.png and .svg", stem.display());
-        }
+        write_plots(&args, &an)?;
     }
     Ok(())
 }
@@ -805,4 +729,112 @@ impl AxisResult {
             Deviation::Ohdev => "overlapping Hadamard deviation",
         }
     }
+}
+
+/// Prints the term selection table: every candidate model per axis, the selected one starred.
+fn print_selection(an: &Analysis) {
+    println!("Term selection (BIC = chi2 + p ln n with the model-error floor; * = selected):");
+    for a in &an.axes {
+        let sel = a.fit.as_ref().ok().map(|f| f.terms);
+        for c in &a.candidates {
+            println!(
+                "  {:3} {}{:26} chi2 {:10.1} p {} BIC {:10.1}  {}",
+                a.name,
+                if Some(c.terms) == sel { '*' } else { ' ' },
+                c.terms.label(),
+                c.chi2,
+                c.n_params,
+                c.bic,
+                c.rejected.as_deref().unwrap_or("")
+            );
+        }
+    }
+}
+
+/// Writes `allan_params.toml` (the run configuration's noise section) and
+/// `allan_sim_errors.toml` (the simulator's error model) into the output folder.
+fn write_params(args: &AllanArgs, an: &Analysis) -> anyhow::Result<()> {
+    let bias = super::params::BiasInit {
+        accel_ug: args.accel_bias_init_ug,
+        gyro_deg_per_h: args.gyro_bias_init_deg_per_h,
+    };
+    for (name, text) in [
+        (
+            "allan_params.toml",
+            super::params::noise_section_toml(an, &args.input, &bias),
+        ),
+        (
+            "allan_sim_errors.toml",
+            super::params::sim_errors_toml(an, &args.input),
+        ),
+    ] {
+        let path = args.out_dir.join(name);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Writes the analysis as JSON to `path`, with each channel's outliers (times, sizes, the
+/// detector's settings) under `outliers`.
+fn write_json(
+    path: &std::path::Path,
+    an: &Analysis,
+    ch: &Channels,
+    outliers: &[noise_id::outliers::Outliers],
+    hopt: &noise_id::outliers::HampelOptions,
+    args: &AllanArgs,
+) -> anyhow::Result<()> {
+    let mut v: serde_json::Value = serde_json::from_str(&to_json(an)?)?;
+    if let Some(obj) = v.as_object_mut() {
+        let mut o = serde_json::Map::new();
+        for (name, out) in ch.names.iter().zip(outliers) {
+            o.insert(
+                name.clone(),
+                serde_json::json!({
+                    "count": out.indices.len(),
+                    "fraction": out.fraction(),
+                    "excluded": args.exclude_outliers,
+                    "times_s": out.indices.iter().map(|&i| i as f64 * ch.tau0_s).collect::<Vec<_>>(),
+                    "sizes_sigma": out.sizes_sigma,
+                    "half_window": hopt.half_window,
+                    "n_sigma": hopt.n_sigma,
+                    "gaussian_false_positive_rate": args.outlier_rate,
+                }),
+            );
+        }
+        obj.insert("outliers".into(), serde_json::Value::Object(o));
+    }
+    std::fs::write(path, serde_json::to_string_pretty(&v)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+/// Plots each axis's deviation curve with its fitted model (`allan_AXIS.png` and `.svg`).
+fn write_plots(args: &AllanArgs, an: &Analysis) -> anyhow::Result<()> {
+    for a in &an.axes {
+        let (unit, scale) = match a.kind {
+            SensorKind::Gyro => ("deg/s", 180.0 / std::f64::consts::PI),
+            SensorKind::Accel => ("m/s^2", 1.0),
+            SensorKind::Other => ("input unit", 1.0),
+        };
+        let stem = args.out_dir.join(format!("allan_{}", a.name));
+        let input = super::plot::PlotInput {
+            title: format!(
+                "{}: {} ({})",
+                a.name,
+                a.curve_title(an.dev),
+                args.input.display()
+            ),
+            unit: unit.into(),
+            scale,
+            points: &a.curve,
+            fit: a.fit.as_ref().ok(),
+        };
+        super::plot::plot_allan(&input, &stem)
+            .with_context(|| format!("plotting {}", stem.display()))?;
+        println!("wrote {}.png and .svg", stem.display());
+    }
+    Ok(())
 }

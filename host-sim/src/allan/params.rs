@@ -198,92 +198,7 @@ pub fn noise_section_toml(an: &Analysis, source: &Path, bias: &BiasInit) -> Stri
         if !how.is_empty() {
             notes.push(format!("{table}: {how}"));
         }
-        let mut n: Vec<AxisNoise> = Vec::new();
-        for a in &axes {
-            let Ok(f) = &a.fit else { continue };
-            let an_ = axis_noise(a, f);
-            if n.iter().all(|x| x.notes != an_.notes) {
-                notes.extend(an_.notes.iter().cloned());
-            }
-            n.push(an_);
-        }
-        if n.len() != 3 {
-            continue;
-        }
-        let terms: Vec<String> = axes
-            .iter()
-            .map(|a| {
-                a.fit
-                    .as_ref()
-                    .map_or("-".into(), |f| format!("{} {}", a.name, f.terms.label()))
-            })
-            .collect();
-        let _ = writeln!(body, "\n[{table}]");
-        let _ = writeln!(body, "# selected terms: {}", terms.join(", "));
-        let pick = |g: fn(&AxisNoise) -> fit::Est| -> ([f64; 3], [f64; 3]) {
-            let v = [g(&n[0]).value, g(&n[1]).value, g(&n[2]).value];
-            let s = [g(&n[0]).sigma, g(&n[1]).sigma, g(&n[2]).sigma];
-            (v, s)
-        };
-        let (s_n, s_n_sig) = pick(|x| x.s_n);
-        let _ = writeln!(body, "s_n = {}", fmt_arr(s_n));
-        let _ = writeln!(body, "# 1 sigma: s_n {}", fmt_arr(s_n_sig));
-        let (mut s_b, s_b_sig) = pick(|x| x.s_b);
-        let tbs: Vec<f64> = n
-            .iter()
-            .filter(|x| x.s_b.value > 0.0)
-            .map(|x| x.t_b_s)
-            .collect();
-        if !tbs.is_empty() {
-            let t_common = (tbs.iter().map(|t| t.ln()).sum::<f64>() / tbs.len() as f64).exp();
-            for (v, x) in s_b.iter_mut().zip(&n) {
-                if x.s_b.value > 0.0 {
-                    *v *= x.t_b_s / t_common;
-                }
-            }
-            let _ = writeln!(body, "s_b = {}", fmt_arr(s_b));
-            let _ = writeln!(body, "t_b_s = {}", fmt_num(t_common));
-            let _ = writeln!(
-                body,
-                "# per-axis T_B {} s (one t_b_s per sensor: s_b rescaled to keep each axis's \
-                 stationary sigma); 1 sigma of the fitted s_b {}",
-                fmt_arr(
-                    n.iter()
-                        .map(|x| x.t_b_s)
-                        .collect::<Vec<_>>()
-                        .try_into()
-                        .unwrap_or([f64::NAN; 3])
-                ),
-                fmt_arr(s_b_sig)
-            );
-            any_bias_state = true;
-        }
-        let (s_k, s_k_sig) = pick(|x| x.s_k);
-        if s_k.iter().any(|v| *v > 0.0) {
-            let _ = writeln!(body, "s_k = {}", fmt_arr(s_k));
-            let _ = writeln!(body, "# 1 sigma: s_k {}", fmt_arr(s_k_sig));
-            any_bias_state = true;
-        }
-        let (key, val, unit) = match kind {
-            SensorKind::Gyro => (
-                "bias_init_deg_per_h",
-                bias.gyro_deg_per_h,
-                "--gyro-bias-init-deg-per-h",
-            ),
-            _ => ("bias_init_ug", bias.accel_ug, "--accel-bias-init-ug"),
-        };
-        match val {
-            Some(v) => {
-                let _ = writeln!(body, "{key} = {}", fmt_num(v));
-            }
-            None => {
-                let _ = writeln!(
-                    body,
-                    "# {key} = ...  (turn-on bias: not identifiable from one static record; give the \
-                     datasheet value here or with `allan {unit}`; absent = 0)"
-                );
-            }
-        }
+        any_bias_state |= sensor_table(&mut body, &mut notes, kind, table, &axes, bias);
     }
     let others: Vec<&AxisResult> = an
         .axes
@@ -321,6 +236,108 @@ pub fn noise_section_toml(an: &Analysis, source: &Path, bias: &BiasInit) -> Stri
     );
     head.push_str(&body);
     head
+}
+
+/// One sensor's table of `allan_params.toml` (`[noise.accel]` or `[noise.gyro]`) appended to
+/// `body` from its three axes' fits, notes about the fit appended to `notes`; true when the
+/// table has a Gauss-Markov or random-walk bias term. Nothing is written unless all three
+/// axes have a fit.
+fn sensor_table(
+    body: &mut String,
+    notes: &mut Vec<String>,
+    kind: SensorKind,
+    table: &str,
+    axes: &[&AxisResult],
+    bias: &BiasInit,
+) -> bool {
+    let mut any_bias_state = false;
+    let mut n: Vec<AxisNoise> = Vec::new();
+    for a in axes {
+        let Ok(f) = &a.fit else { continue };
+        let an_ = axis_noise(a, f);
+        if n.iter().all(|x| x.notes != an_.notes) {
+            notes.extend(an_.notes.iter().cloned());
+        }
+        n.push(an_);
+    }
+    if n.len() != 3 {
+        return false;
+    }
+    let terms: Vec<String> = axes
+        .iter()
+        .map(|a| {
+            a.fit
+                .as_ref()
+                .map_or("-".into(), |f| format!("{} {}", a.name, f.terms.label()))
+        })
+        .collect();
+    let _ = writeln!(body, "\n[{table}]");
+    let _ = writeln!(body, "# selected terms: {}", terms.join(", "));
+    let pick = |g: fn(&AxisNoise) -> fit::Est| -> ([f64; 3], [f64; 3]) {
+        let v = [g(&n[0]).value, g(&n[1]).value, g(&n[2]).value];
+        let s = [g(&n[0]).sigma, g(&n[1]).sigma, g(&n[2]).sigma];
+        (v, s)
+    };
+    let (s_n, s_n_sig) = pick(|x| x.s_n);
+    let _ = writeln!(body, "s_n = {}", fmt_arr(s_n));
+    let _ = writeln!(body, "# 1 sigma: s_n {}", fmt_arr(s_n_sig));
+    let (mut s_b, s_b_sig) = pick(|x| x.s_b);
+    let tbs: Vec<f64> = n
+        .iter()
+        .filter(|x| x.s_b.value > 0.0)
+        .map(|x| x.t_b_s)
+        .collect();
+    if !tbs.is_empty() {
+        let t_common = (tbs.iter().map(|t| t.ln()).sum::<f64>() / tbs.len() as f64).exp();
+        for (v, x) in s_b.iter_mut().zip(&n) {
+            if x.s_b.value > 0.0 {
+                *v *= x.t_b_s / t_common;
+            }
+        }
+        let _ = writeln!(body, "s_b = {}", fmt_arr(s_b));
+        let _ = writeln!(body, "t_b_s = {}", fmt_num(t_common));
+        let _ = writeln!(
+            body,
+            "# per-axis T_B {} s (one t_b_s per sensor: s_b rescaled to keep each axis's \
+             stationary sigma); 1 sigma of the fitted s_b {}",
+            fmt_arr(
+                n.iter()
+                    .map(|x| x.t_b_s)
+                    .collect::<Vec<_>>()
+                    .try_into()
+                    .unwrap_or([f64::NAN; 3])
+            ),
+            fmt_arr(s_b_sig)
+        );
+        any_bias_state = true;
+    }
+    let (s_k, s_k_sig) = pick(|x| x.s_k);
+    if s_k.iter().any(|v| *v > 0.0) {
+        let _ = writeln!(body, "s_k = {}", fmt_arr(s_k));
+        let _ = writeln!(body, "# 1 sigma: s_k {}", fmt_arr(s_k_sig));
+        any_bias_state = true;
+    }
+    let (key, val, unit) = match kind {
+        SensorKind::Gyro => (
+            "bias_init_deg_per_h",
+            bias.gyro_deg_per_h,
+            "--gyro-bias-init-deg-per-h",
+        ),
+        _ => ("bias_init_ug", bias.accel_ug, "--accel-bias-init-ug"),
+    };
+    match val {
+        Some(v) => {
+            let _ = writeln!(body, "{key} = {}", fmt_num(v));
+        }
+        None => {
+            let _ = writeln!(
+                body,
+                "# {key} = ...  (turn-on bias: not identifiable from one static record; give the \
+                 datasheet value here or with `allan {unit}`; absent = 0)"
+            );
+        }
+    }
+    any_bias_state
 }
 
 /// `allan_sim_errors.toml`: `[accel]` / `[gyro]` in the layout of the simulator's sensor error

@@ -1,7 +1,7 @@
 //! Log-log Allan deviation plot with the confidence band and each fitted component.
 use noise_id::fit::FitResult;
 use noise_id::DevPoint;
-use plotters::coord::combinators::IntoLogRange;
+use plotters::coord::combinators::{IntoLogRange, LogCoord};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -97,52 +97,7 @@ where
         )
         .map_err(e)?;
     if let Some(f) = p.fit {
-        let ngrid = 200;
-        let taus: Vec<f64> = (0..ngrid)
-            .map(|i| (x0.ln() + (x1.ln() - x0.ln()) * i as f64 / (ngrid - 1) as f64).exp())
-            .collect();
-        let names = [
-            "quantization",
-            "white",
-            "Gauss-Markov",
-            "random walk",
-            "flicker",
-        ];
-        let colors = [
-            RGBColor(150, 150, 150),
-            RGBColor(0, 150, 0),
-            RGBColor(200, 120, 0),
-            RGBColor(160, 0, 160),
-            RGBColor(0, 160, 160),
-        ];
-        for (k, name) in names.iter().enumerate() {
-            let v: Vec<(f64, f64)> = taus
-                .iter()
-                .map(|&t| (t, f.components(t)[k].max(0.0).sqrt() * s))
-                .filter(|&(_, d)| d >= y0 && d <= y1)
-                .collect();
-            if v.len() < 2 {
-                continue;
-            }
-            let c = colors[k];
-            chart
-                .draw_series(DashedLineSeries::new(v, 6, 4, c.stroke_width(2)))
-                .map_err(e)?
-                .label(*name)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2))
-                });
-        }
-        chart
-            .draw_series(LineSeries::new(
-                taus.iter()
-                    .map(|&t| (t, f.avar(t).max(0.0).sqrt() * s))
-                    .filter(|&(_, d)| d >= y0 && d <= y1),
-                RED.stroke_width(2),
-            ))
-            .map_err(e)?
-            .label("fit")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED.stroke_width(2)));
+        draw_fit(&mut chart, f, (x0, x1), (y0, y1), s)?;
     }
     chart
         .configure_series_labels()
@@ -162,5 +117,65 @@ pub fn plot_allan(p: &PlotInput<'_>, stem: &Path) -> anyhow::Result<()> {
     let svg = stem.with_extension("svg");
     draw(BitMapBackend::new(&png, (1000, 720)).into_drawing_area(), p)?;
     draw(SVGBackend::new(&svg, (1000, 720)).into_drawing_area(), p)?;
+    Ok(())
+}
+
+/// The fitted model on the chart: each noise term dashed, their sum solid, over `x` (tau, s)
+/// and kept inside `y` (deviation in the plot's unit, `s` the scale to it).
+fn draw_fit<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
+    f: &FitResult,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    s: f64,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("plot: {e}");
+    let ngrid = 200;
+    let taus: Vec<f64> = (0..ngrid)
+        .map(|i| (x0.ln() + (x1.ln() - x0.ln()) * i as f64 / (ngrid - 1) as f64).exp())
+        .collect();
+    let names = [
+        "quantization",
+        "white",
+        "Gauss-Markov",
+        "random walk",
+        "flicker",
+    ];
+    let colors = [
+        RGBColor(150, 150, 150),
+        RGBColor(0, 150, 0),
+        RGBColor(200, 120, 0),
+        RGBColor(160, 0, 160),
+        RGBColor(0, 160, 160),
+    ];
+    for (k, name) in names.iter().enumerate() {
+        let v: Vec<(f64, f64)> = taus
+            .iter()
+            .map(|&t| (t, f.components(t)[k].max(0.0).sqrt() * s))
+            .filter(|&(_, d)| d >= y0 && d <= y1)
+            .collect();
+        if v.len() < 2 {
+            continue;
+        }
+        let c = colors[k];
+        chart
+            .draw_series(DashedLineSeries::new(v, 6, 4, c.stroke_width(2)))
+            .map_err(e)?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], c.stroke_width(2)));
+    }
+    chart
+        .draw_series(LineSeries::new(
+            taus.iter()
+                .map(|&t| (t, f.avar(t).max(0.0).sqrt() * s))
+                .filter(|&(_, d)| d >= y0 && d <= y1),
+            RED.stroke_width(2),
+        ))
+        .map_err(e)?
+        .label("fit")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED.stroke_width(2)));
     Ok(())
 }

@@ -134,22 +134,7 @@ pub fn plot_trajectory(tr: &Trajectory, path: &Path) -> anyhow::Result<()> {
             false,
         )?;
     }
-    // Unwrapped yaw (continuous through +-180 deg).
-    let mut yaw = Vec::with_capacity(pts.len());
-    let mut prev = f64::NAN;
-    let mut offset = 0.0;
-    for s in &pts {
-        let y = s.rpy_rad[2].to_degrees();
-        if prev.is_finite() {
-            if y - prev > 180.0 {
-                offset -= 360.0;
-            } else if y - prev < -180.0 {
-                offset += 360.0;
-            }
-        }
-        prev = y;
-        yaw.push((t(s), y + offset));
-    }
+    let yaw = unwrapped_yaw_deg(&pts, t);
     if let Some(a) = areas.get(2) {
         panel(
             a,
@@ -178,6 +163,44 @@ pub fn plot_trajectory(tr: &Trajectory, path: &Path) -> anyhow::Result<()> {
             false,
         )?;
     }
+    imu_panels(&areas, tr, step)?;
+    root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    Ok(())
+}
+
+/// Yaw in degrees against time, unwrapped (continuous through +-180 deg).
+fn unwrapped_yaw_deg(
+    pts: &[&nav_core::types::NavSolution],
+    t: impl Fn(&nav_core::types::NavSolution) -> f64,
+) -> Vec<(f64, f64)> {
+    let mut yaw = Vec::with_capacity(pts.len());
+    let mut prev = f64::NAN;
+    let mut offset = 0.0;
+    for s in pts {
+        let y = s.rpy_rad[2].to_degrees();
+        if prev.is_finite() {
+            if y - prev > 180.0 {
+                offset -= 360.0;
+            } else if y - prev < -180.0 {
+                offset += 360.0;
+            }
+        }
+        prev = y;
+        yaw.push((t(s), y + offset));
+    }
+    yaw
+}
+
+/// The IMU panels (the fifth and sixth areas): specific force and angular rate against time,
+/// every `step`-th sample.
+fn imu_panels<DB: DrawingBackend>(
+    areas: &[DrawingArea<DB, plotters::coord::Shift>],
+    tr: &Trajectory,
+    step: usize,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
     let imu: Vec<_> = tr.imu.iter().step_by(step).collect();
     let ti = |s: &nav_core::types::ImuSample| (s.t_s - tr.t0_s) / 60.0;
     let f = |i: usize| -> Vec<(f64, f64)> {
@@ -220,6 +243,5 @@ pub fn plot_trajectory(tr: &Trajectory, path: &Path) -> anyhow::Result<()> {
             false,
         )?;
     }
-    root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     Ok(())
 }

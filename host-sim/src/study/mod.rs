@@ -322,6 +322,23 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         })
         .sum();
     let pb = progress_bar(cfg, n_main + n_budget);
+    let cells = main_cells(cfg, &traj, &pb)?;
+
+    let budgets = error_budgets(cfg, &traj, &cells, &pb)?;
+    pb.finish_and_clear();
+    Ok(StudyResult {
+        config: cfg.clone(),
+        duration_s: dur,
+        cells,
+        budgets,
+        elapsed_s: t_start.elapsed().as_secs_f64(),
+        filter_runs: n_main + n_budget,
+    })
+}
+
+/// The main grid: per seed one measurement set, every model on both cases; the cells'
+/// statistics over the seeds and each run's position error at the outage evaluation epoch.
+fn main_cells(cfg: &StudyConfig, traj: &Trajectory, pb: &ProgressBar) -> anyhow::Result<Vec<Cell>> {
     let seeds: Vec<u64> = (0..cfg.runs as u64).map(|i| cfg.seed + i).collect();
 
     // main grid: per seed one measurement set, every model on both cases
@@ -329,7 +346,7 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     let per_seed: Vec<Vec<(Variant, Case, Trace)>> = seeds
         .par_iter()
         .map(|&seed| -> anyhow::Result<Vec<(Variant, Case, Trace)>> {
-            let data = case_data(&traj, seed, Sources::All);
+            let data = case_data(traj, seed, Sources::All);
             let mut v = Vec::new();
             for &model in &cfg.models {
                 for case in Case::ALL {
@@ -340,7 +357,7 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
                         on: Sources::All,
                         end_rel_s: None,
                     };
-                    let tr = run_one(cfg, &traj, &data, spec)?;
+                    let tr = run_one(cfg, traj, &data, spec)?;
                     pb.inc(1);
                     v.push((model, case, tr));
                 }
@@ -375,8 +392,18 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             });
         }
     }
-    drop(per_seed);
+    Ok(cells)
+}
 
+/// The error budget: each source alone, case 2, up to the outage evaluation epoch, for every
+/// budget model; the all-sources errors of seeds beyond the main runs computed the same way.
+fn error_budgets(
+    cfg: &StudyConfig,
+    traj: &Trajectory,
+    cells: &[Cell],
+    pb: &ProgressBar,
+) -> anyhow::Result<Vec<budget::Budget>> {
+    let eval = cfg.outage_eval_rel_s();
     // error budget: each source alone, case 2, up to the outage evaluation epoch; the
     // all-sources errors of seeds beyond the main runs are computed the same way
     pb.set_message("error budget");
@@ -397,7 +424,7 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     let results: Vec<(Variant, Sources, u64, [f64; 3])> = jobs
         .par_iter()
         .map(|&(model, on, seed)| -> anyhow::Result<_> {
-            let data = case_data(&traj, seed, on);
+            let data = case_data(traj, seed, on);
             let spec = RunSpec {
                 model,
                 case: Case::Outage,
@@ -405,7 +432,7 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
                 on,
                 end_rel_s: stop,
             };
-            let tr = run_one(cfg, &traj, &data, spec)?;
+            let tr = run_one(cfg, traj, &data, spec)?;
             pb.inc(1);
             let k = tr
                 .t_rel_s
@@ -455,15 +482,7 @@ pub fn run_study(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             pos_std,
         ));
     }
-    pb.finish_and_clear();
-    Ok(StudyResult {
-        config: cfg.clone(),
-        duration_s: dur,
-        cells,
-        budgets,
-        elapsed_s: t_start.elapsed().as_secs_f64(),
-        filter_runs: n_main + n_budget,
-    })
+    Ok(budgets)
 }
 
 /// Runs `host-sim study`.

@@ -216,108 +216,127 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
     let unit = if case == Case::Continuous { 100.0 } else { 1.0 };
     let uname = if case == Case::Continuous { "cm" } else { "m" };
     for (a, i) in areas.iter().zip(6..9) {
-        let within = |t: f64| t >= t0 && t <= t1;
-        let mut ymax = 0.0f64;
-        for c in [n, k].into_iter().flatten() {
-            for (t, s) in c.stats.t_rel_s.iter().zip(&c.stats.std) {
+        band_panel(a, res, case, [n, k], i, (t0, t1), (unit, uname))?;
+    }
+    root.present().map_err(perr)?;
+    Ok(())
+}
+
+/// One panel of [`plot_bands`]: the position error's component `i` (6, 7, 8: north, east,
+/// down) of the N and NBK cells `[n, k]` over `t0..t1` (s from the start), in the unit
+/// `(factor from m, name)`.
+fn band_panel<DB: DrawingBackend>(
+    a: &DrawingArea<DB, Shift>,
+    res: &StudyResult,
+    case: Case,
+    [n, k]: [Option<&Cell>; 2],
+    i: usize,
+    (t0, t1): (f64, f64),
+    (unit, uname): (f64, &str),
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let within = |t: f64| t >= t0 && t <= t1;
+    let mut ymax = 0.0f64;
+    for c in [n, k].into_iter().flatten() {
+        for (t, s) in c.stats.t_rel_s.iter().zip(&c.stats.std) {
+            if within(*t) {
+                ymax = ymax.max(s[i] * unit);
+            }
+        }
+        for tr in &c.sample_traces {
+            for (t, e) in tr.t_rel_s.iter().zip(&tr.err) {
                 if within(*t) {
-                    ymax = ymax.max(s[i] * unit);
-                }
-            }
-            for tr in &c.sample_traces {
-                for (t, e) in tr.t_rel_s.iter().zip(&tr.err) {
-                    if within(*t) {
-                        ymax = ymax.max(e[i].abs() * unit);
-                    }
+                    ymax = ymax.max(e[i].abs() * unit);
                 }
             }
         }
-        let ymax = if ymax > 0.0 { ymax * 1.1 } else { 1.0 };
-        let mut ch = ChartBuilder::on(a)
-            .caption(
-                format!(
-                    "position error {} [{uname}]",
-                    ["north", "east", "down"][i - 6]
-                ),
-                ("sans-serif", 20),
-            )
-            .margin(8)
-            .x_label_area_size(34)
-            .y_label_area_size(70)
-            .build_cartesian_2d(t0 / 60.0..t1 / 60.0, -ymax..ymax)
+    }
+    let ymax = if ymax > 0.0 { ymax * 1.1 } else { 1.0 };
+    let mut ch = ChartBuilder::on(a)
+        .caption(
+            format!(
+                "position error {} [{uname}]",
+                ["north", "east", "down"][i - 6]
+            ),
+            ("sans-serif", 20),
+        )
+        .margin(8)
+        .x_label_area_size(34)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0 / 60.0..t1 / 60.0, -ymax..ymax)
+        .map_err(perr)?;
+    ch.configure_mesh()
+        .x_desc("time [min]")
+        .draw()
+        .map_err(perr)?;
+    if let Some((s0, s1)) = outage_span(res, case) {
+        ch.draw_series(std::iter::once(Rectangle::new(
+            [(s0, -ymax), (s1, ymax)],
+            OUTAGE_FILL.filled(),
+        )))
+        .map_err(perr)?;
+    }
+    if let Some(c) = k {
+        let col = model_color(Variant::Nbk);
+        let up: Vec<(f64, f64)> = c
+            .stats
+            .t_rel_s
+            .iter()
+            .zip(&c.stats.std)
+            .filter(|(t, _)| within(**t))
+            .map(|(t, s)| (t / 60.0, s[i] * unit))
+            .collect();
+        let mut poly = up.clone();
+        poly.extend(up.iter().rev().map(|(t, s)| (*t, -*s)));
+        ch.draw_series(std::iter::once(Polygon::new(poly, col.mix(0.2).filled())))
             .map_err(perr)?;
-        ch.configure_mesh()
-            .x_desc("time [min]")
-            .draw()
-            .map_err(perr)?;
-        if let Some((s0, s1)) = outage_span(res, case) {
-            ch.draw_series(std::iter::once(Rectangle::new(
-                [(s0, -ymax), (s1, ymax)],
-                OUTAGE_FILL.filled(),
-            )))
-            .map_err(perr)?;
+    }
+    for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
+        let Some(c) = c else { continue };
+        let col = model_color(m);
+        for tr in &c.sample_traces {
+            let pts: Vec<(f64, f64)> = tr
+                .t_rel_s
+                .iter()
+                .zip(&tr.err)
+                .filter(|(t, _)| within(**t))
+                .map(|(t, e)| (t / 60.0, e[i] * unit))
+                .collect();
+            ch.draw_series(LineSeries::new(pts, col.mix(0.7).stroke_width(1)))
+                .map_err(perr)?;
         }
-        if let Some(c) = k {
-            let col = model_color(Variant::Nbk);
-            let up: Vec<(f64, f64)> = c
+    }
+    for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
+        let Some(c) = c else { continue };
+        let col = model_color(m);
+        for sign in [1.0, -1.0] {
+            let pts: Vec<(f64, f64)> = c
                 .stats
                 .t_rel_s
                 .iter()
                 .zip(&c.stats.std)
                 .filter(|(t, _)| within(**t))
-                .map(|(t, s)| (t / 60.0, s[i] * unit))
+                .map(|(t, s)| (t / 60.0, sign * s[i] * unit))
                 .collect();
-            let mut poly = up.clone();
-            poly.extend(up.iter().rev().map(|(t, s)| (*t, -*s)));
-            ch.draw_series(std::iter::once(Polygon::new(poly, col.mix(0.2).filled())))
+            let a = ch
+                .draw_series(LineSeries::new(pts, col.stroke_width(3)))
                 .map_err(perr)?;
-        }
-        for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
-            let Some(c) = c else { continue };
-            let col = model_color(m);
-            for tr in &c.sample_traces {
-                let pts: Vec<(f64, f64)> = tr
-                    .t_rel_s
-                    .iter()
-                    .zip(&tr.err)
-                    .filter(|(t, _)| within(**t))
-                    .map(|(t, e)| (t / 60.0, e[i] * unit))
-                    .collect();
-                ch.draw_series(LineSeries::new(pts, col.mix(0.7).stroke_width(1)))
-                    .map_err(perr)?;
+            if sign > 0.0 {
+                a.label(format!("{} +-1 sigma", m.label()))
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
+                    });
             }
         }
-        for (c, m) in [(n, Variant::N), (k, Variant::Nbk)] {
-            let Some(c) = c else { continue };
-            let col = model_color(m);
-            for sign in [1.0, -1.0] {
-                let pts: Vec<(f64, f64)> = c
-                    .stats
-                    .t_rel_s
-                    .iter()
-                    .zip(&c.stats.std)
-                    .filter(|(t, _)| within(**t))
-                    .map(|(t, s)| (t / 60.0, sign * s[i] * unit))
-                    .collect();
-                let a = ch
-                    .draw_series(LineSeries::new(pts, col.stroke_width(3)))
-                    .map_err(perr)?;
-                if sign > 0.0 {
-                    a.label(format!("{} +-1 sigma", m.label()))
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
-                        });
-                }
-            }
-        }
-        ch.configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(perr)?;
     }
-    root.present().map_err(perr)?;
+    ch.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(perr)?;
     Ok(())
 }
 

@@ -493,55 +493,67 @@ pub fn table(res: &StudyResult) -> String {
         );
     }
     for b in &res.budgets {
-        let _ = writeln!(
-            s,
-            "\nError budget, {} model: position error at the end of the outage with each source alone ({} runs)",
-            b.model.label(),
-            b.runs
-        );
-        let _ = writeln!(
-            s,
-            "| source | RMS N / E / D [m] | RMS horizontal [m] | share of variance |"
-        );
-        let _ = writeln!(s, "|---|---|---|---|");
-        for e in &b.entries {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {:.3} | {} |",
-                e.label,
-                f3(e.mse_ned_m2.map(f64::sqrt), 1.0, 3),
-                e.rms_horizontal_m,
-                plots::percent(e.share_horizontal)
-            );
-        }
-        let _ = writeln!(
-            s,
-            "| **all sources together** | {} | {:.3} | sum of contributions / total = {:.3} (+- {:.3} sampling), superposition residual {:.1e} |",
-            f3(b.total_mse_ned_m2.map(f64::sqrt), 1.0, 3),
-            b.total_rms_horizontal_m,
-            b.ratio_sum_to_total_horizontal,
-            b.ratio_std_error,
-            b.superposition_residual
-        );
-        let _ = writeln!(
-            s,
-            "gyro sources {:.1} % of the variance, accelerometer sources {}, largest: {}",
-            100.0 * b.gyro_share,
-            plots::percent(b.accel_share),
-            b.largest.label()
-        );
-        if let Some(n) = b.total_pos_nees {
-            let _ = writeln!(
-                s,
-                "position NEES of the {} all-sources runs at the end of the outage: {:.2}, {} [{:.2}, {:.2}]",
-                b.runs,
-                n,
-                Consistency::of(n, b.total_pos_nees_band).words(),
-                b.total_pos_nees_band.0,
-                b.total_pos_nees_band.1
-            );
-        }
+        budget_section(&mut s, b);
     }
+    verdict_lines(&mut s, &v);
+    s
+}
+
+/// The error-budget table of one model: each source alone at the end of the outage, the sum
+/// against all sources together, and the sources' shares.
+fn budget_section(s: &mut String, b: &Budget) {
+    let _ = writeln!(
+        s,
+        "\nError budget, {} model: position error at the end of the outage with each source alone ({} runs)",
+        b.model.label(),
+        b.runs
+    );
+    let _ = writeln!(
+        s,
+        "| source | RMS N / E / D [m] | RMS horizontal [m] | share of variance |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|");
+    for e in &b.entries {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3} | {} |",
+            e.label,
+            f3(e.mse_ned_m2.map(f64::sqrt), 1.0, 3),
+            e.rms_horizontal_m,
+            plots::percent(e.share_horizontal)
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| **all sources together** | {} | {:.3} | sum of contributions / total = {:.3} (+- {:.3} sampling), superposition residual {:.1e} |",
+        f3(b.total_mse_ned_m2.map(f64::sqrt), 1.0, 3),
+        b.total_rms_horizontal_m,
+        b.ratio_sum_to_total_horizontal,
+        b.ratio_std_error,
+        b.superposition_residual
+    );
+    let _ = writeln!(
+        s,
+        "gyro sources {:.1} % of the variance, accelerometer sources {}, largest: {}",
+        100.0 * b.gyro_share,
+        plots::percent(b.accel_share),
+        b.largest.label()
+    );
+    if let Some(n) = b.total_pos_nees {
+        let _ = writeln!(
+            s,
+            "position NEES of the {} all-sources runs at the end of the outage: {:.2}, {} [{:.2}, {:.2}]",
+            b.runs,
+            n,
+            Consistency::of(n, b.total_pos_nees_band).words(),
+            b.total_pos_nees_band.0,
+            b.total_pos_nees_band.1
+        );
+    }
+}
+
+/// The study's verdicts (model comparison, consistency, budget), one line each.
+fn verdict_lines(s: &mut String, v: &Verdicts) {
     let yes = |b: bool| if b { "yes" } else { "NO" };
     let _ = writeln!(s, "\nVerdicts");
     let _ = writeln!(
@@ -585,7 +597,6 @@ pub fn table(res: &StudyResult) -> String {
             "- single-state NBK vs two-state NBK at the outage end: RMS horizontal x{h:.2}, RMS down x{d:.2}"
         );
     }
-    s
 }
 
 /// The Markdown report (images by relative file name).
