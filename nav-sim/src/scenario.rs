@@ -328,6 +328,49 @@ impl Scenario {
 
     /// Validates the scenario and builds its time profile.
     pub fn compile(&self) -> Result<Profile, ScenarioError> {
+        self.check_start_and_vehicle()?;
+        let st = &self.start;
+        let v = &self.vehicle;
+        if self.segments.is_empty() {
+            return Err(ScenarioError::Invalid("no [[segment]]".into()));
+        }
+        let mut pieces = Vec::with_capacity(self.segments.len());
+        let mut t = 0.0;
+        let mut speed = 0.0f64;
+        for (index, seg) in self.segments.iter().enumerate() {
+            let (dur, shape) = segment_shape(seg, index, &mut speed, v.turn_ramp_s)?;
+            pieces.push(Piece {
+                t0_s: t,
+                t1_s: t + dur,
+                speed0_mps: match shape {
+                    Shape::Speed { delta_mps } => speed - delta_mps,
+                    _ => speed,
+                },
+                shape,
+            });
+            t += dur;
+        }
+        let dt = self.dt_s();
+        let n = (t / dt + 1e-9).floor();
+        let duration_s = n * dt;
+        if st.sow_s + duration_s >= 604_800.0 {
+            return Err(ScenarioError::Invalid(format!(
+                "scenario ({duration_s} s from sow {}) crosses the end of the GPS week",
+                st.sow_s
+            )));
+        }
+        Ok(Profile {
+            pieces,
+            duration_s,
+            roll_rad_per_mps2: v.roll_per_g_deg.to_radians() / G0,
+            slip_rad_per_mps2: v.slip_deg_per_mps2.to_radians(),
+            bounce_mps: v.bounce_mps,
+        })
+    }
+
+    /// Checks the start (position, heading, time), the IMU rate and sub-steps and the
+    /// vehicle's settings (roll, turn ramp, odometer, heading sensor).
+    fn check_start_and_vehicle(&self) -> Result<(), ScenarioError> {
         let st = &self.start;
         if !(st.lat_deg.abs() < 89.0 && st.lon_deg.is_finite() && st.h_m.is_finite()) {
             return Err(ScenarioError::Invalid(format!(
@@ -391,180 +434,7 @@ impl Scenario {
                 )));
             }
         }
-        if self.segments.is_empty() {
-            return Err(ScenarioError::Invalid("no [[segment]]".into()));
-        }
-        let mut pieces = Vec::with_capacity(self.segments.len());
-        let mut t = 0.0;
-        let mut speed = 0.0f64;
-        for (index, seg) in self.segments.iter().enumerate() {
-            let kind = seg.kind();
-            let err = |msg: String| ScenarioError::Segment { index, kind, msg };
-            let positive = |name: &str, x: f64| -> Result<f64, ScenarioError> {
-                if x.is_finite() && x > 0.0 && x < 1e6 {
-                    Ok(x)
-                } else {
-                    Err(err(format!("{name} = {x} must be positive and finite")))
-                }
-            };
-            let (dur, shape) = match seg {
-                Segment::Static { duration_s } => {
-                    if speed != 0.0 {
-                        return Err(err(format!(
-                            "vehicle moves at {speed} m/s: add a `stop` segment first"
-                        )));
-                    }
-                    (positive("duration_s", *duration_s)?, Shape::Constant)
-                }
-                Segment::Cruise { duration_s } => {
-                    (positive("duration_s", *duration_s)?, Shape::Constant)
-                }
-                Segment::Accelerate {
-                    delta_speed_mps,
-                    to_speed_mps,
-                    duration_s,
-                }
-                | Segment::Brake {
-                    delta_speed_mps,
-                    to_speed_mps,
-                    duration_s,
-                } => {
-                    let sign = if matches!(seg, Segment::Accelerate { .. }) {
-                        1.0
-                    } else {
-                        -1.0
-                    };
-                    let target = match (delta_speed_mps, to_speed_mps) {
-                        (Some(d), None) => speed + sign * positive("delta_speed_mps", *d)?,
-                        (None, Some(v)) => *v,
-                        _ => {
-                            return Err(err(
-                                "give exactly one of delta_speed_mps and to_speed_mps".into()
-                            ))
-                        }
-                    };
-                    if !(target.is_finite() && (0.0..=100.0).contains(&target))
-                        || sign * (target - speed) <= 0.0
-                    {
-                        return Err(err(format!(
-                            "target speed {target} m/s from {speed} m/s is not a valid {kind}"
-                        )));
-                    }
-                    let d = positive("duration_s", *duration_s)?;
-                    let delta = target - speed;
-                    speed = target;
-                    (d, Shape::Speed { delta_mps: delta })
-                }
-                Segment::Stop { duration_s } => {
-                    if speed <= 0.0 {
-                        return Err(err("vehicle is already at rest".into()));
-                    }
-                    let d = match duration_s {
-                        Some(d) => positive("duration_s", *d)?,
-                        None => speed / 1.5,
-                    };
-                    let delta = -speed;
-                    speed = 0.0;
-                    (d, Shape::Speed { delta_mps: delta })
-                }
-                Segment::Turn {
-                    angle_deg,
-                    rate_deg_s,
-                    radius_m,
-                    ramp_s,
-                } => {
-                    if !(angle_deg.is_finite() && *angle_deg != 0.0 && angle_deg.abs() <= 3600.0) {
-                        return Err(err(format!("angle_deg = {angle_deg} out of range")));
-                    }
-                    let rate = match (rate_deg_s, radius_m) {
-                        (Some(r), None) => positive("rate_deg_s", *r)?.to_radians(),
-                        (None, Some(rad)) => {
-                            if speed < 0.5 {
-                                return Err(err(format!(
-                                    "a turn by radius needs speed >= 0.5 m/s (is {speed})"
-                                )));
-                            }
-                            speed / positive("radius_m", *rad)?
-                        }
-                        _ => return Err(err("give exactly one of rate_deg_s and radius_m".into())),
-                    };
-                    let angle = angle_deg.to_radians();
-                    let ramp = match ramp_s {
-                        Some(r) => positive("ramp_s", *r)?,
-                        None => v.turn_ramp_s,
-                    };
-                    // Heading change = rate * (hold + ramp); if the angle is too small for a
-                    // full ramp, shorten the ramps (no hold).
-                    let ramp = ramp.min(angle.abs() / rate);
-                    let dur = angle.abs() / rate + ramp;
-                    (
-                        dur,
-                        Shape::Turn {
-                            rate_radps: rate * angle.signum(),
-                            ramp_s: ramp,
-                        },
-                    )
-                }
-                Segment::Hill {
-                    height_m,
-                    length_m,
-                    ramp_s,
-                } => {
-                    if speed < 0.5 {
-                        return Err(err(format!("a hill needs speed >= 0.5 m/s (is {speed})")));
-                    }
-                    let len = positive("length_m", *length_m)?;
-                    if !height_m.is_finite() || height_m.abs() >= 0.3 * len {
-                        return Err(err(format!(
-                            "height_m = {height_m} must be finite and below 30% of length_m"
-                        )));
-                    }
-                    let dur = len / speed;
-                    let ramp = match ramp_s {
-                        Some(r) => positive("ramp_s", *r)?.min(dur / 2.0),
-                        None => dur / 4.0,
-                    };
-                    let grade = solve_hill_grade(*height_m, speed, dur, ramp).ok_or_else(|| {
-                        err(format!(
-                            "no grade below 25 degrees climbs {height_m} m in {len} m"
-                        ))
-                    })?;
-                    (
-                        dur,
-                        Shape::Hill {
-                            grade_rad: grade,
-                            ramp_s: ramp,
-                        },
-                    )
-                }
-            };
-            pieces.push(Piece {
-                t0_s: t,
-                t1_s: t + dur,
-                speed0_mps: match shape {
-                    Shape::Speed { delta_mps } => speed - delta_mps,
-                    _ => speed,
-                },
-                shape,
-            });
-            t += dur;
-        }
-        let dt = self.dt_s();
-        let n = (t / dt + 1e-9).floor();
-        let duration_s = n * dt;
-        if st.sow_s + duration_s >= 604_800.0 {
-            return Err(ScenarioError::Invalid(format!(
-                "scenario ({duration_s} s from sow {}) crosses the end of the GPS week",
-                st.sow_s
-            )));
-        }
-        Ok(Profile {
-            pieces,
-            duration_s,
-            roll_rad_per_mps2: v.roll_per_g_deg.to_radians() / G0,
-            slip_rad_per_mps2: v.slip_deg_per_mps2.to_radians(),
-            bounce_mps: v.bounce_mps,
-        })
+        Ok(())
     }
 }
 
@@ -836,4 +706,205 @@ mod tests {
         }
         assert!((h - 10.0).abs() < 1e-6, "{h}");
     }
+}
+
+/// The duration (s) and kinematic shape of segment `index`, entered at `speed_io` (m/s), which
+/// it updates to the segment's exit speed; `turn_ramp_s` is the vehicle's default turn ramp.
+fn segment_shape(
+    seg: &Segment,
+    index: usize,
+    speed_io: &mut f64,
+    turn_ramp_s: f64,
+) -> Result<(f64, Shape), ScenarioError> {
+    let mut speed = *speed_io;
+    let c = SegCheck {
+        index,
+        kind: seg.kind(),
+    };
+    let shaped = match seg {
+        Segment::Static { duration_s } => {
+            if speed != 0.0 {
+                return Err(c.err(format!(
+                    "vehicle moves at {speed} m/s: add a `stop` segment first"
+                )));
+            }
+            (c.positive("duration_s", *duration_s)?, Shape::Constant)
+        }
+        Segment::Cruise { duration_s } => (c.positive("duration_s", *duration_s)?, Shape::Constant),
+        Segment::Accelerate {
+            delta_speed_mps,
+            to_speed_mps,
+            duration_s,
+        }
+        | Segment::Brake {
+            delta_speed_mps,
+            to_speed_mps,
+            duration_s,
+        } => {
+            let sign = if matches!(seg, Segment::Accelerate { .. }) {
+                1.0
+            } else {
+                -1.0
+            };
+            let target = match (delta_speed_mps, to_speed_mps) {
+                (Some(d), None) => speed + sign * c.positive("delta_speed_mps", *d)?,
+                (None, Some(v)) => *v,
+                _ => {
+                    return Err(c.err("give exactly one of delta_speed_mps and to_speed_mps".into()))
+                }
+            };
+            if !(target.is_finite() && (0.0..=100.0).contains(&target))
+                || sign * (target - speed) <= 0.0
+            {
+                return Err(c.err(format!(
+                    "target speed {target} m/s from {speed} m/s is not a valid {}",
+                    c.kind
+                )));
+            }
+            let d = c.positive("duration_s", *duration_s)?;
+            let delta = target - speed;
+            speed = target;
+            (d, Shape::Speed { delta_mps: delta })
+        }
+        Segment::Stop { duration_s } => {
+            if speed <= 0.0 {
+                return Err(c.err("vehicle is already at rest".into()));
+            }
+            let d = match duration_s {
+                Some(d) => c.positive("duration_s", *d)?,
+                None => speed / 1.5,
+            };
+            let delta = -speed;
+            speed = 0.0;
+            (d, Shape::Speed { delta_mps: delta })
+        }
+        Segment::Turn {
+            angle_deg,
+            rate_deg_s,
+            radius_m,
+            ramp_s,
+        } => turn_shape(
+            &c,
+            *angle_deg,
+            *rate_deg_s,
+            *radius_m,
+            *ramp_s,
+            speed,
+            turn_ramp_s,
+        )?,
+        Segment::Hill {
+            height_m,
+            length_m,
+            ramp_s,
+        } => hill_shape(&c, *height_m, *length_m, *ramp_s, speed)?,
+    };
+    *speed_io = speed;
+    Ok(shaped)
+}
+
+/// The segment being compiled, for its error messages.
+struct SegCheck {
+    index: usize,
+    kind: &'static str,
+}
+
+impl SegCheck {
+    /// An error about this segment.
+    fn err(&self, msg: String) -> ScenarioError {
+        ScenarioError::Segment {
+            index: self.index,
+            kind: self.kind,
+            msg,
+        }
+    }
+
+    /// `x` when positive, finite and below 1e6; else an error naming `name`.
+    fn positive(&self, name: &str, x: f64) -> Result<f64, ScenarioError> {
+        if x.is_finite() && x > 0.0 && x < 1e6 {
+            Ok(x)
+        } else {
+            Err(self.err(format!("{name} = {x} must be positive and finite")))
+        }
+    }
+}
+
+/// A turn's duration (s) and shape: by `angle_deg` at `rate_deg_s` or on `radius_m` at the
+/// entry `speed` (m/s), with ramps of `ramp_s` (default `turn_ramp_s`).
+fn turn_shape(
+    c: &SegCheck,
+    angle_deg: f64,
+    rate_deg_s: Option<f64>,
+    radius_m: Option<f64>,
+    ramp_s: Option<f64>,
+    speed: f64,
+    turn_ramp_s: f64,
+) -> Result<(f64, Shape), ScenarioError> {
+    if !(angle_deg.is_finite() && angle_deg != 0.0 && angle_deg.abs() <= 3600.0) {
+        return Err(c.err(format!("angle_deg = {angle_deg} out of range")));
+    }
+    let rate = match (rate_deg_s, radius_m) {
+        (Some(r), None) => c.positive("rate_deg_s", r)?.to_radians(),
+        (None, Some(rad)) => {
+            if speed < 0.5 {
+                return Err(c.err(format!(
+                    "a turn by radius needs speed >= 0.5 m/s (is {speed})"
+                )));
+            }
+            speed / c.positive("radius_m", rad)?
+        }
+        _ => return Err(c.err("give exactly one of rate_deg_s and radius_m".into())),
+    };
+    let angle = angle_deg.to_radians();
+    let ramp = match ramp_s {
+        Some(r) => c.positive("ramp_s", r)?,
+        None => turn_ramp_s,
+    };
+    // Heading change = rate * (hold + ramp); if the angle is too small for a
+    // full ramp, shorten the ramps (no hold).
+    let ramp = ramp.min(angle.abs() / rate);
+    let dur = angle.abs() / rate + ramp;
+    Ok((
+        dur,
+        Shape::Turn {
+            rate_radps: rate * angle.signum(),
+            ramp_s: ramp,
+        },
+    ))
+}
+
+/// A hill's duration (s) and shape: `height_m` over `length_m` at the entry `speed` (m/s),
+/// with grade ramps of `ramp_s` (default a quarter of the hill).
+fn hill_shape(
+    c: &SegCheck,
+    height_m: f64,
+    length_m: f64,
+    ramp_s: Option<f64>,
+    speed: f64,
+) -> Result<(f64, Shape), ScenarioError> {
+    if speed < 0.5 {
+        return Err(c.err(format!("a hill needs speed >= 0.5 m/s (is {speed})")));
+    }
+    let len = c.positive("length_m", length_m)?;
+    if !height_m.is_finite() || height_m.abs() >= 0.3 * len {
+        return Err(c.err(format!(
+            "height_m = {height_m} must be finite and below 30% of length_m"
+        )));
+    }
+    let dur = len / speed;
+    let ramp = match ramp_s {
+        Some(r) => c.positive("ramp_s", r)?.min(dur / 2.0),
+        None => dur / 4.0,
+    };
+    let grade = solve_hill_grade(height_m, speed, dur, ramp).ok_or_else(|| {
+        c.err(format!(
+            "no grade below 25 degrees climbs {height_m} m in {len} m"
+        ))
+    })?;
+    Ok((
+        dur,
+        Shape::Hill {
+            grade_rad: grade,
+            ramp_s: ramp,
+        },
+    ))
 }

@@ -690,38 +690,10 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
         return Err(FitError::TooFewPoints(pts.len()));
     }
     let terms = opt.terms;
-    let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
     let eps = opt.model_error_rel;
-    let mut w = diag_whitening(&pts, &wmodel, eps);
-    let mut sol = search_tb(&pts, &terms, &w);
     let dt = pts[0].tau / pts[0].m.max(1) as f64;
     let ms: Vec<(usize, usize)> = pts.iter().map(|p| (p.m, p.n_terms)).collect();
-    for _ in 0..opt.irls_iterations {
-        let (t_b, c, _) = sol;
-        let new: Vec<f64> = pts
-            .iter()
-            .zip(wmodel.iter())
-            .map(|(p, &old)| {
-                let m = model_at(&c, &terms, p.tau, t_b);
-                if m > 0.0 {
-                    m
-                } else {
-                    old
-                }
-            })
-            .collect();
-        wmodel = new;
-        w = match opt.weighting {
-            Weighting::Edf | Weighting::EdfSandwich => diag_whitening(&pts, &wmodel, eps),
-            Weighting::Gls => full_whitening(&add_model_error(
-                oavar_covariance(&ms, dt, &c, t_b),
-                &wmodel,
-                eps,
-            ))
-            .unwrap_or_else(|| diag_whitening(&pts, &wmodel, eps)),
-        };
-        sol = search_tb(&pts, &terms, &w);
-    }
+    let (sol, wmodel, w) = reweighted_solution(&pts, opt, dt, &ms);
     let (t_b, c, chi2) = sol;
 
     // Covariance of the free parameters by Gauss-Newton at the solution.
@@ -811,4 +783,49 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
         model_error_rel: eps,
         t_b_range_s: tb_range(&pts),
     })
+}
+
+/// The weighted least-squares fit iterated `opt.irls_iterations` times, each time with the
+/// weights of the previous solution's model (diagonal EDF weights, or the full covariance
+/// of the overlapping estimates for [`Weighting::Gls`]): the solution `(T_B, coefficients,
+/// chi2)`, the model values the last weights came from, and those whitening weights.
+/// `dt` is the sample interval (s), `ms` each point's averaging factor and term count.
+fn reweighted_solution(
+    pts: &[Pt],
+    opt: &FitOptions,
+    dt: f64,
+    ms: &[(usize, usize)],
+) -> ((f64, [f64; 5], f64), Vec<f64>, DMatrix<f64>) {
+    let terms = opt.terms;
+    let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
+    let eps = opt.model_error_rel;
+    let mut w = diag_whitening(pts, &wmodel, eps);
+    let mut sol = search_tb(pts, &terms, &w);
+    for _ in 0..opt.irls_iterations {
+        let (t_b, c, _) = sol;
+        let new: Vec<f64> = pts
+            .iter()
+            .zip(wmodel.iter())
+            .map(|(p, &old)| {
+                let m = model_at(&c, &terms, p.tau, t_b);
+                if m > 0.0 {
+                    m
+                } else {
+                    old
+                }
+            })
+            .collect();
+        wmodel = new;
+        w = match opt.weighting {
+            Weighting::Edf | Weighting::EdfSandwich => diag_whitening(pts, &wmodel, eps),
+            Weighting::Gls => full_whitening(&add_model_error(
+                oavar_covariance(ms, dt, &c, t_b),
+                &wmodel,
+                eps,
+            ))
+            .unwrap_or_else(|| diag_whitening(pts, &wmodel, eps)),
+        };
+        sol = search_tb(pts, &terms, &w);
+    }
+    (sol, wmodel, w)
 }
