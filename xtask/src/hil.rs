@@ -671,21 +671,7 @@ pub fn bridge_drive(elf: &Path, bins: &HostBins) -> Result<u64> {
 }
 
 fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
-    let sc = dir.join("drive.toml");
-    std::fs::write(&sc, bridge_scenario())?;
-    let case = dir.join("case");
-    let mut sim = Command::new(&bins.host_sim);
-    sim.arg("simulate")
-        .arg("--scenario")
-        .arg(&sc)
-        .args(["--errors", "tactical", "--seed", "5"]);
-    for o in BRIDGE_OUTAGES {
-        sim.args(["--outage", o]);
-    }
-    sim.arg("--out").arg(&case);
-    let said = run_quiet(&mut sim)?;
-    eprint!("  {said}");
-    degrade_imu(&case)?;
+    let case = bridge_case(bins, dir)?;
     let (cfg_frame, health_req) = bridge_extra_frames()?;
 
     let q = QemuPty::start(elf, "bridge")?;
@@ -693,37 +679,7 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     let sent = dir.join("sent.bin");
     let t0 = Instant::now();
     // the recorder opens the pty first (socat then connects and the guest starts)
-    let mut rec = Command::new(&bins.hw_bridge);
-    rec.args([
-        "record",
-        "--quiet",
-        "--shared",
-        "--idle-exit",
-        "4",
-        "--duration",
-        "400",
-    ])
-    .arg("--port")
-    .arg(&q.tty)
-    .arg("--out")
-    .arg(&cap)
-    .stdin(Stdio::null())
-    .stdout(Stdio::null())
-    .stderr(Stdio::piped());
-    eprintln!("  $ {}", crate::show(&rec));
-    let mut rec = KillOnDrop(Some(rec.spawn().context("starting hw-bridge record")?));
-    let mut err = std::io::BufReader::new(
-        rec.0
-            .as_mut()
-            .and_then(|c| c.stderr.take())
-            .context("no stderr of hw-bridge record")?,
-    );
-    let mut line = String::new();
-    std::io::BufRead::read_line(&mut err, &mut line)?;
-    if !line.starts_with("recording") {
-        bail!("hw-bridge record did not start: {line:?}");
-    }
-    let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    let (mut rec, drain) = start_recorder(bins, &q.tty, &cap)?;
     // the configuration first (the board answers it with a health frame), then the drive
     write_pty(&q.tty, &cfg_frame)?;
     let mut send = Command::new(&bins.hw_bridge);
@@ -812,6 +768,68 @@ fn bridge_drive_in(elf: &Path, bins: &HostBins, dir: &Path) -> Result<u64> {
     }
     check_guard_and_aiding(&host, &h)?;
     Ok(u64::from(h.stack_peak_bytes))
+}
+
+/// The bridge drive's case: the drive scenario simulated with a tactical IMU and the GNSS
+/// outages into `dir/case`, then its IMU file degraded (gaps, an implausible sample).
+fn bridge_case(bins: &HostBins, dir: &Path) -> Result<PathBuf> {
+    let sc = dir.join("drive.toml");
+    std::fs::write(&sc, bridge_scenario())?;
+    let case = dir.join("case");
+    let mut sim = Command::new(&bins.host_sim);
+    sim.arg("simulate")
+        .arg("--scenario")
+        .arg(&sc)
+        .args(["--errors", "tactical", "--seed", "5"]);
+    for o in BRIDGE_OUTAGES {
+        sim.args(["--outage", o]);
+    }
+    sim.arg("--out").arg(&case);
+    let said = run_quiet(&mut sim)?;
+    eprint!("  {said}");
+    degrade_imu(&case)?;
+    Ok(case)
+}
+
+/// `hw-bridge record` on the pty `tty` into the capture `cap`, started and waited for until
+/// it says it records; its stderr drained by a thread (joined for the error message).
+fn start_recorder(
+    bins: &HostBins,
+    tty: &Path,
+    cap: &Path,
+) -> Result<(KillOnDrop, std::thread::JoinHandle<String>)> {
+    let mut rec = Command::new(&bins.hw_bridge);
+    rec.args([
+        "record",
+        "--quiet",
+        "--shared",
+        "--idle-exit",
+        "4",
+        "--duration",
+        "400",
+    ])
+    .arg("--port")
+    .arg(tty)
+    .arg("--out")
+    .arg(cap)
+    .stdin(Stdio::null())
+    .stdout(Stdio::null())
+    .stderr(Stdio::piped());
+    eprintln!("  $ {}", crate::show(&rec));
+    let mut rec = KillOnDrop(Some(rec.spawn().context("starting hw-bridge record")?));
+    let mut err = std::io::BufReader::new(
+        rec.0
+            .as_mut()
+            .and_then(|c| c.stderr.take())
+            .context("no stderr of hw-bridge record")?,
+    );
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut err, &mut line)?;
+    if !line.starts_with("recording") {
+        bail!("hw-bridge record did not start: {line:?}");
+    }
+    let drain = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    Ok((rec, drain))
 }
 
 /// The bytes of a capture's data records, and the number of records.
