@@ -2,8 +2,8 @@
 //! effect) on drives of `host_sim::sim::undeclared` whose GNSS FILE has three real 60 s gaps
 //! (starting between fix epochs) and no imposed outage, as a user runs
 //! `host-sim diagnose --config kf-gins.yaml` on a recording: the diagnosis takes the file's
-//! gaps as held-out windows and withholds more itself (`validate::plan_windows`), and decides each candidate on its evidence and a paired test
-//! of its held-out window errors.
+//! gaps as held-out windows and withholds more itself (`validate::plan_windows`), and
+//! decides each candidate on its evidence and a paired test of its held-out window errors.
 //!
 //! - each vocabulary effect of the drives is named first (one seed per effect here; the
 //!   10-seed sweep is `#[ignore]`);
