@@ -27,8 +27,9 @@ use host_sim::sim::ErrorModel;
 use nav_engine::RunSpec;
 use rayon::prelude::*;
 
-/// A drive with `effect` and three gaps in its GNSS file (IMU at `rate_hz`), prepared from its `kf-gins.yaml`
-/// with no imposed outage, and the drive's complete error model (with the effect).
+/// A drive with `effect` and three gaps in its GNSS file (IMU at `rate_hz`), prepared from its
+/// `kf-gins.yaml` with no imposed outage, and the drive's complete error model (with the
+/// effect).
 fn drive(effect: Option<Effect>, seed: u64, minutes: f64, rate_hz: f64) -> (Prepared, ErrorModel) {
     let spec = DriveSpec {
         minutes,
