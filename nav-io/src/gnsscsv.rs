@@ -362,6 +362,52 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
             ))
         }
     };
+    let sig = sigma_cols(path, fmt, &opt, &r3)?;
+    let vel = match (&c.vel_ned, &c.speed, &c.course) {
+        (None, None, None) => VelCols::None,
+        (Some(v), None, None) => VelCols::Ned(r3(v, ["vel_n", "vel_e", "vel_d"])?),
+        (None, Some(s), Some(k)) => {
+            VelCols::SpeedCourse(r(s, "speed")?, r(k, "course")?, opt(&c.climb, "climb")?)
+        }
+        _ => {
+            return Err(cfg_err(
+                path,
+                "gnss.csv.columns: give vel_ned = [n, e, d], or speed and course (and optionally climb)",
+            ))
+        }
+    };
+    if c.climb.is_some() && !matches!(vel, VelCols::SpeedCourse(..)) {
+        return Err(cfg_err(
+            path,
+            "gnss.csv.columns.climb goes with speed and course",
+        ));
+    }
+    let vel_sig = velocity_sigma_cols(path, fmt, &vel, &r, &r3)?;
+    Ok(Cols {
+        time,
+        week,
+        pos,
+        sig,
+        vel,
+        vel_sig,
+        quality: fmt
+            .quality
+            .as_ref()
+            .map(|q| r(&q.column, "quality"))
+            .transpose()?,
+        num_sats: opt(&c.num_sats, "num_sats")?,
+    })
+}
+
+/// The position sigma columns of a GNSS CSV mapping (`sigma_ned`, or `sigma_h`/`sigma_v`
+/// with `default_sigma_ned_m` for a missing one, or `default_sigma_ned_m` alone), checked.
+fn sigma_cols(
+    path: &Path,
+    fmt: &GnssCsvFormat,
+    opt: &dyn Fn(&Option<Column>, &str) -> Result<Option<usize>, IoError>,
+    r3: &dyn Fn(&[Column; 3], [&str; 3]) -> Result<[usize; 3], IoError>,
+) -> Result<SigCols, IoError> {
+    let c = &fmt.columns;
     let sig = match (&c.sigma_ned, &c.sigma_h, &c.sigma_v) {
         (Some(s), None, None) => SigCols::Ned(r3(s, ["sigma_n", "sigma_e", "sigma_d"])?),
         (None, h, v) if h.is_some() || v.is_some() => {
@@ -403,26 +449,20 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
             ));
         }
     }
-    let vel = match (&c.vel_ned, &c.speed, &c.course) {
-        (None, None, None) => VelCols::None,
-        (Some(v), None, None) => VelCols::Ned(r3(v, ["vel_n", "vel_e", "vel_d"])?),
-        (None, Some(s), Some(k)) => {
-            VelCols::SpeedCourse(r(s, "speed")?, r(k, "course")?, opt(&c.climb, "climb")?)
-        }
-        _ => {
-            return Err(cfg_err(
-                path,
-                "gnss.csv.columns: give vel_ned = [n, e, d], or speed and course (and optionally climb)",
-            ))
-        }
-    };
-    if c.climb.is_some() && !matches!(vel, VelCols::SpeedCourse(..)) {
-        return Err(cfg_err(
-            path,
-            "gnss.csv.columns.climb goes with speed and course",
-        ));
-    }
-    let vel_sig = match (&c.vel_sigma_ned, &c.speed_sigma) {
+    Ok(sig)
+}
+
+/// The velocity sigma columns of a GNSS CSV mapping (`vel_sigma_ned` or `speed_sigma`, or
+/// `default_vel_sigma_ned_mps` when the mapping has velocity columns `vel`), checked.
+fn velocity_sigma_cols(
+    path: &Path,
+    fmt: &GnssCsvFormat,
+    vel: &VelCols,
+    r: &dyn Fn(&Column, &str) -> Result<usize, IoError>,
+    r3: &dyn Fn(&[Column; 3], [&str; 3]) -> Result<[usize; 3], IoError>,
+) -> Result<VelSigCols, IoError> {
+    let c = &fmt.columns;
+    Ok(match (&c.vel_sigma_ned, &c.speed_sigma) {
         (Some(s), None) => VelSigCols::Ned(r3(s, ["vel_sigma_n", "vel_sigma_e", "vel_sigma_d"])?),
         (None, Some(s)) => VelSigCols::Speed(r(s, "speed_sigma")?),
         (Some(_), Some(_)) => {
@@ -431,7 +471,7 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
                 "gnss.csv.columns: give vel_sigma_ned or speed_sigma, not both",
             ))
         }
-        (None, None) => match (fmt.default_vel_sigma_ned_mps, &vel) {
+        (None, None) => match (fmt.default_vel_sigma_ned_mps, vel) {
             (_, VelCols::None) => VelSigCols::Default([1.0; 3]),
             (Some(d), _) if sig_ok(&d) => VelSigCols::Default(d),
             (Some(d), _) => {
@@ -447,20 +487,6 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
                 ))
             }
         },
-    };
-    Ok(Cols {
-        time,
-        week,
-        pos,
-        sig,
-        vel,
-        vel_sig,
-        quality: fmt
-            .quality
-            .as_ref()
-            .map(|q| r(&q.column, "quality"))
-            .transpose()?,
-        num_sats: opt(&c.num_sats, "num_sats")?,
     })
 }
 
@@ -756,100 +782,8 @@ impl GnssCsvReader {
                 quality,
                 ..GnssFix::default()
             };
-            match cols.pos {
-                PosCols::Llh([a, b, h]) => {
-                    fix.lat_rad = dl.lat_deg(a, "lat [deg]")?.to_radians();
-                    fix.lon_rad = dl.lon_deg(b, "lon [deg]")?.to_radians();
-                    fix.h_m = dl.num(h, "h [m]")?;
-                    if !(-1.0e4..1.0e7).contains(&fix.h_m) {
-                        return Err(dl.invalid(h, "h [m]", "height outside -10 km .. 10000 km"));
-                    }
-                }
-                PosCols::Ecef([x, y, z]) => {
-                    let r = Vector3::new(
-                        dl.num(x, "ecef_x [m]")?,
-                        dl.num(y, "ecef_y [m]")?,
-                        dl.num(z, "ecef_z [m]")?,
-                    );
-                    if !(1.0e6..1.0e8).contains(&r.norm()) {
-                        return Err(dl.invalid(
-                            x,
-                            "ecef_x [m]",
-                            "ECEF position not between 1000 km and 100000 km from the earth's centre",
-                        ));
-                    }
-                    let llh = ecef_to_geodetic(&r);
-                    fix.lat_rad = llh.lat_rad;
-                    fix.lon_rad = llh.lon_rad;
-                    fix.h_m = llh.h_m;
-                }
-            }
-            let positive = |dl: &DataLine<'_>, i: usize, n: &str| -> Result<f64, IoError> {
-                let v = dl.sigma(i, n)?;
-                if v <= 0.0 {
-                    return Err(dl.invalid(i, n, "a standard deviation must be > 0"));
-                }
-                Ok(v)
-            };
-            fix.pos_std_ned_m = match cols.sig {
-                SigCols::Ned([a, b, c]) => [
-                    positive(&dl, a, "sigma_n [m]")?,
-                    positive(&dl, b, "sigma_e [m]")?,
-                    positive(&dl, c, "sigma_d [m]")?,
-                ],
-                SigCols::Hv(h, v) => {
-                    let d = fmt.default_sigma_ned_m.unwrap_or([f64::NAN; 3]);
-                    let sh = match h {
-                        Some(i) => positive(&dl, i, "sigma_h [m]")?,
-                        None => d[0],
-                    };
-                    let sv = match v {
-                        Some(i) => positive(&dl, i, "sigma_v [m]")?,
-                        None => d[2],
-                    };
-                    [sh, sh, sv]
-                }
-                SigCols::Default(d) => d,
-            };
-            match cols.vel {
-                VelCols::None => {}
-                VelCols::Ned([a, b, c]) => {
-                    fix.vel_ned_mps = [
-                        dl.num(a, "vel_n [m/s]")?,
-                        dl.num(b, "vel_e [m/s]")?,
-                        dl.num(c, "vel_d [m/s]")?,
-                    ];
-                    fix.has_velocity = true;
-                }
-                VelCols::SpeedCourse(s, k, climb) => {
-                    let sp = dl.num(s, "speed")? * kv;
-                    if sp < 0.0 {
-                        return Err(dl.invalid(s, "speed", "a speed cannot be negative"));
-                    }
-                    let co = dl.num(k, "course [deg]")?;
-                    if co.abs() > 720.0 {
-                        return Err(dl.invalid(k, "course [deg]", "course outside -720..720 deg"));
-                    }
-                    let up = match climb {
-                        Some(i) => dl.num(i, "climb [m/s]")?,
-                        None => 0.0,
-                    };
-                    let c = co.to_radians();
-                    fix.vel_ned_mps = [sp * c.cos(), sp * c.sin(), -up];
-                    fix.has_velocity = true;
-                }
-            }
-            if fix.has_velocity {
-                fix.vel_std_ned_mps = match cols.vel_sig {
-                    VelSigCols::Ned([a, b, c]) => [
-                        positive(&dl, a, "vel_sigma_n [m/s]")?,
-                        positive(&dl, b, "vel_sigma_e [m/s]")?,
-                        positive(&dl, c, "vel_sigma_d [m/s]")?,
-                    ],
-                    VelSigCols::Speed(i) => [positive(&dl, i, "speed_sigma [m/s]")?; 3],
-                    VelSigCols::Default(d) => d,
-                };
-            }
+            fill_position(&dl, cols, fmt, &mut fix)?;
+            fill_velocity(&dl, cols, kv, &mut fix)?;
             if let Some(i) = cols.num_sats {
                 fix.num_sats = u8::try_from(dl.integer(i, "num_sats", 0, 255)?).unwrap_or(u8::MAX);
             }
@@ -857,6 +791,124 @@ impl GnssCsvReader {
         }
         Ok(None)
     }
+}
+
+/// A standard deviation at field `i` (named `n` in messages): a number > 0.
+fn positive_sigma(dl: &DataLine<'_>, i: usize, n: &str) -> Result<f64, IoError> {
+    let v = dl.sigma(i, n)?;
+    if v <= 0.0 {
+        return Err(dl.invalid(i, n, "a standard deviation must be > 0"));
+    }
+    Ok(v)
+}
+
+/// The position of a record (latitude/longitude/height or ECEF) and its standard deviations
+/// (NED, horizontal/vertical or the mapping's default) into `fix`.
+fn fill_position(
+    dl: &DataLine<'_>,
+    cols: &Cols,
+    fmt: &GnssCsvFormat,
+    fix: &mut GnssFix,
+) -> Result<(), IoError> {
+    match cols.pos {
+        PosCols::Llh([a, b, h]) => {
+            fix.lat_rad = dl.lat_deg(a, "lat [deg]")?.to_radians();
+            fix.lon_rad = dl.lon_deg(b, "lon [deg]")?.to_radians();
+            fix.h_m = dl.num(h, "h [m]")?;
+            if !(-1.0e4..1.0e7).contains(&fix.h_m) {
+                return Err(dl.invalid(h, "h [m]", "height outside -10 km .. 10000 km"));
+            }
+        }
+        PosCols::Ecef([x, y, z]) => {
+            let r = Vector3::new(
+                dl.num(x, "ecef_x [m]")?,
+                dl.num(y, "ecef_y [m]")?,
+                dl.num(z, "ecef_z [m]")?,
+            );
+            if !(1.0e6..1.0e8).contains(&r.norm()) {
+                return Err(dl.invalid(
+                    x,
+                    "ecef_x [m]",
+                    "ECEF position not between 1000 km and 100000 km from the earth's centre",
+                ));
+            }
+            let llh = ecef_to_geodetic(&r);
+            fix.lat_rad = llh.lat_rad;
+            fix.lon_rad = llh.lon_rad;
+            fix.h_m = llh.h_m;
+        }
+    }
+    fix.pos_std_ned_m = match cols.sig {
+        SigCols::Ned([a, b, c]) => [
+            positive_sigma(dl, a, "sigma_n [m]")?,
+            positive_sigma(dl, b, "sigma_e [m]")?,
+            positive_sigma(dl, c, "sigma_d [m]")?,
+        ],
+        SigCols::Hv(h, v) => {
+            let d = fmt.default_sigma_ned_m.unwrap_or([f64::NAN; 3]);
+            let sh = match h {
+                Some(i) => positive_sigma(dl, i, "sigma_h [m]")?,
+                None => d[0],
+            };
+            let sv = match v {
+                Some(i) => positive_sigma(dl, i, "sigma_v [m]")?,
+                None => d[2],
+            };
+            [sh, sh, sv]
+        }
+        SigCols::Default(d) => d,
+    };
+    Ok(())
+}
+
+/// The velocity of a record (NED, or speed, course and climb with the speed unit `kv` to
+/// m/s) and its standard deviations into `fix`; nothing when the mapping has no velocity.
+fn fill_velocity(
+    dl: &DataLine<'_>,
+    cols: &Cols,
+    kv: f64,
+    fix: &mut GnssFix,
+) -> Result<(), IoError> {
+    match cols.vel {
+        VelCols::None => {}
+        VelCols::Ned([a, b, c]) => {
+            fix.vel_ned_mps = [
+                dl.num(a, "vel_n [m/s]")?,
+                dl.num(b, "vel_e [m/s]")?,
+                dl.num(c, "vel_d [m/s]")?,
+            ];
+            fix.has_velocity = true;
+        }
+        VelCols::SpeedCourse(s, k, climb) => {
+            let sp = dl.num(s, "speed")? * kv;
+            if sp < 0.0 {
+                return Err(dl.invalid(s, "speed", "a speed cannot be negative"));
+            }
+            let co = dl.num(k, "course [deg]")?;
+            if co.abs() > 720.0 {
+                return Err(dl.invalid(k, "course [deg]", "course outside -720..720 deg"));
+            }
+            let up = match climb {
+                Some(i) => dl.num(i, "climb [m/s]")?,
+                None => 0.0,
+            };
+            let c = co.to_radians();
+            fix.vel_ned_mps = [sp * c.cos(), sp * c.sin(), -up];
+            fix.has_velocity = true;
+        }
+    }
+    if fix.has_velocity {
+        fix.vel_std_ned_mps = match cols.vel_sig {
+            VelSigCols::Ned([a, b, c]) => [
+                positive_sigma(dl, a, "vel_sigma_n [m/s]")?,
+                positive_sigma(dl, b, "vel_sigma_e [m/s]")?,
+                positive_sigma(dl, c, "vel_sigma_d [m/s]")?,
+            ],
+            VelSigCols::Speed(i) => [positive_sigma(dl, i, "speed_sigma [m/s]")?; 3],
+            VelSigCols::Default(d) => d,
+        };
+    }
+    Ok(())
 }
 
 impl Iterator for GnssCsvReader {

@@ -415,50 +415,66 @@ fn parse_record(
             }
         }
         PosPositionFormat::Ecef => {
-            let r = Vector3::new(
-                dl.num(p0, lay.name(p0))?,
-                dl.num(p0 + 1, lay.name(p0 + 1))?,
-                dl.num(p0 + 2, lay.name(p0 + 2))?,
-            );
-            let rn = r.norm();
-            if !(1.0e6..1.0e8).contains(&rn) {
-                return Err(dl.invalid(
-                    p0,
-                    lay.name(p0),
-                    "ECEF position not between 1000 km and 100000 km from the earth's centre",
-                ));
-            }
-            let llh = ecef_to_geodetic(&r);
-            if !(llh.lat_rad.is_finite() && llh.lon_rad.is_finite() && llh.h_m.is_finite()) {
-                return Err(dl.invalid(
-                    p0,
-                    lay.name(p0),
-                    "ECEF position does not convert to latitude/longitude/height",
-                ));
-            }
-            let c = ecef_to_ned_dcm(&llh);
-            fix.lat_rad = llh.lat_rad;
-            fix.lon_rad = llh.lon_rad;
-            fix.h_m = llh.h_m;
-            let p = c * cov_from_rtklib(&sd) * c.transpose();
-            fix.pos_std_ned_m = [
-                p[(0, 0)].max(0.0).sqrt(),
-                p[(1, 1)].max(0.0).sqrt(),
-                p[(2, 2)].max(0.0).sqrt(),
-            ];
-            if has_vel {
-                let v = c * Vector3::new(vel[0], vel[1], vel[2]);
-                fix.vel_ned_mps = [v.x, v.y, v.z];
-                let pv = c * cov_from_rtklib(&sdv) * c.transpose();
-                fix.vel_std_ned_mps = [
-                    pv[(0, 0)].max(0.0).sqrt(),
-                    pv[(1, 1)].max(0.0).sqrt(),
-                    pv[(2, 2)].max(0.0).sqrt(),
-                ];
-            }
+            ecef_fix(dl, lay, &sd, has_vel.then_some((&vel, &sdv)), &mut fix)?;
         }
     }
     Ok((fix, week, q))
+}
+
+/// The position (and velocity) of an ECEF record into `fix`: the ECEF position at fields
+/// 2..5 checked for a plausible radius and converted to latitude, longitude and height; the
+/// RTKLIB standard deviations `sd` (sdx, sdy, sdz, sdxy, sdyz, sdzx in m) rotated into NED, and
+/// likewise the velocity and its deviations when given.
+fn ecef_fix(
+    dl: &DataLine<'_>,
+    lay: &Layout,
+    sd: &[f64; 6],
+    velocity: Option<(&[f64; 3], &[f64; 6])>,
+    fix: &mut GnssFix,
+) -> Result<(), IoError> {
+    let p0 = 2;
+    let r = Vector3::new(
+        dl.num(p0, lay.name(p0))?,
+        dl.num(p0 + 1, lay.name(p0 + 1))?,
+        dl.num(p0 + 2, lay.name(p0 + 2))?,
+    );
+    let rn = r.norm();
+    if !(1.0e6..1.0e8).contains(&rn) {
+        return Err(dl.invalid(
+            p0,
+            lay.name(p0),
+            "ECEF position not between 1000 km and 100000 km from the earth's centre",
+        ));
+    }
+    let llh = ecef_to_geodetic(&r);
+    if !(llh.lat_rad.is_finite() && llh.lon_rad.is_finite() && llh.h_m.is_finite()) {
+        return Err(dl.invalid(
+            p0,
+            lay.name(p0),
+            "ECEF position does not convert to latitude/longitude/height",
+        ));
+    }
+    let c = ecef_to_ned_dcm(&llh);
+    fix.lat_rad = llh.lat_rad;
+    fix.lon_rad = llh.lon_rad;
+    fix.h_m = llh.h_m;
+    let p = c * cov_from_rtklib(sd) * c.transpose();
+    fix.pos_std_ned_m = [
+        p[(0, 0)].max(0.0).sqrt(),
+        p[(1, 1)].max(0.0).sqrt(),
+        p[(2, 2)].max(0.0).sqrt(),
+    ];
+    if let Some((vel, sdv)) = velocity {
+        let v = c * Vector3::new(vel[0], vel[1], vel[2]);
+        fix.vel_ned_mps = [v.x, v.y, v.z];
+        let pv = c * cov_from_rtklib(sdv) * c.transpose();
+        fix.vel_std_ned_mps = [
+            pv[(0, 0)].max(0.0).sqrt(),
+            pv[(1, 1)].max(0.0).sqrt(),
+            pv[(2, 2)].max(0.0).sqrt(),
+        ];
+    }
+    Ok(())
 }
 
 /// Reads an RTKLIB `.pos` file (plain or gzip) and keeps the records with `1 <= Q <= max_q`
