@@ -121,9 +121,10 @@ pub(super) fn interrupted(
     ready: &dyn Fn() -> bool,
     sig: i32,
 ) -> Option<Bounded> {
+    let mut ready = ready;
     test_support::cli::interrupt_when_ready(
         cmd,
-        &mut || ready(),
+        &mut ready,
         sig,
         Duration::from_secs(30),
         super::LIMIT,
