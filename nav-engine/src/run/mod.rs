@@ -644,6 +644,13 @@ pub enum RunError {
     },
 }
 
+impl RunError {
+    /// [`RunError::NoFixToAlign`] for the static window `from_s .. to_s`, s.
+    pub(crate) fn no_fix_to_align(from_s: f64, to_s: f64) -> Self {
+        Self::NoFixToAlign { from_s, to_s }
+    }
+}
+
 fn filter_err(t_s: f64, source: FilterError) -> RunError {
     RunError::Filter { t_s, source }
 }
