@@ -493,5 +493,6 @@ fn nmea_log_with_a_utf8_byte_order_mark_reads_the_same_fixes() {
         read_nmea_log(&bom, &opts, 6).unwrap(),
     );
     assert_eq!(a.fixes.len(), 2);
-    assert_eq!(a.fixes, b.fixes);
+    // (compared as text: the velocity sigmas of fixes without a velocity are NaN)
+    assert_eq!(format!("{:?}", a.fixes), format!("{:?}", b.fixes));
 }
