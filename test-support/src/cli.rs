@@ -383,9 +383,10 @@ mod tests {
             "{e}"
         );
         // a child that ignores the signal: killed at the end limit
-        let mut ready = || true;
+        let mut ready = || d.exists();
+        let script = format!("trap '' INT; touch {}; sleep 20", d.display());
         let r = interrupt_when_ready(
-            Command::new("/bin/sh").args(["-c", "trap '' INT; sleep 20"]),
+            Command::new("/bin/sh").args(["-c", &script]),
             &mut ready,
             libc::SIGINT,
             Duration::from_secs(20),
@@ -393,6 +394,7 @@ mod tests {
         )
         .unwrap();
         assert!(r.timed_out() && r.wall_s < 10.0, "{r:?}");
+        let _ = std::fs::remove_file(&d);
     }
 
     #[cfg(target_os = "linux")]
