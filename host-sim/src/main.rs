@@ -1,9 +1,19 @@
 //! The `host-sim` command line.
 use clap::{Parser, Subcommand};
 
+/// Exit status of `host-sim`, shown under `--help`.
+const EXIT_CODES: &str = "\
+Exit status:
+  0        done (--help and --version too)
+  1        error: a bad option or value, an input or configuration error, an output that
+           could not be written (the message names the cause, with file and line)
+  2        not a navigation solution: no GNSS fix (or too few) used; the outputs, when
+           written, are a dead-reckoning track
+  130/143  stopped by SIGINT/SIGTERM (128 + the signal): the outputs kept as *.partial";
+
 /// INS/GNSS navigation core on the host: simulate, identify noise, run, study, diagnose.
 #[derive(Parser, Debug)]
-#[command(name = "host-sim", version, about, long_about = None)]
+#[command(name = "host-sim", version, about, long_about = None, after_help = EXIT_CODES)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -33,7 +43,18 @@ enum Cmd {
 }
 
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    // clap's usage errors exit 2, which means "not a navigation solution" here: they exit 1
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                std::process::ExitCode::FAILURE
+            } else {
+                std::process::ExitCode::SUCCESS
+            };
+        }
+    };
     if matches!(cli.cmd, Cmd::Run(_) | Cmd::Diagnose(_)) {
         // SIGINT/SIGTERM: a run keeps what it processed as *.partial (else the default)
         if let Err(e) = nav_engine::run::interrupt::install() {

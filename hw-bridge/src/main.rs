@@ -5,9 +5,20 @@ use std::process::ExitCode;
 
 mod cli;
 
+/// Exit status of `hw-bridge`, shown under `--help`.
+const EXIT_CODES: &str = "\
+Exit status:
+  0        done, outputs complete (--help and --version too)
+  1        error: a bad option or value, an unreadable or damaged input, an output that
+           could not be written (the message names the cause once)
+  2        finished but incomplete: the outputs hold everything up to the fault and say so
+           (e.g. replay --config whose filter run is not a navigation solution)
+  130/143  stopped by SIGINT/SIGTERM (128 + the signal): a replay's outputs kept as *.partial,
+           a recording's capture complete";
+
 /// Serial bridge between a navigation board or GNSS receiver and nav-core.
 #[derive(Parser, Debug)]
-#[command(name = "hw-bridge", version, about)]
+#[command(name = "hw-bridge", version, about, after_help = EXIT_CODES)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,

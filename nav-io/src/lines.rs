@@ -608,6 +608,8 @@ impl MonotonicTime {
 pub struct IncompleteLine {
     /// The file.
     pub path: PathBuf,
+    /// The line's number in the file (1-based).
+    pub line: usize,
     /// Byte offset of the line's start in the file.
     pub offset: u64,
     /// The line's text (at most 40 characters).
@@ -622,9 +624,10 @@ impl std::fmt::Display for IncompleteLine {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{}: the last line (byte offset {}) is incomplete, {} field(s) where the line before \
-             has {}, and no line end: {:?} dropped (is the file still being written?)",
+            "{}: line {}, the last line (byte offset {}), is incomplete, {} field(s) where the \
+             line before has {}, and no line end: {:?} dropped (is the file still being written?)",
             self.path.display(),
+            self.line,
             self.offset,
             self.fields,
             self.expected,
@@ -662,7 +665,8 @@ pub fn incomplete_last_line(path: &Path) -> Result<Option<IncompleteLine>, IoErr
     let from = len.saturating_sub(TAIL_BYTES);
     f.seek(SeekFrom::Start(from)).map_err(read_err)?;
     let mut tail = Vec::new();
-    f.take(TAIL_BYTES)
+    (&mut f)
+        .take(TAIL_BYTES)
         .read_to_end(&mut tail)
         .map_err(read_err)?;
     if tail.is_empty() || tail.ends_with(b"\n") {
@@ -689,8 +693,22 @@ pub fn incomplete_last_line(path: &Path) -> Result<Option<IncompleteLine>, IoErr
     if fields >= expected {
         return Ok(None);
     }
+    // the line's number: the line ends before it (the file is read once more, only when it
+    // ends with a line cut short)
+    f.seek(SeekFrom::Start(0)).map_err(read_err)?;
+    let mut ends = memchr::memchr_iter(b'\n', before).count();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut rest = from;
+    while rest > 0 {
+        let n = usize::try_from(rest.min(buf.len() as u64)).unwrap_or(buf.len());
+        let chunk = buf.get_mut(..n).unwrap_or_default();
+        f.read_exact(chunk).map_err(read_err)?;
+        ends += memchr::memchr_iter(b'\n', chunk).count();
+        rest -= n as u64;
+    }
     Ok(Some(IncompleteLine {
         path: path.to_path_buf(),
+        line: ends + 1,
         offset: from + (nl as u64) + 1,
         text: clip(&last_text),
         fields,

@@ -11,6 +11,9 @@
 //! let ran = HOST_SIM.run(["run", "--config", "missing.yaml"]);
 //! assert!(!ran.ok && ran.stderr.contains("missing.yaml"));
 //! ```
+/// The signals [`interrupt_when_ready`] sends in the workspace's tests.
+#[cfg(unix)]
+pub use libc::{SIGINT, SIGTERM};
 use std::ffi::OsStr;
 use std::process::{Command, ExitStatus};
 
@@ -144,6 +147,22 @@ impl Bounded {
     pub fn panicked(&self) -> bool {
         self.code() == Some(101) || self.stderr.contains("panicked at")
     }
+
+    /// Asserts that it was stopped by `signal` the way the workspace's binaries report it:
+    /// exit code 128 + the signal and `interrupted by SIGINT` (or `SIGTERM`) on stderr.
+    #[cfg(unix)]
+    pub fn assert_interrupted_by(&self, signal: i32) {
+        let name = match signal {
+            libc::SIGINT => "SIGINT",
+            libc::SIGTERM => "SIGTERM",
+            _ => "",
+        };
+        assert_eq!(self.code(), Some(128 + signal), "{self:?}");
+        assert!(
+            !name.is_empty() && self.stderr.contains(&format!("interrupted by {name}")),
+            "no \"interrupted by {name}\": {self:?}"
+        );
+    }
 }
 
 /// Runs `cmd` (its standard input empty, in a process group of its own) for at most `limit`:
@@ -211,6 +230,92 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
     }
 }
 
+/// Starts `cmd` (its standard input empty, in a process group of its own, its output read),
+/// waits until `ready()` says it has started its work (polled every 2 ms, at most
+/// `start_limit`), sends it `signal` (e.g. `libc::SIGINT`, `libc::SIGTERM`) and waits at most
+/// `end_limit` for its end (killed with its process group past it: then
+/// [`Bounded::timed_out`]). `wall_s` is the time from the signal to the end. `Err` naming what
+/// happened when it ended, or was still not ready at `start_limit` (then killed), before the
+/// signal.
+#[cfg(unix)]
+pub fn interrupt_when_ready(
+    cmd: &mut Command,
+    ready: &mut dyn FnMut() -> bool,
+    signal: i32,
+    start_limit: std::time::Duration,
+    end_limit: std::time::Duration,
+) -> Result<Bounded, String> {
+    use std::os::unix::process::CommandExt;
+    use std::process::Stdio;
+    let t = std::time::Instant::now();
+    let mut child = cmd
+        .process_group(0)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("{cmd:?} could not be started: {e}"))?;
+    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut b = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut b);
+            }
+            String::from_utf8_lossy(&b).into_owned()
+        })
+    };
+    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
+    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    let pid = libc::pid_t::try_from(child.id()).map_err(|e| e.to_string())?;
+    let kill_group = || {
+        // SAFETY: signalling the process group of our own child, not reaped yet.
+        unsafe { libc::kill(-pid, libc::SIGKILL) };
+    };
+    while !ready() {
+        let ended = child.try_wait().map_err(|e| e.to_string())?;
+        if ended.is_some() || t.elapsed() > start_limit {
+            if ended.is_none() {
+                kill_group();
+            }
+            let status = child.wait().map_err(|e| e.to_string())?;
+            return Err(format!(
+                "{cmd:?} {} before it was ready ({:.1} s): {status}\nstdout:\n{}\nstderr:\n{}",
+                if ended.is_some() {
+                    "ended"
+                } else {
+                    "was killed at the start limit"
+                },
+                t.elapsed().as_secs_f64(),
+                out.join().unwrap_or_default(),
+                err.join().unwrap_or_default()
+            ));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let t_sig = std::time::Instant::now();
+    // SAFETY: signalling our own child, not reaped yet (`try_wait` saw it running).
+    unsafe { libc::kill(pid, signal) };
+    let mut killed = false;
+    let status = loop {
+        if let Some(st) = child.try_wait().map_err(|e| e.to_string())? {
+            break st;
+        }
+        if !killed && t_sig.elapsed() > end_limit {
+            kill_group();
+            killed = true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    Ok(Bounded {
+        status: (!killed).then_some(status),
+        stdout: out.join().unwrap_or_default(),
+        stderr: err.join().unwrap_or_default(),
+        wall_s: t_sig.elapsed().as_secs_f64(),
+        max_rss_kib: 0,
+        cpu_s: 0.0,
+    })
+}
+
 /// The high-water mark of a running process's resident set (`VmHWM` of `/proc/PID/status`),
 /// KiB; None once it has ended (a zombie has no address space) or without `/proc`.
 #[cfg(unix)]
@@ -240,6 +345,56 @@ mod tests {
             (Some(3), "out\n", "err\n")
         );
         assert!(r.max_rss_kib > 0 && !r.panicked(), "{r:?}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_child_is_signalled_once_ready_and_its_end_reported() {
+        use std::time::Duration;
+        let d = std::env::temp_dir().join(format!("ts-interrupt-{}", std::process::id()));
+        let _ = std::fs::remove_file(&d);
+        let script = format!(
+            "trap 'echo interrupted by SIGTERM >&2; exit 143' TERM; touch {}; \
+             while :; do sleep 0.01; done",
+            d.display()
+        );
+        let mut ready = || d.exists();
+        let r = interrupt_when_ready(
+            Command::new("/bin/sh").args(["-c", &script]),
+            &mut ready,
+            libc::SIGTERM,
+            Duration::from_secs(20),
+            Duration::from_secs(20),
+        )
+        .unwrap();
+        r.assert_interrupted_by(libc::SIGTERM);
+        let _ = std::fs::remove_file(&d);
+        // ended before it was ready: an error with its output
+        let e = interrupt_when_ready(
+            Command::new("/bin/sh").args(["-c", "echo gone >&2; exit 4"]),
+            &mut || false,
+            libc::SIGINT,
+            Duration::from_secs(20),
+            Duration::from_secs(20),
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("ended before it was ready") && e.contains("gone"),
+            "{e}"
+        );
+        // a child that ignores the signal: killed at the end limit
+        let mut ready = || d.exists();
+        let script = format!("trap '' INT; touch {}; sleep 20", d.display());
+        let r = interrupt_when_ready(
+            Command::new("/bin/sh").args(["-c", &script]),
+            &mut ready,
+            libc::SIGINT,
+            Duration::from_secs(20),
+            Duration::from_millis(300),
+        )
+        .unwrap();
+        assert!(r.timed_out() && r.wall_s < 10.0, "{r:?}");
+        let _ = std::fs::remove_file(&d);
     }
 
     #[cfg(target_os = "linux")]

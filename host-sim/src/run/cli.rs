@@ -224,7 +224,9 @@ fn run_smoothed(args: &RunArgs) -> anyhow::Result<()> {
     let l = load(args, true)?;
     let od = OutDir::open(&args.out, &l.inputs)?;
     println!("{}", l.prepared.description);
-    let c = super::smoothed::finish(&l, &args.out, od.stage(), t)?;
+    // no fix to align on and none usable: not a navigation solution (exit 2), naming why
+    let c = super::smoothed::finish(&l, &args.out, od.stage(), t)
+        .map_err(|e| l.explain_start_failure(e))?;
     {
         let _moving = nav_engine::run::interrupt::Stoppable::enter();
         od.commit()
@@ -273,7 +275,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
     );
     pb.finish_and_clear();
     let t_run = t.elapsed().as_secs_f64();
-    let (out, m) = res?;
+    // no fix to align on and none usable: not a navigation solution (exit 2), naming why
+    let (out, m) = res.map_err(|e| loaded.explain_start_failure(e))?;
     let c = &out.counters;
     println!(
         "model {} ({} states), init: {} ({})",

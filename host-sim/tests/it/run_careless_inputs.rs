@@ -321,6 +321,76 @@ fn an_all_zero_imu_sample_is_rejected_and_counted() {
     assert!(h < h0 + 0.01, "{h} vs {h0}");
 }
 
+/// Static alignment with every GNSS fix unusable (sigmas zero, all before or after the IMU
+/// data, an empty file): no position to align on, no run; the error is "not a navigation
+/// solution" (exit 2) naming where every fix went, the output folder not made.
+#[test]
+fn static_alignment_without_a_usable_fix_names_where_every_fix_went() {
+    let c = case();
+    let shift = |dt: f64| -> Vec<Vec<String>> {
+        let mut g = c.gnss.clone();
+        for r in &mut g {
+            r[0] = format!("{}", r[0].parse::<f64>().unwrap() + dt);
+        }
+        g
+    };
+    let mut sigma0 = c.gnss.clone();
+    for r in &mut sigma0 {
+        for x in &mut r[4..7] {
+            *x = "0".into();
+        }
+    }
+    let n = c.gnss.len();
+    for (gnss, says) in [
+        (
+            join(&sigma0),
+            // (the first fix is 10 ms before the first IMU sample)
+            format!(
+                "{} fix(es) invalid: a position standard deviation zero",
+                n - 1
+            ),
+        ),
+        (
+            join(&shift(-10_000.0)),
+            format!("{n} of {n} fix(es) are before the IMU data"),
+        ),
+        (
+            join(&shift(10_000.0)),
+            format!("{n} of {n} fix(es) are after the IMU data"),
+        ),
+        (String::new(), "the GNSS data hold no fix".to_string()),
+    ] {
+        let (tmp, cfg) = setup("imu.txt", &join(&c.imu), &gnss);
+        let r = run(&cfg, tmp.path());
+        assert_eq!(r.status.code(), Some(2), "{says}: {}", r.stderr);
+        assert!(
+            r.stderr
+                .contains("not a navigation solution (nothing run, no output written")
+                && r.stderr.contains("[init.align]")
+                && r.stderr.contains(&says),
+            "{says}: {}",
+            r.stderr
+        );
+        assert!(!tmp.path().join("out/nav.txt").exists());
+    }
+    // fixes only after the static window, at rest still (usable ones): the alignment's own error, exit 1
+    let late: Vec<Vec<String>> = c
+        .gnss
+        .iter()
+        .filter(|r| r[0].parse::<f64>().unwrap() > c.imu[0][0].parse::<f64>().unwrap() + 30.0)
+        .cloned()
+        .collect();
+    let (tmp, cfg) = setup("imu.txt", &join(&c.imu), &join(&late));
+    let r = run(&cfg, tmp.path());
+    assert_eq!(r.status.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("no valid GNSS fix during the static window"),
+        "{}",
+        r.stderr
+    );
+}
+
 #[test]
 fn a_half_written_last_imu_line_is_dropped_with_a_warning() {
     let c = case();
@@ -333,8 +403,10 @@ fn a_half_written_last_imu_line_is_dropped_with_a_warning() {
     let r = run(&cfg, tmp.path());
     assert!(r.ok, "{}", r.stderr);
     assert!(
-        r.stderr.contains("imu.txt: the last line")
-            && r.stderr.contains("is incomplete")
+        r.stderr.contains(&format!(
+            "imu.txt: line {}, the last line (byte offset",
+            c.imu.len() + 1
+        )) && r.stderr.contains("is incomplete")
             && r.stderr.contains("still being written"),
         "{}",
         r.stderr

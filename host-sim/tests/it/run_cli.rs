@@ -182,8 +182,9 @@ fn run_imposes_outages_and_decimates_nav() {
 }
 
 /// The command line's options are parsed and typed by clap: a wrong effect name, gate or
-/// velocity gate fails at argument parsing (exit 2, the valid names listed), before any file
-/// is read (the configuration named does not exist).
+/// velocity gate fails at argument parsing (exit 1, an input error like any other: 2 means
+/// "not a navigation solution"; the valid names listed), before any file is read (the
+/// configuration named does not exist).
 #[test]
 fn wrong_option_values_fail_at_argument_parsing_before_any_file_is_read() {
     let missing = "no-such-folder/run.toml";
@@ -202,7 +203,7 @@ fn wrong_option_values_fail_at_argument_parsing_before_any_file_is_read() {
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(want), "{args:?}: {err}");
         assert!(
             err.contains(&format!("for '{} <", args[0])),
@@ -271,4 +272,40 @@ fn run_arguments_become_the_typed_run_spec() {
         (d.std_rate_hz, d.nav_rate_hz, d.gate, d.effects.len(), d.f32),
         (e.std_rate_hz, e.nav_rate_hz, e.gate, e.effects.len(), e.f32)
     );
+}
+
+/// The exit codes under `--help`; `--help` and `--version` exit 0, a usage error 1 (an
+/// unknown option, a missing value, no command).
+#[test]
+fn exit_codes_are_listed_under_help_and_a_usage_error_exits_1() {
+    let help = host_sim().arg("--help").output().unwrap();
+    let text = String::from_utf8_lossy(&help.stdout);
+    assert_eq!(help.status.code(), Some(0), "{text}");
+    for want in [
+        "Exit status:",
+        "  1 ",
+        "  2 ",
+        "not a navigation solution",
+        "130/143",
+    ] {
+        assert!(text.contains(want), "no {want:?} in {text}");
+    }
+    assert_eq!(
+        host_sim().arg("--version").output().unwrap().status.code(),
+        Some(0)
+    );
+    for args in [
+        &["run", "--no-such-option"][..],
+        &["run", "--config"],
+        &[],
+        &["run", "--config", "x.toml", "--nav-rate", "fast"],
+    ] {
+        let out = host_sim().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("error:") && err.contains("--help"),
+            "{args:?}: {err}"
+        );
+    }
 }

@@ -5,10 +5,10 @@
 use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
-use test_support::cli::Bin;
+use std::time::Duration;
+use test_support::cli::{interrupt_when_ready, Bin, SIGINT, SIGTERM};
 use test_support::runcase::{case_config, simulate_case, TACTICAL_NOISE};
 use test_support::scenario::four_minute_drive;
 
@@ -320,46 +320,34 @@ fn two_runs_into_one_folder_refuse_or_finish_whole() {
 
 /// Sends `sig` to a run into a folder holding a complete earlier run once its outputs are
 /// being written; the run keeps what it did as `*.partial` and the earlier outputs stay.
-fn interrupt_mid_run(sig: &str, code: i32) {
+fn interrupt_mid_run(sig: &str, signal: i32) {
     let d = input_folder(&format!("sig-{sig}"));
     let cfg = d.join("run.toml");
     let out = case().0.join(format!("sig-{sig}-out"));
     bin().run_ok(run_args(&cfg, &out));
     let before = hashes(&out);
     let inputs = hashes(&d);
-    let mut child = bin()
-        .command()
-        .args(run_args(&cfg, &out))
-        .args(["--outage", "100:30"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // wait for the first written bytes in the stage folder
-    let t = Instant::now();
-    let started = loop {
-        let written = std::fs::read_dir(&out).unwrap().flatten().any(|e| {
+    // signalled at the first written bytes in the stage folder
+    let mut ready = || {
+        std::fs::read_dir(&out).unwrap().flatten().any(|e| {
             e.file_name()
                 .to_string_lossy()
                 .starts_with(".nav-out-stage")
                 && std::fs::metadata(e.path().join("nav.txt.partial")).is_ok_and(|m| m.len() > 0)
-        });
-        if written || t.elapsed() > Duration::from_secs(60) {
-            break written;
-        }
-        std::thread::sleep(Duration::from_millis(2));
+        })
     };
-    assert!(started, "the run wrote nothing within 60 s");
-    let k = Command::new("kill")
-        .args([&format!("-{sig}"), &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(k.success());
-    let st = child.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert_eq!(st.code(), Some(code), "{err}");
-    assert!(err.contains(&format!("interrupted by SIG{sig}")), "{err}");
+    let r = interrupt_when_ready(
+        bin()
+            .command()
+            .args(run_args(&cfg, &out))
+            .args(["--outage", "100:30"]),
+        &mut ready,
+        signal,
+        Duration::from_secs(60),
+        Duration::from_secs(30),
+    )
+    .unwrap_or_else(|e| panic!("the run wrote nothing: {e}"));
+    r.assert_interrupted_by(signal);
     // the earlier complete outputs and the inputs unchanged
     let after = hashes(&out);
     // (the lock file holds the last owner's pid)
@@ -391,17 +379,19 @@ fn interrupt_mid_run(sig: &str, code: i32) {
         "{names:?}"
     );
     println!(
-        "SIG{sig}: exit {code}, {n} of {} nav lines kept as partial",
-        full.lines().count()
+        "SIG{sig}: exit {:?}, {n} of {} nav lines kept as partial, {:.2} s after the signal",
+        r.code(),
+        full.lines().count(),
+        r.wall_s
     );
 }
 
 #[test]
 fn sigterm_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
-    interrupt_mid_run("TERM", 143);
+    interrupt_mid_run("TERM", SIGTERM);
 }
 
 #[test]
 fn sigint_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
-    interrupt_mid_run("INT", 130);
+    interrupt_mid_run("INT", SIGINT);
 }

@@ -72,13 +72,20 @@ pub fn run_filter_on_frames(
     prepared.case.imu_origin = None;
     prepared.case.gnss = log.gnss.clone();
     let t = Instant::now();
-    let (output, metrics) = nav_engine::execute(&prepared, &mut |_, _| {})?;
+    let imu_span_s = time_span(log.imu.iter().map(|s| s.t_s));
+    let fix_span_s = time_span(log.gnss.iter().map(|g| g.t_s));
+    let fixes = (
+        log.gnss.len() as u64,
+        log.gnss.iter().filter(|g| !g.is_valid()).count() as u64,
+    );
+    let (output, metrics) = nav_engine::execute(&prepared, &mut |_, _| {})
+        .map_err(|e| explain_start_failure(e, fixes, imu_span_s, fix_span_s))?;
     Ok(FilterRun {
         output,
         metrics,
         wall_s: t.elapsed().as_secs_f64(),
-        imu_span_s: time_span(log.imu.iter().map(|s| s.t_s)),
-        fix_span_s: time_span(log.gnss.iter().map(|g| g.t_s)),
+        imu_span_s,
+        fix_span_s,
     })
 }
 
@@ -91,6 +98,55 @@ pub struct FilterFeed {
     started: Instant,
     imu_span_s: Option<(f64, f64)>,
     fix_span_s: Option<(f64, f64)>,
+    /// GNSS fixes given, and how many of them invalid.
+    fixes: (u64, u64),
+}
+
+/// The error of a filter run on frames that did not start because the static alignment found
+/// no valid GNSS fix in its window (`nav_engine::run::RunError::NoFixToAlign`): when no fix of
+/// the frames was usable (none; all before, or all after, the IMU frames; all invalid), a
+/// [`NotANavigationSolution`](nav_engine::run::gnss_use::NotANavigationSolution) naming where
+/// they went; otherwise `e` as it was. `fixes`: the fixes given and how many were invalid.
+fn explain_start_failure(
+    e: anyhow::Error,
+    fixes: (u64, u64),
+    imu_span_s: Option<(f64, f64)>,
+    fix_span_s: Option<(f64, f64)>,
+) -> anyhow::Error {
+    use nav_engine::run::gnss_use::{not_started, GnssAccount};
+    use nav_engine::run::{RunCounters, RunError};
+    let Some(&RunError::NoFixToAlign { from_s, to_s }) =
+        e.chain().find_map(|c| c.downcast_ref::<RunError>())
+    else {
+        return e;
+    };
+    let (total, invalid) = fixes;
+    let mut c = RunCounters {
+        gnss_total: total,
+        ..RunCounters::default()
+    };
+    match (imu_span_s, fix_span_s) {
+        (Some((i0, _)), Some((_, f1))) if f1 < i0 => {
+            c.gnss_before_run = total;
+            c.gnss_outside_run = total;
+        }
+        (Some((_, i1)), Some((f0, _))) if f0 > i1 => c.gnss_outside_run = total,
+        _ => c.gnss_invalid = invalid,
+    }
+    let a = GnssAccount {
+        counters: c,
+        dropped_by_quality: 0,
+        fix_span_s,
+        imu_span_s,
+    };
+    let why = format!(
+        "the static alignment ([init.align]) needs a valid GNSS fix during its window \
+         {from_s:.3} .. {to_s:.3} s"
+    );
+    match not_started(&a, &why) {
+        Some(n) => anyhow::Error::new(n),
+        None => e,
+    }
 }
 
 impl FilterFeed {
@@ -125,6 +181,7 @@ impl FilterFeed {
             started: Instant::now(),
             imu_span_s: None,
             fix_span_s: None,
+            fixes: (0, 0),
         })
     }
 
@@ -141,6 +198,8 @@ impl FilterFeed {
     /// Gives the filter the next GNSS fix.
     pub fn fix(&mut self, f: &GnssFix) {
         self.fix_span_s = widen_span(self.fix_span_s, f.t_s);
+        self.fixes.0 += 1;
+        self.fixes.1 += u64::from(!f.is_valid());
         if let Some(ses) = self.run.as_mut() {
             let _ = ses.push_fix(*f);
         }
@@ -161,7 +220,22 @@ impl FilterFeed {
             }
             bail!("the capture holds no IMU frame: nothing to run the filter on");
         }
-        let (output, metrics) = ses.finish()?;
+        let (output, metrics) = match ses.finish() {
+            Ok(r) => r,
+            Err(e) => {
+                let e = explain_start_failure(e, self.fixes, self.imu_span_s, self.fix_span_s);
+                if e.is::<nav_engine::run::gnss_use::NotANavigationSolution>() {
+                    // nothing run: the live run's empty files are not outputs
+                    for name in nav_engine::run::output::OUTPUT_NAMES {
+                        let _ = std::fs::remove_file(nav_engine::run::output::partial_path(
+                            &self.stage,
+                            name,
+                        ));
+                    }
+                }
+                return Err(e);
+            }
+        };
         Ok(FilterRun {
             output,
             metrics,

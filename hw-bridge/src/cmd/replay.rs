@@ -555,6 +555,20 @@ impl Decoding {
             }
             (None, _) => Ok(None),
         };
+        // a filter run that could not start for want of a usable fix: not a navigation
+        // solution either (the replay's own outputs complete, the filter's none)
+        let filter = match filter {
+            Err(e) if e.is::<nav_engine::run::gnss_use::NotANavigationSolution>() => {
+                let why = format!("the filter run on the capture: {e}");
+                eprintln!("warning: {cap}: {why}");
+                out.incomplete = Some(match out.incomplete.take() {
+                    Some(w) => format!("{w}; {why}"),
+                    None => why,
+                });
+                Ok(None)
+            }
+            other => other,
+        };
         if let Ok(Some(f)) = &filter {
             if let Some(why) = not_a_navigation_solution(f) {
                 eprintln!("warning: {cap}: {why}");

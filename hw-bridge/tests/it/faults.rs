@@ -1188,3 +1188,26 @@ fn a_bad_length_in_record_0_resynchronises_on_the_next_record_and_counts_the_ski
         "{st:?}"
     );
 }
+
+/// The exit codes under `--help` (exit 0, as `--version`); a usage error exits 1, not 2 (which
+/// means "finished but incomplete").
+#[test]
+fn exit_codes_are_listed_under_help_and_a_usage_error_exits_1() {
+    let help = Command::new(BIN).arg("--help").output().unwrap();
+    let text = String::from_utf8_lossy(&help.stdout);
+    assert_eq!(help.status.code(), Some(0), "{text}");
+    for want in ["Exit status:", "  1 ", "  2 ", "incomplete", "130/143"] {
+        assert!(text.contains(want), "no {want:?} in {text}");
+    }
+    let v = Command::new(BIN).arg("--version").output().unwrap();
+    assert_eq!(v.status.code(), Some(0));
+    for args in [&["replay", "--no-such-option"][..], &["record"], &[]] {
+        let out = Command::new(BIN).args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("error:") && err.contains("--help"),
+            "{args:?}: {err}"
+        );
+    }
+}

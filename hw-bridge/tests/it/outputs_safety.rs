@@ -10,6 +10,8 @@ use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
+#[cfg(unix)]
+use test_support::cli::{interrupt_when_ready, SIGINT, SIGTERM};
 use test_support::runcase::{case_config, TACTICAL_NOISE};
 
 const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
@@ -17,6 +19,12 @@ const BIN: &str = env!("CARGO_BIN_EXE_hw-bridge");
 /// A capture of `n` IMU samples at 200 Hz and a GNSS fix every 20, one record per 20 frames
 /// at their recorded times (100 ms apart): `n / 200` s long at `--speed 1`.
 fn capture(dir: &Path, n: usize) -> PathBuf {
+    capture_with(dir, n, [0.5, 0.6, 1.1], 0.0)
+}
+
+/// [`capture`] with the fixes' position sigmas `pos_std_ned_m` and their times moved by
+/// `dt_s`.
+fn capture_with(dir: &Path, n: usize, pos_std_ned_m: [f64; 3], dt_s: f64) -> PathBuf {
     let imu: Vec<ImuSample> = (1..=n)
         .map(|i| ImuSample {
             t_s: 1000.0 + i as f64 * 0.005,
@@ -27,11 +35,11 @@ fn capture(dir: &Path, n: usize) -> PathBuf {
         .collect();
     let gnss: Vec<GnssFix> = (1..=n / 20)
         .map(|k| GnssFix {
-            t_s: 1000.0 + k as f64 * 0.1,
+            t_s: 1000.0 + k as f64 * 0.1 + dt_s,
             lat_rad: 0.5,
             lon_rad: 1.9,
             h_m: 25.0,
-            pos_std_ned_m: [0.5, 0.6, 1.1],
+            pos_std_ned_m,
             vel_ned_mps: [1.0, -0.5, 0.01],
             vel_std_ned_mps: [0.05, 0.05, 0.1],
             has_velocity: true,
@@ -179,6 +187,74 @@ fn replay_into_its_inputs_folder_is_refused_before_anything_is_written() {
 }
 
 #[cfg(unix)]
+/// `replay --config` with static alignment (`[init.align]`) on a capture whose fixes are all
+/// unusable (sigmas zero; all after the IMU frames): the filter cannot start; the replay's
+/// decoded files are written, the summary and stderr say "not a navigation solution" naming
+/// where the fixes went, no filter output is left, exit 2 (incomplete).
+#[test]
+fn replay_config_with_static_alignment_and_no_usable_fix_is_not_a_navigation_solution() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case");
+    std::fs::create_dir(&case).unwrap();
+    std::fs::write(case.join("imu.txt"), "1000.005 0 0 0 0 0 -0.049\n").unwrap();
+    std::fs::write(case.join("gnss.txt"), "1000.1 28.6 108.8 25 0.5 0.6 1.1\n").unwrap();
+    std::fs::write(
+        case.join("truth.nav"),
+        "2300 1000 28.6 108.8 25 0 0 0 0 0 0\n2300 1030 28.6 108.8 25 0 0 0 0 0 0\n",
+    )
+    .unwrap();
+    std::fs::write(
+        case.join("run.toml"),
+        case_config("c", &case, "gnss.txt", "text", "", TACTICAL_NOISE),
+    )
+    .unwrap();
+    let cfg = case.join("run.toml");
+    // (249 and 240 fixes: the capture's last frames, 1 or 10 fixes among them, fill no record)
+    for (name, sigma, dt, says) in [
+        ("sigma0", [0.0; 3], 0.0, "249 fix(es) invalid"),
+        (
+            "after",
+            [0.5, 0.6, 1.1],
+            100.0,
+            "240 of 240 fix(es) are after the IMU data",
+        ),
+    ] {
+        let d = dir.path().join(name);
+        std::fs::create_dir(&d).unwrap();
+        let cap = capture_with(&d, 5000, sigma, dt);
+        let out = d.join("out");
+        let o = replay(
+            &["--as-fast-as-possible", "--config", cfg.to_str().unwrap()],
+            &cap,
+            &out,
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(
+            err.contains("not a navigation solution (nothing run, no output written")
+                && err.contains("[init.align]")
+                && err.contains(says),
+            "{name}: {err}"
+        );
+        let summary = std::fs::read_to_string(out.join("replay-summary.txt")).unwrap();
+        assert!(
+            summary.starts_with(
+                "status incomplete: the filter run on the capture: not a navigation solution"
+            ),
+            "{name}: {summary}"
+        );
+        assert!(out.join("imu.txt").exists());
+        for f in [
+            "nav.txt",
+            "nav.txt.partial",
+            "metrics.json",
+            "metrics.json.partial",
+        ] {
+            assert!(!out.join(f).exists(), "{name}: {f} left");
+        }
+    }
+}
+
 #[test]
 fn links_under_output_names_are_replaced_not_written_through() {
     let dir = tempfile::tempdir().unwrap();
@@ -250,7 +326,7 @@ fn two_replays_into_one_folder_one_refuses_with_the_owners_pid() {
 /// `replay-summary.txt.partial` saying why it is incomplete, leaves the earlier outputs as
 /// they were and exits 128 + the signal.
 #[cfg(unix)]
-fn interrupt_mid_replay(sig: &str, code: i32) {
+fn interrupt_mid_replay(sig: &str, signal: i32) {
     let dir = tempfile::tempdir().unwrap();
     // 10 s at --speed 1
     let cap = capture(dir.path(), 2000);
@@ -260,35 +336,23 @@ fn interrupt_mid_replay(sig: &str, code: i32) {
         .success());
     let before = hashes(&out);
     let full = std::fs::read_to_string(out.join("imu.txt")).unwrap();
-    let mut child = Command::new(BIN)
-        .args(["replay", "--speed", "1", "--out"])
-        .arg(&out)
-        .arg(&cap)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // the first checkpoint of the decoded files (after 1 s)
-    let t = std::time::Instant::now();
-    let started = loop {
-        let written = std::fs::metadata(out.join("imu.txt.partial")).is_ok_and(|m| m.len() > 0);
-        if written || t.elapsed() > std::time::Duration::from_secs(30) {
-            break written;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    };
-    assert!(started, "the replay wrote nothing within 30 s");
-    let k = Command::new("kill")
-        .args([&format!("-{sig}"), &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(k.success());
-    let st = child.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut err).unwrap();
-    assert!(t.elapsed() < std::time::Duration::from_secs(8), "{err}");
-    assert_eq!(st.code(), Some(code), "{err}");
-    assert!(err.contains(&format!("interrupted by SIG{sig}")), "{err}");
+    // signalled at the first checkpoint of the decoded files (after 1 s)
+    let mut ready = || std::fs::metadata(out.join("imu.txt.partial")).is_ok_and(|m| m.len() > 0);
+    let r = interrupt_when_ready(
+        Command::new(BIN)
+            .args(["replay", "--speed", "1", "--out"])
+            .arg(&out)
+            .arg(&cap),
+        &mut ready,
+        signal,
+        std::time::Duration::from_secs(30),
+        std::time::Duration::from_secs(20),
+    )
+    .unwrap_or_else(|e| panic!("the replay wrote nothing: {e}"));
+    let err = &r.stderr;
+    // it stops at the next record
+    assert!(r.wall_s < 7.0, "{r:?}");
+    r.assert_interrupted_by(signal);
     assert!(err.contains(".partial"), "{err}");
     // the earlier complete outputs unchanged (the lock file holds the last owner's pid)
     let after = hashes(&out);
@@ -314,19 +378,21 @@ fn interrupt_mid_replay(sig: &str, code: i32) {
         "{after:?}"
     );
     println!(
-        "SIG{sig}: exit {code}, {n} of {} IMU lines kept as partial",
-        full.lines().count()
+        "SIG{sig}: exit {:?}, {n} of {} IMU lines kept as partial, {:.2} s after the signal",
+        r.code(),
+        full.lines().count(),
+        r.wall_s
     );
 }
 
 #[cfg(unix)]
 #[test]
 fn sigterm_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
-    interrupt_mid_replay("TERM", 143);
+    interrupt_mid_replay("TERM", SIGTERM);
 }
 
 #[cfg(unix)]
 #[test]
 fn sigint_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
-    interrupt_mid_replay("INT", 130);
+    interrupt_mid_replay("INT", SIGINT);
 }

@@ -164,13 +164,20 @@ pub struct NotANavigationSolution {
     pub offered: u64,
     /// Why the others were not used ([`GnssAccount::causes`]).
     pub causes: Vec<String>,
+    /// Why the run did not start, when it did not (then no output was written; `None`: the
+    /// outputs are a dead-reckoning track).
+    pub not_started: Option<String>,
 }
 
 impl std::fmt::Display for NotANavigationSolution {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "not a navigation solution (dead reckoning only): {} of {} GNSS fix(es) used, {} offered to the filter (at least {} % of them needed): {}",
+            "not a navigation solution ({}): {} of {} GNSS fix(es) used, {} offered to the filter (at least {} % of them needed): {}",
+            match &self.not_started {
+                Some(why) => format!("nothing run, no output written: {why}"),
+                None => "dead reckoning only".to_string(),
+            },
             self.used,
             self.total,
             self.offered,
@@ -200,6 +207,24 @@ pub fn check(a: &GnssAccount) -> Result<(), NotANavigationSolution> {
         total: c.gnss_total,
         offered,
         causes: a.causes(),
+        not_started: None,
+    })
+}
+
+/// A run that could not start for want of a GNSS fix (`why`, e.g. the static alignment found
+/// none in its window), `a` counting the data's fixes (none used): a
+/// [`NotANavigationSolution`] naming where every fix went when none of them was usable (none in
+/// the data, all before or after the IMU data, all invalid), else `None` (a usable fix exists
+/// elsewhere in the data: the start-up error says more).
+pub fn not_started(a: &GnssAccount, why: &str) -> Option<NotANavigationSolution> {
+    let c = &a.counters;
+    let usable = a.offered().saturating_sub(c.gnss_invalid);
+    if usable > 0 {
+        return None;
+    }
+    check(a).err().map(|mut e| {
+        e.not_started = Some(why.to_string());
+        e
     })
 }
 
@@ -262,5 +287,33 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("standard deviation zero"));
+    }
+
+    #[test]
+    fn a_run_not_started_is_explained_only_when_no_fix_was_usable() {
+        let why = "the static alignment found no fix";
+        let after = account(|c| {
+            c.gnss_outside_run = 100;
+        });
+        let e = not_started(&after, why).expect("every fix after the IMU data");
+        let text = e.to_string();
+        assert!(
+            text.contains("nothing run, no output written: the static alignment")
+                && text.contains("100 of 100 fix(es) are after the IMU data")
+                && !text.contains("dead reckoning"),
+            "{text}"
+        );
+        assert!(not_started(&GnssAccount::default(), why)
+            .expect("no fix")
+            .to_string()
+            .contains("hold no fix"));
+        let invalid = account(|c| c.gnss_invalid = 100);
+        assert!(not_started(&invalid, why).is_some());
+        // one usable fix in the data (outside the static window): not this error
+        let one = account(|c| {
+            c.gnss_outside_run = 50;
+            c.gnss_invalid = 49;
+        });
+        assert_eq!(not_started(&one, why), None);
     }
 }

@@ -280,9 +280,7 @@ fn static_alignment(
         .filter(|g| g.t_s >= t_a - 0.5 && g.is_valid())
         .collect();
     if fixes.is_empty() {
-        return Err(RunError::Init(format!(
-            "no valid GNSS fix during the static window {t_a:.3} .. {t_b:.3} s"
-        )));
+        return Err(RunError::no_fix_to_align(t_a, t_b));
     }
     let n = fixes.len() as f64;
     let ref0 = Llh {

@@ -576,6 +576,16 @@ pub enum RunError {
     /// Initialisation failed.
     #[error("run: initialisation: {0}")]
     Init(String),
+    /// The static alignment found no valid GNSS fix in its window (no position to start
+    /// from): nothing was run. A front end names where the data's fixes went with
+    /// [`prepare::Loaded::explain_start_failure`].
+    #[error("run: initialisation: no valid GNSS fix during the static window {from_s:.3} .. {to_s:.3} s")]
+    NoFixToAlign {
+        /// Start of the static window, GPS seconds of week.
+        from_s: f64,
+        /// End of the static window, GPS seconds of week.
+        to_s: f64,
+    },
     /// The alignment refused the start-up data (`msg` says where and what to do).
     #[error("run: initialisation: {msg}")]
     Align {
@@ -632,6 +642,13 @@ pub enum RunError {
         #[source]
         source: FilterError,
     },
+}
+
+impl RunError {
+    /// [`RunError::NoFixToAlign`] for the static window `from_s .. to_s`, s.
+    pub(crate) fn no_fix_to_align(from_s: f64, to_s: f64) -> Self {
+        Self::NoFixToAlign { from_s, to_s }
+    }
 }
 
 fn filter_err(t_s: f64, source: FilterError) -> RunError {

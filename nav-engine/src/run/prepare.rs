@@ -211,6 +211,50 @@ impl Loaded {
         super::gnss_use::check(&self.gnss_account(counters, false))
             .or_else(|_| super::gnss_use::check(&self.gnss_account(counters, true)))
     }
+
+    /// The error of a run that did not start because the static alignment found no valid
+    /// GNSS fix in its window ([`super::RunError::NoFixToAlign`]): when no fix of the data is
+    /// usable at all, a [`super::gnss_use::NotANavigationSolution`] naming where every fix
+    /// went (none in the data, before or after the IMU data, invalid; a pass over the GNSS
+    /// file); otherwise, and for any other error, `e` as it was.
+    pub fn explain_start_failure(&self, e: anyhow::Error) -> anyhow::Error {
+        let Some(&super::RunError::NoFixToAlign { from_s, to_s }) =
+            e.chain().find_map(|c| c.downcast_ref::<super::RunError>())
+        else {
+            return e;
+        };
+        let mut a = self.gnss_account(&super::RunCounters::default(), true);
+        let Some((i0, i1)) = a.imu_span_s else {
+            return e;
+        };
+        let c = &mut a.counters;
+        let mut count = |f: &nav_core::types::GnssFix| {
+            c.gnss_total += 1;
+            if f.t_s < i0 {
+                c.gnss_before_run += 1;
+                c.gnss_outside_run += 1;
+            } else if f.t_s > i1 {
+                c.gnss_outside_run += 1;
+            } else if !f.is_valid() {
+                c.gnss_invalid += 1;
+            }
+        };
+        match self.imu_stream.as_ref().and_then(|st| st.gnss.as_ref()) {
+            Some(g) => match g.source() {
+                Ok(src) => src.map_while(Result::ok).for_each(|f| count(&f)),
+                Err(_) => return e,
+            },
+            None => self.prepared.case.gnss.iter().for_each(count),
+        }
+        let why = format!(
+            "the static alignment ([init.align]) needs a valid GNSS fix during its window \
+             {from_s:.3} .. {to_s:.3} s"
+        );
+        match super::gnss_use::not_started(&a, &why) {
+            Some(n) => anyhow::Error::new(n),
+            None => e,
+        }
+    }
 }
 
 /// Most GNSS outages a run accepts (explicit, periodic and the case's together): each one is

@@ -476,3 +476,23 @@ fn ubx_log_of_an_hour_at_10_hz_reads_every_fix() {
         .windows(2)
         .all(|w| (w[1].t_s - w[0].t_s - 0.1).abs() < 1e-9));
 }
+
+/// A UTF-8 byte-order mark at the start of an NMEA log (a Windows logger) is skipped: the
+/// same fixes as without it.
+#[test]
+fn nmea_log_with_a_utf8_byte_order_mark_reads_the_same_fixes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut all = epoch(0, true);
+    all.extend(epoch(1, true));
+    let text = lines(&all);
+    let plain = write(dir.path(), "a.nmea", text.as_bytes());
+    let bom = write(dir.path(), "b.nmea", format!("\u{feff}{text}").as_bytes());
+    let opts = GnssLogOptions::default();
+    let (a, b) = (
+        read_nmea_log(&plain, &opts, 6).unwrap(),
+        read_nmea_log(&bom, &opts, 6).unwrap(),
+    );
+    assert_eq!(a.fixes.len(), 2);
+    // (compared as text: the velocity sigmas of fixes without a velocity are NaN)
+    assert_eq!(format!("{:?}", a.fixes), format!("{:?}", b.fixes));
+}

@@ -350,3 +350,25 @@ fn pos_real_drive0708_has_2197_epochs_2189_fixed_at_4_hz() {
     assert_eq!(fixed.fixes.len(), 2189);
     assert_eq!(fixed.dropped_by_quality, 8);
 }
+
+/// A UTF-8 byte-order mark before the header of a `.pos` file is skipped: the same fixes and
+/// layout as without it.
+#[test]
+fn pos_with_a_utf8_byte_order_mark_reads_the_same() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = format!(
+        "{HDR_LLH}2025/07/08 19:34:18.499  40.096626800 -105.147448300  1601.4740   1  21   0.0099   0.0098   0.0100   0.0010  -0.0020   0.0030   0.00    0.0   0.0100  -0.0020   0.0090   0.0587   0.0586   0.0585   0.0000   0.0000   0.0000\n"
+    );
+    let a = read_rtklib_pos(write(&dir, "a.pos", &body), &PosOptions::default()).unwrap();
+    let b = read_rtklib_pos(
+        write(&dir, "b.pos", &format!("\u{feff}{body}")),
+        &PosOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(a.fixes.len(), 1);
+    assert_eq!(a.fixes, b.fixes);
+    assert_eq!(
+        (b.time_system, b.position_format, b.has_velocity),
+        (PosTimeSystem::Gpst, PosPositionFormat::LlhDeg, true)
+    );
+}

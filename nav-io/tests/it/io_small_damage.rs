@@ -85,7 +85,8 @@ fn a_half_written_last_line_ends_the_file_and_is_named() {
         assert_eq!(r.samples.len(), 3, "{cut:?}");
         let inc = incomplete_last_line(&p).unwrap().expect("named");
         assert_eq!(inc.offset as usize, IMU.len());
-        let at = format!("imu.txt: the last line (byte offset {})", IMU.len());
+        assert_eq!(inc.line, 4);
+        let at = format!("imu.txt: line 4, the last line (byte offset {})", IMU.len());
         assert!(inc.to_string().contains(&at), "{inc}");
         assert!(inc.to_string().contains("still being written"), "{inc}");
     }
@@ -93,9 +94,36 @@ fn a_half_written_last_line_ends_the_file_and_is_named() {
     let p = write(d.path(), "imu.txt", IMU.trim_end());
     assert_eq!(read_imu_text(&p).unwrap().samples.len(), 3);
     assert_eq!(incomplete_last_line(&p).unwrap(), None);
-    // a bad line that ends with a line end is still an error
+    // a bad line that ends with a line end is still an error, naming file, line and column
     let p = write(d.path(), "imu.txt", &format!("{IMU}100.03 1e-5 2e-\n"));
-    assert!(read_imu_text(&p).is_err());
+    let e = read_imu_text(&p).unwrap_err().to_string();
+    assert!(e.contains("imu.txt") && e.contains("line 4"), "{e}");
+    // and so is one in the middle of the file, whatever follows it
+    let p = write(
+        d.path(),
+        "imu.txt",
+        &format!(
+            "{IMU}100.03 1e-5 2x-5 3e-5 0.001 0.002 -0.098\n{}",
+            &IMU[..20]
+        ),
+    );
+    let e = read_imu_text(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("imu.txt") && e.contains("line 4") && e.contains("column 3"),
+        "{e}"
+    );
+    // the line named in a file longer than the 64 KiB read from its end
+    let mut long = String::new();
+    for k in 0..3000 {
+        long.push_str(&format!(
+            "{:.2} 1e-5 2e-5 3e-5 0.001 0.002 -0.098\n",
+            100.0 + 0.01 * k as f64
+        ));
+    }
+    let p = write(d.path(), "imu.txt", &format!("{long}130.00 1e-5"));
+    let inc = incomplete_last_line(&p).unwrap().expect("named");
+    assert_eq!((inc.line, inc.offset as usize), (3001, long.len()));
+    assert_eq!(read_imu_text(&p).unwrap().samples.len(), 3000);
     // GNSS text, nav text, IMU CSV
     let p = write(d.path(), "g.txt", &format!("{GNSS}102 30.5 114."));
     assert_eq!(read_gnss_text(&p).unwrap().len(), 2);

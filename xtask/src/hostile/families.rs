@@ -5,7 +5,7 @@ use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use test_support::cli::Bounded;
 
 /// The simulated case: its folder and its IMU and GNSS rows.
@@ -114,47 +114,22 @@ pub(super) fn all(b: &Bins, root: &Path, t: &mut Tally) -> Result<()> {
 }
 
 /// Spawns `cmd`, waits until `ready` (at most 30 s), sends `sig`, waits for the end (a hang
-/// past the limit is killed). `None`: the run ended before it was ready.
+/// past the limit is killed): [`test_support::cli::interrupt_when_ready`]. `None`: the run
+/// ended before it was ready.
 pub(super) fn interrupted(
     cmd: &mut Command,
     ready: &dyn Fn() -> bool,
     sig: i32,
 ) -> Option<Bounded> {
-    use std::process::Stdio;
-    let t = Instant::now();
-    let mut child = cmd
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .ok()?;
-    while !ready() {
-        if t.elapsed() > Duration::from_secs(30) || child.try_wait().ok()?.is_some() {
-            let _ = child.kill();
-            let _ = child.wait();
-            return None;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    let pid = libc::pid_t::try_from(child.id()).ok()?;
-    // SAFETY: signalling our own child, not reaped yet.
-    unsafe { libc::kill(pid, sig) };
-    let mut killed = false;
-    while child.try_wait().ok()?.is_none() {
-        if t.elapsed() > super::LIMIT {
-            let _ = child.kill();
-            killed = true;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let o = child.wait_with_output().ok()?;
-    Some(Bounded {
-        status: (!killed).then_some(o.status),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-        wall_s: t.elapsed().as_secs_f64(),
-        max_rss_kib: 0,
-        cpu_s: 0.0,
-    })
+    let mut ready = ready;
+    test_support::cli::interrupt_when_ready(
+        cmd,
+        &mut ready,
+        sig,
+        Duration::from_secs(30),
+        super::LIMIT,
+    )
+    .ok()
 }
 
 /// The output folder at the inputs, links at output names, two runs at once, SIGTERM.
