@@ -109,6 +109,7 @@ fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
         ambiguity_margin: 3.0,
         smooth: false,
     };
+    let case = p.case.clone();
     let base = alloc::reset_peak();
     let t = std::time::Instant::now();
     let folder = spill::temp_folder().unwrap();
@@ -116,7 +117,7 @@ fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
     let cache = ImuCache::write(&folder, samples, ImuSourceInfo::default()).unwrap();
     let n_imu = cache.len();
     drop(folder);
-    let out = diagnose_cached(&p.case, &p.opts, cache, &dopts).expect("diagnose");
+    let out = diagnose_cached(case, &p.opts, cache, &dopts).expect("diagnose");
     let peak = alloc::peak_bytes().saturating_sub(base);
     let d = &out.diagnosis;
     println!(

@@ -527,7 +527,7 @@ mod tests {
         };
         let folder = crate::diagnose::spill::temp_folder().unwrap();
         let cache = ImuCache::from_case(&folder, &data).unwrap();
-        let case = Case::new(&data, std::sync::Arc::new(cache));
+        let case = Case::new(data, std::sync::Arc::new(cache));
         let c = corrected(&case, BiasStepSensor::Accel, 100.45, &[2.0, 0.0, -1.0]);
         let samples: Vec<ImuSample> = c.imu.samples_from(0).collect();
         assert_eq!(samples.len(), 10);

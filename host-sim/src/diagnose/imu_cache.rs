@@ -472,15 +472,14 @@ pub struct Case {
 }
 
 impl Case {
-    /// The fixes and truth of `data` (copied; its IMU samples and origin are not) with the
-    /// IMU record `cache`, as recorded.
-    pub fn new(data: &CaseData, cache: Arc<ImuCache>) -> Self {
+    /// The fixes and truth of `data` (its IMU samples and origin dropped) with the IMU record
+    /// `cache`, as recorded.
+    pub fn new(data: CaseData, cache: Arc<ImuCache>) -> Self {
         Self {
             data: CaseData {
                 imu: Vec::new(),
-                gnss: data.gnss.clone(),
-                truth: data.truth.clone(),
                 imu_origin: None,
+                ..data
             },
             imu: ImuView::new(cache),
         }

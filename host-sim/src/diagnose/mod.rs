@@ -46,8 +46,11 @@
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects), the search's base run when the diagnosis withholds windows, and
 //! the final run; see the README for a 40-minute 200 Hz drive.
-//! Memory: the case is held as loaded (its IMU samples, 64 bytes each, its fixes, the truth
-//! when given; a bias step's corrected copy while it is searched for); the runs' navigation
+//! Memory: the IMU record is decoded once into a temporary file ([`imu_cache`], 72 bytes a
+//! sample on disk) and every run streams from it, a bias step removed and a held time offset
+//! applied as the samples are read; in memory stay the fixes and the truth when given (a
+//! simulated case's, at its own rate); `--smooth` reads each search run's samples into memory
+//! for the smoother. The runs' navigation
 //! records go to temporary files ([`spill`], removed at the end, also on error); what the
 //! diagnosis keeps of a run grows with the GNSS fixes only: its innovation records and, for a
 //! search run, its navigation record nearest each fix (about 320 bytes a fix for each run
@@ -639,14 +642,20 @@ fn in_memory(case: &Case) -> Result<nav_engine::run::CaseData, nav_io::IoError> 
 pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
     let folder = spill::temp_folder()?;
     let imu = ImuCache::from_case(&folder, &p.case)?;
-    diagnose_cached(&p.case, &p.opts, imu, dopts)
+    let case = nav_engine::run::CaseData {
+        imu: Vec::new(),
+        gnss: p.case.gnss.clone(),
+        truth: p.case.truth.clone(),
+        imu_origin: None,
+    };
+    diagnose_cached(case, &p.opts, imu, dopts)
 }
 
 /// Diagnoses the fixes and truth of `case` (its IMU list unused) with the IMU record `imu`
 /// and the configuration's options `opts` (see the module notes); the diagnosis's files go
 /// into the record's temporary folder.
 pub fn diagnose_cached(
-    case: &nav_engine::run::CaseData,
+    case: nav_engine::run::CaseData,
     opts: &RunOptions,
     imu: ImuCache,
     dopts: &DiagnoseOptions,
@@ -1903,7 +1912,8 @@ fn short_list(v: &[f64]) -> String {
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let l = crate::run::cli::load(&args.run, true)?;
     let od = OutDir::open(&args.run.out, &l.inputs)?;
-    let (p, imu) = imu_cache::load_cached(l)?;
+    let truth_file = l.truth_stream.clone();
+    let (mut p, imu) = imu_cache::load_cached(l)?;
     println!("{}", p.description);
     let dopts = DiagnoseOptions {
         max_effects: args.max_effects,
@@ -1912,11 +1922,20 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         ambiguity_margin: args.ambiguity_margin,
         smooth: args.run.smooth,
     };
-    let d = diagnose_cached(&p.case, &p.opts, imu, &dopts)?;
+    // a streamed truth goes to the diagnosis and is read again for the report once the
+    // diagnosis's data are gone (one copy in memory at a time)
+    let case = match &truth_file {
+        Some(_) => std::mem::take(&mut p.case),
+        None => p.case.clone(),
+    };
+    let d = diagnose_cached(case, &p.opts, imu, &dopts)?;
     // stopped by SIGINT/SIGTERM: the runs ended early; nothing written, the temporary
     // files removed with `d`
     if let Some(sig) = nav_engine::run::interrupt::requested() {
         anyhow::bail!("{}: stopped", nav_engine::run::interrupt::signal_name(sig));
+    }
+    if let Some(t) = &truth_file {
+        p.case.truth = Some(t.open()?.collect::<Result<_, _>>()?);
     }
     let dir: &PathBuf = &args.run.out;
     write_outputs(od.stage(), &p, &d, Some(&args.run.config))?;

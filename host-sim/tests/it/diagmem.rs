@@ -93,10 +93,8 @@ fn a_bias_step_and_a_time_shift_are_applied_as_the_samples_are_read_from_any_ind
         ..CaseData::default()
     };
     let folder = temp_folder().unwrap();
-    let case = Case::new(
-        &data,
-        Arc::new(ImuCache::from_case(&folder, &data).unwrap()),
-    );
+    let cache = ImuCache::from_case(&folder, &data).unwrap();
+    let case = Case::new(data, Arc::new(cache));
     let t_step = imu[150].t_s + 1e-4;
     let step = [1e-3, -2e-3, 0.5];
     let moved = case.adjusted(Adjust {
@@ -152,7 +150,7 @@ fn nearest(v: &[ImuSample], t: f64) -> usize {
 fn the_samples_kept_near_the_fixes_hold_the_nearest_sample_and_its_predecessor() {
     let imu = samples(5000, 2345);
     let c = Case::new(
-        &CaseData::default(),
+        CaseData::default(),
         Arc::new(cache_of(&imu, Some("imu.txt"))),
     );
     // before the record, on samples, on midpoints (ties), in the gap, after the record
