@@ -119,7 +119,7 @@ impl ImuCache {
         let mut first_t_s = None;
         let mut first_temperature_c = None;
         for r in samples {
-            if len % STOP_CHECK_SAMPLES == 0 {
+            if len.is_multiple_of(STOP_CHECK_SAMPLES) {
                 if let Some(sig) = interrupt::requested() {
                     return Err(stopped(&path, sig));
                 }
@@ -241,7 +241,7 @@ impl Iterator for CacheReader {
         if self.left == 0 {
             return None;
         }
-        if self.read % STOP_CHECK_SAMPLES == 0 {
+        if self.read.is_multiple_of(STOP_CHECK_SAMPLES) {
             if let Some(sig) = interrupt::requested() {
                 self.left = 0;
                 return Some(Err(stopped(&self.path, sig)));
@@ -265,6 +265,9 @@ impl Iterator for CacheReader {
         (0, Some(self.left))
     }
 }
+
+/// IMU samples as the engine's stream.
+pub type ImuItems = Box<dyn Iterator<Item = Result<ImuItem, RunError>>>;
 
 /// What a model's data changes of the recorded IMU samples, applied as they are read.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -376,15 +379,7 @@ impl ImuView {
 
     /// The samples as the engine's IMU stream (a read error ends the run with it), and
     /// where they come from.
-    pub fn stream(
-        &self,
-    ) -> Result<
-        (
-            Box<dyn Iterator<Item = Result<ImuItem, RunError>>>,
-            ImuSourceInfo,
-        ),
-        RunError,
-    > {
+    pub fn stream(&self) -> Result<(ImuItems, ImuSourceInfo), RunError> {
         let it = self.read_from(0).map_err(RunError::Input)?;
         let it = it.map(|r| {
             r.map(|(sample, line)| ImuItem { sample, line })

@@ -179,3 +179,49 @@ fn the_samples_kept_near_the_fixes_hold_the_nearest_sample_and_its_predecessor()
     let first_temp = near.iter().find(|s| s.temperature_c.is_finite()).unwrap();
     assert_eq!(bits(first_temp), bits(&imu[2345]));
 }
+
+#[test]
+fn an_imu_sample_out_of_order_is_named_by_its_file_and_line_through_the_record_file() {
+    use nalgebra::Vector3;
+    use nav_core::config::FilterConfig;
+    use nav_core::earth::Llh;
+    use nav_core::filter::InitialUncertainty;
+    use nav_core::strapdown::NavState;
+    use nav_engine::run::{InitSpec, Model, RunOptions};
+    let pos = Llh::from_deg(30.5, 114.3, 20.0);
+    let t0 = 100_000.0;
+    let mut imu: Vec<ImuSample> = test_support::standing::imu(pos, t0, 200.0, 2000).collect();
+    imu[700].t_s = imu[698].t_s;
+    let lines: Vec<usize> = (0..imu.len()).map(|k| 2 * k + 5).collect();
+    let state = NavState::from_rpy(t0, pos, Vector3::zeros(), [0.0; 3]);
+    let unc = InitialUncertainty {
+        att_sigma_rad: [1e-3, 1e-3, 1e-2],
+        vel_sigma_mps: [0.1; 3],
+        pos_sigma_m: [1.0; 3],
+    };
+    let p = nav_engine::Prepared {
+        case: CaseData {
+            imu,
+            gnss: test_support::standing::fixes(pos, t0, 1.0, 9).collect(),
+            truth: None,
+            imu_origin: Some(nav_io::ImuOrigin {
+                path: "logs/imu.txt".into(),
+                lines,
+                increments_span_gaps: false,
+            }),
+        },
+        opts: RunOptions::new(
+            Model::N,
+            FilterConfig::source_n_model(),
+            InitSpec::Given(state, unc),
+        ),
+        week: 2227,
+        description: "standing vehicle".into(),
+    };
+    let opts = host_sim::diagnose::DiagnoseOptions::default();
+    let Err(e) = host_sim::diagnose::diagnose(&p, &opts) else {
+        panic!("a sample out of order must end the diagnosis with an error");
+    };
+    let msg = format!("{e:#}");
+    assert!(msg.contains("logs/imu.txt line 1405"), "{msg}");
+}
