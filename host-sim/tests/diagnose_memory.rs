@@ -1,27 +1,32 @@
-//! `diagnose`'s own memory does not grow with the record beyond what is proportional to the
+//! `diagnose`'s memory does not grow with the record beyond what is proportional to the
 //! GNSS fixes and the search's transient runs: a 5-minute and a 25-minute 200 Hz record
-//! (a standing vehicle, fixes at 1 Hz, generated in memory before the measurement) are
-//! diagnosed with the cheapest options that still run the search (no noise tuning, one
-//! candidate) while a counting global allocator tracks the live heap.
+//! (a standing vehicle, fixes at 1 Hz) are generated sample by sample straight into the
+//! diagnosis's IMU record file ([`ImuCache::write`], as `host-sim diagnose` decodes the IMU
+//! file) and diagnosed ([`diagnose_cached`]) with the cheapest options that still run the
+//! search (no noise tuning, one candidate) while a counting global allocator tracks the live
+//! heap from before the record is written: the IMU record itself (64 bytes a sample) is
+//! never in memory, and nothing is allowed for it.
 //!
 //! What the diagnosis holds per fix (innovation records of the base, search and candidate
 //! runs, the search runs' navigation records nearest the fixes, the withheld fixes' error
-//! samples) is allowed [`PER_FIX_BYTES`]; while a search run is thinned to its records
+//! samples, the IMU samples the candidates' regressors read) is allowed [`PER_FIX_BYTES`];
+//! while a search run is thinned to its records
 //! nearest the fixes, the times of its navigation at the search rate (`SEARCH_NAV_RATE_HZ`,
 //! [`THINNING_BYTES`] a record) are held, for at most [`SEARCH_RUNS_AT_ONCE`] runs at a time.
 //! The navigation itself (168 bytes a record: every IMU epoch for the base and final runs,
 //! what `nav_before.txt` and `nav_after.txt` hold, the search rate for the search runs) must
 //! not be in memory: it is in the diagnosis's temporary files.
 
-use host_sim::diagnose::{diagnose, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
+use host_sim::diagnose::imu_cache::ImuCache;
+use host_sim::diagnose::{diagnose, diagnose_cached, spill, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
 use nav_core::model::Block;
 use nav_core::strapdown::NavState;
-use nav_core::types::{GnssFix, NavSolution};
-use nav_engine::run::{CaseData, InitSpec, InnovationRecord, Model, RunOptions};
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
+use nav_engine::run::{CaseData, ImuSourceInfo, InitSpec, InnovationRecord, Model, RunOptions};
 use nav_engine::Prepared;
 use test_support::{alloc, standing};
 
@@ -33,11 +38,13 @@ const T0: f64 = 100_000.0;
 
 /// Bytes the diagnosis may hold per GNSS fix: eight innovation records, eight navigation
 /// records and eight GNSS fixes' worth (base, search and candidate runs, and their copies
-/// while a round is decided).
+/// while a round is decided), and the two IMU samples per fix the regressors of each search
+/// run alive at once read.
 const PER_FIX_BYTES: usize = 8
     * (std::mem::size_of::<InnovationRecord>()
         + std::mem::size_of::<NavSolution>()
-        + std::mem::size_of::<GnssFix>());
+        + std::mem::size_of::<GnssFix>())
+    + SEARCH_RUNS_AT_ONCE * 2 * std::mem::size_of::<ImuSample>();
 
 /// Bytes held per search-rate navigation record while a search run is thinned: its time and
 /// a flag.
@@ -47,10 +54,19 @@ const THINNING_BYTES: usize = 9;
 /// current one).
 const SEARCH_RUNS_AT_ONCE: usize = 3;
 
-fn prepared(minutes: f64) -> Prepared {
-    let pos = Llh::from_deg(30.5, 114.3, 20.0);
+/// The standing vehicle's IMU samples over `minutes`.
+fn imu(minutes: f64) -> impl Iterator<Item = ImuSample> {
     let n = (minutes * 60.0 * RATE_HZ) as usize;
-    let imu = standing::imu(pos, T0, RATE_HZ, n).collect();
+    standing::imu(position(), T0, RATE_HZ, n)
+}
+
+fn position() -> Llh {
+    Llh::from_deg(30.5, 114.3, 20.0)
+}
+
+/// The case of `minutes` (its IMU samples not in it: [`imu`]) and its options.
+fn prepared(minutes: f64) -> Prepared {
+    let pos = position();
     let gnss = standing::fixes(pos, T0, 1.0, (minutes * 60.0) as usize - 1).collect();
     let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
     let unc = InitialUncertainty {
@@ -65,7 +81,7 @@ fn prepared(minutes: f64) -> Prepared {
     );
     Prepared {
         case: CaseData {
-            imu,
+            imu: Vec::new(),
             gnss,
             truth: None,
             imu_origin: None,
@@ -81,9 +97,9 @@ fn entries(dir: &std::path::Path) -> usize {
     std::fs::read_dir(dir).unwrap().count()
 }
 
-/// Peak live heap of the diagnosis of `minutes` of record beyond the record itself, bytes,
-/// and the number of fixes; `tmp`: the temporary directory the diagnosis writes into (its
-/// folder there is removed with the output).
+/// Peak live heap of the diagnosis of `minutes` of record, from before its IMU record is
+/// written, bytes, and the number of fixes; `tmp`: the temporary directory the diagnosis
+/// writes into (its folder there is removed with the output).
 fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
     let p = prepared(minutes);
     let dopts = DiagnoseOptions {
@@ -93,15 +109,20 @@ fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
         ambiguity_margin: 3.0,
         smooth: false,
     };
+    let case = p.case.clone();
     let base = alloc::reset_peak();
     let t = std::time::Instant::now();
-    let out = diagnose(&p, &dopts).expect("diagnose");
+    let folder = spill::temp_folder().unwrap();
+    let samples = imu(minutes).map(|s| Ok((s, 0)));
+    let cache = ImuCache::write(&folder, samples, ImuSourceInfo::default()).unwrap();
+    let n_imu = cache.len();
+    drop(folder);
+    let out = diagnose_cached(case, &p.opts, cache, &dopts).expect("diagnose");
     let peak = alloc::peak_bytes().saturating_sub(base);
     let d = &out.diagnosis;
     println!(
-        "{minutes} min: {} IMU samples, {} fixes: diagnosed in {:.1} s, peak {:.2} MiB beyond \
-         the record; {}",
-        p.case.imu.len(),
+        "{minutes} min: {} IMU samples, {} fixes: diagnosed in {:.1} s, peak {:.2} MiB; {}",
+        n_imu,
         p.case.gnss.len(),
         t.elapsed().as_secs_f64(),
         peak as f64 / 1048576.0,
@@ -109,7 +130,8 @@ fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
     );
     // a real diagnosis: the base run at every IMU epoch (and the initial one), windows
     // withheld, the candidate run
-    assert_eq!(out.before_nav.len(), p.case.imu.len() + 1);
+    assert_eq!(n_imu, imu(minutes).count());
+    assert_eq!(out.before_nav.len(), n_imu + 1);
     assert!(
         d.heldout_windows.windows.len() >= 5,
         "{:?}",
@@ -136,8 +158,7 @@ fn diagnosis_memory_does_not_grow_with_the_record_beyond_the_fixes() {
     let tmp = tempfile::tempdir().unwrap();
     std::env::set_var("TMPDIR", tmp.path());
     // an error (no IMU sample) leaves no temporary folder either
-    let mut empty = prepared(1.0);
-    empty.case.imu.clear();
+    let empty = prepared(1.0);
     let dopts = DiagnoseOptions::default();
     assert!(diagnose(&empty, &dopts).is_err());
     assert_eq!(entries(tmp.path()), 0);
@@ -146,22 +167,24 @@ fn diagnosis_memory_does_not_grow_with_the_record_beyond_the_fixes() {
     let extra_s = (long_fixes - short_fixes) as f64;
     let search_nav = SEARCH_RUNS_AT_ONCE * (extra_s * SEARCH_NAV_RATE_HZ) as usize * THINNING_BYTES;
     let allowance = (long_fixes - short_fixes) * PER_FIX_BYTES + search_nav;
-    // what the full-rate navigation of the base run alone would add
+    // what the full-rate navigation of the base run alone would add, and the IMU record
     let full_rate = (extra_s * RATE_HZ) as usize * std::mem::size_of::<NavSolution>();
+    let record = (extra_s * RATE_HZ) as usize * std::mem::size_of::<ImuSample>();
     println!(
         "growth {:.2} MiB for {extra_s} s more: allowed {:.2} MiB ({:.2} MiB of it the search \
-         runs' thinning); one full-rate navigation would be {:.2} MiB",
+         runs' thinning); one full-rate navigation would be {:.2} MiB, the IMU record {:.2} MiB",
         long.saturating_sub(short) as f64 / 1048576.0,
         allowance as f64 / 1048576.0,
         search_nav as f64 / 1048576.0,
-        full_rate as f64 / 1048576.0
+        full_rate as f64 / 1048576.0,
+        record as f64 / 1048576.0
     );
     assert!(
         long <= short + allowance,
         "peak {long} B for 25 min against {short} B for 5 min: growth beyond {allowance} B"
     );
     assert!(
-        allowance < full_rate,
-        "the bound must be below a full-rate navigation"
+        allowance < full_rate && allowance < record,
+        "the bound must be below a full-rate navigation and the IMU record"
     );
 }

@@ -30,11 +30,11 @@
 //! A step is reported when the corrected run gains more than the BIC penalty of its four
 //! parameters (3 axes and the time) plus [`MIN_GAIN_NATS`]. [`BiasStep::corrected_case`] gives
 //! the data with the step removed.
-use nav_core::types::ImuSample;
-use nav_engine::run::{CaseData, FixUse, InnovationRecord, RunOptions, RunOutput};
+use nav_engine::run::{FixUse, InnovationRecord, RunOptions, RunOutput};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::imu_cache::{Adjust, Case};
 use super::search_recording;
 use super::stats::{in_stats, residual_stats};
 use super::validate::HeldoutComparison;
@@ -131,7 +131,7 @@ pub struct BiasStep {
 
 impl BiasStep {
     /// The data with the step removed from every IMU sample at or after the step time.
-    pub fn corrected_case(&self, case: &CaseData) -> CaseData {
+    pub fn corrected_case(&self, case: &Case) -> Case {
         corrected(case, self.sensor, self.t_s, &self.step)
     }
 
@@ -159,26 +159,13 @@ impl BiasStep {
 }
 
 /// The data with `step` (SI, body axes) subtracted from the `sensor`'s increments of every
-/// sample whose interval starts at or after `t_s`.
-fn corrected(case: &CaseData, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3]) -> CaseData {
-    let mut c = case.clone();
-    let mut prev: Option<f64> = None;
-    for s in c.imu.iter_mut() {
-        let start = prev.unwrap_or(s.t_s);
-        let dt = s.t_s - start;
-        prev = Some(s.t_s);
-        if start < t_s || dt <= 0.0 {
-            continue;
-        }
-        let v: &mut [f64; 3] = match sensor {
-            BiasStepSensor::Accel => &mut s.dv_mps,
-            BiasStepSensor::Gyro => &mut s.dtheta_rad,
-        };
-        for (x, b) in v.iter_mut().zip(step) {
-            *x -= b * dt;
-        }
-    }
-    c
+/// sample whose interval starts at or after `t_s` (applied as the samples are read,
+/// [`Adjust`]).
+fn corrected(case: &Case, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3]) -> Case {
+    case.adjusted(Adjust {
+        bias_step: Some((sensor, t_s, *step)),
+        ..*case.imu.adjust()
+    })
 }
 
 /// The CUSUM onset of a variance increase of the position innovations: `(onset time, peak
@@ -275,7 +262,7 @@ fn innovations_at(out: &RunOutput, times: &[f64]) -> Vec<Option<[f64; 3]>> {
         .collect()
 }
 
-fn run_ll(case: &CaseData, opts: &RunOptions) -> Option<(RunOutput, f64)> {
+fn run_ll(case: &Case, opts: &RunOptions) -> Option<(RunOutput, f64)> {
     let out = super::spill::run_innovations(case, &search_recording(opts)).ok()?;
     let ll = residual_stats(&out.innovations).log_likelihood;
     Some((out, ll))
@@ -284,7 +271,7 @@ fn run_ll(case: &CaseData, opts: &RunOptions) -> Option<(RunOutput, f64)> {
 /// One Gauss-Newton step from the run `at` (correction `c0`): the correction minimising the
 /// weighted innovations after `t_s` and its 1-sigma, from the runs with `c0 + probe e_j`.
 fn gauss_newton(
-    case: &CaseData,
+    case: &Case,
     opts: &RunOptions,
     sensor: BiasStepSensor,
     t_s: f64,
@@ -348,7 +335,7 @@ fn gauss_newton(
 /// Fits a step of `sensor` at `t_s`: two Gauss-Newton iterations from the base run; returns
 /// the step, its 1-sigma, and the corrected run's log-likelihood.
 fn fit(
-    case: &CaseData,
+    case: &Case,
     opts: &RunOptions,
     base: &RunOutput,
     sensor: BiasStepSensor,
@@ -364,7 +351,7 @@ fn fit(
 /// Looks for a bias step in the data of `case` under the model `opts`, from the base run
 /// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
 /// corrected run does not pay.
-pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
+pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
     let (onset, _) = cusum_onset(&base.innovations)?;
     let used: Vec<&InnovationRecord> = base.innovations.iter().filter(|r| in_stats(r)).collect();
     let before: Vec<f64> = used
@@ -378,7 +365,7 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
     {
         return None;
     }
-    let t0 = case.imu.first().map(|s: &ImuSample| s.t_s)?;
+    let t0 = case.imu.first_t_s()?;
     let rs = residual_stats(&base.innovations);
     let base_ll = rs.log_likelihood;
     let penalty = 0.5 * 4.0 * (rs.scalar_measurements.max(2) as f64).ln();
@@ -475,6 +462,9 @@ pub fn find_bias_step(case: &CaseData, opts: &RunOptions, base: &RunOutput) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::imu_cache::ImuCache;
+    use nav_core::types::ImuSample;
+    use nav_engine::run::CaseData;
 
     fn rec(t_s: f64, z: f64) -> InnovationRecord {
         InnovationRecord {
@@ -531,12 +521,17 @@ mod tests {
                 temperature_c: f64::NAN,
             })
             .collect();
-        let case = CaseData {
+        let data = CaseData {
             imu,
             ..CaseData::default()
         };
+        let folder = crate::diagnose::spill::temp_folder().unwrap();
+        let cache = ImuCache::from_case(&folder, &data).unwrap();
+        let case = Case::new(data, std::sync::Arc::new(cache));
         let c = corrected(&case, BiasStepSensor::Accel, 100.45, &[2.0, 0.0, -1.0]);
-        for (k, s) in c.imu.iter().enumerate() {
+        let samples: Vec<ImuSample> = c.imu.samples_from(0).collect();
+        assert_eq!(samples.len(), 10);
+        for (k, s) in samples.iter().enumerate() {
             // sample k covers (t_k - 0.1, t_k]: corrected when it starts at or after 100.45
             let start = 100.0 + 0.1 * (k as f64 - 1.0);
             if k > 0 && start >= 100.45 {

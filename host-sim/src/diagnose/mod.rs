@@ -46,8 +46,11 @@
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects), the search's base run when the diagnosis withholds windows, and
 //! the final run; see the README for a 40-minute 200 Hz drive.
-//! Memory: the case is held as loaded (its IMU samples, 64 bytes each, its fixes, the truth
-//! when given; a bias step's corrected copy while it is searched for); the runs' navigation
+//! Memory: the IMU record is decoded once into a temporary file ([`imu_cache`], 72 bytes a
+//! sample on disk) and every run streams from it, a bias step removed and a held time offset
+//! applied as the samples are read; in memory stay the fixes and the truth when given (a
+//! simulated case's, at its own rate); `--smooth` reads each search run's samples into memory
+//! for the smoother. The runs' navigation
 //! records go to temporary files ([`spill`], removed at the end, also on error); what the
 //! diagnosis keeps of a run grows with the GNSS fixes only: its innovation records and, for a
 //! search run, its navigation record nearest each fix (about 320 bytes a fix for each run
@@ -66,6 +69,7 @@
 //! `t + dt_0 + rate (t - t_0)`; `gnss_position_gm`: m, NED, the GNSS position error at the
 //! end. A bias step ([`changepoint`]) is reported apart ([`Diagnosis::bias_step`]).
 pub mod changepoint;
+pub mod imu_cache;
 pub mod noise;
 pub mod prior;
 pub mod report;
@@ -82,9 +86,10 @@ use serde::Serialize;
 use std::sync::Arc;
 
 use crate::run::cli::{Prepared, RunArgs};
+use imu_cache::{Adjust, Case, Data, ImuCache};
 use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::outdir::OutDir;
-use nav_engine::run::{output, run_filter, CaseData, Outage, RunOptions, RunOutput, MAX_EXTRA_DIM};
+use nav_engine::run::{output, run_filter, Outage, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
 pub use prior::{candidates, options_with};
 pub use stats::{regressor_correlation, residual_stats, ResidualStats, Whiteness};
@@ -470,7 +475,7 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
 /// What the search needs besides the options of a model: the case, the held-out windows
 /// and whether to score the smoothed solution too.
 struct Ctx<'a> {
-    p: &'a Prepared,
+    p: &'a Data,
     dopts: &'a DiagnoseOptions,
     plan: HeldoutPlan,
     /// The outages the diagnosis withholds beyond the imposed ones.
@@ -497,7 +502,7 @@ impl Ctx<'_> {
     /// [`Self::evaluate`] on other data (the same fixes: the IMU data moved or corrected).
     fn evaluate_case(
         &self,
-        case: &CaseData,
+        case: &Case,
         o: &RunOptions,
     ) -> Result<Eval, nav_engine::run::RunError> {
         let mut ro = self.searching(o);
@@ -505,6 +510,8 @@ impl Ctx<'_> {
         if !self.dopts.smooth {
             return self.evaluate_from_file(case, &ro);
         }
+        // the smoother's run in memory: the samples read into a case of their own
+        let case = &in_memory(case).map_err(nav_engine::run::RunError::Input)?;
         let mut out = run_filter(case, &ro)?;
         let m = metrics::compute(&out, case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
@@ -524,7 +531,7 @@ impl Ctx<'_> {
     /// records nearest the fixes kept: the same numbers, memory proportional to the fixes.
     fn evaluate_from_file(
         &self,
-        case: &CaseData,
+        case: &Case,
         ro: &RunOptions,
     ) -> Result<Eval, nav_engine::run::RunError> {
         use nav_engine::run::RunError;
@@ -612,9 +619,53 @@ struct Search {
     time_offset_held: Option<f64>,
 }
 
-/// Diagnoses a prepared case (see the module notes).
+/// The data of `case` with its IMU samples in memory (for the smoother's runs).
+fn in_memory(case: &Case) -> Result<nav_engine::run::CaseData, nav_io::IoError> {
+    let mut c = (**case).clone();
+    let mut lines = Vec::with_capacity(case.imu.len());
+    for r in case.imu.read_from(0)? {
+        let (s, line) = r?;
+        c.imu.push(s);
+        lines.push(line);
+    }
+    let info = case.imu.cache().info();
+    c.imu_origin = info.path.clone().map(|path| nav_io::ImuOrigin {
+        path,
+        lines,
+        increments_span_gaps: info.increments_span_gaps,
+    });
+    Ok(c)
+}
+
+/// Diagnoses a prepared case (see the module notes): its IMU samples are written into the
+/// diagnosis's record file first ([`imu_cache`]), then [`diagnose_cached`].
 pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
     let folder = spill::temp_folder()?;
+    let imu = ImuCache::from_case(&folder, &p.case)?;
+    let case = nav_engine::run::CaseData {
+        imu: Vec::new(),
+        gnss: p.case.gnss.clone(),
+        truth: p.case.truth.clone(),
+        imu_origin: None,
+    };
+    diagnose_cached(case, &p.opts, imu, dopts)
+}
+
+/// Diagnoses the fixes and truth of `case` (its IMU list unused) with the IMU record `imu`
+/// and the configuration's options `opts` (see the module notes); the diagnosis's files go
+/// into the record's temporary folder.
+pub fn diagnose_cached(
+    case: nav_engine::run::CaseData,
+    opts: &RunOptions,
+    imu: ImuCache,
+    dopts: &DiagnoseOptions,
+) -> anyhow::Result<DiagnoseOutput> {
+    let folder = imu.folder().clone();
+    let data = Data {
+        case: Case::new(case, Arc::new(imu)),
+        opts: opts.clone(),
+    };
+    let p = &data;
     let (before, before_nav, errors_before) =
         spill::run_to_file(&p.case, &p.opts, &folder, "before")?;
     let before = Arc::new(before);
@@ -636,7 +687,7 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<Diagnos
     let all = dopts
         .candidates
         .clone()
-        .unwrap_or_else(|| candidates(&p.case, &p.opts));
+        .unwrap_or_else(|| prior::candidates_with(p.case.imu.has_temperature(), &p.opts));
     let base = base_eval(&base_ctx, &before, &before_nav, &errors_before)?;
     let found = find_bias_step(p, &before);
     // the search and the final model run on the data with the step removed when it is kept
@@ -695,9 +746,9 @@ fn base_eval(
 
 /// A bias step is not a state: found as a change point in the base run's innovations
 /// ([`changepoint::find_bias_step`]), with the case the step is removed from.
-fn find_bias_step(p: &Prepared, before: &RunOutput) -> Option<(changepoint::BiasStep, Prepared)> {
+fn find_bias_step(p: &Data, before: &RunOutput) -> Option<(changepoint::BiasStep, Data)> {
     let s = changepoint::find_bias_step(&p.case, &p.opts, before)?;
-    let stepped = Prepared {
+    let stepped = Data {
         case: s.corrected_case(&p.case),
         ..p.clone()
     };
@@ -722,7 +773,7 @@ enum StepJudged {
 fn judge_bias_step<'a>(
     ctx: Ctx<'a>,
     base: &Eval,
-    found: Option<&'a (changepoint::BiasStep, Prepared)>,
+    found: Option<&'a (changepoint::BiasStep, Data)>,
 ) -> anyhow::Result<(Ctx<'a>, StepJudged)> {
     let Some((b, stepped)) = found else {
         return Ok((ctx, StepJudged::None));
@@ -829,7 +880,11 @@ fn evaluate_candidate(
     n_meas: f64,
     b: Block,
 ) -> (CandidateEvidence, Option<Eval>) {
-    let (rc, n) = regressor_correlation(b, &ctx.p.case.imu, &cur.run);
+    // the samples the regressors read: those nearest the fixes (a pass over the record)
+    let mut times: Vec<f64> = cur.run.innovations.iter().map(|r| r.t_s).collect();
+    times.sort_by(f64::total_cmp);
+    let near = ctx.p.case.imu.near(&times).unwrap_or_default();
+    let (rc, n) = regressor_correlation(b, &near, &cur.run);
     let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
     let mut ev = CandidateEvidence {
         name: b.name().to_string(),
@@ -1376,15 +1431,11 @@ fn add_candidate(
 /// The data with the IMU (and the truth, on the IMU clock) moved onto the GNSS clock for a
 /// time offset `dt` (s, a fix tagged t is the antenna at IMU time t + dt): every IMU and
 /// truth time minus `dt`, as `imu.time_offset_s` of `augmented.toml` does.
-fn on_gnss_clock(case: &CaseData, dt: f64) -> CaseData {
-    let mut c = case.clone();
-    for s in &mut c.imu {
-        s.t_s -= dt;
-    }
-    for t in c.truth.iter_mut().flatten() {
-        t.t_s -= dt;
-    }
-    c
+fn on_gnss_clock(case: &Case, dt: f64) -> Case {
+    case.adjusted(Adjust {
+        time_shift_s: dt,
+        ..*case.imu.adjust()
+    })
 }
 
 /// The time offset the final noise would absorb: when the search's final model (`s.cur`, its
@@ -1397,7 +1448,7 @@ fn on_gnss_clock(case: &CaseData, dt: f64) -> CaseData {
 /// position states: on the real drive the offset was 0.106 s when added, 0.039 +- 0.0016 s
 /// with the white-noise PSDs x512/x1024. Returns the data and options of the final model
 /// when the offset is held.
-fn hold_time_offset(ctx: &Ctx<'_>, s: &mut Search) -> Option<(Prepared, RunOptions)> {
+fn hold_time_offset(ctx: &Ctx<'_>, s: &mut Search) -> Option<(Data, RunOptions)> {
     let info = s
         .added_info
         .iter()
@@ -1410,7 +1461,7 @@ fn hold_time_offset(ctx: &Ctx<'_>, s: &mut Search) -> Option<(Prepared, RunOptio
         return None;
     }
     let p = ctx.p;
-    let moved = Prepared {
+    let moved = Data {
         case: on_gnss_clock(&p.case, e0),
         ..p.clone()
     };
@@ -1859,9 +1910,10 @@ fn short_list(v: &[f64]) -> String {
 /// one of the inputs or another run is writing into it) and moved into place at the end;
 /// SIGINT/SIGTERM before that end the process with `--out` unchanged.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
-    let l = crate::run::cli::load(&args.run, false)?;
-    let p = l.prepared;
+    let l = crate::run::cli::load(&args.run, true)?;
     let od = OutDir::open(&args.run.out, &l.inputs)?;
+    let truth_file = l.truth_stream.clone();
+    let (mut p, imu) = imu_cache::load_cached(l)?;
     println!("{}", p.description);
     let dopts = DiagnoseOptions {
         max_effects: args.max_effects,
@@ -1870,7 +1922,21 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         ambiguity_margin: args.ambiguity_margin,
         smooth: args.run.smooth,
     };
-    let d = diagnose(&p, &dopts)?;
+    // a streamed truth goes to the diagnosis and is read again for the report once the
+    // diagnosis's data are gone (one copy in memory at a time)
+    let case = match &truth_file {
+        Some(_) => std::mem::take(&mut p.case),
+        None => p.case.clone(),
+    };
+    let d = diagnose_cached(case, &p.opts, imu, &dopts)?;
+    // stopped by SIGINT/SIGTERM: the runs ended early; nothing written, the temporary
+    // files removed with `d`
+    if let Some(sig) = nav_engine::run::interrupt::requested() {
+        anyhow::bail!("{}: stopped", nav_engine::run::interrupt::signal_name(sig));
+    }
+    if let Some(t) = &truth_file {
+        p.case.truth = Some(t.open()?.collect::<Result<_, _>>()?);
+    }
     let dir: &PathBuf = &args.run.out;
     write_outputs(od.stage(), &p, &d, Some(&args.run.config))?;
     let moving = nav_engine::run::interrupt::Stoppable::enter();

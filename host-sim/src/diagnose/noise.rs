@@ -27,7 +27,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::stats::{residual_stats, ResidualStats};
-use nav_engine::run::{CaseData, RunOptions};
+use nav_engine::run::RunOptions;
+
+use super::imu_cache::Case;
 
 /// Multipliers on the IMU noise PSDs of a configuration and on its GNSS sigmas.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -216,7 +218,7 @@ impl NoiseTuning {
     }
 }
 
-fn trial(case: &CaseData, opts: &RunOptions, k: NoiseFactors) -> NoiseTrial {
+fn trial(case: &Case, opts: &RunOptions, k: NoiseFactors) -> NoiseTrial {
     let mut o = super::search_recording(opts);
     k.apply(&mut o);
     match super::spill::run_innovations(case, &o) {
@@ -267,7 +269,7 @@ fn best(trials: &[NoiseTrial]) -> Option<&NoiseTrial> {
 
 /// Tunes the noise of `opts` (see the module notes); `base` are the residual statistics of
 /// `opts` as given.
-pub fn tune(case: &CaseData, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning {
+pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning {
     let penalty = 0.5 * (base.scalar_measurements.max(2) as f64).ln();
     let one = NoiseTrial {
         factors: NoiseFactors::ONE,

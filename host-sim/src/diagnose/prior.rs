@@ -116,6 +116,11 @@ pub fn options_with(base: &RunOptions, blocks: &[Block]) -> RunOptions {
 /// carries frozen; the temperature blocks only when some IMU sample carries a temperature.
 pub fn candidates(case: &CaseData, opts: &RunOptions) -> Vec<Block> {
     let has_temp = case.imu.iter().any(|s| s.temperature_c.is_finite());
+    candidates_with(has_temp, opts)
+}
+
+/// [`candidates`] for IMU data that carry a temperature (`has_temp`) or not.
+pub fn candidates_with(has_temp: bool, opts: &RunOptions) -> Vec<Block> {
     EFFECT_BLOCKS
         .iter()
         .copied()

@@ -18,13 +18,14 @@ use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use super::imu_cache::Case;
 use anyhow::Context;
 use nav_core::model::ImuCorrection;
 use nav_core::types::NavSolution;
 use nav_engine::metrics::{self, Metrics, ResidualAcc, SampleAcc, TruthMatcher};
 use nav_engine::run::{
-    case_imu_stream, coast_outages, CaseData, CoastMode, CoastPlan, EpochRecord, FixUse,
-    InnovationRecord, OutageSnapshot, RunError, RunOptions, RunOutput, RunSink, Streams,
+    coast_outages_with, CoastMode, CoastPlan, EpochRecord, FixUse, InnovationRecord,
+    OutageSnapshot, RunError, RunOptions, RunOutput, RunSink, Streams,
 };
 use nav_io::IoError;
 
@@ -327,11 +328,11 @@ impl RunSink for InnovationsOnly {
 /// its `nav`, `epochs` and `snapshots` empty): what the noise trials, the bias-step fit and
 /// the re-tuning read of a run, in memory proportional to the fixes. The same records and
 /// errors as [`nav_engine::run::run_filter`]'s.
-pub fn run_innovations(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, RunError> {
+pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunError> {
     let mut sink = InnovationsOnly::default();
-    let (it, info) = case_imu_stream(case);
+    let (it, info) = case.imu.stream()?;
     let streams = Streams {
-        imu: Box::new(it),
+        imu: it,
         info,
         gnss: Box::new(case.gnss.iter().copied().map(Ok)),
         truth: case.truth.as_deref(),
@@ -352,7 +353,7 @@ pub fn run_innovations(case: &CaseData, opts: &RunOptions) -> Result<RunOutput, 
 /// and `epochs` empty, its innovations and snapshots kept), the records and the metrics
 /// (with the coasting baselines), the same as [`nav_engine::run::execute::execute_case`]'s.
 pub fn run_to_file(
-    case: &CaseData,
+    case: &Case,
     opts: &RunOptions,
     folder: &TempFolder,
     name: &str,
@@ -365,7 +366,7 @@ pub fn run_to_file(
 /// A run of `opts` on `case` with its navigation records in the file `name` of `folder`
 /// (the run's summary: its `nav` and `epochs` empty, its innovations and snapshots kept).
 pub fn run_nav_to_file(
-    case: &CaseData,
+    case: &Case,
     opts: &RunOptions,
     folder: &TempFolder,
     name: &str,
@@ -375,9 +376,9 @@ pub fn run_nav_to_file(
         innovations: Vec::new(),
         snapshots: Vec::new(),
     };
-    let (it, info) = case_imu_stream(case);
+    let (it, info) = case.imu.stream()?;
     let streams = Streams {
-        imu: Box::new(it),
+        imu: it,
         info,
         gnss: Box::new(case.gnss.iter().copied().map(Ok)),
         truth: case.truth.as_deref(),
@@ -400,7 +401,7 @@ pub fn run_nav_to_file(
 /// baselines through the outages) or [`metrics::compute`] (without): against the case's
 /// truth when it has one (read with the records), else against the withheld fixes.
 pub fn metrics_of(
-    case: &CaseData,
+    case: &Case,
     run: &RunOutput,
     nav: &NavFile,
     coasting: bool,
@@ -428,7 +429,8 @@ pub fn metrics_of(
     }
     let mut m = metrics::assemble(run, &residuals, &samples, truth.is_some(), Vec::new());
     if coasting && !run.snapshots.is_empty() {
-        let raw = coast_outages(case, run, CoastMode::Raw);
+        let coast = |mode| coast_outages_with(&case.gnss, run, mode, |k| case.imu.samples_from(k));
+        let raw = coast(CoastMode::Raw);
         m.coasting.push(metrics::coasting_metrics(
             "raw: no sensor-error correction",
             &raw,
@@ -440,7 +442,7 @@ pub fn metrics_of(
                 gyro_bias_radps: b,
                 ..ImuCorrection::default()
             };
-            let st = coast_outages(case, run, CoastMode::Fixed(Box::new(c)));
+            let st = coast(CoastMode::Fixed(Box::new(c)));
             m.coasting.push(metrics::coasting_metrics(
                 "static gyro bias only",
                 &st,

@@ -8,6 +8,7 @@ mod allan_adis16405;
 mod allan_fit_recovery;
 mod allan_params_run;
 mod allan_stream_agrees;
+mod diagmem;
 mod diagnose_clock_gnss_step;
 mod diagnose_gnss_noise;
 mod diagnose_heldout;

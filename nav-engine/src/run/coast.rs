@@ -19,7 +19,7 @@ use super::{position_innovation, CaseData, FixUse, InnovationRecord, RunOutput};
 use nav_core::model::ImuCorrection;
 use nav_core::navigator::nearest_epoch_horizon;
 use nav_core::strapdown::Strapdown;
-use nav_core::types::NavSolution;
+use nav_core::types::{GnssFix, ImuSample, NavSolution};
 
 /// The sensor-error correction applied while coasting (see the module notes).
 #[derive(Debug, Clone, PartialEq)]
@@ -46,6 +46,20 @@ pub struct CoastTrack {
 
 /// Coasts through every outage the run reached (one track per snapshot).
 pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<CoastTrack> {
+    coast_outages_with(&case.gnss, run, mode, |k| {
+        case.imu.get(k..).unwrap_or_default().iter().copied()
+    })
+}
+
+/// [`coast_outages`] on IMU samples read as needed: `imu_from(k)` yields the case's samples
+/// from index `k` on (a snapshot's `next_imu`) in time order, for data not held in memory
+/// (the coasting reads each outage's span and one sample beyond); `gnss`: the case's fixes.
+pub fn coast_outages_with<I: Iterator<Item = ImuSample>>(
+    gnss: &[GnssFix],
+    run: &RunOutput,
+    mode: CoastMode,
+    mut imu_from: impl FnMut(usize) -> I,
+) -> Vec<CoastTrack> {
     let mut tracks = Vec::new();
     for snap in &run.snapshots {
         let Some(o) = run.outages.get(snap.outage) else {
@@ -64,28 +78,25 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
         let fixes_by_t: Vec<_> = withheld
             .iter()
             .filter_map(|r| {
-                case.gnss
-                    .binary_search_by(|g| g.t_s.total_cmp(&r.t_s))
+                gnss.binary_search_by(|g| g.t_s.total_cmp(&r.t_s))
                     .ok()
-                    .and_then(|i| case.gnss.get(i))
+                    .and_then(|i| gnss.get(i))
             })
             .collect();
         let mut mech = Strapdown::new(snap.state);
         let mut nav = vec![snap.state.to_solution()];
         let mut fixes = Vec::new();
         let mut fi = 0;
-        let mut k = snap.next_imu;
-        while let Some(s) = case.imu.get(k) {
-            let mut s = *s;
+        let mut samples = imu_from(snap.next_imu).peekable();
+        while let Some(mut s) = samples.next() {
             let dt = s.t_s - mech.state().t_s;
             corr.apply(&mut s.dtheta_rad, &mut s.dv_mps, dt);
             if mech.update(&s).is_err() {
-                k += 1;
                 continue;
             }
             let st = *mech.state();
             nav.push(st.to_solution());
-            let dt_next = case.imu.get(k + 1).map_or(dt, |n| n.t_s - st.t_s);
+            let dt_next = samples.peek().map_or(dt, |n| n.t_s - st.t_s);
             while let Some(f) = fixes_by_t.get(fi) {
                 if f.t_s >= nearest_epoch_horizon(st.t_s, dt_next) {
                     break;
@@ -104,7 +115,6 @@ pub fn coast_outages(case: &CaseData, run: &RunOutput, mode: CoastMode) -> Vec<C
                     quality: f.quality.rtklib_q(),
                 });
             }
-            k += 1;
             if st.t_s >= o.end_s() && fi >= fixes_by_t.len() {
                 break;
             }

@@ -42,7 +42,7 @@ pub mod sink;
 pub mod streams;
 pub mod truth;
 
-pub use coast::{coast_outages, CoastMode, CoastTrack};
+pub use coast::{coast_outages, coast_outages_with, CoastMode, CoastTrack};
 pub use effect::{Effect, UnknownEffect};
 pub use engine::ahead::{FixAhead, FixLookup, FixSource};
 pub use engine::{
