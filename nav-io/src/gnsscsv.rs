@@ -326,19 +326,40 @@ fn sig_ok(v: &[f64; 3]) -> bool {
     v.iter().all(|s| s.is_finite() && *s > 0.0)
 }
 
+/// Column indices of a GNSS CSV mapping's entries, by header name or number, for the
+/// messages of `path`.
+struct ColResolver<'a> {
+    path: &'a Path,
+    nm: Option<&'a [String]>,
+}
+
+impl ColResolver<'_> {
+    /// The index of column `col` (`what` in messages).
+    fn one(&self, col: &Column, what: &str) -> Result<usize, IoError> {
+        resolve(self.path, col, self.nm, what)
+    }
+
+    /// The index of an optional column.
+    fn opt(&self, col: &Option<Column>, what: &str) -> Result<Option<usize>, IoError> {
+        col.as_ref().map(|x| self.one(x, what)).transpose()
+    }
+
+    /// The indices of three columns (north, east, down or x, y, z).
+    fn three(&self, cols: &[Column; 3], what: [&str; 3]) -> Result<[usize; 3], IoError> {
+        Ok([
+            self.one(&cols[0], what[0])?,
+            self.one(&cols[1], what[1])?,
+            self.one(&cols[2], what[2])?,
+        ])
+    }
+}
+
 fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Result<Cols, IoError> {
     let c = &fmt.columns;
-    let r = |col: &Column, what: &str| resolve(path, col, nm, what);
-    let opt = |col: &Option<Column>, what: &str| -> Result<Option<usize>, IoError> {
-        col.as_ref().map(|x| r(x, what)).transpose()
-    };
-    let r3 = |cols: &[Column; 3], what: [&str; 3]| -> Result<[usize; 3], IoError> {
-        Ok([
-            r(&cols[0], what[0])?,
-            r(&cols[1], what[1])?,
-            r(&cols[2], what[2])?,
-        ])
-    };
+    let cr = ColResolver { path, nm };
+    let r = |col: &Column, what: &str| cr.one(col, what);
+    let opt = |col: &Option<Column>, what: &str| cr.opt(col, what);
+    let r3 = |cols: &[Column; 3], what: [&str; 3]| cr.three(cols, what);
     let time = r(
         c.time
             .as_ref()
@@ -362,7 +383,7 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
             ))
         }
     };
-    let sig = sigma_cols(path, fmt, &opt, &r3)?;
+    let sig = sigma_cols(&cr, fmt)?;
     let vel = match (&c.vel_ned, &c.speed, &c.course) {
         (None, None, None) => VelCols::None,
         (Some(v), None, None) => VelCols::Ned(r3(v, ["vel_n", "vel_e", "vel_d"])?),
@@ -382,7 +403,7 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
             "gnss.csv.columns.climb goes with speed and course",
         ));
     }
-    let vel_sig = velocity_sigma_cols(path, fmt, &vel, &r, &r3)?;
+    let vel_sig = velocity_sigma_cols(&cr, fmt, &vel)?;
     Ok(Cols {
         time,
         week,
@@ -401,12 +422,10 @@ fn resolve_cols(path: &Path, fmt: &GnssCsvFormat, nm: Option<&[String]>) -> Resu
 
 /// The position sigma columns of a GNSS CSV mapping (`sigma_ned`, or `sigma_h`/`sigma_v`
 /// with `default_sigma_ned_m` for a missing one, or `default_sigma_ned_m` alone), checked.
-fn sigma_cols(
-    path: &Path,
-    fmt: &GnssCsvFormat,
-    opt: &dyn Fn(&Option<Column>, &str) -> Result<Option<usize>, IoError>,
-    r3: &dyn Fn(&[Column; 3], [&str; 3]) -> Result<[usize; 3], IoError>,
-) -> Result<SigCols, IoError> {
+fn sigma_cols(cr: &ColResolver<'_>, fmt: &GnssCsvFormat) -> Result<SigCols, IoError> {
+    let path = cr.path;
+    let opt = |col: &Option<Column>, what: &str| cr.opt(col, what);
+    let r3 = |cols: &[Column; 3], what: [&str; 3]| cr.three(cols, what);
     let c = &fmt.columns;
     let sig = match (&c.sigma_ned, &c.sigma_h, &c.sigma_v) {
         (Some(s), None, None) => SigCols::Ned(r3(s, ["sigma_n", "sigma_e", "sigma_d"])?),
@@ -455,12 +474,13 @@ fn sigma_cols(
 /// The velocity sigma columns of a GNSS CSV mapping (`vel_sigma_ned` or `speed_sigma`, or
 /// `default_vel_sigma_ned_mps` when the mapping has velocity columns `vel`), checked.
 fn velocity_sigma_cols(
-    path: &Path,
+    cr: &ColResolver<'_>,
     fmt: &GnssCsvFormat,
     vel: &VelCols,
-    r: &dyn Fn(&Column, &str) -> Result<usize, IoError>,
-    r3: &dyn Fn(&[Column; 3], [&str; 3]) -> Result<[usize; 3], IoError>,
 ) -> Result<VelSigCols, IoError> {
+    let path = cr.path;
+    let r = |col: &Column, what: &str| cr.one(col, what);
+    let r3 = |cols: &[Column; 3], what: [&str; 3]| cr.three(cols, what);
     let c = &fmt.columns;
     Ok(match (&c.vel_sigma_ned, &c.speed_sigma) {
         (Some(s), None) => VelSigCols::Ned(r3(s, ["vel_sigma_n", "vel_sigma_e", "vel_sigma_d"])?),

@@ -676,38 +676,6 @@ fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn smooth_step_derivatives_match_finite_differences() {
-        for &x in &[0.05, 0.2, 0.5, 0.7, 0.93] {
-            let h = 1e-6;
-            let (s, ds, dds) = smooth_step_d(x);
-            let (sp, dsp, _) = smooth_step_d(x + h);
-            let (sm, dsm, _) = smooth_step_d(x - h);
-            assert!(((sp - sm) / (2.0 * h) - ds).abs() < 1e-6, "{x}");
-            assert!(((dsp - dsm) / (2.0 * h) - dds).abs() < 1e-4, "{x}");
-            assert!((s + smooth_step(1.0 - x) - 1.0).abs() < 1e-15);
-        }
-        assert!((smooth_step_d(0.5).1 - 2.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn hill_grade_solution_climbs_the_requested_height() {
-        let g = solve_hill_grade(10.0, 15.0, 20.0, 5.0).unwrap();
-        // Numerically integrate the climb.
-        let n = 200_000;
-        let mut h = 0.0;
-        for i in 0..n {
-            let t = (i as f64 + 0.5) * 20.0 / n as f64;
-            h += 15.0 * (g * plateau(t, 20.0, 5.0).0).sin() * 20.0 / n as f64;
-        }
-        assert!((h - 10.0).abs() < 1e-6, "{h}");
-    }
-}
-
 /// The duration (s) and kinematic shape of segment `index`, entered at `speed_io` (m/s), which
 /// it updates to the segment's exit speed; `turn_ramp_s` is the vehicle's default turn ramp.
 fn segment_shape(
@@ -907,4 +875,36 @@ fn hill_shape(
             ramp_s: ramp,
         },
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smooth_step_derivatives_match_finite_differences() {
+        for &x in &[0.05, 0.2, 0.5, 0.7, 0.93] {
+            let h = 1e-6;
+            let (s, ds, dds) = smooth_step_d(x);
+            let (sp, dsp, _) = smooth_step_d(x + h);
+            let (sm, dsm, _) = smooth_step_d(x - h);
+            assert!(((sp - sm) / (2.0 * h) - ds).abs() < 1e-6, "{x}");
+            assert!(((dsp - dsm) / (2.0 * h) - dds).abs() < 1e-4, "{x}");
+            assert!((s + smooth_step(1.0 - x) - 1.0).abs() < 1e-15);
+        }
+        assert!((smooth_step_d(0.5).1 - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn hill_grade_solution_climbs_the_requested_height() {
+        let g = solve_hill_grade(10.0, 15.0, 20.0, 5.0).unwrap();
+        // Numerically integrate the climb.
+        let n = 200_000;
+        let mut h = 0.0;
+        for i in 0..n {
+            let t = (i as f64 + 0.5) * 20.0 / n as f64;
+            h += 15.0 * (g * plateau(t, 20.0, 5.0).0).sin() * 20.0 / n as f64;
+        }
+        assert!((h - 10.0).abs() < 1e-6, "{h}");
+    }
 }

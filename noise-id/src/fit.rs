@@ -785,6 +785,9 @@ pub fn fit(points: &[DevPoint], opt: &FitOptions) -> Result<FitResult, FitError>
     })
 }
 
+/// A solution of the fit: (T_B in s, the five linear coefficients, chi2).
+type TbSolution = (f64, [f64; 5], f64);
+
 /// The weighted least-squares fit iterated `opt.irls_iterations` times, each time with the
 /// weights of the previous solution's model (diagonal EDF weights, or the full covariance
 /// of the overlapping estimates for [`Weighting::Gls`]): the solution `(T_B, coefficients,
@@ -795,7 +798,7 @@ fn reweighted_solution(
     opt: &FitOptions,
     dt: f64,
     ms: &[(usize, usize)],
-) -> ((f64, [f64; 5], f64), Vec<f64>, DMatrix<f64>) {
+) -> (TbSolution, Vec<f64>, DMatrix<f64>) {
     let terms = opt.terms;
     let mut wmodel: Vec<f64> = pts.iter().map(|p| p.avar).collect();
     let eps = opt.model_error_rel;
