@@ -173,29 +173,11 @@ impl Bounded {
 // the child is reaped by `wait4` (std's `wait` would lose its resource usage)
 #[allow(clippy::zombie_processes)]
 pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
-    use std::os::unix::process::{CommandExt, ExitStatusExt};
-    use std::process::Stdio;
+    use std::os::unix::process::ExitStatusExt;
     let t = std::time::Instant::now();
-    // a process group of its own: killed at the limit with whatever it started (which would
-    // hold the output pipes open)
-    let mut child = cmd
-        .process_group(0)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("{cmd:?} could not be started: {e}"));
-    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
-        std::thread::spawn(move || {
-            let mut b = Vec::new();
-            if let Some(mut r) = r {
-                let _ = r.read_to_end(&mut b);
-            }
-            String::from_utf8_lossy(&b).into_owned()
-        })
-    };
-    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
-    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    // a process group of its own: killed at the limit with whatever it started
+    let (child, out, err) =
+        spawn_drained(cmd).unwrap_or_else(|e| panic!("{cmd:?} could not be started: {e}"));
     let pid = libc::pid_t::try_from(child.id()).expect("a pid");
     let mut killed = false;
     let mut max_rss_kib = 0u64;
@@ -245,27 +227,9 @@ pub fn interrupt_when_ready(
     start_limit: std::time::Duration,
     end_limit: std::time::Duration,
 ) -> Result<Bounded, String> {
-    use std::os::unix::process::CommandExt;
-    use std::process::Stdio;
     let t = std::time::Instant::now();
-    let mut child = cmd
-        .process_group(0)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("{cmd:?} could not be started: {e}"))?;
-    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
-        std::thread::spawn(move || {
-            let mut b = Vec::new();
-            if let Some(mut r) = r {
-                let _ = r.read_to_end(&mut b);
-            }
-            String::from_utf8_lossy(&b).into_owned()
-        })
-    };
-    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
-    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    let (mut child, out, err) =
+        spawn_drained(cmd).map_err(|e| format!("{cmd:?} could not be started: {e}"))?;
     let pid = libc::pid_t::try_from(child.id()).map_err(|e| e.to_string())?;
     let kill_group = || {
         // SAFETY: signalling the process group of our own child, not reaped yet.
@@ -314,6 +278,37 @@ pub fn interrupt_when_ready(
         max_rss_kib: 0,
         cpu_s: 0.0,
     })
+}
+
+/// A thread reading one of a child's outputs to its end, as text.
+#[cfg(unix)]
+type Drain = std::thread::JoinHandle<String>;
+
+/// Starts `cmd` with its standard input empty, in a process group of its own (so that killing
+/// the group also ends whatever it started, which would hold the output pipes open), and its
+/// standard output and error each read to the end by a thread.
+#[cfg(unix)]
+fn spawn_drained(cmd: &mut Command) -> std::io::Result<(std::process::Child, Drain, Drain)> {
+    use std::os::unix::process::CommandExt;
+    use std::process::Stdio;
+    let mut child = cmd
+        .process_group(0)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()?;
+    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut b = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut b);
+            }
+            String::from_utf8_lossy(&b).into_owned()
+        })
+    };
+    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
+    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    Ok((child, out, err))
 }
 
 /// The high-water mark of a running process's resident set (`VmHWM` of `/proc/PID/status`),
