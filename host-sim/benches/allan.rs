@@ -5,7 +5,7 @@
 //! binary instead runs the OADEV job once and prints the time (for `/usr/bin/time -v`
 //! memory measurements).
 use criterion::{criterion_group, Criterion};
-use host_sim::noise::White;
+use nav_sim::noise::White;
 use noise_id::{deviation_curve, CurveOptions, Deviation, Phase, Taus};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

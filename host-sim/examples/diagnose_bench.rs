@@ -5,16 +5,17 @@
 //! `cargo run --release -p host-sim --example diagnose_bench` prints the simulation time, the
 //! diagnose wall time (all rounds, candidates in parallel on the rayon pool: set
 //! RAYON_NUM_THREADS=2 for the 2-core figure) and the result.
+use host_sim::run::case_data;
 use std::time::Instant;
 
 use host_sim::diagnose::{diagnose, DiagnoseOptions};
 use host_sim::run::cli::Prepared;
-use host_sim::sim::errors::{Axes3, Temperature};
-use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
-use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
+use nav_sim::errors::{Axes3, Temperature};
 use nav_sim::ScenarioBuilder;
+use nav_sim::{simulate, ErrorModel, Scenario};
 
 fn scenario() -> Scenario {
     let mut b = ScenarioBuilder::new("diagnose-bench")
@@ -88,7 +89,7 @@ fn main() {
         start += 100.0;
     }
     let p = Prepared {
-        case: CaseData::from(&case),
+        case: case_data(&case),
         opts,
         week: 2227,
         description: "diagnose benchmark".into(),

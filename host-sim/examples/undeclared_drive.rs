@@ -1,10 +1,10 @@
-//! Writes a drive of `host_sim::sim::undeclared` with its GNSS gaps in the file only (no
+//! Writes a drive of `nav_sim::undeclared` with its GNSS gaps in the file only (no
 //! imposed outages: `case.toml` lists none, so `host-sim diagnose --config DIR/kf-gins.yaml`
 //! sees the recording as a user's, with its truth for the metrics).
 //!
 //! `cargo run --release -p host-sim --example undeclared_drive -- DIR EFFECT MINUTES SEED GAPS`
 //! with EFFECT a block name of [`Effect`] (`accel_scale_factor`, ...) or `none`.
-use host_sim::sim::undeclared::{generate, DriveSpec, Effect};
+use nav_sim::undeclared::{generate, DriveSpec, Effect};
 
 fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().skip(1).collect();

@@ -1,7 +1,7 @@
 #![doc = include_str!("../README.md")]
 //!
-//! `host-sim`: the host side of the navigation core. Simulation of trajectories and sensors,
-//! the source document's bias-model study, model diagnosis, plots, reports and the command
+//! `host-sim`: the host side of the navigation core. The `simulate` command (the simulator is
+//! the `nav-sim` crate), the source document's bias-model study, model diagnosis, plots, reports and the command
 //! line (`run` over the `nav-engine` crate's run engine and metrics, `allan` over the
 //! `noise-id` crate). The data formats are read and written by the `nav-io` crate.
 //!
@@ -13,7 +13,6 @@ pub mod cli_enum;
 pub mod diagnose;
 pub mod init;
 pub mod mounting;
-pub mod noise;
 pub mod run;
 pub mod sim;
 pub mod study;

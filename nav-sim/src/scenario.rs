@@ -120,11 +120,11 @@ pub struct Vehicle {
     #[serde(default, skip_serializing_if = "is_zero")]
     pub bounce_mps: f64,
     /// A wheel-speed odometer (`[vehicle.odometer]`): a case simulated by `host-sim` gets
-    /// `odometer.txt` (`host_sim::sim::odometer`); none when absent.
+    /// `odometer.txt` (`nav_sim::odometer`); none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer: Option<WheelSpeedSpec>,
     /// A dual-antenna GNSS heading (`[vehicle.heading]`): a case simulated by `host-sim` gets
-    /// `heading.txt` (`host_sim::sim::heading`); none when absent.
+    /// `heading.txt` (`nav_sim::heading`); none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heading: Option<HeadingSpec>,
 }

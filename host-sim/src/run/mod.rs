@@ -6,14 +6,12 @@ pub use nav_engine::run::*;
 pub mod cli;
 pub mod smoothed;
 
-impl From<&crate::sim::Case> for CaseData {
-    /// The measurements and truth of a simulated case.
-    fn from(case: &crate::sim::Case) -> Self {
-        Self {
-            imu: case.meas.imu.clone(),
-            gnss: case.meas.gnss.clone(),
-            truth: Some(case.trajectory.truth.clone()),
-            imu_origin: None,
-        }
+/// The measurements and truth of a simulated case, as the run engine takes them.
+pub fn case_data(case: &nav_sim::Case) -> CaseData {
+    CaseData {
+        imu: case.meas.imu.clone(),
+        gnss: case.meas.gnss.clone(),
+        truth: Some(case.trajectory.truth.clone()),
+        imu_origin: None,
     }
 }

@@ -1,9 +1,9 @@
 //! `host-sim simulate`.
 
-use super::case::simulate;
-use super::errors::{ErrorModel, Outage};
-use super::scenario::Scenario;
 use anyhow::Context;
+use nav_sim::case::simulate;
+use nav_sim::errors::{ErrorModel, Outage};
+use nav_sim::scenario::Scenario;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `host-sim simulate`.

@@ -1,8 +1,8 @@
 //! Overview plot of a trajectory: ground track, speed and height, attitude, specific force and
 //! angular rate (from the ideal increments).
 
-use super::trajectory::Trajectory;
 use nav_core::earth::{ned_offset_m, Llh};
+use nav_sim::trajectory::Trajectory;
 use plotters::prelude::*;
 use std::path::Path;
 

@@ -29,10 +29,10 @@ pub mod report;
 pub mod setup;
 pub mod stats;
 
-use crate::sim::{Scenario, Trajectory};
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use nav_engine::run::{self, CaseData, RecordOptions, RunOptions};
+use nav_sim::{Scenario, Trajectory};
 use rayon::prelude::*;
 use serde::Serialize;
 use setup::Variant;

@@ -2,10 +2,10 @@
 //! filter models, the initial errors, and the error sources of the budget (each switchable on
 //! its own, with the same random streams).
 
-use crate::sim::errors::{Axes3, ErrorModel, DEG_PER_H_RADPS, UG_MPS2};
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
 use nav_engine::run::{InitSpec, Model};
+use nav_sim::errors::{Axes3, ErrorModel, DEG_PER_H_RADPS, UG_MPS2};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};

@@ -5,10 +5,10 @@
 //! east and down, NED velocity in m/s, attitude as the phi angle in rad
 //! (`C_hat = (I - [phi x]) C`).
 
-use crate::sim::trajectory::{nav_state_of, Trajectory};
 use nav_core::attitude::rotvec_from_quat;
 use nav_core::earth::ned_offset_m;
 use nav_engine::run::RunOutput;
+use nav_sim::trajectory::{nav_state_of, Trajectory};
 use serde::Serialize;
 
 /// Names of the 9 core error components, in state order.

@@ -2,14 +2,15 @@
 //! zero-rate updates (ZUPT/ZARU) on a simulated urban drive with stops, side slip and bounce
 //! (`scenarios/land_stops.toml`, consumer MEMS IMU, RTK GNSS), and on the real drive
 //! (`configs/drive0708_aided.toml`, the reference 20 s outage protocol).
-use host_sim::sim::{simulate, Case, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nav_core::aiding::AidingConfig;
 use nav_core::config::{units, FilterConfig, SensorNoise};
 use nav_core::filter::InitialUncertainty;
 use nav_engine::execute;
 use nav_engine::metrics::{self, errors_vs_truth};
-use nav_engine::run::{run_filter, CaseData, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
+use nav_engine::run::{run_filter, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
 use nav_engine::RunSpec;
+use nav_sim::{simulate, Case, ErrorModel, Scenario};
 use std::path::Path;
 
 fn scenario() -> Scenario {
@@ -95,7 +96,7 @@ fn nhc_at_least_halves_the_60s_outage_drift_on_a_simulated_land_drive() {
     let (mut sum_b, mut sum_a) = (0.0, 0.0);
     for seed in 1u64..=6 {
         let c = case(seed);
-        let data = CaseData::from(&c);
+        let data = case_data(&c);
         let t0 = c.trajectory.t0_s;
         let truth = &c.trajectory.truth;
         let base = run_filter(&data, &options(AidingConfig::OFF, driving_outages(t0)))
@@ -149,7 +150,7 @@ fn nhc_at_least_halves_the_60s_outage_drift_on_a_simulated_land_drive() {
 #[test]
 fn zupt_holds_the_position_to_centimetres_during_stops() {
     let c = case(4);
-    let data = CaseData::from(&c);
+    let data = case_data(&c);
     let t0 = c.trajectory.t0_s;
     let truth = &c.trajectory.truth;
     // the GNSS withheld over the two long stops (static 183-213 s and 306-346 s)

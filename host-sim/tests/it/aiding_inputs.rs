@@ -110,7 +110,7 @@ fn odometer_with_its_scale_state_shrinks_the_outage_error_end_to_end() {
         .start(30.5, 114.3, 20.0, 30.0)
         .gps_time(2300, 200000.0)
         .imu_rate_hz(100.0)
-        .odometer(host_sim::sim::scenario::WheelSpeedSpec {
+        .odometer(nav_sim::scenario::WheelSpeedSpec {
             rate_hz: 10.0,
             scale: 0.02,
             sigma_mps: 0.02,
@@ -212,7 +212,7 @@ fn dual_antenna_heading_fixes_an_unobservable_yaw_and_rejects_an_outlier() {
         .start(30.5, 114.3, 20.0, 30.0)
         .gps_time(2300, 200000.0)
         .imu_rate_hz(100.0)
-        .heading(host_sim::sim::scenario::HeadingSpec {
+        .heading(nav_sim::scenario::HeadingSpec {
             rate_hz: 5.0,
             sigma_deg: 0.3,
             baseline_m: [0.0, 1.2, 0.0],

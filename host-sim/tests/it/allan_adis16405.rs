@@ -172,7 +172,7 @@ fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
     let text = std::fs::read_to_string(dir.path().join("allan_sim_errors.toml")).expect("toml");
     let t: toml::Table = toml::from_str(&text).expect("toml parse");
     for group in ["accel", "gyro"] {
-        let e: host_sim::sim::errors::SensorErrors = t[group]
+        let e: nav_sim::errors::SensorErrors = t[group]
             .clone()
             .try_into()
             .unwrap_or_else(|e| panic!("[{group}] as SensorErrors: {e}"));

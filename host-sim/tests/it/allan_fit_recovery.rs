@@ -2,8 +2,8 @@
 //! T_B = 45 s, S_K = 2.6731e-12) from simulated 6-hour 100 Hz records (white + first-order
 //! Gauss-Markov + random walk), Monte Carlo, by the weighted least-squares fit of the overlapping
 //! Allan variance; and the slope/minimum method on the same runs.
-use host_sim::noise::{GaussMarkov, RandomWalk, White};
 use nav_core::config::units;
+use nav_sim::noise::{GaussMarkov, RandomWalk, White};
 use noise_id::fit::{fit, slope_method, FitOptions, Terms};
 use noise_id::{deviation_curve, CurveOptions};
 use rand::SeedableRng;

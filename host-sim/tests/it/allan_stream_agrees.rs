@@ -1,7 +1,7 @@
 //! nav-core's streaming (octave-pyramid, non-overlapping) Allan variance agrees with the host's
 //! non-overlapping ADEV on the same data.
-use host_sim::noise::{GaussMarkov, RandomWalk, White};
 use nav_core::allan::StreamingAllan;
+use nav_sim::noise::{GaussMarkov, RandomWalk, White};
 use noise_id::{Deviation, Phase};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -12,12 +12,13 @@
 //!   estimate), the outage error after below the error before.
 #![allow(clippy::needless_range_loop)]
 use host_sim::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use host_sim::sim::errors::{Axes3, UG_MPS2};
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
-use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
+use nav_sim::errors::{Axes3, UG_MPS2};
+use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
 
 /// A drive of about 11 minutes: a static start, then three laps of accelerations, turns both
@@ -79,7 +80,7 @@ fn prepared(errors: &ErrorModel, seed: u64) -> Prepared {
         start += 100.0;
     }
     Prepared {
-        case: CaseData::from(&case),
+        case: case_data(&case),
         opts,
         week: 2227,
         description: "diagnose clock/GNSS/step test".into(),

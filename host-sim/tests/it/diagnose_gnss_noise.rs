@@ -5,12 +5,12 @@
 //! gate-off run either. A drive whose GNSS errors are 6x the declared (white and correlated)
 //! gets a scale within 30 % of 6; a clean drive gets none.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
-use host_sim::sim::errors::Axes3;
-use host_sim::sim::{simulate, ErrorModel};
 use nav_core::config::Gating;
 use nav_core::types::{GnssFix, ImuSample};
 use nav_engine::metrics::Metrics;
 use nav_engine::{Prepared, RunSpec};
+use nav_sim::errors::Axes3;
+use nav_sim::{simulate, ErrorModel};
 use std::path::Path;
 use test_support::runcase::TACTICAL_NOISE;
 use test_support::scenario::ScenarioToml;
@@ -21,8 +21,8 @@ const SOW0: f64 = 118_800.0;
 const DECLARED: [f64; 3] = [0.006, 0.004, 0.010];
 
 /// A turn at 5 deg/s (the simulator's turn by radius needs 0.5 m/s).
-fn slow_turn(angle_deg: f64) -> host_sim::sim::scenario::Segment {
-    host_sim::sim::scenario::Segment::Turn {
+fn slow_turn(angle_deg: f64) -> nav_sim::scenario::Segment {
+    nav_sim::scenario::Segment::Turn {
         angle_deg,
         rate_deg_s: Some(5.0),
         radius_m: None,

@@ -1,5 +1,5 @@
 //! `host_sim::diagnose` with the default options (the vocabulary test stops at the first added
-//! effect) on drives of `host_sim::sim::undeclared` whose GNSS FILE has three real 60 s gaps
+//! effect) on drives of `nav_sim::undeclared` whose GNSS FILE has three real 60 s gaps
 //! (starting between fix epochs) and no imposed outage, as a user runs
 //! `host-sim diagnose --config kf-gins.yaml` on a recording: the diagnosis takes the file's
 //! gaps as held-out windows and withholds more itself (`validate::plan_windows`), and
@@ -22,9 +22,9 @@
 //! default options and takes `DIAGNOSE_HELDOUT_MINUTES` (default 40).
 use host_sim::diagnose::{diagnose, validate, DiagnoseOptions, Diagnosis, WindowKind};
 use host_sim::run::cli::Prepared;
-use host_sim::sim::undeclared::{generate, DriveSpec, Effect};
-use host_sim::sim::ErrorModel;
 use nav_engine::RunSpec;
+use nav_sim::undeclared::{generate, DriveSpec, Effect};
+use nav_sim::ErrorModel;
 use rayon::prelude::*;
 
 /// A drive with `effect` and three gaps in its GNSS file (IMU at `rate_hz`), prepared from its

@@ -7,12 +7,13 @@
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
 use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
-use host_sim::sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
 use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
+use nav_sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
+use nav_sim::{simulate, ErrorModel, Scenario};
 use rayon::prelude::*;
 use test_support::scenario::ScenarioToml;
 
@@ -93,7 +94,7 @@ fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u
         start += 100.0;
     }
     Prepared {
-        case: CaseData::from(&case),
+        case: case_data(&case),
         opts,
         week: 2227,
         description: "diagnose test".into(),

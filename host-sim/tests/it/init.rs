@@ -5,9 +5,9 @@
 //! and mounting (the readers' mapping is what `init` found). The real drive0708: `init` then
 //! `run` (CI only, SKIPPED without the data).
 
-use host_sim::sim::{simulate, ErrorModel};
 use nav_core::types::{GnssFix, ImuSample};
 use nav_io::gnss::encode::{nmea_epoch, utc_of_gps};
+use nav_sim::{simulate, ErrorModel};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;

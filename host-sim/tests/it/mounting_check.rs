@@ -1,9 +1,10 @@
 //! `run` warns when the data contradict the configured mounting: the body z gyro turning
 //! against the GNSS course, gravity at rest not along body -z.
 
-use host_sim::sim::{simulate, ErrorModel};
+use host_sim::run::case_data;
 use nav_engine::mounting::check_mounting;
 use nav_engine::run::CaseData;
+use nav_sim::{simulate, ErrorModel};
 use test_support::scenario::ScenarioToml;
 
 fn case() -> CaseData {
@@ -18,7 +19,7 @@ fn case() -> CaseData {
         .turn(-150.0, 50.0)
         .cruise(10.0)
         .scenario();
-    CaseData::from(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
+    case_data(&simulate(&sc, &ErrorModel::preset("consumer-mems").unwrap(), 7).unwrap())
 }
 
 #[test]

@@ -1,11 +1,11 @@
 //! `host-sim mounting`: the IMU-to-body rotation from the data, in each of the 24 axis layouts
 //! with a few degrees of misalignment, after a 5-minute drive with turns.
 
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude::{dcm_from_euler_zyx, euler_zyx_from_dcm};
 use nav_engine::mounting::{axis_layouts, estimate_mounting};
-use nav_engine::run::CaseData;
+use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
 
 /// The drive; `roll_per_g_deg` replaces the scenario's default body roll in turns, deg per g.
@@ -66,7 +66,7 @@ fn check_layouts(roll_per_g_deg: Option<f64>, label: &str) {
         .iter()
         .map(|s| s.rpy_rad[0].to_degrees().abs())
         .fold(0.0, f64::max);
-    let body = CaseData::from(&case);
+    let body = case_data(&case);
     let dur = body.imu.last().unwrap().t_s - body.imu[0].t_s;
     assert!(dur > 300.0, "{dur}");
     let layouts = axis_layouts();
@@ -114,8 +114,8 @@ fn check_layouts(roll_per_g_deg: Option<f64>, label: &str) {
 }
 
 /// A turn at 5 deg/s (the simulator's turn by radius needs 0.5 m/s).
-fn slow_turn(angle_deg: f64) -> host_sim::sim::scenario::Segment {
-    host_sim::sim::scenario::Segment::Turn {
+fn slow_turn(angle_deg: f64) -> nav_sim::scenario::Segment {
+    nav_sim::scenario::Segment::Turn {
         angle_deg,
         rate_deg_s: Some(5.0),
         radius_m: None,

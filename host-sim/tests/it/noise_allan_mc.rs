@@ -1,7 +1,7 @@
 //! Each simulated noise process measured back through the Allan variance: the mean overlapping
 //! AVAR over Monte Carlo runs is within 1 +/- 3 / sqrt(runs * EDF) of the theory at every octave
 //! tau (EDF: Greenhall's, for the noise type the pipeline identifies at that tau).
-use host_sim::noise::{flicker_avar_discrete, Flicker, GaussMarkov, Quantizer, RandomWalk, White};
+use nav_sim::noise::{flicker_avar_discrete, Flicker, GaussMarkov, Quantizer, RandomWalk, White};
 use noise_id::{deviation_curve, edf, CurveOptions, Deviation};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

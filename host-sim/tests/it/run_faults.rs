@@ -6,7 +6,6 @@
 //! the gap (position and height errors against the truth), with the default gate, the hard
 //! 0.9999 chi-square gate set explicitly and the gate off.
 use host_sim::run::cli::parse_gate;
-use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_core::imu_guard::GapIncrements;
 use nav_engine::metrics::Metrics;
 use nav_engine::run::{RunError, RunOutput};
@@ -16,6 +15,7 @@ use nav_io::{
     read_imu_csv, read_nav_text, AccelUnit, Column, CsvTime, ImuCsvColumns, ImuCsvFormat, RateUnit,
     SampleConvention,
 };
+use nav_sim::{simulate, ErrorModel, Scenario};
 use std::path::{Path, PathBuf};
 use test_support::cli::{self, Bin, Ran};
 use test_support::scenario::four_minute_drive;

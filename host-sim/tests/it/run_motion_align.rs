@@ -2,10 +2,11 @@
 //! GNSS velocity automatically (no hand-given state), and the static window covers `static_s`
 //! whatever the sample times (the "9.9938 s (need 10 s)" off-by-one).
 
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_engine::metrics::errors_vs_truth;
-use nav_engine::run::{run_filter, CaseData, InitSpec, Model, RunOptions, StaticAlign};
+use nav_engine::run::{run_filter, InitSpec, Model, RunOptions, StaticAlign};
+use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
 
 /// Accelerates to 15 m/s, then drives with turns and a hill; the runs start at t0 + 12 s,
@@ -28,7 +29,7 @@ fn scenario() -> Scenario {
 
 fn check_moving_start(errors: &ErrorModel, label: &str) {
     let case = simulate(&scenario(), errors, 3).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let t0 = case.trajectory.t0_s;
     let start = t0 + 12.0;
     // what `[init.align] static_s = 10` in a run configuration gives: nothing hand-given
@@ -102,7 +103,7 @@ fn a_static_window_of_10_s_at_125_hz_is_long_enough() {
         .cruise(10.0)
         .scenario();
     let case = simulate(&sc, &ErrorModel::preset("tactical").unwrap(), 4).unwrap();
-    let mut data = CaseData::from(&case);
+    let mut data = case_data(&case);
     // real logs are not on a grid: +-1.5 ms of time-stamp jitter
     for (k, s) in data.imu.iter_mut().enumerate().skip(1) {
         s.t_s += 0.0015 * (k as f64 * 0.7).sin();

@@ -1,15 +1,16 @@
 //! The run engine (`nav_engine::run`) on simulated data in memory: metrics against an
 //! injected offset, outages honoured, NBK accuracy on seed-nbk data, static alignment, f32 vs
 //! f64.
-use host_sim::sim::{simulate, ErrorModel, Scenario};
+use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::earth;
 use nav_core::filter::InitialUncertainty;
 use nav_engine::metrics::{self, errors_vs_truth, ErrSample};
 use nav_engine::run::{
-    coast_outages, run_filter, CaseData, CoastMode, FixUse, InitSpec, Model, Outage, Precision,
-    RunOptions, StaticAlign,
+    coast_outages, run_filter, CoastMode, FixUse, InitSpec, Model, Outage, Precision, RunOptions,
+    StaticAlign,
 };
+use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::six_minute_drive;
 
 /// The shared 6-minute drive at 100 Hz (`test_support::scenario::six_minute_drive`).
@@ -79,7 +80,7 @@ fn initial_position_error_appears_in_the_metrics_with_its_sign() {
     // 1 m north / -0.5 m east offset (no Schuler growth to speak of in 6 min from a position
     // error), which the metrics must report as +1 / -0.5.
     let case = simulate(&scenario(), &ErrorModel::preset("none").unwrap(), 1).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let t0 = case.trajectory.t0_s;
     let mut opts = RunOptions::new(
         Model::N,
@@ -113,7 +114,7 @@ fn initial_position_error_appears_in_the_metrics_with_its_sign() {
 #[test]
 fn outages_are_honoured_and_the_filter_coasts_on_held_estimates() {
     let case = simulate(&scenario(), &ErrorModel::preset("seed-nbk").unwrap(), 3).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let t0 = case.trajectory.t0_s;
     let mut opts = RunOptions::new(Model::Nbk, FilterConfig::source_nbk_model(), from_truth());
     opts.outages = vec![
@@ -191,7 +192,7 @@ fn outages_are_honoured_and_the_filter_coasts_on_held_estimates() {
 #[test]
 fn nbk_on_seed_nbk_data_is_within_the_expected_envelope() {
     let case = simulate(&scenario(), &ErrorModel::preset("seed-nbk").unwrap(), 7).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let opts = RunOptions::new(Model::Nbk, FilterConfig::source_nbk_model(), from_truth());
     let out = run_filter(&data, &opts).unwrap();
     let m = metrics::compute(&out, Some(&case.trajectory.truth));
@@ -216,7 +217,7 @@ fn nbk_on_seed_nbk_data_is_within_the_expected_envelope() {
 #[test]
 fn f32_and_f64_runs_agree() {
     let case = simulate(&scenario(), &ErrorModel::preset("seed-nbk").unwrap(), 2).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let mut opts = RunOptions::new(Model::Nbk, FilterConfig::source_nbk_model(), from_truth());
     let a = run_filter(&data, &opts).unwrap();
     opts.precision = Precision::F32;
@@ -233,7 +234,7 @@ fn f32_and_f64_runs_agree() {
 #[test]
 fn static_alignment_starts_the_filter_from_rest() {
     let case = simulate(&scenario(), &ErrorModel::preset("tactical").unwrap(), 5).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let mut sa = StaticAlign::new(30.0);
     sa.heading_rad = None; // from the GNSS course
     let opts = RunOptions::new(

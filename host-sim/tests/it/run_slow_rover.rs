@@ -4,10 +4,10 @@
 //! `[init.align]` gives only `static_s`: the heading must come from the GNSS course without a
 //! hand setting. A fast car with fixes at 1 Hz aligns from the same rule.
 
-use host_sim::sim::{simulate, ErrorModel};
 use nav_core::types::{GnssFix, ImuSample};
 use nav_engine::metrics::errors_vs_truth;
 use nav_io::gnss::encode::utc_of_gps;
+use nav_sim::{simulate, ErrorModel};
 use std::path::Path;
 use std::process::Command;
 use test_support::runcase::TACTICAL_NOISE;
@@ -151,8 +151,8 @@ fn write_case(
 }
 
 /// A turn at 5 deg/s (the simulator's turn by radius needs 0.5 m/s).
-fn slow_turn(angle_deg: f64) -> host_sim::sim::scenario::Segment {
-    host_sim::sim::scenario::Segment::Turn {
+fn slow_turn(angle_deg: f64) -> nav_sim::scenario::Segment {
+    nav_sim::scenario::Segment::Turn {
         angle_deg,
         rate_deg_s: Some(5.0),
         radius_m: None,

@@ -1,10 +1,10 @@
 //! `host-sim simulate` end to end: the files it writes can be read back with the project's
 //! readers and describe exactly what was simulated.
-use host_sim::sim::case::CaseFile;
 use host_sim::sim::cli::{run, SimulateArgs};
-use host_sim::sim::errors::Outage;
-use host_sim::sim::{simulate, ErrorModel, Scenario};
 use nav_io::{read_gnss_text, read_imu_text, read_nav_text};
+use nav_sim::case::CaseFile;
+use nav_sim::errors::Outage;
+use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
 
 fn scenario_toml() -> String {

@@ -1,12 +1,12 @@
 //! Every error source and every undeclared effect of the generator, measured back from the
 //! generated data against the error-free trajectory. Tolerances are 4 standard errors of the
 //! estimator, derived from the number of samples (or exact where no noise is present).
-use host_sim::sim::errors::{Axes3, ErrorModel, Outage, PeriodicOutage, Temperature};
-use host_sim::sim::trajectory::{dcm_from_euler, nav_state_of};
-use host_sim::sim::{Scenario, Trajectory};
 use nalgebra::{DMatrix, DVector, Vector3};
 use nav_core::earth::{ned_offset_m, Llh};
 use nav_core::types::{GnssFix, ImuSample};
+use nav_sim::errors::{Axes3, ErrorModel, Outage, PeriodicOutage, Temperature};
+use nav_sim::trajectory::{dcm_from_euler, nav_state_of};
+use nav_sim::{Scenario, Trajectory};
 use std::path::Path;
 use std::sync::OnceLock;
 use test_support::scenario::ScenarioToml;
@@ -238,7 +238,7 @@ fn flicker_allan_deviation_is_flat_at_its_coefficient() {
             k += ki - 1;
         }
         a /= k as f64;
-        let theory = host_sim::noise::flicker_avar_discrete(b, m);
+        let theory = nav_sim::noise::flicker_avar_discrete(b, m);
         // Flicker Allan estimates have fewer degrees of freedom than clusters (about 0.6 k):
         // relative sd of the variance sqrt(2 / (0.6 k)).
         let tol = 4.0 * (2.0 / (0.6 * k as f64)).sqrt();
@@ -743,7 +743,7 @@ fn error_model_files_override_presets_and_reject_unknown_keys() {
     );
     let err = ErrorModel::from_toml_str("[accel]\ntemp_coeff_per_c = 1e-4\n", "t").unwrap_err();
     assert!(err.to_string().contains("temperature"), "{err}");
-    for p in host_sim::sim::errors::PRESETS {
+    for p in nav_sim::errors::PRESETS {
         ErrorModel::preset(p).unwrap().validate().unwrap();
     }
     assert!(ErrorModel::load("no-such-preset").is_err());

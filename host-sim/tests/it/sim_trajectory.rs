@@ -1,9 +1,9 @@
 //! Truth trajectory and ideal increments: exact static values, quadrature convergence,
 //! kinematic consistency, segment targets, smoothness, scenario errors.
-use host_sim::sim::trajectory::{dcm_from_euler, nav_state_of};
-use host_sim::sim::{Scenario, Trajectory};
 use nalgebra::Vector3;
 use nav_core::earth::{self, ned_offset_m, Llh};
+use nav_sim::trajectory::{dcm_from_euler, nav_state_of};
+use nav_sim::{Scenario, Trajectory};
 use std::path::Path;
 use std::sync::OnceLock;
 

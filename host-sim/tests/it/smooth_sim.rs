@@ -4,12 +4,13 @@
 //! smoothed outage error a fraction of the forward one, `run --smooth`'s files; and (ignored,
 //! `cargo test --release -p host-sim --test it -- smooth_sim:: --ignored`) the 40-minute 200 Hz
 //! drive with three 60 s outages.
-use host_sim::sim::{simulate, Scenario};
+use host_sim::run::case_data;
 use host_sim::study::setup::{init_spec, truth_errors, Sources, Variant};
 use nav_core::types::NavSolution;
 use nav_engine::metrics::{self, errors_vs_truth};
-use nav_engine::run::{run_filter, CaseData, Outage, RunOptions};
+use nav_engine::run::{run_filter, Outage, RunOptions};
 use nav_engine::smooth::apply::smooth_run;
+use nav_sim::{simulate, Scenario};
 use noise_id::stats::nees_band_95;
 use test_support::scenario::{six_minute_drive, ScenarioToml};
 
@@ -60,7 +61,7 @@ fn smoothed_nees_is_in_the_band_and_the_outage_error_shrinks() {
     let mut ratios = Vec::new();
     for seed in 1..=RUNS as u64 {
         let case = simulate(&sc, &truth_errors(), seed).unwrap();
-        let data = CaseData::from(&case);
+        let data = case_data(&case);
         let t0 = case.trajectory.t0_s;
         let mut opts = RunOptions::new(
             Variant::Nbk.model(),
@@ -178,7 +179,7 @@ fn forty_minute_drive_with_three_minute_outages() {
     )))
     .unwrap();
     let case = simulate(&sc, &truth_errors(), 11).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let t0 = case.trajectory.t0_s;
     let mut opts = RunOptions::new(
         Variant::Nbk.model(),
@@ -233,7 +234,7 @@ fn every_layout_is_smoothed() {
     use nav_engine::run::{Model, Precision};
     let sc = scenario().scenario();
     let case = simulate(&sc, &truth_errors(), 21).unwrap();
-    let data = CaseData::from(&case);
+    let data = case_data(&case);
     let t0 = case.trajectory.t0_s;
     let base = Variant::Nbk.config();
     let mut variants: Vec<(String, RunOptions)> = Vec::new();

@@ -2,10 +2,10 @@
 //! that starts 6 minutes in (3 min static, 3 min driving), N and NBK only, 20 runs per cell,
 //! the NBK error budget with 60 runs per source. Asserts the study's claims on the numbers.
 
-use host_sim::sim::Scenario;
 use host_sim::study::report::{compute_verdicts, Consistency};
 use host_sim::study::setup::Variant;
 use host_sim::study::{run_study, Case, StudyConfig};
+use nav_sim::Scenario;
 
 fn reduced() -> StudyConfig {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/default.toml");

@@ -51,7 +51,7 @@ fn replay_with_config_on_a_capture_of_a_simulated_case_equals_host_sim_run_byte_
         errors: "tactical".into(),
         seed: 11,
         out: case.clone(),
-        outages: vec![host_sim::sim::errors::Outage {
+        outages: vec![nav_sim::errors::Outage {
             start_s: 50.0,
             duration_s: 20.0,
         }],

@@ -3,7 +3,7 @@
 //! body frame, from the error-free attitude, plus white noise, at its own rate; each line
 //! carries the sigma.
 
-use super::trajectory::{dcm_from_euler, Trajectory};
+use crate::trajectory::{dcm_from_euler, Trajectory};
 use nalgebra::Vector3;
 use nav_io::HeadingSample;
 use rand::SeedableRng;
@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 /// What the simulated heading measures (`[vehicle.heading]` of a scenario; in `nav-sim`).
-pub use nav_sim::scenario::HeadingSpec;
+pub use crate::scenario::HeadingSpec;
 
 /// The heading samples of a trajectory (truth epochs nearest the sample times; the rate is
 /// rounded to a whole number of IMU intervals), seeded, headings in [0, 360) deg.

@@ -21,8 +21,8 @@
 //! one `u64` seed, so switching a source on or off leaves all other sources' realisations
 //! unchanged (the study's error budget relies on that).
 
-use super::trajectory::{dcm_from_euler, Trajectory};
 use crate::noise::{Flicker, GaussMarkov, Quantizer, RandomConstant, RandomWalk, White};
+use crate::trajectory::{dcm_from_euler, Trajectory};
 use nalgebra::{Matrix3, Vector3};
 use nav_core::earth::{self, Llh};
 use nav_core::types::{FixQuality, GnssFix, ImuSample};

@@ -2,9 +2,9 @@
 //! ([`Case::write`]: `imu.txt`, `gnss.txt`, `truth.nav`, `case.toml`, optionally
 //! `kf-gins.yaml`).
 
-use super::errors::{ErrorModel, ErrorModelError, Measurements, Outage, Realized};
-use super::scenario::{Scenario, ScenarioError};
-use super::trajectory::Trajectory;
+use crate::errors::{ErrorModel, ErrorModelError, Measurements, Outage, Realized};
+use crate::scenario::{Scenario, ScenarioError};
+use crate::trajectory::Trajectory;
 use nav_io::{write_gnss_text, write_imu_text, write_nav_text, IoError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -154,7 +154,7 @@ const CASE_HEADER: &str = "\
 # Conventions: body frame FRD (= vehicle frame), navigation frame NED, time GPS seconds of week.
 # IMU file: t dtheta_xyz[rad] dv_xyz[m/s] [temperature_C], increments over (t_prev, t].
 # Truth (nav format) is at the IMU reference point at every IMU epoch.
-# Errors (see host-sim/src/sim/errors.rs): measured increment = (I + diag(scale_factor_ppm*1e-6)
+# Errors (see nav-sim/src/errors.rs): measured increment = (I + diag(scale_factor_ppm*1e-6)
 #   + misalignment_rad) * ideal + g_sensitivity * dv (gyros) + bias terms * dt
 #   + temp_coeff_per_c * int(T - T_ref) dt + white noise, then quantization with carry.
 # PSDs are two-sided (IEEE 952): white_psd S_N, gm_psd S_B (stationary var S_B*T_B/2), rw_psd S_K.
@@ -240,11 +240,11 @@ impl Case {
         let p = dir.join("case.toml");
         std::fs::write(&p, format!("{CASE_HEADER}{body}")).map_err(ferr(&p))?;
         if let Some(spec) = &self.trajectory.scenario.vehicle.odometer {
-            let odo = super::odometer::wheel_speed(&self.trajectory, spec, self.seed);
+            let odo = crate::odometer::wheel_speed(&self.trajectory, spec, self.seed);
             nav_io::write_odometer(dir.join("odometer.txt"), &odo)?;
         }
         if let Some(spec) = &self.trajectory.scenario.vehicle.heading {
-            let h = super::heading::dual_antenna_heading(&self.trajectory, spec, self.seed);
+            let h = crate::heading::dual_antenna_heading(&self.trajectory, spec, self.seed);
             nav_io::write_heading(dir.join("heading.txt"), &h)?;
         }
         if kf_gins {
@@ -273,8 +273,8 @@ impl Case {
         let yaw = rpy[2].rem_euclid(360.0);
         let max3 = |a: [f64; 3]| a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let mgal = 1e-5;
-        let dph = super::errors::DEG_PER_H_RADPS;
-        let bias_std = |s: &super::errors::SensorErrors| -> (f64, f64) {
+        let dph = crate::errors::DEG_PER_H_RADPS;
+        let bias_std = |s: &crate::errors::SensorErrors| -> (f64, f64) {
             let mut var_max = 0.0f64;
             let mut tau = 3600.0;
             for i in 0..3 {

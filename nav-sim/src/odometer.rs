@@ -4,7 +4,7 @@
 //! The body frame of the simulator is the vehicle frame (side slip makes the velocity point
 //! off the body x axis: the forward speed is then `speed cos(slip)`).
 
-use super::trajectory::{dcm_from_euler, Trajectory};
+use crate::trajectory::{dcm_from_euler, Trajectory};
 use nalgebra::Vector3;
 use nav_io::OdometerSample;
 use rand::SeedableRng;
@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 /// What the simulated odometer measures (`[vehicle.odometer]` of a scenario; in `nav-sim`).
-pub use nav_sim::scenario::WheelSpeedSpec;
+pub use crate::scenario::WheelSpeedSpec;
 
 /// The wheel-speed samples of a trajectory (truth epochs nearest the sample times; the rate
 /// is rounded to a whole number of IMU intervals), seeded.
