@@ -1,9 +1,10 @@
 #![doc = include_str!("../README.md")]
 //!
-//! `host-sim`: the host side of the navigation core. The `simulate` command (the simulator is
-//! the `nav-sim` crate), the source document's bias-model study, model diagnosis, plots, reports and the command
-//! line (`run` over the `nav-engine` crate's run engine and metrics, `allan` over the
-//! `noise-id` crate). The data formats are read and written by the `nav-io` crate.
+//! `host-sim`: the host side of the navigation core, as a command line: `simulate` over the
+//! `nav-sim` crate, `study` over `nav-study` (the source document's bias-model study), `run`
+//! over the `nav-engine` crate's run engine and metrics, `allan` over `noise-id`, model
+//! diagnosis, `mounting`, `init`, with their plots and reports. The data formats are read and
+//! written by the `nav-io` crate.
 //!
 //! Every computation that also runs on the MCU lives in `nav-core`; this crate only drives it.
 #![deny(missing_docs)]

@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | white, `S_N` (`N = sqrt(S_N)`) | `S_N` | `S_N / tau` |
 //! | random walk, `S_K` (`K = sqrt(S_K)`) | `S_K / (2 pi f)^2` | `S_K tau / 3` |
-//! | Gauss-Markov, `S_B`, `T_B` | `S_B T_B^2 / (1 + (2 pi f T_B)^2)` | see [`noise_id::gauss_markov_avar`] |
+//! | Gauss-Markov, `S_B`, `T_B` | `S_B T_B^2 / (1 + (2 pi f T_B)^2)` | see `noise_id::gauss_markov_avar` |
 //! | flicker, `B` | `B^2 / (2 pi f)` | `2 ln 2 B^2 / pi` (floor `0.6643 B`) |
 //! | quantization, `Q = step / sqrt(12)` | (increments) | `3 Q^2 / tau^2` |
 //!

@@ -2,9 +2,10 @@
 //! component), standard-deviation bands with true-error traces around the outage, the average
 //! NEES against its 95 % band, and the error budget as bars.
 
-use super::budget::Budget;
-use super::setup::Variant;
-use super::{Case, Cell, StudyResult};
+use nav_study::budget::Budget;
+use nav_study::report::percent;
+use nav_study::setup::Variant;
+use nav_study::{Case, Cell, StudyResult};
 use noise_id::stats as chi2;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -371,7 +372,7 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
         let x1 = res.duration_s / 60.0;
         let mut ch = ChartBuilder::on(a)
             .caption(
-                format!("{} NEES (average over runs)", super::stats::GROUPS[g]),
+                format!("{} NEES (average over runs)", nav_study::stats::GROUPS[g]),
                 ("sans-serif", 20),
             )
             .margin(8)
@@ -428,18 +429,6 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
     }
     root.present().map_err(perr)?;
     Ok(())
-}
-
-/// A share (0..1) as a percentage with two significant digits for small values.
-pub fn percent(x: f64) -> String {
-    let p = 100.0 * x;
-    if p >= 10.0 {
-        format!("{p:.1} %")
-    } else if p >= 0.1 {
-        format!("{p:.2} %")
-    } else {
-        format!("{p:.1e} %")
-    }
 }
 
 fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {

@@ -38,5 +38,4 @@ mod sim_trajectory;
 mod smooth_real;
 mod smooth_rts;
 mod smooth_sim;
-mod study_reduced;
 mod undeclared_effects;

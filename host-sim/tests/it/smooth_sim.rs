@@ -5,12 +5,12 @@
 //! `cargo test --release -p host-sim --test it -- smooth_sim:: --ignored`) the 40-minute 200 Hz
 //! drive with three 60 s outages.
 use host_sim::run::case_data;
-use host_sim::study::setup::{init_spec, truth_errors, Sources, Variant};
 use nav_core::types::NavSolution;
 use nav_engine::metrics::{self, errors_vs_truth};
 use nav_engine::run::{run_filter, Outage, RunOptions};
 use nav_engine::smooth::apply::smooth_run;
 use nav_sim::{simulate, Scenario};
+use nav_study::setup::{init_spec, truth_errors, Sources, Variant};
 use noise_id::stats::nees_band_95;
 use test_support::scenario::{six_minute_drive, ScenarioToml};
 

@@ -177,8 +177,20 @@ pub fn errors_with(on: Sources) -> ErrorModel {
 }
 
 /// A filter variant of the study: a state layout ([`Model`]) with its noise configuration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, clap::ValueEnum)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    strum::EnumString,
+    strum::Display,
+    strum::VariantNames,
+)]
 #[serde(rename_all = "kebab-case")]
+#[strum(serialize_all = "kebab-case")]
 pub enum Variant {
     /// The source's N model: manufacturer white noise (accelerometer 50 ug/sqrt(Hz), gyro
     /// 0.15 deg/sqrt(h)), constant biases (15 states).

@@ -1,11 +1,11 @@
-//! A reduced run of `host-sim study`: the default scenario cut 10 s after a 5-minute outage
+//! A reduced run of the study (`host-sim study`): the default scenario cut 10 s after a 5-minute outage
 //! that starts 6 minutes in (3 min static, 3 min driving), N and NBK only, 20 runs per cell,
 //! the NBK error budget with 60 runs per source. Asserts the study's claims on the numbers.
 
-use host_sim::study::report::{compute_verdicts, Consistency};
-use host_sim::study::setup::Variant;
-use host_sim::study::{run_study, Case, StudyConfig};
 use nav_sim::Scenario;
+use nav_study::report::{compute_verdicts, Consistency};
+use nav_study::setup::Variant;
+use nav_study::{run_study, Case, NoProgress, StudyConfig};
 
 fn reduced() -> StudyConfig {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/default.toml");
@@ -23,14 +23,14 @@ fn reduced() -> StudyConfig {
 #[test]
 fn study_reduced_nbk_std_smaller_nees_consistent_and_budget_adds_up() {
     let t = std::time::Instant::now();
-    let res = run_study(&reduced()).expect("study runs");
+    let res = run_study(&reduced(), &NoProgress).expect("study runs");
     let v = compute_verdicts(&res);
     eprintln!(
         "reduced study: {} filter runs in {:.1} s",
         res.filter_runs,
         t.elapsed().as_secs_f64()
     );
-    eprintln!("{}", host_sim::study::report::table(&res));
+    eprintln!("{}", nav_study::report::table(&res));
 
     // 1. NBK's estimated position std is smaller than N's at every epoch of the outage
     assert!(v.nbk_std_smaller_than_n_during_outage);

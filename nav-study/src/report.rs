@@ -1,19 +1,15 @@
 //! The study's results: per-cell summaries, the verdicts on the source's claims, the printed
-//! table, `study.json`, and `report.md` / `report.html` embedding the plots.
+//! table, the `study.json` document and the Markdown report (which names the plots the
+//! command line draws).
 
 use super::budget::Budget;
 use super::setup::Variant;
 use super::setup::{self, Source};
 use super::stats::CellStats;
-use super::{plots, Case, Cell, StudyResult};
-use anyhow::Context;
+use super::{Case, Cell, StudyResult};
 use noise_id::stats as chi2;
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::path::Path;
-
-mod html;
-use html::html;
 
 /// Start of the evaluation window of case 1 (after the initial static period), s.
 pub const CASE1_FROM_S: f64 = 180.0;
@@ -520,7 +516,7 @@ fn budget_section(s: &mut String, b: &Budget) {
             e.label,
             f3(e.mse_ned_m2.map(f64::sqrt), 1.0, 3),
             e.rms_horizontal_m,
-            plots::percent(e.share_horizontal)
+            percent(e.share_horizontal)
         );
     }
     let _ = writeln!(
@@ -536,7 +532,7 @@ fn budget_section(s: &mut String, b: &Budget) {
         s,
         "gyro sources {:.1} % of the variance, accelerometer sources {}, largest: {}",
         100.0 * b.gyro_share,
-        plots::percent(b.accel_share),
+        percent(b.accel_share),
         b.largest.label()
     );
     if let Some(n) = b.total_pos_nees {
@@ -802,7 +798,7 @@ pub fn discussion(res: &StudyResult) -> String {
             "- **Error budget ({}).** Gyro sources: {:.1} % of the variance, accelerometer sources: {}; largest: {}. The contributions add up to {:.3} of the all-sources variance (sampling standard error {:.3}; the per-run superposition residual is {:.1e}, so the filter is linear in the errors to that level and the difference from 1 is the sampling noise of the cross terms). The source's conclusion that the gyros, not the accelerometers, dominate {}.",
             b.model.label(),
             100.0 * b.gyro_share,
-            plots::percent(b.accel_share),
+            percent(b.accel_share),
             b.largest.label(),
             b.ratio_sum_to_total_horizontal,
             b.ratio_std_error,
@@ -847,12 +843,12 @@ pub fn discussion(res: &StudyResult) -> String {
     s
 }
 
-/// Writes `study.json`, the plots, `report.md` and `report.html` into `out`.
-pub fn write_all(res: &StudyResult, out: &Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+/// The `study.json` document: the set-up, the per-cell summaries, the verdicts, the error
+/// budgets and the per-epoch series of every cell.
+pub fn study_json(res: &StudyResult) -> StudyJson<'_> {
     let sums = summaries(res);
     let v = verdicts(res, &sums);
-    let js = StudyJson {
+    StudyJson {
         setup: setup_summary(res),
         elapsed_s: res.elapsed_s,
         filter_runs: res.filter_runs,
@@ -864,18 +860,19 @@ pub fn write_all(res: &StudyResult, out: &Path) -> anyhow::Result<()> {
             .iter()
             .map(|c| (c.model.label().to_string(), c.case, &c.stats))
             .collect(),
-    };
-    let p = out.join("study.json");
-    std::fs::write(&p, serde_json::to_string(&js)?)
-        .with_context(|| format!("writing {}", p.display()))?;
-    let names = plots::write_all(res, out)?;
-    let md = markdown(res, &names);
-    let p = out.join("report.md");
-    std::fs::write(&p, &md).with_context(|| format!("writing {}", p.display()))?;
-    let html = html(&md, out, &names)?;
-    let p = out.join("report.html");
-    std::fs::write(&p, html).with_context(|| format!("writing {}", p.display()))?;
-    Ok(())
+    }
+}
+
+/// A share (0..1) as a percentage with two significant digits for small values.
+pub fn percent(x: f64) -> String {
+    let p = 100.0 * x;
+    if p >= 10.0 {
+        format!("{p:.1} %")
+    } else if p >= 0.1 {
+        format!("{p:.2} %")
+    } else {
+        format!("{p:.1e} %")
+    }
 }
 
 /// `x` with at most 6 significant decimals and no trailing zeros (unit conversions leave
