@@ -7,7 +7,8 @@
 //! The baseline is `host-sim` built from git revision `--baseline` (default `e9a1122`, the
 //! main branch before the streaming engine) in `target/bench-base` (source from `git archive`,
 //! its own target directory: built once, kept). Each measurement is a whole process:
-//! `wait4` gives its CPU time (user + system) and peak resident set (`ru_maxrss`). The two
+//! `wait4` gives its CPU time (user + system), its own `VmHWM` (read while it runs) its peak
+//! resident set (see [`measure`]). The two
 //! binaries alternate, `--repeat` times each, and the median is reported. `nav.txt` of the
 //! two runs is compared byte for byte.
 //!
@@ -27,7 +28,6 @@
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::Instant;
 
 /// KF-GINS on the 40-min 200 Hz case (reference figures): wall s, peak MiB.
 const PEER_WALL_S: f64 = 12.6;
@@ -41,40 +41,43 @@ struct Meas {
     rss_mib: f64,
 }
 
-/// Runs `cmd` to its end and measures it with `wait4`.
+/// Longest a measured command may run before it is killed (and the benchmark fails), s.
+const MEASURE_LIMIT_S: u64 = 6 * 3600;
+
+/// Runs `cmd` to its end and measures that process alone
+/// ([`test_support::cli::try_run_bounded`]): its CPU time (user + system) from `wait4`, its
+/// peak resident set from its own `VmHWM`, read while it runs. Not `wait4`'s `ru_maxrss`:
+/// that keeps the high-water mark of the address space the child left at `exec`, xtask's
+/// own.
 fn measure(cmd: &mut Command) -> Result<Meas> {
     eprintln!("  $ {}", crate::show(cmd));
-    let t = Instant::now();
-    let child = cmd
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| format!("starting {}", crate::show(cmd)))?;
-    let pid = i32::try_from(child.id()).context("pid")?;
-    let mut status = 0i32;
-    // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child.
-    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: pid is our child, status and ru are valid for writes.
-    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut ru) };
-    let wall_s = t.elapsed().as_secs_f64();
-    if r != pid {
-        bail!("wait4 failed: {}", std::io::Error::last_os_error());
+    let limit = std::time::Duration::from_secs(MEASURE_LIMIT_S);
+    let r = test_support::cli::try_run_bounded(cmd, limit)
+        .with_context(|| format!("running {}", crate::show(cmd)))?;
+    if r.timed_out() {
+        bail!(
+            "`{}` still running after {MEASURE_LIMIT_S} s: killed",
+            crate::show(cmd)
+        );
     }
-    let mut err = String::new();
-    if let Some(mut e) = child.stderr {
-        use std::io::Read;
-        let _ = e.read_to_string(&mut err);
+    if r.code() != Some(0) {
+        bail!(
+            "`{}` failed ({:?}): {}",
+            crate::show(cmd),
+            r.status,
+            r.stderr
+        );
     }
-    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
-        bail!("`{}` failed (status {status}): {err}", crate::show(cmd));
+    if r.max_rss_kib == 0 {
+        bail!(
+            "`{}` ended before its resident set could be read",
+            crate::show(cmd)
+        );
     }
-    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     Ok(Meas {
-        wall_s,
-        cpu_s: tv(ru.ru_utime) + tv(ru.ru_stime),
-        // Linux: kilobytes
-        rss_mib: ru.ru_maxrss as f64 / 1024.0,
+        wall_s: r.wall_s,
+        cpu_s: r.cpu_s,
+        rss_mib: r.max_rss_kib as f64 / 1024.0,
     })
 }
 
@@ -470,6 +473,45 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
 
 #[cfg(test)]
 mod tests {
+    /// Environment variable asking [`child_holding_memory`] to hold that many MiB.
+    const CHILD_MIB: &str = "XTASK_BENCH_CHILD_MIB";
+
+    /// Not a test of its own: the child process of
+    /// [`the_peak_memory_is_the_measured_childs_own`] (this test binary run again), holding
+    /// `XTASK_BENCH_CHILD_MIB` MiB, touched, for 0.3 s.
+    #[test]
+    #[ignore = "run as a child process by the_peak_memory_is_the_measured_childs_own"]
+    fn child_holding_memory() {
+        let Some(mib) = std::env::var(CHILD_MIB)
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+        else {
+            return;
+        };
+        let v = vec![1u8; mib << 20];
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        assert!(v.iter().step_by(4096).all(|&b| b == 1));
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_peak_memory_is_the_measured_childs_own() {
+        // xtask holds 256 MiB, touched; the child 64 MiB (plus its test harness)
+        let big = vec![1u8; 256 << 20];
+        let mut cmd = std::process::Command::new(std::env::current_exe().expect("test binary"));
+        cmd.args([
+            "--exact",
+            "benchrun::tests::child_holding_memory",
+            "--ignored",
+            "--test-threads=1",
+        ])
+        .env(CHILD_MIB, "64");
+        let m = super::measure(&mut cmd).expect("the child runs");
+        assert!(big.iter().step_by(4096).all(|&b| b == 1));
+        assert!(m.rss_mib > 64.0 && m.rss_mib < 96.0, "{m:?}");
+        assert!(m.cpu_s >= 0.0 && m.wall_s >= 0.3, "{m:?}");
+    }
+
     #[test]
     fn the_bench_scenario_parses_and_has_the_asked_length() {
         for hours in [0.6666666666666666, 4.0] {
