@@ -213,6 +213,7 @@ impl ImuCache {
             buf: Vec::new(),
             pos: 0,
             path: self.path.clone(),
+            first: from,
             left: self.len - from,
             read: 0,
         })
@@ -240,6 +241,8 @@ pub struct CacheReader {
     /// Offset of the next record in `buf`, bytes.
     pos: usize,
     path: PathBuf,
+    /// Index of the first sample read.
+    first: usize,
     /// Samples not yet returned.
     left: usize,
     /// Samples returned.
@@ -247,12 +250,36 @@ pub struct CacheReader {
 }
 
 impl CacheReader {
-    /// Reads the next block (at most [`READ_BLOCK_SAMPLES`] records, no more than are left).
+    /// Reads the next block: at most [`READ_BLOCK_SAMPLES`] records, no more than are left,
+    /// as many whole records as the file holds (an error when it ends before the next one:
+    /// the records before it are returned first).
     fn refill(&mut self) -> std::io::Result<()> {
-        let n = self.left.min(READ_BLOCK_SAMPLES) * IMU_RECORD_BYTES;
-        self.buf.resize(n, 0);
+        let want = self.left.min(READ_BLOCK_SAMPLES) * IMU_RECORD_BYTES;
+        self.buf.resize(want, 0);
         self.pos = 0;
-        self.f.read_exact(&mut self.buf)
+        let mut got = 0;
+        while got < want {
+            match self.f.read(&mut self.buf[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        let whole = got - got % IMU_RECORD_BYTES;
+        self.buf.truncate(whole);
+        if whole == 0 {
+            let k = self.first + self.read;
+            return Err(std::io::Error::new(
+                ErrorKind::UnexpectedEof,
+                format!(
+                    "the file ends before sample {k} (byte offset {}): {} sample(s) missing",
+                    k * IMU_RECORD_BYTES,
+                    self.left
+                ),
+            ));
+        }
+        Ok(())
     }
 }
 
