@@ -303,7 +303,8 @@ fn write_case(dir: &Path, name: &str, cur: &Path, hours: f64) -> Result<PathBuf>
     }
     let imu_bytes = std::fs::metadata(case.join("imu.txt"))?.len();
     eprintln!(
-        "case {name}: {hours:.2} h at 200 Hz, imu.txt {:.0} MB",
+        "{}: {hours:.2} h at 200 Hz, imu.txt {:.0} MB",
+        case.display(),
         imu_bytes as f64 / 1e6
     );
     Ok(case.join("kf-gins.yaml"))
