@@ -168,17 +168,25 @@ impl Bounded {
 /// Runs `cmd` (its standard input empty, in a process group of its own) for at most `limit`:
 /// killed (SIGKILL, with the processes it started) past it.
 /// Measures its own CPU time with `wait4` (that child only, not the other children of the
-/// test) and its peak resident set from `/proc` ([`Bounded::max_rss_kib`]).
+/// test) and its peak resident set from `/proc` ([`Bounded::max_rss_kib`]). Panics when it
+/// cannot be started ([`try_run_bounded`] returns that as an error).
+#[cfg(unix)]
+pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
+    try_run_bounded(cmd, limit).unwrap_or_else(|e| panic!("{cmd:?}: {e}"))
+}
+
+/// [`run_bounded`], with an error instead of a panic when `cmd` cannot be started or waited
+/// for (for tools measuring other programs, e.g. `cargo xtask bench-run`).
 #[cfg(unix)]
 // the child is reaped by `wait4` (std's `wait` would lose its resource usage)
 #[allow(clippy::zombie_processes)]
-pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
+pub fn try_run_bounded(cmd: &mut Command, limit: std::time::Duration) -> std::io::Result<Bounded> {
     use std::os::unix::process::ExitStatusExt;
     let t = std::time::Instant::now();
     // a process group of its own: killed at the limit with whatever it started
-    let (child, out, err) =
-        spawn_drained(cmd).unwrap_or_else(|e| panic!("{cmd:?} could not be started: {e}"));
-    let pid = libc::pid_t::try_from(child.id()).expect("a pid");
+    let (child, out, err) = spawn_drained(cmd)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("could not be started: {e}")))?;
+    let pid = libc::pid_t::try_from(child.id()).map_err(std::io::Error::other)?;
     let mut killed = false;
     let mut max_rss_kib = 0u64;
     let (status, ru) = loop {
@@ -192,7 +200,15 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
         if r == pid {
             break (st, ru);
         }
-        assert!(r >= 0, "wait4: {}", std::io::Error::last_os_error());
+        if r < 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() == std::io::ErrorKind::Interrupted {
+                continue;
+            }
+            // SAFETY: signalling the process group of our own child, not reaped yet.
+            unsafe { libc::kill(-pid, libc::SIGKILL) };
+            return Err(std::io::Error::new(e.kind(), format!("wait4: {e}")));
+        }
         if t.elapsed() > limit {
             // SAFETY: signalling the process group of our own child, not reaped yet.
             unsafe { libc::kill(-pid, libc::SIGKILL) };
@@ -202,14 +218,14 @@ pub fn run_bounded(cmd: &mut Command, limit: std::time::Duration) -> Bounded {
         }
     };
     let secs = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    Bounded {
+    Ok(Bounded {
         status: (!killed).then(|| ExitStatus::from_raw(status)),
         stdout: out.join().unwrap_or_default(),
         stderr: err.join().unwrap_or_default(),
         wall_s: t.elapsed().as_secs_f64(),
         max_rss_kib,
         cpu_s: secs(ru.ru_utime) + secs(ru.ru_stime),
-    }
+    })
 }
 
 /// Starts `cmd` (its standard input empty, in a process group of its own, its output read),

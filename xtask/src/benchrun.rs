@@ -1,13 +1,15 @@
 //! `cargo xtask bench-run`: wall time, CPU time and peak RSS of `host-sim run` and
 //! `host-sim diagnose` on a generated 200 Hz drive (40 min by default, `--hours 4` for the
-//! long case), against a baseline binary measured in the same invocation (ratios, not
+//! long case; `--long-hours 4` adds rows of `run --smooth` and `diagnose` on a 4-hour drive,
+//! one measurement per binary, to the 40-minute table), against a baseline binary measured in the same invocation (ratios, not
 //! absolute times), printed beside reference figures of KF-GINS (C++, on the same case size and
 //! machine class: 12.6 s wall, at most 11 MiB).
 //!
 //! The baseline is `host-sim` built from git revision `--baseline` (default `e9a1122`, the
 //! main branch before the streaming engine) in `target/bench-base` (source from `git archive`,
 //! its own target directory: built once, kept). Each measurement is a whole process:
-//! `wait4` gives its CPU time (user + system) and peak resident set (`ru_maxrss`). The two
+//! `wait4` gives its CPU time (user + system), its own `VmHWM` (read while it runs) its peak
+//! resident set (see [`measure`]). The two
 //! binaries alternate, `--repeat` times each, and the median is reported. `nav.txt` of the
 //! two runs is compared byte for byte.
 //!
@@ -27,7 +29,6 @@
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::Instant;
 
 /// KF-GINS on the 40-min 200 Hz case (reference figures): wall s, peak MiB.
 const PEER_WALL_S: f64 = 12.6;
@@ -41,40 +42,43 @@ struct Meas {
     rss_mib: f64,
 }
 
-/// Runs `cmd` to its end and measures it with `wait4`.
+/// Longest a measured command may run before it is killed (and the benchmark fails), s.
+const MEASURE_LIMIT_S: u64 = 6 * 3600;
+
+/// Runs `cmd` to its end and measures that process alone
+/// ([`test_support::cli::try_run_bounded`]): its CPU time (user + system) from `wait4`, its
+/// peak resident set from its own `VmHWM`, read while it runs. Not `wait4`'s `ru_maxrss`:
+/// that keeps the high-water mark of the address space the child left at `exec`, xtask's
+/// own.
 fn measure(cmd: &mut Command) -> Result<Meas> {
     eprintln!("  $ {}", crate::show(cmd));
-    let t = Instant::now();
-    let child = cmd
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| format!("starting {}", crate::show(cmd)))?;
-    let pid = i32::try_from(child.id()).context("pid")?;
-    let mut status = 0i32;
-    // SAFETY: an all-zero rusage is a valid value; wait4 fills it for our own child.
-    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: pid is our child, status and ru are valid for writes.
-    let r = unsafe { libc::wait4(pid, &mut status, 0, &mut ru) };
-    let wall_s = t.elapsed().as_secs_f64();
-    if r != pid {
-        bail!("wait4 failed: {}", std::io::Error::last_os_error());
+    let limit = std::time::Duration::from_secs(MEASURE_LIMIT_S);
+    let r = test_support::cli::try_run_bounded(cmd, limit)
+        .with_context(|| format!("running {}", crate::show(cmd)))?;
+    if r.timed_out() {
+        bail!(
+            "`{}` still running after {MEASURE_LIMIT_S} s: killed",
+            crate::show(cmd)
+        );
     }
-    let mut err = String::new();
-    if let Some(mut e) = child.stderr {
-        use std::io::Read;
-        let _ = e.read_to_string(&mut err);
+    if r.code() != Some(0) {
+        bail!(
+            "`{}` failed ({:?}): {}",
+            crate::show(cmd),
+            r.status,
+            r.stderr
+        );
     }
-    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
-        bail!("`{}` failed (status {status}): {err}", crate::show(cmd));
+    if r.max_rss_kib == 0 {
+        bail!(
+            "`{}` ended before its resident set could be read",
+            crate::show(cmd)
+        );
     }
-    let tv = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
     Ok(Meas {
-        wall_s,
-        cpu_s: tv(ru.ru_utime) + tv(ru.ru_stime),
-        // Linux: kilobytes
-        rss_mib: ru.ru_maxrss as f64 / 1024.0,
+        wall_s: r.wall_s,
+        cpu_s: r.cpu_s,
+        rss_mib: r.max_rss_kib as f64 / 1024.0,
     })
 }
 
@@ -204,13 +208,18 @@ pub struct Opts {
     pub no_smooth: bool,
     /// KF-GINS executable for a paired peer run.
     pub peer_kfgins: Option<PathBuf>,
+    /// Also the rows of `run --smooth` and `diagnose` on a drive of this many hours (one
+    /// measurement per binary).
+    pub long_hours: Option<f64>,
 }
 
 /// Runs the benchmark.
 pub fn run(o: &Opts) -> Result<()> {
     let hours = o.hours;
-    if !(hours > 0.0 && hours <= 24.0) {
-        bail!("--hours {hours}: expected 0 < hours <= 24");
+    for (flag, h) in [("--hours", Some(hours)), ("--long-hours", o.long_hours)] {
+        if let Some(h) = h.filter(|h| !(*h > 0.0 && *h <= 24.0)) {
+            bail!("{flag} {h}: expected 0 < hours <= 24");
+        }
     }
     let cur = build_current()?;
     let (base, rev) = match &o.baseline_bin {
@@ -272,11 +281,12 @@ fn last_llh(p: &Path) -> Result<[f64; 3]> {
     }
 }
 
-fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()> {
-    let (hours, repeat) = (o.hours, o.repeat.max(1));
-    let sc = dir.join("scenario.toml");
+/// Writes the bench case of `hours` into `dir/name` (`host-sim simulate --kf-gins` of
+/// [`scenario`]), its truth moved aside; returns its KF-GINS YAML.
+fn write_case(dir: &Path, name: &str, cur: &Path, hours: f64) -> Result<PathBuf> {
+    let sc = dir.join(format!("{name}-scenario.toml"));
     std::fs::write(&sc, scenario(hours * 3600.0))?;
-    let case = dir.join("case");
+    let case = dir.join(name);
     let st = Command::new(cur)
         .args(["simulate", "--scenario"])
         .arg(&sc)
@@ -289,113 +299,203 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
     }
     let truth = case.join("truth.nav");
     if truth.exists() {
-        std::fs::rename(&truth, dir.join("truth.nav.aside"))?;
+        std::fs::rename(&truth, dir.join(format!("{name}-truth.nav.aside")))?;
     }
-    let yaml = case.join("kf-gins.yaml");
-    let imu_lines = std::fs::metadata(case.join("imu.txt"))?.len();
+    let imu_bytes = std::fs::metadata(case.join("imu.txt"))?.len();
     eprintln!(
-        "case: {:.2} h at 200 Hz, imu.txt {:.0} MB",
-        hours,
-        imu_lines as f64 / 1e6
+        "{}: {hours:.2} h at 200 Hz, imu.txt {:.0} MB",
+        case.display(),
+        imu_bytes as f64 / 1e6
     );
-    let cmd = |bin: &Path, sub: &str, out: &Path, smooth: bool| {
-        let mut c = Command::new(bin);
-        c.arg(sub)
-            .arg("--config")
-            .arg(&yaml)
-            .arg("--out")
-            .arg(out)
-            .arg("--quiet");
-        if smooth {
-            c.arg("--smooth");
+    Ok(case.join("kf-gins.yaml"))
+}
+
+/// `host-sim SUB --config YAML --out OUT --quiet [--smooth]`.
+fn host_sim(bin: &Path, sub: &str, yaml: &Path, out: &Path, smooth: bool) -> Command {
+    let mut c = Command::new(bin);
+    c.arg(sub)
+        .arg("--config")
+        .arg(yaml)
+        .arg("--out")
+        .arg(out)
+        .arg("--quiet");
+    if smooth {
+        c.arg("--smooth");
+    }
+    c
+}
+
+/// Measurements of the baseline and of this tree, alternating.
+#[derive(Default)]
+struct Pair {
+    base: Vec<Meas>,
+    cur: Vec<Meas>,
+}
+
+/// A command measured for a row: `host-sim SUB [--smooth]`, its outputs in `dir/TAG-base`
+/// and `dir/TAG-cur`.
+struct Job<'a> {
+    tag: &'a str,
+    sub: &'a str,
+    smooth: bool,
+    /// A failing baseline (one that predates the command) is noted and left out ("n/a")
+    /// instead of an error.
+    base_optional: bool,
+}
+
+/// The jobs of the table's rows.
+const DIAGNOSE: Job<'static> = Job {
+    tag: "diag",
+    sub: "diagnose",
+    smooth: false,
+    base_optional: false,
+};
+const SMOOTH: Job<'static> = Job {
+    tag: "smooth",
+    sub: "run",
+    smooth: true,
+    base_optional: true,
+};
+
+/// Measures `job` of `base` and `cur` on `yaml`, alternating, `repeat` times each.
+fn measure_pair(
+    (base, cur): (&Path, &Path),
+    yaml: &Path,
+    dir: &Path,
+    job: &Job<'_>,
+    repeat: usize,
+) -> Result<Pair> {
+    let Job {
+        tag,
+        sub,
+        smooth,
+        base_optional,
+    } = *job;
+    let mut p = Pair::default();
+    let mut base_ok = true;
+    let (out_base, out_cur) = (
+        dir.join(format!("{tag}-base")),
+        dir.join(format!("{tag}-cur")),
+    );
+    for _ in 0..repeat {
+        if base_ok {
+            match measure(&mut host_sim(base, sub, yaml, &out_base, smooth)) {
+                Ok(m) => p.base.push(m),
+                Err(e) if base_optional => {
+                    eprintln!("  baseline {tag}: {e:#} (n/a)");
+                    base_ok = false;
+                }
+                Err(e) => return Err(e),
+            }
         }
-        c
+        p.cur
+            .push(measure(&mut host_sim(cur, sub, yaml, &out_cur, smooth))?);
+    }
+    Ok(p)
+}
+
+/// Prints the table's row of `p` (medians; the ratios now / base) and returns this tree's
+/// median.
+fn row(name: &str, p: &mut Pair) -> Meas {
+    let c = median(&mut p.cur);
+    if p.base.is_empty() {
+        println!(
+            "{name:<13} {:>9} {:>9.2} {:>7} | {:>8} {:>8.2} {:>7} | {:>9} {:>9.1} {:>7}",
+            "n/a", c.wall_s, "", "n/a", c.cpu_s, "", "n/a", c.rss_mib, ""
+        );
+        return c;
+    }
+    let b = median(&mut p.base);
+    println!(
+        "{name:<13} {:>9.2} {:>9.2} {:>7.3} | {:>8.2} {:>8.2} {:>7.3} | {:>9.1} {:>9.1} {:>7.3}",
+        b.wall_s,
+        c.wall_s,
+        c.wall_s / b.wall_s,
+        b.cpu_s,
+        c.cpu_s,
+        c.cpu_s / b.cpu_s,
+        b.rss_mib,
+        c.rss_mib,
+        c.rss_mib / b.rss_mib
+    );
+    c
+}
+
+/// The rows of the long drive (`--long-hours`): `run --smooth` and `diagnose`, once per
+/// binary.
+struct LongRows {
+    hours: f64,
+    smooth: Option<Pair>,
+    diagnose: Option<Pair>,
+}
+
+/// Measures the long drive's rows (`o.long_hours`), each binary once, alternating.
+fn long_rows(dir: &Path, bins: (&Path, &Path), o: &Opts) -> Result<Option<LongRows>> {
+    let Some(hours) = o.long_hours else {
+        return Ok(None);
     };
+    let yaml = write_case(dir, "long", bins.1, hours)?;
+    let smooth = (!o.no_smooth)
+        .then(|| {
+            let job = Job {
+                tag: "long-smooth",
+                ..SMOOTH
+            };
+            measure_pair(bins, &yaml, dir, &job, 1)
+        })
+        .transpose()?;
+    let diagnose = (!o.no_diagnose)
+        .then(|| {
+            let job = Job {
+                tag: "long-diag",
+                ..DIAGNOSE
+            };
+            measure_pair(bins, &yaml, dir, &job, 1)
+        })
+        .transpose()?;
+    Ok(Some(LongRows {
+        hours,
+        smooth,
+        diagnose,
+    }))
+}
+
+fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()> {
+    let (hours, repeat) = (o.hours, o.repeat.max(1));
+    let yaml = write_case(dir, "case", cur, hours)?;
     let peer = match &o.peer_kfgins {
-        Some(p) => Some((p.clone(), peer_yaml(&case, &dir.join("peer-out"))?)),
+        Some(p) => Some((
+            p.clone(),
+            peer_yaml(&dir.join("case"), &dir.join("peer-out"))?,
+        )),
         None => None,
     };
-    let (mut rb, mut rc, mut pk) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut run, mut pk) = (Pair::default(), Vec::new());
     for _ in 0..repeat {
-        rb.push(measure(&mut cmd(
-            base,
-            "run",
-            &dir.join("out-base"),
-            false,
-        ))?);
-        rc.push(measure(&mut cmd(cur, "run", &dir.join("out-cur"), false))?);
+        let out = dir.join("out-base");
+        run.base
+            .push(measure(&mut host_sim(base, "run", &yaml, &out, false))?);
+        let out = dir.join("out-cur");
+        run.cur
+            .push(measure(&mut host_sim(cur, "run", &yaml, &out, false))?);
         if let Some((bin, y)) = &peer {
             pk.push(measure(Command::new(bin).arg(y))?);
         }
     }
     let same =
         std::fs::read(dir.join("out-base/nav.txt"))? == std::fs::read(dir.join("out-cur/nav.txt"))?;
-    let (mut db, mut dc) = (Vec::new(), Vec::new());
-    if !o.no_diagnose {
-        for _ in 0..repeat {
-            db.push(measure(&mut cmd(
-                base,
-                "diagnose",
-                &dir.join("diag-base"),
-                false,
-            ))?);
-            dc.push(measure(&mut cmd(
-                cur,
-                "diagnose",
-                &dir.join("diag-cur"),
-                false,
-            ))?);
-        }
-    }
+    let bins = (base, cur);
+    let mut diag = (!o.no_diagnose)
+        .then(|| measure_pair(bins, &yaml, dir, &DIAGNOSE, repeat))
+        .transpose()?;
     // run --smooth: the baseline may predate it (then n/a)
-    let (mut sb, mut scur) = (Vec::new(), Vec::new());
-    let mut smooth_base_ok = true;
-    if !o.no_smooth {
-        for _ in 0..repeat {
-            if smooth_base_ok {
-                match measure(&mut cmd(base, "run", &dir.join("smooth-base"), true)) {
-                    Ok(m) => sb.push(m),
-                    Err(e) => {
-                        eprintln!("  baseline run --smooth: {e:#} (n/a)");
-                        smooth_base_ok = false;
-                    }
-                }
-            }
-            scur.push(measure(&mut cmd(
-                cur,
-                "run",
-                &dir.join("smooth-cur"),
-                true,
-            ))?);
-        }
-    }
-    let row = |name: &str, b: &mut [Meas], c: &mut [Meas]| {
-        let c = median(c);
-        if b.is_empty() {
-            println!(
-                "{name:<10} {:>9} {:>9.2} {:>7} | {:>8} {:>8.2} {:>7} | {:>9} {:>9.1} {:>7}",
-                "n/a", c.wall_s, "", "n/a", c.cpu_s, "", "n/a", c.rss_mib, ""
-            );
-            return c;
-        }
-        let b = median(b);
-        println!(
-            "{name:<10} {:>9.2} {:>9.2} {:>7.3} | {:>8.2} {:>8.2} {:>7.3} | {:>9.1} {:>9.1} {:>7.3}",
-            b.wall_s,
-            c.wall_s,
-            c.wall_s / b.wall_s,
-            b.cpu_s,
-            c.cpu_s,
-            c.cpu_s / b.cpu_s,
-            b.rss_mib,
-            c.rss_mib,
-            c.rss_mib / b.rss_mib
-        );
-        c
-    };
+    let mut smooth = (!o.no_smooth)
+        .then(|| measure_pair(bins, &yaml, dir, &SMOOTH, repeat))
+        .transpose()?;
+    let long = long_rows(dir, bins, o)?;
     println!(
         "\nbench-run: {hours} h at 200 Hz, median of {repeat}; baseline = host-sim at {rev}\n\
-         {:<10} {:>9} {:>9} {:>7} | {:>8} {:>8} {:>7} | {:>9} {:>9} {:>7}",
+         {:<13} {:>9} {:>9} {:>7} | {:>8} {:>8} {:>7} | {:>9} {:>9} {:>7}",
         "",
         "wall base",
         "wall now",
@@ -407,12 +507,21 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
         "MiB now",
         "ratio"
     );
-    let c = row("run", &mut rb, &mut rc);
-    if !o.no_diagnose {
-        row("diagnose", &mut db, &mut dc);
+    let c = row("run", &mut run);
+    if let Some(p) = diag.as_mut() {
+        row("diagnose", p);
     }
-    if !o.no_smooth {
-        row("run-smooth", &mut sb, &mut scur);
+    if let Some(p) = smooth.as_mut() {
+        row("run-smooth", p);
+    }
+    if let Some(mut l) = long {
+        println!("{} h at 200 Hz, one measurement each:", l.hours);
+        if let Some(p) = l.smooth.as_mut() {
+            row("run-smooth", p);
+        }
+        if let Some(p) = l.diagnose.as_mut() {
+            row("diagnose", p);
+        }
     }
     println!(
         "nav.txt of run: {}",
@@ -422,45 +531,9 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
             "DIFFERS from the baseline's"
         }
     );
-    if peer.is_some() {
-        let p = median(&mut pk);
-        println!(
-            "peer (KF-GINS, same files, this invocation): wall {:.2} s, cpu {:.2} s, peak {:.1} MiB; \
-             run/peer: wall {:.3} (target <= 1/15 = 0.067), cpu {:.3}, peak {:.2}",
-            p.wall_s,
-            p.cpu_s,
-            p.rss_mib,
-            c.wall_s / p.wall_s,
-            c.cpu_s / p.cpu_s,
-            c.rss_mib / p.rss_mib
-        );
-        let ours = last_llh(&dir.join("out-cur/nav.txt"))?;
-        let theirs = last_llh(&dir.join("peer-out/KF_GINS_Navresult.nav"))?;
-        let r = 6_371_000.0_f64;
-        let dn = (ours[0] - theirs[0]).to_radians() * r;
-        let de = (ours[1] - theirs[1]).to_radians() * r * ours[0].to_radians().cos();
-        println!(
-            "last epoch, ours - peer: north {:.2} mm, east {:.2} mm, height {:.2} mm",
-            dn * 1e3,
-            de * 1e3,
-            (ours[2] - theirs[2]) * 1e3
-        );
-    } else {
-        let scale = hours / (40.0 / 60.0);
-        println!(
-            "peer (KF-GINS reference, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
-             wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
-            if (scale - 1.0).abs() > 1e-9 {
-                format!(
-                    "; scaled x{scale:.1} by length: {:.1} s",
-                    PEER_WALL_S * scale
-                )
-            } else {
-                String::new()
-            },
-            c.wall_s / (PEER_WALL_S * scale),
-            c.rss_mib
-        );
+    match peer {
+        Some(_) => print_peer(dir, &c, &mut pk)?,
+        None => print_peer_reference(hours, &c),
     }
     if !same {
         bail!("nav.txt differs from the baseline's");
@@ -468,8 +541,93 @@ fn run_in(dir: &Path, cur: &Path, base: &Path, rev: &str, o: &Opts) -> Result<()
     Ok(())
 }
 
+/// The paired peer run's figures and the last epoch's difference.
+fn print_peer(dir: &Path, c: &Meas, pk: &mut [Meas]) -> Result<()> {
+    let p = median(pk);
+    println!(
+        "peer (KF-GINS, same files, this invocation): wall {:.2} s, cpu {:.2} s, peak {:.1} MiB; \
+         run/peer: wall {:.3} (target <= 1/15 = 0.067), cpu {:.3}, peak {:.2}",
+        p.wall_s,
+        p.cpu_s,
+        p.rss_mib,
+        c.wall_s / p.wall_s,
+        c.cpu_s / p.cpu_s,
+        c.rss_mib / p.rss_mib
+    );
+    let ours = last_llh(&dir.join("out-cur/nav.txt"))?;
+    let theirs = last_llh(&dir.join("peer-out/KF_GINS_Navresult.nav"))?;
+    let r = 6_371_000.0_f64;
+    let dn = (ours[0] - theirs[0]).to_radians() * r;
+    let de = (ours[1] - theirs[1]).to_radians() * r * ours[0].to_radians().cos();
+    println!(
+        "last epoch, ours - peer: north {:.2} mm, east {:.2} mm, height {:.2} mm",
+        dn * 1e3,
+        de * 1e3,
+        (ours[2] - theirs[2]) * 1e3
+    );
+    Ok(())
+}
+
+/// `run` against the peer's reference figures (scaled by length).
+fn print_peer_reference(hours: f64, c: &Meas) {
+    let scale = hours / (40.0 / 60.0);
+    println!(
+        "peer (KF-GINS reference, 40-min case: {PEER_WALL_S} s, <= {PEER_RSS_MIB} MiB{}): run \
+         wall {:.3}x the peer's (target <= 1/15 = 0.067), peak {:.1} MiB (target <= 32)",
+        if (scale - 1.0).abs() > 1e-9 {
+            format!(
+                "; scaled x{scale:.1} by length: {:.1} s",
+                PEER_WALL_S * scale
+            )
+        } else {
+            String::new()
+        },
+        c.wall_s / (PEER_WALL_S * scale),
+        c.rss_mib
+    );
+}
+
 #[cfg(test)]
 mod tests {
+    /// Environment variable asking [`child_holding_memory`] to hold that many MiB.
+    const CHILD_MIB: &str = "XTASK_BENCH_CHILD_MIB";
+
+    /// Not a test of its own: the child process of
+    /// [`the_peak_memory_is_the_measured_childs_own`] (this test binary run again), holding
+    /// `XTASK_BENCH_CHILD_MIB` MiB, touched, for 0.3 s.
+    #[test]
+    #[ignore = "run as a child process by the_peak_memory_is_the_measured_childs_own"]
+    fn child_holding_memory() {
+        let Some(mib) = std::env::var(CHILD_MIB)
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+        else {
+            return;
+        };
+        let v = vec![1u8; mib << 20];
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        assert!(v.iter().step_by(4096).all(|&b| b == 1));
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_peak_memory_is_the_measured_childs_own() {
+        // xtask holds 256 MiB, touched; the child 64 MiB (plus its test harness)
+        let big = vec![1u8; 256 << 20];
+        let mut cmd = std::process::Command::new(std::env::current_exe().expect("test binary"));
+        cmd.args([
+            "--exact",
+            "benchrun::tests::child_holding_memory",
+            "--ignored",
+            "--test-threads=1",
+        ])
+        .env(CHILD_MIB, "64");
+        let m = super::measure(&mut cmd).expect("the child runs");
+        assert!(big.iter().step_by(4096).all(|&b| b == 1));
+        assert!(m.rss_mib > 64.0 && m.rss_mib < 96.0, "{m:?}");
+        assert!(m.cpu_s >= 0.0 && m.wall_s >= 0.3, "{m:?}");
+    }
+
     #[test]
     fn the_bench_scenario_parses_and_has_the_asked_length() {
         for hours in [0.6666666666666666, 4.0] {

@@ -134,6 +134,10 @@ enum Cmd {
         /// ratios (see docs/benchmarks.md for building it outside the repository).
         #[arg(long)]
         peer_kfgins: Option<std::path::PathBuf>,
+        /// Also the rows of `run --smooth` and `diagnose` on a drive of this many hours (4:
+        /// the long rows of docs/benchmarks.md), each binary measured once.
+        #[arg(long)]
+        long_hours: Option<f64>,
     },
     /// Careless and hostile inputs of `host-sim run` and `hw-bridge replay` / `record` by
     /// family (release binaries, each run bounded in time): a table of tries, panics, hangs,
@@ -229,6 +233,7 @@ fn main() -> std::process::ExitCode {
             no_smooth,
             baseline_bin,
             peer_kfgins,
+            long_hours,
         } => benchrun::run(&benchrun::Opts {
             hours,
             baseline,
@@ -238,6 +243,7 @@ fn main() -> std::process::ExitCode {
             no_diagnose,
             no_smooth,
             peer_kfgins,
+            long_hours,
         }),
     };
     match res {

@@ -14,7 +14,7 @@
 //! command then removes the folder and exits with `128 + signal`).
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, ErrorKind, Read, Seek, SeekFrom, Write};
+use std::io::{BufWriter, ErrorKind, Read, Seek, SeekFrom, Write};
 use std::ops::Deref;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -34,6 +34,9 @@ pub const IMU_RECORD_BYTES: usize = 8 * 8 + 8;
 
 /// Samples read between two looks at a requested stop.
 const STOP_CHECK_SAMPLES: usize = 4096;
+
+/// Samples of one read of the record file ([`CacheReader`]): 72 KiB.
+pub const READ_BLOCK_SAMPLES: usize = 1024;
 
 fn encode(s: &ImuSample, line: usize) -> [u8; IMU_RECORD_BYTES] {
     let mut b = [0u8; IMU_RECORD_BYTES];
@@ -187,27 +190,30 @@ impl ImuCache {
         &self.info
     }
 
-    /// The samples from index `from` on, with their file lines, read from the file (a
-    /// buffer of memory whatever the length); a read error names the file.
+    /// The samples from index `from` on, with their file lines, read from the file in blocks
+    /// of [`READ_BLOCK_SAMPLES`] (a buffer of memory whatever the length); a read error names
+    /// the file.
     pub fn read_from(&self, from: usize) -> Result<CacheReader, IoError> {
         let rerr = |source| IoError::Read {
             path: self.path.clone(),
             line: 0,
             source,
         };
-        let f = File::open(&self.path).map_err(|source| IoError::Open {
+        let mut f = File::open(&self.path).map_err(|source| IoError::Open {
             path: self.path.clone(),
             source,
         })?;
-        let mut r = BufReader::with_capacity(64 * 1024, f);
         let from = from.min(self.len);
         if from > 0 {
-            r.seek(SeekFrom::Start((from * IMU_RECORD_BYTES) as u64))
+            f.seek(SeekFrom::Start((from * IMU_RECORD_BYTES) as u64))
                 .map_err(rerr)?;
         }
         Ok(CacheReader {
-            r,
+            f,
+            buf: Vec::new(),
+            pos: 0,
             path: self.path.clone(),
+            first: from,
             left: self.len - from,
             read: 0,
         })
@@ -226,12 +232,55 @@ impl ImuCache {
     }
 }
 
-/// The samples of an [`ImuCache`], read one by one (with their file lines).
+/// The samples of an [`ImuCache`] (with their file lines), read from the file a block of
+/// [`READ_BLOCK_SAMPLES`] at a time and decoded one by one.
 pub struct CacheReader {
-    r: BufReader<File>,
+    f: File,
+    /// The block read last (whole records).
+    buf: Vec<u8>,
+    /// Offset of the next record in `buf`, bytes.
+    pos: usize,
     path: PathBuf,
+    /// Index of the first sample read.
+    first: usize,
+    /// Samples not yet returned.
     left: usize,
+    /// Samples returned.
     read: usize,
+}
+
+impl CacheReader {
+    /// Reads the next block: at most [`READ_BLOCK_SAMPLES`] records, no more than are left,
+    /// as many whole records as the file holds (an error when it ends before the next one:
+    /// the records before it are returned first).
+    fn refill(&mut self) -> std::io::Result<()> {
+        let want = self.left.min(READ_BLOCK_SAMPLES) * IMU_RECORD_BYTES;
+        self.buf.resize(want, 0);
+        self.pos = 0;
+        let mut got = 0;
+        while got < want {
+            match self.f.read(&mut self.buf[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        let whole = got - got % IMU_RECORD_BYTES;
+        self.buf.truncate(whole);
+        if whole == 0 {
+            let k = self.first + self.read;
+            return Err(std::io::Error::new(
+                ErrorKind::UnexpectedEof,
+                format!(
+                    "the file ends before sample {k} (byte offset {}): {} sample(s) missing",
+                    k * IMU_RECORD_BYTES,
+                    self.left
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Iterator for CacheReader {
@@ -247,18 +296,24 @@ impl Iterator for CacheReader {
                 return Some(Err(stopped(&self.path, sig)));
             }
         }
-        let mut b = [0u8; IMU_RECORD_BYTES];
-        if let Err(source) = self.r.read_exact(&mut b) {
-            self.left = 0;
-            return Some(Err(IoError::Read {
-                path: self.path.clone(),
-                line: 0,
-                source,
-            }));
+        if self.pos >= self.buf.len() {
+            if let Err(source) = self.refill() {
+                self.left = 0;
+                return Some(Err(IoError::Read {
+                    path: self.path.clone(),
+                    line: 0,
+                    source,
+                }));
+            }
         }
+        let rec = self
+            .buf
+            .get(self.pos..self.pos + IMU_RECORD_BYTES)
+            .and_then(|b| <&[u8; IMU_RECORD_BYTES]>::try_from(b).ok())?;
+        self.pos += IMU_RECORD_BYTES;
         self.left -= 1;
         self.read += 1;
-        Some(Ok(decode(&b)))
+        Some(Ok(decode(rec)))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {

@@ -81,6 +81,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use nav_core::model::Block;
+use nav_core::types::ImuSample;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
@@ -871,20 +872,26 @@ fn start_search(ctx: &Ctx<'_>, base: &Eval, judged: StepJudged) -> anyhow::Resul
     })
 }
 
+/// The IMU samples the regressors of every candidate against the current model `cur` read:
+/// those nearest its fixes ([`imu_cache::ImuView::near`], one pass over the record for a whole round).
+fn near_fixes(ctx: &Ctx<'_>, cur: &Eval) -> Vec<ImuSample> {
+    let mut times: Vec<f64> = cur.run.innovations.iter().map(|r| r.t_s).collect();
+    times.sort_by(f64::total_cmp);
+    ctx.p.case.imu.near(&times).unwrap_or_default()
+}
+
 /// Evidence, significance and the held-out comparison of one candidate against the current
-/// model, and its decision.
+/// model, and its decision; `near`: the samples nearest the current model's fixes
+/// ([`near_fixes`]).
 fn evaluate_candidate(
     ctx: &Ctx<'_>,
     cur: &Eval,
+    near: &[ImuSample],
     cur_opts: &RunOptions,
     n_meas: f64,
     b: Block,
 ) -> (CandidateEvidence, Option<Eval>) {
-    // the samples the regressors read: those nearest the fixes (a pass over the record)
-    let mut times: Vec<f64> = cur.run.innovations.iter().map(|r| r.t_s).collect();
-    times.sort_by(f64::total_cmp);
-    let near = ctx.p.case.imu.near(&times).unwrap_or_default();
-    let (rc, n) = regressor_correlation(b, &near, &cur.run);
+    let (rc, n) = regressor_correlation(b, near, &cur.run);
     let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
     let mut ev = CandidateEvidence {
         name: b.name().to_string(),
@@ -1083,9 +1090,10 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
         .scalar_measurements
         .max(2) as f64;
     let cur = &s.cur;
+    let near = near_fixes(ctx, cur);
     let mut results: Vec<(CandidateEvidence, Option<Eval>)> = remaining
         .par_iter()
-        .map(|&b| evaluate_candidate(ctx, cur, &cur_opts, n_meas, b))
+        .map(|&b| evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, b))
         .collect();
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));

@@ -85,6 +85,47 @@ fn samples_and_lines_read_back_bit_for_bit_from_any_index_and_the_file_goes_with
     assert!(!path.exists() && !folder.exists());
 }
 
+/// A record file cut short (half a record after sample 1500, the reads in blocks of
+/// 1024): every whole sample before the cut is returned, then an error naming the file, the
+/// sample and its byte offset; nothing after it.
+#[test]
+fn a_record_file_cut_short_returns_its_whole_samples_then_an_error_naming_the_sample() {
+    use host_sim::diagnose::imu_cache::IMU_RECORD_BYTES;
+    let imu = samples(3000, 0);
+    let c = cache_of(&imu, Some("imu.txt"));
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(c.path())
+        .unwrap();
+    f.set_len((1500 * IMU_RECORD_BYTES + IMU_RECORD_BYTES / 2) as u64)
+        .unwrap();
+    for from in [0, 1024, 1499, 1500, 2000] {
+        let mut ok = 0;
+        let mut errs = Vec::new();
+        for r in c.read_from(from).unwrap() {
+            match r {
+                Ok((s, _)) => {
+                    assert!(errs.is_empty(), "a sample after the error");
+                    assert_eq!(bits(&s), bits(&imu[from + ok]));
+                    ok += 1;
+                }
+                Err(e) => errs.push(e.to_string()),
+            }
+        }
+        assert_eq!(ok, 1500usize.saturating_sub(from), "from {from}");
+        let [e] = errs.as_slice() else {
+            panic!("from {from}: {errs:?}")
+        };
+        let k = from.max(1500);
+        assert!(
+            e.contains(&c.path().display().to_string())
+                && e.contains(&format!("before sample {k} (byte offset {})", k * 72))
+                && e.contains(&format!("{} sample(s) missing", 3000 - k)),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn a_bias_step_and_a_time_shift_are_applied_as_the_samples_are_read_from_any_index() {
     let imu = samples(400, 0);

@@ -820,10 +820,7 @@ where
                 Ok(ImuEventNav::Rejected(why)) if self.opts.imu_checks.stop_on_implausible => {
                     return Ok(Some((at(), s.t_s, FaultCause::Implausible(why))));
                 }
-                Ok(ev) => {
-                    let location = at();
-                    self.imu_event(ev, s.t_s, dt, location);
-                }
+                Ok(ev) => self.imu_event(ev, s.t_s, dt, k, it.line),
                 Err(e) => return Ok(Some((at(), s.t_s, e.into()))),
             }
         }
@@ -851,16 +848,19 @@ where
         Ok(fault)
     }
 
-    /// Counts and reports what the guard or the filter did with a sample.
-    fn imu_event(&mut self, ev: ImuEventNav, t_s: f64, dt: f64, location: String) {
+    /// Counts and reports what the guard or the filter did with sample `index` (file line
+    /// `line`, 0 when unknown); its location is written out only for a reported event.
+    fn imu_event(&mut self, ev: ImuEventNav, t_s: f64, dt: f64, index: usize, line: usize) {
         let report = &mut *self.imu_report;
+        let info = &self.feed.info;
+        let location = || info.locate(index, line);
         match ev {
             ImuEventNav::Rejected(why) => {
                 self.hooks.counters.imu_implausible += 1;
                 if report.events.len() < MAX_IMU_EVENTS {
                     report.events.push(ImuEvent {
                         t_s,
-                        location,
+                        location: location(),
                         what: format!("rejected: {why}"),
                     });
                 }
@@ -871,7 +871,7 @@ where
             } if report.events.len() < MAX_IMU_EVENTS => {
                 report.events.push(ImuEvent {
                     t_s,
-                    location,
+                    location: location(),
                     what: format!(
                         "gap of {dt:.4} s ({missing} sample(s) missing): {}",
                         if spanned {
