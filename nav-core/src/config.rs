@@ -484,6 +484,16 @@ pub struct RobustGating {
     /// innovation that grows steadily (a mismatch building up) is not rejected, an isolated
     /// jump is.
     pub growth_per_fix: f64,
+    /// Fixes after the start (and after a re-initialisation from the fixes) that get the
+    /// re-acquisition gate (`max_gate_widening`), 0 = none: until the monitor has seen this
+    /// many fixes it does not know their innovation level, and a fix beyond the normal gate
+    /// may as well be one of many (understated sigmas) as an outlier.
+    pub warmup_fixes: u32,
+    /// While a model mismatch is declared the gate is widened to at least this many times
+    /// the window median of NIS/dof, >= 1. The median of chi-square/dof is below the mean
+    /// (0.79 of it for 3 dof) and scatters: the median of 10 white 3-dof fixes is below half
+    /// their level in 1 window of 10, so 2 x the median reaches the level in 9 of 10.
+    pub mismatch_median_factor: f64,
     /// Fixes in the window of the learned GNSS sigma scale (0..=[`MAX_NIS_WINDOW`]; 0 = no
     /// learning, the default; 16 is the tested setting): per fix a covariance-matching sample of true over declared variance, of the
     /// innovation and of the difference of consecutive innovations; the smaller window median
@@ -501,8 +511,9 @@ impl Default for RobustGating {
     /// Down-weighting from the 0.99 quantile; window of 10 fixes; mismatch declared above a
     /// median NIS/dof of 4 (or two rejections in a row), cleared below 1.5; the gate widened to
     /// the median NIS/dof, to twice the last used fix's NIS, and x1.5 per rejection in a run
-    /// (at most x100), easing /1.1 per fix; the gate fully widened for a fix that ends a gap of
-    /// more than 2.5 fix intervals and 2 s; no process-noise inflation (`max_q_inflation` 1:
+    /// (at most x100), easing /1.1 per fix, to twice the median while a mismatch is declared;
+    /// the gate fully widened for a fix that ends a gap of more than 2.5 fix intervals and
+    /// 2 s, and for the first 10 fixes (after the start or a re-initialisation); no process-noise inflation (`max_q_inflation` 1:
     /// it made the outage errors 1.7x worse, see `docs/robust-gating.md`); no learned GNSS
     /// sigma scale (`scale_window` 0: on the undeclared-effect drives it learned the model
     /// mismatch as noise; with `scale_window` 16: R multiplied by the scale from 4, i.e. 2x in
@@ -521,6 +532,8 @@ impl Default for RobustGating {
             reacquisition_gap_intervals: 2.5,
             reacquisition_min_gap_s: 2.0,
             growth_per_fix: 2.0,
+            warmup_fixes: 10,
+            mismatch_median_factor: 2.0,
             scale_window: 0,
             scale_on: 4.0,
             scale_off: 2.0,
@@ -550,6 +563,8 @@ impl RobustGating {
             && self.reacquisition_min_gap_s >= 0.0
             && self.growth_per_fix.is_finite()
             && self.growth_per_fix >= 1.0
+            && self.mismatch_median_factor.is_finite()
+            && self.mismatch_median_factor >= 1.0
             && self.scale_window <= MAX_NIS_WINDOW
             && self.scale_off >= 1.0
             && self.scale_on >= self.scale_off

@@ -152,6 +152,8 @@ pub(super) struct GateState {
     episode_start_t_s: f64,
     /// Remembered NIS/dof level of a persistent mismatch (floor of the widening, >= 1).
     level: f64,
+    /// Fixes fed to the monitor since the start or the last re-initialisation.
+    warm: u32,
     /// The learned GNSS sigma scale.
     pub scale: SigmaScale,
     pub stats: RobustStats,
@@ -173,6 +175,7 @@ impl Default for GateState {
             nominal_interval_s: f64::NAN,
             episode_start_t_s: f64::NAN,
             level: 1.0,
+            warm: 0,
             scale: SigmaScale::default(),
             stats: RobustStats::default(),
         }
@@ -247,8 +250,9 @@ impl GateState {
                 } else {
                     r.downweight_nis_pos_vel
                 };
-                let reacq = self.is_reacquisition(r, t_s);
-                let after_outage = reacq && t_s - self.last_seen_t_s > r.reacquisition_min_gap_s;
+                let gap = self.is_reacquisition(r, t_s);
+                let after_outage = gap && t_s - self.last_seen_t_s > r.reacquisition_min_gap_s;
+                let reacq = gap || self.warm < r.warmup_fixes;
                 let widening = if reacq {
                     // after an outage (no fix at all, not a run of rejections) times the
                     // remembered level of a persistent mismatch: unaided, what the model
@@ -330,6 +334,7 @@ impl GateState {
     ) {
         let dt = t_s - self.last_fix_t_s;
         self.last_fix_t_s = t_s;
+        self.warm = self.warm.saturating_add(1);
         if self.stats.mismatch && dt.is_finite() && dt > 0.0 {
             self.stats.mismatch_time_s += dt;
             self.stats.mismatch_fixes = self.stats.mismatch_fixes.saturating_add(1);
@@ -380,7 +385,11 @@ impl GateState {
         // the window median of NIS/dof, faster on a run of rejections, easing off slowly
         let mut g = s.gate_widening / r.easing_step;
         if med.is_finite() {
-            g = g.max(med);
+            g = g.max(if s.mismatch {
+                med * r.mismatch_median_factor
+            } else {
+                med
+            });
         }
         if run >= 2 {
             g = g.max(s.gate_widening * r.inflation_step);
@@ -524,6 +533,7 @@ impl GateState {
             }
         }
         self.stats.resets = self.stats.resets.saturating_add(1);
+        self.warm = 0;
         self.clear_window();
         self.scale.clear();
         plan
@@ -618,8 +628,8 @@ mod tests {
             // declared when 5 of the 10 are 9: median (1 + 9) / 2 = 5 > 4
             assert_eq!(g.stats.first_mismatch_t_s, 34.0);
             assert_eq!(g.stats.q_inflation, max_q);
-            // the gate follows the median of NIS/dof
-            assert_eq!(g.stats.gate_widening, 9.0);
+            // the gate follows twice the median of NIS/dof while the mismatch is declared
+            assert_eq!(g.stats.gate_widening, 18.0);
             // a used fix asks for room to grow: 2 x its own NIS over the base gate
             g.monitor(&r, 60.0, 9.0, false, 30.0);
             assert_eq!(g.stats.gate_widening, 30.0);
@@ -646,6 +656,56 @@ mod tests {
     }
 
     #[test]
+    fn the_first_fixes_after_the_start_and_after_a_reset_get_the_widest_gate() {
+        let r = RobustGating::default();
+        let gating = Gating::robust();
+        let wide = gating.nis_threshold_pos * r.max_gate_widening;
+        let mut g = GateState::default();
+        for k in 0..30u32 {
+            let t = f64::from(k);
+            let th = g.thresholds(&gating, 3, t);
+            let want = if k < r.warmup_fixes {
+                wide
+            } else {
+                gating.nis_threshold_pos
+            };
+            assert_eq!(th.reject, want, "fix {k}");
+            // the normal gate stays the reference of the re-acquisition bookkeeping
+            assert_eq!(th.normal_reject, gating.nis_threshold_pos);
+            assert!(!th.after_outage);
+            g.note_fix(t, true);
+            g.monitor(&r, t, 1.0, false, 0.0);
+        }
+        // a re-initialisation from the fixes starts the warm-up again
+        let inp = ResetInput {
+            t_s: 30.0,
+            z_pos_m: [0.0; 3],
+            var_pos_m2: [1e-4; 3],
+            vel: None,
+            vel_ned_mps: [0.0; 3],
+            q_nb: UnitQuaternion::identity(),
+            var_yaw_rad2: 1e-4,
+            heading_min_speed_mps: 5.0,
+        };
+        g.reset_plan(&inp);
+        g.note_fix(30.0, true);
+        assert_eq!(g.thresholds(&gating, 3, 31.0).reject, wide);
+        // none with `warmup_fixes` 0
+        let gating0 = Gating {
+            robust: Some(RobustGating {
+                warmup_fixes: 0,
+                ..r
+            }),
+            ..gating
+        };
+        let g0 = GateState::default();
+        assert_eq!(
+            g0.thresholds(&gating0, 3, 0.0).reject,
+            gating.nis_threshold_pos
+        );
+    }
+
+    #[test]
     fn a_fix_after_a_gap_gets_the_widest_gate() {
         let r = RobustGating::default();
         let gating = Gating::robust();
@@ -653,6 +713,8 @@ mod tests {
         for k in 0..20 {
             g.note_fix(k as f64, true);
         }
+        // past the warm-up
+        g.warm = r.warmup_fixes;
         let normal = g.thresholds(&gating, 3, 20.0);
         assert_eq!(normal.reject, gating.nis_threshold_pos);
         assert_eq!(normal.downweight, r.downweight_nis_pos);

@@ -10,7 +10,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 use nav_core::attitude;
-use nav_core::config::{FilterConfig, GateProbability, Gating, KfGinsImuNoise};
+use nav_core::config::{FilterConfig, GateProbability, Gating, KfGinsImuNoise, RobustGating};
 use nav_core::earth::{self, Llh};
 use nav_core::filter::{
     Filter, InitialUncertainty, STATUS_LAST_FIX_DOWNWEIGHTED, STATUS_LAST_FIX_REJECTED,
@@ -890,6 +890,118 @@ fn the_first_fix_after_an_outage_is_on_probation_an_outlier_is_taken_back_a_jump
         assert!(
             jump_err.iter().rev().take(10).all(|e| *e <= x_pos),
             "sigma {sigma}: {jump_err:?}"
+        );
+    }
+}
+
+/// The gate before the warm-up and the mismatch widening: rejection from the first fixes on,
+/// the gate widened to the window median of NIS/dof (not twice it) in a mismatch.
+fn previous_gate() -> Gating {
+    Gating {
+        robust: Some(RobustGating {
+            warmup_fixes: 0,
+            mismatch_median_factor: 1.0,
+            ..RobustGating::default()
+        }),
+        ..Gating::robust()
+    }
+}
+
+/// With correct RTK sigmas (2 cm) gross outliers among the first fixes, while the gate does
+/// not yet know the innovation level and rejects only beyond the re-acquisition gate
+/// (x100, 46 sigma), are still rejected with the state untouched; so are outliers after it.
+#[test]
+fn gross_outliers_are_rejected_during_the_warm_up_and_after_it() {
+    let warmup = RobustGating::default().warmup_fixes;
+    assert_eq!(warmup, 10);
+    let (mut sim, mut f) = nbk_drive_with_fix_sigma(0.02, 33);
+    let mut fixes = 0u32;
+    let mut rejected = Vec::new();
+    while fixes < 60 {
+        let e = sim.step();
+        f.propagate(&e.imu).unwrap();
+        let Some(fix) = e.gnss else { continue };
+        fixes += 1;
+        let off = match fixes {
+            3 => Some([-18.0, 24.0, 0.0]),
+            6 => Some([3.0, 4.0, 0.0]),
+            9 => Some([0.0, 2.0, 1.0]),
+            40 => Some([3.0, 4.0, 0.0]),
+            _ => None,
+        };
+        let Some(d) = off else {
+            let out = f.update_gnss(&fix).unwrap();
+            assert!(out.accepted && out.weight == 1.0, "fix {fixes}: {out:?}");
+            continue;
+        };
+        f.predict_covariance().unwrap();
+        let before = *f.nav_state();
+        let p_before = *f.covariance();
+        let out = f.update_gnss(&shifted(&fix, d)).unwrap();
+        println!(
+            "RTK 2 cm, fix {fixes}: {:.1} m outlier, NIS {:.0} vs gate {:.0}, accepted {}",
+            (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt(),
+            out.nis,
+            out.nis_threshold,
+            out.accepted
+        );
+        // inside the warm-up the gate is the re-acquisition one, after it the normal one
+        let widening = if fixes <= warmup { 100.0 } else { 1.0 };
+        assert!(
+            (out.nis_threshold / (widening * f.config().gating.nis_threshold_pos) - 1.0).abs()
+                < 1e-9
+        );
+        assert!(!out.accepted && !out.forced && out.weight == 0.0, "{out:?}");
+        assert_eq!(f.nav_state(), &before);
+        assert_eq!(f.covariance(), &p_before);
+        rejected.push(fixes);
+    }
+    assert_eq!(rejected, [3, 6, 9, 40]);
+    assert_eq!(f.counters().gnss_rejected, 4);
+    assert_eq!(f.counters().gnss_forced, 0);
+    assert_eq!(f.robust_stats().mismatch_episodes, 0);
+}
+
+/// The warm-up and the mismatch widening do not make the undeclared-effect drives worse:
+/// against the previous gate, on the gyro scale factor and the lever arm drives, at most as
+/// many fixes rejected, the RMS with GNSS and the outage error within 1 %.
+#[test]
+fn undeclared_effects_are_not_made_worse_than_by_the_previous_gate() {
+    let mut gyro = SimConfig::nbk(100.0);
+    gyro.truth = kf_gins_cfg();
+    gyro.motion = Motion::Track;
+    gyro.wobble = true;
+    gyro.lever_arm_body_m = [0.0; 3];
+    gyro.effects.gyro_sf = [500e-6, -400e-6, 600e-6];
+    let mut lever = SimConfig::nbk(100.0);
+    lever.truth = kf_gins_cfg();
+    lever.motion = Motion::Drive;
+    lever.wobble = true;
+    // the configuration (`kf_gins_cfg`) says no lever arm
+    lever.lever_arm_body_m = [1.0, 0.9, -0.7];
+    for (label, sc, seed) in [
+        ("gyro scale factor", gyro, 51),
+        ("lever arm 1.5 m", lever, 52),
+    ] {
+        let now = mismatch_run(sc, seed, Gating::robust(), 15.0);
+        let prev = mismatch_run(sc, seed, previous_gate(), 15.0);
+        println!(
+            "{label}: default {} rejected, {} down-weighted, RMS with GNSS {:.4} m, mean outage \
+             max {:.3} m; previous gate {} rejected, {} down-weighted, {:.4} m, {:.3} m",
+            now.rejected,
+            now.downweighted,
+            now.rms_m,
+            now.mean_outage_m(),
+            prev.rejected,
+            prev.downweighted,
+            prev.rms_m,
+            prev.mean_outage_m()
+        );
+        assert!(now.rejected <= prev.rejected, "{label}");
+        assert!(now.rms_m <= 1.01 * prev.rms_m, "{label}");
+        assert!(
+            now.mean_outage_m() <= 1.01 * prev.mean_outage_m(),
+            "{label}"
         );
     }
 }
