@@ -38,5 +38,6 @@ mod sim_trajectory;
 mod smooth_real;
 mod smooth_rts;
 mod smooth_sim;
+mod stops;
 mod study_reduced;
 mod undeclared_effects;
