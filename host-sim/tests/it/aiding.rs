@@ -269,7 +269,7 @@ fn real_drive_with_aiding_meets_the_issue_targets() {
     }
     // the stops (the engine idles): the detector's decisions against the GNSS speed
     // (< 0.15 m/s stopped), on the aiding epochs' grid; with the fixed thresholds alone the
-    // recall is 0.32 (stops::real_drive_stops_fixed_against_learnt_thresholds)
+    // recall is 0.32 (stops::real_drive_stops_fixed_against_learned_thresholds)
     for (name, o) in [("without outages", &out0), ("with outages", &out)] {
         let (from, to) = (o.nav.first().unwrap().t_s, o.nav.last().unwrap().t_s);
         let s = crate::stops::score(

@@ -1,4 +1,4 @@
-//! Stops with an idling engine: the stationarity detector (its spread thresholds learnt at
+//! Stops with an idling engine: the stationarity detector (its spread thresholds learned at
 //! GNSS-confirmed stops, `nav_core::aiding::RestLevel`) on a simulated drive with engine
 //! vibration at stops and while creeping, and the scoring of its decisions against the GNSS
 //! speed that the real-drive test (`aiding.rs`) uses.
@@ -236,7 +236,7 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
     let mut off = on;
     off.stationarity.learn = false;
     let mut res = Vec::new();
-    for (name, a) in [("fixed thresholds", off), ("learnt at stops", on)] {
+    for (name, a) in [("fixed thresholds", off), ("learned at stops", on)] {
         let out = run_filter(&data, &options(a, vec![outage.clone()]))
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let r = &out.aiding;
@@ -250,13 +250,13 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
         );
         res.push((a, b, creep, r.rest_level));
     }
-    let (a0, b0, _, learnt0) = res[0];
-    let (a1, b1, all1, learnt1) = res[1];
+    let (a0, b0, _, learned0) = res[0];
+    let (a1, b1, all1, learned1) = res[1];
     // the vibration is above the fixed thresholds...
-    assert!(learnt0.is_none());
+    assert!(learned0.is_none());
     assert!(a0.recall() < 0.2 && b0.recall() < 0.2, "{a0} / {b0}");
-    // ...and learnt at the first stop, which then is detected with and without the GNSS
-    let [la, lw] = learnt1.expect("a level learnt at stop A");
+    // ...and learned at the first stop, which then is detected with and without the GNSS
+    let [la, lw] = learned1.expect("a level learned at stop A");
     assert!(la > 0.08 && la < 0.2 && lw > 0.6 && lw < 2.0, "{la} {lw}");
     assert!(a1.recall() > 0.9, "stop A: {a1}");
     assert!(b1.recall() > 0.9, "stop B: {b1}");
@@ -267,13 +267,13 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
     assert!(all1.precision() >= 0.98, "{all1}");
 }
 
-/// The real drive (`configs/drive0708_aided.toml`) with the fixed and the learnt thresholds,
+/// The real drive (`configs/drive0708_aided.toml`) with the fixed and the learned thresholds,
 /// without and with the reference outages: the detector against the GNSS speed and the
 /// outage error. Four runs (about 10 s): `cargo test --release -p host-sim --test it --
 /// --ignored stops::real_drive`.
 #[test]
 #[ignore]
-fn real_drive_stops_fixed_against_learnt_thresholds() {
+fn real_drive_stops_fixed_against_learned_thresholds() {
     let cfg = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../configs/drive0708_aided.toml"
@@ -285,7 +285,7 @@ fn real_drive_stops_fixed_against_learnt_thresholds() {
         .exists()
     {
         println!(
-            "SKIPPED real_drive_stops_fixed_against_learnt_thresholds: ../shared/data not found"
+            "SKIPPED real_drive_stops_fixed_against_learned_thresholds: ../shared/data not found"
         );
         return;
     }
@@ -302,7 +302,7 @@ fn real_drive_stops_fixed_against_learnt_thresholds() {
     type Tweak = fn(&mut nav_core::aiding::AidingConfig);
     let variants: [(&str, Tweak); 2] = [
         ("fixed", |a| a.stationarity.learn = false),
-        ("learnt", |_| {}),
+        ("learned", |_| {}),
     ];
     // the outage figure moved by -3..3 s (its spread shows what a change of the filter's
     // state does to seven 20 s windows)
