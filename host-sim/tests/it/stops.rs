@@ -237,8 +237,8 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
     off.stationarity.learn = false;
     let mut res = Vec::new();
     for (name, a) in [("fixed thresholds", off), ("learned at stops", on)] {
-        let out = run_filter(&data, &options(a, vec![outage.clone()]))
-            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let out =
+            run_filter(&data, &options(a, vec![outage])).unwrap_or_else(|e| panic!("{name}: {e}"));
         let r = &out.aiding;
         // stops from 1 s after the vehicle is still (the window's 0.5 s and the decision)
         let part = |from: f64, to: f64| score(r, t0 + from, t0 + to, speed_at, 0.01, [0.2, 1.0]);
