@@ -14,6 +14,12 @@
 //! gnss_speed_max_mps = 0.15        # when a GNSS velocity is at most gnss_max_age_s old
 //! gnss_max_age_s = 1.0
 //! filter_speed_max_mps = 1.0       # the filter's own speed estimate
+//! learn = true                     # learn the idling vibration at GNSS-confirmed stops
+//! learn_margin = 1.5               # spread thresholds: margin x the learned spreads
+//! learn_tau_s = 5.0                # time constant of the learning
+//! learn_accel_std_max_mps2 = 0.2   # bound of the learned specific-force threshold
+//! learn_gyro_std_max_deg_per_s = 2.0  # bound of the learned rate threshold
+//! learn_filter_speed_max_mps = 0.2 # learned thresholds only at filter speeds below this
 //! [aiding.nhc]                     # non-holonomic constraint
 //! enabled = true
 //! sigma_lateral_mps = 0.1
@@ -198,6 +204,24 @@ pub struct StationaritySection {
     /// Largest speed of the filter's estimate, m/s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub filter_speed_max_mps: Option<f64>,
+    /// Learn the vibration at GNSS-confirmed stops (default on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn: Option<bool>,
+    /// Learned thresholds: factor on the learned spreads.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn_margin: Option<f64>,
+    /// Time constant of the learning, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn_tau_s: Option<f64>,
+    /// Bound of the learned specific-force spread threshold, m/s^2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn_accel_std_max_mps2: Option<f64>,
+    /// Bound of the learned rate spread threshold, deg/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn_gyro_std_max_deg_per_s: Option<f64>,
+    /// Largest filter speed at which the learned thresholds apply, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn_filter_speed_max_mps: Option<f64>,
 }
 
 /// `[aiding.nhc]`.
@@ -281,6 +305,20 @@ impl AidingSection {
         set(&mut d.gnss_speed_max_mps, s.gnss_speed_max_mps);
         set(&mut d.gnss_max_age_s, s.gnss_max_age_s);
         set(&mut d.filter_speed_max_mps, s.filter_speed_max_mps);
+        if let Some(v) = s.learn {
+            d.learn = v;
+        }
+        set(&mut d.learn_margin, s.learn_margin);
+        set(&mut d.learn_tau_s, s.learn_tau_s);
+        set(&mut d.learn_accel_std_max_mps2, s.learn_accel_std_max_mps2);
+        set(
+            &mut d.learn_gyro_std_max_radps,
+            deg(s.learn_gyro_std_max_deg_per_s),
+        );
+        set(
+            &mut d.learn_filter_speed_max_mps,
+            s.learn_filter_speed_max_mps,
+        );
         let n = &self.nhc;
         c.nhc.enabled = n.enabled;
         set(&mut c.nhc.sigma_lateral_mps, n.sigma_lateral_mps);

@@ -268,6 +268,27 @@ fn real_drive_with_aiding_meets_the_issue_targets() {
         assert!(r.nhc.used > 3000 && r.zupt.used > 100, "{r:?}");
         assert_eq!(r.nhc.failed + r.zupt.failed + r.zaru.failed, 0);
     }
+    // the stops (the engine idles): the detector's decisions against the GNSS speed
+    // (< 0.15 m/s stopped), on the aiding epochs' grid; with the fixed thresholds alone the
+    // recall is 0.32 (stops::real_drive_stops_fixed_against_learned_thresholds)
+    for (name, o) in [("without outages", &out0), ("with outages", &out)] {
+        let (from, to) = (o.nav.first().unwrap().t_s, o.nav.last().unwrap().t_s);
+        let s = crate::stops::score(
+            &o.aiding,
+            from,
+            to,
+            |t| crate::stops::gnss_speed_at(&p.case.gnss, t),
+            0.15,
+            [0.2, 1.0],
+        );
+        println!("real drive stops, {name}: {s}");
+        // (moving epochs detected: the instant of moving off, when the last fix, at most
+        // 0.25 s old, still says standing)
+        assert!(s.tp + s.fn_ > 500, "{s}");
+        assert!(s.recall() >= 0.8, "{name}: {s}");
+        assert!(s.precision() >= 0.99, "{name}: {s}");
+        assert!(s.slow[1] <= 2, "{name}: {s}");
+    }
 }
 
 #[test]

@@ -38,4 +38,5 @@ mod sim_trajectory;
 mod smooth_real;
 mod smooth_rts;
 mod smooth_sim;
+mod stops;
 mod undeclared_effects;

@@ -28,7 +28,9 @@ use crate::scalar::Scalar;
 pub use heading::HeadingConfig;
 pub use nhc::NhcConfig;
 pub use odometer::OdometerConfig;
-pub use stationarity::{StationarityConfig, StationarityDetector, WindowStats};
+pub use stationarity::{
+    RestLevel, StationarityConfig, StationarityDetector, Thresholds, WindowStats,
+};
 pub use zupt::{ZaruConfig, ZuptConfig};
 
 /// Configuration of every aiding source.
@@ -159,6 +161,20 @@ impl AidingConfig {
         nonneg(s.gnss_speed_max_mps, "stationarity.gnss_speed_max_mps")?;
         nonneg(s.gnss_max_age_s, "stationarity.gnss_max_age_s")?;
         nonneg(s.filter_speed_max_mps, "stationarity.filter_speed_max_mps")?;
+        pos(s.learn_margin, "stationarity.learn_margin")?;
+        nonneg(s.learn_tau_s, "stationarity.learn_tau_s")?;
+        nonneg(
+            s.learn_accel_std_max_mps2,
+            "stationarity.learn_accel_std_max_mps2",
+        )?;
+        nonneg(
+            s.learn_gyro_std_max_radps,
+            "stationarity.learn_gyro_std_max",
+        )?;
+        nonneg(
+            s.learn_filter_speed_max_mps,
+            "stationarity.learn_filter_speed_max_mps",
+        )?;
         nonneg(
             self.nhc.slip_sigma_rad_per_mps2,
             "nhc.slip_sigma_deg_per_mps2",
@@ -230,12 +246,13 @@ pub struct AidingCounters {
     pub heading: SourceCounters,
 }
 
-/// The aiding runner: the stationarity detector (window of at most `W` IMU samples), the
-/// update timer and the counters.
+/// The aiding runner: the stationarity detector (window of at most `W` IMU samples and the
+/// vibration level learned at stops), the update timer and the counters.
 #[derive(Debug, Clone)]
 pub struct Aiding<T: Scalar, const W: usize> {
     cfg: AidingConfig,
     det: StationarityDetector<T, W>,
+    rest: RestLevel<T>,
     last_t_s: f64,
     stationary: bool,
     counters: AidingCounters,
@@ -248,6 +265,7 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
         Ok(Self {
             cfg: *cfg,
             det: StationarityDetector::new(),
+            rest: RestLevel::new(),
             last_t_s: f64::NEG_INFINITY,
             stationary: false,
             counters: AidingCounters::default(),
@@ -267,6 +285,12 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
     /// The detector's last decision.
     pub fn is_stationary(&self) -> bool {
         self.stationary
+    }
+
+    /// The vibration level learned at stops (`[specific-force spread m/s^2, rate spread
+    /// rad/s]`), once one was learned.
+    pub fn rest_level(&self) -> Option<[f64; 2]> {
+        self.rest.level()
     }
 
     /// Runs the aiding after a successful [`Filter::propagate`]: feeds the detector with the
@@ -300,6 +324,7 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
         if t - self.last_t_s < self.cfg.interval_s - 0.5 * step.dt_s {
             return;
         }
+        let since_last_s = t - self.last_t_s;
         self.last_t_s = t;
         let n = if step.dt_s > 0.0 {
             libm::round(self.cfg.stationarity.window_s / step.dt_s) as usize
@@ -316,13 +341,12 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
             (t - ts <= self.cfg.stationarity.gnss_max_age_s && t - ts >= -1.0).then_some(v)
         });
         let g = earth::gravity_mps2(nav.pos.lat_rad, nav.pos.h_m);
-        self.stationary = stationarity::is_stationary(
-            &self.cfg.stationarity,
-            &stats,
-            g,
-            speed,
-            nav.vel_ned_mps.norm(),
-        );
+        let (cfg_s, filter_speed) = (&self.cfg.stationarity, nav.vel_ned_mps.norm());
+        self.rest
+            .learn(cfg_s, &stats, g, speed, filter_speed, since_last_s);
+        self.stationary = self
+            .rest
+            .is_stationary(cfg_s, &stats, g, speed, filter_speed);
         let layout = *f.layout();
         if let (true, Some(speed)) = (self.cfg.odometer.enabled, inputs.odometer_speed_mps) {
             let k = f
@@ -349,8 +373,15 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
                 count(&mut self.counters.zupt, res);
             }
             if self.cfg.zaru.enabled {
+                // the window mean's standard error (per axis: spread^2 / (3 n)) in quadrature:
+                // an idling engine shakes the gyro by a degree per second
+                let mut zaru = self.cfg.zaru;
+                let se2 = stats.w_std_radps * stats.w_std_radps / (3.0 * stats.n as f64);
+                if se2.is_finite() {
+                    zaru.sigma_radps = libm::sqrt(zaru.sigma_radps * zaru.sigma_radps + se2);
+                }
                 if let Some((z, h, r)) = zupt::zaru_measurement::<T, N>(
-                    &self.cfg.zaru,
+                    &zaru,
                     &layout,
                     f.nav_state(),
                     &stats.w_mean_radps,

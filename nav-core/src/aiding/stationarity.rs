@@ -10,6 +10,15 @@
 //!
 //! The window is a ring buffer of `W` samples (const generic, no allocation); the window used
 //! is `StationarityConfig::window_s` long, at most `W` samples.
+//!
+//! A vehicle standing with its engine idling vibrates: its specific-force and rate spreads
+//! can lie above the fixed thresholds. [`RestLevel`] learns that signature while a recent GNSS
+//! velocity says the vehicle stands (an exponential average of the two spreads over windows
+//! that pass every other test) and raises the two spread thresholds to
+//! `learn_margin` times the learned spreads, never above the bounds `learn_accel_std_max_mps2`
+//! and `learn_gyro_std_max_radps` (driving shakes more than that) and only while the filter's
+//! own speed is at most `learn_filter_speed_max_mps` (slow driving on a smooth road can vibrate
+//! like a stop: the filter's speed tells them apart when the GNSS is missing).
 
 use crate::scalar::Scalar;
 
@@ -37,12 +46,30 @@ pub struct StationarityConfig {
     /// Largest speed of the filter's own estimate, m/s: without GNSS a straight drive at
     /// constant speed on a smooth road looks still to the IMU; the filter knows it moves.
     pub filter_speed_max_mps: f64,
+    /// Whether the spread thresholds adapt to the vibration learned at GNSS-confirmed stops
+    /// ([`RestLevel`]).
+    pub learn: bool,
+    /// Learned thresholds: this factor times the learned spreads (dimensionless, >= 1).
+    pub learn_margin: f64,
+    /// Time constant of the learning (exponential average over the stops' windows), s.
+    pub learn_tau_s: f64,
+    /// Upper bound of the learned specific-force spread threshold, m/s^2 (windows above it
+    /// are not learned).
+    pub learn_accel_std_max_mps2: f64,
+    /// Upper bound of the learned rate spread threshold, rad/s (windows above it are not
+    /// learned).
+    pub learn_gyro_std_max_radps: f64,
+    /// Largest speed of the filter's estimate at which the learned thresholds apply, m/s
+    /// (above it the fixed thresholds do).
+    pub learn_filter_speed_max_mps: f64,
 }
 
 impl StationarityConfig {
     /// Defaults for a car with a consumer MEMS IMU: 0.5 s window, 0.1 m/s^2 specific-force
     /// spread, 0.3 m/s^2 gravity tolerance, 1 deg/s mean rate, 0.5 deg/s rate spread, 0.15 m/s
-    /// GNSS speed no older than 1 s.
+    /// GNSS speed no older than 1 s; learning of the idling vibration on, thresholds 1.5 times
+    /// the learned spreads over 5 s, at most 0.2 m/s^2 and 2 deg/s, at filter speeds up to
+    /// 0.5 m/s.
     pub const DEFAULT: Self = Self {
         window_s: 0.5,
         accel_std_max_mps2: 0.1,
@@ -52,6 +79,12 @@ impl StationarityConfig {
         gnss_speed_max_mps: 0.15,
         gnss_max_age_s: 1.0,
         filter_speed_max_mps: 1.0,
+        learn: true,
+        learn_margin: 1.5,
+        learn_tau_s: 5.0,
+        learn_accel_std_max_mps2: 0.2,
+        learn_gyro_std_max_radps: 2.0 * core::f64::consts::PI / 180.0,
+        learn_filter_speed_max_mps: 0.5,
     };
 }
 
@@ -195,9 +228,9 @@ fn mean_spread<T: Scalar, const W: usize>(
     (mean.map(|m| m.to_f64()), var.sqrt_libm().to_f64())
 }
 
-/// The detector's decision on window statistics: whether every test passes. `gravity_mps2` is
-/// normal gravity at the vehicle; `gnss_speed_mps` a recent GNSS speed, if any;
-/// `filter_speed_mps` the filter's estimated speed.
+/// The detector's decision on window statistics with the fixed thresholds: whether every test
+/// passes. `gravity_mps2` is normal gravity at the vehicle; `gnss_speed_mps` a recent GNSS
+/// speed, if any; `filter_speed_mps` the filter's estimated speed.
 pub fn is_stationary(
     cfg: &StationarityConfig,
     s: &WindowStats,
@@ -205,13 +238,154 @@ pub fn is_stationary(
     gnss_speed_mps: Option<f64>,
     filter_speed_mps: f64,
 ) -> bool {
-    let norm = |v: &[f64; 3]| libm::sqrt(v.iter().map(|x| x * x).sum::<f64>());
-    let imu_still = s.f_std_mps2 <= cfg.accel_std_max_mps2
-        && (norm(&s.f_mean_mps2) - gravity_mps2).abs() <= cfg.accel_mag_tol_mps2
-        && norm(&s.w_mean_radps) <= cfg.gyro_mean_max_radps
-        && s.w_std_radps <= cfg.gyro_std_max_radps;
+    let thr = Thresholds {
+        accel_std_mps2: cfg.accel_std_max_mps2,
+        gyro_std_radps: cfg.gyro_std_max_radps,
+    };
+    passes(cfg, &thr, s, gravity_mps2, gnss_speed_mps, filter_speed_mps)
+}
+
+/// Spread thresholds of one decision (SI units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Thresholds {
+    /// Largest specific-force spread, m/s^2.
+    pub accel_std_mps2: f64,
+    /// Largest rate spread, rad/s.
+    pub gyro_std_radps: f64,
+}
+
+fn norm3(v: &[f64; 3]) -> f64 {
+    libm::sqrt(v.iter().map(|x| x * x).sum::<f64>())
+}
+
+/// The tests other than the two spreads: gravity magnitude and mean rate.
+fn still_apart_from_spread(cfg: &StationarityConfig, s: &WindowStats, gravity_mps2: f64) -> bool {
+    (norm3(&s.f_mean_mps2) - gravity_mps2).abs() <= cfg.accel_mag_tol_mps2
+        && norm3(&s.w_mean_radps) <= cfg.gyro_mean_max_radps
+}
+
+fn passes(
+    cfg: &StationarityConfig,
+    thr: &Thresholds,
+    s: &WindowStats,
+    gravity_mps2: f64,
+    gnss_speed_mps: Option<f64>,
+    filter_speed_mps: f64,
+) -> bool {
+    let imu_still = s.f_std_mps2 <= thr.accel_std_mps2
+        && s.w_std_radps <= thr.gyro_std_radps
+        && still_apart_from_spread(cfg, s, gravity_mps2);
     let gnss_still = gnss_speed_mps.is_none_or(|v| v <= cfg.gnss_speed_max_mps);
     imu_still && gnss_still && filter_speed_mps <= cfg.filter_speed_max_mps
+}
+
+/// The vibration signature learned at stops: exponential averages of the specific-force and
+/// rate spreads of windows taken while a recent GNSS velocity says the vehicle stands
+/// ([`StationarityConfig::learn`]). Scalar type `T` like the detector's window (f32 on the
+/// MCU); no allocation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestLevel<T: Scalar> {
+    accel_std: T,
+    gyro_std: T,
+    learned: bool,
+}
+
+impl<T: Scalar> Default for RestLevel<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Scalar> RestLevel<T> {
+    /// Nothing learned yet (the fixed thresholds apply).
+    pub const fn new() -> Self {
+        Self {
+            accel_std: T::ZERO,
+            gyro_std: T::ZERO,
+            learned: false,
+        }
+    }
+
+    /// The learned spreads `[specific force m/s^2, rate rad/s]`, once a stop was seen.
+    pub fn level(&self) -> Option<[f64; 2]> {
+        self.learned
+            .then(|| [self.accel_std.to_f64(), self.gyro_std.to_f64()])
+    }
+
+    /// Learns from a window `dt_s` after the previous decision when the GNSS speed (recent,
+    /// as for the decision) is at most `gnss_speed_max_mps`, the filter's speed at most
+    /// `learn_filter_speed_max_mps`, the gravity and mean-rate tests pass and both spreads lie
+    /// within the learning bounds. Returns whether the window was learned.
+    pub fn learn(
+        &mut self,
+        cfg: &StationarityConfig,
+        s: &WindowStats,
+        gravity_mps2: f64,
+        gnss_speed_mps: Option<f64>,
+        filter_speed_mps: f64,
+        dt_s: f64,
+    ) -> bool {
+        let standing = gnss_speed_mps.is_some_and(|v| v <= cfg.gnss_speed_max_mps)
+            && filter_speed_mps <= cfg.learn_filter_speed_max_mps;
+        let usable = s.f_std_mps2.is_finite()
+            && s.w_std_radps.is_finite()
+            && s.f_std_mps2 <= cfg.learn_accel_std_max_mps2
+            && s.w_std_radps <= cfg.learn_gyro_std_max_radps
+            && still_apart_from_spread(cfg, s, gravity_mps2);
+        if !(cfg.learn && standing && usable) {
+            return false;
+        }
+        let (a, g) = (T::of_f64(s.f_std_mps2), T::of_f64(s.w_std_radps));
+        if self.learned {
+            let k = if cfg.learn_tau_s > 0.0 && dt_s.is_finite() {
+                (dt_s / cfg.learn_tau_s).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let k = T::of_f64(k);
+            self.accel_std += (a - self.accel_std) * k;
+            self.gyro_std += (g - self.gyro_std) * k;
+        } else {
+            (self.accel_std, self.gyro_std, self.learned) = (a, g, true);
+        }
+        true
+    }
+
+    /// The spread thresholds at a filter speed (m/s): the fixed ones, raised to
+    /// `learn_margin` times the learned spreads (at most the learning bounds) when learning is
+    /// on, a stop was learned and the speed is at most `learn_filter_speed_max_mps`.
+    pub fn thresholds(&self, cfg: &StationarityConfig, filter_speed_mps: f64) -> Thresholds {
+        let fixed = Thresholds {
+            accel_std_mps2: cfg.accel_std_max_mps2,
+            gyro_std_radps: cfg.gyro_std_max_radps,
+        };
+        match self.level() {
+            Some([a, g]) if cfg.learn && filter_speed_mps <= cfg.learn_filter_speed_max_mps => {
+                let raise = |fixed: f64, level: f64, bound: f64| {
+                    fixed.max((cfg.learn_margin * level).min(bound))
+                };
+                Thresholds {
+                    accel_std_mps2: raise(fixed.accel_std_mps2, a, cfg.learn_accel_std_max_mps2),
+                    gyro_std_radps: raise(fixed.gyro_std_radps, g, cfg.learn_gyro_std_max_radps),
+                }
+            }
+            _ => fixed,
+        }
+    }
+
+    /// The decision with these thresholds ([`is_stationary`]'s tests).
+    pub fn is_stationary(
+        &self,
+        cfg: &StationarityConfig,
+        s: &WindowStats,
+        gravity_mps2: f64,
+        gnss_speed_mps: Option<f64>,
+        filter_speed_mps: f64,
+    ) -> bool {
+        let thr = self.thresholds(cfg, filter_speed_mps);
+        passes(cfg, &thr, s, gravity_mps2, gnss_speed_mps, filter_speed_mps)
+    }
 }
 
 #[cfg(test)]
@@ -253,5 +427,85 @@ mod tests {
         // a NaN empties the window
         d.push(&[f64::NAN, 0.0, 0.0], &[0.0; 3]);
         assert!(d.is_empty());
+    }
+
+    /// A window with alternating specific-force and rate (amplitudes `a` m/s^2, `w` rad/s).
+    fn vibrating<T: Scalar>(a: f64, w: f64) -> WindowStats {
+        let mut d = StationarityDetector::<T, 64>::new();
+        for k in 0..64 {
+            let s = if k % 2 == 0 { 1.0 } else { -1.0 };
+            d.push(&[s * a, 0.0, -9.80 + s * a], &[s * w, -s * w, 0.0]);
+        }
+        d.stats(50).expect("full window")
+    }
+
+    fn learns_idling_and_refuses_driving<T: Scalar>() {
+        let cfg = StationarityConfig::DEFAULT;
+        // idling: 0.11 m/s^2 and 1.2 deg/s spread, above the fixed 0.1 / 0.5
+        let idle = vibrating::<T>(0.08, 0.015);
+        assert!(idle.f_std_mps2 > 0.11 && idle.w_std_radps > 1.1f64.to_radians());
+        assert!(!is_stationary(&cfg, &idle, 9.80, Some(0.0), 0.0));
+        let mut rest = RestLevel::<T>::new();
+        assert_eq!(rest.level(), None);
+        assert!(!rest.is_stationary(&cfg, &idle, 9.80, None, 0.0));
+        // not learned: the GNSS is missing, says it moves, the filter moves, it shakes like a
+        // drive, learning is off
+        assert!(!rest.learn(&cfg, &idle, 9.80, None, 0.0, 0.1));
+        assert!(!rest.learn(&cfg, &idle, 9.80, Some(0.5), 0.0, 0.1));
+        assert!(!rest.learn(&cfg, &idle, 9.80, Some(0.0), 0.8, 0.1));
+        let drive = vibrating::<T>(0.4, 0.03);
+        assert!(!rest.learn(&cfg, &drive, 9.80, Some(0.0), 0.0, 0.1));
+        let off = StationarityConfig {
+            learn: false,
+            ..cfg
+        };
+        assert!(!rest.learn(&off, &idle, 9.80, Some(0.0), 0.0, 0.1));
+        assert_eq!(rest.level(), None);
+        // learned at a GNSS-confirmed stop
+        for _ in 0..50 {
+            assert!(rest.learn(&cfg, &idle, 9.80, Some(0.02), 0.01, 0.1));
+        }
+        let [a, g] = rest.level().expect("learned");
+        assert!((a - idle.f_std_mps2).abs() < 1e-4, "{a}");
+        assert!((g - idle.w_std_radps).abs() < 1e-5, "{g}");
+        let thr = rest.thresholds(&cfg, 0.0);
+        assert!((thr.accel_std_mps2 - 1.5 * a).abs() < 1e-6);
+        assert!((thr.gyro_std_radps - 1.5 * g).abs() < 1e-6);
+        // the idling vibration is now still without the GNSS...
+        assert!(rest.is_stationary(&cfg, &idle, 9.80, None, 0.0));
+        // ...but not when the filter moves at 0.8 m/s (slow driving), nor when the GNSS moves
+        assert!(!rest.is_stationary(&cfg, &idle, 9.80, None, 0.8));
+        assert_eq!(
+            rest.thresholds(&cfg, 0.8).accel_std_mps2,
+            cfg.accel_std_max_mps2
+        );
+        assert!(!rest.is_stationary(&cfg, &idle, 9.80, Some(0.3), 0.0));
+        // driving vibration and turning stay moving
+        assert!(!rest.is_stationary(&cfg, &drive, 9.80, None, 0.0));
+        let mut turn = idle;
+        turn.w_mean_radps = [0.0, 0.0, 0.05];
+        assert!(!rest.is_stationary(&cfg, &turn, 9.80, None, 0.0));
+        // a quiet stop: the learned level follows it down over learn_tau_s, the thresholds
+        // never below the fixed ones
+        let quiet = vibrating::<T>(0.01, 0.001);
+        for _ in 0..200 {
+            rest.learn(&cfg, &quiet, 9.80, Some(0.0), 0.0, 0.1);
+        }
+        let thr = rest.thresholds(&cfg, 0.0);
+        assert_eq!(thr.accel_std_mps2, cfg.accel_std_max_mps2);
+        assert_eq!(thr.gyro_std_radps, cfg.gyro_std_max_radps);
+        // the bounds cap the learned thresholds
+        let mut loud = RestLevel::<T>::new();
+        let near_bound = vibrating::<T>(0.13, 0.022);
+        assert!(loud.learn(&cfg, &near_bound, 9.80, Some(0.0), 0.0, 0.1));
+        let thr = loud.thresholds(&cfg, 0.0);
+        assert_eq!(thr.accel_std_mps2, cfg.learn_accel_std_max_mps2);
+        assert_eq!(thr.gyro_std_radps, cfg.learn_gyro_std_max_radps);
+    }
+
+    #[test]
+    fn rest_level_learns_the_idling_vibration_in_f64_and_f32() {
+        learns_idling_and_refuses_driving::<f64>();
+        learns_idling_and_refuses_driving::<f32>();
     }
 }

@@ -48,7 +48,8 @@ impl Default for ZuptConfig {
 pub struct ZaruConfig {
     /// Use it (needs a gyro-bias block in the layout).
     pub enabled: bool,
-    /// 1-sigma of the window-mean rate at a stop, rad/s.
+    /// 1-sigma of the window-mean rate at a stop, rad/s; [`super::Aiding`] adds the window
+    /// mean's standard error (rate spread / sqrt(3 n) per axis) in quadrature.
     pub sigma_radps: f64,
     /// Chi-square gate on the 3-dof NIS (infinite: none).
     pub nis_gate: f64,

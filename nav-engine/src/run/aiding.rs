@@ -94,6 +94,14 @@ pub struct AidingReport {
     pub epochs: u32,
     /// Of those, declared stationary.
     pub stationary_epochs: u32,
+    /// Runs of consecutive stationary decisions: `[first, last]` decision time, s (GPS
+    /// seconds of week), in time order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stationary_intervals: Vec<[f64; 2]>,
+    /// The vibration learned at GNSS-confirmed stops at the end of the run: specific-force
+    /// spread m/s^2, rate spread deg/s (none learned: absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rest_level: Option<[f64; 2]>,
     /// Non-holonomic constraint.
     pub nhc: SourceReport,
     /// Zero-velocity update.
@@ -125,6 +133,8 @@ impl AidingReport {
         Self {
             epochs: c.epochs,
             stationary_epochs: c.stationary_epochs,
+            stationary_intervals: Vec::new(),
+            rest_level: None,
             nhc: SourceReport::of(cfg.nhc.enabled, &c.nhc),
             zupt: SourceReport::of(cfg.zupt.enabled, &c.zupt),
             zaru: SourceReport::of(cfg.zaru.enabled, &c.zaru),
@@ -168,6 +178,12 @@ impl AidingReport {
             self.stationary_epochs,
             self.epochs
         );
+        if let Some([a, w]) = self.rest_level {
+            line.push_str(&format!(
+                " ({} stops; vibration learned at stops {a:.3} m/s^2, {w:.2} deg/s)",
+                self.stationary_intervals.len()
+            ));
+        }
         if let Some([k, s]) = self.odometer_scale {
             line.push_str(&format!(
                 "; odometer scale factor {:+.3} % +- {:.3} %",
@@ -199,6 +215,8 @@ pub struct RunAiding<T: Scalar> {
     heading: Option<HeadingStream>,
     odometer_scale: Option<[f64; 2]>,
     input_error: Option<String>,
+    stationary_intervals: Vec<[f64; 2]>,
+    last_stationary: bool,
 }
 
 impl<T: Scalar> RunAiding<T> {
@@ -232,6 +250,8 @@ impl<T: Scalar> RunAiding<T> {
             heading,
             odometer_scale: None,
             input_error: None,
+            stationary_intervals: Vec::new(),
+            last_stationary: false,
         })
     }
 
@@ -272,6 +292,7 @@ impl<T: Scalar> RunAiding<T> {
             }
             None => None,
         };
+        let stationary_before = self.inner.counters().stationary_epochs;
         self.inner.on_imu_with(
             f,
             &AidingInputs {
@@ -279,6 +300,13 @@ impl<T: Scalar> RunAiding<T> {
                 odometer_speed_mps,
             },
         );
+        if self.inner.counters().stationary_epochs != stationary_before {
+            match self.stationary_intervals.last_mut() {
+                Some(last) if self.last_stationary => last[1] = t,
+                _ => self.stationary_intervals.push([t, t]),
+            }
+        }
+        self.last_stationary = self.inner.is_stationary();
         if odometer_speed_mps.is_some() {
             if let Some(v) = f.block_value(BlockKind::OdometerScale) {
                 self.odometer_scale = Some([v.estimate[0], v.sigma[0]]);
@@ -311,6 +339,8 @@ impl<T: Scalar> RunAiding<T> {
         r.odometer_scale = self.odometer_scale;
         r.heading_skipped = self.heading.as_ref().map_or(0, |h| h.skipped() as u64);
         r.input_error = self.input_error.clone();
+        r.stationary_intervals = self.stationary_intervals.clone();
+        r.rest_level = self.inner.rest_level().map(|[a, w]| [a, w.to_degrees()]);
         r
     }
 }
