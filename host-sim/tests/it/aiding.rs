@@ -24,7 +24,7 @@ fn scenario() -> Scenario {
 /// The filter's model of the `consumer-mems` preset: white noise as simulated, the flicker
 /// floors as Gauss-Markov (accel, 40 ug over 100 s) and random walk (gyro, 7.5 deg/h per
 /// 100 s), turn-on biases 5 mg and 0.05 deg/s.
-fn consumer_filter() -> FilterConfig {
+pub(crate) fn consumer_filter() -> FilterConfig {
     let acc = SensorNoise::isotropic(
         units::accel_psd_from_ug_per_sqrt_hz(150.0),
         units::gm_psd_from_sigma(units::mps2_from_ug(40.0), 100.0),

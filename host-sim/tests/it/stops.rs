@@ -4,7 +4,6 @@
 //! speed that the real-drive test (`aiding.rs`) uses.
 use host_sim::run::case_data;
 use nav_core::aiding::AidingConfig;
-use nav_core::config::{units, FilterConfig, SensorNoise};
 use nav_core::filter::InitialUncertainty;
 use nav_core::types::GnssFix;
 use nav_engine::run::aiding::AidingReport;
@@ -152,23 +151,9 @@ fn add_engine_vibration(
 }
 
 fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
-    let acc = SensorNoise::isotropic(
-        units::accel_psd_from_ug_per_sqrt_hz(150.0),
-        units::gm_psd_from_sigma(units::mps2_from_ug(40.0), 100.0),
-        100.0,
-        (units::mps2_from_ug(4.0)).powi(2),
-        units::mps2_from_ug(5000.0),
-    );
-    let gyr = SensorNoise::isotropic(
-        (0.014f64.to_radians()).powi(2),
-        0.0,
-        100.0,
-        (units::radps_from_deg_per_h(0.75)).powi(2),
-        0.05f64.to_radians(),
-    );
     let mut o = RunOptions::new(
         Model::Nbk,
-        FilterConfig::with_noise(acc, gyr),
+        crate::aiding::consumer_filter(),
         InitSpec::FromTruth {
             pos_err_m: [0.0; 3],
             vel_err_mps: [0.0; 3],
