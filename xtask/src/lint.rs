@@ -2,7 +2,7 @@
 //!
 //! 1. Wording: code, comments and documentation speak of the product. A ticket reference (the
 //!    word for a tracker ticket followed by a number, with or without `#`) or a work-log word
-//!    (the word for a working sitting) in a `.rs` or `.md`
+//!    (the word for a working sitting) in a `.rs`, `.md` or `.toml`
 //!    file of the repository is an error naming the file, line and column.
 //! 2. The library crates ([`LIBRARY_CRATES`]) do not depend on `clap`: their option enums
 //!    implement `FromStr` and `Display` (with `strum`) and the binaries turn them into clap
@@ -563,7 +563,7 @@ fn in_src(rel: &str) -> bool {
 pub fn check_repo(root: &Path, update_allowlist: bool) -> Result<Vec<Finding>> {
     let mut findings = Vec::new();
     let mut all = Vec::new();
-    files(root, &[".rs", ".md"], &mut all)?;
+    files(root, &[".rs", ".md", ".toml"], &mut all)?;
     let mut lengths = Vec::new();
     for p in &all {
         let r = rel(root, p);

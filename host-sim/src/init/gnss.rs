@@ -69,6 +69,9 @@ pub(crate) fn detect(path: &Path, shown: &str, g: &mut Guess) -> anyhow::Result<
             && (l.contains("latitude(") || l.contains("x-ecef(") || l.contains("e-baseline("))
     }) {
         writeln!(s, "[gnss]\npath = {shown:?}\nformat = \"rtklib_pos\"  # `%` header with RTKLIB's column names")?;
+        if let Some(line) = pos_quality(&t) {
+            writeln!(s, "{line}")?;
+        }
         let has_vel = t.head.iter().any(|l| l.contains("vn(m/s)"));
         if has_vel {
             writeln!(
@@ -89,6 +92,55 @@ pub(crate) fn detect(path: &Path, shown: &str, g: &mut Guess) -> anyhow::Result<
         return Ok(s);
     }
     csv(&t, shown, g)
+}
+
+/// The `max_q` line of an RTKLIB `.pos` file from the counts of its quality flags (column `Q`
+/// of the `%` header): RTK fixed solutions only when they are at least half of the records,
+/// else fixed and float when those are, else every quality.
+fn pos_quality(t: &Table) -> Option<String> {
+    let names: Vec<&str> = t
+        .head
+        .iter()
+        .rev()
+        .find(|l| l.starts_with('%') && l.split_whitespace().any(|w| w == "Q"))?
+        .trim_start_matches('%')
+        .split_whitespace()
+        .collect();
+    // the time takes two fields in the data (date and time, or week and seconds) and one name
+    let col = names.iter().position(|n| *n == "Q")? + t.width.checked_sub(names.len())?;
+    let mut counts = [0usize; 7];
+    for r in &t.rows {
+        let q = r.get(col)?.parse::<f64>().ok()?;
+        if !((1.0..=6.0).contains(&q) && q.fract() == 0.0) {
+            return None;
+        }
+        counts[q as usize] += 1;
+    }
+    let n = t.rows.len();
+    if n == 0 {
+        return None;
+    }
+    let seen: Vec<String> = (1..=6)
+        .filter(|q| counts[*q] > 0)
+        .map(|q| format!("{} x Q{q}", counts[q]))
+        .collect();
+    let (max_q, why) = if 2 * counts[1] >= n {
+        (1, "RTK fixed solutions are at least half: float and single ones are left out (max_q = 2 keeps the floats, with their sigmas)")
+    } else if 2 * (counts[1] + counts[2]) >= n {
+        (
+            2,
+            "fixed and float solutions are at least half: single-point ones are left out",
+        )
+    } else {
+        (
+            6,
+            "no quality dominates: every solution is used with its sigmas",
+        )
+    };
+    Some(format!(
+        "max_q = {max_q}  # quality flags of the first {n} records: {}; {why}",
+        seen.join(", ")
+    ))
 }
 
 fn project_text(t: &Table) -> bool {

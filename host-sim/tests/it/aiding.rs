@@ -6,10 +6,10 @@ use host_sim::run::case_data;
 use nav_core::aiding::AidingConfig;
 use nav_core::config::{units, FilterConfig, SensorNoise};
 use nav_core::filter::InitialUncertainty;
-use nav_engine::execute;
 use nav_engine::metrics::{self, errors_vs_truth};
 use nav_engine::run::{run_filter, InitSpec, Model, Outage, PeriodicOutages, RunOptions};
 use nav_engine::RunSpec;
+use nav_engine::{execute, execute_case};
 use nav_sim::{simulate, Case, ErrorModel, Scenario};
 use std::path::Path;
 
@@ -264,6 +264,15 @@ fn real_drive_with_aiding_meets_the_issue_targets() {
     println!("real drive: outages RMS-of-max {fwd:.3} m (target 4.0), with GNSS {with_gnss:.3} m (target 0.10)");
     assert!(fwd <= 4.0, "{fwd}");
     assert!(with_gnss <= 0.10, "{with_gnss}");
+    // the thresholds learned at stops find 2.6 times the stops of the fixed ones
+    // (below) and do not make the outages worse (2.338 vs 2.340 m): the zero-rate update is
+    // made at quiet stops only
+    let mut fixed = p.opts.clone();
+    fixed.aiding.filter.stationarity.learn = false;
+    let (_, mf) = execute_case(&p.case, &fixed, &mut |_, _| {}).expect("run");
+    let fwd_fixed = mf.outage_summary.max_horizontal_m.rms;
+    println!("real drive: outages RMS-of-max {fwd_fixed:.3} m with the fixed stop thresholds");
+    assert!(fwd <= fwd_fixed, "learned {fwd} m, fixed {fwd_fixed} m");
     for r in [&out0.aiding, &out.aiding] {
         assert!(r.nhc.used > 3000 && r.zupt.used > 100, "{r:?}");
         assert_eq!(r.nhc.failed + r.zupt.failed + r.zaru.failed, 0);

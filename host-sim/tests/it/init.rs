@@ -298,11 +298,53 @@ fn init_on_rover_lines_rtklib_pos_and_nmea() {
 
     std::fs::remove_file(&cfg).unwrap();
     let (cfg, _) = init(d, "imu.txt", "gnss.pos");
-    assert!(text_of(&cfg).contains("format = \"rtklib_pos\""));
+    let t = text_of(&cfg);
+    assert!(t.contains("format = \"rtklib_pos\""));
+    let n = s.gnss.len();
+    assert!(
+        t.contains(&format!(
+            "max_q = 1  # quality flags of the first {n} records: {n} x Q1;"
+        )),
+        "{t}"
+    );
     same_solution_as_hand(
         d,
         &cfg,
         &format!("{imu}[gnss]\npath = \"gnss.pos\"\nformat = \"rtklib_pos\"\n"),
+    );
+
+    // floats in the majority, a few single-point solutions: fixed and float are kept
+    std::fs::remove_file(&cfg).unwrap();
+    let mixed: String = std::fs::read_to_string(d.join("gnss.pos"))
+        .unwrap()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let q = match i % 10 {
+                0 => "1",
+                1..=3 => "5",
+                _ => "2",
+            };
+            let l = if i == 0 {
+                l.to_string()
+            } else {
+                l.replacen("   1  12   ", &format!("   {q}  12   "), 1)
+            };
+            l + "\n"
+        })
+        .collect();
+    std::fs::write(d.join("gnss.pos"), mixed).unwrap();
+    let (cfg, _) = init(d, "imu.txt", "gnss.pos");
+    let t = text_of(&cfg);
+    assert!(t.contains("max_q = 2  # quality flags of the first"), "{t}");
+    assert!(
+        t.contains(" x Q1, ") && t.contains(" x Q2, ") && t.contains(" x Q5;"),
+        "{t}"
+    );
+    same_solution_as_hand(
+        d,
+        &cfg,
+        &format!("{imu}[gnss]\npath = \"gnss.pos\"\nformat = \"rtklib_pos\"\nmax_q = 2\n"),
     );
 
     std::fs::remove_file(&cfg).unwrap();
@@ -350,6 +392,8 @@ fn init_then_run_on_the_real_drive0708() {
         "tag_file = \"imu_1934.csv.tag\"",
         "static_s = 19.0",
         "format = \"rtklib_pos\"",
+        // 2,189 fixed, 8 float: as configs/drive0708.toml
+        "max_q = 1  # quality flags of the first",
     ] {
         assert!(t.contains(want), "{want} not in\n{t}");
     }

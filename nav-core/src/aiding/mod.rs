@@ -372,16 +372,14 @@ impl<T: Scalar, const W: usize> Aiding<T, W> {
                 let res = f.update_aiding(&z, &h, &r, self.cfg.zupt.nis_gate);
                 count(&mut self.counters.zupt, res);
             }
-            if self.cfg.zaru.enabled {
-                // the window mean's standard error (per axis: spread^2 / (3 n)) in quadrature:
-                // an idling engine shakes the gyro by a degree per second
-                let mut zaru = self.cfg.zaru;
-                let se2 = stats.w_std_radps * stats.w_std_radps / (3.0 * stats.n as f64);
-                if se2.is_finite() {
-                    zaru.sigma_radps = libm::sqrt(zaru.sigma_radps * zaru.sigma_radps + se2);
-                }
+            // the zero-rate update only at a quiet stop (rate spread within the fixed
+            // threshold): an idling engine's vibration shifts the window-mean rate of a MEMS
+            // gyro (vibration rectification), which a ZARU would take for gyro bias; the
+            // zero-velocity update holds at every stop
+            let quiet = stats.w_std_radps <= self.cfg.stationarity.gyro_std_max_radps;
+            if self.cfg.zaru.enabled && quiet {
                 if let Some((z, h, r)) = zupt::zaru_measurement::<T, N>(
-                    &zaru,
+                    &self.cfg.zaru,
                     &layout,
                     f.nav_state(),
                     &stats.w_mean_radps,

@@ -48,8 +48,9 @@ impl Default for ZuptConfig {
 pub struct ZaruConfig {
     /// Use it (needs a gyro-bias block in the layout).
     pub enabled: bool,
-    /// 1-sigma of the window-mean rate at a stop, rad/s; [`super::Aiding`] adds the window
-    /// mean's standard error (rate spread / sqrt(3 n) per axis) in quadrature.
+    /// 1-sigma of the window-mean rate at a stop, rad/s. [`super::Aiding`] makes the update
+    /// only at a quiet stop: the window's rate spread within the detector's fixed
+    /// `gyro_std_max_radps` (an idling engine's vibration shifts a MEMS gyro's mean rate).
     pub sigma_radps: f64,
     /// Chi-square gate on the 3-dof NIS (infinite: none).
     pub nis_gate: f64,
