@@ -11,7 +11,8 @@
 //! - gyro unit `deg/s` or `rad/s`; accelerometer unit `g` (9.80665 m/s^2) or `m/s^2`;
 //! - time ([`CsvTime`]): a column of GPS seconds of week (`kind = "gps_sow"`, as for the GNSS
 //!   CSV; `"seconds"` also accepted), Unix seconds or milliseconds (`unix_s`, `unix_ms`, in
-//!   the time scale `scale`, UTC by default, as for the GNSS CSV), a tick column in ms
+//!   the time scale `scale`, UTC by default, as for the GNSS CSV), date-time text (`text`,
+//!   with a chrono `format` and a `scale`, as for the GNSS CSV), a tick column in ms
 //!   (optionally placed in GPS time with an RTKLIB time-tag file, see below), or a fixed rate
 //!   without a time column (row k at `start_s + k / rate_hz`);
 //! - `time_offset_s` added to every time stamp last (e.g. a logging delay correction).
@@ -52,7 +53,7 @@
 
 use super::gnsscsv::{week_sow_of_epoch, TimeScale};
 use super::gpstime::SECONDS_PER_WEEK;
-use super::lines::{open_text, split_fields, LineReader, MonotonicTime};
+use super::lines::{open_text, split_fields, DataLine, LineReader, MonotonicTime};
 use super::tag::{read_time_tag, TimeTag};
 use super::text::{ImuRecord, TimeGapReport};
 use super::IoError;
@@ -143,6 +144,16 @@ pub enum CsvTime {
     /// Milliseconds since 1970-01-01 00:00:00 in `columns.time`, as `unix_s`.
     UnixMs {
         /// Time scale of the count (`utc`, the default, or `gps`).
+        #[serde(default)]
+        scale: TimeScale,
+    },
+    /// Date and time as text in `columns.time`, parsed with a chrono format string (as for the
+    /// GNSS CSV; the field must not contain the separator, e.g. `%Y-%m-%dT%H:%M:%S%.f`), placed
+    /// in GPS seconds of the first row's week as `unix_s` is.
+    Text {
+        /// chrono `strftime` format.
+        format: String,
+        /// Time scale of the text (`utc`, the default, or `gps`).
         #[serde(default)]
         scale: TimeScale,
     },
@@ -545,7 +556,12 @@ fn check_format(path: &Path, fmt: &ImuCsvFormat) -> Result<(), IoError> {
                 ),
             ));
         }
-    } else if fmt.columns.time.is_none() {
+    } else if let CsvTime::Text { format, .. } = &fmt.time {
+        if format.trim().is_empty() {
+            return Err(cfg_err(path, "imu.csv.time.format is empty"));
+        }
+    }
+    if !matches!(fmt.time, CsvTime::FixedRate { .. }) && fmt.columns.time.is_none() {
         return Err(cfg_err(
             path,
             "a time column is required unless time.kind = \"fixed_rate\"",
@@ -596,6 +612,9 @@ pub struct ImuCsvReader {
     stretch: f64,
     /// The last row parsed (an exact repeat of it is passed on).
     last_row: Option<RawImuSample>,
+    /// A date-time text time column (`kind = "text"`): its chrono format, its scale and the
+    /// GPS week of the first row (the time stamps are seconds of that week).
+    text: Option<(String, TimeScale, Option<i64>)>,
     failed: bool,
 }
 
@@ -617,6 +636,32 @@ fn same_row(a: &RawImuSample, b: &RawImuSample) -> bool {
     bits(a) == bits(b)
 }
 
+/// Field `i` of `dl`, a date-time text in the chrono format `format` and time scale `scale`,
+/// as GPS seconds of the week `week0` (set by the first row; later weeks continue past
+/// 604,800 s).
+fn text_gps_s(
+    dl: &DataLine<'_>,
+    i: usize,
+    format: &str,
+    scale: TimeScale,
+    week0: &mut Option<i64>,
+) -> Result<f64, IoError> {
+    let text = dl.fields.get(i).copied().unwrap_or("");
+    let t = chrono::NaiveDateTime::parse_from_str(text, format).map_err(|e| {
+        dl.invalid(
+            i,
+            "time [text]",
+            format!("does not match the format {format:?}: {e}"),
+        )
+    })?;
+    let u = t.and_utc();
+    let frac = f64::from(u.timestamp_subsec_nanos()) * 1e-9;
+    let (w, sow) = week_sow_of_epoch(u.timestamp(), frac, scale)
+        .ok_or_else(|| dl.invalid(i, "time [text]", "outside the GPS time scale"))?;
+    let w0 = *week0.get_or_insert(w);
+    Ok(sow + (w - w0) as f64 * SECONDS_PER_WEEK)
+}
+
 impl ImuCsvReader {
     /// Opens `path` with the mapping `fmt` (reads the tag file and, with a tag file, the first
     /// rows for the first tick, or a whole first pass over the rows when the ticks are stretched
@@ -626,6 +671,8 @@ impl ImuCsvReader {
         let mut r = Self::open_mapped(path, fmt, TimeMap::Column)?;
         match &fmt.time {
             CsvTime::Seconds => {}
+            // a date-time text is placed in GPS seconds as each row is parsed
+            CsvTime::Text { .. } => {}
             CsvTime::UnixS { scale } | CsvTime::UnixMs { scale } => {
                 r.map = TimeMap::Unix {
                     ms: matches!(fmt.time, CsvTime::UnixMs { .. }),
@@ -728,6 +775,10 @@ impl ImuCsvReader {
             tag: None,
             stretch: 1.0,
             last_row: None,
+            text: match &fmt.time {
+                CsvTime::Text { format, scale } => Some((format.clone(), *scale, None)),
+                _ => None,
+            },
             failed: false,
         })
     }
@@ -770,7 +821,10 @@ impl ImuCsvReader {
             s.temperature_c = dl.num_allow_nan(i, nm(i))?;
         }
         if let Some(i) = c.time {
-            s.t_s = dl.num(i, nm(i))?;
+            s.t_s = match &mut self.text {
+                Some((f, scale, week0)) => text_gps_s(&dl, i, f, *scale, week0)?,
+                None => dl.num(i, nm(i))?,
+            };
             // an exact repeat of the previous row (a logger writing a record twice) is passed
             // on: the increments skip it ([`ImuCsvIncrements`])
             let repeat = self.last_row.is_some_and(|p| same_row(&p, &s));

@@ -160,7 +160,8 @@ fn named(t: &Table, keys: &[&str]) -> Option<usize> {
     })
 }
 
-fn text_format(t: &Table, c: usize) -> Option<&'static str> {
+/// The first of the known date-time formats that column `c`'s first value reads in.
+pub(super) fn text_format(t: &Table, c: usize) -> Option<&'static str> {
     let v = t.rows.first()?.get(c)?;
     TEXT_FORMATS
         .iter()

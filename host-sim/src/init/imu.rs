@@ -54,10 +54,26 @@ pub(crate) fn detect(
     if t.rows.len() < 10 {
         anyhow::bail!("{}: fewer than 10 data rows recognised", path.display());
     }
-    let tc = (0..t.width)
-        .find(|c| t.numeric(*c) && increasing(&t.col(*c)))
-        .ok_or_else(|| anyhow::anyhow!("{}: no increasing time column", path.display()))?;
-    let tv = t.col(tc);
+    // a date-time text column, else the first increasing numeric one
+    let text = (0..t.width)
+        .filter(|c| !t.numeric(*c))
+        .find_map(|c| super::gnss::text_format(&t, c).map(|f| (c, f)));
+    let (tc, tv) = match text {
+        Some((c, f)) => (c, text_seconds(&t, c, f)),
+        None => {
+            let tc = (0..t.width)
+                .find(|c| t.numeric(*c) && increasing(&t.col(*c)))
+                .ok_or_else(|| anyhow::anyhow!("{}: no increasing time column", path.display()))?;
+            (tc, t.col(tc))
+        }
+    };
+    if !increasing(&tv) {
+        anyhow::bail!(
+            "{}: the time column {} does not increase",
+            path.display(),
+            tc + 1
+        );
+    }
     let step = median_step(&tv).unwrap_or(f64::NAN);
     // the accelerometer triple: consecutive numeric columns whose median norm is 1 g, 9.8
     // m/s^2, or 9.8 m/s^2 x the interval (increments)
@@ -111,7 +127,10 @@ pub(crate) fn detect(
         anyhow::bail!("{}: the columns hold increments (|dv| = g x dt) in a layout other than the project's text `t dtheta(3) dv(3)`: not readable", path.display());
     }
     let gyro_unit = gyro_unit(&t, gc, hints, g);
-    let (time_toml, dt_s) = time_kind(path, &t, tc, hints, g)?;
+    let (time_toml, dt_s) = match text {
+        Some((c, f)) => text_time(&t, c, f, &tv, g),
+        None => time_kind(path, &t, tc, hints, g)?,
+    };
     writeln!(
         s,
         "[imu]\npath = {shown:?}\nformat = \"csv\"  # {} separated, {} columns{}",
@@ -176,6 +195,48 @@ fn gyro_unit(t: &Table, gc: usize, hints: &GnssHints, g: &mut Guess) -> String {
     ));
     format!(
         "gyro_unit = \"rad/s\"  # GUESS: 99th percentile |w| {peak:.4}, no turns to compare with"
+    )
+}
+
+/// Column `c`'s date-time texts in the format `f` as seconds since 1970 (NaN where one does
+/// not read).
+fn text_seconds(t: &Table, c: usize, f: &str) -> Vec<f64> {
+    t.rows
+        .iter()
+        .map(|r| {
+            r.get(c)
+                .and_then(|v| chrono::NaiveDateTime::parse_from_str(v, f).ok())
+                .map_or(f64::NAN, |d| {
+                    let u = d.and_utc();
+                    u.timestamp() as f64 + f64::from(u.timestamp_subsec_nanos()) * 1e-9
+                })
+        })
+        .collect()
+}
+
+/// The `[imu.csv.time]` lines of a date-time text column `c` in the format `f` (times `tv`)
+/// and the sample interval in s.
+fn text_time(t: &Table, c: usize, f: &str, tv: &[f64], g: &mut Guess) -> (String, f64) {
+    let step = median_step(tv).unwrap_or(f64::NAN);
+    let gps = t
+        .head
+        .iter()
+        .any(|l| l.to_ascii_lowercase().contains("gps"));
+    if !gps {
+        g.unknown.push(format!(
+            "IMU time scale of the date-time text (column {}): UTC assumed; write scale = \"gps\" if the logger writes GPS time",
+            c + 1
+        ));
+    }
+    (
+        format!(
+            "kind = \"text\"\nformat = {f:?}  # column {} reads as date-time text `{}`, step {step:.4} s\nscale = \"{}\"  # {}",
+            c + 1,
+            t.rows[0][c],
+            if gps { "gps" } else { "utc" },
+            if gps { "the header says GPS" } else { "GUESS: not stated in the file" }
+        ),
+        step,
     )
 }
 

@@ -253,6 +253,77 @@ speed_sigma = "speed_acc"
 kind = "unix_ms"
 "#,
     );
+
+    // the same IMU with date-time text (UTC, milliseconds) in its time column
+    let imu_ms = std::fs::read_to_string(d.join("phone_imu.csv")).unwrap();
+    let mut imu_text = String::from("utc,gx,gy,gz,ax,ay,az\n");
+    for l in imu_ms.lines().skip(1) {
+        let (ms, rest) = l.split_once(',').unwrap();
+        let ms: i64 = ms.parse().unwrap();
+        let gps_ms = ms - (GPS_EPOCH_UNIX as i64 - i64::from(LEAP)) * 1000;
+        let (y, mo, dd, h, mi, sec) = utc_of_gps(
+            gps_ms.div_euclid(604_800_000),
+            gps_ms.rem_euclid(604_800_000) as f64 * 1e-3,
+            LEAP,
+        );
+        let m = (sec * 1000.0).round() as u32;
+        let _ = writeln!(
+            imu_text,
+            "{y}-{mo:02}-{dd:02}T{h:02}:{mi:02}:{:02}.{:03},{rest}",
+            m / 1000,
+            m % 1000
+        );
+    }
+    std::fs::write(d.join("phone_imu_text.csv"), imu_text).unwrap();
+    std::fs::remove_file(&cfg).unwrap();
+    let (cfg, _) = init(d, "phone_imu_text.csv", "fixes.csv");
+    let t = text_of(&cfg);
+    for want in [
+        "kind = \"text\"",
+        "format = \"%Y-%m-%dT%H:%M:%S%.f\"",
+        "scale = \"utc\"",
+        "time = \"utc\"",
+    ] {
+        assert!(t.contains(want), "{want} not in\n{t}");
+    }
+    same_solution_as_hand(
+        d,
+        &cfg,
+        r#"[imu]
+path = "phone_imu_text.csv"
+format = "csv"
+[imu.csv]
+skip_lines = 1
+gyro_unit = "deg/s"
+accel_unit = "g"
+[imu.csv.columns]
+time = "utc"
+gyro = ["gx", "gy", "gz"]
+accel = ["ax", "ay", "az"]
+[imu.csv.time]
+kind = "text"
+format = "%Y-%m-%dT%H:%M:%S%.f"
+scale = "utc"
+[gnss]
+path = "fixes.csv"
+format = "csv"
+use_velocity = true
+[gnss.csv]
+skip_lines = 1
+[gnss.csv.columns]
+time = "time_ms"
+lat = "lat"
+lon = "lon"
+h = "alt"
+sigma_h = "acc"
+sigma_v = "vacc"
+speed = "speed"
+course = "bearing"
+speed_sigma = "speed_acc"
+[gnss.csv.time]
+kind = "unix_ms"
+"#,
+    );
 }
 
 /// A rover's text lines `2015_11_26_15_00_02_617 RTK_FIXED lat lon h sN sE sD` (UTC), an RTKLIB

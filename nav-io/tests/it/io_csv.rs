@@ -627,3 +627,68 @@ fn drive_readme_mounting_is_euler_addition_equal_to_composing_the_flipped_correc
         .to_degrees();
     assert!(angle > 10.0, "{angle}");
 }
+
+/// Date-time text in the time column (`kind = "text"`, the GNSS CSV's name and keys): the same
+/// time stamps as the GPS seconds of week they spell, in GPS time and in UTC (18 leap seconds
+/// in 2025), across midnight; a field that does not match the format names file, line,
+/// column and the format.
+#[test]
+fn date_time_text_times_are_the_gps_seconds_they_spell() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2025-07-08 is a Tuesday: GPS week 2374 began on Sunday 2025-07-06 00:00 GPS time
+    let sow0 = 2.0 * 86_400.0 + 86_399.99;
+    let mut text = String::new();
+    let mut sow = String::new();
+    for k in 0..4 {
+        let t = sow0 + 0.005 * k as f64;
+        let (day, s_of_day) = if t >= 3.0 * 86_400.0 {
+            (9, t - 3.0 * 86_400.0)
+        } else {
+            (8, t - 2.0 * 86_400.0)
+        };
+        let (h, m, s) = (
+            (s_of_day / 3600.0).floor(),
+            ((s_of_day % 3600.0) / 60.0).floor(),
+            s_of_day % 60.0,
+        );
+        let row = format!(",0.1,0.2,0.3,0,0,-1.0,{k}\n");
+        let _ = write!(text, "2025-07-{day:02}T{h:02}:{m:02}:{s:06.3}{row}");
+        let _ = write!(sow, "{t:.3}{row}");
+    }
+    let units = (RateUnit::DegPerS, AccelUnit::G);
+    let mut f_text = fmt_seconds(units, SampleConvention::Trapezoid);
+    f_text.time = CsvTime::Text {
+        format: "%Y-%m-%dT%H:%M:%S%.f".into(),
+        scale: nav_io::TimeScale::Gps,
+    };
+    let f_sow = fmt_seconds(units, SampleConvention::Trapezoid);
+    let p_text = write(dir.path(), "text.csv", &text);
+    let p_sow = write(dir.path(), "sow.csv", &sow);
+    let a = read_imu_csv_raw(&p_text, &f_text).unwrap();
+    let b = read_imu_csv_raw(&p_sow, &f_sow).unwrap();
+    assert_eq!(a.samples.len(), 4);
+    for (x, y) in a.samples.iter().zip(&b.samples) {
+        assert!((x.t_s - y.t_s).abs() < 1e-9, "{} vs {}", x.t_s, y.t_s);
+        assert_eq!(x.gyro_radps, y.gyro_radps);
+    }
+    // past midnight the seconds continue in the first row's week
+    assert!(a.samples[3].t_s > 3.0 * 86_400.0);
+    // UTC text: 18 s later in GPS time
+    f_text.time = CsvTime::Text {
+        format: "%Y-%m-%dT%H:%M:%S%.f".into(),
+        scale: nav_io::TimeScale::Utc,
+    };
+    let u = read_imu_csv_raw(&p_text, &f_text).unwrap();
+    assert!((u.samples[0].t_s - a.samples[0].t_s - 18.0).abs() < 1e-9);
+    // a field that does not match
+    let bad = write(
+        dir.path(),
+        "bad.csv",
+        &text.replacen("2025-07-08T23:59:59.995", "2025-07-08 23:59:59.995", 1),
+    );
+    let e = read_imu_csv_raw(&bad, &f_text).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.csv") && e.contains("line 2") && e.contains("%Y-%m-%dT%H:%M:%S%.f"),
+        "{e}"
+    );
+}
