@@ -8,10 +8,10 @@
 use host_sim::run::case_data;
 use std::time::Instant;
 
-use host_sim::diagnose::{diagnose, DiagnoseOptions};
 use host_sim::run::cli::Prepared;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_diagnose::{diagnose, DiagnoseOptions};
 use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_sim::errors::{Axes3, Temperature};
 use nav_sim::ScenarioBuilder;
@@ -100,7 +100,7 @@ fn main() {
     let dg = &d.diagnosis;
     let runs: usize = dg.rounds.iter().map(|r| r.candidates.len()).sum();
     let noise_runs = dg.noise_tuning.as_ref().map_or(0, |t| {
-        let one = |t: &host_sim::diagnose::NoiseTuning| t.scales.len() - 1 + t.refinement.len();
+        let one = |t: &nav_diagnose::NoiseTuning| t.scales.len() - 1 + t.refinement.len();
         one(t) + t.with_effects.as_deref().map_or(0, |t2| one(t2) + 1)
     });
     println!(

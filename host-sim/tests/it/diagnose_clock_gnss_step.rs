@@ -11,10 +11,10 @@
 //!   (a noise-like block: significant by the held-out paired decision, not by its final
 //!   estimate), the outage error after below the error before.
 #![allow(clippy::needless_range_loop)]
-use host_sim::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, UG_MPS2};

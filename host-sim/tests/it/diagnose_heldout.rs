@@ -20,8 +20,8 @@
 //! bias-step test runs at 50 Hz with the default options (6.7 CPU-s instead of 8.6; the step
 //! 3.44 mg at 315 s, 3.46 mg at 100 Hz, truth 3.44 mg); the sweep runs at 100 Hz with the
 //! default options and takes `DIAGNOSE_HELDOUT_MINUTES` (default 40).
-use host_sim::diagnose::{diagnose, validate, DiagnoseOptions, Diagnosis, WindowKind};
 use host_sim::run::cli::Prepared;
+use nav_diagnose::{diagnose, validate, DiagnoseOptions, Diagnosis, WindowKind};
 use nav_engine::RunSpec;
 use nav_sim::undeclared::{generate, DriveSpec, Effect};
 use nav_sim::ErrorModel;
@@ -101,9 +101,8 @@ fn check_named_first(effect: Effect, d: &Diagnosis) {
     });
     assert_eq!(first.name, effect.block_name(), "{}", summary(d));
     assert!(
-        host_sim::diagnose::is_noise_like(
-            nav_core::model::Block::effect_from_name(&first.name).unwrap()
-        ) || validate::max_z(&first.estimate, &first.sigma) >= validate::MIN_Z
+        nav_diagnose::is_noise_like(nav_core::model::Block::effect_from_name(&first.name).unwrap())
+            || validate::max_z(&first.estimate, &first.sigma) >= validate::MIN_Z
     );
     assert!(first.evidence > 0.0);
     assert!(first.heldout.p_better < 0.05 && first.heldout.gain > 0.0);

@@ -6,10 +6,10 @@
 //! declared errors must give "none detectable" (nothing added) in at least 19 of 20 seeds, and two
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
-use host_sim::diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
+use nav_diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
 use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
@@ -162,7 +162,7 @@ fn assert_never_worse(d: &Diagnosis) {
     for st in d.steps.iter().filter(|s| s.accepted) {
         if let Some(h) = &st.heldout {
             assert!(
-                h.verdict != host_sim::diagnose::HeldoutVerdict::Worse,
+                h.verdict != nav_diagnose::HeldoutVerdict::Worse,
                 "{}: {}",
                 st.label,
                 h.describe()
@@ -558,7 +558,7 @@ fn kf_gins_frozen_scale_factors_are_freed_and_named() {
             }
             let dir = tempfile::tempdir().unwrap();
             let p = kf_gins_prepared(v, &e, seed, dir.path());
-            assert!(host_sim::diagnose::candidates(&p.case, &p.opts)
+            assert!(nav_diagnose::candidates(&p.case, &p.opts)
                 .iter()
                 .any(|b| b.name() == name));
             let d = diagnose(&p, &DiagnoseOptions::default()).unwrap().diagnosis;
@@ -795,7 +795,7 @@ fn refusal_is_right(
     }
     let out = nav_engine::run::run_filter(&corrected, &o).map_err(|e| e.to_string())?;
     let m = nav_engine::metrics::compute(&out, p.case.truth.as_deref());
-    let exact = host_sim::diagnose::validate::step_errors(&out, &m)
+    let exact = nav_diagnose::validate::step_errors(&out, &m)
         .heldout_outage_m
         .ok_or("no held-out error")?;
     let fin = d
@@ -958,8 +958,8 @@ fn without_scale_factor(case: &CaseData, gyro: bool, truth: &[f64]) -> CaseData 
 #[test]
 #[ignore]
 fn refused_scale_factors_help_over_noise_seeds() {
-    use host_sim::diagnose::{options_with, validate};
     use nav_core::model::Block;
+    use nav_diagnose::{options_with, validate};
     let cases: Vec<(&str, [f64; 3], u32, u64)> = vec![
         ("accel_scale_factor", [1200.0, -700.0, 900.0], 0, 95000),
         ("gyro_scale_factor", [600.0, -540.0, 900.0], 0, 95122),
@@ -1036,7 +1036,7 @@ fn refused_scale_factors_help_over_noise_seeds() {
 /// `undeclared` is the true lever arm minus the configured one.
 fn check_written_solution_metric(
     p: &Prepared,
-    out: &host_sim::diagnose::DiagnoseOutput,
+    out: &nav_diagnose::DiagnoseOutput,
     undeclared: [f64; 3],
 ) {
     let d = &out.diagnosis;
@@ -1053,7 +1053,7 @@ fn check_written_solution_metric(
         out.after_nav.load().unwrap(),
     );
     let f = |run: &nav_engine::run::RunOutput, nav, shift: f64, l: [f64; 3]| {
-        host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
+        nav_diagnose::validate::output_vs_fixes_horizontal_rms_m(
             nav,
             shift,
             l,

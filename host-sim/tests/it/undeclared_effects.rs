@@ -226,7 +226,7 @@ fn block_names_are_the_filter_vocabulary() {
     use nav_core::model::{Block, EFFECT_BLOCKS};
     for e in Effect::ALL {
         if matches!(e, Effect::AccelBiasStep | Effect::GyroBiasStep) {
-            let steps = host_sim::diagnose::changepoint::BiasStepSensor::ALL.map(|s| s.name());
+            let steps = nav_diagnose::changepoint::BiasStepSensor::ALL.map(|s| s.name());
             assert!(steps.contains(&e.block_name()), "{e}");
             continue;
         }

@@ -1,9 +1,9 @@
-//! The diagnosis's file of navigation records (`host_sim::diagnose::spill::NavFile`): read
+//! The diagnosis's file of navigation records (`nav_diagnose::spill::NavFile`): read
 //! back bit for bit, a file cut short reported with its name, the temporary folder removed
 //! with its last holder.
 
-use host_sim::diagnose::spill::{temp_folder, NavFile};
 use nav_core::types::NavSolution;
+use nav_diagnose::spill::{temp_folder, NavFile};
 
 fn bits(s: &NavSolution) -> Vec<u64> {
     let mut v = vec![u64::from(s.week), u64::from(s.status)];

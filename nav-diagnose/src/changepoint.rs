@@ -462,7 +462,7 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::imu_cache::ImuCache;
+    use crate::imu_cache::ImuCache;
     use nav_core::types::ImuSample;
     use nav_engine::run::CaseData;
 
@@ -525,7 +525,7 @@ mod tests {
             imu,
             ..CaseData::default()
         };
-        let folder = crate::diagnose::spill::temp_folder().unwrap();
+        let folder = crate::spill::temp_folder().unwrap();
         let cache = ImuCache::from_case(&folder, &data).unwrap();
         let case = Case::new(data, std::sync::Arc::new(cache));
         let c = corrected(&case, BiasStepSensor::Accel, 100.45, &[2.0, 0.0, -1.0]);

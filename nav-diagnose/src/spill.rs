@@ -455,7 +455,7 @@ pub fn metrics_of(
 }
 
 /// The records of `nav` a search run keeps once scored: the first one and, for each of
-/// `innovations`, the one nearest its fix time (as [`crate::diagnose::stats`] picks it in the
+/// `innovations`, the one nearest its fix time (as [`crate::stats`] picks it in the
 /// whole list). Reads the file twice, holding its times (8 bytes a record) meanwhile.
 pub fn nav_at_fixes(
     nav: &NavFile,

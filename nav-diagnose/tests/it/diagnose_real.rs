@@ -10,7 +10,7 @@
 //! written solution against fixes it did not use (every fourth fix withheld), the after
 //! model being the augmented configuration (time offset as `imu.time_offset_s`, so its
 //! solution is on the GNSS clock).
-use host_sim::diagnose::{diagnose, write_outputs, Decision, DiagnoseOptions};
+use nav_diagnose::{diagnose, write_outputs, Decision, DiagnoseOptions};
 use nav_engine::execute;
 use nav_engine::run::{parse_periodic, Outage};
 use nav_engine::RunSpec;
@@ -62,7 +62,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     );
     for e in &d.added_effects {
         assert!(e.estimate.iter().chain(&e.sigma).all(|v| v.is_finite()));
-        assert!(host_sim::diagnose::validate::max_z(&e.estimate, &e.sigma) >= 2.0);
+        assert!(nav_diagnose::validate::max_z(&e.estimate, &e.sigma) >= 2.0);
         // added: its held-out window errors significantly lower (paired signed-rank test)
         assert!(
             e.heldout.p_better < 0.05 && e.heldout.gain > 0.0,
@@ -127,7 +127,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
         .find(|e| e.name == "lever_arm")
         .map_or([0.0; 3], |e| [e.estimate[0], e.estimate[1], e.estimate[2]]);
     let arm: [f64; 3] = [0, 1, 2].map(|i| out.after.lever_arm_m[i] + la[i]);
-    let imu_clock = host_sim::diagnose::validate::output_vs_fixes_horizontal_rms_m(
+    let imu_clock = nav_diagnose::validate::output_vs_fixes_horizontal_rms_m(
         &out.after_nav.load().unwrap(),
         0.0,
         arm,
@@ -159,7 +159,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     let p2 = a2.prepare().expect("the augmented configuration loads");
     assert_eq!(p2.opts.extra_blocks.len(), imu_effects.len());
     let (_, m2) = execute(&p2, &mut |_, _| {}).expect("and runs");
-    let e2 = host_sim::diagnose::outage_error_m(&m2);
+    let e2 = nav_diagnose::outage_error_m(&m2);
     println!("run with the augmented configuration: outage error {e2:.3} m");
     assert!(e2.is_finite() && e2 < b, "augmented {e2} vs before {b}");
 
@@ -278,8 +278,8 @@ fn real_drive_default_command_names_the_time_offset_first() {
 /// 19.6 m of it in the first outage; the augmented configuration is lower at the 11 other
 /// phases (docs/diagnose.md, "The drive0708 clock").
 fn augmented_not_worse_on_the_reference_outage_plan(
-    p: &host_sim::run::cli::Prepared,
-    out: &host_sim::diagnose::DiagnoseOutput,
+    p: &nav_engine::Prepared,
+    out: &nav_diagnose::DiagnoseOutput,
     config: &Path,
 ) {
     let dir = tempfile::tempdir().unwrap();
@@ -320,8 +320,8 @@ fn augmented_not_worse_on_the_reference_outage_plan(
 /// held-out errors are significantly lower than the offset's (no data needed).
 #[test]
 fn a_clock_drift_is_named_only_when_its_rate_beats_the_constant_offset() {
-    use host_sim::diagnose::drift_beside_offset;
-    use host_sim::diagnose::validate::compare_windows;
+    use nav_diagnose::drift_beside_offset;
+    use nav_diagnose::validate::compare_windows;
     let offset: Vec<f64> = (1..=20).map(|i| 1.0 + 0.1 * f64::from(i)).collect();
     let better = compare_windows(&offset, &offset.iter().map(|e| e * 0.8).collect::<Vec<_>>());
     // not significant either way: 10 windows lower, 10 higher
@@ -340,10 +340,7 @@ fn a_clock_drift_is_named_only_when_its_rate_beats_the_constant_offset() {
     // pays but predicts the withheld fixes no better than the offset
     let why = drift_beside_offset(10.0, Some(&(400.0, mixed)), 5.0).expect("refused");
     assert!(why.contains("withheld"), "{why}");
-    assert_eq!(
-        mixed.verdict,
-        host_sim::diagnose::HeldoutVerdict::NotSignificant
-    );
+    assert_eq!(mixed.verdict, nav_diagnose::HeldoutVerdict::NotSignificant);
     // significant on every count: a drift
     assert_eq!(drift_beside_offset(10.0, Some(&(400.0, better)), 5.0), None);
     // no offset in the round (already in the model): the rate's significance decides

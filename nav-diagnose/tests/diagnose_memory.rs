@@ -17,8 +17,6 @@
 //! what `nav_before.txt` and `nav_after.txt` hold, the search rate for the search runs) must
 //! not be in memory: it is in the diagnosis's temporary files.
 
-use host_sim::diagnose::imu_cache::ImuCache;
-use host_sim::diagnose::{diagnose, diagnose_cached, spill, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
@@ -26,6 +24,8 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::model::Block;
 use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
+use nav_diagnose::imu_cache::ImuCache;
+use nav_diagnose::{diagnose, diagnose_cached, spill, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
 use nav_engine::run::{CaseData, ImuSourceInfo, InitSpec, InnovationRecord, Model, RunOptions};
 use nav_engine::Prepared;
 use test_support::{alloc, standing};

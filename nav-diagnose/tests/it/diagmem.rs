@@ -1,4 +1,4 @@
-//! The diagnosis's IMU record file (`host_sim::diagnose::imu_cache`): samples and their file
+//! The diagnosis's IMU record file (`nav_diagnose::imu_cache`): samples and their file
 //! lines read back bit for bit from any index, messages naming the file and line, a bias
 //! step and a time shift applied as the samples are read, the samples kept near the fixes
 //! holding the nearest sample of the whole record and its predecessor, the coasting on the
@@ -7,10 +7,10 @@
 
 use std::sync::Arc;
 
-use host_sim::diagnose::changepoint::BiasStepSensor;
-use host_sim::diagnose::imu_cache::{Adjust, Case, ImuCache};
-use host_sim::diagnose::spill::temp_folder;
 use nav_core::types::ImuSample;
+use nav_diagnose::changepoint::BiasStepSensor;
+use nav_diagnose::imu_cache::{Adjust, Case, ImuCache};
+use nav_diagnose::spill::temp_folder;
 use nav_engine::run::{CaseData, ImuSourceInfo};
 
 fn bits(s: &ImuSample) -> [u64; 8] {
@@ -90,7 +90,7 @@ fn samples_and_lines_read_back_bit_for_bit_from_any_index_and_the_file_goes_with
 /// sample and its byte offset; nothing after it.
 #[test]
 fn a_record_file_cut_short_returns_its_whole_samples_then_an_error_naming_the_sample() {
-    use host_sim::diagnose::imu_cache::IMU_RECORD_BYTES;
+    use nav_diagnose::imu_cache::IMU_RECORD_BYTES;
     let imu = samples(3000, 0);
     let c = cache_of(&imu, Some("imu.txt"));
     let f = std::fs::OpenOptions::new()
@@ -259,8 +259,8 @@ fn an_imu_sample_out_of_order_is_named_by_its_file_and_line_through_the_record_f
         week: 2227,
         description: "standing vehicle".into(),
     };
-    let opts = host_sim::diagnose::DiagnoseOptions::default();
-    let Err(e) = host_sim::diagnose::diagnose(&p, &opts) else {
+    let opts = nav_diagnose::DiagnoseOptions::default();
+    let Err(e) = nav_diagnose::diagnose(&p, &opts) else {
         panic!("a sample out of order must end the diagnosis with an error");
     };
     let msg = format!("{e:#}");

@@ -14,8 +14,8 @@ use plotters::prelude::*;
 
 use super::spill::NavFile;
 use super::{DiagnoseOutput, Diagnosis};
-use crate::run::cli::Prepared;
 use nav_engine::metrics;
+use nav_engine::run::prepare::Prepared;
 use nav_engine::run::{FixUse, RunOutput};
 
 fn perr<E: std::fmt::Display>(e: E) -> anyhow::Error {

@@ -77,8 +77,6 @@ pub mod spill;
 pub mod stats;
 pub mod validate;
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use nav_core::model::Block;
 use nav_core::types::ImuSample;
@@ -86,10 +84,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-use crate::run::cli::{Prepared, RunArgs};
 use imu_cache::{Adjust, Case, Data, ImuCache};
 use nav_engine::metrics::{self, Metrics};
-use nav_engine::run::outdir::OutDir;
+use nav_engine::run::prepare::Prepared;
 use nav_engine::run::{output, run_filter, Outage, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
 pub use prior::{candidates, options_with};
@@ -97,31 +94,6 @@ pub use stats::{regressor_correlation, residual_stats, ResidualStats, Whiteness}
 pub use validate::{
     HeldoutComparison, HeldoutPlan, HeldoutVerdict, HeldoutWindow, StepErrors, WindowKind,
 };
-/// Arguments of `host-sim diagnose`: the same as `run`, plus the search limits.
-#[derive(clap::Args, Debug)]
-pub struct DiagnoseArgs {
-    /// Inputs as for `run`; `--out` receives diagnosis.json, nav_before.txt, nav_after.txt,
-    /// report.md with its PNG plots, and the augmented configuration. `--smooth` scores the
-    /// held-out check on the Rauch-Tung-Striebel smoothed solution of every candidate run (the
-    /// outage fixes stay withheld from the filter and so from the smoother) instead of the
-    /// forward one; the evidence stays the forward innovations' ([`DiagnoseOptions::smooth`]).
-    #[command(flatten)]
-    pub run: RunArgs,
-    /// Largest number of effects to add.
-    #[arg(long, default_value_t = 4)]
-    pub max_effects: usize,
-    /// Keep the configuration's IMU noise (by default the white-noise and bias PSDs are
-    /// fitted per sensor by maximum innovation likelihood before and after the effect search).
-    #[arg(long)]
-    pub no_tune_noise: bool,
-    /// Accepted for compatibility: noise tuning is the default.
-    #[arg(long, hide = true)]
-    pub tune_noise: bool,
-    /// Evidence margin, nats, below which two eligible candidates are reported as ambiguous.
-    #[arg(long, default_value_t = 3.0)]
-    pub ambiguity_margin: f64,
-}
-
 /// Options of [`diagnose`].
 #[derive(Debug, Clone)]
 pub struct DiagnoseOptions {
@@ -1888,123 +1860,5 @@ pub fn write_outputs(
         report::write_augmented_config(dir, c, &d.diagnosis)?;
     }
     report::write_report(dir, p, d)?;
-    Ok(())
-}
-
-/// `[a, b, c]` with 4 significant digits (the console summary; `diagnosis.json` keeps full
-/// precision).
-fn short_list(v: &[f64]) -> String {
-    let items: Vec<String> = v
-        .iter()
-        .map(|x| {
-            let a = x.abs();
-            if a == 0.0 || (1e-3..1e4).contains(&a) {
-                format!(
-                    "{:.*}",
-                    (3 - a.log10().floor().max(-3.0) as i32).max(0) as usize,
-                    x
-                )
-            } else {
-                format!("{x:.3e}")
-            }
-        })
-        .collect();
-    format!("[{}]", items.join(", "))
-}
-
-/// Runs `host-sim diagnose`.
-///
-/// The outputs are written in the stage folder of `--out` ([`OutDir`]: refused when it holds
-/// one of the inputs or another run is writing into it) and moved into place at the end;
-/// SIGINT/SIGTERM before that end the process with `--out` unchanged.
-pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
-    let l = crate::run::cli::load(&args.run, true)?;
-    let od = OutDir::open(&args.run.out, &l.inputs)?;
-    let truth_file = l.truth_stream.clone();
-    let (mut p, imu) = imu_cache::load_cached(l)?;
-    println!("{}", p.description);
-    let dopts = DiagnoseOptions {
-        max_effects: args.max_effects,
-        candidates: None,
-        tune_noise: !args.no_tune_noise,
-        ambiguity_margin: args.ambiguity_margin,
-        smooth: args.run.smooth,
-    };
-    // a streamed truth goes to the diagnosis and is read again for the report once the
-    // diagnosis's data are gone (one copy in memory at a time)
-    let case = match &truth_file {
-        Some(_) => std::mem::take(&mut p.case),
-        None => p.case.clone(),
-    };
-    let d = diagnose_cached(case, &p.opts, imu, &dopts)?;
-    // stopped by SIGINT/SIGTERM: the runs ended early; nothing written, the temporary
-    // files removed with `d`
-    if let Some(sig) = nav_engine::run::interrupt::requested() {
-        anyhow::bail!("{}: stopped", nav_engine::run::interrupt::signal_name(sig));
-    }
-    if let Some(t) = &truth_file {
-        p.case.truth = Some(t.open()?.collect::<Result<_, _>>()?);
-    }
-    let dir: &PathBuf = &args.run.out;
-    write_outputs(od.stage(), &p, &d, Some(&args.run.config))?;
-    let moving = nav_engine::run::interrupt::Stoppable::enter();
-    od.commit()
-        .with_context(|| format!("moving the outputs into {}", dir.display()))?;
-    drop(moving);
-    let dg = &d.diagnosis;
-    println!("held-out windows: {}", dg.heldout_windows.how);
-    println!("effects the model lacks: {}", dg.verdict);
-    for w in &dg.warnings {
-        println!("warning: {w}");
-    }
-    for e in &dg.added_effects {
-        println!(
-            "added {}: estimate {} sigma {} [{}] likelihood gain {:.1} nats, evidence {:.1} nats, {}",
-            e.name,
-            short_list(&e.estimate),
-            short_list(&e.sigma),
-            e.unit,
-            e.delta_log_likelihood,
-            e.evidence,
-            e.heldout.describe()
-        );
-    }
-    for u in &dg.undetected {
-        println!(
-            "not added {}: detectability bound {:.3e} [{}] ({})",
-            u.name, u.min_bound, u.unit, u.reason
-        );
-    }
-    for st in &dg.steps {
-        let e = &st.errors;
-        println!(
-            "step {}{}: held-out windows RMS {} m, GNSS prior residual {:.3} m, written solution vs fixes {:.3} m, NIS {:.2}{}",
-            st.label,
-            if st.accepted { "" } else { " (refused)" },
-            e.heldout_windows_rms_m.map_or("-".into(), |x| format!("{x:.3}")),
-            e.gnss_prior_horizontal_rms_m,
-            e.written_vs_fixes_m,
-            e.nis_mean,
-            st.reason
-                .as_ref()
-                .map_or(String::new(), |r| format!(": {r}"))
-        );
-    }
-    println!(
-        "outage position error ({}): before {:.3} m, after {:.3} m; GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, posterior: favours no time offset): before {:.3} m, after {:.3} m{}",
-        dg.error_before.reference,
-        dg.error_before.outage_max_3d_rms_m,
-        dg.error_after.outage_max_3d_rms_m,
-        dg.error_before.gnss_residual_horizontal_rms_m,
-        dg.error_after.gnss_residual_horizontal_rms_m,
-        dg.error_before.output_vs_fixes_horizontal_rms_m,
-        dg.error_after.output_vs_fixes_horizontal_rms_m,
-        if dg.output_clock_shift_s != 0.0 {
-            format!(" (nav_after.txt on the GNSS clock: IMU time {:+.4} s)", dg.output_clock_shift_s)
-        } else {
-            String::new()
-        }
-    );
-    println!("wrote {}", dir.display());
     Ok(())
 }
