@@ -1,5 +1,6 @@
-//! `host-sim diagnose`: find the effects the error-state model lacks from a run's innovations,
-//! add them when the data support them, and report the errors before and after.
+#![doc = include_str!("../README.md")]
+//!
+//! # How the diagnosis works
 //!
 //! 1. Residual statistics of the base run ([`stats::ResidualStats`]): NIS mean against its
 //!    chi-square band; per innovation component the autocorrelation, Ljung-Box Q and the
