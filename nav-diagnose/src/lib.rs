@@ -69,6 +69,8 @@
 //! `imu_clock_drift`: `[dt_0 s, rate s/s]`, the fix tagged t is the antenna at IMU time
 //! `t + dt_0 + rate (t - t_0)`; `gnss_position_gm`: m, NED, the GNSS position error at the
 //! end. A bias step ([`changepoint`]) is reported apart ([`Diagnosis::bias_step`]).
+#![deny(missing_docs)]
+
 pub mod changepoint;
 mod error;
 pub mod imu_cache;
