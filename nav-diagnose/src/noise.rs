@@ -368,7 +368,7 @@ fn refine_gnss(
     refinement: &mut Vec<NoiseTrial>,
 ) -> NoiseTrial {
     let log2 = |k: f64| k.log2();
-    if let Some(x) = vertex(&s0, |t| log2(t.factors.gnss_horizontal)) {
+    if let Some(x) = vertex(s0, |t| log2(t.factors.gnss_horizontal)) {
         let t = trial(case, opts, gnss_f(cur.factors, 2f64.powf(x).max(1.0)));
         refinement.push(t);
         if t.log_likelihood > cur.log_likelihood {
