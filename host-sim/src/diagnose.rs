@@ -1,12 +1,16 @@
-//! `host-sim diagnose`: the command line of the diagnosis ([`nav_diagnose`]): its arguments,
-//! the output folder, the console summary.
-use std::path::PathBuf;
+//! `host-sim diagnose`: the command line of the diagnosis ([`nav_diagnose`]): its arguments
+//! mapped to [`DiagnoseOptions`], the output folder, the console summary and the plots
+//! ([`plots`]).
+pub mod plots;
+
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
 use crate::run::cli::RunArgs;
-use nav_diagnose::{diagnose_cached, imu_cache, write_outputs, DiagnoseOptions};
+use nav_diagnose::{diagnose_cached, imu_cache, DiagnoseOptions, DiagnoseOutput};
 use nav_engine::run::outdir::OutDir;
+use nav_engine::Prepared;
 
 /// Arguments of `host-sim diagnose`: the same as `run`, plus the search limits.
 #[derive(clap::Args, Debug)]
@@ -31,6 +35,20 @@ pub struct DiagnoseArgs {
     /// Evidence margin, nats, below which two eligible candidates are reported as ambiguous.
     #[arg(long, default_value_t = 3.0)]
     pub ambiguity_margin: f64,
+}
+
+/// Writes everything `host-sim diagnose` writes into `dir`: the diagnosis's files
+/// ([`nav_diagnose::write_files`]: `diagnosis.json`, `nav_before.txt`, `nav_after.txt`,
+/// `report.md`, `augmented.toml` given the configuration `config`) and the plots `report.md`
+/// links ([`plots::write_plots`]).
+pub fn write_outputs(
+    dir: &Path,
+    p: &Prepared,
+    d: &DiagnoseOutput,
+    config: Option<&Path>,
+) -> anyhow::Result<()> {
+    nav_diagnose::write_files(dir, p, d, config)?;
+    plots::write_plots(dir, p, d)
 }
 
 /// `[a, b, c]` with 4 significant digits (the console summary; `diagnosis.json` keeps full

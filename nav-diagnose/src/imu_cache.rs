@@ -580,7 +580,7 @@ pub struct Data {
 /// loaded case has it), the streamed fixes and the truth (when given) read into the case.
 /// A loaded case (no stream) has its samples written into the cache and dropped. The
 /// returned case's IMU list is empty.
-pub fn load_cached(l: Loaded) -> anyhow::Result<(Prepared, ImuCache)> {
+pub fn load_cached(l: Loaded) -> Result<(Prepared, ImuCache), crate::DiagnoseError> {
     let folder = super::spill::temp_folder()?;
     let mut p = l.prepared;
     let imu = match &l.imu_stream {

@@ -1,5 +1,6 @@
-//! `host-sim diagnose`: find the effects the error-state model lacks from a run's innovations,
-//! add them when the data support them, and report the errors before and after.
+#![doc = include_str!("../README.md")]
+//!
+//! # How the diagnosis works
 //!
 //! 1. Residual statistics of the base run ([`stats::ResidualStats`]): NIS mean against its
 //!    chi-square band; per innovation component the autocorrelation, Ljung-Box Q and the
@@ -68,7 +69,10 @@
 //! `imu_clock_drift`: `[dt_0 s, rate s/s]`, the fix tagged t is the antenna at IMU time
 //! `t + dt_0 + rate (t - t_0)`; `gnss_position_gm`: m, NED, the GNSS position error at the
 //! end. A bias step ([`changepoint`]) is reported apart ([`Diagnosis::bias_step`]).
+#![deny(missing_docs)]
+
 pub mod changepoint;
+mod error;
 pub mod imu_cache;
 pub mod noise;
 pub mod prior;
@@ -77,13 +81,13 @@ pub mod spill;
 pub mod stats;
 pub mod validate;
 
-use anyhow::Context;
 use nav_core::model::Block;
 use nav_core::types::ImuSample;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
+pub use error::DiagnoseError;
 use imu_cache::{Adjust, Case, Data, ImuCache};
 use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::prepare::Prepared;
@@ -379,6 +383,14 @@ pub struct DiagnoseOutput {
     pub after_nav_shift_s: f64,
 }
 
+impl DiagnoseOutput {
+    /// Time of the base run's first navigation record, s (the origin of the report's
+    /// minutes; 0 without records).
+    pub fn t0_s(&self) -> f64 {
+        self.before_nav.first_t_s().unwrap_or(0.0)
+    }
+}
+
 /// The outage position error of a run: RMS over the outages of each outage's largest 3D
 /// error (vs truth, or vs the withheld fixes), m; without outages the overall 3D RMS.
 pub fn outage_error_m(m: &Metrics) -> f64 {
@@ -612,7 +624,7 @@ fn in_memory(case: &Case) -> Result<nav_engine::run::CaseData, nav_io::IoError> 
 
 /// Diagnoses a prepared case (see the module notes): its IMU samples are written into the
 /// diagnosis's record file first ([`imu_cache`]), then [`diagnose_cached`].
-pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> anyhow::Result<DiagnoseOutput> {
+pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> Result<DiagnoseOutput, DiagnoseError> {
     let folder = spill::temp_folder()?;
     let imu = ImuCache::from_case(&folder, &p.case)?;
     let case = nav_engine::run::CaseData {
@@ -632,7 +644,7 @@ pub fn diagnose_cached(
     opts: &RunOptions,
     imu: ImuCache,
     dopts: &DiagnoseOptions,
-) -> anyhow::Result<DiagnoseOutput> {
+) -> Result<DiagnoseOutput, DiagnoseError> {
     let folder = imu.folder().clone();
     let data = Data {
         case: Case::new(case, Arc::new(imu)),
@@ -701,7 +713,7 @@ fn base_eval(
     before: &RunOutput,
     before_nav: &spill::NavFile,
     errors_before: &Metrics,
-) -> anyhow::Result<Eval> {
+) -> Result<Eval, DiagnoseError> {
     let p = ctx.p;
     let mut se = validate::step_errors(before, errors_before);
     se.written_vs_fixes_m =
@@ -747,7 +759,7 @@ fn judge_bias_step<'a>(
     ctx: Ctx<'a>,
     base: &Eval,
     found: Option<&'a (changepoint::BiasStep, Data)>,
-) -> anyhow::Result<(Ctx<'a>, StepJudged)> {
+) -> Result<(Ctx<'a>, StepJudged), DiagnoseError> {
     let Some((b, stepped)) = found else {
         return Ok((ctx, StepJudged::None));
     };
@@ -784,7 +796,7 @@ fn judge_bias_step<'a>(
 /// The search's start on `ctx`'s data (the bias step removed when kept): the base model's
 /// run there, the noise fitted on it, the first steps (the configuration on the recorded
 /// data, the bias step's removal, kept or not).
-fn start_search(ctx: &Ctx<'_>, base: &Eval, judged: StepJudged) -> anyhow::Result<Search> {
+fn start_search(ctx: &Ctx<'_>, base: &Eval, judged: StepJudged) -> Result<Search, DiagnoseError> {
     let p = ctx.p;
     let mut steps = vec![Step {
         label: "configuration".into(),
@@ -1597,14 +1609,15 @@ fn final_run(
     ctx: &Ctx<'_>,
     s: &mut Search,
     final_opts: &RunOptions,
-) -> anyhow::Result<(Arc<RunOutput>, spill::NavFile, Metrics)> {
+) -> Result<(Arc<RunOutput>, spill::NavFile, Metrics), DiagnoseError> {
     match spill::run_to_file(&ctx.p.case, final_opts, &ctx.folder, "after") {
         Ok((r, nav, m)) => Ok((Arc::new(r), nav, m)),
         Err(e) => {
             s.warnings.push(format!(
-                "the final run with every fix failed ({e:#}): the after figures are the last \
+                "the final run with every fix failed ({}): the after figures are the last \
                  search run's (held-out windows withheld), nav_after.txt its records nearest \
-                 the fixes"
+                 the fixes",
+                error::chain(&e)
             ));
             let nav = spill::NavFile::from_slice(&ctx.folder, "after-search", &s.cur.run.nav)?;
             Ok((s.cur.run.clone(), nav, s.cur.metrics.clone()))
@@ -1621,7 +1634,7 @@ fn finish(
     base: &Eval,
     (before, before_nav, errors_before): BaseRun,
     final_opts: RunOptions,
-) -> anyhow::Result<DiagnoseOutput> {
+) -> Result<DiagnoseOutput, DiagnoseError> {
     let p = ctx.p;
     let final_gnss_sigma_scale = (final_opts.gnss_sigma_scale != p.opts.gnss_sigma_scale)
         .then_some(final_opts.gnss_sigma_scale);
@@ -1829,15 +1842,20 @@ fn warn(
     }
 }
 
-/// Writes diagnosis.json, nav_before.txt, nav_after.txt, the report and the augmented
-/// configuration into `dir`.
-pub fn write_outputs(
+/// Writes the diagnosis's files into `dir`: `diagnosis.json`, `nav_before.txt`,
+/// `nav_after.txt`, `report.md` and, given the run configuration `config` (a project TOML),
+/// `augmented.toml`. The plots `report.md` links are the caller's (`host-sim diagnose` draws
+/// them).
+pub fn write_files(
     dir: &std::path::Path,
     p: &Prepared,
     d: &DiagnoseOutput,
     config: Option<&std::path::Path>,
-) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+) -> Result<(), DiagnoseError> {
+    std::fs::create_dir_all(dir).map_err(|source| DiagnoseError::CreateDir {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     output::write_nav_records(
         &dir.join("nav_before.txt"),
         d.before_nav.records()?,
@@ -1855,7 +1873,7 @@ pub fn write_outputs(
     )?;
     let jp = dir.join("diagnosis.json");
     std::fs::write(&jp, serde_json::to_string_pretty(&d.diagnosis)?)
-        .with_context(|| format!("writing {}", jp.display()))?;
+        .map_err(|source| DiagnoseError::Write { path: jp, source })?;
     if let Some(c) = config {
         report::write_augmented_config(dir, c, &d.diagnosis)?;
     }

@@ -267,33 +267,37 @@ fn best(trials: &[NoiseTrial]) -> Option<&NoiseTrial> {
         .max_by(|a, b| a.log_likelihood.total_cmp(&b.log_likelihood))
 }
 
-/// Tunes the noise of `opts` (see the module notes); `base` are the residual statistics of
-/// `opts` as given.
-pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning {
-    let penalty = 0.5 * (base.scalar_measurements.max(2) as f64).ln();
-    let one = NoiseTrial {
-        factors: NoiseFactors::ONE,
-        log_likelihood: base.log_likelihood,
-        nis_mean: base.nis_mean,
-    };
-    // stages 0 and 1 from the configuration, in parallel: the GNSS factor and the IMU
-    // white-noise factor
-    let scales: Vec<f64> = (-2..=10).map(|i| 2f64.powi(i)).collect();
-    // at least 1: with time-correlated GNSS errors (declared as their total sigma) the
-    // likelihood of white-noise fixes prefers smaller sigmas (0.79 on a clean simulated
-    // drive) although nothing is wrong with them
-    let gnss_scales: Vec<f64> = (0..=10).map(|i| 2f64.powf(f64::from(i) / 2.0)).collect();
-    let imu_f = |f: NoiseFactors, k: f64| NoiseFactors {
+/// Stage 1's change: both white-noise PSD factors set to `k`.
+fn imu_f(f: NoiseFactors, k: f64) -> NoiseFactors {
+    NoiseFactors {
         accel_white: k,
         gyro_white: k,
         ..f
-    };
-    let gnss_f = |f: NoiseFactors, k: f64| NoiseFactors {
+    }
+}
+
+/// Stage 0's change: both GNSS sigma factors set to `k`.
+fn gnss_f(f: NoiseFactors, k: f64) -> NoiseFactors {
+    NoiseFactors {
         gnss_horizontal: k,
         gnss_vertical: k,
         ..f
-    };
-    type Make = fn(NoiseFactors, f64) -> NoiseFactors;
+    }
+}
+
+type Make = fn(NoiseFactors, f64) -> NoiseFactors;
+
+/// Stages 0 and 1 from the configuration's trial `one` (the grids `gnss_scales` and `scales`
+/// in parallel), the stronger source first and the other's grid again on top of it: the
+/// stage 1 and stage 0 trials, their evidences (nats) and the trial chosen.
+fn coarse(
+    case: &Case,
+    opts: &RunOptions,
+    penalty: f64,
+    one: NoiseTrial,
+    scales: &[f64],
+    gnss_scales: &[f64],
+) -> (Vec<NoiseTrial>, Vec<NoiseTrial>, f64, f64, NoiseTrial) {
     let grid = |from: NoiseTrial, ks: &[f64], make: Make| -> Vec<NoiseTrial> {
         ks.par_iter()
             .map(|&k| {
@@ -307,8 +311,8 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
             .collect()
     };
     let (s1_first, s0_first) = rayon::join(
-        || grid(one, &scales, imu_f),
-        || grid(one, &gnss_scales, gnss_f),
+        || grid(one, scales, imu_f),
+        || grid(one, gnss_scales, gnss_f),
     );
     let gain = |t: &[NoiseTrial], from: &NoiseTrial| {
         best(t).map_or(f64::NEG_INFINITY, |b| {
@@ -326,7 +330,7 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
         let s1 = if cur == one {
             s1_first
         } else {
-            grid(cur, &scales, imu_f)
+            grid(cur, scales, imu_f)
         };
         let e1 = gain(&s1, &cur) - penalty;
         if e1 > 0.0 {
@@ -341,7 +345,7 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
         let s0 = if cur == one {
             s0_first
         } else {
-            grid(cur, &gnss_scales, gnss_f)
+            grid(cur, gnss_scales, gnss_f)
         };
         let e0 = gain(&s0, &cur) - penalty;
         if e0 > 0.0 {
@@ -349,67 +353,88 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
         }
         (s1_first, s0, e1, e0)
     };
-    let chosen_scale = cur.factors.accel_white;
-    let mut refinement = Vec::new();
-    // stage 1b: the GNSS factor refined (vertex of the log-parabola), then split
-    if cur.factors.gnss_horizontal != 1.0 {
-        let log2 = |k: f64| k.log2();
-        if let Some(x) = vertex(&s0, |t| log2(t.factors.gnss_horizontal)) {
-            let t = trial(case, opts, gnss_f(cur.factors, 2f64.powf(x).max(1.0)));
-            refinement.push(t);
-            if t.log_likelihood > cur.log_likelihood {
-                cur = t;
-            }
-        }
-        let steps = [-0.5, -0.25, 0.25, 0.5].map(|e: f64| 2f64.powf(e));
-        let base_f = cur.factors;
-        let split: [fn(&mut NoiseFactors, f64); 2] =
-            [|f, k| f.gnss_horizontal *= k, |f, k| f.gnss_vertical *= k];
-        let per: Vec<(usize, NoiseTrial)> = (0..2)
-            .flat_map(|c| steps.iter().map(move |&k| (c, k)))
-            .collect::<Vec<_>>()
-            .par_iter()
-            .map(|&(c, k)| {
-                let mut f = base_f;
-                split[c](&mut f, k);
-                (c, trial(case, opts, f))
-            })
-            .collect();
-        refinement.extend(per.iter().map(|t| t.1));
-        let mut combined = base_f;
-        for (c, set) in split.iter().enumerate() {
-            let get = |f: &NoiseFactors| {
-                if c == 0 {
-                    f.gnss_horizontal
-                } else {
-                    f.gnss_vertical
-                }
-            };
-            let mut pts: Vec<NoiseTrial> = per.iter().filter(|t| t.0 == c).map(|t| t.1).collect();
-            pts.push(cur);
-            pts.sort_by(|a, b| get(&a.factors).total_cmp(&get(&b.factors)));
-            let Some(x) = vertex(&pts, |t| log2(get(&t.factors))) else {
-                continue;
-            };
-            let mut f = base_f;
-            set(&mut f, 2f64.powf(x).max(1.0) / get(&base_f));
-            let t = trial(case, opts, f);
-            refinement.push(t);
-            pts.push(t);
-            if let Some(b) = best(&pts) {
-                set(&mut combined, get(&b.factors).max(1.0) / get(&base_f));
-            }
-        }
-        if combined != base_f {
-            let t = trial(case, opts, combined);
-            refinement.push(t);
-            // a second GNSS parameter when horizontal and vertical differ
-            if t.log_likelihood.is_finite() && t.log_likelihood - cur.log_likelihood > penalty {
-                cur = t;
-            }
+    (s1, s0, evidence, gnss_evidence, cur)
+}
+
+/// Stage 1b from the trial `cur`: the GNSS factor refined on the stage 0 trials `s0` (vertex
+/// of the log-parabola), then split into horizontal and vertical; every trial run is added to
+/// `refinement`. Returns the trial chosen.
+fn refine_gnss(
+    case: &Case,
+    opts: &RunOptions,
+    penalty: f64,
+    mut cur: NoiseTrial,
+    s0: &[NoiseTrial],
+    refinement: &mut Vec<NoiseTrial>,
+) -> NoiseTrial {
+    let log2 = |k: f64| k.log2();
+    if let Some(x) = vertex(s0, |t| log2(t.factors.gnss_horizontal)) {
+        let t = trial(case, opts, gnss_f(cur.factors, 2f64.powf(x).max(1.0)));
+        refinement.push(t);
+        if t.log_likelihood > cur.log_likelihood {
+            cur = t;
         }
     }
-    // stages 2 and 3: per sensor, then confirm the combination
+    let steps = [-0.5, -0.25, 0.25, 0.5].map(|e: f64| 2f64.powf(e));
+    let base_f = cur.factors;
+    let split: [fn(&mut NoiseFactors, f64); 2] =
+        [|f, k| f.gnss_horizontal *= k, |f, k| f.gnss_vertical *= k];
+    let per: Vec<(usize, NoiseTrial)> = (0..2)
+        .flat_map(|c| steps.iter().map(move |&k| (c, k)))
+        .collect::<Vec<_>>()
+        .par_iter()
+        .map(|&(c, k)| {
+            let mut f = base_f;
+            split[c](&mut f, k);
+            (c, trial(case, opts, f))
+        })
+        .collect();
+    refinement.extend(per.iter().map(|t| t.1));
+    let mut combined = base_f;
+    for (c, set) in split.iter().enumerate() {
+        let get = |f: &NoiseFactors| {
+            if c == 0 {
+                f.gnss_horizontal
+            } else {
+                f.gnss_vertical
+            }
+        };
+        let mut pts: Vec<NoiseTrial> = per.iter().filter(|t| t.0 == c).map(|t| t.1).collect();
+        pts.push(cur);
+        pts.sort_by(|a, b| get(&a.factors).total_cmp(&get(&b.factors)));
+        let Some(x) = vertex(&pts, |t| log2(get(&t.factors))) else {
+            continue;
+        };
+        let mut f = base_f;
+        set(&mut f, 2f64.powf(x).max(1.0) / get(&base_f));
+        let t = trial(case, opts, f);
+        refinement.push(t);
+        pts.push(t);
+        if let Some(b) = best(&pts) {
+            set(&mut combined, get(&b.factors).max(1.0) / get(&base_f));
+        }
+    }
+    if combined != base_f {
+        let t = trial(case, opts, combined);
+        refinement.push(t);
+        // a second GNSS parameter when horizontal and vertical differ
+        if t.log_likelihood.is_finite() && t.log_likelihood - cur.log_likelihood > penalty {
+            cur = t;
+        }
+    }
+    cur
+}
+
+/// Stages 2 and 3 from the trial `cur`: per sensor the white-noise and then the bias PSD
+/// factors, the combination confirmed; every trial run is added to `refinement`. Returns the
+/// trial chosen.
+fn per_sensor(
+    case: &Case,
+    opts: &RunOptions,
+    penalty: f64,
+    mut cur: NoiseTrial,
+    refinement: &mut Vec<NoiseTrial>,
+) -> NoiseTrial {
     type Set = fn(&mut NoiseFactors, f64);
     let stages: [(&[f64], [Set; 2]); 2] = [
         (
@@ -493,6 +518,37 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
             cur = t;
         }
     }
+    cur
+}
+
+/// Tunes the noise of `opts` (see the module notes); `base` are the residual statistics of
+/// `opts` as given.
+pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning {
+    let penalty = 0.5 * (base.scalar_measurements.max(2) as f64).ln();
+    let one = NoiseTrial {
+        factors: NoiseFactors::ONE,
+        log_likelihood: base.log_likelihood,
+        nis_mean: base.nis_mean,
+    };
+    // stages 0 and 1 from the configuration, in parallel: the GNSS factor and the IMU
+    // white-noise factor
+    let scales: Vec<f64> = (-2..=10).map(|i| 2f64.powi(i)).collect();
+    // at least 1: with time-correlated GNSS errors (declared as their total sigma) the
+    // likelihood of white-noise fixes prefers smaller sigmas (0.79 on a clean simulated
+    // drive) although nothing is wrong with them
+    let gnss_scales: Vec<f64> = (0..=10).map(|i| 2f64.powf(f64::from(i) / 2.0)).collect();
+    let (s1, s0, evidence, gnss_evidence, cur) =
+        coarse(case, opts, penalty, one, &scales, &gnss_scales);
+    let chosen_scale = cur.factors.accel_white;
+    let mut refinement = Vec::new();
+    // stage 1b: the GNSS factor refined (vertex of the log-parabola), then split
+    let cur = if cur.factors.gnss_horizontal != 1.0 {
+        refine_gnss(case, opts, penalty, cur, &s0, &mut refinement)
+    } else {
+        cur
+    };
+    // stages 2 and 3: per sensor, then confirm the combination
+    let cur = per_sensor(case, opts, penalty, cur, &mut refinement);
     let params = cur.factors.params();
     NoiseTuning {
         gnss_scales,

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::imu_cache::Case;
-use anyhow::Context;
+use crate::DiagnoseError;
 use nav_core::model::ImuCorrection;
 use nav_core::types::NavSolution;
 use nav_engine::metrics::{self, Metrics, ResidualAcc, SampleAcc, TruthMatcher};
@@ -100,11 +100,11 @@ fn decode(b: &[u8; NAV_RECORD_BYTES]) -> NavSolution {
 pub type TempFolder = Arc<tempfile::TempDir>;
 
 /// Creates the temporary folder of a diagnosis (in the system's temporary directory).
-pub fn temp_folder() -> anyhow::Result<TempFolder> {
+pub fn temp_folder() -> Result<TempFolder, DiagnoseError> {
     let d = tempfile::Builder::new()
         .prefix("host-sim-diagnose-")
         .tempdir()
-        .context("creating a temporary folder for the diagnosis")?;
+        .map_err(DiagnoseError::TempFolder)?;
     Ok(Arc::new(d))
 }
 
@@ -125,12 +125,12 @@ impl NavFile {
         folder: &TempFolder,
         name: &str,
         nav: &[NavSolution],
-    ) -> anyhow::Result<Self> {
+    ) -> Result<Self, IoError> {
         let mut w = NavWriter::create(folder, name)?;
         for s in nav {
             w.push(s)?;
         }
-        Ok(w.finish()?)
+        w.finish()
     }
 
     /// Number of records.
@@ -357,7 +357,7 @@ pub fn run_to_file(
     opts: &RunOptions,
     folder: &TempFolder,
     name: &str,
-) -> anyhow::Result<(RunOutput, NavFile, Metrics)> {
+) -> Result<(RunOutput, NavFile, Metrics), DiagnoseError> {
     let (out, nav) = run_nav_to_file(case, opts, folder, name)?;
     let m = metrics_of(case, &out, &nav, true)?;
     Ok((out, nav, m))

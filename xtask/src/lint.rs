@@ -31,13 +31,14 @@ use syn::visit::Visit;
 pub const MAX_FN_LINES: usize = 120;
 
 /// The library crates that must not depend on `clap`.
-pub const LIBRARY_CRATES: [&str; 6] = [
+pub const LIBRARY_CRATES: [&str; 7] = [
     "nav-core",
     "nav-io",
     "nav-engine",
     "noise-id",
     "nav-sim",
     "nav-study",
+    "nav-diagnose",
 ];
 
 /// The crates with both a library and a binary whose library functions may not take the

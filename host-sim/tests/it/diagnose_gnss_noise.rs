@@ -4,9 +4,10 @@
 //! noise scale (about 10) and writes it to `augmented.toml`, whose run is not worse than the
 //! gate-off run either. A drive whose GNSS errors are 6x the declared (white and correlated)
 //! gets a scale within 30 % of 6; a clean drive gets none.
+use host_sim::diagnose::write_outputs;
 use nav_core::config::Gating;
 use nav_core::types::{GnssFix, ImuSample};
-use nav_diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
+use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use nav_engine::metrics::Metrics;
 use nav_engine::{Prepared, RunSpec};
 use nav_sim::errors::Axes3;

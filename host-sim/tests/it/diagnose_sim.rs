@@ -6,10 +6,11 @@
 //! declared errors must give "none detectable" (nothing added) in at least 19 of 20 seeds, and two
 //! simultaneous effects must both be found. Every drive carries a temperature column (a
 //! 25 degC warm-up), so all 9 candidates compete in every test.
+use host_sim::diagnose::write_outputs;
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::filter::InitialUncertainty;
-use nav_diagnose::{diagnose, write_outputs, DiagnoseOptions, Diagnosis};
+use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};

@@ -10,7 +10,7 @@
 //! written solution against fixes it did not use (every fourth fix withheld), the after
 //! model being the augmented configuration (time offset as `imu.time_offset_s`, so its
 //! solution is on the GNSS clock).
-use nav_diagnose::{diagnose, write_outputs, Decision, DiagnoseOptions};
+use nav_diagnose::{diagnose, write_files, Decision, DiagnoseOptions};
 use nav_engine::execute;
 use nav_engine::run::{parse_periodic, Outage};
 use nav_engine::RunSpec;
@@ -141,7 +141,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
     // the augmented configuration alone: lever arm and time offset folded into [gnss], the
     // IMU effects in its `effects` key
     let dir = tempfile::tempdir().unwrap();
-    write_outputs(dir.path(), &p, &out, Some(Path::new(config))).unwrap();
+    write_files(dir.path(), &p, &out, Some(Path::new(config))).unwrap();
     let aug = nav_io::read_run_config(dir.path().join("augmented.toml"))
         .expect("augmented.toml is a valid run configuration");
     // the IMU moved onto the GNSS clock: imu.time_offset_s = configured - estimate
@@ -283,7 +283,7 @@ fn augmented_not_worse_on_the_reference_outage_plan(
     config: &Path,
 ) {
     let dir = tempfile::tempdir().unwrap();
-    write_outputs(dir.path(), p, out, Some(config)).unwrap();
+    write_files(dir.path(), p, out, Some(config)).unwrap();
     let aug = dir.path().join("augmented.toml");
     let maxima = |c: &Path, phase: f64| -> Vec<f64> {
         let mut a = RunSpec::new(c);

@@ -4,3 +4,4 @@
 mod diagmem;
 mod diagnose_real;
 mod diagnose_spill;
+mod errors;
