@@ -701,7 +701,9 @@ fn imu_sample_values_round_trip_and_same_sample_compares_them() {
         assert_eq!(back.to_values().map(f64::to_bits), v.map(f64::to_bits));
         assert!(same_sample(&s, &back));
     }
-    let a = imu_samples(1, true)[0];
+    // a sample with a temperature (every third has none)
+    let a = imu_samples(2, true)[1];
+    assert!(a.has_temperature());
     for i in 0..8 {
         let mut v = a.to_values();
         v[i] = f64::from_bits(v[i].to_bits() ^ 1);
