@@ -187,7 +187,11 @@ fn nav_lines_through_a_kept_line_buffer_match_display() {
             lon_rad: (16.37 - x * 3e-8).to_radians(),
             h_m: 220.0 + (x * 0.01).sin(),
             vel_ned_mps: [x * 1e-3, -(x * 1e-6), (x * 0.3).cos() * 1e-5],
-            rpy_rad: [1e-9 * x, -0.01, (x * 0.001).rem_euclid(std::f64::consts::TAU)],
+            rpy_rad: [
+                1e-9 * x,
+                -0.01,
+                (x * 0.001).rem_euclid(std::f64::consts::TAU),
+            ],
             ..NavSolution::default()
         };
         nav_io::text::write_nav_line_with(&mut lb, &mut fast_text, &n).unwrap();
