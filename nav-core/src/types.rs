@@ -29,6 +29,26 @@ impl ImuSample {
     pub fn has_temperature(&self) -> bool {
         self.temperature_c.is_finite()
     }
+
+    /// The sample as 8 values in a fixed order: time (s), angle increments x, y, z (rad),
+    /// velocity increments x, y, z (m/s), temperature (degC, NaN when absent). The inverse of
+    /// [`ImuSample::from_values`] (bit for bit).
+    pub fn to_values(&self) -> [f64; 8] {
+        let [a0, a1, a2] = self.dtheta_rad;
+        let [v0, v1, v2] = self.dv_mps;
+        [self.t_s, a0, a1, a2, v0, v1, v2, self.temperature_c]
+    }
+
+    /// The sample from the 8 values of [`ImuSample::to_values`] (same order and units).
+    pub fn from_values(v: [f64; 8]) -> Self {
+        let [t_s, a0, a1, a2, v0, v1, v2, temperature_c] = v;
+        Self {
+            t_s,
+            dtheta_rad: [a0, a1, a2],
+            dv_mps: [v0, v1, v2],
+            temperature_c,
+        }
+    }
 }
 
 /// Quality of a GNSS fix (RTKLIB's Q flag order: lower is better).

@@ -40,16 +40,7 @@ pub const READ_BLOCK_SAMPLES: usize = 1024;
 
 fn encode(s: &ImuSample, line: usize) -> [u8; IMU_RECORD_BYTES] {
     let mut b = [0u8; IMU_RECORD_BYTES];
-    let f = [
-        s.t_s,
-        s.dtheta_rad[0],
-        s.dtheta_rad[1],
-        s.dtheta_rad[2],
-        s.dv_mps[0],
-        s.dv_mps[1],
-        s.dv_mps[2],
-        s.temperature_c,
-    ];
+    let f = s.to_values();
     let (vals, l) = b.split_at_mut(64);
     for (dst, v) in vals.chunks_exact_mut(8).zip(f) {
         dst.copy_from_slice(&v.to_le_bytes());
@@ -59,7 +50,7 @@ fn encode(s: &ImuSample, line: usize) -> [u8; IMU_RECORD_BYTES] {
 }
 
 fn decode(b: &[u8; IMU_RECORD_BYTES]) -> (ImuSample, usize) {
-    let mut f = [0.0f64; 9];
+    let mut f = [0.0f64; 8];
     for (v, src) in f.iter_mut().zip(b.chunks_exact(8)) {
         let mut x = [0u8; 8];
         x.copy_from_slice(src);
@@ -67,12 +58,7 @@ fn decode(b: &[u8; IMU_RECORD_BYTES]) -> (ImuSample, usize) {
     }
     let mut l = [0u8; 8];
     l.copy_from_slice(&b[64..]);
-    let s = ImuSample {
-        t_s: f[0],
-        dtheta_rad: [f[1], f[2], f[3]],
-        dv_mps: [f[4], f[5], f[6]],
-        temperature_c: f[7],
-    };
+    let s = ImuSample::from_values(f);
     (s, usize::try_from(u64::from_le_bytes(l)).unwrap_or(0))
 }
 

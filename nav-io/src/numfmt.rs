@@ -132,6 +132,11 @@ impl LineBuf {
         self.push_with(w, |d| exp_f64(x, prec, d), |w| write!(w, "{x:.prec$e}"))
     }
 
+    /// Drops the bytes not yet written (a line left over by a failed write).
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+
     /// Writes the buffered bytes to `w`.
     pub fn flush<W: Write + ?Sized>(&mut self, w: &mut W) -> std::io::Result<()> {
         let r = w.write_all(self.buf.get(..self.len).unwrap_or(&[]));
@@ -345,18 +350,21 @@ fn round_exact(y: f64) -> Option<u64> {
 
 /// Writes `v` in decimal, left-padded with zeros to `width` digits, at `out[*len..]`.
 fn put_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<()> {
-    let mut tmp = [b'0'; 20];
-    let mut i = tmp.len();
+    // the digits written in place, last first (no copy through a temporary)
+    let mut n = 0usize;
+    let mut p = v;
+    while p > 0 {
+        n += 1;
+        p /= 10;
+    }
+    let n = n.max(width);
+    let dst = out.get_mut(*len..*len + n)?;
     let mut v = v;
-    while v > 0 {
-        i = i.checked_sub(1)?;
-        *tmp.get_mut(i)? = b'0' + (v % 10) as u8;
+    for d in dst.iter_mut().rev() {
+        *d = b'0' + (v % 10) as u8;
         v /= 10;
     }
-    let start = i.min(tmp.len().checked_sub(width)?);
-    let s = tmp.get(start..)?;
-    out.get_mut(*len..*len + s.len())?.copy_from_slice(s);
-    *len += s.len();
+    *len += n;
     Some(())
 }
 
@@ -411,8 +419,14 @@ pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<u
     let a = x.abs();
     let lo = *POW10.get(prec)?;
     let hi = *POW10.get(prec + 1)?;
-    // decimal exponent: the estimate from log10 is off by at most one
-    let mut e = a.log10().floor() as i32;
+    // decimal exponent: the estimate from the binary exponent E (floor(E log10 2), a normal
+    // |x| = m 2^E with m in [1, 2)) or, for a subnormal, from log10, is off by at most one
+    let biased = ((a.to_bits() >> 52) & 0x7ff) as i32;
+    let mut e = if biased == 0 {
+        a.log10().floor() as i32
+    } else {
+        (f64::from(biased - 1023) * std::f64::consts::LOG10_2).floor() as i32
+    };
     let mut y = scale10(a, prec as i32 - e)?;
     if y < lo {
         e -= 1;

@@ -350,21 +350,12 @@ impl ImuTextReader {
 /// Whether two IMU samples are the same record: equal time, increments and temperature (NaN
 /// temperatures equal), bit for bit.
 pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
-    let bits = |s: &ImuSample| {
-        [
-            s.t_s,
-            s.dtheta_rad[0],
-            s.dtheta_rad[1],
-            s.dtheta_rad[2],
-            s.dv_mps[0],
-            s.dv_mps[1],
-            s.dv_mps[2],
-        ]
-        .map(f64::to_bits)
-    };
-    bits(a) == bits(b)
-        && (a.temperature_c.to_bits() == b.temperature_c.to_bits()
-            || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
+    // the 8 values of `ImuSample::to_values`: the last one is the temperature
+    let (a, b) = (a.to_values(), b.to_values());
+    a.iter()
+        .zip(&b)
+        .enumerate()
+        .all(|(i, (x, y))| x.to_bits() == y.to_bits() || (i == 7 && x.is_nan() && y.is_nan()))
 }
 
 /// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
@@ -796,7 +787,17 @@ pub fn write_nav_text(path: impl AsRef<Path>, sols: &[NavSolution]) -> Result<()
 /// go to `Display`; see `numfmt`), about 3x faster than `write!`. The line is assembled on
 /// the stack and written with one `write_all`.
 pub fn write_nav_line<W: Write + ?Sized>(w: &mut W, n: &NavSolution) -> std::io::Result<()> {
-    let mut lb = super::numfmt::LineBuf::new();
+    write_nav_line_with(&mut super::numfmt::LineBuf::new(), w, n)
+}
+
+/// [`write_nav_line`] assembling the line in `lb` (a writer of many lines keeps one: no
+/// buffer set up per line); whatever `lb` held before is dropped.
+pub fn write_nav_line_with<W: Write + ?Sized>(
+    lb: &mut super::numfmt::LineBuf,
+    w: &mut W,
+    n: &NavSolution,
+) -> std::io::Result<()> {
+    lb.clear();
     lb.push_u64(w, u64::from(n.week))?;
     for x in [
         n.t_s,

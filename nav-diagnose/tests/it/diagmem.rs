@@ -14,17 +14,7 @@ use nav_diagnose::spill::temp_folder;
 use nav_engine::run::{CaseData, ImuSourceInfo};
 
 fn bits(s: &ImuSample) -> [u64; 8] {
-    [
-        s.t_s,
-        s.dtheta_rad[0],
-        s.dtheta_rad[1],
-        s.dtheta_rad[2],
-        s.dv_mps[0],
-        s.dv_mps[1],
-        s.dv_mps[2],
-        s.temperature_c,
-    ]
-    .map(f64::to_bits)
+    s.to_values().map(f64::to_bits)
 }
 
 /// `n` samples at irregular times (steps of 5 ms with a jitter, a 0.3 s gap), values that do

@@ -11,7 +11,8 @@
 //!
 //! The formatting and writing run on a writer thread of their own: the records go to it in
 //! batches of [`BATCH`] through a bounded channel (at most [`QUEUE`] batches in flight, so the
-//! memory stays bounded), and the filter thread only computes the metrics. A write error stops
+//! memory stays bounded; the writer hands the emptied batches back for reuse), and the filter
+//! thread only computes the metrics. A write error stops
 //! the writer; the filter thread sees it at its next batch (or at [`FileSink::finish`]).
 
 use super::coast::CoastTrack;
@@ -27,7 +28,7 @@ use nav_io::IoError;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, SyncSender};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::thread::JoinHandle;
 
 /// Records per message to the writer thread.
@@ -201,6 +202,8 @@ struct Writer {
     inn: Out,
     bias_head: bool,
     line: Vec<u8>,
+    /// The `nav.txt` line being assembled (kept: no buffer set up per line).
+    nav_line: nav_io::LineBuf,
 }
 
 impl Writer {
@@ -224,7 +227,8 @@ impl Writer {
             self.nav.cut = Some(self.nav.n);
         }
         let Out { w, n, .. } = &mut self.nav;
-        let r = nav_io::write_nav_line(
+        let r = nav_io::text::write_nav_line_with(
+            &mut self.nav_line,
             &mut Counted { w, n },
             &NavSolution {
                 week: self.week,
@@ -266,6 +270,8 @@ pub struct FileSink<'a> {
     /// Records not yet sent to the writer.
     batch: Vec<Rec>,
     tx: Option<SyncSender<Vec<Rec>>>,
+    /// Emptied batches handed back by the writer (their memory reused, not allocated anew).
+    spent: Receiver<Vec<Rec>>,
     writer: Option<JoinHandle<Result<Writer, RunError>>>,
     residuals: metrics::ResidualAcc,
     /// The solution against the truth, read as it advances (None: no truth).
@@ -323,15 +329,21 @@ impl<'a> FileSink<'a> {
             inn,
             bias_head: false,
             line: Vec::with_capacity(256),
+            nav_line: nav_io::LineBuf::new(),
         };
         let (tx, rx) = sync_channel::<Vec<Rec>>(QUEUE);
+        // at most QUEUE + 2 batches exist at once: the returned ones fit without waiting
+        let (spent_tx, spent) = sync_channel::<Vec<Rec>>(QUEUE + 2);
         let writer = std::thread::Builder::new()
             .name("run-writer".into())
             .spawn(move || {
-                for batch in rx {
+                for mut batch in rx {
                     for r in &batch {
                         w.rec(r)?;
                     }
+                    batch.clear();
+                    // dropped when the filter thread has enough (or is gone)
+                    let _ = spent_tx.try_send(batch);
                 }
                 Ok(w)
             })
@@ -345,6 +357,7 @@ impl<'a> FileSink<'a> {
             dir: dir.to_path_buf(),
             batch: Vec::with_capacity(BATCH),
             tx: Some(tx),
+            spent,
             writer: Some(writer),
             residuals: metrics::ResidualAcc::default(),
             truth: truth.map(|t| TruthMatcher::new(TruthFeed::new(t, &outages))),
@@ -372,7 +385,11 @@ impl<'a> FileSink<'a> {
         if self.batch.is_empty() {
             return Ok(());
         }
-        let b = std::mem::replace(&mut self.batch, Vec::with_capacity(BATCH));
+        let next = self
+            .spent
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        let b = std::mem::replace(&mut self.batch, next);
         let sent = match &self.tx {
             Some(tx) => tx.send(b).is_ok(),
             None => false,

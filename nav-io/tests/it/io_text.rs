@@ -684,3 +684,41 @@ fn imu_binary_format_round_trips_and_reports_truncation_nan_and_time_order() {
         "{e:?}"
     );
 }
+
+/// `ImuSample::to_values` / `from_values` give the sample back bit for bit (a NaN temperature
+/// too), and `same_sample` compares those 8 values: bit for bit, any two NaN temperatures equal.
+#[test]
+fn imu_sample_values_round_trip_and_same_sample_compares_them() {
+    use nav_io::text::same_sample;
+    for s in imu_samples(50, true)
+        .into_iter()
+        .chain(imu_samples(50, false))
+    {
+        let v = s.to_values();
+        assert_eq!(v[0].to_bits(), s.t_s.to_bits());
+        assert_eq!(v[7].to_bits(), s.temperature_c.to_bits());
+        let back = ImuSample::from_values(v);
+        assert_eq!(back.to_values().map(f64::to_bits), v.map(f64::to_bits));
+        assert!(same_sample(&s, &back));
+    }
+    // a sample with a temperature (every third has none)
+    let a = imu_samples(2, true)[1];
+    assert!(a.has_temperature());
+    for i in 0..8 {
+        let mut v = a.to_values();
+        v[i] = f64::from_bits(v[i].to_bits() ^ 1);
+        assert!(!same_sample(&a, &ImuSample::from_values(v)), "value {i}");
+    }
+    // -0.0 and 0.0 differ in bits: not the same record
+    let mut v = a.to_values();
+    v[4] = 0.0;
+    let z = ImuSample::from_values(v);
+    v[4] = -0.0;
+    assert!(!same_sample(&z, &ImuSample::from_values(v)));
+    // two absent temperatures (NaNs of different bits) are equal
+    let mut v = a.to_values();
+    v[7] = f64::NAN;
+    let n1 = ImuSample::from_values(v);
+    v[7] = f64::from_bits(f64::NAN.to_bits() | 1);
+    assert!(same_sample(&n1, &ImuSample::from_values(v)));
+}

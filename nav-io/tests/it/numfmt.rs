@@ -146,3 +146,60 @@ proptest! {
         check(x)?;
     }
 }
+
+/// The exponent form around every binary exponent (its decimal exponent is estimated from the
+/// binary one, off by at most one and corrected), subnormals included, and its neighbours.
+#[test]
+fn exp_form_matches_core_fmt_at_every_binary_exponent() {
+    for k in -1074..=1023 {
+        let p = 2f64.powi(k);
+        for x in [
+            p,
+            f64::from_bits(p.to_bits() + 1),
+            f64::from_bits(p.to_bits().saturating_sub(1)),
+            p * 1.999_999_999,
+            p * 1.5,
+        ] {
+            for f in [Form::Exp(6), Form::Exp(0), Form::Exp(3), Form::Exp(15)] {
+                for v in [x, -x] {
+                    assert_eq!(fast(v, f), reference(v, f), "{f:?} of {v:e}");
+                }
+            }
+        }
+    }
+}
+
+/// One `LineBuf` kept for many nav lines (as the run's writer does), even one left holding
+/// bytes, writes what `write!` and `Display` write.
+#[test]
+fn nav_lines_through_a_kept_line_buffer_match_display() {
+    use nav_core::types::NavSolution;
+    let mut lb = LineBuf::new();
+    let mut junk = Vec::new();
+    lb.push_bytes(&mut junk, b"left over").unwrap();
+    let (mut fast_text, mut reference_text) = (Vec::new(), Vec::new());
+    for k in 0..2000u32 {
+        let x = f64::from(k);
+        let n = NavSolution {
+            week: 2227,
+            t_s: 118_800.0 + x * 0.005,
+            lat_rad: (48.199 + x * 1e-7).to_radians(),
+            lon_rad: (16.37 - x * 3e-8).to_radians(),
+            h_m: 220.0 + (x * 0.01).sin(),
+            vel_ned_mps: [x * 1e-3, -(x * 1e-6), (x * 0.3).cos() * 1e-5],
+            rpy_rad: [
+                1e-9 * x,
+                -0.01,
+                (x * 0.001).rem_euclid(std::f64::consts::TAU),
+            ],
+            ..NavSolution::default()
+        };
+        nav_io::text::write_nav_line_with(&mut lb, &mut fast_text, &n).unwrap();
+        nav_io::text::write_nav_line_display(&mut reference_text, &n).unwrap();
+    }
+    assert!(junk.is_empty());
+    assert_eq!(
+        String::from_utf8(fast_text).unwrap(),
+        String::from_utf8(reference_text).unwrap()
+    );
+}
