@@ -150,11 +150,28 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
                 .map_or(String::new(), |r| format!(": {r}"))
         );
     }
+    let rms = |v: &[f64]| {
+        let f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        (f.iter().map(|x| x * x).sum::<f64>() / f.len().max(1) as f64).sqrt()
+    };
+    let outage = if dg.error_before.outage_max_3d_rms_m.is_finite() {
+        format!(
+            "outage position error ({}): before {:.3} m, after {:.3} m",
+            dg.error_before.reference,
+            dg.error_before.outage_max_3d_rms_m,
+            dg.error_after.outage_max_3d_rms_m
+        )
+    } else {
+        // no imposed outage: the held-out windows are the record's own
+        format!(
+            "held-out windows ({}, RMS): before {:.3} m, after {:.3} m",
+            dg.window_errors_before_m.len(),
+            rms(&dg.window_errors_before_m),
+            rms(&dg.window_errors_after_m)
+        )
+    };
     println!(
-        "outage position error ({}): before {:.3} m, after {:.3} m; GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, posterior: favours no time offset): before {:.3} m, after {:.3} m{}",
-        dg.error_before.reference,
-        dg.error_before.outage_max_3d_rms_m,
-        dg.error_after.outage_max_3d_rms_m,
+        "{outage}; GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, posterior: favours no time offset): before {:.3} m, after {:.3} m{}",
         dg.error_before.gnss_residual_horizontal_rms_m,
         dg.error_after.gnss_residual_horizontal_rms_m,
         dg.error_before.output_vs_fixes_horizontal_rms_m,
