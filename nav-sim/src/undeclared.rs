@@ -15,7 +15,8 @@
 //!   error the YAML does not declare), fixes at 1 Hz and 60 s outages every 120 s
 //!   ([`drive_outages`]);
 //! - one undeclared effect ([`Effect`]) drawn per seed inside realistic ranges
-//!   (random signs per axis);
+//!   (random signs per axis), optionally a second one ([`DriveSpec::second`]) and one outside
+//!   the diagnosis vocabulary ([`OutsideEffect`]: GNSS multipath jumps);
 //! - a `kf-gins.yaml` ([`kf_gins_config`]) as a KF-GINS user writes it: the
 //!   noise of the declared sensor in KF-GINS's keys, scale-factor sigmas of zero, the lever arm
 //!   the user believes (zero for the lever-arm drive while the antenna is 1.5 m away), and an
