@@ -4,9 +4,10 @@
 //! with the filter as the model:
 //!
 //! 1. Onset: a CUSUM of the position innovations' log-likelihood ratio for a variance
-//!    inflation ([`CUSUM_INFLATION`]) over the used fixes; the step is placed at the first fix
+//!    inflation ([`CUSUM_INFLATION`]) over the used fixes; the onset is the first fix
 //!    after the last zero of the statistic before its peak, when the peak exceeds
-//!    [`CUSUM_ALARM_NATS`]. A step needs a consistent model before it: at least
+//!    [`CUSUM_ALARM_NATS`], and the step is first fitted one fix interval before it, or in
+//!    the middle of a gap of the used fixes when the onset is the first fix after it. A step needs a consistent model before it: at least
 //!    [`MIN_FIXES_BEFORE`] used fixes before the onset with a mean position NIS below
 //!    [`MAX_NIS_BEFORE`] (an effect present from the start, which inflates the innovations
 //!    throughout, is left to the effect search).
@@ -20,7 +21,8 @@
 //! 3. Time: the corrected run is repeated with the step moved by up to
 //!    [`TIME_SEARCH_S`] in 1 s steps (the scan extended by [`TIME_SEARCH_S`], up to
 //!    [`MAX_TIME_EXTENSIONS`] times, while its best time is at an end: the CUSUM's onset lags
-//!    a step whose error grows slowly); the time of largest log-likelihood is kept. A step's
+//!    a step whose error grows slowly; a step first fitted in a gap is scanned over the whole
+//!    gap and [`TIME_SEARCH_S`] beyond its ends); the time of largest log-likelihood is kept. A step's
 //!    time is sharp: moving it by [`TIME_SEARCH_S`] either way (beyond the ends of a gap in
 //!    the used fixes when it lies in one: there it can only be placed within the gap) must
 //!    cost at least
@@ -171,8 +173,11 @@ fn corrected(case: &Case, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3]) -> 
 /// The CUSUM onset of a variance increase of the position innovations: `(onset time, peak
 /// level in nats)`, or None when the statistic never reaches [`CUSUM_ALARM_NATS`]. The fixes
 /// of the [`SETTLE_S`] after a gap in the used fixes (a gap of the file, an outage, a
-/// withheld window) are left out and the statistic restarts after them: the
-/// prediction error across a gap is not a change of the model.
+/// withheld window) are left out: the prediction error across a gap is not a change of the
+/// model. The statistic runs on across a gap (a change that persists, such as a gyro bias
+/// step the filter's bias state cannot follow, accumulates over every stretch of fixes after
+/// it; restarted at each gap, its largest stretch would be the last and the onset placed
+/// after the last gap).
 pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     let lam = CUSUM_INFLATION;
     let mut s = 0.0f64;
@@ -182,7 +187,6 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     let keep = settled(&used);
     for (r, k) in used.iter().zip(&keep) {
         if !*k {
-            s = 0.0;
             continue;
         }
         let (nis, d) = position_nis(r);
@@ -348,6 +352,33 @@ fn fit(
     Some((c2, s2, ll2))
 }
 
+/// The time a step is first fitted at, from the CUSUM onset `onset` and the used fixes: one
+/// fix interval before the onset, or, when the onset is the first fix the CUSUM takes after a
+/// gap in the used fixes (within [`SETTLE_S`] + 2 s of its end), the middle of the gap: the
+/// step can be anywhere in it, and the time scan from there ([`TIME_SEARCH_S`] extended
+/// [`MAX_TIME_EXTENSIONS`] times) covers a 60 s gap.
+fn initial_step_time(used: &[&InnovationRecord], onset: f64) -> (f64, Option<(f64, f64)>) {
+    let times: Vec<f64> = used.iter().map(|r| r.t_s).collect();
+    let gap = super::validate::fix_gaps(&times)
+        .into_iter()
+        .find(|&(_, b)| b <= onset && onset <= b + SETTLE_S + 2.0);
+    (gap.map_or(onset - 1.0, |(a, b)| 0.5 * (a + b)), gap)
+}
+
+/// The first time scan's offsets from the first fitted time `t_s`, s: +-[`TIME_SEARCH_S`],
+/// or, for a step first fitted in a gap of the used fixes (`gap`), the whole gap and
+/// [`TIME_SEARCH_S`] beyond its ends (the likelihood profile across a gap has local maxima:
+/// the vehicle's manoeuvres change how a step shows).
+fn first_scan(t_s: f64, gap: Option<(f64, f64)>) -> (i32, i32) {
+    let n = TIME_SEARCH_S;
+    gap.map_or((-n as i32, n as i32), |(a, b)| {
+        (
+            (a - t_s - n).floor().max(-600.0) as i32,
+            (b - t_s + n).ceil().min(600.0) as i32,
+        )
+    })
+}
+
 /// Looks for a bias step in the data of `case` under the model `opts`, from the base run
 /// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
 /// corrected run does not pay.
@@ -369,12 +400,13 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
     let rs = residual_stats(&base.innovations);
     let base_ll = rs.log_likelihood;
     let penalty = 0.5 * 4.0 * (rs.scalar_measurements.max(2) as f64).ln();
-    // the step is placed one fix interval before the first fix that shows it
+    // the step is placed one fix interval before the first fix that shows it, or in the
+    // middle of the gap that fix follows
+    let (t_start, gap) = initial_step_time(&used, onset);
     let (sensor, step, sigma, ll, t_s) = BiasStepSensor::ALL
         .par_iter()
         .filter_map(|&s| {
-            let t = onset - 1.0;
-            fit(case, opts, base, s, t).map(|(c, sg, ll)| (s, c, sg, ll, t))
+            fit(case, opts, base, s, t_start).map(|(c, sg, ll)| (s, c, sg, ll, t_start))
         })
         .max_by(|a, b| a.3.total_cmp(&b.3))?;
     if ll - base_ll <= penalty + MIN_GAIN_NATS {
@@ -388,8 +420,8 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
         let t = t_s + f64::from(k);
         run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
     };
-    let mut profile: Vec<(f64, f64)> = (-n..=n).into_par_iter().filter_map(ll_at).collect();
-    let (mut lo_k, mut hi_k) = (-n, n);
+    let (mut lo_k, mut hi_k) = first_scan(t_s, gap);
+    let mut profile: Vec<(f64, f64)> = (lo_k..=hi_k).into_par_iter().filter_map(ll_at).collect();
     for _ in 0..MAX_TIME_EXTENSIONS {
         let best = profile.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
         let Some((tb, _)) = best else { break };

@@ -678,10 +678,12 @@ pub fn diagnose_cached(
     // the search and the final model run on the data with the step removed when it is kept
     let (ctx, step) = judge_bias_step(base_ctx, &base, found.as_ref())?;
     let mut s = start_search(&ctx, &base, step)?;
-    while s.added.len() < dopts.max_effects {
-        if !search_round(&ctx, &mut s, &all) {
-            break;
-        }
+    let more = search_rounds(&ctx, &mut s, &all, true);
+    // a step the base model's misfit hid: looked for again with the first added effect
+    let late = late_bias_step(&ctx, &s);
+    let ctx = judge_late_bias_step(ctx, &mut s, late.as_ref())?;
+    if more {
+        search_rounds(&ctx, &mut s, &all, false);
     }
     if let Some(st) = s
         .last_noise_refusal
@@ -790,6 +792,86 @@ fn judge_bias_step<'a>(
             },
             StepJudged::NotKept(b, step),
         )
+    })
+}
+
+/// Search rounds while an effect pays and fewer than [`DiagnoseOptions::max_effects`] are
+/// added; with `until_first` the rounds stop after the one that adds the first effect. True
+/// when they stopped there (more rounds may pay).
+fn search_rounds(ctx: &Ctx<'_>, s: &mut Search, all: &[Block], until_first: bool) -> bool {
+    while s.added.len() < ctx.dopts.max_effects {
+        if !search_round(ctx, s, all) {
+            return false;
+        }
+        if until_first && !s.added.is_empty() {
+            return true;
+        }
+    }
+    false
+}
+
+/// A bias step looked for again once an effect is added ([`changepoint::find_bias_step`] on
+/// the current model's search run), when none was found before the search: an effect present
+/// from the start (a lever arm, a scale factor) inflates the base run's innovations before a
+/// step, and the change-point search needs a consistent model before the onset. None when a
+/// step was already judged, no effect is added, or none is found.
+fn late_bias_step(ctx: &Ctx<'_>, s: &Search) -> Option<(changepoint::BiasStep, Data)> {
+    if s.bias_step.is_some() || s.bias_step_not_kept.is_some() || s.added.is_empty() {
+        return None;
+    }
+    let opts = ctx.searching(&options_with(&s.base_opts, &s.added));
+    let b = changepoint::find_bias_step(&ctx.p.case, &opts, &s.cur.run)?;
+    let stepped = Data {
+        case: b.corrected_case(&ctx.p.case),
+        ..ctx.p.clone()
+    };
+    Some((b, stepped))
+}
+
+/// Judges a step found with the added effects ([`late_bias_step`]) as the first search's
+/// ([`decide`]) against the current model on the held-out windows; kept, the search goes on
+/// (and the final model runs) on the data with the step removed.
+fn judge_late_bias_step<'a>(
+    ctx: Ctx<'a>,
+    s: &mut Search,
+    found: Option<&'a (changepoint::BiasStep, Data)>,
+) -> anyhow::Result<Ctx<'a>> {
+    let Some((b, stepped)) = found else {
+        return Ok(ctx);
+    };
+    let recorded = ctx.p;
+    let sctx = Ctx { p: stepped, ..ctx };
+    let cur = sctx.evaluate(&options_with(&s.base_opts, &s.added))?;
+    let h = validate::compare_windows(&s.cur.windows, &cur.windows);
+    let z = validate::max_z(&b.step, &b.sigma);
+    let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
+    let mut b = b.clone();
+    b.heldout = Some(h);
+    b.reason = Some(why.clone());
+    let kept = decision == Decision::Eligible;
+    s.steps.push(Step {
+        label: format!(
+            "bias step removed (with the added effects): {}",
+            b.describe()
+        ),
+        accepted: kept,
+        reason: Some(why.clone()),
+        errors: cur.errors,
+        heldout: Some(h),
+    });
+    if kept {
+        s.cur = cur;
+        s.bias_step = Some(b);
+        return Ok(sctx);
+    }
+    s.warnings.push(format!(
+        "{} at {:.1} s found as a change point with the added effects but not kept: {why}",
+        b.name, b.t_s
+    ));
+    s.bias_step_not_kept = Some(b);
+    Ok(Ctx {
+        p: recorded,
+        ..sctx
     })
 }
 

@@ -15,7 +15,8 @@
 //!   error the YAML does not declare), fixes at 1 Hz and 60 s outages every 120 s
 //!   ([`drive_outages`]);
 //! - one undeclared effect ([`Effect`]) drawn per seed inside realistic ranges
-//!   (random signs per axis);
+//!   (random signs per axis), optionally a second one ([`DriveSpec::second`]) and one outside
+//!   the diagnosis vocabulary ([`OutsideEffect`]: GNSS multipath jumps);
 //! - a `kf-gins.yaml` ([`kf_gins_config`]) as a KF-GINS user writes it: the
 //!   noise of the declared sensor in KF-GINS's keys, scale-factor sigmas of zero, the lever arm
 //!   the user believes (zero for the lever-arm drive while the antenna is 1.5 m away), and an
@@ -89,7 +90,7 @@ impl Effect {
     /// (`nav_core::model::Block::effect_from_name`; the scale factors are KF-GINS's own
     /// states, declared with a sigma of zero in the YAML), or for a bias step, which is not a
     /// state, the change point the diagnosis reports
-    /// (`host_sim::diagnose::changepoint::BiasStepSensor::name`).
+    /// (`nav_diagnose::changepoint::BiasStepSensor::name`).
     pub const fn block_name(self) -> &'static str {
         match self {
             Effect::GyroScaleFactor => "gyro_scale_factor",
@@ -132,11 +133,117 @@ impl core::fmt::Display for Effect {
     }
 }
 
+/// An undeclared effect OUTSIDE the diagnosis vocabulary: no effect block of the error-state
+/// model and no change point models it, so a diagnosis should name nothing for it (or only
+/// what its own estimate supports) and must not make the held-out predictions worse.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum OutsideEffect {
+    /// GNSS multipath: position jumps of 0.3-1 m (a random 3D direction) lasting 20-60 s
+    /// each, one per started 3 minutes of the drive (at least two), at random times after the
+    /// static start, the fixes' reported standard deviations unchanged ([`multipath_jumps`]).
+    GnssMultipath,
+}
+
+impl OutsideEffect {
+    /// A short name for reports: `gnss_multipath` (not a block of the vocabulary).
+    pub const fn name(self) -> &'static str {
+        match self {
+            OutsideEffect::GnssMultipath => "gnss_multipath",
+        }
+    }
+
+    /// A short description of the magnitude range, for reports.
+    pub const fn range(self) -> &'static str {
+        match self {
+            OutsideEffect::GnssMultipath => "GNSS multipath jumps 0.3-1 m lasting 20-60 s",
+        }
+    }
+}
+
+impl core::fmt::Display for OutsideEffect {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One GNSS multipath jump of a drive ([`OutsideEffect::GnssMultipath`]): every fix in
+/// `[start_s, start_s + duration_s)` is displaced by `offset_ned_m`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MultipathJump {
+    /// Start, s after the first IMU epoch.
+    pub start_s: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Position error added to the fixes, north/east/down, m.
+    pub offset_ned_m: [f64; 3],
+}
+
+/// The multipath jumps of a drive of `duration_s` for `seed`: one per started 180 s (at
+/// least two), each 20-60 s long, starting uniformly between the end of the static start and
+/// 60 s before the end, 0.3-1 m in a direction uniform on the sphere (jumps may overlap: their
+/// offsets add).
+pub fn multipath_jumps(duration_s: f64, seed: u64) -> Vec<MultipathJump> {
+    let mut rng = stream(seed, DRIVE_STREAMS, 3, 0);
+    let n = ((duration_s / 180.0).ceil() as usize).max(2);
+    let lo = STATIC_START_S;
+    let hi = (duration_s - 60.0).max(lo + 1.0);
+    (0..n)
+        .map(|_| {
+            let start_s = lo + (hi - lo) * rng.random::<f64>();
+            let duration_s = 20.0 + 40.0 * rng.random::<f64>();
+            let m = 0.3 + 0.7 * rng.random::<f64>();
+            let z: f64 = 2.0 * rng.random::<f64>() - 1.0;
+            let az = std::f64::consts::TAU * rng.random::<f64>();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            MultipathJump {
+                start_s,
+                duration_s,
+                offset_ned_m: [m * r * az.cos(), m * r * az.sin(), m * z],
+            }
+        })
+        .collect()
+}
+
+/// Adds the jumps to the fixes of `case` (their times relative to its first IMU epoch).
+fn apply_multipath(case: &mut Case, jumps: &[MultipathJump]) {
+    let t0 = case.trajectory.t0_s;
+    for f in &mut case.meas.gnss {
+        let t = f.t_s - t0;
+        let mut d = [0.0; 3];
+        for j in jumps
+            .iter()
+            .filter(|j| j.start_s <= t && t < j.start_s + j.duration_s)
+        {
+            for (a, b) in d.iter_mut().zip(&j.offset_ned_m) {
+                *a += b;
+            }
+        }
+        if d != [0.0; 3] {
+            let p = nav_core::earth::displace(
+                &nav_core::earth::Llh {
+                    lat_rad: f.lat_rad,
+                    lon_rad: f.lon_rad,
+                    h_m: f.h_m,
+                },
+                &nalgebra::Vector3::from(d),
+            );
+            f.lat_rad = p.lat_rad;
+            f.lon_rad = p.lon_rad;
+            f.h_m = p.h_m;
+        }
+    }
+}
+
 /// Parameters of a drive.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DriveSpec {
     /// The undeclared effect (`None`: the declared model is complete).
     pub effect: Option<Effect>,
+    /// A second undeclared effect of the vocabulary (`None`: one effect at most). Its
+    /// magnitudes come from their own random stream, so `effect` is drawn as without it.
+    pub second: Option<Effect>,
+    /// An undeclared effect outside the diagnosis vocabulary ([`OutsideEffect`]).
+    pub outside: Option<OutsideEffect>,
     /// Duration, minutes (at least 4).
     pub minutes: f64,
     /// IMU rate, Hz.
@@ -151,10 +258,13 @@ pub struct DriveSpec {
 }
 
 impl DriveSpec {
-    /// A 10-minute 200 Hz drive (4 outages) with `effect`, 8 substeps, seed 13.
+    /// A 10-minute 200 Hz drive (4 outages) with `effect`, 8 substeps, seed 13, no second
+    /// effect and none outside the vocabulary.
     pub fn new(effect: Option<Effect>) -> Self {
         Self {
             effect,
+            second: None,
+            outside: None,
             minutes: 10.0,
             rate_hz: 200.0,
             substeps: 8,
@@ -429,6 +539,9 @@ pub struct UndeclaredDrive {
     pub case: Case,
     /// The KF-GINS configuration (paths relative to the drive's folder).
     pub config: KfGinsConfig,
+    /// The multipath jumps added to the fixes ([`OutsideEffect::GnssMultipath`]; empty
+    /// otherwise). They are not part of the error model (`case.errors`) nor of `case.toml`.
+    pub multipath: Vec<MultipathJump>,
 }
 
 /// Generates a drive (truth, IMU, GNSS, configuration) in memory.
@@ -439,19 +552,33 @@ pub fn generate(spec: &DriveSpec) -> Result<UndeclaredDrive, SimError> {
     if let Some(n) = spec.file_gaps {
         errors.gnss.outages = spread_gaps(duration_s, n);
     }
-    if let Some(e) = spec.effect {
-        add_effect(&mut errors, e, spec.seed, duration_s);
+    for e in spec.effect.iter().chain(&spec.second) {
+        add_effect(&mut errors, *e, spec.seed, duration_s);
     }
-    errors.name = match spec.effect {
-        Some(e) => format!("undeclared {}", e.range()),
-        None => "declared model only".into(),
+    let mut what: Vec<&str> = spec
+        .effect
+        .iter()
+        .chain(&spec.second)
+        .map(|e| e.range())
+        .collect();
+    what.extend(spec.outside.map(|o| o.range()));
+    errors.name = if what.is_empty() {
+        "declared model only".into()
+    } else {
+        format!("undeclared {}", what.join(" and "))
     };
-    let case = simulate(&scenario, &errors, spec.seed)?;
+    let mut case = simulate(&scenario, &errors, spec.seed)?;
+    let multipath = match spec.outside {
+        Some(OutsideEffect::GnssMultipath) => multipath_jumps(duration_s, spec.seed),
+        None => Vec::new(),
+    };
+    apply_multipath(&mut case, &multipath);
     let config = kf_gins_config(&case, spec.seed);
     Ok(UndeclaredDrive {
         spec: *spec,
         case,
         config,
+        multipath,
     })
 }
 
@@ -544,58 +671,32 @@ impl UndeclaredDrive {
 
     /// What the drive holds, in one line (effect and realised magnitudes).
     pub fn describe(&self) -> String {
-        let e = &self.case.errors;
-        let what = match self.spec.effect {
-            None => "no undeclared effect".to_string(),
-            Some(Effect::GyroScaleFactor) => {
-                format!(
-                    "gyro scale factor {:?} ppm",
-                    e.gyro.scale_factor_ppm.0.map(r1)
-                )
-            }
-            Some(Effect::AccelScaleFactor) => {
-                format!(
-                    "accel scale factor {:?} ppm",
-                    e.accel.scale_factor_ppm.0.map(r1)
-                )
-            }
-            Some(Effect::AccelMisalignment) => format!(
-                "accel misalignment {:?} urad",
-                e.accel.misalignment_rad.map(|r| r.map(|x| r1(x * 1e6)))
-            ),
-            Some(Effect::AccelTemperature) => format!(
-                "accel temperature coefficient {:?} ug/degC over a 20 degC warm-up",
-                e.accel.temp_coeff_per_c.0.map(|x| r1(x / UG_MPS2))
-            ),
-            Some(Effect::LeverArm) => {
-                format!(
-                    "antenna at {:?} m, declared [0, 0, 0]",
-                    e.gnss.lever_arm_b_m.0
-                )
-            }
-            Some(Effect::TimeOffset) => {
-                format!("GNSS tags {:.1} ms late", e.gnss.time_offset_s * 1e3)
-            }
-            Some(Effect::ImuClockDrift) => {
-                format!("IMU clock {:+.1} ppm", e.imu_clock_drift_ppm)
-            }
-            Some(Effect::GnssCorrelatedError) => format!(
-                "GNSS white {:?} m, Gauss-Markov {:?} cm / {:.0} s (reported {:?} m)",
-                e.gnss.white_sigma_ned_m.0,
-                e.gnss.gm_sigma_ned_m.0.map(|x| r1(x * 100.0)),
-                e.gnss.gm_tau_s,
-                e.gnss.reported_std()
-            ),
-            Some(Effect::AccelBiasStep) => format!(
-                "accelerometer bias step {:?} ug at {:.0} s",
-                e.accel.bias_step.0.map(|x| r1(x / UG_MPS2)),
-                e.accel.bias_step_at_s
-            ),
-            Some(Effect::GyroBiasStep) => format!(
-                "gyro bias step {:?} deg/h at {:.0} s",
-                e.gyro.bias_step.0.map(|x| r1(x / DEG_PER_H_RADPS)),
-                e.gyro.bias_step_at_s
-            ),
+        let mut what: Vec<String> = self
+            .spec
+            .effect
+            .iter()
+            .chain(&self.spec.second)
+            .map(|e| self.describe_effect(*e))
+            .collect();
+        if !self.multipath.is_empty() {
+            let j: Vec<String> = self
+                .multipath
+                .iter()
+                .map(|j| {
+                    let m = j.offset_ned_m.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    format!(
+                        "{m:.2} m at {:.0}-{:.0} s",
+                        j.start_s,
+                        j.start_s + j.duration_s
+                    )
+                })
+                .collect();
+            what.push(format!("GNSS multipath jumps {}", j.join(", ")));
+        }
+        let what = if what.is_empty() {
+            "no undeclared effect".to_string()
+        } else {
+            what.join("; ")
         };
         format!(
             "{:.1} min at {} Hz (truth RK4 x{}), seed {}: {what}",
@@ -604,6 +705,62 @@ impl UndeclaredDrive {
             self.spec.substeps,
             self.spec.seed
         )
+    }
+
+    /// One effect of the drive with its realised magnitudes.
+    fn describe_effect(&self, effect: Effect) -> String {
+        let e = &self.case.errors;
+        match effect {
+            Effect::GyroScaleFactor => {
+                format!(
+                    "gyro scale factor {:?} ppm",
+                    e.gyro.scale_factor_ppm.0.map(r1)
+                )
+            }
+            Effect::AccelScaleFactor => {
+                format!(
+                    "accel scale factor {:?} ppm",
+                    e.accel.scale_factor_ppm.0.map(r1)
+                )
+            }
+            Effect::AccelMisalignment => format!(
+                "accel misalignment {:?} urad",
+                e.accel.misalignment_rad.map(|r| r.map(|x| r1(x * 1e6)))
+            ),
+            Effect::AccelTemperature => format!(
+                "accel temperature coefficient {:?} ug/degC over a 20 degC warm-up",
+                e.accel.temp_coeff_per_c.0.map(|x| r1(x / UG_MPS2))
+            ),
+            Effect::LeverArm => {
+                format!(
+                    "antenna at {:?} m, declared [0, 0, 0]",
+                    e.gnss.lever_arm_b_m.0
+                )
+            }
+            Effect::TimeOffset => {
+                format!("GNSS tags {:.1} ms late", e.gnss.time_offset_s * 1e3)
+            }
+            Effect::ImuClockDrift => {
+                format!("IMU clock {:+.1} ppm", e.imu_clock_drift_ppm)
+            }
+            Effect::GnssCorrelatedError => format!(
+                "GNSS white {:?} m, Gauss-Markov {:?} cm / {:.0} s (reported {:?} m)",
+                e.gnss.white_sigma_ned_m.0,
+                e.gnss.gm_sigma_ned_m.0.map(|x| r1(x * 100.0)),
+                e.gnss.gm_tau_s,
+                e.gnss.reported_std()
+            ),
+            Effect::AccelBiasStep => format!(
+                "accelerometer bias step {:?} ug at {:.0} s",
+                e.accel.bias_step.0.map(|x| r1(x / UG_MPS2)),
+                e.accel.bias_step_at_s
+            ),
+            Effect::GyroBiasStep => format!(
+                "gyro bias step {:?} deg/h at {:.0} s",
+                e.gyro.bias_step.0.map(|x| r1(x / DEG_PER_H_RADPS)),
+                e.gyro.bias_step_at_s
+            ),
+        }
     }
 }
 
@@ -625,6 +782,92 @@ mod tests {
         let d10 = drive_scenario(10.0, 100.0, 2).duration_s().unwrap();
         assert_eq!(drive_outages(d10).len(), 4);
         assert!(o.iter().all(|o| o.start_s + o.duration_s + 30.0 <= d));
+    }
+
+    #[test]
+    fn multipath_jumps_are_in_range_and_displace_only_their_fixes() {
+        for seed in 0..20 {
+            let j = multipath_jumps(600.0, seed);
+            assert_eq!(j.len(), 4);
+            for j in &j {
+                let m = j.offset_ned_m.iter().map(|x| x * x).sum::<f64>().sqrt();
+                assert!((0.3..=1.0).contains(&m), "{m}");
+                assert!((20.0..=60.0).contains(&j.duration_s), "{j:?}");
+                assert!((STATIC_START_S..=540.0).contains(&j.start_s), "{j:?}");
+            }
+        }
+        let spec = DriveSpec {
+            minutes: 4.0,
+            rate_hz: 20.0,
+            substeps: 1,
+            file_gaps: Some(1),
+            ..DriveSpec::new(None)
+        };
+        let clean = generate(&spec).unwrap();
+        let mp = generate(&DriveSpec {
+            outside: Some(OutsideEffect::GnssMultipath),
+            ..spec
+        })
+        .unwrap();
+        assert!(clean.multipath.is_empty() && mp.multipath.len() == 2);
+        assert!(clean
+            .case
+            .meas
+            .imu
+            .iter()
+            .zip(&mp.case.meas.imu)
+            .all(|(a, b)| a.dv_mps == b.dv_mps && a.dtheta_rad == b.dtheta_rad));
+        assert_eq!(clean.case.meas.gnss.len(), mp.case.meas.gnss.len());
+        let t0 = mp.case.trajectory.t0_s;
+        let mut moved = 0;
+        for (c, m) in clean.case.meas.gnss.iter().zip(&mp.case.meas.gnss) {
+            let t = c.t_s - t0;
+            let want: [f64; 3] = [0, 1, 2].map(|i| {
+                mp.multipath
+                    .iter()
+                    .filter(|j| j.start_s <= t && t < j.start_s + j.duration_s)
+                    .map(|j| j.offset_ned_m[i])
+                    .sum()
+            });
+            // metres north, east, down from the displaced position
+            let r = nav_core::earth::radii(c.lat_rad);
+            let got = [
+                (m.lat_rad - c.lat_rad) * (r.meridian_m + c.h_m),
+                (m.lon_rad - c.lon_rad) * (r.transverse_m + c.h_m) * c.lat_rad.cos(),
+                c.h_m - m.h_m,
+            ];
+            for (g, w) in got.iter().zip(&want) {
+                assert!((g - w).abs() < 1e-6, "{got:?} {want:?}");
+            }
+            moved += usize::from(want != [0.0; 3]);
+            assert_eq!(c.pos_std_ned_m, m.pos_std_ned_m);
+        }
+        assert!(moved >= 20, "{moved}");
+        assert!(
+            mp.describe().contains("GNSS multipath jumps"),
+            "{}",
+            mp.describe()
+        );
+    }
+
+    #[test]
+    fn a_second_effect_leaves_the_first_as_drawn_alone() {
+        for (a, b) in [
+            (Effect::GyroScaleFactor, Effect::ImuClockDrift),
+            (Effect::LeverArm, Effect::AccelBiasStep),
+            (Effect::AccelScaleFactor, Effect::GyroBiasStep),
+        ] {
+            // disjoint fields and separate random streams: the order does not matter
+            let mut ab = declared_error_model(600.0);
+            add_effect(&mut ab, a, 7, 600.0);
+            let alone = ab.clone();
+            add_effect(&mut ab, b, 7, 600.0);
+            let mut ba = declared_error_model(600.0);
+            add_effect(&mut ba, b, 7, 600.0);
+            add_effect(&mut ba, a, 7, 600.0);
+            assert_eq!(ab, ba);
+            assert_ne!(ab, alone);
+        }
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! `host_sim::diagnose` on simulated drives with the effects of the clock, GNSS and bias-step
+//! `nav_diagnose::diagnose` on simulated drives with the effects of the clock, GNSS and bias-step
 //! vocabulary (about 11 min at 100 Hz, RTK at 1 Hz, a tactical IMU with the source's NBK
 //! noise, 30 s GNSS outages every 100 s from 150 s, NBK model):
 //!

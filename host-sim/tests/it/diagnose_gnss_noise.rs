@@ -1,4 +1,4 @@
-//! The GNSS side of `host_sim::diagnose` and of the robust gate: fixes whose declared sigmas
+//! The GNSS side of `nav_diagnose::diagnose` and of the robust gate: fixes whose declared sigmas
 //! are too small. A slow rover (0.2 m/s, stops, RTK every 3 s declared at 6/4/10 mm, true errors
 //! 10x that): the default run is not worse than the gate-off run, the diagnosis names the GNSS
 //! noise scale (about 10) and writes it to `augmented.toml`, whose run is not worse than the

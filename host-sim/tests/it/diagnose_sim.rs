@@ -1,4 +1,4 @@
-//! `host_sim::diagnose` on simulated drives (about 11 min at 100 Hz, RTK at 1 Hz, a tactical
+//! `nav_diagnose::diagnose` on simulated drives (about 11 min at 100 Hz, RTK at 1 Hz, a tactical
 //! IMU with the source's NBK noise, 30 s GNSS outages every 100 s from 150 s): for each effect
 //! of the vocabulary, a drive whose data contain it while the configuration does not declare
 //! it must have that effect named first, estimated within 20 % of the truth (or 3 sigma) per
