@@ -54,26 +54,7 @@ pub(crate) fn detect(
     if t.rows.len() < 10 {
         anyhow::bail!("{}: fewer than 10 data rows recognised", path.display());
     }
-    // a date-time text column, else the first increasing numeric one
-    let text = (0..t.width)
-        .filter(|c| !t.numeric(*c))
-        .find_map(|c| super::gnss::text_format(&t, c).map(|f| (c, f)));
-    let (tc, tv) = match text {
-        Some((c, f)) => (c, text_seconds(&t, c, f)),
-        None => {
-            let tc = (0..t.width)
-                .find(|c| t.numeric(*c) && increasing(&t.col(*c)))
-                .ok_or_else(|| anyhow::anyhow!("{}: no increasing time column", path.display()))?;
-            (tc, t.col(tc))
-        }
-    };
-    if !increasing(&tv) {
-        anyhow::bail!(
-            "{}: the time column {} does not increase",
-            path.display(),
-            tc + 1
-        );
-    }
+    let (tc, tv, text) = time_column(path, &t)?;
     let step = median_step(&tv).unwrap_or(f64::NAN);
     // the accelerometer triple: consecutive numeric columns whose median norm is 1 g, 9.8
     // m/s^2, or 9.8 m/s^2 x the interval (increments)
@@ -128,7 +109,7 @@ pub(crate) fn detect(
     }
     let gyro_unit = gyro_unit(&t, gc, hints, g);
     let (time_toml, dt_s) = match text {
-        Some((c, f)) => text_time(&t, c, f, &tv, g),
+        Some(f) => text_time(&t, tc, f, &tv, g),
         None => time_kind(path, &t, tc, hints, g)?,
     };
     writeln!(
@@ -196,6 +177,31 @@ fn gyro_unit(t: &Table, gc: usize, hints: &GnssHints, g: &mut Guess) -> String {
     format!(
         "gyro_unit = \"rad/s\"  # GUESS: 99th percentile |w| {peak:.4}, no turns to compare with"
     )
+}
+
+/// The time column: a date-time text column (with its format), else the first increasing
+/// numeric one; its index, its values (s) and the text format.
+fn time_column(path: &Path, t: &Table) -> anyhow::Result<(usize, Vec<f64>, Option<&'static str>)> {
+    let text = (0..t.width)
+        .filter(|c| !t.numeric(*c))
+        .find_map(|c| super::gnss::text_format(t, c).map(|f| (c, f)));
+    let (tc, tv) = match text {
+        Some((c, f)) => (c, text_seconds(t, c, f)),
+        None => {
+            let tc = (0..t.width)
+                .find(|c| t.numeric(*c) && increasing(&t.col(*c)))
+                .ok_or_else(|| anyhow::anyhow!("{}: no increasing time column", path.display()))?;
+            (tc, t.col(tc))
+        }
+    };
+    if !increasing(&tv) {
+        anyhow::bail!(
+            "{}: the time column {} does not increase",
+            path.display(),
+            tc + 1
+        );
+    }
+    Ok((tc, tv, text.map(|(_, f)| f)))
 }
 
 /// Column `c`'s date-time texts in the format `f` as seconds since 1970 (NaN where one does
