@@ -835,7 +835,7 @@ fn judge_late_bias_step<'a>(
     ctx: Ctx<'a>,
     s: &mut Search,
     found: Option<&'a (changepoint::BiasStep, Data)>,
-) -> anyhow::Result<Ctx<'a>> {
+) -> Result<Ctx<'a>, DiagnoseError> {
     let Some((b, stepped)) = found else {
         return Ok(ctx);
     };
