@@ -279,46 +279,45 @@ impl Block {
         reg: &Regressors<T>,
         f_top: &mut [[T; N]; CORE_DIM],
     ) {
-        // C_b^n dt, formed by the blocks that use it
-        let c_dt = || scale3(&reg.c_nb, reg.dt);
+        let c_dt = scale3(&reg.c_nb, reg.dt);
         match self {
             // the bias blocks: Self::add_bias_f at the discretisation
             Self::Core | Self::GyroBias(_) | Self::AccelBias(_) => {}
             // gyro scale error ds: w_hat = w - diag(w) ds  =>  phi' += C diag(w) ds
             Self::GyroScaleFactor => {
-                add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt(), &reg.omega_b));
+                add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.omega_b));
             }
             // accel scale error ds: f_hat = f - diag(f) ds  =>  dv' -= C diag(f) ds
             Self::AccelScaleFactor => {
-                let m = mul_diag3(&c_dt(), &reg.f_b);
+                let m = mul_diag3(&c_dt, &reg.f_b);
                 add3(f_top, IDX_VEL, off, &scale3(&m, -T::ONE));
             }
             // gyro misalignment dm: w_hat = w - J(w) dm  =>  phi' += C J(w) dm
             Self::GyroMisalignment => {
-                effects::add_block(f_top, IDX_ATT, off, &effects::c_mis(&c_dt(), &reg.omega_b));
+                effects::add_block(f_top, IDX_ATT, off, &effects::c_mis(&c_dt, &reg.omega_b));
             }
             // accel misalignment dm: f_hat = f - J(f) dm  =>  dv' -= C J(f) dm
             Self::AccelMisalignment => {
-                let neg = scale3(&c_dt(), -T::ONE);
+                let neg = scale3(&c_dt, -T::ONE);
                 effects::add_block(f_top, IDX_VEL, off, &effects::c_mis(&neg, &reg.f_b));
             }
             // gyro temperature coefficient dk: w_hat = w - dT dk  =>  phi' += C dT dk
             Self::GyroTemperatureBias => {
                 let d_t = effects::temperature_regressor(reg.temperature_c);
                 if d_t != T::ZERO {
-                    add3(f_top, IDX_ATT, off, &scale3(&c_dt(), d_t));
+                    add3(f_top, IDX_ATT, off, &scale3(&c_dt, d_t));
                 }
             }
             // accel temperature coefficient dk: f_hat = f - dT dk  =>  dv' -= C dT dk
             Self::AccelTemperatureBias => {
                 let d_t = effects::temperature_regressor(reg.temperature_c);
                 if d_t != T::ZERO {
-                    add3(f_top, IDX_VEL, off, &scale3(&c_dt(), -d_t));
+                    add3(f_top, IDX_VEL, off, &scale3(&c_dt, -d_t));
                 }
             }
             // gyro g-sensitivity dg: w_hat = w - diag(f) dg  =>  phi' += C diag(f) dg
             Self::GyroGSensitivity => {
-                add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt(), &reg.f_b));
+                add3(f_top, IDX_ATT, off, &mul_diag3(&c_dt, &reg.f_b));
             }
             // measurement-only blocks
             Self::LeverArm

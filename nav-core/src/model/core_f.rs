@@ -104,12 +104,12 @@ pub fn core_f<T: Scalar>(lat_rad: f64, h_m: f64, v_ned_mps: &[f64; 3]) -> [[T; 9
     let v_x = skew_t(&[vn, ve, vd]);
     let r_geo = (rm0 * rn0).sqrt_libm() + h;
 
-    let neg = |m: M3<T>| super::map33(&m, |x| -x);
+    let neg = |m: M3<T>| m.map(|r| r.map(|x| -x));
     let f_pp = neg(skew_t(&w_in));
     let f_pv = w_en_v;
     let f_pr = add3m(&w_ie_r, &w_en_r);
     let f_vv = add3m(&neg(skew_t(&w_cor)), &mul3(&v_x, &w_en_v));
-    let two_w_ie_r = super::map33(&w_ie_r, |x| two * x);
+    let two_w_ie_r = w_ie_r.map(|r| r.map(|x| two * x));
     let mut f_vr = mul3(&v_x, &add3m(&two_w_ie_r, &w_en_r));
     // gravity error: height (dh = -dr_D, dg/dh = -2 g / R) and latitude (Somigliana slope)
     f_vr[2][2] += two * g / r_geo;

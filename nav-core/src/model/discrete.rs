@@ -197,7 +197,7 @@ pub fn discretize<T: Scalar, const N: usize>(
 
     // white sensor noise through the mean C_b^n: C diag(S) C^T T
     let inv_t = if dt > 0.0 { T::ONE / t } else { T::ZERO };
-    let c_mean = super::map33(&acc.c_dt, |v| v * inv_t);
+    let c_mean = acc.c_dt.map(|r| r.map(|v| v * inv_t));
     let q_att = rotate_diag(&c_mean, &cfg.gyro.s_n, t);
     let q_vel = rotate_diag(&c_mean, &cfg.accel.s_n, t);
     Discrete {

@@ -92,22 +92,14 @@ pub(crate) fn skew(v: &[f64; 3]) -> [[f64; 3]; 3] {
     [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
 }
 
-/// `f` applied to every entry of a 3x3 matrix. Written out element by element: the nested
-/// array `map` compiled to a loop through an array drain, a hot spot of the propagation.
-#[inline]
-pub(crate) fn map33<T: Copy, U>(m: &[[T; 3]; 3], f: impl Fn(T) -> U) -> [[U; 3]; 3] {
-    let [[a, b, c], [d, e, g], [h, i, j]] = *m;
-    [[f(a), f(b), f(c)], [f(d), f(e), f(g)], [f(h), f(i), f(j)]]
-}
-
 /// Converts a 3x3 f64 matrix to the scalar type.
 pub(crate) fn to_t<T: Scalar>(m: &[[f64; 3]; 3]) -> [[T; 3]; 3] {
-    map33(m, T::of_f64)
+    m.map(|r| r.map(T::of_f64))
 }
 
 /// `m * s`.
 pub(crate) fn scale3<T: Scalar>(m: &[[T; 3]; 3], s: T) -> [[T; 3]; 3] {
-    map33(m, |v| v * s)
+    m.map(|r| r.map(|v| v * s))
 }
 
 /// `m * diag(d)` (scales column j by d[j]).
@@ -115,13 +107,11 @@ pub(crate) fn mul_diag3<T: Copy + core::ops::Mul<Output = T>>(
     m: &[[T; 3]; 3],
     d: &[T; 3],
 ) -> [[T; 3]; 3] {
-    let [x, y, z] = *d;
-    let [[a, b, c], [e, f, g], [h, i, j]] = *m;
-    [
-        [a * x, b * y, c * z],
-        [e * x, f * y, g * z],
-        [h * x, i * y, j * z],
-    ]
+    m.map(|r| {
+        let [a, b, c] = r;
+        let [x, y, z] = *d;
+        [a * x, b * y, c * z]
+    })
 }
 
 /// Adds the 3x3 `m` into `dst` at (row0, col0); entries outside `dst` are ignored.
