@@ -510,6 +510,21 @@ fn velocity_sigma_cols(
     })
 }
 
+/// The GPS week in field `wi` and the seconds of week in field `ti` of `dl` (the IMU and
+/// GNSS CSV's `kind = "week_sow"`), each checked for its range.
+pub(crate) fn week_and_sow(dl: &DataLine<'_>, wi: usize, ti: usize) -> Result<(i64, f64), IoError> {
+    let w = dl.integer(wi, "week", 0, 100_000)?;
+    let v = dl.num(ti, "time [GPS s of week]")?;
+    if !(0.0..SECONDS_PER_WEEK + 1.0).contains(&v) {
+        return Err(dl.invalid(
+            ti,
+            "time [GPS s of week]",
+            "seconds of week outside 0..604800",
+        ));
+    }
+    Ok((w, v))
+}
+
 /// GPS (week, seconds of week) of `secs` whole + `frac` seconds since 1970 in `scale`.
 pub(crate) fn week_sow_of_epoch(secs: i64, frac: f64, scale: TimeScale) -> Option<(i64, f64)> {
     let leap = match scale {
@@ -552,16 +567,7 @@ fn parse_time(
             Ok((None, v))
         }
         GnssCsvTime::WeekSow => {
-            let wi = cols.week.unwrap_or(0);
-            let w = dl.integer(wi, "week", 0, 100_000)?;
-            let v = dl.num(ti, "time [GPS s of week]")?;
-            if !(0.0..SECONDS_PER_WEEK + 1.0).contains(&v) {
-                return Err(dl.invalid(
-                    ti,
-                    "time [GPS s of week]",
-                    "seconds of week outside 0..604800",
-                ));
-            }
+            let (w, v) = week_and_sow(dl, cols.week.unwrap_or(0), ti)?;
             Ok((Some(w), v))
         }
         GnssCsvTime::UnixS { scale } | GnssCsvTime::UnixMs { scale } => {

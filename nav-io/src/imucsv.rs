@@ -1,4 +1,4 @@
-//! Generic IMU CSV logs (rates and specific forces, not increments) with a column/unit mapping,
+//! Generic IMU CSV logs (rates and specific forces, or increments) with a column/unit mapping,
 //! and their conversion to the increments the navigation core integrates.
 //!
 //! # Mapping ([`ImuCsvFormat`], serde/TOML)
@@ -10,7 +10,8 @@
 //!   its first word, matched case-insensitively);
 //! - gyro unit `deg/s` or `rad/s`; accelerometer unit `g` (9.80665 m/s^2) or `m/s^2`;
 //! - time ([`CsvTime`]): a column of GPS seconds of week (`kind = "gps_sow"`, as for the GNSS
-//!   CSV; `"seconds"` also accepted), Unix seconds or milliseconds (`unix_s`, `unix_ms`, in
+//!   CSV; `"seconds"` also accepted), a GPS week column with one of seconds of week
+//!   (`week_sow`, as for the GNSS CSV), Unix seconds or milliseconds (`unix_s`, `unix_ms`, in
 //!   the time scale `scale`, UTC by default, as for the GNSS CSV), date-time text (`text`,
 //!   with a chrono `format` and a `scale`, as for the GNSS CSV), a tick column in ms
 //!   (optionally placed in GPS time with an RTKLIB time-tag file, see below), or a fixed rate
@@ -46,12 +47,17 @@
 //!   (sensors with integrating/decimating filters); the increment is `y_k * (t_k - t_{k-1})`,
 //!   exact for such data.
 //!
-//! Either way the first row only opens the first interval and yields no increment, so `n`
+//! - `increments`: each row holds the angle and velocity increments over the interval ending
+//!   at its time stamp (devices that output `dtheta`/`dv`); the increment is the row as it is
+//!   (in the units' angle and velocity: rad or deg, m/s or g s). The rows are then increments,
+//!   not rates, in [`RawImuSample`] too.
+//!
+//! Every way the first row only opens the first interval and yields no increment, so `n`
 //! rows give `n - 1` increments stamped at the rows' times 2..n. Across a time gap the
 //! increment spans the whole gap (nothing is invented); gaps are reported in the record.
 //! The temperature of an increment is that of its end row.
 
-use super::gnsscsv::{week_sow_of_epoch, TimeScale};
+use super::gnsscsv::{week_and_sow, week_sow_of_epoch, TimeScale};
 use super::gpstime::SECONDS_PER_WEEK;
 use super::lines::{open_text, split_fields, DataLine, LineReader, MonotonicTime};
 use super::tag::{read_time_tag, TimeTag};
@@ -123,6 +129,10 @@ pub enum CsvTime {
     /// uses for the same thing (`"seconds"` is accepted as well).
     #[serde(rename = "gps_sow", alias = "seconds")]
     Seconds,
+    /// A GPS week in `columns.week` and its seconds of week in `columns.time`, as for the GNSS
+    /// CSV: the time stamps are seconds of the first row's week (continuing past 604,800 s
+    /// into the next week).
+    WeekSow,
     /// The time column holds ticks in milliseconds. Without a tag file t = tick / 1000 s.
     TicksMs {
         /// RTKLIB time-tag file placing the ticks in GPS time (relative paths: relative to the
@@ -180,6 +190,11 @@ pub enum SampleConvention {
     Trapezoid,
     /// Rows are means over the interval ending at their time stamps.
     IntervalMean,
+    /// Rows are the increments over the interval ending at their time stamps: the gyro
+    /// columns angle increments (rad with `gyro_unit = "rad/s"`, deg with `"deg/s"`), the
+    /// accelerometer columns velocity increments (m/s with `accel_unit = "m/s^2"`, g s with
+    /// `"g"`).
+    Increments,
 }
 
 /// Column assignment.
@@ -196,6 +211,9 @@ pub struct ImuCsvColumns {
     /// Temperature column, deg C (optional; may hold NaN).
     #[serde(default)]
     pub temperature: Option<Column>,
+    /// GPS week column (with `time.kind = "week_sow"` only).
+    #[serde(default)]
+    pub week: Option<Column>,
 }
 
 /// How to read an IMU CSV log (see the module notes).
@@ -240,6 +258,7 @@ impl ImuCsvFormat {
                 gyro: [Column::Index(1), Column::Index(2), Column::Index(3)],
                 accel: [Column::Index(4), Column::Index(5), Column::Index(6)],
                 temperature: None,
+                week: None,
             },
             gyro_unit: RateUnit::DegPerS,
             accel_unit: AccelUnit::G,
@@ -265,6 +284,7 @@ impl ImuCsvFormat {
                 gyro: [Column::Index(4), Column::Index(5), Column::Index(6)],
                 accel: [Column::Index(1), Column::Index(2), Column::Index(3)],
                 temperature: None,
+                week: None,
             },
             gyro_unit: RateUnit::DegPerS,
             accel_unit: AccelUnit::G,
@@ -364,6 +384,7 @@ fn increment(a: &RawImuSample, b: &RawImuSample, conv: SampleConvention) -> ImuS
     let inc = |ya: f64, yb: f64| match conv {
         SampleConvention::Trapezoid => 0.5 * (ya + yb) * dt,
         SampleConvention::IntervalMean => yb * dt,
+        SampleConvention::Increments => yb,
     };
     ImuSample {
         t_s: b.t_s,
@@ -465,6 +486,7 @@ struct CsvCols {
     accel: [usize; 3],
     time: Option<usize>,
     temp: Option<usize>,
+    week: Option<usize>,
     /// Meaning of field i (0-based), for errors ("(unused)" for the others).
     names: Vec<String>,
     max_idx: usize,
@@ -494,11 +516,17 @@ fn resolve_imu_cols(
         .as_ref()
         .map(|tc| resolve(path, tc, nm, "temperature"))
         .transpose()?;
+    let week = c
+        .week
+        .as_ref()
+        .map(|wc| resolve(path, wc, nm, "week"))
+        .transpose()?;
     let max_idx = gyro
         .iter()
         .chain(accel.iter())
         .chain(time.iter())
         .chain(temp.iter())
+        .chain(week.iter())
         .copied()
         .max()
         .unwrap_or(0);
@@ -533,11 +561,15 @@ fn resolve_imu_cols(
     if let Some(i) = temp {
         names[i] = label(i, "deg C", "temperature");
     }
+    if let Some(i) = week {
+        names[i] = label(i, "GPS week", "week");
+    }
     Ok(CsvCols {
         gyro,
         accel,
         time,
         temp,
+        week,
         names,
         max_idx,
     })
@@ -560,6 +592,12 @@ fn check_format(path: &Path, fmt: &ImuCsvFormat) -> Result<(), IoError> {
         if format.trim().is_empty() {
             return Err(cfg_err(path, "imu.csv.time.format is empty"));
         }
+    }
+    if matches!(fmt.time, CsvTime::WeekSow) != fmt.columns.week.is_some() {
+        return Err(cfg_err(
+            path,
+            "imu.csv: time.kind = \"week_sow\" and a columns.week go together",
+        ));
     }
     if !matches!(fmt.time, CsvTime::FixedRate { .. }) && fmt.columns.time.is_none() {
         return Err(cfg_err(
@@ -615,6 +653,8 @@ pub struct ImuCsvReader {
     /// A date-time text time column (`kind = "text"`): its chrono format, its scale and the
     /// GPS week of the first row (the time stamps are seconds of that week).
     text: Option<(String, TimeScale, Option<i64>)>,
+    /// The first row's GPS week with `kind = "week_sow"` (the time stamps are seconds of it).
+    week0: Option<i64>,
     failed: bool,
 }
 
@@ -670,7 +710,8 @@ impl ImuCsvReader {
         let path = path.as_ref();
         let mut r = Self::open_mapped(path, fmt, TimeMap::Column)?;
         match &fmt.time {
-            CsvTime::Seconds => {}
+            // a week column with seconds of week: placed as each row is parsed
+            CsvTime::Seconds | CsvTime::WeekSow => {}
             // a date-time text is placed in GPS seconds as each row is parsed
             CsvTime::Text { .. } => {}
             CsvTime::UnixS { scale } | CsvTime::UnixMs { scale } => {
@@ -779,6 +820,7 @@ impl ImuCsvReader {
                 CsvTime::Text { format, scale } => Some((format.clone(), *scale, None)),
                 _ => None,
             },
+            week0: None,
             failed: false,
         })
     }
@@ -821,9 +863,14 @@ impl ImuCsvReader {
             s.temperature_c = dl.num_allow_nan(i, nm(i))?;
         }
         if let Some(i) = c.time {
-            s.t_s = match &mut self.text {
-                Some((f, scale, week0)) => text_gps_s(&dl, i, f, *scale, week0)?,
-                None => dl.num(i, nm(i))?,
+            s.t_s = match (&mut self.text, c.week) {
+                (Some((f, scale, week0)), _) => text_gps_s(&dl, i, f, *scale, week0)?,
+                (None, Some(wi)) => {
+                    let (w, sow) = week_and_sow(&dl, wi, i)?;
+                    let w0 = *self.week0.get_or_insert(w);
+                    sow + (w - w0) as f64 * SECONDS_PER_WEEK
+                }
+                (None, None) => dl.num(i, nm(i))?,
             };
             // an exact repeat of the previous row (a logger writing a record twice) is passed
             // on: the increments skip it ([`ImuCsvIncrements`])

@@ -360,6 +360,7 @@ fn read_with_io(path: &Path, spec: &ColumnSpec, cols: &[String]) -> Result<Chann
             gyro: [idx("gx"), idx("gy"), idx("gz")],
             accel: [idx("ax"), idx("ay"), idx("az")],
             temperature: None,
+            week: None,
         },
         // Units are applied here (the io reader knows deg/s, rad/s, g, m/s^2 only).
         gyro_unit: RateUnit::RadPerS,

@@ -227,6 +227,7 @@ fn rate_format() -> ImuCsvFormat {
             gyro: [Column::Index(2), Column::Index(3), Column::Index(4)],
             accel: [Column::Index(5), Column::Index(6), Column::Index(7)],
             temperature: None,
+            week: None,
         },
         gyro_unit: RateUnit::RadPerS,
         accel_unit: AccelUnit::Mps2,

@@ -21,6 +21,7 @@ fn fmt_seconds(units: (RateUnit, AccelUnit), conv: SampleConvention) -> ImuCsvFo
             gyro: [Column::Index(2), Column::Index(3), Column::Index(4)],
             accel: [Column::Index(5), Column::Index(6), Column::Index(7)],
             temperature: None,
+            week: None,
         },
         gyro_unit: units.0,
         accel_unit: units.1,
@@ -328,6 +329,7 @@ fn columns_by_name_fixed_rate_offset_and_temperature() {
                 Column::Name("az_g".into()),
             ],
             temperature: Some(Column::Name("temp_C".into())),
+            week: None,
         },
         gyro_unit: RateUnit::DegPerS,
         accel_unit: AccelUnit::G,
@@ -691,4 +693,106 @@ fn date_time_text_times_are_the_gps_seconds_they_spell() {
         e.contains("bad.csv") && e.contains("line 2") && e.contains("%Y-%m-%dT%H:%M:%S%.f"),
         "{e}"
     );
+}
+
+#[test]
+fn week_and_seconds_columns_continue_across_the_week_rollover() {
+    let dir = tempfile::tempdir().unwrap();
+    // four rows 5 ms apart across the end of GPS week 2374
+    let mut text = String::new();
+    for k in 0..4 {
+        let t = 604_799.99 + 0.005 * k as f64;
+        let (w, sow) = if t >= 604_800.0 {
+            (2375, t - 604_800.0)
+        } else {
+            (2374, t)
+        };
+        let _ = writeln!(text, "{w},{sow:.3},0.1,0.2,0.3,0,0,-1.0");
+    }
+    let units = (RateUnit::DegPerS, AccelUnit::G);
+    let mut f = fmt_seconds(units, SampleConvention::Trapezoid);
+    f.columns.week = Some(Column::Index(1));
+    f.columns.time = Some(Column::Index(2));
+    f.columns.gyro = [Column::Index(3), Column::Index(4), Column::Index(5)];
+    f.columns.accel = [Column::Index(6), Column::Index(7), Column::Index(8)];
+    f.time = CsvTime::WeekSow;
+    let p = write(dir.path(), "week.csv", &text);
+    let raw = read_imu_csv_raw(&p, &f).unwrap();
+    let t: Vec<f64> = raw.samples.iter().map(|s| s.t_s).collect();
+    for (k, got) in t.iter().enumerate() {
+        let want = 604_799.99 + 0.005 * k as f64;
+        assert!((got - want).abs() < 1e-9, "row {k}: {got} vs {want}");
+    }
+    // the same mapping read from TOML, with the key names the GNSS CSV uses
+    let from_toml: ImuCsvFormat = toml::from_str(
+        r#"gyro_unit = "deg/s"
+accel_unit = "g"
+[columns]
+week = 1
+time = 2
+gyro = [3, 4, 5]
+accel = [6, 7, 8]
+[time]
+kind = "week_sow"
+"#,
+    )
+    .unwrap();
+    assert_eq!(from_toml, f);
+    // a week that is not an integer is named with its file, line and column
+    let bad = write(
+        dir.path(),
+        "bad.csv",
+        &text.replacen("2374,604799.995", "2374.5,604799.995", 1),
+    );
+    let e = read_imu_csv_raw(&bad, &f).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.csv") && e.contains("line 2") && e.contains("week"),
+        "{e}"
+    );
+    // the kind and the week column go together
+    f.columns.week = None;
+    let e = read_imu_csv_raw(&p, &f).unwrap_err().to_string();
+    assert!(e.contains("week_sow") && e.contains("columns.week"), "{e}");
+}
+
+#[test]
+fn increment_rows_are_taken_as_they_are_in_their_units() {
+    let dir = tempfile::tempdir().unwrap();
+    // rows of angle increments in deg and velocity increments in g s over 10 ms
+    let mut text = String::new();
+    for k in 0..5 {
+        let t = 100.0 + 0.01 * k as f64;
+        let _ = writeln!(
+            text,
+            "{t:.2},{},0.002,-0.003,0.0001,0.0,-0.01",
+            0.001 * k as f64
+        );
+    }
+    let mut f = fmt_seconds(
+        (RateUnit::DegPerS, AccelUnit::G),
+        SampleConvention::Increments,
+    );
+    let p = write(dir.path(), "inc.csv", &text);
+    let rec = read_imu_csv(&p, &f).unwrap();
+    // n rows give n - 1 increments, each the row's own values in rad and m/s
+    assert_eq!(rec.samples.len(), 4);
+    for (k, s) in rec.samples.iter().enumerate() {
+        let row = (k + 1) as f64;
+        assert!((s.t_s - (100.0 + 0.01 * row)).abs() < 1e-12);
+        assert_eq!(s.dtheta_rad[0], (0.001 * row) * PI / 180.0);
+        assert_eq!(s.dtheta_rad[1], 0.002 * PI / 180.0);
+        assert_eq!(s.dv_mps[2], -0.01 * G0);
+    }
+    // the interval does not scale an increment (it does a rate)
+    f.convention = SampleConvention::IntervalMean;
+    let as_rates = read_imu_csv(&p, &f).unwrap();
+    assert!((as_rates.samples[0].dv_mps[2] - rec.samples[0].dv_mps[2] * 0.01).abs() < 1e-12);
+    let conv: SampleConvention = toml::from_str::<toml::Value>("c = \"increments\"")
+        .unwrap()
+        .get("c")
+        .unwrap()
+        .clone()
+        .try_into()
+        .unwrap();
+    assert_eq!(conv, SampleConvention::Increments);
 }

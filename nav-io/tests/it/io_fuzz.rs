@@ -22,6 +22,7 @@ fn csv_formats() -> Vec<ImuCsvFormat> {
             gyro: [Column::Index(2), Column::Index(3), Column::Index(4)],
             accel: [Column::Index(5), Column::Index(6), Column::Index(7)],
             temperature: Some(Column::Index(8)),
+            week: None,
         },
         gyro_unit: RateUnit::DegPerS,
         accel_unit: AccelUnit::G,

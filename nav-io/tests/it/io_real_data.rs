@@ -32,6 +32,7 @@ fn gpst_csv_format() -> ImuCsvFormat {
             gyro: [n("gx_dps"), n("gy_dps"), n("gz_dps")],
             accel: [n("ax_g"), n("ay_g"), n("az_g")],
             temperature: None,
+            week: None,
         },
         gyro_unit: RateUnit::DegPerS,
         accel_unit: AccelUnit::G,
