@@ -69,13 +69,22 @@ pub(crate) fn detect(
         }
     };
     let dt = dt_guess(step);
-    let score = |m: f64| -> (f64, &'static str) {
-        [(1.0, "g"), (G0, "m/s^2"), (G0 * dt, "increments")]
-            .iter()
-            .map(|(r, u)| (((m / r).ln()).abs(), *u))
-            .fold((f64::INFINITY, ""), |a, b| if b.0 < a.0 { b } else { a })
+    // (median |f| expected, accelerometer unit, the rows hold increments)
+    let score = |m: f64| -> (f64, (&'static str, bool)) {
+        [
+            (1.0, ("g", false)),
+            (G0, ("m/s^2", false)),
+            (G0 * dt, ("m/s^2", true)),
+            (dt, ("g", true)),
+        ]
+        .iter()
+        .map(|(r, u)| (((m / r).ln()).abs(), *u))
+        .fold(
+            (f64::INFINITY, ("", false)),
+            |a, b| if b.0 < a.0 { b } else { a },
+        )
     };
-    let (ac, (err, unit)) = triples
+    let (ac, (err, (unit, increments))) = triples
         .iter()
         .map(|c| (*c, score(median(norms(&t, *c)))))
         .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
@@ -100,14 +109,13 @@ pub(crate) fn detect(
         })?;
     let fmed = median(norms(&t, ac));
     let mut s = String::new();
-    if unit == "increments" {
-        if !t.comma && t.width == 7 && tc == 0 && gc == 1 && ac == 4 {
-            writeln!(s, "[imu]\npath = {shown:?}\nformat = \"text\"  # 7 white-space columns, |dv| {fmed:.5} m/s = 9.8 m/s^2 x {dt} s: increments `t dtheta(3) dv(3)`, the project's IMU text")?;
-            return Ok(s);
-        }
-        anyhow::bail!("{}: the columns hold increments (|dv| = g x dt) in a layout other than the project's text `t dtheta(3) dv(3)`: not readable", path.display());
+    let project_text = !t.comma && t.width == 7 && tc == 0 && gc == 1 && ac == 4;
+    if increments && unit == "m/s^2" && project_text {
+        writeln!(s, "[imu]\npath = {shown:?}\nformat = \"text\"  # 7 white-space columns, |dv| {fmed:.5} m/s = 9.8 m/s^2 x {dt} s: increments `t dtheta(3) dv(3)`, the project's IMU text")?;
+        return Ok(s);
     }
-    let gyro_unit = gyro_unit(&t, gc, hints, g);
+    // increments are rates times the interval: the gyro unit is judged on the rates
+    let gyro_unit = gyro_unit(&t, gc, if increments { 1.0 / dt } else { 1.0 }, hints, g);
     let (time_toml, dt_s) = match text {
         Some(f) => text_time(&t, tc, f, &tv, g),
         None => time_kind(path, &t, tc, hints, g)?,
@@ -132,16 +140,35 @@ pub(crate) fn detect(
         )?;
     }
     writeln!(s, "{gyro_unit}")?;
-    writeln!(
-        s,
-        "accel_unit = \"{unit}\"  # median |f| over the first {} rows {fmed:.3}: units {unit}",
-        t.rows.len()
-    )?;
-    writeln!(s, "convention = \"trapezoid\"  # rows taken as instantaneous samples (\"interval_mean\" for averaged outputs)")?;
+    if increments {
+        let (inc_unit, per) = if unit == "g" {
+            ("g s", 1.0)
+        } else {
+            ("m/s", G0)
+        };
+        writeln!(
+            s,
+            "accel_unit = \"{unit}\"  # median |dv| over the first {} rows {fmed:.6} = {per} x the {dt} s interval: increments in {inc_unit}",
+            t.rows.len()
+        )?;
+        writeln!(s, "convention = \"increments\"  # the rows hold angle and velocity increments over the interval ending at their time")?;
+    } else {
+        writeln!(
+            s,
+            "accel_unit = \"{unit}\"  # median |f| over the first {} rows {fmed:.3}: units {unit}",
+            t.rows.len()
+        )?;
+        writeln!(s, "convention = \"trapezoid\"  # rows taken as instantaneous samples (\"interval_mean\" for averaged outputs)")?;
+    }
     let r = |c: usize| t.column_ref(c);
+    if time_toml.contains("week_sow") {
+        writeln!(s, "[imu.csv.columns]\nweek = {}", r(tc - 1))?;
+    } else {
+        writeln!(s, "[imu.csv.columns]")?;
+    }
     writeln!(
         s,
-        "[imu.csv.columns]\ntime = {}\ngyro = [{}, {}, {}]\naccel = [{}, {}, {}]",
+        "time = {}\ngyro = [{}, {}, {}]\naccel = [{}, {}, {}]",
         r(tc),
         r(gc),
         r(gc + 1),
@@ -155,8 +182,10 @@ pub(crate) fn detect(
     Ok(s)
 }
 
-fn gyro_unit(t: &Table, gc: usize, hints: &GnssHints, g: &mut Guess) -> String {
-    let peak = quantile(norms(t, gc), 0.99);
+/// The gyro unit of the triple at `gc` (`per_s` turns its values into rates: 1 for rates,
+/// 1 / the interval for increments).
+fn gyro_unit(t: &Table, gc: usize, per_s: f64, hints: &GnssHints, g: &mut Guess) -> String {
+    let peak = quantile(norms(t, gc), 0.99) * per_s;
     if let Some(cr) = hints.course_rate_degps.filter(|c| *c > 3.0) {
         let ratio = peak / cr;
         if (0.3..3.0).contains(&ratio) {
@@ -189,7 +218,7 @@ fn time_column(path: &Path, t: &Table) -> anyhow::Result<(usize, Vec<f64>, Optio
         Some((c, f)) => (c, text_seconds(t, c, f)),
         None => {
             let tc = (0..t.width)
-                .find(|c| t.numeric(*c) && increasing(&t.col(*c)))
+                .find(|c| t.numeric(*c) && !week_like(t, *c) && increasing(&t.col(*c)))
                 .ok_or_else(|| anyhow::anyhow!("{}: no increasing time column", path.display()))?;
             (tc, t.col(tc))
         }
@@ -202,6 +231,15 @@ fn time_column(path: &Path, t: &Table) -> anyhow::Result<(usize, Vec<f64>, Optio
         );
     }
     Ok((tc, tv, text.map(|(_, f)| f)))
+}
+
+/// Whether column `c` looks like a GPS week (integers in 500..5000) with a numeric column after
+/// it (its seconds of week).
+fn week_like(t: &Table, c: usize) -> bool {
+    t.numeric(c + 1)
+        && t.col(c)
+            .iter()
+            .all(|x| x.fract() == 0.0 && (500.0..5000.0).contains(x))
 }
 
 /// Column `c`'s date-time texts in the format `f` as seconds since 1970 (NaN where one does
@@ -276,6 +314,10 @@ fn time_kind(
         }
         g.unknown.push(format!("IMU time: column {c} holds ms ticks and there is no time tag file: times since power-up do not match the GNSS time"));
         return Ok((format!("kind = \"ticks_ms\"  # column {c} holds integer ticks, step {step}: milliseconds (no tag file)"), step * 1e-3));
+    }
+    if tc > 0 && week_like(t, tc - 1) {
+        let w = t.col(tc - 1)[0];
+        return Ok((format!("kind = \"week_sow\"  # column {} is a GPS week ({w}), column {c} its seconds of week (step {step} s)", c - 1), step));
     }
     let inside = hints
         .span_s

@@ -157,6 +157,76 @@ fn init_on_the_project_text_from_the_simulator_runs_as_the_hand_configuration() 
     assert!(!ok && text.contains("exists: give --force"), "{text}");
 }
 
+/// An IMU that writes increments in a layout of its own: a comma-separated file with a header,
+/// a GPS week column and seconds of week, velocity increments (m/s) before angle increments
+/// (rad); the GNSS in the project's text.
+#[test]
+fn init_on_increments_with_a_week_column_in_a_layout_of_their_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    let mut imu = String::from("gps_week,gps_sow,dv_x,dv_y,dv_z,dtheta_x,dtheta_y,dtheta_z\n");
+    for x in &s.imu {
+        let (v, a) = (x.dv_mps, x.dtheta_rad);
+        let _ = writeln!(
+            imu,
+            "{WEEK},{},{},{},{},{},{},{}",
+            x.t_s, v[0], v[1], v[2], a[0], a[1], a[2]
+        );
+    }
+    std::fs::write(d.join("inc.csv"), imu).unwrap();
+    nav_io::write_gnss_text(d.join("gnss.txt"), &s.gnss).unwrap();
+    let (cfg, _) = init(d, "inc.csv", "gnss.txt");
+    let t = text_of(&cfg);
+    for want in [
+        "convention = \"increments\"",
+        "accel_unit = \"m/s^2\"",
+        "gyro_unit = \"rad/s\"",
+        "kind = \"week_sow\"",
+        "week = \"gps_week\"",
+        "time = \"gps_sow\"",
+        "gyro = [\"dtheta_x\", \"dtheta_y\", \"dtheta_z\"]",
+        "accel = [\"dv_x\", \"dv_y\", \"dv_z\"]",
+    ] {
+        assert!(t.contains(want), "{want} not in\n{t}");
+    }
+    // the rows read as the increments they are: the same samples as the simulator's, the
+    // first row opening the first interval
+    let c = nav_io::read_run_config(&cfg).unwrap();
+    let read = nav_io::read_imu_csv(d.join("inc.csv"), c.imu.csv.as_ref().unwrap()).unwrap();
+    assert_eq!(read.samples.len(), s.imu.len() - 1);
+    for (r, x) in read.samples.iter().zip(&s.imu[1..]) {
+        assert_eq!(
+            (r.t_s, r.dtheta_rad, r.dv_mps),
+            (x.t_s, x.dtheta_rad, x.dv_mps)
+        );
+    }
+    same_solution_as_hand(
+        d,
+        &cfg,
+        r#"[imu]
+path = "inc.csv"
+format = "csv"
+[imu.csv]
+skip_lines = 1
+gyro_unit = "rad/s"
+accel_unit = "m/s^2"
+convention = "increments"
+[imu.csv.columns]
+week = "gps_week"
+time = "gps_sow"
+gyro = ["dtheta_x", "dtheta_y", "dtheta_z"]
+accel = ["dv_x", "dv_y", "dv_z"]
+[imu.csv.time]
+kind = "week_sow"
+[gnss]
+path = "gnss.txt"
+format = "text"
+use_velocity = true
+"#,
+    );
+}
+
 /// A phone: IMU CSV with a header, Unix ms, deg/s and g; fixes in a u-blox-style CSV with
 /// accuracy, speed and bearing columns.
 #[test]
