@@ -52,7 +52,7 @@ pub fn bridge_replay_drive(name: &str) -> ScenarioToml {
         .stationary(5.0)
 }
 
-/// The 6-minute drive of the run and smoother simulation tests (`host-sim/tests/it/run_sim.rs`,
+/// The 6-minute drive of the run and smoother simulation tests (`nav-engine/tests/it/run_sim.rs`,
 /// `smooth_sim.rs`), named `name`: 100 Hz, 60 s static, accelerate to 12 m/s, cruise, 90 deg
 /// right on 40 m, a 5 m hill over 300 m, 120 deg left on 30 m, accelerate to 18 m/s, 60 deg
 /// right on 60 m, brake to a stop, 20 s static.

@@ -1,7 +1,7 @@
 //! The run engine (`nav_engine::run`) on simulated data in memory: metrics against an
 //! injected offset, outages honoured, NBK accuracy on seed-nbk data, static alignment, f32 vs
 //! f64.
-use host_sim::run::case_data;
+use crate::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::earth;
 use nav_core::filter::InitialUncertainty;

@@ -1,7 +1,7 @@
-//! `host-sim mounting`: the IMU-to-body rotation from the data, in each of the 24 axis layouts
+//! The mounting estimate (`nav_engine::mounting`, what `host-sim mounting` runs): the IMU-to-body rotation from the data, in each of the 24 axis layouts
 //! with a few degrees of misalignment, after a 5-minute drive with turns.
 
-use host_sim::run::case_data;
+use crate::case_data;
 use nalgebra::{Matrix3, Vector3};
 use nav_core::attitude::{dcm_from_euler_zyx, euler_zyx_from_dcm};
 use nav_engine::mounting::{axis_layouts, estimate_mounting};

@@ -2,7 +2,7 @@
 //! zero-rate updates (ZUPT/ZARU) on a simulated urban drive with stops, side slip and bounce
 //! (`scenarios/land_stops.toml`, consumer MEMS IMU, RTK GNSS), and on the real drive
 //! (`configs/drive0708_aided.toml`, the reference 20 s outage protocol).
-use host_sim::run::case_data;
+use crate::case_data;
 use nav_core::aiding::AidingConfig;
 use nav_core::config::{units, FilterConfig, SensorNoise};
 use nav_core::filter::InitialUncertainty;

@@ -218,22 +218,3 @@ fn undeclared_lever_arm() {
 fn undeclared_time_offset() {
     check(Effect::TimeOffset);
 }
-
-/// Every effect the undeclared-drive generator can add has a name the diagnosis knows: a
-/// model block of nav-core or one of the diagnosis's bias-step sensors.
-#[test]
-fn block_names_are_the_filter_vocabulary() {
-    use nav_core::model::{Block, EFFECT_BLOCKS};
-    for e in Effect::ALL {
-        if matches!(e, Effect::AccelBiasStep | Effect::GyroBiasStep) {
-            let steps = nav_diagnose::changepoint::BiasStepSensor::ALL.map(|s| s.name());
-            assert!(steps.contains(&e.block_name()), "{e}");
-            continue;
-        }
-        let known = EFFECT_BLOCKS
-            .iter()
-            .chain(&[Block::GyroScaleFactor, Block::AccelScaleFactor])
-            .any(|b| b.name() == e.block_name());
-        assert!(known, "{e}");
-    }
-}

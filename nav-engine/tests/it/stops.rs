@@ -2,7 +2,7 @@
 //! GNSS-confirmed stops, `nav_core::aiding::RestLevel`) on a simulated drive with engine
 //! vibration at stops and while creeping, and the scoring of its decisions against the GNSS
 //! speed that the real-drive test (`aiding.rs`) uses.
-use host_sim::run::case_data;
+use crate::case_data;
 use nav_core::aiding::AidingConfig;
 use nav_core::filter::InitialUncertainty;
 use nav_core::types::GnssFix;
@@ -255,7 +255,7 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
 
 /// The real drive (`configs/drive0708_aided.toml`) with the fixed and the learned thresholds,
 /// without and with the reference outages: the detector against the GNSS speed and the
-/// outage error. Four runs (about 10 s): `cargo test --release -p host-sim --test it --
+/// outage error. Four runs (about 10 s): `cargo test --release -p nav-engine --test it --
 /// --ignored stops::real_drive`.
 #[test]
 #[ignore]

@@ -2,7 +2,7 @@
 //! GNSS velocity automatically (no hand-given state), and the static window covers `static_s`
 //! whatever the sample times (the "9.9938 s (need 10 s)" off-by-one).
 
-use host_sim::run::case_data;
+use crate::case_data;
 use nav_core::config::FilterConfig;
 use nav_engine::metrics::errors_vs_truth;
 use nav_engine::run::{run_filter, InitSpec, Model, RunOptions, StaticAlign};

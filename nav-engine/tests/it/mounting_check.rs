@@ -1,7 +1,7 @@
 //! `run` warns when the data contradict the configured mounting: the body z gyro turning
 //! against the GNSS course, gravity at rest not along body -z.
 
-use host_sim::run::case_data;
+use crate::case_data;
 use nav_engine::mounting::check_mounting;
 use nav_engine::run::CaseData;
 use nav_sim::{simulate, ErrorModel};
