@@ -264,15 +264,7 @@ fn real_drive_stops_fixed_against_learned_thresholds() {
         env!("CARGO_MANIFEST_DIR"),
         "/../configs/drive0708_aided.toml"
     );
-    if !Path::new(cfg)
-        .parent()
-        .unwrap()
-        .join("../../shared/data")
-        .exists()
-    {
-        println!(
-            "SKIPPED real_drive_stops_fixed_against_learned_thresholds: ../shared/data not found"
-        );
+    if test_support::real_data("real_drive_stops_fixed_against_learned_thresholds").is_none() {
         return;
     }
     let p = RunSpec::new(cfg).prepare().expect("loading the drive");
