@@ -69,9 +69,9 @@ fn drive0708_config_parses_to_the_readme_figures_in_si() {
 
 #[test]
 fn drive0708_loads_through_its_config_in_body_axes() {
-    let Some(d) = test_support::real_data("drive0708_loads_through_its_config_in_body_axes") else {
+    if test_support::real_data("drive0708_loads_through_its_config_in_body_axes").is_none() {
         return;
-    };
+    }
     let path = drive_cfg_path();
     let c = read_run_config(&path).unwrap();
     let inp = c.load_inputs(path.parent().unwrap()).unwrap();

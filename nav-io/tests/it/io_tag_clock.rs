@@ -3,7 +3,6 @@
 //! a visible SKIPPED message when missing, an error with CI=true), whose tag shows that the
 //! stretch of the tick span to the tag span is not a clock-rate correction (configs/drive0708.toml).
 use nav_io::{read_time_tag, tick_clock_fit, TimeTag};
-use std::path::PathBuf;
 
 fn tag(pairs: Vec<(u32, u32)>) -> TimeTag {
     TimeTag {
