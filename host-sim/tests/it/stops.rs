@@ -13,7 +13,6 @@ use nav_engine::{execute_case, RunSpec};
 use nav_sim::errors::Axes3;
 use nav_sim::ScenarioBuilder;
 use nav_sim::{simulate, ErrorModel};
-use std::path::Path;
 
 /// Detector decisions against a reference speed on the aiding epochs' 0.1 s grid from `from_s`
 /// to `to_s`: an epoch counts as detected when it lies in one of the report's
