@@ -1,8 +1,8 @@
-//! The compile-time filter model of the `nav` application: layout, configuration and
-//! dimension (cargo features `model-n` 15 states, `model-nbk` 18, `model-kf-gins` 21).
+//! The compile-time filter model of the `nav` application: the model type (its layout),
+//! configuration and dimension (cargo features `model-n` 15 states, `model-nbk` 18, `model-kf-gins` 21).
 
 use nav_core::config::FilterConfig;
-use nav_core::model::Layout;
+use nav_core::model::StateModel;
 
 #[cfg(any(
     all(feature = "model-n", feature = "model-nbk"),
@@ -11,20 +11,20 @@ use nav_core::model::Layout;
 ))]
 compile_error!("choose exactly one of the features model-n, model-nbk, model-kf-gins");
 
-/// The state layout.
+/// The filter model: its type carries the state layout (`nav_core::model::StateModel`).
 #[cfg(feature = "model-n")]
-pub const LAYOUT: Layout = nav_core::model::LAYOUT_N;
-/// The state layout.
+pub type Model = nav_core::model::ModelN;
+/// The filter model: its type carries the state layout (`nav_core::model::StateModel`).
 #[cfg(feature = "model-nbk")]
-pub const LAYOUT: Layout = nav_core::model::LAYOUT_NBK;
-/// The state layout.
+pub type Model = nav_core::model::ModelNbk;
+/// The filter model: its type carries the state layout (`nav_core::model::StateModel`).
 #[cfg(feature = "model-kf-gins")]
-pub const LAYOUT: Layout = nav_core::model::LAYOUT_KF_GINS;
+pub type Model = nav_core::model::ModelKfGins;
 #[cfg(not(any(feature = "model-n", feature = "model-nbk", feature = "model-kf-gins")))]
 compile_error!("choose one of the features model-n, model-nbk, model-kf-gins");
 
-/// Number of error states.
-pub const N: usize = LAYOUT.dim();
+/// Number of error states (the model's dimension).
+pub const N: usize = Model::DIM;
 
 /// The noise configuration of the model.
 pub fn config() -> FilterConfig {

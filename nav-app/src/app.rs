@@ -26,7 +26,7 @@ use embedded_io::{Read, Write};
 use nav_core::aiding::{Aiding, AidingConfig, AidingCounters};
 use nav_core::config::FilterConfig;
 use nav_core::filter::Filter;
-use nav_core::model::Layout;
+use nav_core::model::StateModel;
 use nav_core::navigator::{
     AlignMode, FirstFixAlign, FixEvent, GnssEvent, ImuEvent, Navigator, NavigatorConfig,
     NavigatorError,
@@ -89,16 +89,16 @@ fn first_fix(at_fix_time: bool) -> AlignMode {
 }
 
 impl<const N: usize> NavApp<N> {
-    /// An application running the filter with `layout` (N states) and `cfg`; one solution per
-    /// `nav_divider` IMU epochs (0 = none), one health frame per `health_every` epochs (0 = only
-    /// on request). Error: the filter refuses the layout or the configuration.
-    pub fn new(
-        layout: Layout,
+    /// An application running the filter of the compile-time model `M` (its layout; `N` must
+    /// be `M::DIM`, checked when this is compiled) with `cfg`; one solution per `nav_divider`
+    /// IMU epochs (0 = none), one health frame per `health_every` epochs (0 = only on
+    /// request). Error: the filter refuses the configuration.
+    pub fn new<M: StateModel>(
         cfg: FilterConfig,
         nav_divider: u16,
         health_every: u32,
     ) -> Result<Self, NavigatorError> {
-        let nav = Navigator::new(layout, NavigatorConfig::new(cfg, first_fix(false)))?;
+        let nav = Navigator::for_model::<M>(NavigatorConfig::new(cfg, first_fix(false)))?;
         Ok(Self {
             nav,
             aid: None,

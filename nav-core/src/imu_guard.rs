@@ -557,24 +557,7 @@ impl ImuGuard {
                 spanned: false,
             }));
         }
-        let spanned = match self.cfg.increments {
-            GapIncrements::Span => true,
-            GapIncrements::Sample => false,
-            GapIncrements::Auto => match self.prev {
-                Some((p, pdt)) => {
-                    let f_ref = norm(&p.dv_mps) / pdt;
-                    let f_span = norm(&s.dv_mps) / dt;
-                    let f_sample = norm(&s.dv_mps) / dt0;
-                    if f_ref > 0.0 && f_span > 0.0 && f_sample > 0.0 {
-                        libm::fabs(libm::log(f_span / f_ref))
-                            <= libm::fabs(libm::log(f_sample / f_ref))
-                    } else {
-                        true
-                    }
-                }
-                None => true,
-            },
-        };
+        let spanned = self.spans_the_gap(s, dt, dt0);
         let max = if spanned {
             self.cfg.max_gap_s.min(MAX_DT_S)
         } else {
@@ -597,54 +580,18 @@ impl ImuGuard {
             .counters
             .missing_samples
             .saturating_add(u64::from(missing));
-        let mut fill = GapFill::empty();
-        if spanned {
+        let fill = if spanned {
             self.counters.gaps_spanned = self.counters.gaps_spanned.saturating_add(1);
+            GapFill::empty()
         } else {
             self.counters.gaps_filled = self.counters.gaps_filled.saturating_add(1);
-            let lost = dt - own;
-            let n = libm::round(lost / dt0).clamp(1.0, f64::from(u32::MAX)) as u32;
-            let r_b = rates6(s, own);
-            let t_b = s.t_s - 0.5 * own;
-            let (t_a, r_a) = match self.prev {
-                Some((p, pdt)) => (self.t_last_s - 0.5 * pdt, rates6(&p, pdt)),
-                None => (self.t_last_s, r_b),
-            };
-            let big_t = t_b - t_a;
-            let mut s_a = [0.0; 6];
-            let mut c = [0.0; 6];
-            let fitted = self.history_slope(t_a);
-            let slope = if self.cfg.fill_slope { fitted } else { None };
-            for k in 0..6 {
-                let (ra, rb) = (
-                    r_a.get(k).copied().unwrap_or(0.0),
-                    r_b.get(k).copied().unwrap_or(0.0),
-                );
-                let lin = (rb - ra) / big_t;
-                let sa = slope.map_or(lin, |v| v.get(k).copied().unwrap_or(lin));
-                if let Some(x) = s_a.get_mut(k) {
-                    *x = sa;
-                }
-                if let Some(x) = c.get_mut(k) {
-                    *x = (rb - ra - sa * big_t) / (big_t * big_t);
-                }
-            }
-            let unc = fill_uncertainty(&r_a, &r_b, fitted, big_t, self.t_last_s - t_a, lost);
-            fill = GapFill {
-                t_start_s: self.t_last_s,
-                step_s: lost / f64::from(n),
-                n,
-                i: 0,
-                t_a,
-                r_a,
-                s_a,
-                c,
-                temperature_c: s.temperature_c,
-                unc,
-            };
-            self.counters.synthetic_samples =
-                self.counters.synthetic_samples.saturating_add(u64::from(n));
-        }
+            let fill = self.fill_lost(s, dt, own, dt0);
+            self.counters.synthetic_samples = self
+                .counters
+                .synthetic_samples
+                .saturating_add(u64::from(fill.n));
+            fill
+        };
         self.hist_len = 0;
         self.accept(s, own);
         Ok(Verdict::Use(Conditioned {
@@ -653,6 +600,79 @@ impl ImuGuard {
             missing,
             spanned,
         }))
+    }
+
+    /// Whether the increment of the sample `s` ending a gap of `dt` s covers the whole gap
+    /// (true) or one nominal interval `dt0` (false): the configured [`GapIncrements`], `Auto`
+    /// deciding by the specific force closer in ratio to the previous sample's.
+    #[inline(always)]
+    fn spans_the_gap(&self, s: &ImuSample, dt: f64, dt0: f64) -> bool {
+        match self.cfg.increments {
+            GapIncrements::Span => true,
+            GapIncrements::Sample => false,
+            GapIncrements::Auto => match self.prev {
+                Some((p, pdt)) => {
+                    let f_ref = norm(&p.dv_mps) / pdt;
+                    let f_span = norm(&s.dv_mps) / dt;
+                    let f_sample = norm(&s.dv_mps) / dt0;
+                    if f_ref > 0.0 && f_span > 0.0 && f_sample > 0.0 {
+                        libm::fabs(libm::log(f_span / f_ref))
+                            <= libm::fabs(libm::log(f_sample / f_ref))
+                    } else {
+                        true
+                    }
+                }
+                None => true,
+            },
+        }
+    }
+
+    /// The synthetic samples over the lost part `dt - own` s of a gap ended by `s` (which
+    /// covers its own `own` s): the quadratic in the six rates through the previous sample's
+    /// mean rates and `s`'s, its start slope fitted to the history before the gap (or the
+    /// linear interpolation, [`GuardConfig::fill_slope`]), about `dt0` s per sample.
+    #[inline(always)]
+    fn fill_lost(&self, s: &ImuSample, dt: f64, own: f64, dt0: f64) -> GapFill {
+        let lost = dt - own;
+        let n = libm::round(lost / dt0).clamp(1.0, f64::from(u32::MAX)) as u32;
+        let r_b = rates6(s, own);
+        let t_b = s.t_s - 0.5 * own;
+        let (t_a, r_a) = match self.prev {
+            Some((p, pdt)) => (self.t_last_s - 0.5 * pdt, rates6(&p, pdt)),
+            None => (self.t_last_s, r_b),
+        };
+        let big_t = t_b - t_a;
+        let mut s_a = [0.0; 6];
+        let mut c = [0.0; 6];
+        let fitted = self.history_slope(t_a);
+        let slope = if self.cfg.fill_slope { fitted } else { None };
+        for k in 0..6 {
+            let (ra, rb) = (
+                r_a.get(k).copied().unwrap_or(0.0),
+                r_b.get(k).copied().unwrap_or(0.0),
+            );
+            let lin = (rb - ra) / big_t;
+            let sa = slope.map_or(lin, |v| v.get(k).copied().unwrap_or(lin));
+            if let Some(x) = s_a.get_mut(k) {
+                *x = sa;
+            }
+            if let Some(x) = c.get_mut(k) {
+                *x = (rb - ra - sa * big_t) / (big_t * big_t);
+            }
+        }
+        let unc = fill_uncertainty(&r_a, &r_b, fitted, big_t, self.t_last_s - t_a, lost);
+        GapFill {
+            t_start_s: self.t_last_s,
+            step_s: lost / f64::from(n),
+            n,
+            i: 0,
+            t_a,
+            r_a,
+            s_a,
+            c,
+            temperature_c: s.temperature_c,
+            unc,
+        }
     }
 
     fn accept(&mut self, s: &ImuSample, covered_s: f64) {

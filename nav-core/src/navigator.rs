@@ -68,7 +68,7 @@ use crate::config::FilterConfig;
 use crate::earth::Llh;
 use crate::filter::{Filter, FilterError, InitialUncertainty, UpdateOutcome};
 use crate::imu_guard::{GuardConfig, GuardCounters, GuardError, Implausible, ImuGuard, Verdict};
-use crate::model::{BlockKind, Layout};
+use crate::model::{BlockKind, Layout, StateModel};
 use crate::scalar::Scalar;
 use crate::strapdown::{NavState, MAX_DT_S};
 use crate::types::{GnssFix, ImuSample, NavSolution};
@@ -394,7 +394,9 @@ pub struct Navigator<T: Scalar, const N: usize, const Q: usize = DEFAULT_FIX_QUE
 }
 
 impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
-    /// A navigator for `layout` (N states). With [`AlignMode::Given`] the filter starts now
+    /// A navigator for `layout` (N states, checked here at run time: the path of layouts built
+    /// at run time; a compile-time model uses [`Navigator::for_model`]). With
+    /// [`AlignMode::Given`] the filter starts now
     /// (errors: the filter's, for a bad configuration or initial state); the other modes
     /// check the configuration by building a filter at a neutral state.
     pub fn new(layout: Layout, cfg: NavigatorConfig) -> Result<Self, NavigatorError> {
@@ -410,6 +412,19 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
                 Ok(Self::unstarted(layout, cfg))
             }
         }
+    }
+
+    /// A navigator of the compile-time model `M` (its layout `M::LAYOUT`; `N` must be
+    /// `M::DIM`, checked when this is compiled): [`Navigator::new`] without a run-time layout.
+    /// Errors: the filter's, as [`Navigator::new`].
+    pub fn for_model<M: StateModel>(cfg: NavigatorConfig) -> Result<Self, NavigatorError> {
+        const {
+            assert!(
+                M::DIM == N,
+                "the navigator's N differs from its model's dimension"
+            )
+        };
+        Self::new(M::LAYOUT, cfg)
     }
 
     fn unstarted(layout: Layout, cfg: NavigatorConfig) -> Self {
@@ -987,13 +1002,12 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     }
 }
 
-/// The classical 15-state model with the f32 covariance of the MCU; its layout is
-/// [`crate::model::LAYOUT_N`] (`Navigator<f64, { LAYOUT_N.dim() }>` for f64).
-pub type NavigatorN = Navigator<f32, { crate::model::LAYOUT_N.dim() }>;
-/// The NBK model, 18 states, f32 covariance; layout [`crate::model::LAYOUT_NBK`].
-pub type NavigatorNbk = Navigator<f32, { crate::model::LAYOUT_NBK.dim() }>;
-/// The NBK model as printed, 15 states, f32 covariance; layout
-/// [`crate::model::LAYOUT_NBK_SINGLE`].
-pub type NavigatorNbkSingle = Navigator<f32, { crate::model::LAYOUT_NBK_SINGLE.dim() }>;
-/// KF-GINS's 21 states, f32 covariance; layout [`crate::model::LAYOUT_KF_GINS`].
-pub type NavigatorKfGins = Navigator<f32, { crate::model::LAYOUT_KF_GINS.dim() }>;
+/// The classical 15-state model ([`crate::model::ModelN`]) with the f32 covariance of the MCU
+/// (`Navigator<f64, { ModelN::DIM }>` for f64); build it with [`Navigator::for_model`].
+pub type NavigatorN = Navigator<f32, { crate::model::ModelN::DIM }>;
+/// The NBK model ([`crate::model::ModelNbk`]), 18 states, f32 covariance.
+pub type NavigatorNbk = Navigator<f32, { crate::model::ModelNbk::DIM }>;
+/// The NBK model as printed ([`crate::model::ModelNbkSingle`]), 15 states, f32 covariance.
+pub type NavigatorNbkSingle = Navigator<f32, { crate::model::ModelNbkSingle::DIM }>;
+/// KF-GINS's 21 states ([`crate::model::ModelKfGins`]), f32 covariance.
+pub type NavigatorKfGins = Navigator<f32, { crate::model::ModelKfGins::DIM }>;

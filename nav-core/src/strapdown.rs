@@ -537,6 +537,37 @@ impl Strapdown {
         self.have_prev = false;
     }
 
+    /// The body-frame terms of the step over `dt32` s (step 1 of [`Strapdown::update`]): the
+    /// increments in f32, the coning term (two-sample, with the previous interval's
+    /// increments when it is usable, else zero), the rotation compensation plus sculling of
+    /// `dv` and the body rotation vector `dtheta + coning`, rad and m/s.
+    #[inline(always)]
+    fn body_terms(&self, imu: &ImuSample, dt32: f32) -> BodyTerms {
+        let dth32 = arr32(&imu.dtheta_rad);
+        let dv32 = arr32(&imu.dv_mps);
+        let use_prev =
+            self.have_prev && dt32 <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt32;
+        let (p_th, p_dv) = if use_prev {
+            (self.prev_dtheta_rad, self.prev_dv_mps)
+        } else {
+            ([0.0; 3], [0.0; 3])
+        };
+        let coning = scale32(cross32(p_th, dth32), 1.0 / 12.0);
+        let half_rot = scale32(cross32(dth32, dv32), 0.5);
+        let dv_corr = add32(
+            add32(half_rot, scale32(cross32(dth32, half_rot), 1.0 / 3.0)),
+            scale32(add32(cross32(p_th, dv32), cross32(p_dv, dth32)), 1.0 / 12.0),
+        );
+        let phi32 = add32(dth32, coning);
+        BodyTerms {
+            dth32,
+            dv32,
+            coning,
+            dv_corr,
+            phi32,
+        }
+    }
+
     /// Integrates one IMU sample (already corrected for the estimated sensor errors) over
     /// (state.t_s, imu.t_s]. On error the state is unchanged.
     pub fn update(&mut self, imu: &ImuSample) -> Result<StepInfo, MechError> {
@@ -554,22 +585,13 @@ impl Strapdown {
         // 1. Body frame: coning, rotation compensation and sculling (two-sample, previous
         //    interval) in f32, added to the f64 increments. Without a usable previous sample
         //    the two-sample terms are dropped.
-        let dth32 = arr32(&imu.dtheta_rad);
-        let dv32 = arr32(&imu.dv_mps);
-        let use_prev =
-            self.have_prev && dt32 <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt32;
-        let (p_th, p_dv) = if use_prev {
-            (self.prev_dtheta_rad, self.prev_dv_mps)
-        } else {
-            ([0.0; 3], [0.0; 3])
-        };
-        let coning = scale32(cross32(p_th, dth32), 1.0 / 12.0);
-        let half_rot = scale32(cross32(dth32, dv32), 0.5);
-        let dv_corr = add32(
-            add32(half_rot, scale32(cross32(dth32, half_rot), 1.0 / 3.0)),
-            scale32(add32(cross32(p_th, dv32), cross32(p_dv, dth32)), 1.0 / 12.0),
-        );
-        let phi32 = add32(dth32, coning);
+        let BodyTerms {
+            dth32,
+            dv32,
+            coning,
+            dv_corr,
+            phi32,
+        } = self.body_terms(imu, dt32);
 
         let s = self.state;
         let q = *s.q_nb.quaternion();
@@ -638,27 +660,7 @@ impl Strapdown {
         //    attitude follows small changes of velocity and height smoothly).
         let wh = earth::OMEGA_IE_RADPS * hdt + 0.5 * dlon;
         let t_n = [-(e.cos * wh), 0.5 * dlat, e.sin * wh];
-        let phi = plus32(&imu.dtheta_rad, coning);
-        let [px, py, pz] = phi32;
-        let a2 = px * px + py * py + pz * pz;
-        let q2 = if a2 < SMALL_ROT2_RAD2 {
-            // tan(a/2)/a = 1/2 + a^2/24 + a^4/240 + 17 a^6/40320
-            let k32 = a2 * (1.0 / 24.0 + a2 * (1.0 / 240.0 + a2 * (17.0 / 40320.0)));
-            let k = 0.5 + f64::from(k32);
-            mul_left_1t(&t_n, &mul_right_1t(&q, &[phi.x * k, phi.y * k, phi.z * k]))
-        } else {
-            mul_left_1t(&t_n, &(q * attitude::quat_from_rotvec(&phi).into_inner()))
-        };
-        let n2 = q2.norm_squared();
-        let x = n2 - 1.0;
-        let f = if x.abs() < SMALL_NORM_ERR {
-            // (1 + x)^(-1/2) = 1 - x/2 + 3x^2/8 - 5x^3/16
-            let x32 = x as f32;
-            1.0 + f64::from(x32 * (-0.5 + x32 * (0.375 - 0.3125 * x32)))
-        } else {
-            1.0 / sqrt(n2)
-        };
-        let q_nb = UnitQuaternion::new_unchecked(q2 * f);
+        let q_nb = attitude_step(&q, &imu.dtheta_rad, coning, phi32, &t_n);
 
         self.state = NavState {
             t_s: imu.t_s,
@@ -690,6 +692,55 @@ impl Strapdown {
 /// against.
 mod single;
 pub use single::StepInfo32;
+
+/// The body-frame terms of one strapdown step ([`Strapdown::body_terms`]), f32.
+struct BodyTerms {
+    /// The angle increment, rad.
+    dth32: [f32; 3],
+    /// The velocity increment, m/s.
+    dv32: [f32; 3],
+    /// The coning term, rad.
+    coning: [f32; 3],
+    /// Rotation compensation and sculling of the velocity increment, m/s.
+    dv_corr: [f32; 3],
+    /// The body rotation vector `dtheta + coning`, rad.
+    phi32: [f32; 3],
+}
+
+/// The attitude after one step (step 5 of [`Strapdown::update`]): `q` rotated by the body
+/// rotation vector `dtheta + coning` (rad; the small-angle series of `tan(a/2)/a` in f32 below
+/// [`SMALL_ROT2_RAD2`], with `phi32` its f32 copy) on the right and by the navigation frame's
+/// half rotation `t_n` (rad) on the left, then normalised (series below [`SMALL_NORM_ERR`]).
+#[inline(always)]
+fn attitude_step(
+    q: &Quaternion<f64>,
+    dtheta_rad: &[f64; 3],
+    coning: [f32; 3],
+    phi32: [f32; 3],
+    t_n: &[f64; 3],
+) -> UnitQuaternion<f64> {
+    let phi = plus32(dtheta_rad, coning);
+    let [px, py, pz] = phi32;
+    let a2 = px * px + py * py + pz * pz;
+    let q2 = if a2 < SMALL_ROT2_RAD2 {
+        // tan(a/2)/a = 1/2 + a^2/24 + a^4/240 + 17 a^6/40320
+        let k32 = a2 * (1.0 / 24.0 + a2 * (1.0 / 240.0 + a2 * (17.0 / 40320.0)));
+        let k = 0.5 + f64::from(k32);
+        mul_left_1t(t_n, &mul_right_1t(q, &[phi.x * k, phi.y * k, phi.z * k]))
+    } else {
+        mul_left_1t(t_n, &(q * attitude::quat_from_rotvec(&phi).into_inner()))
+    };
+    let n2 = q2.norm_squared();
+    let x = n2 - 1.0;
+    let f = if x.abs() < SMALL_NORM_ERR {
+        // (1 + x)^(-1/2) = 1 - x/2 + 3x^2/8 - 5x^3/16
+        let x32 = x as f32;
+        1.0 + f64::from(x32 * (-0.5 + x32 * (0.375 - 0.3125 * x32)))
+    } else {
+        1.0 / sqrt(n2)
+    };
+    UnitQuaternion::new_unchecked(q2 * f)
+}
 
 #[cfg(test)]
 mod plain;

@@ -501,6 +501,23 @@ impl RunConfig {
         let mut push = |table: &'static str, key: &'static str, msg: String| {
             bad.push((table, key, msg));
         };
+        self.input_problems(&mut push);
+        self.init_problems(&mut push);
+        if let (Some(a), Some(b)) = (self.start_s, self.end_s) {
+            if b.partial_cmp(&a) != Some(std::cmp::Ordering::Greater) {
+                push("", "end_s", format!("end_s {b} must be after start_s {a}"));
+            }
+        }
+        for p in self.noise.problems() {
+            push("noise", "", p);
+        }
+        bad
+    }
+
+    /// The problems of the IMU and GNSS inputs' settings (formats and their mappings, the
+    /// mounting, time offsets, fix quality, lever arm, sigma scale), handed to `push` as
+    /// (table, key, message).
+    fn input_problems(&self, push: &mut impl FnMut(&'static str, &'static str, String)) {
         if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
             push(
                 "imu",
@@ -566,6 +583,11 @@ impl RunConfig {
                 "gnss.sigma_scale must be > 0 (horizontal and vertical)".into(),
             );
         }
+    }
+
+    /// The problems of the `[init]` table (the initial sigmas, the given state or the
+    /// alignment settings), handed to `push` as (table, key, message).
+    fn init_problems(&self, push: &mut impl FnMut(&'static str, &'static str, String)) {
         let sig_ok = |v: &[f64; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
         for (key, v) in [
             ("pos_std_m", &self.init.pos_std_m),
@@ -613,15 +635,6 @@ impl RunConfig {
                 }
             }
         }
-        if let (Some(a), Some(b)) = (self.start_s, self.end_s) {
-            if b.partial_cmp(&a) != Some(std::cmp::Ordering::Greater) {
-                push("", "end_s", format!("end_s {b} must be after start_s {a}"));
-            }
-        }
-        for p in self.noise.problems() {
-            push("noise", "", p);
-        }
-        bad
     }
 }
 

@@ -423,17 +423,10 @@ fn the_csv_and_pos_inputs_of_the_format_tests_stream_as_they_read_whole() {
 
 #[test]
 fn the_real_drive_pos_streams_as_it_reads_whole() {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    let p = d.join("rtklibexplorer-drive0708/gnss_1934_sf.pos");
-    if !p.is_file() {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "{} missing and CI=true",
-            p.display()
-        );
-        println!("SKIPPED: {} not found", p.display());
+    let Some(d) = test_support::real_data("the_real_drive_pos_streams_as_it_reads_whole") else {
         return;
-    }
+    };
+    let p = d.join("rtklibexplorer-drive0708/gnss_1934_sf.pos");
     let gnss = format!(
         "[gnss]\npath = \"{}\"\nformat = \"rtklib_pos\"\n",
         p.display()

@@ -860,65 +860,157 @@ fn add_stochastic(
     seed: u64,
     dt: f64,
 ) -> f64 {
-    let a = axis as u64;
-    let mut bias = e.bias.0[axis];
-    if e.turn_on_bias_sigma.0[axis] > 0.0 {
-        let mut rng = stream(seed, sensor, SRC_TURN_ON, a);
-        bias += RandomConstant::new(e.turn_on_bias_sigma.0[axis]).next(&mut rng);
+    let mut ax = AxisErrors::new(e, sensor, axis, seed, dt, out.len());
+    for (k, s) in out.iter_mut().enumerate() {
+        let x = comp(s, sensor, axis);
+        *x = ax.apply(k, *x);
     }
-    if bias != 0.0 {
-        for s in out.iter_mut() {
-            *comp(s, sensor, axis) += bias * dt;
+    ax.constant_bias()
+}
+
+/// The sensor a stream of [`AxisErrors`] belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sensor {
+    /// The accelerometer triad (increments dv, m/s).
+    Accel,
+    /// The gyro triad (increments dtheta, rad).
+    Gyro,
+}
+
+impl Sensor {
+    fn id(self) -> u64 {
+        match self {
+            Self::Accel => ACCEL,
+            Self::Gyro => GYRO,
         }
     }
-    // the step: on every sample that starts at or after bias_step_at_s
-    let step = e.bias_step.0[axis];
-    if step != 0.0 {
-        let first = (e.bias_step_at_s / dt - 1e-9).ceil().max(0.0) as usize;
-        for s in out.iter_mut().skip(first) {
-            *comp(s, sensor, axis) += step * dt;
+}
+
+/// The bias and stochastic errors of one axis of one sensor ([`SensorErrors`]: fixed and
+/// turn-on bias, bias step, white noise, Gauss-Markov, random walk, flicker, quantization)
+/// applied sample by sample: the one definition behind [`ErrorModel::apply_imu`] (which runs
+/// it over a whole trajectory) and the streaming generators of the tests. Each process draws
+/// from its own stream of the seed ([`stream`]), so sample `k` gets the same value however the
+/// samples are produced.
+#[derive(Debug, Clone)]
+pub struct AxisErrors {
+    dt: f64,
+    /// Fixed plus turn-on bias, rate units.
+    bias: f64,
+    step: f64,
+    step_first: usize,
+    white: Option<(White, ChaCha8Rng)>,
+    gm: Option<(GaussMarkov, ChaCha8Rng)>,
+    rw: Option<(RandomWalk, ChaCha8Rng)>,
+    flicker: Option<(Flicker, ChaCha8Rng)>,
+    quant: Option<Quantizer>,
+    /// The slowly varying part at the last sample (bias, step, Gauss-Markov, random walk,
+    /// flicker), rate units.
+    last_bias: f64,
+}
+
+impl AxisErrors {
+    /// The errors of `axis` (0..3) of `sensor` in `e` for `seed`, samples of `dt_s` s;
+    /// `n_samples` sizes the flicker blocks (as [`ErrorModel::apply_imu`] does for a
+    /// trajectory of that many samples).
+    pub fn for_sensor(
+        e: &SensorErrors,
+        sensor: Sensor,
+        axis: usize,
+        seed: u64,
+        dt_s: f64,
+        n_samples: usize,
+    ) -> Self {
+        Self::new(e, sensor.id(), axis, seed, dt_s, n_samples)
+    }
+
+    fn new(e: &SensorErrors, sensor: u64, axis: usize, seed: u64, dt: f64, n: usize) -> Self {
+        let a = axis as u64;
+        let get = |v: &Axes3| v.0.get(axis).copied().unwrap_or(0.0);
+        let mut bias = get(&e.bias);
+        if get(&e.turn_on_bias_sigma) > 0.0 {
+            let mut rng = stream(seed, sensor, SRC_TURN_ON, a);
+            bias += RandomConstant::new(get(&e.turn_on_bias_sigma)).next(&mut rng);
+        }
+        let (s_n, s_b, s_k, b) = (
+            get(&e.white_psd),
+            get(&e.gm_psd),
+            get(&e.rw_psd),
+            get(&e.flicker_b),
+        );
+        let q = get(&e.quantization_step);
+        Self {
+            dt,
+            bias,
+            step: get(&e.bias_step),
+            step_first: (e.bias_step_at_s / dt - 1e-9).ceil().max(0.0) as usize,
+            white: (s_n > 0.0)
+                .then(|| (White::from_psd(s_n, dt), stream(seed, sensor, SRC_WHITE, a))),
+            gm: (s_b > 0.0).then(|| {
+                (
+                    GaussMarkov::new(s_b, get(&e.gm_tau_s), dt),
+                    stream(seed, sensor, SRC_GM, a),
+                )
+            }),
+            rw: (s_k > 0.0).then(|| (RandomWalk::new(s_k, dt), stream(seed, sensor, SRC_RW, a))),
+            flicker: (b > 0.0).then(|| {
+                let block = ((e.flicker_block_s / dt).round() as usize).clamp(16, n.max(16));
+                (
+                    Flicker::new(b, dt, block),
+                    stream(seed, sensor, SRC_FLICKER, a),
+                )
+            }),
+            quant: (q > 0.0).then(|| Quantizer::new(q)),
+            last_bias: bias,
         }
     }
-    let s_n = e.white_psd.0[axis];
-    if s_n > 0.0 {
-        let mut rng = stream(seed, sensor, SRC_WHITE, a);
-        let mut w = White::from_psd(s_n, dt);
-        for s in out.iter_mut() {
-            *comp(s, sensor, axis) += w.next(&mut rng) * dt;
+
+    /// The increment `x` of sample `k` (m/s or rad) with this axis's errors added (each
+    /// process's value times the sample time), then quantized.
+    pub fn apply(&mut self, k: usize, mut x: f64) -> f64 {
+        let dt = self.dt;
+        let mut slow = self.bias;
+        if self.bias != 0.0 {
+            x += self.bias * dt;
         }
-    }
-    let s_b = e.gm_psd.0[axis];
-    if s_b > 0.0 {
-        let mut rng = stream(seed, sensor, SRC_GM, a);
-        let mut w = GaussMarkov::new(s_b, e.gm_tau_s.0[axis], dt);
-        for s in out.iter_mut() {
-            *comp(s, sensor, axis) += w.next(&mut rng) * dt;
+        if self.step != 0.0 && k >= self.step_first {
+            x += self.step * dt;
+            slow += self.step;
         }
-    }
-    let s_k = e.rw_psd.0[axis];
-    if s_k > 0.0 {
-        let mut rng = stream(seed, sensor, SRC_RW, a);
-        let mut w = RandomWalk::new(s_k, dt);
-        for s in out.iter_mut() {
-            *comp(s, sensor, axis) += w.next(&mut rng) * dt;
+        if let Some((w, rng)) = self.white.as_mut() {
+            x += w.next(rng) * dt;
         }
-    }
-    let b = e.flicker_b.0[axis];
-    if b > 0.0 {
-        let mut rng = stream(seed, sensor, SRC_FLICKER, a);
-        let block = ((e.flicker_block_s / dt).round() as usize).clamp(16, out.len().max(16));
-        let mut w = Flicker::new(b, dt, block);
-        for s in out.iter_mut() {
-            *comp(s, sensor, axis) += w.next(&mut rng) * dt;
+        if let Some((w, rng)) = self.gm.as_mut() {
+            let v = w.next(rng);
+            x += v * dt;
+            slow += v;
         }
-    }
-    let q = e.quantization_step.0[axis];
-    if q > 0.0 {
-        let mut qz = Quantizer::new(q);
-        for s in out.iter_mut() {
-            let x = comp(s, sensor, axis);
-            *x = qz.quantize(*x);
+        if let Some((w, rng)) = self.rw.as_mut() {
+            let v = w.next(rng);
+            x += v * dt;
+            slow += v;
         }
+        if let Some((w, rng)) = self.flicker.as_mut() {
+            let v = w.next(rng);
+            x += v * dt;
+            slow += v;
+        }
+        if let Some(qz) = self.quant.as_mut() {
+            x = qz.quantize(x);
+        }
+        self.last_bias = slow;
+        x
     }
-    bias
+
+    /// The constant bias of the axis (fixed plus turn-on), rate units (m/s^2, rad/s).
+    pub fn constant_bias(&self) -> f64 {
+        self.bias
+    }
+
+    /// The bias during the last sample given to [`AxisErrors::apply`]: constant, step,
+    /// Gauss-Markov, random walk and flicker (everything but the white noise and the
+    /// quantization), rate units (m/s^2, rad/s).
+    pub fn bias_now(&self) -> f64 {
+        self.last_bias
+    }
 }

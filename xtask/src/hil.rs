@@ -13,7 +13,6 @@ use anyhow::{bail, Context, Result};
 use nav_app::{NavApp, TimeBase};
 use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
-use nav_core::model::Layout;
 use nav_core::types::{FixQuality, GnssFix, ImuSample};
 use nav_core::wire::{self, Encoder, FrameDecoder, Health, ImuFrame, Payload, MAX_FRAME_LEN};
 use std::fs::{File, OpenOptions};
@@ -346,13 +345,11 @@ fn decode_all(bytes: &[u8]) -> Result<Vec<Payload>> {
 }
 
 /// The host's copy of the firmware's `nav` application.
-type HostApp = NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
+type HostApp = NavApp<{ <nav_core::model::ModelNbk as nav_core::model::StateModel>::DIM }>;
 
 /// The same application the firmware's `nav` binary runs (default model NBK, 18 states).
 fn host_app() -> Result<HostApp> {
-    let layout: Layout = nav_core::model::LAYOUT_NBK;
-    NavApp::new(
-        layout,
+    NavApp::new::<nav_core::model::ModelNbk>(
         FilterConfig::source_nbk_model(),
         FW_NAV_DIVIDER,
         FW_HEALTH_EVERY,

@@ -20,7 +20,7 @@ type App = NavApp<{ model::N }>;
 /// own frame so `main`'s frame, live for the whole run, holds no copy of it.
 #[inline(never)]
 fn make_app() -> &'static mut App {
-    let app = NavApp::new(model::LAYOUT, model::config(), NAV_DIVIDER, HEALTH_EVERY);
+    let app = NavApp::new::<model::Model>(model::config(), NAV_DIVIDER, HEALTH_EVERY);
     let Ok(app) = app else {
         // the compile-time model's configuration is refused: a build error in practice
         panic!("nav: the filter refuses the model's configuration")

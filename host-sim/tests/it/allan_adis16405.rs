@@ -6,15 +6,9 @@ use noise_id::reader::{read_columns, AccelUnitArg, ColumnSpec, GyroUnit};
 use noise_id::{deviation_curve, CurveOptions, Deviation, Taus};
 use std::path::PathBuf;
 
-fn data_file() -> Option<PathBuf> {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.is_dir() {
-        Some(d.join("adis16405/adis16405_static_1.csv.gz"))
-    } else if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("../shared/data not found (CI=true)");
-    } else {
-        None
-    }
+/// The first static recording, or None after the SKIPPED line (a failure under CI=true).
+fn data_file(test: &str) -> Option<PathBuf> {
+    test_support::real_data_in(test, "adis16405").map(|d| d.join("adis16405_static_1.csv.gz"))
 }
 
 fn spec() -> ColumnSpec {
@@ -33,10 +27,7 @@ fn spec() -> ColumnSpec {
 
 #[test]
 fn adis16405_allan_deviation_matches_readme_figures() {
-    let Some(path) = data_file() else {
-        println!(
-            "SKIPPED adis16405_allan_deviation_matches_readme_figures: ../shared/data not found"
-        );
+    let Some(path) = data_file("adis16405_allan_deviation_matches_readme_figures") else {
         return;
     };
     let ch = read_columns(&path, &spec()).expect("read");
@@ -96,8 +87,7 @@ fn adis16405_allan_deviation_matches_readme_figures() {
 
 #[test]
 fn allan_cli_writes_table_toml_json_and_plots_for_adis16405() {
-    let Some(path) = data_file() else {
-        println!("SKIPPED allan_cli_writes_table_toml_json_and_plots_for_adis16405: ../shared/data not found");
+    let Some(path) = data_file("allan_cli_writes_table_toml_json_and_plots_for_adis16405") else {
         return;
     };
     let dir = tempfile::tempdir().expect("tempdir");
@@ -193,8 +183,9 @@ fn adis16405_all_runs_identify_datasheet_white_noise_and_bias_instability() {
     use host_sim::allan::cli::analyse;
     use noise_id::fit::{FitOptions, SensorKind, Terms};
     use rayon::prelude::*;
-    let Some(first) = data_file() else {
-        println!("SKIPPED adis16405_all_runs_identify_datasheet_white_noise_and_bias_instability: ../shared/data not found");
+    let Some(first) =
+        data_file("adis16405_all_runs_identify_datasheet_white_noise_and_bias_instability")
+    else {
         return;
     };
     let dir = first.parent().expect("folder").to_path_buf();

@@ -502,17 +502,12 @@ fn init_on_rover_lines_rtklib_pos_and_nmea() {
 /// `run` with the outage protocol of `configs/drive0708.toml`'s figures.
 #[test]
 fn init_then_run_on_the_real_drive0708() {
-    let data =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/rtklibexplorer-drive0708");
-    if !data.join("imu_1934.csv").exists() {
-        assert!(
-            std::env::var("CI").is_err(),
-            "CI=true but {} is missing",
-            data.display()
-        );
-        eprintln!("SKIPPED: {} not found", data.display());
+    let Some(data) = test_support::real_data_in(
+        "init_then_run_on_the_real_drive0708",
+        "rtklibexplorer-drive0708",
+    ) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let cfg = dir.path().join("drive.toml");
     let (ok, text) = host_sim(&[

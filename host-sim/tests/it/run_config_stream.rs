@@ -22,20 +22,9 @@ use nav_engine::{execute_streaming, load, Loaded, RunSpec};
 use std::path::{Path, PathBuf};
 use test_support::csvcase::{write_csv_pos_case, T0_S};
 
-/// The shared data folder, or None (a visible SKIPPED; a failure under CI=true).
-fn shared() -> Option<PathBuf> {
-    let p =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/rtklibexplorer-drive0708");
-    if p.exists() {
-        return Some(p);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "shared data missing: {}",
-        p.display()
-    );
-    println!("SKIPPED: {} missing", p.display());
-    None
+/// The real drive's folder, or None after the SKIPPED line (a failure under CI=true).
+fn shared(test: &str) -> Option<PathBuf> {
+    test_support::real_data_in(test, "rtklibexplorer-drive0708")
 }
 
 fn config(name: &str) -> PathBuf {
@@ -79,7 +68,7 @@ fn assert_same_outputs(a: &Path, b: &Path) {
 
 #[test]
 fn the_real_drive_streamed_writes_the_loaded_runs_files() {
-    if shared().is_none() {
+    if shared("the_real_drive_streamed_writes_the_loaded_runs_files").is_none() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -134,7 +123,9 @@ fn the_real_drive_against_an_rtklib_pos_truth_streamed_writes_the_loaded_runs_fi
     // `[truth] format = "rtklib_pos"` (all qualities, positions and velocities, no attitude):
     // loaded whole by `load(.., false)`, read line by line (nav_io::PosReader) by the
     // streamed run; with periodic outages so that the coasting tracks are scored too
-    let Some(data) = shared() else {
+    let Some(data) =
+        shared("the_real_drive_against_an_rtklib_pos_truth_streamed_writes_the_loaded_runs_files")
+    else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -182,7 +173,9 @@ fn the_real_drive_against_an_rtklib_pos_truth_streamed_writes_the_loaded_runs_fi
 
 #[test]
 fn the_real_drive_with_its_roll_flipped_warns_the_same_streamed_and_loaded() {
-    let Some(data) = shared() else {
+    let Some(data) =
+        shared("the_real_drive_with_its_roll_flipped_warns_the_same_streamed_and_loaded")
+    else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -5,26 +5,10 @@
 //! smoothed outage RMS-of-max horizontal <= 2.0 m.
 use clap::Parser;
 use host_sim::run::cli::{run, RunArgs};
-use std::path::Path;
-
-fn data_present() -> bool {
-    let d = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.exists() {
-        return true;
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "../shared/data not found (CI=true: required)"
-    );
-    false
-}
 
 #[test]
 fn real_drive_smoothed_outage_error_meets_the_target() {
-    if !data_present() {
-        println!(
-            "SKIPPED real_drive_smoothed_outage_error_meets_the_target: ../shared/data not found"
-        );
+    if test_support::real_data("real_drive_smoothed_outage_error_meets_the_target").is_none() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -74,8 +58,7 @@ fn real_drive_smoothed_outage_error_meets_the_target() {
 /// history with unrecorded predictions), and the smoothed outage error meets the target.
 #[test]
 fn real_drive_with_aiding_is_smoothed() {
-    if !data_present() {
-        println!("SKIPPED real_drive_with_aiding_is_smoothed: ../shared/data not found");
+    if test_support::real_data("real_drive_with_aiding_is_smoothed").is_none() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

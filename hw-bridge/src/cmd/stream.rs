@@ -4,6 +4,7 @@ use super::*;
 use crate::frames::FrameLog;
 use crate::serial;
 use crate::status::{decoder_summary, StatusLine};
+use nav_core::model::StateModel;
 use nav_core::types::GnssFix;
 use nav_core::wire::{DecoderStats, FrameDecoder, Payload};
 use nav_io::gnss::{GnssEvent, GnssStream, NmeaOptions};
@@ -61,11 +62,10 @@ impl nav_app::TimeBase for WallClock {
 }
 
 /// The host filter of `stream --host-filter`.
-type HostApp = nav_app::NavApp<{ nav_core::model::LAYOUT_NBK.dim() }>;
+type HostApp = nav_app::NavApp<{ <nav_core::model::ModelNbk as StateModel>::DIM }>;
 
 fn host_app() -> anyhow::Result<HostApp> {
-    nav_app::NavApp::new(
-        nav_core::model::LAYOUT_NBK,
+    nav_app::NavApp::new::<nav_core::model::ModelNbk>(
         nav_core::config::FilterConfig::source_nbk_model(),
         0,
         0,
@@ -189,54 +189,7 @@ pub fn stream(a: &StreamOptions) -> anyhow::Result<StreamOutcome> {
         }
         let s = *dec.stats();
         status.update(u64::from(s.frames_ok), false, || {
-            let mut t = decoder_summary(&s);
-            if let Some(n) = log.nav.last() {
-                t.push_str(&format!(
-                    " | nav t {:.2} lat {:.7} lon {:.7} h {:.2} v {:.2} {:.2} {:.2} yaw {:.2} st {:#x}",
-                    n.t_s,
-                    n.lat_rad.to_degrees(),
-                    n.lon_rad.to_degrees(),
-                    n.h_m,
-                    n.vel_ned_mps[0],
-                    n.vel_ned_mps[1],
-                    n.vel_ned_mps[2],
-                    n.rpy_rad[2].to_degrees(),
-                    n.status
-                ));
-            } else if let Some(i) = log.imu.last() {
-                t.push_str(&format!(" | imu t {:.3}", i.t_s));
-            }
-            if let Some(n) = host.as_ref().and_then(|h| h.filter()).map(|f| f.solution()) {
-                t.push_str(&format!(
-                    " | host t {:.2} lat {:.7} lon {:.7} h {:.2} yaw {:.2} std {:.2} {:.2} {:.2}",
-                    n.t_s,
-                    n.lat_rad.to_degrees(),
-                    n.lon_rad.to_degrees(),
-                    n.h_m,
-                    n.rpy_rad[2].to_degrees(),
-                    n.pos_std_ned_m[0],
-                    n.pos_std_ned_m[1],
-                    n.pos_std_ned_m[2]
-                ));
-            }
-            if let Some(h) = log.health.last() {
-                t.push_str(&format!(
-                    " | board rx ok {} crc {} lost {} gnss upd {}",
-                    h.rx_frames_ok, h.rx_crc_errors, h.rx_lost, h.gnss_updates
-                ));
-            }
-            if let Some(f) = last_rx_fix {
-                t.push_str(&format!(
-                    " | rx gnss t {:.1} {:?} sats {} std {:.2} {:.2} {:.2}",
-                    f.t_s,
-                    f.quality,
-                    f.num_sats,
-                    f.pos_std_ned_m[0],
-                    f.pos_std_ned_m[1],
-                    f.pos_std_ned_m[2]
-                ));
-            }
-            t
+            status_text(&s, &log, host.as_ref(), last_rx_fix)
         });
     }
     status.finish();
@@ -277,4 +230,63 @@ pub fn host_filter_offline(
         c.imu_epochs,
         c.gnss_updates,
     ))
+}
+
+/// The status line's text: the decoder's counts, the board's latest solution (or IMU time),
+/// the host filter's solution, the board's health and the receiver's latest fix (degrees, m,
+/// m/s).
+fn status_text(
+    s: &DecoderStats,
+    log: &FrameLog,
+    host: Option<&HostApp>,
+    last_rx_fix: Option<GnssFix>,
+) -> String {
+    let mut t = decoder_summary(s);
+    if let Some(n) = log.nav.last() {
+        t.push_str(&format!(
+            " | nav t {:.2} lat {:.7} lon {:.7} h {:.2} v {:.2} {:.2} {:.2} yaw {:.2} st {:#x}",
+            n.t_s,
+            n.lat_rad.to_degrees(),
+            n.lon_rad.to_degrees(),
+            n.h_m,
+            n.vel_ned_mps[0],
+            n.vel_ned_mps[1],
+            n.vel_ned_mps[2],
+            n.rpy_rad[2].to_degrees(),
+            n.status
+        ));
+    } else if let Some(i) = log.imu.last() {
+        t.push_str(&format!(" | imu t {:.3}", i.t_s));
+    }
+    if let Some(n) = host.and_then(|h| h.filter()).map(|f| f.solution()) {
+        t.push_str(&format!(
+            " | host t {:.2} lat {:.7} lon {:.7} h {:.2} yaw {:.2} std {:.2} {:.2} {:.2}",
+            n.t_s,
+            n.lat_rad.to_degrees(),
+            n.lon_rad.to_degrees(),
+            n.h_m,
+            n.rpy_rad[2].to_degrees(),
+            n.pos_std_ned_m[0],
+            n.pos_std_ned_m[1],
+            n.pos_std_ned_m[2]
+        ));
+    }
+    if let Some(h) = log.health.last() {
+        t.push_str(&format!(
+            " | board rx ok {} crc {} lost {} gnss upd {}",
+            h.rx_frames_ok, h.rx_crc_errors, h.rx_lost, h.gnss_updates
+        ));
+    }
+    if let Some(f) = last_rx_fix {
+        t.push_str(&format!(
+            " | rx gnss t {:.1} {:?} sats {} std {:.2} {:.2} {:.2}",
+            f.t_s,
+            f.quality,
+            f.num_sats,
+            f.pos_std_ned_m[0],
+            f.pos_std_ned_m[1],
+            f.pos_std_ned_m[2]
+        ));
+    }
+    t
 }

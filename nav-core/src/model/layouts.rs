@@ -183,4 +183,44 @@ pub const LAYOUT_KF_GINS: Layout = Layout::new(&[
     Block::AccelScaleFactor,
 ]);
 
+/// A filter model fixed at compile time: the state layout as part of a type, so that a
+/// navigator of this model is given its layout once (the type) and its dimension follows from
+/// it. [`crate::navigator::Navigator::for_model`] checks `LAYOUT.dim() == N` when it is
+/// compiled. Layouts built at run time (effect blocks added by a configuration) go through
+/// [`crate::navigator::Navigator::new`] and its run-time check instead.
+pub trait StateModel {
+    /// The state layout.
+    const LAYOUT: Layout;
+    /// The number of error states, `LAYOUT.dim()` (the `N` of a navigator of this model).
+    const DIM: usize = Self::LAYOUT.dim();
+}
+
+/// The classical N model ([`LAYOUT_N`], 15 states).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ModelN;
+impl StateModel for ModelN {
+    const LAYOUT: Layout = LAYOUT_N;
+}
+
+/// The NBK model ([`LAYOUT_NBK`], 18 states).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ModelNbk;
+impl StateModel for ModelNbk {
+    const LAYOUT: Layout = LAYOUT_NBK;
+}
+
+/// The NBK model as printed ([`LAYOUT_NBK_SINGLE`], 15 states).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ModelNbkSingle;
+impl StateModel for ModelNbkSingle {
+    const LAYOUT: Layout = LAYOUT_NBK_SINGLE;
+}
+
+/// KF-GINS's model ([`LAYOUT_KF_GINS`], 21 states).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ModelKfGins;
+impl StateModel for ModelKfGins {
+    const LAYOUT: Layout = LAYOUT_KF_GINS;
+}
+
 impl core::error::Error for LayoutError {}

@@ -262,119 +262,17 @@ fn static_alignment(
     // the window covers `seconds`: it ends at the first sample at or after t_a + seconds (the
     // samples' times need not fall on t_a + seconds: "static_s = 10" at 125 Hz gave a
     // 9.9938 s window, refused as shorter than 10 s)
-    let mut i1 = case.imu.partition_point(|s| s.t_s <= t_a + sa.seconds);
-    if case
-        .imu
-        .get(i1.wrapping_sub(1))
-        .is_some_and(|s| s.t_s < t_a + sa.seconds - 1e-9)
-        && i1 < case.imu.len()
-    {
-        i1 += 1;
-    }
-    let window = case.imu.get(i0..i1).unwrap_or(&[]);
+    let window = static_window(case.imu, i0, t_a, sa.seconds);
     let t_b = window.last().map_or(t_a, |s| s.t_s);
 
-    // static antenna position: mean of the fixes in the window
-    let fixes: Vec<GnssFix> = fixes_from(case.gnss, 0)
-        .take_while(|g| g.t_s <= t_b + 0.5)
-        .filter(|g| g.t_s >= t_a - 0.5 && g.is_valid())
-        .collect();
-    if fixes.is_empty() {
-        return Err(RunError::no_fix_to_align(t_a, t_b));
-    }
-    let n = fixes.len() as f64;
-    let ref0 = Llh {
-        lat_rad: fixes[0].lat_rad,
-        lon_rad: fixes[0].lon_rad,
-        h_m: fixes[0].h_m,
-    };
-    let mut mean_off = Vector3::zeros();
-    let mut mean_std = [0.0; 3];
-    for g in &fixes {
-        let p = Llh {
-            lat_rad: g.lat_rad,
-            lon_rad: g.lon_rad,
-            h_m: g.h_m,
-        };
-        mean_off += earth::ned_offset_m(&ref0, &p) / n;
-        for (m, s) in mean_std.iter_mut().zip(g.pos_std_ned_m) {
-            *m += s / n;
-        }
-    }
-    let ant = earth::displace(&ref0, &mean_off);
+    let (ant, mean_std) = static_antenna(case, t_a, t_b)?;
 
-    let heading = match sa.heading_rad {
-        Some(y) => (
-            HeadingSource::Given {
-                yaw_rad: y,
-                std_rad: sa.heading_std_rad,
-            },
-            "given".to_string(),
-        ),
-        None => {
-            let mut course_std = 0.0f64;
-            let by_speed = sa
-                .course_min_speed_mps
-                .and_then(|v| gnss_velocity_course(case, t_b, v));
-            let (yaw, what) = match by_speed {
-                Some((yaw, t, v)) => (
-                    yaw,
-                    format!("GNSS velocity course at {v:.2} m/s (fix at {t:.2} s)"),
-                ),
-                None => {
-                    let start_sigma = mean_std[0].max(mean_std[1]);
-                    let (c, t) = gnss_course(case, &ant, start_sigma, t_b, sa.course_distance_m)?;
-                    course_std = c.std_rad;
-                    (
-                        c.yaw_rad,
-                        format!(
-                            "GNSS course over the first {:.2} m of motion (fix at {t:.2} s, \
-                             1-sigma {:.2} deg)",
-                            c.distance_m,
-                            c.std_rad.to_degrees()
-                        ),
-                    )
-                }
-            };
-            (
-                HeadingSource::Given {
-                    yaw_rad: yaw,
-                    std_rad: sa.heading_std_rad.max(course_std),
-                },
-                format!("{what}: {:.2} deg", yaw.to_degrees()),
-            )
-        }
-    };
+    let heading = static_heading(case, sa, &ant, &mean_std, t_b)?;
     let mut acfg = sa.align.with_filter_biases(cfg);
     // the window length is the user's choice (static_s); float slack only
     acfg.min_duration_s = sa.seconds - 1e-6;
-    let al = coarse_align(window, &ant, heading.0, &acfg).map_err(|e| {
-        let way_out = match e {
-            AlignError::TooShort { .. } => format!(
-                "the data after the start hold less than static_s = {} s: shorten \
-                 [init.align] static_s or move start_s earlier",
-                sa.seconds
-            ),
-            AlignError::NotStatic {
-                cue: MotionCue::GravityMismatch,
-                ..
-            } => "the vehicle accelerates, or the accelerometer bias/scale error is larger \
-                  than max_gravity_mismatch_mps2 (raise it for consumer MEMS, e.g. 0.2)"
-                .into(),
-            AlignError::NotStatic { .. } => format!(
-                "the vehicle is not at rest during the first {} s and the GNSS speed at the \
-                 start is below {MOVING_SPEED_MPS} m/s (so in-motion alignment was not used): \
-                 shorten static_s to the part at rest, move start_s to a stop or to where \
-                 the vehicle drives, or give [init.given]",
-                sa.seconds
-            ),
-            _ => "check the IMU time stamps of the window, or give [init.given]".into(),
-        };
-        RunError::Align {
-            msg: format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}; {way_out}"),
-            source: e,
-        }
-    })?;
+    let al = coarse_align(window, &ant, heading.0, &acfg)
+        .map_err(|e| align_error(e, sa.seconds, t_a, t_b))?;
     let st = static_start(
         &al,
         &ant,
@@ -408,6 +306,139 @@ fn static_alignment(
             static_window_s: Some(al.duration_s),
         },
     })
+}
+
+/// The static window from the sample `i0` at `t_a` s: it covers `seconds`, ending at the first
+/// sample at or after `t_a + seconds` (the samples' times need not fall on `t_a + seconds`:
+/// "static_s = 10" at 125 Hz gave a 9.9938 s window, refused as shorter than 10 s).
+fn static_window(imu: &[ImuSample], i0: usize, t_a: f64, seconds: f64) -> &[ImuSample] {
+    let mut i1 = imu.partition_point(|s| s.t_s <= t_a + seconds);
+    if imu
+        .get(i1.wrapping_sub(1))
+        .is_some_and(|s| s.t_s < t_a + seconds - 1e-9)
+        && i1 < imu.len()
+    {
+        i1 += 1;
+    }
+    imu.get(i0..i1).unwrap_or(&[])
+}
+
+/// The static antenna position: the mean of the valid fixes within 0.5 s of the window
+/// `t_a .. t_b` s (as NED offsets from the first), and the mean of their reported position
+/// sigmas N, E, D (m); an error when there is no fix.
+fn static_antenna(case: &InitData<'_>, t_a: f64, t_b: f64) -> Result<(Llh, [f64; 3]), RunError> {
+    let fixes: Vec<GnssFix> = fixes_from(case.gnss, 0)
+        .take_while(|g| g.t_s <= t_b + 0.5)
+        .filter(|g| g.t_s >= t_a - 0.5 && g.is_valid())
+        .collect();
+    if fixes.is_empty() {
+        return Err(RunError::no_fix_to_align(t_a, t_b));
+    }
+    let n = fixes.len() as f64;
+    let ref0 = Llh {
+        lat_rad: fixes[0].lat_rad,
+        lon_rad: fixes[0].lon_rad,
+        h_m: fixes[0].h_m,
+    };
+    let mut mean_off = Vector3::zeros();
+    let mut mean_std = [0.0; 3];
+    for g in &fixes {
+        let p = Llh {
+            lat_rad: g.lat_rad,
+            lon_rad: g.lon_rad,
+            h_m: g.h_m,
+        };
+        mean_off += earth::ned_offset_m(&ref0, &p) / n;
+        for (m, s) in mean_std.iter_mut().zip(g.pos_std_ned_m) {
+            *m += s / n;
+        }
+    }
+    Ok((earth::displace(&ref0, &mean_off), mean_std))
+}
+
+/// The heading of the static alignment and how it was found: the given yaw, else the GNSS
+/// velocity course (above `course_min_speed_mps`), else the course over the first
+/// `course_distance_m` of motion after the window's end `t_b` s (its sigma from the start
+/// position's `mean_std`, m); rad.
+fn static_heading(
+    case: &InitData<'_>,
+    sa: &StaticAlign,
+    ant: &Llh,
+    mean_std: &[f64; 3],
+    t_b: f64,
+) -> Result<(HeadingSource, String), RunError> {
+    Ok(match sa.heading_rad {
+        Some(y) => (
+            HeadingSource::Given {
+                yaw_rad: y,
+                std_rad: sa.heading_std_rad,
+            },
+            "given".to_string(),
+        ),
+        None => {
+            let mut course_std = 0.0f64;
+            let by_speed = sa
+                .course_min_speed_mps
+                .and_then(|v| gnss_velocity_course(case, t_b, v));
+            let (yaw, what) = match by_speed {
+                Some((yaw, t, v)) => (
+                    yaw,
+                    format!("GNSS velocity course at {v:.2} m/s (fix at {t:.2} s)"),
+                ),
+                None => {
+                    let start_sigma = mean_std[0].max(mean_std[1]);
+                    let (c, t) = gnss_course(case, ant, start_sigma, t_b, sa.course_distance_m)?;
+                    course_std = c.std_rad;
+                    (
+                        c.yaw_rad,
+                        format!(
+                            "GNSS course over the first {:.2} m of motion (fix at {t:.2} s, \
+                             1-sigma {:.2} deg)",
+                            c.distance_m,
+                            c.std_rad.to_degrees()
+                        ),
+                    )
+                }
+            };
+            (
+                HeadingSource::Given {
+                    yaw_rad: yaw,
+                    std_rad: sa.heading_std_rad.max(course_std),
+                },
+                format!("{what}: {:.2} deg", yaw.to_degrees()),
+            )
+        }
+    })
+}
+
+/// The error of a failed static alignment on `t_a .. t_b` s, with the way out for the user
+/// (`static_s` the configured window, s).
+fn align_error(e: AlignError, static_s: f64, t_a: f64, t_b: f64) -> RunError {
+    let way_out = match e {
+        AlignError::TooShort { .. } => format!(
+            "the data after the start hold less than static_s = {} s: shorten \
+             [init.align] static_s or move start_s earlier",
+            static_s
+        ),
+        AlignError::NotStatic {
+            cue: MotionCue::GravityMismatch,
+            ..
+        } => "the vehicle accelerates, or the accelerometer bias/scale error is larger \
+              than max_gravity_mismatch_mps2 (raise it for consumer MEMS, e.g. 0.2)"
+            .into(),
+        AlignError::NotStatic { .. } => format!(
+            "the vehicle is not at rest during the first {} s and the GNSS speed at the \
+             start is below {MOVING_SPEED_MPS} m/s (so in-motion alignment was not used): \
+             shorten static_s to the part at rest, move start_s to a stop or to where \
+             the vehicle drives, or give [init.given]",
+            static_s
+        ),
+        _ => "check the IMU time stamps of the window, or give [init.given]".into(),
+    };
+    RunError::Align {
+        msg: format!("static alignment on {t_a:.3} .. {t_b:.3} s: {e}; {way_out}"),
+        source: e,
+    }
 }
 
 /// The GNSS course of the track from `from` (horizontal one-sigma `from_sigma_m`) over the

@@ -214,26 +214,11 @@ fn zupt_holds_the_position_to_centimetres_during_stops() {
     }
 }
 
-fn data_dir() -> Option<&'static Path> {
-    let d = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.exists() {
-        return Some(d);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "../shared/data not found (CI=true: required)"
-    );
-    None
-}
-
 /// The reference protocol: seven 20 s outages, the first 120 s after the first fix, every 60 s;
 /// RMS over outages of the maximum horizontal error against the withheld RTK fixes.
 #[test]
 fn real_drive_with_aiding_meets_the_issue_targets() {
-    if data_dir().is_none() {
-        println!(
-            "SKIPPED real_drive_with_aiding_meets_the_issue_targets: ../shared/data not found"
-        );
+    if test_support::real_data("real_drive_with_aiding_meets_the_issue_targets").is_none() {
         return;
     }
     let cfg = concat!(

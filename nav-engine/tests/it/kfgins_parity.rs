@@ -26,18 +26,9 @@ use nav_engine::RunSpec;
 use nav_io::read_nav_text;
 use std::path::PathBuf;
 
-fn data_dir() -> Option<PathBuf> {
-    let d = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/kfgins-parity"
-    ));
-    if d.join("kf-gins.yaml").is_file() {
-        Some(d)
-    } else if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("../shared/data/kfgins-parity not found (CI=true)");
-    } else {
-        None
-    }
+/// The parity case's folder, or None after the SKIPPED line (a failure under CI=true).
+fn data_dir(test: &str) -> Option<PathBuf> {
+    test_support::real_data_in(test, "kfgins-parity")
 }
 
 /// The outage windows of `case.json` (`outages_sow`: [start, end) in GPS seconds of week).
@@ -114,8 +105,9 @@ fn run(dir: &std::path::Path, model: Option<Model>, gate: Option<&str>) -> Ours 
 
 #[test]
 fn kf_gins_yaml_gives_kf_gins_solution_on_the_warming_accelerometer_drive() {
-    let Some(dir) = data_dir() else {
-        println!("SKIPPED kf_gins_yaml_gives_kf_gins_solution_on_the_warming_accelerometer_drive: ../shared/data/kfgins-parity not found");
+    let Some(dir) =
+        data_dir("kf_gins_yaml_gives_kf_gins_solution_on_the_warming_accelerometer_drive")
+    else {
         return;
     };
     let t = std::time::Instant::now();

@@ -13,7 +13,6 @@ use nav_engine::{execute_case, RunSpec};
 use nav_sim::errors::Axes3;
 use nav_sim::ScenarioBuilder;
 use nav_sim::{simulate, ErrorModel};
-use std::path::Path;
 
 /// Detector decisions against a reference speed on the aiding epochs' 0.1 s grid from `from_s`
 /// to `to_s`: an epoch counts as detected when it lies in one of the report's
@@ -264,15 +263,7 @@ fn real_drive_stops_fixed_against_learned_thresholds() {
         env!("CARGO_MANIFEST_DIR"),
         "/../configs/drive0708_aided.toml"
     );
-    if !Path::new(cfg)
-        .parent()
-        .unwrap()
-        .join("../../shared/data")
-        .exists()
-    {
-        println!(
-            "SKIPPED real_drive_stops_fixed_against_learned_thresholds: ../shared/data not found"
-        );
+    if test_support::real_data("real_drive_stops_fixed_against_learned_thresholds").is_none() {
         return;
     }
     let p = RunSpec::new(cfg).prepare().expect("loading the drive");

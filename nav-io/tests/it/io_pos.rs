@@ -7,17 +7,6 @@ use nav_core::types::FixQuality;
 use nav_io::{read_rtklib_pos, IoError, PosOptions, PosPositionFormat, PosTimeSystem};
 use std::path::{Path, PathBuf};
 
-fn data_dir() -> Option<PathBuf> {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.is_dir() {
-        Some(d)
-    } else if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("../shared/data not found and CI=true");
-    } else {
-        None
-    }
-}
-
 fn write(dir: &tempfile::TempDir, name: &str, s: &str) -> PathBuf {
     let p = dir.path().join(name);
     std::fs::write(&p, s).unwrap();
@@ -319,8 +308,8 @@ fn drive_pos(dir: &Path) -> PathBuf {
 
 #[test]
 fn pos_real_drive0708_has_2197_epochs_2189_fixed_at_4_hz() {
-    let Some(d) = data_dir() else {
-        println!("SKIPPED pos_real_drive0708_has_2197_epochs_2189_fixed_at_4_hz: ../shared/data not found");
+    let Some(d) = test_support::real_data("pos_real_drive0708_has_2197_epochs_2189_fixed_at_4_hz")
+    else {
         return;
     };
     let r = read_rtklib_pos(drive_pos(&d), &PosOptions { max_q: 6 }).unwrap();

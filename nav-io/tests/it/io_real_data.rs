@@ -10,15 +10,7 @@ use nav_io::{
 use std::path::PathBuf;
 
 fn data_dir(test: &str) -> Option<PathBuf> {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.is_dir() {
-        Some(d)
-    } else if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("{test}: ../shared/data not found and CI=true");
-    } else {
-        println!("SKIPPED {test}: ../shared/data not found");
-        None
-    }
+    test_support::real_data(test)
 }
 
 fn gpst_csv_format() -> ImuCsvFormat {

@@ -69,14 +69,7 @@ fn drive0708_config_parses_to_the_readme_figures_in_si() {
 
 #[test]
 fn drive0708_loads_through_its_config_in_body_axes() {
-    let d = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if !d.is_dir() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("../shared/data not found and CI=true");
-        }
-        println!(
-            "SKIPPED drive0708_loads_through_its_config_in_body_axes: ../shared/data not found"
-        );
+    if test_support::real_data("drive0708_loads_through_its_config_in_body_axes").is_none() {
         return;
     }
     let path = drive_cfg_path();

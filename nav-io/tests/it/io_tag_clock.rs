@@ -3,7 +3,6 @@
 //! a visible SKIPPED message when missing, an error with CI=true), whose tag shows that the
 //! stretch of the tick span to the tag span is not a clock-rate correction (configs/drive0708.toml).
 use nav_io::{read_time_tag, tick_clock_fit, TimeTag};
-use std::path::PathBuf;
 
 fn tag(pairs: Vec<(u32, u32)>) -> TimeTag {
     TimeTag {
@@ -55,18 +54,12 @@ fn a_known_lag_and_rate_are_recovered_from_the_lower_envelope() {
 
 #[test]
 fn drive0708_ticks_run_at_the_loggers_rate_so_the_tag_stretch_is_not_a_clock_correction() {
-    let d = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/rtklibexplorer-drive0708"
-    ));
-    if !d.is_dir() {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "../shared/data not found (CI=true: required)"
-        );
-        println!("SKIPPED drive0708 tag clock: ../shared/data not found");
+    let Some(d) = test_support::real_data_in(
+        "drive0708_ticks_run_at_the_loggers_rate_so_the_tag_stretch_is_not_a_clock_correction",
+        "rtklibexplorer-drive0708",
+    ) else {
         return;
-    }
+    };
     let tg = read_time_tag(d.join("imu_1934.csv.tag")).unwrap();
     let text = std::fs::read_to_string(d.join("imu_1934.csv")).unwrap();
     let lines: Vec<&str> = text.lines().collect();

@@ -5,19 +5,6 @@
 use nav_engine::metrics::{Metrics, OutageSummary};
 use nav_engine::run::{parse_periodic, FixUse, PeriodicOutages, RunOutput};
 use nav_engine::RunSpec;
-use std::path::Path;
-
-fn data_dir() -> Option<&'static Path> {
-    let d = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.exists() {
-        return Some(d);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "../shared/data not found (CI=true: required)"
-    );
-    None
-}
 
 fn config() -> String {
     concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml").to_string()
@@ -92,8 +79,11 @@ fn check_outages(name: &str, out: &RunOutput, m: &Metrics, expected: usize) {
 
 #[test]
 fn real_drive_stays_on_the_road_and_beats_free_inertial_coasting_in_outages() {
-    if data_dir().is_none() {
-        println!("SKIPPED real_drive_stays_on_the_road_and_beats_free_inertial_coasting_in_outages: ../shared/data not found");
+    if test_support::real_data(
+        "real_drive_stays_on_the_road_and_beats_free_inertial_coasting_in_outages",
+    )
+    .is_none()
+    {
         return;
     }
     // no outage: the solution against the next RTK fix (0.25 s of prediction)
