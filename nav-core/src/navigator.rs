@@ -417,6 +417,31 @@ impl<T: Scalar, const N: usize, const Q: usize> Navigator<T, N, Q> {
     /// A navigator of the compile-time model `M` (its layout `M::LAYOUT`; `N` must be
     /// `M::DIM`, checked when this is compiled): [`Navigator::new`] without a run-time layout.
     /// Errors: the filter's, as [`Navigator::new`].
+    ///
+    /// ```
+    /// use nav_core::config::FilterConfig;
+    /// use nav_core::model::ModelNbk;
+    /// use nav_core::navigator::{AlignMode, FirstFixAlign, NavigatorConfig, NavigatorNbk};
+    /// let cfg = NavigatorConfig::new(
+    ///     FilterConfig::source_nbk_model(),
+    ///     AlignMode::FirstFix(FirstFixAlign::default()),
+    /// );
+    /// let nav = NavigatorNbk::for_model::<ModelNbk>(cfg).unwrap();
+    /// assert!(nav.filter().is_none());
+    /// ```
+    ///
+    /// A navigator whose `N` is not the model's dimension does not compile:
+    ///
+    /// ```compile_fail
+    /// use nav_core::config::FilterConfig;
+    /// use nav_core::model::ModelKfGins;
+    /// use nav_core::navigator::{AlignMode, FirstFixAlign, NavigatorConfig, NavigatorNbk};
+    /// let cfg = NavigatorConfig::new(
+    ///     FilterConfig::source_nbk_model(),
+    ///     AlignMode::FirstFix(FirstFixAlign::default()),
+    /// );
+    /// let nav = NavigatorNbk::for_model::<ModelKfGins>(cfg);
+    /// ```
     pub fn for_model<M: StateModel>(cfg: NavigatorConfig) -> Result<Self, NavigatorError> {
         const {
             assert!(
