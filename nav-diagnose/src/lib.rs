@@ -160,6 +160,10 @@ pub struct CandidateEvidence {
     pub errors: Option<StepErrors>,
     /// Its held-out windows against the current model's, paired (None: not run).
     pub heldout: Option<HeldoutComparison>,
+    /// For a GNSS-side block ([`is_noise_like`]) whose evidence pays: its prediction of the
+    /// fixes withheld one at a time ([`validate::interleaved_fixes`]) against the current
+    /// model's, paired per fix (None: not judged so).
+    pub heldout_fixes: Option<HeldoutComparison>,
     /// What the search decided.
     pub decision: Decision,
     /// Why, in words (evidence, significance, held-out gain).
@@ -221,7 +225,9 @@ pub struct AddedEffect {
     pub evidence: f64,
     /// Log-likelihood gain when it was added, nats.
     pub delta_log_likelihood: f64,
-    /// Its held-out windows against the model before it, paired.
+    /// The held-out comparison that decided it, against the model before it, paired: its
+    /// held-out windows, or for a GNSS-side block the fixes withheld one at a time
+    /// ([`CandidateEvidence::heldout_fixes`]).
     pub heldout: HeldoutComparison,
     /// The strongest other paying candidate of that round and how many nats it trailed by.
     pub runner_up: Option<(String, f64)>,
@@ -444,8 +450,14 @@ struct Eval {
 /// (records at most 0.05 s apart), an eighth of the memory of every epoch at 200 Hz.
 pub const SEARCH_NAV_RATE_HZ: f64 = 25.0;
 
+/// Rate of the epoch records of a search run whose model carries a GNSS error state
+/// (`gnss_position_gm`), Hz: the state's estimate predicts the withheld fixes
+/// ([`spill::predict_withheld_fixes`]).
+pub const SEARCH_GNSS_ERROR_RATE_HZ: f64 = 2.0;
+
 /// Options of a search run: navigation recorded at [`SEARCH_NAV_RATE_HZ`] (when the IMU is
-/// faster), no epoch records (the estimates come from the final state).
+/// faster), no epoch records (the estimates come from the final state) unless the model
+/// carries a GNSS error state ([`SEARCH_GNSS_ERROR_RATE_HZ`]).
 pub fn search_recording(o: &RunOptions) -> RunOptions {
     let mut o = o.clone();
     o.record.nav_rate_hz = Some(
@@ -453,7 +465,12 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
             .nav_rate_hz
             .map_or(SEARCH_NAV_RATE_HZ, |r| r.min(SEARCH_NAV_RATE_HZ)),
     );
-    o.record.epoch_rate_hz = Some(0.0);
+    let gnss_error = prior::carried(&o, Block::GnssPositionGm);
+    o.record.epoch_rate_hz = Some(if gnss_error {
+        SEARCH_GNSS_ERROR_RATE_HZ
+    } else {
+        0.0
+    });
     o
 }
 
@@ -465,6 +482,9 @@ struct Ctx<'a> {
     plan: HeldoutPlan,
     /// The outages the diagnosis withholds beyond the imposed ones.
     withheld: Vec<Outage>,
+    /// The fixes withheld one at a time to judge a GNSS-side candidate
+    /// ([`validate::interleaved_fixes`]), s.
+    interleaved: Vec<f64>,
     /// The temporary folder of the runs' navigation files ([`spill`]).
     folder: spill::TempFolder,
     /// Search runs so far (names their files).
@@ -477,6 +497,17 @@ impl Ctx<'_> {
         let mut o = search_recording(o);
         o.outages.extend(self.withheld.iter().copied());
         o
+    }
+
+    /// The prediction error of a model at each fix withheld one at a time
+    /// ([`validate::fix_errors_m`]): a run with those fixes withheld (and the imposed outages,
+    /// not the diagnosis's windows), m.
+    fn fix_errors(&self, o: &RunOptions) -> Result<Vec<f64>, nav_engine::run::RunError> {
+        let mut ro = search_recording(o);
+        ro.outages
+            .extend(validate::single_fix_outages(&self.interleaved));
+        let out = spill::run_innovations(&self.p.case, &ro)?;
+        Ok(validate::fix_errors_m(&out, &self.interleaved))
     }
 
     /// Runs a model with the held-out windows withheld and scores it.
@@ -498,6 +529,12 @@ impl Ctx<'_> {
         // the smoother's run in memory: the samples read into a case of their own
         let case = &in_memory(case).map_err(nav_engine::run::RunError::Input)?;
         let mut out = run_filter(case, &ro)?;
+        let estimates: Vec<(f64, Vec<f64>)> = std::mem::take(&mut out.epochs)
+            .into_iter()
+            .map(|e| (e.t_s, e.estimates))
+            .collect();
+        let track = spill::gnss_error_track(&out.state_names, &estimates);
+        spill::predict_withheld_fixes(&mut out, &track, ro.filter.effects.gnss_position_gm.t_s);
         let m = metrics::compute(&out, case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
         e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &case.gnss);
@@ -602,6 +639,8 @@ struct Search {
     /// The time offset held at its estimate when it was added ([`hold_time_offset`]): the
     /// final model runs on the IMU data moved onto the GNSS clock, without the state.
     time_offset_held: Option<f64>,
+    /// Whether the GNSS error's sigma was fitted ([`fit_gnss_error`]; it is in `base_opts`).
+    gnss_error_fitted: bool,
 }
 
 /// The data of `case` with its IMU samples in memory (for the smoother's runs).
@@ -661,11 +700,13 @@ pub fn diagnose_cached(
     };
     let plan = validate::plan_windows(&fix_times, &p.opts.outages);
     let withheld = plan.withheld_outages();
+    let interleaved = validate::interleaved_fixes(&fix_times, &plan.windows);
     let base_ctx = Ctx {
         p,
         dopts,
         plan,
         withheld,
+        interleaved,
         folder,
         runs: Default::default(),
     };
@@ -935,6 +976,7 @@ fn start_search(ctx: &Ctx<'_>, base: &Eval, judged: StepJudged) -> Result<Search
         bias_step,
         bias_step_not_kept,
         time_offset_held: None,
+        gnss_error_fitted: false,
     })
 }
 
@@ -974,6 +1016,7 @@ fn evaluate_candidate(
         outage_error_m: None,
         errors: None,
         heldout: None,
+        heldout_fixes: None,
         decision: Decision::Failed,
         reason: String::new(),
         refused: None,
@@ -1070,6 +1113,101 @@ pub fn decide(
     )
 }
 
+/// Stationary 1-sigma of the GNSS error candidates of [`fit_gnss_error`], north and east, m
+/// (down twice as large, as the default prior).
+pub const GNSS_ERROR_SIGMA_GRID_M: [f64; 4] = [0.04, 0.08, 0.16, 0.32];
+
+/// The GNSS error block's stationary sigma fitted by maximum innovation likelihood over
+/// [`GNSS_ERROR_SIGMA_GRID_M`] (correlation time kept), the block put into `cur_opts` (the
+/// current model, `cur_ll` its log-likelihood, nats): the configured prior (0.5 m / 1 m by
+/// default) lets the state follow the fixes' white noise, and the model then predicts a
+/// withheld fix worse than without the state although the fixes carry a correlated error
+/// of 5-15 cm (measured on the drives of `nav_sim::undeclared`: 28 % higher errors at the
+/// fixes withheld one at a time). None when no grid value gains over the current model.
+fn fit_gnss_error(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    cur_ll: f64,
+) -> Option<nav_core::config::GnssErrorNoise> {
+    let base = options_with(cur_opts, &[Block::GnssPositionGm]);
+    let t_s = base.filter.effects.gnss_position_gm.t_s;
+    let trials: Vec<(f64, nav_core::config::GnssErrorNoise)> = GNSS_ERROR_SIGMA_GRID_M
+        .par_iter()
+        .filter_map(|&sg| {
+            let g = nav_core::config::GnssErrorNoise {
+                sigma_m: [sg, sg, 2.0 * sg],
+                t_s,
+            };
+            let mut o = base.clone();
+            o.filter.effects.gnss_position_gm = g;
+            let mut ro = ctx.searching(&o);
+            ro.record.epoch_rate_hz = Some(0.0);
+            let out = spill::run_innovations(&ctx.p.case, &ro).ok()?;
+            Some((residual_stats(&out.innovations).log_likelihood, g))
+        })
+        .collect();
+    trials
+        .into_iter()
+        .filter(|(ll, _)| ll.is_finite() && *ll > cur_ll)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, g)| g)
+}
+
+/// A GNSS-side candidate ([`is_noise_like`]: a time-correlated error of the fixes) is judged
+/// on the fixes withheld one at a time ([`Ctx::fix_errors`]), paired per fix with the current
+/// model's: a model that carries the error predicts a fix from its neighbours, while across
+/// the held-out windows the IMU's drift swamps it. Judged so when its evidence pays and its
+/// held-out windows are not significantly higher (never significantly worse there); the
+/// decision is then [`decide`]'s on the fixes. The current model's run is made once.
+fn judge_gnss_side(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let judged: Vec<usize> = (0..results.len())
+        .filter(|&i| {
+            let c = &results[i].0;
+            Block::effect_from_name(&c.name).is_some_and(is_noise_like)
+                && c.evidence.is_some_and(|e| e > 0.0)
+                && c.decision != Decision::Refused
+                && results[i].1.is_some()
+        })
+        .collect();
+    if judged.is_empty() || ctx.interleaved.len() < 10 {
+        return;
+    }
+    let (cur, cands) = rayon::join(
+        || ctx.fix_errors(cur_opts),
+        || {
+            judged
+                .par_iter()
+                .map(|&i| {
+                    let b = Block::effect_from_name(&results[i].0.name)?;
+                    ctx.fix_errors(&options_with(cur_opts, &[b])).ok()
+                })
+                .collect::<Vec<_>>()
+        },
+    );
+    let Ok(cur) = cur else {
+        return;
+    };
+    for (&i, new) in judged.iter().zip(cands) {
+        let Some(new) = new else {
+            continue;
+        };
+        let c = &mut results[i].0;
+        let h = validate::compare_windows(&cur, &new);
+        let (decision, why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
+        c.heldout_fixes = Some(h);
+        c.decision = decision;
+        c.reason = format!(
+            "on the fixes withheld one at a time: {why}; held-out windows: {}",
+            c.heldout.map_or("-".into(), |w| w.describe())
+        );
+        c.refused = (decision != Decision::Eligible).then(|| c.reason.clone());
+    }
+}
+
 /// Model selection between the nested clock models: a constant offset (`time_offset`, one
 /// parameter) and an offset with a rate (`imu_clock_drift`, `[dt_0, rate]`). The drift stays
 /// eligible only when its rate is significant beside the offset ([`drift_beside_offset`]);
@@ -1140,6 +1278,15 @@ pub fn drift_beside_offset(
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
+    if !s.gnss_error_fitted && all.contains(&Block::GnssPositionGm) {
+        let cur_opts = options_with(&s.base_opts, &s.added);
+        if !prior::carried(&cur_opts, Block::GnssPositionGm) {
+            if let Some(g) = fit_gnss_error(ctx, &cur_opts, s.cur.errors.log_likelihood) {
+                s.base_opts.filter.effects.gnss_position_gm = g;
+            }
+        }
+        s.gnss_error_fitted = true;
+    }
     let cur_opts = options_with(&s.base_opts, &s.added);
     let dim_now = dim_of(&cur_opts);
     let remaining: Vec<Block> = all
@@ -1164,6 +1311,7 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
     clock_drift_beside_offset(&mut results, n_meas);
+    judge_gnss_side(ctx, &cur_opts, &mut results);
     let eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
         .collect();
@@ -1474,7 +1622,8 @@ fn add_candidate(
     round.added = Some(c.name.clone());
     s.rounds.push(round);
     let heldout = c
-        .heldout
+        .heldout_fixes
+        .or(c.heldout)
         .unwrap_or_else(|| validate::compare_windows(&[], &[]));
     s.steps.push(Step {
         label: format!("+ {}", c.name),

@@ -248,21 +248,52 @@ fn gyro_bias_step_is_a_change_point_with_the_file_gaps_and_no_imposed_outage() {
     check_bias_step(Effect::GyroBiasStep);
 }
 
+/// Sizes of the drives: length, IMU rate and truth RK4 substeps.
+#[derive(Debug, Clone, Copy)]
+struct Sizes {
+    minutes: f64,
+    rate_hz: f64,
+    substeps: u32,
+}
+
+/// The CI tests' drives: 10 minutes at 50 Hz, truth RK4 x4.
+const CI: Sizes = Sizes {
+    minutes: 10.0,
+    rate_hz: 50.0,
+    substeps: 4,
+};
+
+/// The diagnosis (default options) of one drive of the sweep (`kind`, `seed`, `sizes`; the
+/// file's three gaps), its held-out windows checked ([`check_windows`]), and whether it meets
+/// `kind`'s criterion ([`SweepDrive::judge`]), with why in words.
+fn judged_drive(kind: SweepDrive, seed: u64, sizes: Sizes) -> (Diagnosis, bool, String) {
+    let (p, _) = prepare(&kind.spec(seed, sizes.minutes, sizes.rate_hz, sizes.substeps));
+    let d = diagnose(&p, &DiagnoseOptions::default())
+        .expect("diagnose")
+        .diagnosis;
+    check_windows(&d);
+    let (ok, why) = kind.judge(&d);
+    (d, ok, why)
+}
+
+/// [`judged_drive`] at the CI sizes, printed; panics when the criterion is not met.
+fn check_drive(kind: SweepDrive, seed: u64) -> Diagnosis {
+    let (d, ok, why) = judged_drive(kind, seed, CI);
+    println!("{}named: {}{why}", summary(&d), named_list(&d));
+    assert!(ok, "{kind:?} seed {seed}: named {}{why}", named_list(&d));
+    d
+}
+
 /// A lever arm and an accelerometer bias step on one 10-minute drive (seed 200 of the sweep's
 /// pairs, 50 Hz, the file's three gaps, default options): both named. The lever arm inflates
 /// the base run's innovations from the start, so the step is found once the lever arm is
 /// added (`late_bias_step`).
 #[test]
 fn lever_arm_and_accelerometer_bias_step_are_both_named_with_the_file_gaps() {
-    let kind = SweepDrive::Two(Effect::LeverArm, Effect::AccelBiasStep);
-    let (p, _) = prepare(&kind.spec(200, 10.0, 50.0, 4));
-    let d = diagnose(&p, &DiagnoseOptions::default())
-        .expect("diagnose")
-        .diagnosis;
-    println!("{}named: {}", summary(&d), named_list(&d));
-    check_windows(&d);
-    let (ok, why) = kind.judge(&d);
-    assert!(ok, "named: {}{why}\n{}", named_list(&d), summary(&d));
+    let d = check_drive(
+        SweepDrive::Two(Effect::LeverArm, Effect::AccelBiasStep),
+        200,
+    );
     assert!(all_significant(&d), "{}", summary(&d));
 }
 
@@ -272,15 +303,7 @@ fn lever_arm_and_accelerometer_bias_step_are_both_named_with_the_file_gaps() {
 /// a significant estimate.
 #[test]
 fn gnss_multipath_outside_the_vocabulary_does_not_make_the_held_out_windows_worse() {
-    let kind = SweepDrive::Outside(OutsideEffect::GnssMultipath);
-    let (p, _) = prepare(&kind.spec(400, 10.0, 50.0, 4));
-    let d = diagnose(&p, &DiagnoseOptions::default())
-        .expect("diagnose")
-        .diagnosis;
-    println!("{}named: {}", summary(&d), named_list(&d));
-    check_windows(&d);
-    let (ok, why) = kind.judge(&d);
-    assert!(ok, "named: {}{why}\n{}", named_list(&d), summary(&d));
+    check_drive(SweepDrive::Outside(OutsideEffect::GnssMultipath), 400);
 }
 
 /// A size of the sweep from the environment variable `name`, or `default`.
@@ -427,9 +450,11 @@ impl SweepDrive {
 #[test]
 #[ignore = "long: 10 seeds of each effect, 20 clean drives, pairs, outside the vocabulary"]
 fn sweep_ten_seeds_per_effect() {
-    let minutes: f64 = env_or("DIAGNOSE_HELDOUT_MINUTES", 40.0);
-    let rate_hz: f64 = env_or("DIAGNOSE_HELDOUT_RATE_HZ", 100.0);
-    let substeps: u32 = env_or("DIAGNOSE_HELDOUT_SUBSTEPS", 8);
+    let sizes = Sizes {
+        minutes: env_or("DIAGNOSE_HELDOUT_MINUTES", 40.0),
+        rate_hz: env_or("DIAGNOSE_HELDOUT_RATE_HZ", 100.0),
+        substeps: env_or("DIAGNOSE_HELDOUT_SUBSTEPS", 8),
+    };
     let seeds: u64 = env_or("DIAGNOSE_HELDOUT_SEEDS", 10);
     let clean_seeds: u64 = env_or("DIAGNOSE_HELDOUT_CLEAN_SEEDS", 20);
     let pair_seeds: u64 = env_or("DIAGNOSE_HELDOUT_PAIR_SEEDS", 3);
@@ -465,19 +490,18 @@ fn sweep_ten_seeds_per_effect() {
         );
     }
     println!(
-        "{} drives of {minutes} min at {rate_hz} Hz (truth RK4 x{substeps}), three 60 s gaps \
-         in the GNSS file, default options",
-        jobs.len()
+        "{} drives of {} min at {} Hz (truth RK4 x{}), three 60 s gaps in the GNSS file, \
+         default options",
+        jobs.len(),
+        sizes.minutes,
+        sizes.rate_hz,
+        sizes.substeps
     );
     let res: Vec<(SweepDrive, bool)> = jobs
         .par_iter()
         .map(|&(kind, seed)| {
             let t = std::time::Instant::now();
-            let (p, _) = prepare(&kind.spec(seed, minutes, rate_hz, substeps));
-            let d = diagnose(&p, &DiagnoseOptions::default())
-                .expect("diagnose")
-                .diagnosis;
-            let (ok, why) = kind.judge(&d);
+            let (d, ok, why) = judged_drive(kind, seed, sizes);
             println!(
                 "{} seed {seed}: {} named: {}{why} ({:.0} s)",
                 kind.group(),
@@ -515,4 +539,53 @@ fn sweep_ten_seeds_per_effect() {
         }
     }
     assert!(failed.is_empty(), "criteria not met: {}", failed.join("; "));
+}
+
+#[test]
+#[ignore = "exploration"]
+fn explore_gm() {
+    let seeds: Vec<u64> = std::env::var("EXPLORE_SEEDS")
+        .unwrap_or("100".into())
+        .split(',')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let kind: String = env_or("EXPLORE_KIND", "gm".to_string());
+    let kinds: Vec<SweepDrive> = match kind.as_str() {
+        "gm" => vec![SweepDrive::One(Effect::GnssCorrelatedError)],
+        "clean" => vec![SweepDrive::Clean],
+        "mp" => vec![SweepDrive::Outside(OutsideEffect::GnssMultipath)],
+        "drift" => vec![SweepDrive::One(Effect::ImuClockDrift)],
+        "mis" => vec![SweepDrive::One(Effect::AccelMisalignment)],
+        "pair1" => vec![SweepDrive::Two(
+            Effect::GyroScaleFactor,
+            Effect::ImuClockDrift,
+        )],
+        "pair4" => vec![SweepDrive::Two(
+            Effect::TimeOffset,
+            Effect::GnssCorrelatedError,
+        )],
+        _ => panic!(),
+    };
+    let jobs: Vec<(SweepDrive, u64)> = kinds
+        .iter()
+        .flat_map(|k| seeds.iter().map(move |s| (*k, *s)))
+        .collect();
+    jobs.par_iter().for_each(|&(kind, seed)| {
+        let (d, ok, why) = judged_drive(kind, seed, Sizes { substeps: 8, ..CI });
+        let lb: Vec<String> = d
+            .residuals_before
+            .whiteness
+            .iter()
+            .map(|w| format!("{:.0}", w.ljung_box_q))
+            .collect();
+        println!(
+            "=== {} seed {seed}: {} named: {}{why}\n  LB before {:?} scale {:?}\n{}",
+            kind.group(),
+            ok,
+            named_list(&d),
+            lb,
+            d.final_gnss_sigma_scale,
+            summary(&d)
+        );
+    });
 }
