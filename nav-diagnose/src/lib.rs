@@ -33,7 +33,11 @@
 //!    with the larger held-out gain is added. The noise steps (tuned, re-tuned) are kept
 //!    unless their held-out errors are significantly higher. A paying candidate left out is
 //!    unexplained gain; with it (or a NIS mean above its band) the diagnosis says where in
-//!    time the misfit sits ([`stats::misfit_spans`]).
+//!    time the misfit sits ([`stats::misfit_spans`]). A GNSS-side block (`gnss_position_gm`,
+//!    [`is_noise_like`]) whose evidence pays is judged on fixes withheld one at a time
+//!    ([`validate::interleaved_fixes`]) instead of the windows, where it must only not be
+//!    significantly worse; a model with the block predicts a withheld fix as the antenna
+//!    position plus the block's estimate ([`spill::predict_withheld_fixes`]).
 //! 6. Every model change (tuned noise, each effect, the re-tuned noise) is a [`Step`] with its
 //!    errors and its paired held-out comparison with the model before it.
 //! 7. Effects not added get a detectability bound ([`validate::detectability_bound`]): the
@@ -507,7 +511,7 @@ impl Ctx<'_> {
         ro.outages
             .extend(validate::single_fix_outages(&self.interleaved));
         let out = spill::run_innovations(&self.p.case, &ro)?;
-        Ok(validate::fix_errors_m(&out, &self.interleaved))
+        Ok(validate::fix_errors_m(&out.innovations, &self.interleaved))
     }
 
     /// Runs a model with the held-out windows withheld and scores it.
@@ -534,7 +538,11 @@ impl Ctx<'_> {
             .map(|e| (e.t_s, e.estimates))
             .collect();
         let track = spill::gnss_error_track(&out.state_names, &estimates);
-        spill::predict_withheld_fixes(&mut out, &track, ro.filter.effects.gnss_position_gm.t_s);
+        spill::predict_withheld_fixes(
+            &mut out.innovations,
+            &track,
+            ro.filter.effects.gnss_position_gm.t_s,
+        );
         let m = metrics::compute(&out, case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
         e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &case.gnss);
@@ -639,8 +647,6 @@ struct Search {
     /// The time offset held at its estimate when it was added ([`hold_time_offset`]): the
     /// final model runs on the IMU data moved onto the GNSS clock, without the state.
     time_offset_held: Option<f64>,
-    /// Whether the GNSS error's sigma was fitted ([`fit_gnss_error`]; it is in `base_opts`).
-    gnss_error_fitted: bool,
 }
 
 /// The data of `case` with its IMU samples in memory (for the smoother's runs).
@@ -976,7 +982,6 @@ fn start_search(ctx: &Ctx<'_>, base: &Eval, judged: StepJudged) -> Result<Search
         bias_step,
         bias_step_not_kept,
         time_offset_held: None,
-        gnss_error_fitted: false,
     })
 }
 
@@ -988,16 +993,16 @@ fn near_fixes(ctx: &Ctx<'_>, cur: &Eval) -> Vec<ImuSample> {
     ctx.p.case.imu.near(&times).unwrap_or_default()
 }
 
-/// Evidence, significance and the held-out comparison of one candidate against the current
-/// model, and its decision; `near`: the samples nearest the current model's fixes
-/// ([`near_fixes`]).
+/// Evidence, significance and the held-out comparison of one candidate (`b`, the current
+/// model's options `cur_opts` with it: `opts`) against the current model, and its decision;
+/// `near`: the samples nearest the current model's fixes ([`near_fixes`]).
 fn evaluate_candidate(
     ctx: &Ctx<'_>,
     cur: &Eval,
     near: &[ImuSample],
     cur_opts: &RunOptions,
     n_meas: f64,
-    b: Block,
+    (b, opts): (Block, &RunOptions),
 ) -> (CandidateEvidence, Option<Eval>) {
     let (rc, n) = regressor_correlation(b, near, &cur.run);
     let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
@@ -1022,7 +1027,7 @@ fn evaluate_candidate(
         refused: None,
         note: None,
     };
-    match ctx.evaluate(&options_with(cur_opts, &[b])) {
+    match ctx.evaluate(opts) {
         Ok(r) => {
             let d = r.errors.log_likelihood - cur.errors.log_likelihood;
             ev.delta_log_likelihood = Some(d);
@@ -1113,46 +1118,6 @@ pub fn decide(
     )
 }
 
-/// Stationary 1-sigma of the GNSS error candidates of [`fit_gnss_error`], north and east, m
-/// (down twice as large, as the default prior).
-pub const GNSS_ERROR_SIGMA_GRID_M: [f64; 4] = [0.04, 0.08, 0.16, 0.32];
-
-/// The GNSS error block's stationary sigma fitted by maximum innovation likelihood over
-/// [`GNSS_ERROR_SIGMA_GRID_M`] (correlation time kept), the block put into `cur_opts` (the
-/// current model, `cur_ll` its log-likelihood, nats): the configured prior (0.5 m / 1 m by
-/// default) lets the state follow the fixes' white noise, and the model then predicts a
-/// withheld fix worse than without the state although the fixes carry a correlated error
-/// of 5-15 cm (measured on the drives of `nav_sim::undeclared`: 28 % higher errors at the
-/// fixes withheld one at a time). None when no grid value gains over the current model.
-fn fit_gnss_error(
-    ctx: &Ctx<'_>,
-    cur_opts: &RunOptions,
-    cur_ll: f64,
-) -> Option<nav_core::config::GnssErrorNoise> {
-    let base = options_with(cur_opts, &[Block::GnssPositionGm]);
-    let t_s = base.filter.effects.gnss_position_gm.t_s;
-    let trials: Vec<(f64, nav_core::config::GnssErrorNoise)> = GNSS_ERROR_SIGMA_GRID_M
-        .par_iter()
-        .filter_map(|&sg| {
-            let g = nav_core::config::GnssErrorNoise {
-                sigma_m: [sg, sg, 2.0 * sg],
-                t_s,
-            };
-            let mut o = base.clone();
-            o.filter.effects.gnss_position_gm = g;
-            let mut ro = ctx.searching(&o);
-            ro.record.epoch_rate_hz = Some(0.0);
-            let out = spill::run_innovations(&ctx.p.case, &ro).ok()?;
-            Some((residual_stats(&out.innovations).log_likelihood, g))
-        })
-        .collect();
-    trials
-        .into_iter()
-        .filter(|(ll, _)| ll.is_finite() && *ll > cur_ll)
-        .max_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, g)| g)
-}
-
 /// A GNSS-side candidate ([`is_noise_like`]: a time-correlated error of the fixes) is judged
 /// on the fixes withheld one at a time ([`Ctx::fix_errors`]), paired per fix with the current
 /// model's: a model that carries the error predicts a fix from its neighbours, while across
@@ -1162,6 +1127,7 @@ fn fit_gnss_error(
 fn judge_gnss_side(
     ctx: &Ctx<'_>,
     cur_opts: &RunOptions,
+    candidate_opts: &(dyn Fn(Block) -> RunOptions + Sync),
     results: &mut [(CandidateEvidence, Option<Eval>)],
 ) {
     let judged: Vec<usize> = (0..results.len())
@@ -1183,7 +1149,7 @@ fn judge_gnss_side(
                 .par_iter()
                 .map(|&i| {
                     let b = Block::effect_from_name(&results[i].0.name)?;
-                    ctx.fix_errors(&options_with(cur_opts, &[b])).ok()
+                    ctx.fix_errors(&candidate_opts(b)).ok()
                 })
                 .collect::<Vec<_>>()
         },
@@ -1211,8 +1177,15 @@ fn judge_gnss_side(
 /// Model selection between the nested clock models: a constant offset (`time_offset`, one
 /// parameter) and an offset with a rate (`imu_clock_drift`, `[dt_0, rate]`). The drift stays
 /// eligible only when its rate is significant beside the offset ([`drift_beside_offset`]);
-/// otherwise it is NOT SIGNIFICANT (a constant offset is not named a drift).
-fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], n_meas: f64) {
+/// otherwise it is NOT SIGNIFICANT (a constant offset is not named a drift). The held-out
+/// comparison with the offset is the windows', or, when those do not tell the two apart and
+/// the rate pays, the fixes withheld one at a time ([`Ctx::fix_errors`]; two runs).
+fn clock_drift_beside_offset(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+    n_meas: f64,
+) {
     let find = |name: &str, r: &[(CandidateEvidence, Option<Eval>)]| {
         r.iter().position(|x| x.0.name == name)
     };
@@ -1222,7 +1195,8 @@ fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], 
     if results[di].0.decision != Decision::Eligible {
         return;
     }
-    let offset = find(Block::TimeOffset.name(), results).and_then(|oi| {
+    let penalty = 0.5 * n_meas.max(2.0).ln();
+    let mut offset = find(Block::TimeOffset.name(), results).and_then(|oi| {
         let (o, d) = (&results[oi], &results[di]);
         let extra = d.0.delta_log_likelihood? - o.0.delta_log_likelihood?;
         let h = validate::compare_windows(&o.1.as_ref()?.windows, &d.1.as_ref()?.windows);
@@ -1233,7 +1207,33 @@ fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], 
         (Some(e), Some(s)) if *s > 0.0 => (e / s).abs(),
         _ => 0.0,
     };
-    if let Some(why) = drift_beside_offset(rate_z, offset.as_ref(), 0.5 * n_meas.max(2.0).ln()) {
+    // a rate that pays but is not seen on the windows: judged on the fixes withheld one at
+    // a time, where a timing error of milliseconds shows (a 10 ms change of the offset over
+    // the drive is 0.1 m at 10 m/s, against about 1.2 m of drift across a window)
+    if let Some((extra, h)) = offset.as_mut() {
+        if rate_z >= validate::MIN_Z
+            && *extra > penalty
+            && h.verdict != HeldoutVerdict::Better
+            && ctx.interleaved.len() >= 10
+        {
+            let (a, b) = rayon::join(
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::TimeOffset])),
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::ImuClockDrift])),
+            );
+            if let (Ok(a), Ok(b)) = (a, b) {
+                let hf = validate::compare_windows(&a, &b);
+                d.reason = format!(
+                    "{}; against time_offset on the fixes withheld one at a time: {}",
+                    d.reason,
+                    hf.describe()
+                );
+                if hf.verdict == HeldoutVerdict::Better {
+                    *h = hf;
+                }
+            }
+        }
+    }
+    if let Some(why) = drift_beside_offset(rate_z, offset.as_ref(), penalty) {
         d.decision = Decision::NotSignificant;
         d.reason = format!("{why}; {}", d.reason);
         d.refused = Some(d.reason.clone());
@@ -1278,16 +1278,8 @@ pub fn drift_beside_offset(
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
-    if !s.gnss_error_fitted && all.contains(&Block::GnssPositionGm) {
-        let cur_opts = options_with(&s.base_opts, &s.added);
-        if !prior::carried(&cur_opts, Block::GnssPositionGm) {
-            if let Some(g) = fit_gnss_error(ctx, &cur_opts, s.cur.errors.log_likelihood) {
-                s.base_opts.filter.effects.gnss_position_gm = g;
-            }
-        }
-        s.gnss_error_fitted = true;
-    }
     let cur_opts = options_with(&s.base_opts, &s.added);
+    let candidate_opts = |b: Block| options_with(&cur_opts, &[b]);
     let dim_now = dim_of(&cur_opts);
     let remaining: Vec<Block> = all
         .iter()
@@ -1306,12 +1298,15 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     let near = near_fixes(ctx, cur);
     let mut results: Vec<(CandidateEvidence, Option<Eval>)> = remaining
         .par_iter()
-        .map(|&b| evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, b))
+        .map(|&b| {
+            let o = candidate_opts(b);
+            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o))
+        })
         .collect();
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
-    clock_drift_beside_offset(&mut results, n_meas);
-    judge_gnss_side(ctx, &cur_opts, &mut results);
+    clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
     let eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
         .collect();

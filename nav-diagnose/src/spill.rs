@@ -369,7 +369,11 @@ pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunE
     )?;
     out.innovations = sink.innovations;
     let track = gnss_error_track(&out.state_names, &sink.estimates);
-    predict_withheld_fixes(&mut out, &track, opts.filter.effects.gnss_position_gm.t_s);
+    predict_withheld_fixes(
+        &mut out.innovations,
+        &track,
+        opts.filter.effects.gnss_position_gm.t_s,
+    );
     Ok(out)
 }
 
@@ -420,7 +424,11 @@ pub fn run_nav_to_file(
     out.innovations = sink.innovations;
     out.snapshots = sink.snapshots;
     let track = gnss_error_track(&out.state_names, &sink.estimates);
-    predict_withheld_fixes(&mut out, &track, opts.filter.effects.gnss_position_gm.t_s);
+    predict_withheld_fixes(
+        &mut out.innovations,
+        &track,
+        opts.filter.effects.gnss_position_gm.t_s,
+    );
     let nav = sink.nav.finish().map_err(RunError::Output)?;
     Ok((out, nav))
 }
@@ -442,19 +450,23 @@ pub fn gnss_error_track(
         .collect()
 }
 
-/// Makes a withheld fix's innovation the fix against its prediction by the model: with a
+/// Makes each withheld fix's innovation of `innovations` the fix against its prediction by
+/// the model: with a
 /// GNSS error state (`track`: [`gnss_error_track`]; nothing to do when empty) a fix is
 /// predicted as the antenna position plus the error the model expects it to carry, the
 /// estimate of the last epoch record before it decayed with the correlation time `tau_s`
 /// (the filter's own prediction inside a withheld window, where no fix updates it). The
 /// engine records a withheld fix against the antenna position alone, as it does for a model
 /// without the state; the fixes the filter used are already innovations of the full model.
-pub fn predict_withheld_fixes(run: &mut RunOutput, track: &[(f64, [f64; 3])], tau_s: f64) {
+pub fn predict_withheld_fixes(
+    innovations: &mut [InnovationRecord],
+    track: &[(f64, [f64; 3])],
+    tau_s: f64,
+) {
     if track.is_empty() {
         return;
     }
-    for r in run
-        .innovations
+    for r in innovations
         .iter_mut()
         .filter(|r| r.used == FixUse::Withheld)
     {

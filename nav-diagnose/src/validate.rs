@@ -557,12 +557,11 @@ pub fn single_fix_outages(times: &[f64]) -> Vec<Outage> {
         .collect()
 }
 
-/// The 3D prediction error of a run at each withheld fix of `times` (s; as the records of
-/// [`window_errors_m`]: the fix against its prediction by the model), m; NaN when the run has
-/// no withheld record at that time.
-pub fn fix_errors_m(run: &RunOutput, times: &[f64]) -> Vec<f64> {
-    let mut recs: Vec<&InnovationRecord> = run
-        .innovations
+/// The 3D prediction error of a run (its `innovations`) at each withheld fix of `times` (s;
+/// as the records of [`window_errors_m`]: the fix against its prediction by the model), m;
+/// NaN when the run has no withheld record at that time.
+pub fn fix_errors_m(innovations: &[InnovationRecord], times: &[f64]) -> Vec<f64> {
+    let mut recs: Vec<&InnovationRecord> = innovations
         .iter()
         .filter(|r| r.used == FixUse::Withheld && r.innovation[..3].iter().all(|x| x.is_finite()))
         .collect();

@@ -151,13 +151,26 @@ fn vocabulary_effects_are_named_first_with_the_file_gaps_and_no_imposed_outage()
         .collect();
     for (e, d) in &res {
         if e.block_name() == "gnss_position_gm" {
-            // not met for the GNSS Gauss-Markov error here (seed 21, 10 min, three 60 s gaps,
-            // no imposed outage): with the GNSS noise scale adopted its held-out windows are
-            // significantly higher (at 50 Hz: gain -29.1 % [-54.9, -5.3], 6 of 20 windows
-            // lower): a position error that the fixes carry is barely seen in the prediction
-            // across a window.
-            // What is asserted: the diagnosis does not hide it (named, or its gain reported
-            // as the one no effect explains, with where the misfit sits).
+            // not met for the GNSS Gauss-Markov error (docs/diagnose.md, "GNSS-side
+            // effects"): its evidence pays, but a model with the GNSS error state predicts
+            // the fixes withheld one at a time worse than the model without it, and its
+            // held-out windows are not lower. What is asserted: it is judged on those fixes
+            // whenever its evidence pays, and the diagnosis does not hide it (named, or the
+            // GNSS noise scale fitted, or its gain reported as the one no effect explains).
+            for r in &d.rounds {
+                for c in r.candidates.iter().filter(|c| c.name == e.block_name()) {
+                    let pays = c.evidence.is_some_and(|x| x > 0.0);
+                    let windows_worse = c
+                        .heldout
+                        .is_some_and(|h| h.verdict == nav_diagnose::HeldoutVerdict::Worse);
+                    if pays && !windows_worse {
+                        let h = c.heldout_fixes.unwrap_or_else(|| {
+                            panic!("{e} not judged on single withheld fixes\n{}", summary(d))
+                        });
+                        assert!(h.windows >= 20, "{}", h.describe());
+                    }
+                }
+            }
             println!("{e}:\n{}", summary(d));
             check_windows(d);
             // The drive's GNSS white error is also 2-4x the declared: the GNSS noise scale
@@ -445,8 +458,10 @@ impl SweepDrive {
 /// `DIAGNOSE_HELDOUT_RATE_HZ` (100), `DIAGNOSE_HELDOUT_SUBSTEPS` (truth RK4 substeps, 8),
 /// `DIAGNOSE_HELDOUT_SEEDS` (per effect, 10), `DIAGNOSE_HELDOUT_CLEAN_SEEDS` (20),
 /// `DIAGNOSE_HELDOUT_PAIR_SEEDS` (per pair of effects, 3), `DIAGNOSE_HELDOUT_OUTSIDE_SEEDS`
-/// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`). Prints one line per drive
-/// and the counts per group.
+/// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`), `DIAGNOSE_HELDOUT_EFFECTS`
+/// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
+/// (`true`: every drive's rounds printed). Prints one line per drive and the counts per
+/// group.
 #[test]
 #[ignore = "long: 10 seeds of each effect, 20 clean drives, pairs, outside the vocabulary"]
 fn sweep_ten_seeds_per_effect() {
@@ -470,8 +485,13 @@ fn sweep_ten_seeds_per_effect() {
         (Effect::TimeOffset, Effect::GnssCorrelatedError),
     ];
     let mut jobs: Vec<(SweepDrive, u64)> = Vec::new();
+    let only: String = env_or("DIAGNOSE_HELDOUT_EFFECTS", String::new());
+    let verbose: bool = env_or("DIAGNOSE_HELDOUT_VERBOSE", false);
     if parts.contains("effects") {
-        for e in Effect::ALL {
+        for e in Effect::ALL
+            .into_iter()
+            .filter(|e| only.is_empty() || only.split(',').any(|n| n == e.to_string()))
+        {
             jobs.extend((0..seeds).map(|s| (SweepDrive::One(e), 100 + s)));
         }
     }
@@ -502,6 +522,9 @@ fn sweep_ten_seeds_per_effect() {
         .map(|&(kind, seed)| {
             let t = std::time::Instant::now();
             let (d, ok, why) = judged_drive(kind, seed, sizes);
+            if verbose {
+                println!("{} seed {seed}:\n{}", kind.group(), summary(&d));
+            }
             println!(
                 "{} seed {seed}: {} named: {}{why} ({:.0} s)",
                 kind.group(),
@@ -539,53 +562,4 @@ fn sweep_ten_seeds_per_effect() {
         }
     }
     assert!(failed.is_empty(), "criteria not met: {}", failed.join("; "));
-}
-
-#[test]
-#[ignore = "exploration"]
-fn explore_gm() {
-    let seeds: Vec<u64> = std::env::var("EXPLORE_SEEDS")
-        .unwrap_or("100".into())
-        .split(',')
-        .map(|s| s.parse().unwrap())
-        .collect();
-    let kind: String = env_or("EXPLORE_KIND", "gm".to_string());
-    let kinds: Vec<SweepDrive> = match kind.as_str() {
-        "gm" => vec![SweepDrive::One(Effect::GnssCorrelatedError)],
-        "clean" => vec![SweepDrive::Clean],
-        "mp" => vec![SweepDrive::Outside(OutsideEffect::GnssMultipath)],
-        "drift" => vec![SweepDrive::One(Effect::ImuClockDrift)],
-        "mis" => vec![SweepDrive::One(Effect::AccelMisalignment)],
-        "pair1" => vec![SweepDrive::Two(
-            Effect::GyroScaleFactor,
-            Effect::ImuClockDrift,
-        )],
-        "pair4" => vec![SweepDrive::Two(
-            Effect::TimeOffset,
-            Effect::GnssCorrelatedError,
-        )],
-        _ => panic!(),
-    };
-    let jobs: Vec<(SweepDrive, u64)> = kinds
-        .iter()
-        .flat_map(|k| seeds.iter().map(move |s| (*k, *s)))
-        .collect();
-    jobs.par_iter().for_each(|&(kind, seed)| {
-        let (d, ok, why) = judged_drive(kind, seed, Sizes { substeps: 8, ..CI });
-        let lb: Vec<String> = d
-            .residuals_before
-            .whiteness
-            .iter()
-            .map(|w| format!("{:.0}", w.ljung_box_q))
-            .collect();
-        println!(
-            "=== {} seed {seed}: {} named: {}{why}\n  LB before {:?} scale {:?}\n{}",
-            kind.group(),
-            ok,
-            named_list(&d),
-            lb,
-            d.final_gnss_sigma_scale,
-            summary(&d)
-        );
-    });
 }

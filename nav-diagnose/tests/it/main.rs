@@ -5,3 +5,4 @@ mod diagmem;
 mod diagnose_real;
 mod diagnose_spill;
 mod errors;
+mod gnss_side;
