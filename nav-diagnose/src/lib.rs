@@ -1307,9 +1307,23 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
     clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
-    let eligible: Vec<usize> = (0..results.len())
+    let mut eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
         .collect();
+    // a GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
+    // bias step's): it is added only when no specific effect pays with significantly lower
+    // held-out windows, eligible or not
+    let gnss_side =
+        |c: &CandidateEvidence| Block::effect_from_name(&c.name).is_some_and(is_noise_like);
+    let specific = results.iter().any(|(c, _)| {
+        !gnss_side(c)
+            && c.evidence.is_some_and(|e| e > 0.0)
+            && c.heldout
+                .is_some_and(|h| h.verdict == HeldoutVerdict::Better)
+    });
+    if specific {
+        eligible.retain(|&i| !gnss_side(&results[i].0));
+    }
     let mut round = Round {
         model_effects: validate::names(&s.added),
         log_likelihood: s.cur.errors.log_likelihood,
