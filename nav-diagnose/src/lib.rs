@@ -33,7 +33,11 @@
 //!    with the larger held-out gain is added. The noise steps (tuned, re-tuned) are kept
 //!    unless their held-out errors are significantly higher. A paying candidate left out is
 //!    unexplained gain; with it (or a NIS mean above its band) the diagnosis says where in
-//!    time the misfit sits ([`stats::misfit_spans`]).
+//!    time the misfit sits ([`stats::misfit_spans`]). A GNSS-side block (`gnss_position_gm`,
+//!    [`is_noise_like`]) whose evidence pays is judged on fixes withheld one at a time
+//!    ([`validate::interleaved_fixes`]) instead of the windows, where it must only not be
+//!    significantly worse; a model with the block predicts a withheld fix as the antenna
+//!    position plus the block's estimate ([`spill::predict_withheld_fixes`]).
 //! 6. Every model change (tuned noise, each effect, the re-tuned noise) is a [`Step`] with its
 //!    errors and its paired held-out comparison with the model before it.
 //! 7. Effects not added get a detectability bound ([`validate::detectability_bound`]): the
@@ -160,6 +164,10 @@ pub struct CandidateEvidence {
     pub errors: Option<StepErrors>,
     /// Its held-out windows against the current model's, paired (None: not run).
     pub heldout: Option<HeldoutComparison>,
+    /// For a GNSS-side block ([`is_noise_like`]) whose evidence pays: its prediction of the
+    /// fixes withheld one at a time ([`validate::interleaved_fixes`]) against the current
+    /// model's, paired per fix (None: not judged so).
+    pub heldout_fixes: Option<HeldoutComparison>,
     /// What the search decided.
     pub decision: Decision,
     /// Why, in words (evidence, significance, held-out gain).
@@ -221,7 +229,9 @@ pub struct AddedEffect {
     pub evidence: f64,
     /// Log-likelihood gain when it was added, nats.
     pub delta_log_likelihood: f64,
-    /// Its held-out windows against the model before it, paired.
+    /// The held-out comparison that decided it, against the model before it, paired: its
+    /// held-out windows, or for a GNSS-side block the fixes withheld one at a time
+    /// ([`CandidateEvidence::heldout_fixes`]).
     pub heldout: HeldoutComparison,
     /// The strongest other paying candidate of that round and how many nats it trailed by.
     pub runner_up: Option<(String, f64)>,
@@ -444,8 +454,14 @@ struct Eval {
 /// (records at most 0.05 s apart), an eighth of the memory of every epoch at 200 Hz.
 pub const SEARCH_NAV_RATE_HZ: f64 = 25.0;
 
+/// Rate of the epoch records of a search run whose model carries a GNSS error state
+/// (`gnss_position_gm`), Hz: the state's estimate predicts the withheld fixes
+/// ([`spill::predict_withheld_fixes`]).
+pub const SEARCH_GNSS_ERROR_RATE_HZ: f64 = 2.0;
+
 /// Options of a search run: navigation recorded at [`SEARCH_NAV_RATE_HZ`] (when the IMU is
-/// faster), no epoch records (the estimates come from the final state).
+/// faster), no epoch records (the estimates come from the final state) unless the model
+/// carries a GNSS error state ([`SEARCH_GNSS_ERROR_RATE_HZ`]).
 pub fn search_recording(o: &RunOptions) -> RunOptions {
     let mut o = o.clone();
     o.record.nav_rate_hz = Some(
@@ -453,7 +469,12 @@ pub fn search_recording(o: &RunOptions) -> RunOptions {
             .nav_rate_hz
             .map_or(SEARCH_NAV_RATE_HZ, |r| r.min(SEARCH_NAV_RATE_HZ)),
     );
-    o.record.epoch_rate_hz = Some(0.0);
+    let gnss_error = prior::carried(&o, Block::GnssPositionGm);
+    o.record.epoch_rate_hz = Some(if gnss_error {
+        SEARCH_GNSS_ERROR_RATE_HZ
+    } else {
+        0.0
+    });
     o
 }
 
@@ -465,6 +486,9 @@ struct Ctx<'a> {
     plan: HeldoutPlan,
     /// The outages the diagnosis withholds beyond the imposed ones.
     withheld: Vec<Outage>,
+    /// The fixes withheld one at a time to judge a GNSS-side candidate
+    /// ([`validate::interleaved_fixes`]), s.
+    interleaved: Vec<f64>,
     /// The temporary folder of the runs' navigation files ([`spill`]).
     folder: spill::TempFolder,
     /// Search runs so far (names their files).
@@ -477,6 +501,17 @@ impl Ctx<'_> {
         let mut o = search_recording(o);
         o.outages.extend(self.withheld.iter().copied());
         o
+    }
+
+    /// The prediction error of a model at each fix withheld one at a time
+    /// ([`validate::fix_errors_m`]): a run with those fixes withheld (and the imposed outages,
+    /// not the diagnosis's windows), m.
+    fn fix_errors(&self, o: &RunOptions) -> Result<Vec<f64>, nav_engine::run::RunError> {
+        let mut ro = search_recording(o);
+        ro.outages
+            .extend(validate::single_fix_outages(&self.interleaved));
+        let out = spill::run_innovations(&self.p.case, &ro)?;
+        Ok(validate::fix_errors_m(&out.innovations, &self.interleaved))
     }
 
     /// Runs a model with the held-out windows withheld and scores it.
@@ -498,6 +533,16 @@ impl Ctx<'_> {
         // the smoother's run in memory: the samples read into a case of their own
         let case = &in_memory(case).map_err(nav_engine::run::RunError::Input)?;
         let mut out = run_filter(case, &ro)?;
+        let estimates: Vec<(f64, Vec<f64>)> = std::mem::take(&mut out.epochs)
+            .into_iter()
+            .map(|e| (e.t_s, e.estimates))
+            .collect();
+        let track = spill::gnss_error_track(&out.state_names, &estimates);
+        spill::predict_withheld_fixes(
+            &mut out.innovations,
+            &track,
+            ro.filter.effects.gnss_position_gm.t_s,
+        );
         let m = metrics::compute(&out, case.truth.as_deref());
         let mut e = validate::step_errors(&out, &m);
         e.written_vs_fixes_m = validate::written_solution_vs_fixes_m(&out, &case.gnss);
@@ -661,11 +706,13 @@ pub fn diagnose_cached(
     };
     let plan = validate::plan_windows(&fix_times, &p.opts.outages);
     let withheld = plan.withheld_outages();
+    let interleaved = validate::interleaved_fixes(&fix_times, &plan.windows);
     let base_ctx = Ctx {
         p,
         dopts,
         plan,
         withheld,
+        interleaved,
         folder,
         runs: Default::default(),
     };
@@ -946,16 +993,16 @@ fn near_fixes(ctx: &Ctx<'_>, cur: &Eval) -> Vec<ImuSample> {
     ctx.p.case.imu.near(&times).unwrap_or_default()
 }
 
-/// Evidence, significance and the held-out comparison of one candidate against the current
-/// model, and its decision; `near`: the samples nearest the current model's fixes
-/// ([`near_fixes`]).
+/// Evidence, significance and the held-out comparison of one candidate (`b`, the current
+/// model's options `cur_opts` with it: `opts`) against the current model, and its decision;
+/// `near`: the samples nearest the current model's fixes ([`near_fixes`]).
 fn evaluate_candidate(
     ctx: &Ctx<'_>,
     cur: &Eval,
     near: &[ImuSample],
     cur_opts: &RunOptions,
     n_meas: f64,
-    b: Block,
+    (b, opts): (Block, &RunOptions),
 ) -> (CandidateEvidence, Option<Eval>) {
     let (rc, n) = regressor_correlation(b, near, &cur.run);
     let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
@@ -974,12 +1021,13 @@ fn evaluate_candidate(
         outage_error_m: None,
         errors: None,
         heldout: None,
+        heldout_fixes: None,
         decision: Decision::Failed,
         reason: String::new(),
         refused: None,
         note: None,
     };
-    match ctx.evaluate(&options_with(cur_opts, &[b])) {
+    match ctx.evaluate(opts) {
         Ok(r) => {
             let d = r.errors.log_likelihood - cur.errors.log_likelihood;
             ev.delta_log_likelihood = Some(d);
@@ -1070,11 +1118,74 @@ pub fn decide(
     )
 }
 
+/// A GNSS-side candidate ([`is_noise_like`]: a time-correlated error of the fixes) is judged
+/// on the fixes withheld one at a time ([`Ctx::fix_errors`]), paired per fix with the current
+/// model's: a model that carries the error predicts a fix from its neighbours, while across
+/// the held-out windows the IMU's drift swamps it. Judged so when its evidence pays and its
+/// held-out windows are not significantly higher (never significantly worse there); the
+/// decision is then [`decide`]'s on the fixes. The current model's run is made once.
+fn judge_gnss_side(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    candidate_opts: &(dyn Fn(Block) -> RunOptions + Sync),
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let judged: Vec<usize> = (0..results.len())
+        .filter(|&i| {
+            let c = &results[i].0;
+            Block::effect_from_name(&c.name).is_some_and(is_noise_like)
+                && c.evidence.is_some_and(|e| e > 0.0)
+                && c.decision != Decision::Refused
+                && results[i].1.is_some()
+        })
+        .collect();
+    if judged.is_empty() || ctx.interleaved.len() < 10 {
+        return;
+    }
+    let (cur, cands) = rayon::join(
+        || ctx.fix_errors(cur_opts),
+        || {
+            judged
+                .par_iter()
+                .map(|&i| {
+                    let b = Block::effect_from_name(&results[i].0.name)?;
+                    ctx.fix_errors(&candidate_opts(b)).ok()
+                })
+                .collect::<Vec<_>>()
+        },
+    );
+    let Ok(cur) = cur else {
+        return;
+    };
+    for (&i, new) in judged.iter().zip(cands) {
+        let Some(new) = new else {
+            continue;
+        };
+        let c = &mut results[i].0;
+        let h = validate::compare_windows(&cur, &new);
+        let (decision, why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
+        c.heldout_fixes = Some(h);
+        c.decision = decision;
+        c.reason = format!(
+            "on the fixes withheld one at a time: {why}; held-out windows: {}",
+            c.heldout.map_or("-".into(), |w| w.describe())
+        );
+        c.refused = (decision != Decision::Eligible).then(|| c.reason.clone());
+    }
+}
+
 /// Model selection between the nested clock models: a constant offset (`time_offset`, one
 /// parameter) and an offset with a rate (`imu_clock_drift`, `[dt_0, rate]`). The drift stays
 /// eligible only when its rate is significant beside the offset ([`drift_beside_offset`]);
-/// otherwise it is NOT SIGNIFICANT (a constant offset is not named a drift).
-fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], n_meas: f64) {
+/// otherwise it is NOT SIGNIFICANT (a constant offset is not named a drift). The held-out
+/// comparison with the offset is the windows', or, when those do not tell the two apart and
+/// the rate pays, the fixes withheld one at a time ([`Ctx::fix_errors`]; two runs).
+fn clock_drift_beside_offset(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+    n_meas: f64,
+) {
     let find = |name: &str, r: &[(CandidateEvidence, Option<Eval>)]| {
         r.iter().position(|x| x.0.name == name)
     };
@@ -1084,7 +1195,8 @@ fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], 
     if results[di].0.decision != Decision::Eligible {
         return;
     }
-    let offset = find(Block::TimeOffset.name(), results).and_then(|oi| {
+    let penalty = 0.5 * n_meas.max(2.0).ln();
+    let mut offset = find(Block::TimeOffset.name(), results).and_then(|oi| {
         let (o, d) = (&results[oi], &results[di]);
         let extra = d.0.delta_log_likelihood? - o.0.delta_log_likelihood?;
         let h = validate::compare_windows(&o.1.as_ref()?.windows, &d.1.as_ref()?.windows);
@@ -1095,7 +1207,33 @@ fn clock_drift_beside_offset(results: &mut [(CandidateEvidence, Option<Eval>)], 
         (Some(e), Some(s)) if *s > 0.0 => (e / s).abs(),
         _ => 0.0,
     };
-    if let Some(why) = drift_beside_offset(rate_z, offset.as_ref(), 0.5 * n_meas.max(2.0).ln()) {
+    // a rate that pays but is not seen on the windows: judged on the fixes withheld one at
+    // a time, where a timing error of milliseconds shows (a 10 ms change of the offset over
+    // the drive is 0.1 m at 10 m/s, against about 1.2 m of drift across a window)
+    if let Some((extra, h)) = offset.as_mut() {
+        if rate_z >= validate::MIN_Z
+            && *extra > penalty
+            && h.verdict != HeldoutVerdict::Better
+            && ctx.interleaved.len() >= 10
+        {
+            let (a, b) = rayon::join(
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::TimeOffset])),
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::ImuClockDrift])),
+            );
+            if let (Ok(a), Ok(b)) = (a, b) {
+                let hf = validate::compare_windows(&a, &b);
+                d.reason = format!(
+                    "{}; against time_offset on the fixes withheld one at a time: {}",
+                    d.reason,
+                    hf.describe()
+                );
+                if hf.verdict == HeldoutVerdict::Better {
+                    *h = hf;
+                }
+            }
+        }
+    }
+    if let Some(why) = drift_beside_offset(rate_z, offset.as_ref(), penalty) {
         d.decision = Decision::NotSignificant;
         d.reason = format!("{why}; {}", d.reason);
         d.refused = Some(d.reason.clone());
@@ -1141,6 +1279,7 @@ pub fn drift_beside_offset(
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     let cur_opts = options_with(&s.base_opts, &s.added);
+    let candidate_opts = |b: Block| options_with(&cur_opts, &[b]);
     let dim_now = dim_of(&cur_opts);
     let remaining: Vec<Block> = all
         .iter()
@@ -1159,14 +1298,32 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     let near = near_fixes(ctx, cur);
     let mut results: Vec<(CandidateEvidence, Option<Eval>)> = remaining
         .par_iter()
-        .map(|&b| evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, b))
+        .map(|&b| {
+            let o = candidate_opts(b);
+            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o))
+        })
         .collect();
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
-    clock_drift_beside_offset(&mut results, n_meas);
-    let eligible: Vec<usize> = (0..results.len())
+    clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
+    let mut eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
         .collect();
+    // a GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
+    // bias step's): it is added only when no specific effect pays with significantly lower
+    // held-out windows, eligible or not
+    let gnss_side =
+        |c: &CandidateEvidence| Block::effect_from_name(&c.name).is_some_and(is_noise_like);
+    let specific = results.iter().any(|(c, _)| {
+        !gnss_side(c)
+            && c.evidence.is_some_and(|e| e > 0.0)
+            && c.heldout
+                .is_some_and(|h| h.verdict == HeldoutVerdict::Better)
+    });
+    if specific {
+        eligible.retain(|&i| !gnss_side(&results[i].0));
+    }
     let mut round = Round {
         model_effects: validate::names(&s.added),
         log_likelihood: s.cur.errors.log_likelihood,
@@ -1474,7 +1631,8 @@ fn add_candidate(
     round.added = Some(c.name.clone());
     s.rounds.push(round);
     let heldout = c
-        .heldout
+        .heldout_fixes
+        .or(c.heldout)
         .unwrap_or_else(|| validate::compare_windows(&[], &[]));
     s.steps.push(Step {
         label: format!("+ {}", c.name),

@@ -276,18 +276,25 @@ impl NavWriter {
 }
 
 /// The sink of a full-rate run: navigation records to a [`NavFile`], innovation records and
-/// outage snapshots in memory, no epoch records (the diagnosis uses none).
+/// outage snapshots in memory; of the epoch records (recorded only when the run's options ask
+/// for them: a model with a GNSS error state, [`search_recording`](crate::search_recording))
+/// the time and the state estimates.
 struct SpillSink {
     nav: NavWriter,
     innovations: Vec<InnovationRecord>,
     snapshots: Vec<OutageSnapshot>,
+    estimates: Vec<(f64, Vec<f64>)>,
+    wants_epochs: bool,
 }
 
 impl RunSink for SpillSink {
     fn nav(&mut self, s: &NavSolution) -> Result<(), RunError> {
         self.nav.push(s).map_err(RunError::Output)
     }
-    fn epoch(&mut self, _r: EpochRecord) -> Result<(), RunError> {
+    fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
+        if self.wants_epochs {
+            self.estimates.push((r.t_s, r.estimates));
+        }
         Ok(())
     }
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
@@ -298,21 +305,27 @@ impl RunSink for SpillSink {
         self.snapshots.push(*s);
     }
     fn wants_epochs(&self) -> bool {
-        false
+        self.wants_epochs
     }
 }
 
-/// The sink of a run the search reads only the innovations of.
+/// The sink of a run the search reads only the innovations of (and, for a model with a GNSS
+/// error state, the state estimates of its epoch records: [`predict_withheld_fixes`]).
 #[derive(Default)]
 struct InnovationsOnly {
     innovations: Vec<InnovationRecord>,
+    estimates: Vec<(f64, Vec<f64>)>,
+    wants_epochs: bool,
 }
 
 impl RunSink for InnovationsOnly {
     fn nav(&mut self, _s: &NavSolution) -> Result<(), RunError> {
         Ok(())
     }
-    fn epoch(&mut self, _r: EpochRecord) -> Result<(), RunError> {
+    fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
+        if self.wants_epochs {
+            self.estimates.push((r.t_s, r.estimates));
+        }
         Ok(())
     }
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
@@ -320,8 +333,15 @@ impl RunSink for InnovationsOnly {
         Ok(())
     }
     fn wants_epochs(&self) -> bool {
-        false
+        self.wants_epochs
     }
+}
+
+/// Whether a run of `opts` records the epochs whose estimates predict its withheld fixes: a
+/// model with a GNSS error state whose options ask for epoch records.
+fn wants_gnss_error(opts: &RunOptions) -> bool {
+    opts.record.epoch_rate_hz.is_none_or(|r| r > 0.0)
+        && crate::prior::carried(opts, nav_core::model::Block::GnssPositionGm)
 }
 
 /// A run of `opts` on `case` keeping only its innovation records (in the returned summary;
@@ -329,7 +349,10 @@ impl RunSink for InnovationsOnly {
 /// the re-tuning read of a run, in memory proportional to the fixes. The same records and
 /// errors as [`nav_engine::run::run_filter`]'s.
 pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunError> {
-    let mut sink = InnovationsOnly::default();
+    let mut sink = InnovationsOnly {
+        wants_epochs: wants_gnss_error(opts),
+        ..InnovationsOnly::default()
+    };
     let (it, info) = case.imu.stream()?;
     let streams = Streams {
         imu: it,
@@ -345,6 +368,12 @@ pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunE
         &mut |_, _| {},
     )?;
     out.innovations = sink.innovations;
+    let track = gnss_error_track(&out.state_names, &sink.estimates);
+    predict_withheld_fixes(
+        &mut out.innovations,
+        &track,
+        opts.filter.effects.gnss_position_gm.t_s,
+    );
     Ok(out)
 }
 
@@ -375,6 +404,8 @@ pub fn run_nav_to_file(
         nav: NavWriter::create(folder, name).map_err(RunError::Output)?,
         innovations: Vec::new(),
         snapshots: Vec::new(),
+        estimates: Vec::new(),
+        wants_epochs: wants_gnss_error(opts),
     };
     let (it, info) = case.imu.stream()?;
     let streams = Streams {
@@ -392,8 +423,66 @@ pub fn run_nav_to_file(
     )?;
     out.innovations = sink.innovations;
     out.snapshots = sink.snapshots;
+    let track = gnss_error_track(&out.state_names, &sink.estimates);
+    predict_withheld_fixes(
+        &mut out.innovations,
+        &track,
+        opts.filter.effects.gnss_position_gm.t_s,
+    );
     let nav = sink.nav.finish().map_err(RunError::Output)?;
     Ok((out, nav))
+}
+
+/// The GNSS error estimate of a model with the `gnss_position_gm` block over a run: (time, s;
+/// N, E, D error, m) of each epoch record of `estimates` (time, every state's estimate in the
+/// order of `state_names`); empty without the block.
+pub fn gnss_error_track(
+    state_names: &[String],
+    estimates: &[(f64, Vec<f64>)],
+) -> Vec<(f64, [f64; 3])> {
+    let name = format!("{}_x", nav_core::model::Block::GnssPositionGm.name());
+    let Some(i) = state_names.iter().position(|n| *n == name) else {
+        return Vec::new();
+    };
+    estimates
+        .iter()
+        .filter_map(|(t, e)| Some((*t, [*e.get(i)?, *e.get(i + 1)?, *e.get(i + 2)?])))
+        .collect()
+}
+
+/// Makes each withheld fix's innovation of `innovations` the fix against its prediction by
+/// the model: with a
+/// GNSS error state (`track`: [`gnss_error_track`]; nothing to do when empty) a fix is
+/// predicted as the antenna position plus the error the model expects it to carry, the
+/// estimate of the last epoch record before it decayed with the correlation time `tau_s`
+/// (the filter's own prediction inside a withheld window, where no fix updates it). The
+/// engine records a withheld fix against the antenna position alone, as it does for a model
+/// without the state; the fixes the filter used are already innovations of the full model.
+pub fn predict_withheld_fixes(
+    innovations: &mut [InnovationRecord],
+    track: &[(f64, [f64; 3])],
+    tau_s: f64,
+) {
+    if track.is_empty() {
+        return;
+    }
+    for r in innovations
+        .iter_mut()
+        .filter(|r| r.used == FixUse::Withheld)
+    {
+        let i = track.partition_point(|(t, _)| *t <= r.t_s);
+        let Some((t, e)) = i.checked_sub(1).and_then(|i| track.get(i)) else {
+            continue;
+        };
+        let decay = if tau_s > 0.0 {
+            (-(r.t_s - t) / tau_s).exp()
+        } else {
+            0.0
+        };
+        for (x, e) in r.innovation.iter_mut().zip(e) {
+            *x -= decay * e;
+        }
+    }
 }
 
 /// The metrics of a run whose navigation is in `nav` (`run`'s own `nav` unused), as

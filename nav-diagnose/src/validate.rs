@@ -514,6 +514,72 @@ pub fn window_errors_m(run: &RunOutput, windows: &[HeldoutWindow]) -> Vec<f64> {
         .collect()
 }
 
+/// One in this many fixes (after [`WARM_UP_S`], away from the held-out windows) is withheld
+/// on its own to judge a GNSS-side candidate ([`interleaved_fixes`]).
+pub const INTERLEAVE_EVERY: usize = 4;
+/// Fixes closer than this to a held-out window are not withheld on their own, s (the first
+/// fix after a window judges the window).
+pub const INTERLEAVE_CLEAR_S: f64 = 2.0;
+
+/// The fixes withheld one at a time to judge a GNSS-side candidate (`gnss_position_gm`):
+/// every [`INTERLEAVE_EVERY`]-th fix of `fix_times` (s, increasing) after [`WARM_UP_S`] and
+/// at least [`INTERLEAVE_CLEAR_S`] from every window of `windows`. Each is predicted across
+/// a gap of two fix intervals, far shorter than the correlation time of a GNSS error
+/// (minutes), so a model that carries the error predicts it from its neighbours, while the
+/// held-out windows judge the prediction across seconds to a minute, where the IMU's drift
+/// swamps a GNSS error of centimetres.
+pub fn interleaved_fixes(fix_times: &[f64], windows: &[HeldoutWindow]) -> Vec<f64> {
+    let Some(&first) = fix_times.first() else {
+        return Vec::new();
+    };
+    fix_times
+        .iter()
+        .copied()
+        .filter(|&t| {
+            t >= first + WARM_UP_S
+                && windows
+                    .iter()
+                    .all(|w| t < w.start_s - INTERLEAVE_CLEAR_S || t > w.end_s + INTERLEAVE_CLEAR_S)
+        })
+        .step_by(INTERLEAVE_EVERY)
+        .collect()
+}
+
+/// The outages that withhold the fixes at `times` (s) one at a time (each 2 ms long around
+/// its fix).
+pub fn single_fix_outages(times: &[f64]) -> Vec<Outage> {
+    times
+        .iter()
+        .map(|&t| Outage {
+            start_s: t - 1e-3,
+            duration_s: 2e-3,
+        })
+        .collect()
+}
+
+/// The 3D prediction error of a run (its `innovations`) at each withheld fix of `times` (s;
+/// as the records of [`window_errors_m`]: the fix against its prediction by the model), m;
+/// NaN when the run has no withheld record at that time.
+pub fn fix_errors_m(innovations: &[InnovationRecord], times: &[f64]) -> Vec<f64> {
+    let mut recs: Vec<&InnovationRecord> = innovations
+        .iter()
+        .filter(|r| r.used == FixUse::Withheld && r.innovation[..3].iter().all(|x| x.is_finite()))
+        .collect();
+    recs.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    times
+        .iter()
+        .map(|&t| {
+            let i = recs.partition_point(|r| r.t_s < t - 1e-6);
+            recs.get(i)
+                .filter(|r| r.t_s <= t + 1e-6)
+                .map_or(f64::NAN, |r| {
+                    (r.innovation[0].powi(2) + r.innovation[1].powi(2) + r.innovation[2].powi(2))
+                        .sqrt()
+                })
+        })
+        .collect()
+}
+
 /// What a paired held-out comparison decides.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]

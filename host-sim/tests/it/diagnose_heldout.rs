@@ -151,13 +151,26 @@ fn vocabulary_effects_are_named_first_with_the_file_gaps_and_no_imposed_outage()
         .collect();
     for (e, d) in &res {
         if e.block_name() == "gnss_position_gm" {
-            // not met for the GNSS Gauss-Markov error here (seed 21, 10 min, three 60 s gaps,
-            // no imposed outage): with the GNSS noise scale adopted its held-out windows are
-            // significantly higher (at 50 Hz: gain -29.1 % [-54.9, -5.3], 6 of 20 windows
-            // lower): a position error that the fixes carry is barely seen in the prediction
-            // across a window.
-            // What is asserted: the diagnosis does not hide it (named, or its gain reported
-            // as the one no effect explains, with where the misfit sits).
+            // not met for the GNSS Gauss-Markov error (docs/diagnose.md, "GNSS-side
+            // effects"): its evidence pays, but a model with the GNSS error state predicts
+            // the fixes withheld one at a time worse than the model without it, and its
+            // held-out windows are not lower. What is asserted: it is judged on those fixes
+            // whenever its evidence pays, and the diagnosis does not hide it (named, or the
+            // GNSS noise scale fitted, or its gain reported as the one no effect explains).
+            for r in &d.rounds {
+                for c in r.candidates.iter().filter(|c| c.name == e.block_name()) {
+                    let pays = c.evidence.is_some_and(|x| x > 0.0);
+                    let windows_worse = c
+                        .heldout
+                        .is_some_and(|h| h.verdict == nav_diagnose::HeldoutVerdict::Worse);
+                    if pays && !windows_worse {
+                        let h = c.heldout_fixes.unwrap_or_else(|| {
+                            panic!("{e} not judged on single withheld fixes\n{}", summary(d))
+                        });
+                        assert!(h.windows >= 20, "{}", h.describe());
+                    }
+                }
+            }
             println!("{e}:\n{}", summary(d));
             check_windows(d);
             // The drive's GNSS white error is also 2-4x the declared: the GNSS noise scale
@@ -248,21 +261,52 @@ fn gyro_bias_step_is_a_change_point_with_the_file_gaps_and_no_imposed_outage() {
     check_bias_step(Effect::GyroBiasStep);
 }
 
+/// Sizes of the drives: length, IMU rate and truth RK4 substeps.
+#[derive(Debug, Clone, Copy)]
+struct Sizes {
+    minutes: f64,
+    rate_hz: f64,
+    substeps: u32,
+}
+
+/// The CI tests' drives: 10 minutes at 50 Hz, truth RK4 x4.
+const CI: Sizes = Sizes {
+    minutes: 10.0,
+    rate_hz: 50.0,
+    substeps: 4,
+};
+
+/// The diagnosis (default options) of one drive of the sweep (`kind`, `seed`, `sizes`; the
+/// file's three gaps), its held-out windows checked ([`check_windows`]), and whether it meets
+/// `kind`'s criterion ([`SweepDrive::judge`]), with why in words.
+fn judged_drive(kind: SweepDrive, seed: u64, sizes: Sizes) -> (Diagnosis, bool, String) {
+    let (p, _) = prepare(&kind.spec(seed, sizes.minutes, sizes.rate_hz, sizes.substeps));
+    let d = diagnose(&p, &DiagnoseOptions::default())
+        .expect("diagnose")
+        .diagnosis;
+    check_windows(&d);
+    let (ok, why) = kind.judge(&d);
+    (d, ok, why)
+}
+
+/// [`judged_drive`] at the CI sizes, printed; panics when the criterion is not met.
+fn check_drive(kind: SweepDrive, seed: u64) -> Diagnosis {
+    let (d, ok, why) = judged_drive(kind, seed, CI);
+    println!("{}named: {}{why}", summary(&d), named_list(&d));
+    assert!(ok, "{kind:?} seed {seed}: named {}{why}", named_list(&d));
+    d
+}
+
 /// A lever arm and an accelerometer bias step on one 10-minute drive (seed 200 of the sweep's
 /// pairs, 50 Hz, the file's three gaps, default options): both named. The lever arm inflates
 /// the base run's innovations from the start, so the step is found once the lever arm is
 /// added (`late_bias_step`).
 #[test]
 fn lever_arm_and_accelerometer_bias_step_are_both_named_with_the_file_gaps() {
-    let kind = SweepDrive::Two(Effect::LeverArm, Effect::AccelBiasStep);
-    let (p, _) = prepare(&kind.spec(200, 10.0, 50.0, 4));
-    let d = diagnose(&p, &DiagnoseOptions::default())
-        .expect("diagnose")
-        .diagnosis;
-    println!("{}named: {}", summary(&d), named_list(&d));
-    check_windows(&d);
-    let (ok, why) = kind.judge(&d);
-    assert!(ok, "named: {}{why}\n{}", named_list(&d), summary(&d));
+    let d = check_drive(
+        SweepDrive::Two(Effect::LeverArm, Effect::AccelBiasStep),
+        200,
+    );
     assert!(all_significant(&d), "{}", summary(&d));
 }
 
@@ -272,15 +316,7 @@ fn lever_arm_and_accelerometer_bias_step_are_both_named_with_the_file_gaps() {
 /// a significant estimate.
 #[test]
 fn gnss_multipath_outside_the_vocabulary_does_not_make_the_held_out_windows_worse() {
-    let kind = SweepDrive::Outside(OutsideEffect::GnssMultipath);
-    let (p, _) = prepare(&kind.spec(400, 10.0, 50.0, 4));
-    let d = diagnose(&p, &DiagnoseOptions::default())
-        .expect("diagnose")
-        .diagnosis;
-    println!("{}named: {}", summary(&d), named_list(&d));
-    check_windows(&d);
-    let (ok, why) = kind.judge(&d);
-    assert!(ok, "named: {}{why}\n{}", named_list(&d), summary(&d));
+    check_drive(SweepDrive::Outside(OutsideEffect::GnssMultipath), 400);
 }
 
 /// A size of the sweep from the environment variable `name`, or `default`.
@@ -422,14 +458,18 @@ impl SweepDrive {
 /// `DIAGNOSE_HELDOUT_RATE_HZ` (100), `DIAGNOSE_HELDOUT_SUBSTEPS` (truth RK4 substeps, 8),
 /// `DIAGNOSE_HELDOUT_SEEDS` (per effect, 10), `DIAGNOSE_HELDOUT_CLEAN_SEEDS` (20),
 /// `DIAGNOSE_HELDOUT_PAIR_SEEDS` (per pair of effects, 3), `DIAGNOSE_HELDOUT_OUTSIDE_SEEDS`
-/// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`). Prints one line per drive
-/// and the counts per group.
+/// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`), `DIAGNOSE_HELDOUT_EFFECTS`
+/// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
+/// (`true`: every drive's rounds printed). Prints one line per drive and the counts per
+/// group.
 #[test]
 #[ignore = "long: 10 seeds of each effect, 20 clean drives, pairs, outside the vocabulary"]
 fn sweep_ten_seeds_per_effect() {
-    let minutes: f64 = env_or("DIAGNOSE_HELDOUT_MINUTES", 40.0);
-    let rate_hz: f64 = env_or("DIAGNOSE_HELDOUT_RATE_HZ", 100.0);
-    let substeps: u32 = env_or("DIAGNOSE_HELDOUT_SUBSTEPS", 8);
+    let sizes = Sizes {
+        minutes: env_or("DIAGNOSE_HELDOUT_MINUTES", 40.0),
+        rate_hz: env_or("DIAGNOSE_HELDOUT_RATE_HZ", 100.0),
+        substeps: env_or("DIAGNOSE_HELDOUT_SUBSTEPS", 8),
+    };
     let seeds: u64 = env_or("DIAGNOSE_HELDOUT_SEEDS", 10);
     let clean_seeds: u64 = env_or("DIAGNOSE_HELDOUT_CLEAN_SEEDS", 20);
     let pair_seeds: u64 = env_or("DIAGNOSE_HELDOUT_PAIR_SEEDS", 3);
@@ -445,8 +485,13 @@ fn sweep_ten_seeds_per_effect() {
         (Effect::TimeOffset, Effect::GnssCorrelatedError),
     ];
     let mut jobs: Vec<(SweepDrive, u64)> = Vec::new();
+    let only: String = env_or("DIAGNOSE_HELDOUT_EFFECTS", String::new());
+    let verbose: bool = env_or("DIAGNOSE_HELDOUT_VERBOSE", false);
     if parts.contains("effects") {
-        for e in Effect::ALL {
+        for e in Effect::ALL
+            .into_iter()
+            .filter(|e| only.is_empty() || only.split(',').any(|n| n == e.to_string()))
+        {
             jobs.extend((0..seeds).map(|s| (SweepDrive::One(e), 100 + s)));
         }
     }
@@ -465,19 +510,21 @@ fn sweep_ten_seeds_per_effect() {
         );
     }
     println!(
-        "{} drives of {minutes} min at {rate_hz} Hz (truth RK4 x{substeps}), three 60 s gaps \
-         in the GNSS file, default options",
-        jobs.len()
+        "{} drives of {} min at {} Hz (truth RK4 x{}), three 60 s gaps in the GNSS file, \
+         default options",
+        jobs.len(),
+        sizes.minutes,
+        sizes.rate_hz,
+        sizes.substeps
     );
     let res: Vec<(SweepDrive, bool)> = jobs
         .par_iter()
         .map(|&(kind, seed)| {
             let t = std::time::Instant::now();
-            let (p, _) = prepare(&kind.spec(seed, minutes, rate_hz, substeps));
-            let d = diagnose(&p, &DiagnoseOptions::default())
-                .expect("diagnose")
-                .diagnosis;
-            let (ok, why) = kind.judge(&d);
+            let (d, ok, why) = judged_drive(kind, seed, sizes);
+            if verbose {
+                println!("{} seed {seed}:\n{}", kind.group(), summary(&d));
+            }
             println!(
                 "{} seed {seed}: {} named: {}{why} ({:.0} s)",
                 kind.group(),

@@ -5,4 +5,5 @@ mod diagmem;
 mod diagnose_real;
 mod diagnose_spill;
 mod errors;
+mod gnss_side;
 mod vocabulary;
