@@ -16,22 +16,9 @@ use nav_engine::run::{parse_periodic, Outage};
 use nav_engine::RunSpec;
 use std::path::Path;
 
-fn data_dir() -> Option<&'static Path> {
-    let d = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if d.exists() {
-        return Some(d);
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "../shared/data not found (CI=true: required)"
-    );
-    None
-}
-
 #[test]
 fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
-    if data_dir().is_none() {
-        println!("SKIPPED real_drive_diagnosis: ../shared/data not found");
+    if test_support::real_data("real_drive_diagnosis").is_none() {
         return;
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");
@@ -215,8 +202,7 @@ fn real_drive_diagnosis_finds_the_logging_delay_and_after_is_not_worse() {
 /// see `validate::TARGET_WINDOWS` and `validate::window_errors_m`.)
 #[test]
 fn real_drive_default_command_names_the_time_offset_first() {
-    if data_dir().is_none() {
-        println!("SKIPPED real_drive_default_command: ../shared/data not found");
+    if test_support::real_data("real_drive_default_command").is_none() {
         return;
     }
     let config = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/drive0708.toml");

@@ -3,17 +3,6 @@
 use noise_id::{deviation_curve, edf, CurveOptions, Deviation, Taus};
 use std::path::PathBuf;
 
-fn data_dir() -> Option<PathBuf> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
-    if p.is_dir() {
-        Some(p)
-    } else if std::env::var("CI").as_deref() == Ok("true") {
-        panic!("../shared/data not found (CI=true)");
-    } else {
-        None
-    }
-}
-
 fn dev_at(y: &[f64], dev: Deviation, ms: &[usize]) -> Vec<f64> {
     let opt = CurveOptions {
         dev,
@@ -210,10 +199,8 @@ fn check_stable32(
 
 #[test]
 fn stable32_phase_dat_octave_and_all_tau_tables_match() {
-    let Some(dir) = data_dir() else {
-        println!(
-            "SKIPPED stable32_phase_dat_octave_and_all_tau_tables_match: ../shared/data not found"
-        );
+    let Some(dir) = test_support::real_data("stable32_phase_dat_octave_and_all_tau_tables_match")
+    else {
         return;
     };
     let d = dir.join("allan-reference/phasedat");
@@ -241,8 +228,7 @@ fn stable32_phase_dat_octave_and_all_tau_tables_match() {
 
 #[test]
 fn stable32_ocxo_frequency_tables_match() {
-    let Some(dir) = data_dir() else {
-        println!("SKIPPED stable32_ocxo_frequency_tables_match: ../shared/data not found");
+    let Some(dir) = test_support::real_data("stable32_ocxo_frequency_tables_match") else {
         return;
     };
     let d = dir.join("allan-reference/ocxo");
