@@ -1,7 +1,6 @@
 //! Allan statistics against published references: the NBS14 test sets (NIST SP1065 values)
 //! and the Stable32 tables in `../shared/data/allan-reference/`.
 use noise_id::{deviation_curve, edf, CurveOptions, Deviation, Taus};
-use std::path::PathBuf;
 
 fn dev_at(y: &[f64], dev: Deviation, ms: &[usize]) -> Vec<f64> {
     let opt = CurveOptions {
