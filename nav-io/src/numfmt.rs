@@ -582,6 +582,22 @@ mod tests {
     }
 
     #[test]
+    fn short_copies_are_exact_at_every_length() {
+        let src: Vec<u8> = (0..=FAST_MAX as u8).map(|i| b'0' + i % 10).collect();
+        for n in 0..=FAST_MAX {
+            let mut out = [b'#'; FAST_MAX];
+            assert_eq!(copy_short(&mut out, &src[..n]), Some(()), "{n}");
+            assert_eq!(&out[..n], &src[..n], "{n}");
+            assert!(
+                out[n..].iter().all(|&c| c == b'#'),
+                "{n}: wrote past the end"
+            );
+        }
+        let mut out = [0u8; FAST_MAX];
+        assert_eq!(copy_short(&mut out, &src), None);
+    }
+
+    #[test]
     fn ties_are_detected() {
         // 200000 + 2^-12 = 200000.000244140625 (18 digits): two 17-digit candidates tie.
         assert!(maybe_tie(200000.0 + 2f64.powi(-12)));
