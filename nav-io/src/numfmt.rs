@@ -210,7 +210,7 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     let ax = x.abs();
     if (1e-4..1e15).contains(&ax) || !s.iter().rev().take(5).any(|&c| c == b'e') {
         let s = s.strip_suffix(b".0").unwrap_or(s);
-        out.get_mut(..s.len())?.copy_from_slice(s);
+        copy_short(out, s)?;
         return Some(s.len());
     }
     // Split zmij's text into sign, significant digits and the decimal exponent `p` such that
@@ -303,6 +303,44 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
         }
     }
     Some(len)
+}
+
+/// Copies `src` (at most [`FAST_MAX`] bytes) to the start of `out` with two overlapping
+/// fixed-size moves (no call to `memcpy` for a number's few bytes); `None` when it is longer.
+fn copy_short(out: &mut [u8; FAST_MAX], src: &[u8]) -> Option<()> {
+    /// One fixed-size move of `K` bytes from `src[at..]` to `out[at..]`.
+    fn mv<const K: usize>(out: &mut [u8], src: &[u8], at: usize) -> Option<()> {
+        let s: [u8; K] = src.get(at..at + K)?.try_into().ok()?;
+        out.get_mut(at..at + K)?.copy_from_slice(&s);
+        Some(())
+    }
+    let n = src.len();
+    match n {
+        0 => Some(()),
+        1..=3 => {
+            for (d, s) in out.iter_mut().zip(src) {
+                *d = *s;
+            }
+            Some(())
+        }
+        4..=7 => {
+            mv::<4>(out, src, 0)?;
+            mv::<4>(out, src, n - 4)
+        }
+        8..=15 => {
+            mv::<8>(out, src, 0)?;
+            mv::<8>(out, src, n - 8)
+        }
+        16..=31 => {
+            mv::<16>(out, src, 0)?;
+            mv::<16>(out, src, n - 16)
+        }
+        32..=FAST_MAX => {
+            mv::<32>(out, src, 0)?;
+            mv::<32>(out, src, n - 32)
+        }
+        _ => None,
+    }
 }
 
 /// Exact powers of ten representable in f64: 10^0 ..= 10^22.
@@ -541,6 +579,22 @@ mod tests {
         assert_eq!(fixed_f64(0.5, 0, &mut buf), None);
         assert_eq!(fixed_f64(2.5, 0, &mut buf), None);
         assert_eq!(exp_f64(0.125, 1, &mut buf), None);
+    }
+
+    #[test]
+    fn short_copies_are_exact_at_every_length() {
+        let src: Vec<u8> = (0..=FAST_MAX as u8).map(|i| b'0' + i % 10).collect();
+        for n in 0..=FAST_MAX {
+            let mut out = [b'#'; FAST_MAX];
+            assert_eq!(copy_short(&mut out, &src[..n]), Some(()), "{n}");
+            assert_eq!(&out[..n], &src[..n], "{n}");
+            assert!(
+                out[n..].iter().all(|&c| c == b'#'),
+                "{n}: wrote past the end"
+            );
+        }
+        let mut out = [0u8; FAST_MAX];
+        assert_eq!(copy_short(&mut out, &src), None);
     }
 
     #[test]

@@ -176,7 +176,11 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     /// The navigation solution with standard deviations (GPS week unknown to the filter: 0).
     pub fn solution(&self) -> NavSolution {
         let s = self.mech.state();
-        let sd = self.state_std();
+        // the 1-sigma of the six position and velocity states only (as `state_std` gives them)
+        let sd = |i: usize| {
+            let d = |k: usize| libm::sqrt(get2(&self.p, k, k).to_f64());
+            [d(i), d(i + 1), d(i + 2)]
+        };
         let rpy = attitude::euler_zyx_from_quat(&s.q_nb);
         let att_std = euler_std(&rpy, &self.p);
         NavSolution {
@@ -187,8 +191,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
             h_m: s.pos.h_m,
             vel_ned_mps: s.vel_ned_mps.into(),
             rpy_rad: rpy,
-            pos_std_ned_m: vec3_at(&sd, IDX_POS),
-            vel_std_ned_mps: vec3_at(&sd, IDX_VEL),
+            pos_std_ned_m: sd(IDX_POS),
+            vel_std_ned_mps: sd(IDX_VEL),
             att_std_rad: att_std,
             status: self.status,
         }
