@@ -140,26 +140,7 @@ pub(crate) fn detect(
         )?;
     }
     writeln!(s, "{gyro_unit}")?;
-    if increments {
-        let (inc_unit, per) = if unit == "g" {
-            ("g s", 1.0)
-        } else {
-            ("m/s", G0)
-        };
-        writeln!(
-            s,
-            "accel_unit = \"{unit}\"  # median |dv| over the first {} rows {fmed:.6} = {per} x the {dt} s interval: increments in {inc_unit}",
-            t.rows.len()
-        )?;
-        writeln!(s, "convention = \"increments\"  # the rows hold angle and velocity increments over the interval ending at their time")?;
-    } else {
-        writeln!(
-            s,
-            "accel_unit = \"{unit}\"  # median |f| over the first {} rows {fmed:.3}: units {unit}",
-            t.rows.len()
-        )?;
-        writeln!(s, "convention = \"trapezoid\"  # rows taken as instantaneous samples (\"interval_mean\" for averaged outputs)")?;
-    }
+    s.push_str(&accel_lines(unit, increments, fmed, dt, t.rows.len()));
     let r = |c: usize| t.column_ref(c);
     if time_toml.contains("week_sow") {
         writeln!(s, "[imu.csv.columns]\nweek = {}", r(tc - 1))?;
@@ -180,6 +161,27 @@ pub(crate) fn detect(
     writeln!(s, "[imu.csv.time]\n{time_toml}")?;
     g.imu_rate_hz = 1.0 / dt_s;
     Ok(s)
+}
+
+/// The `accel_unit` and `convention` lines: rates or increments in `unit` (median norm `fmed`
+/// over `rows` rows, sample interval `dt` s).
+fn accel_lines(unit: &str, increments: bool, fmed: f64, dt: f64, rows: usize) -> String {
+    if increments {
+        let (inc_unit, per) = if unit == "g" {
+            ("g s", 1.0)
+        } else {
+            ("m/s", G0)
+        };
+        format!(
+            "accel_unit = \"{unit}\"  # median |dv| over the first {rows} rows {fmed:.6} = {per} x the {dt} s interval: increments in {inc_unit}\n\
+             convention = \"increments\"  # the rows hold angle and velocity increments over the interval ending at their time\n"
+        )
+    } else {
+        format!(
+            "accel_unit = \"{unit}\"  # median |f| over the first {rows} rows {fmed:.3}: units {unit}\n\
+             convention = \"trapezoid\"  # rows taken as instantaneous samples (\"interval_mean\" for averaged outputs)\n"
+        )
+    }
 }
 
 /// The gyro unit of the triple at `gc` (`per_s` turns its values into rates: 1 for rates,
