@@ -1162,7 +1162,7 @@ fn judge_gnss_side(
             continue;
         };
         let c = &mut results[i].0;
-        let h = validate::compare_windows(&cur, &new);
+        let h = validate::compare_fixes(&cur, &new);
         let (decision, why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
         c.heldout_fixes = Some(h);
         c.decision = decision;
@@ -1221,7 +1221,7 @@ fn clock_drift_beside_offset(
                 || ctx.fix_errors(&options_with(cur_opts, &[Block::ImuClockDrift])),
             );
             if let (Ok(a), Ok(b)) = (a, b) {
-                let hf = validate::compare_windows(&a, &b);
+                let hf = validate::compare_fixes(&a, &b);
                 d.reason = format!(
                     "{}; against time_offset on the fixes withheld one at a time: {}",
                     d.reason,

@@ -616,6 +616,9 @@ pub struct HeldoutComparison {
     pub new_rms_m: f64,
     /// The decision at [`super::stats::HELDOUT_ALPHA`] per side.
     pub verdict: HeldoutVerdict,
+    /// The pairs are single withheld fixes ([`compare_fixes`]), not windows (wording only).
+    #[serde(skip)]
+    pub of_single_fixes: bool,
 }
 
 /// Compares the per-window errors of a new model with the current one's
@@ -651,6 +654,16 @@ pub fn compare_windows(current: &[f64], new: &[f64]) -> HeldoutComparison {
         current_rms_m: rms(&|p| p.0),
         new_rms_m: rms(&|p| p.1),
         verdict,
+        of_single_fixes: false,
+    }
+}
+
+/// [`compare_windows`] on the errors of fixes withheld one at a time
+/// ([`interleaved_fixes`], [`fix_errors_m`]): the same test, described per fix.
+pub fn compare_fixes(current: &[f64], new: &[f64]) -> HeldoutComparison {
+    HeldoutComparison {
+        of_single_fixes: true,
+        ..compare_windows(current, new)
     }
 }
 
@@ -667,13 +680,18 @@ impl HeldoutComparison {
             }
         };
         format!(
-            "held-out gain {} % [{}, {}] ({} of {} windows lower, RMS {:.3} -> {:.3} m, \
+            "held-out gain {} % [{}, {}] ({} of {} {} lower, RMS {:.3} -> {:.3} m, \
              p lower {:.3}, p higher {:.3})",
             pc(self.gain),
             pc(self.gain_ci90[0]),
             pc(self.gain_ci90[1]),
             self.improved,
             self.windows,
+            if self.of_single_fixes {
+                "fixes"
+            } else {
+                "windows"
+            },
             self.current_rms_m,
             self.new_rms_m,
             self.p_better,

@@ -114,3 +114,27 @@ fn every_fourth_fix_clear_of_the_windows_is_withheld_on_its_own() {
     let e = fix_errors_m(&recs, &fixes[..2]);
     assert!((e[0] - 5.0).abs() < 1e-12 && e[1].is_nan(), "{e:?}");
 }
+
+/// The paired comparison on single withheld fixes is the windows' test, described per fix.
+#[test]
+fn single_fix_comparisons_say_fixes_and_windows_say_windows() {
+    use nav_diagnose::validate::{compare_fixes, compare_windows};
+    let cur = [1.0, 1.2, 0.9, 1.1, 1.3, 1.0, 0.8, 1.2, 1.1, 1.0, 0.9, 1.4];
+    let new: Vec<f64> = cur.iter().map(|e| 0.5 * e).collect();
+    let w = compare_windows(&cur, &new);
+    let f = compare_fixes(&cur, &new);
+    assert_eq!(
+        (w.gain, w.p_better, w.verdict),
+        (f.gain, f.p_better, f.verdict)
+    );
+    assert!(
+        w.describe().contains("12 of 12 windows lower"),
+        "{}",
+        w.describe()
+    );
+    assert!(
+        f.describe().contains("12 of 12 fixes lower"),
+        "{}",
+        f.describe()
+    );
+}
