@@ -164,6 +164,9 @@ pub struct CandidateEvidence {
     pub errors: Option<StepErrors>,
     /// Its held-out windows against the current model's, paired (None: not run).
     pub heldout: Option<HeldoutComparison>,
+    /// The re-run's error in each held-out window, m, in the order of
+    /// [`Diagnosis::heldout_windows`] (NaN: no fix to judge the window; empty: not run).
+    pub window_errors_m: Vec<f64>,
     /// For a GNSS-side block ([`is_noise_like`]) whose evidence pays: its prediction of the
     /// fixes withheld one at a time ([`validate::interleaved_fixes`]) against the current
     /// model's, paired per fix (None: not judged so).
@@ -1021,6 +1024,7 @@ fn evaluate_candidate(
         outage_error_m: None,
         errors: None,
         heldout: None,
+        window_errors_m: Vec::new(),
         heldout_fixes: None,
         decision: Decision::Failed,
         reason: String::new(),
@@ -1039,6 +1043,7 @@ fn evaluate_candidate(
             ev.errors = Some(r.errors);
             let h = validate::compare_windows(&cur.windows, &r.windows);
             ev.heldout = Some(h);
+            ev.window_errors_m.clone_from(&r.windows);
             let (decision, why) = decide(d - penalty, ev.max_z, is_noise_like(b), &h);
             ev.decision = decision;
             ev.refused = (decision != Decision::Eligible).then(|| why.clone());
