@@ -280,13 +280,97 @@ const CI: Sizes = Sizes {
 /// file's three gaps), its held-out windows checked ([`check_windows`]), and whether it meets
 /// `kind`'s criterion ([`SweepDrive::judge`]), with why in words.
 fn judged_drive(kind: SweepDrive, seed: u64, sizes: Sizes) -> (Diagnosis, bool, String) {
-    let (p, _) = prepare(&kind.spec(seed, sizes.minutes, sizes.rate_hz, sizes.substeps));
+    let (d, ok, why, _) = judged_drive_with_truth(kind, seed, sizes);
+    (d, ok, why)
+}
+
+/// [`judged_drive`] and the drive's complete error model (its truth).
+fn judged_drive_with_truth(
+    kind: SweepDrive,
+    seed: u64,
+    sizes: Sizes,
+) -> (Diagnosis, bool, String, ErrorModel) {
+    let (p, m) = prepare(&kind.spec(seed, sizes.minutes, sizes.rate_hz, sizes.substeps));
     let d = diagnose(&p, &DiagnoseOptions::default())
         .expect("diagnose")
         .diagnosis;
     check_windows(&d);
     let (ok, why) = kind.judge(&d);
-    (d, ok, why)
+    (d, ok, why, m)
+}
+
+/// The true accelerometer misalignment (urad, `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`) and IMU
+/// clock drift (ppm) of a drive, and every round's estimate / sigma of those two candidates.
+fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
+    let a = m.accel.misalignment_rad;
+    let mut s = format!(
+        "  truth: accel_misalignment [{:.0}, {:.0}, {:.0}, {:.0}, {:.0}, {:.0}] urad, \
+         imu_clock_drift {:.1} ppm\n",
+        a[0][1] * 1e6,
+        a[0][2] * 1e6,
+        a[1][0] * 1e6,
+        a[1][2] * 1e6,
+        a[2][0] * 1e6,
+        a[2][1] * 1e6,
+        m.imu_clock_drift_ppm
+    );
+    let w: Vec<String> = d
+        .window_errors_before_m
+        .iter()
+        .map(|e| format!("{e:.2}"))
+        .collect();
+    let kinds: Vec<String> = d
+        .heldout_windows
+        .windows
+        .iter()
+        .map(|w| format!("{:?}@{:.0}-{:.0}", w.kind, w.start_s, w.end_s))
+        .collect();
+    let base = d
+        .steps
+        .first()
+        .map(|s| (s.errors.truth_outage_m, s.errors.truth_with_gnss_3d_rms_m));
+    s.push_str(&format!(
+        "  windows: [{}]\n  base windows [{}]; base truth {base:?}\n",
+        kinds.join(", "),
+        w.join(", ")
+    ));
+    for (i, r) in d.rounds.iter().enumerate() {
+        for c in r
+            .candidates
+            .iter()
+            .filter(|c| c.name == "accel_misalignment" || c.name == "imu_clock_drift")
+        {
+            let scale = if c.name == "accel_misalignment" {
+                1e6
+            } else {
+                1.0
+            };
+            let z: Vec<String> = c
+                .estimate
+                .iter()
+                .zip(&c.sigma)
+                .map(|(e, s)| format!("{:.3e}+-{:.1e}", e * scale, s * scale))
+                .collect();
+            let w: Vec<String> = c
+                .window_errors_m
+                .iter()
+                .map(|e| format!("{e:.2}"))
+                .collect();
+            let truth = c
+                .errors
+                .map(|e| (e.truth_outage_m, e.truth_with_gnss_3d_rms_m));
+            s.push_str(&format!(
+                "  round {i} {}: dLL {:.1} penalty {:.1} estimate [{}] (x{scale:e}); \
+                 windows [{}]; truth (outage, with GNSS) {truth:?}\n",
+                c.name,
+                c.delta_log_likelihood.unwrap_or(f64::NAN),
+                c.bic_penalty,
+                z.join(", "),
+                w.join(", ")
+            ));
+        }
+    }
+    s
 }
 
 /// [`judged_drive`] at the CI sizes, printed; panics when the criterion is not met.
@@ -521,9 +605,14 @@ fn sweep_ten_seeds_per_effect() {
         .par_iter()
         .map(|&(kind, seed)| {
             let t = std::time::Instant::now();
-            let (d, ok, why) = judged_drive(kind, seed, sizes);
+            let (d, ok, why, m) = judged_drive_with_truth(kind, seed, sizes);
             if verbose {
-                println!("{} seed {seed}:\n{}", kind.group(), summary(&d));
+                println!(
+                    "{} seed {seed}:\n{}{}",
+                    kind.group(),
+                    summary(&d),
+                    truth_and_estimates(&d, &m)
+                );
             }
             println!(
                 "{} seed {seed}: {} named: {}{why} ({:.0} s)",

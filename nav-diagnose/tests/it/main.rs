@@ -6,4 +6,5 @@ mod diagnose_real;
 mod diagnose_spill;
 mod errors;
 mod gnss_side;
+mod heldout_rule;
 mod vocabulary;
