@@ -42,7 +42,7 @@ pub(crate) fn consumer_filter() -> FilterConfig {
     FilterConfig::with_noise(acc, gyr)
 }
 
-fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
+pub(crate) fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
     let mut o = RunOptions::new(
         Model::Nbk,
         consumer_filter(),

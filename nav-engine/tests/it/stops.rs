@@ -149,26 +149,6 @@ fn add_engine_vibration(
     }
 }
 
-fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions {
-    let mut o = RunOptions::new(
-        Model::Nbk,
-        crate::aiding::consumer_filter(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [0.5f64.to_radians(), 0.5f64.to_radians(), 2f64.to_radians()],
-                vel_sigma_mps: [0.05; 3],
-                pos_sigma_m: [0.05; 3],
-            },
-        },
-    );
-    o.outages = outages;
-    o.aiding = aiding.into();
-    o
-}
-
 /// A town drive: stops of 20 s with the engine idling, creeping at 0.5 and 0.8 m/s with the
 /// same engine vibration and the road's (0.2 m/s^2 at 2.3 Hz, 0.8 deg/s at 1.7 Hz: the real
 /// drive's creeping has twice to three times the specific-force spread of its stops); RTK
@@ -222,8 +202,8 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
     off.stationarity.learn = false;
     let mut res = Vec::new();
     for (name, a) in [("fixed thresholds", off), ("learned at stops", on)] {
-        let out =
-            run_filter(&data, &options(a, vec![outage])).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let out = run_filter(&data, &crate::aiding::options(a, vec![outage]))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         let r = &out.aiding;
         // stops from 1 s after the vehicle is still (the window's 0.5 s and the decision)
         let part = |from: f64, to: f64| score(r, t0 + from, t0 + to, speed_at, 0.01, [0.2, 1.0]);
