@@ -4,11 +4,10 @@
 //! speed that the real-drive test (`aiding.rs`) uses.
 use crate::case_data;
 use nav_core::aiding::AidingConfig;
-use nav_core::filter::InitialUncertainty;
 use nav_core::types::GnssFix;
 use nav_engine::run::aiding::AidingReport;
 use nav_engine::run::PeriodicOutages;
-use nav_engine::run::{run_filter, InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{run_filter, Outage};
 use nav_engine::{execute_case, RunSpec};
 use nav_sim::errors::Axes3;
 use nav_sim::ScenarioBuilder;
