@@ -243,6 +243,10 @@ pub struct AddedEffect {
     pub ambiguous_with: Option<String>,
     /// Whether it was a frozen block of the configuration, freed.
     pub freed: bool,
+    /// The added block it took the place of (an IMU clock drift replaces a time offset, the
+    /// model nested in it: [`prior::upgrades`]); its evidence and held-out comparison are then
+    /// against the model with that block. None: appended.
+    pub replaced: Option<String>,
     /// Errors of the model before it was added.
     pub before: StepErrors,
     /// Errors with it added.
@@ -997,7 +1001,8 @@ fn near_fixes(ctx: &Ctx<'_>, cur: &Eval) -> Vec<ImuSample> {
 }
 
 /// Evidence, significance and the held-out comparison of one candidate (`b`, the current
-/// model's options `cur_opts` with it: `opts`) against the current model, and its decision;
+/// model's options `cur_opts` with it: `opts`, adding `params` parameters:
+/// [`prior::added_params`]) against the current model, and its decision;
 /// `near`: the samples nearest the current model's fixes ([`near_fixes`]).
 fn evaluate_candidate(
     ctx: &Ctx<'_>,
@@ -1005,10 +1010,10 @@ fn evaluate_candidate(
     near: &[ImuSample],
     cur_opts: &RunOptions,
     n_meas: f64,
-    (b, opts): (Block, &RunOptions),
+    (b, opts, params): (Block, &RunOptions, usize),
 ) -> (CandidateEvidence, Option<Eval>) {
     let (rc, n) = regressor_correlation(b, near, &cur.run);
-    let penalty = 0.5 * b.dim() as f64 * n_meas.ln();
+    let penalty = 0.5 * params as f64 * n_meas.ln();
     let mut ev = CandidateEvidence {
         name: b.name().to_string(),
         freed: prior::is_frozen(cur_opts, b),
@@ -1284,17 +1289,88 @@ pub fn drift_beside_offset(
     })
 }
 
+/// The clock drift as the upgrade of an added time offset: its run carries the drift in the
+/// offset's place ([`prior::with_candidate`]), so its log-likelihood gain, BIC penalty (one
+/// parameter, the rate) and held-out windows are against the offset already, as
+/// [`clock_drift_beside_offset`] compares them within a round. Its rate must be
+/// [`validate::MIN_Z`] sigma from zero ([`drift_beside_offset`]); when its evidence pays but
+/// the windows do not decide (not significantly different either way, or significantly lower
+/// with their RMS raised beyond one window: the 60 s gaps' metres of free-inertial drift
+/// against the short windows' centimetres), the fixes withheld one at a time decide
+/// ([`decide`] on them, paired with the offset's; two runs): a rate of 30-80 ppm moves the
+/// offset by 0.2-0.5 m over 10 minutes at 10 m/s, hidden in the windows' drift, not in a
+/// single fix's prediction.
+fn drift_over_added_offset(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    drift_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let Some(d) = results
+        .iter_mut()
+        .find(|x| x.0.name == Block::ImuClockDrift.name() && x.1.is_some())
+        .map(|x| &mut x.0)
+    else {
+        return;
+    };
+    let rate_z = match (d.estimate.get(1), d.sigma.get(1)) {
+        (Some(e), Some(s)) if *s > 0.0 => (e / s).abs(),
+        _ => 0.0,
+    };
+    if let Some(why) = drift_beside_offset(rate_z, None, 0.0) {
+        if d.decision == Decision::Eligible {
+            d.decision = Decision::NotSignificant;
+            d.reason = format!("{why}; {}", d.reason);
+            d.refused = Some(d.reason.clone());
+        }
+        return;
+    }
+    let evidence = d.evidence.unwrap_or(f64::NAN);
+    let undecided = d.heldout.is_some_and(|h| {
+        h.verdict == HeldoutVerdict::NotSignificant
+            || (h.verdict == HeldoutVerdict::Better && h.rms_raised_beyond_one_window)
+    });
+    if d.decision != Decision::NotSignificant
+        || evidence.is_nan()
+        || evidence <= 0.0
+        || !undecided
+        || ctx.interleaved.len() < 10
+    {
+        return;
+    }
+    let (a, b) = rayon::join(|| ctx.fix_errors(cur_opts), || ctx.fix_errors(drift_opts));
+    let (Ok(a), Ok(b)) = (a, b) else {
+        return;
+    };
+    let hf = validate::compare_fixes(&a, &b);
+    let (decision, why) = decide(evidence, d.max_z, false, &hf);
+    d.heldout_fixes = Some(hf);
+    d.reason = format!(
+        "{}; against the time offset on the fixes withheld one at a time: {why}",
+        d.reason
+    );
+    if decision == Decision::Eligible {
+        d.decision = Decision::Eligible;
+        d.refused = None;
+    } else {
+        d.refused = Some(d.reason.clone());
+    }
+}
+
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
     let cur_opts = options_with(&s.base_opts, &s.added);
-    let candidate_opts = |b: Block| options_with(&cur_opts, &[b]);
-    let dim_now = dim_of(&cur_opts);
+    // a candidate is appended, or takes the place of the block nested in it (a clock drift
+    // of an added time offset: appended beside it, the drift would change nothing)
+    let candidate_opts = |b: Block| options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
     let remaining: Vec<Block> = all
         .iter()
         .copied()
-        .filter(|b| {
-            !s.added.contains(b) && dim_now + prior::added_dim(&cur_opts, *b) <= MAX_EXTRA_DIM
+        .filter(|&b| {
+            !s.added.contains(&b)
+                && !prior::nested_in(&s.added, b)
+                && dim_of(&candidate_opts(b)) <= MAX_EXTRA_DIM
         })
         .collect();
     if remaining.is_empty() {
@@ -1309,12 +1385,22 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
         .par_iter()
         .map(|&b| {
             let o = candidate_opts(b);
-            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o))
+            let params = prior::added_params(&s.added, b);
+            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params))
         })
         .collect();
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
     results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
-    clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    if prior::upgrades(&s.added, Block::ImuClockDrift).is_some() {
+        drift_over_added_offset(
+            ctx,
+            &cur_opts,
+            &candidate_opts(Block::ImuClockDrift),
+            &mut results,
+        );
+    } else {
+        clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    }
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
     let mut eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
@@ -1372,7 +1458,7 @@ fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
         return true;
     }
     let Some(&top) = eligible.first() else {
-        if try_noise_with_effect(ctx, s, &cur_opts, n_meas, &mut results) {
+        if try_noise_with_effect(ctx, s, n_meas, &mut results) {
             round.added = s.added.last().map(|b| b.name().to_string());
             round.unexplained = None;
             round.candidates = results.into_iter().map(|r| r.0).collect();
@@ -1473,7 +1559,6 @@ fn try_noise(
 fn try_noise_with_effect(
     ctx: &Ctx<'_>,
     s: &mut Search,
-    cur_opts: &RunOptions,
     n_meas: f64,
     results: &mut [(CandidateEvidence, Option<Eval>)],
 ) -> bool {
@@ -1492,12 +1577,12 @@ fn try_noise_with_effect(
     let Some(b) = Block::effect_from_name(&results[i].0.name) else {
         return false;
     };
-    let mut o = options_with(cur_opts, &[b]);
+    let mut o = options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
     k.apply(&mut o);
     let Ok(ev) = ctx.evaluate(&o) else {
         return false;
     };
-    let pen = 0.5 * (k.params() + b.dim()) as f64 * n_meas.ln();
+    let pen = 0.5 * (k.params() + prior::added_params(&s.added, b)) as f64 * n_meas.ln();
     let d = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
     let (est, sig) = effect_values(&ev.run, b.name());
     let h = validate::compare_windows(&s.cur.windows, &ev.windows);
@@ -1517,27 +1602,31 @@ fn try_noise_with_effect(
         errors: ev.errors,
         heldout: Some(h),
     });
-    s.added_info.push(AddedEffect {
-        name: b.name().to_string(),
-        estimate: est,
-        sigma: sig,
-        unit: b.unit().to_string(),
-        evidence: d - pen,
-        delta_log_likelihood: d,
-        heldout: h,
-        runner_up: None,
-        ambiguous_with: None,
-        freed: c.freed,
-        before: s.cur.errors,
-        after: ev.errors,
-    });
+    push_added(
+        s,
+        b,
+        AddedEffect {
+            name: b.name().to_string(),
+            estimate: est,
+            sigma: sig,
+            unit: b.unit().to_string(),
+            evidence: d - pen,
+            delta_log_likelihood: d,
+            heldout: h,
+            runner_up: None,
+            ambiguous_with: None,
+            freed: c.freed,
+            replaced: None,
+            before: s.cur.errors,
+            after: ev.errors,
+        },
+    );
     if let Some(t) = s.noise_tuning.as_mut() {
         t.adopted = true;
     }
     k.apply(&mut s.base_opts);
     s.pending_noise = None;
     s.last_noise_refusal = None;
-    s.added.push(b);
     s.cur = ev;
     true
 }
@@ -1643,30 +1732,55 @@ fn add_candidate(
         .heldout_fixes
         .or(c.heldout)
         .unwrap_or_else(|| validate::compare_windows(&[], &[]));
+    let replaced = prior::upgrades(&s.added, b);
     s.steps.push(Step {
-        label: format!("+ {}", c.name),
+        label: match replaced {
+            Some(old) => format!("+ {} (in place of {})", c.name, old.name()),
+            None => format!("+ {}", c.name),
+        },
         accepted: true,
         reason: Some(c.reason.clone()),
         errors: run.errors,
         heldout: Some(heldout),
     });
-    s.added_info.push(AddedEffect {
-        name: c.name.clone(),
-        estimate: c.estimate.clone(),
-        sigma: c.sigma.clone(),
-        unit: b.unit().to_string(),
-        evidence: c.evidence.unwrap_or(0.0),
-        delta_log_likelihood: c.delta_log_likelihood.unwrap_or(0.0),
-        heldout,
-        runner_up,
-        ambiguous_with,
-        freed: c.freed,
-        before: s.cur.errors,
-        after: run.errors,
-    });
-    s.added.push(b);
+    push_added(
+        s,
+        b,
+        AddedEffect {
+            name: c.name.clone(),
+            estimate: c.estimate.clone(),
+            sigma: c.sigma.clone(),
+            unit: b.unit().to_string(),
+            evidence: c.evidence.unwrap_or(0.0),
+            delta_log_likelihood: c.delta_log_likelihood.unwrap_or(0.0),
+            heldout,
+            runner_up,
+            ambiguous_with,
+            freed: c.freed,
+            replaced: None,
+            before: s.cur.errors,
+            after: run.errors,
+        },
+    );
     s.cur = run;
     true
+}
+
+/// Puts block `b` into the search's model with its record `info`: appended, or in the place
+/// of the block it upgrades ([`prior::upgrades`]: an IMU clock drift replaces an added time
+/// offset, in the model and in the list of added effects, `info.replaced` naming it).
+fn push_added(s: &mut Search, b: Block, mut info: AddedEffect) {
+    let Some(old) = prior::upgrades(&s.added, b) else {
+        s.added.push(b);
+        s.added_info.push(info);
+        return;
+    };
+    s.added = prior::with_candidate(&s.added, b);
+    info.replaced = Some(old.name().to_string());
+    match s.added_info.iter_mut().find(|e| e.name == old.name()) {
+        Some(e) => *e = info,
+        None => s.added_info.push(info),
+    }
 }
 
 /// The data with the IMU (and the truth, on the IMU clock) moved onto the GNSS clock for a
@@ -1993,7 +2107,7 @@ fn finish(
 fn undetected(all: &[Block], s: &Search) -> Vec<Undetected> {
     let mut v = Vec::new();
     for b in all {
-        if s.added.contains(b) {
+        if s.added.contains(b) || prior::nested_in(&s.added, *b) {
             continue;
         }
         let last = s

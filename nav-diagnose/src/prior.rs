@@ -112,6 +112,44 @@ pub fn options_with(base: &RunOptions, blocks: &[Block]) -> RunOptions {
     o
 }
 
+/// The block an added block is upgraded from when candidate `b` joins the model of the
+/// effect blocks `added`: the IMU clock drift (an offset with a rate) takes the place of an
+/// added time offset, the one-parameter model nested in it (the two are one state of the
+/// filter, [`carried`]: appended beside the offset the drift would change nothing). None: `b`
+/// is appended.
+pub fn upgrades(added: &[Block], b: Block) -> Option<Block> {
+    (b == Block::ImuClockDrift && added.contains(&Block::TimeOffset)).then_some(Block::TimeOffset)
+}
+
+/// Whether candidate `b` is nested in a block of `added` (a time offset beside an added clock
+/// drift, which carries the offset): not a candidate.
+pub fn nested_in(added: &[Block], b: Block) -> bool {
+    b == Block::TimeOffset && added.contains(&Block::ImuClockDrift)
+}
+
+/// The effect blocks of the model `added` with candidate `b`: appended, or in the place of the
+/// block it upgrades ([`upgrades`]).
+pub fn with_candidate(added: &[Block], b: Block) -> Vec<Block> {
+    match upgrades(added, b) {
+        Some(old) => added
+            .iter()
+            .map(|&x| if x == old { b } else { x })
+            .collect(),
+        None => {
+            let mut v = added.to_vec();
+            v.push(b);
+            v
+        }
+    }
+}
+
+/// The parameters candidate `b` adds to the model `added` (its BIC penalty's count): its
+/// dimension, less the dimension of the block it upgrades ([`upgrades`]).
+pub fn added_params(added: &[Block], b: Block) -> usize {
+    b.dim()
+        .saturating_sub(upgrades(added, b).map_or(0, |o| o.dim()))
+}
+
 /// The candidates for a case and base model: every effect block the model does not carry or
 /// carries frozen; the temperature blocks only when some IMU sample carries a temperature.
 pub fn candidates(case: &CaseData, opts: &RunOptions) -> Vec<Block> {
@@ -157,6 +195,38 @@ mod tests {
                 pos_sigma_m: [0.1; 3],
             },
         }
+    }
+
+    #[test]
+    fn a_clock_drift_takes_the_place_of_an_added_time_offset() {
+        let o = RunOptions::new(Model::Nbk, FilterConfig::source_nbk_model(), init());
+        let added = [Block::LeverArm, Block::TimeOffset];
+        let cur = options_with(&o, &added);
+        // appended beside the offset the drift is the same state: the model unchanged
+        assert_eq!(
+            options_with(&cur, &[Block::ImuClockDrift]).extra_blocks,
+            cur.extra_blocks
+        );
+        let with = with_candidate(&added, Block::ImuClockDrift);
+        assert_eq!(with, vec![Block::LeverArm, Block::ImuClockDrift]);
+        assert_eq!(
+            options_with(&o, &with).extra_blocks,
+            vec![Block::LeverArm, Block::ImuClockDrift]
+        );
+        assert_eq!(
+            upgrades(&added, Block::ImuClockDrift),
+            Some(Block::TimeOffset)
+        );
+        // one parameter more than the offset: the rate
+        assert_eq!(added_params(&added, Block::ImuClockDrift), 1);
+        assert_eq!(added_params(&[Block::LeverArm], Block::ImuClockDrift), 2);
+        // other candidates are appended; an offset beside an added drift is no candidate
+        assert_eq!(
+            with_candidate(&added, Block::GyroScaleFactor),
+            vec![Block::LeverArm, Block::TimeOffset, Block::GyroScaleFactor]
+        );
+        assert!(nested_in(&[Block::ImuClockDrift], Block::TimeOffset));
+        assert!(!nested_in(&added, Block::ImuClockDrift));
     }
 
     #[test]

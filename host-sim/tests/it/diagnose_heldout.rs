@@ -47,7 +47,7 @@ fn drive(effect: Option<Effect>, seed: u64, minutes: f64, rate_hz: f64) -> (Prep
 
 /// The drive of `spec` prepared from its `kf-gins.yaml` with no imposed outage, and its
 /// complete error model.
-fn prepare(spec: &DriveSpec) -> (Prepared, ErrorModel) {
+pub(crate) fn prepare(spec: &DriveSpec) -> (Prepared, ErrorModel) {
     let d = generate(spec).expect("generate");
     let dir = tempfile::tempdir().expect("tempdir");
     d.write(dir.path()).expect("write");
@@ -543,7 +543,8 @@ impl SweepDrive {
 /// `DIAGNOSE_HELDOUT_SEEDS` (per effect, 10), `DIAGNOSE_HELDOUT_CLEAN_SEEDS` (20),
 /// `DIAGNOSE_HELDOUT_PAIR_SEEDS` (per pair of effects, 3), `DIAGNOSE_HELDOUT_OUTSIDE_SEEDS`
 /// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`), `DIAGNOSE_HELDOUT_EFFECTS`
-/// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
+/// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_ONLY_SEEDS` (seeds,
+/// comma-separated: only those drives of the groups; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
 /// (`true`: every drive's rounds printed). Prints one line per drive and the counts per
 /// group.
 #[test]
@@ -592,6 +593,10 @@ fn sweep_ten_seeds_per_effect() {
             (0..outside_seeds)
                 .map(|s| (SweepDrive::Outside(OutsideEffect::GnssMultipath), 400 + s)),
         );
+    }
+    let only_seeds: String = env_or("DIAGNOSE_HELDOUT_ONLY_SEEDS", String::new());
+    if !only_seeds.is_empty() {
+        jobs.retain(|(_, s)| only_seeds.split(',').any(|n| n.trim() == s.to_string()));
     }
     println!(
         "{} drives of {} min at {} Hz (truth RK4 x{}), three 60 s gaps in the GNSS file, \
