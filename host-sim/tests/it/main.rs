@@ -6,6 +6,7 @@ mod aiding_inputs;
 mod allan_adis16405;
 mod allan_params_run;
 mod diagnose_clock_gnss_step;
+mod diagnose_gnss_gm;
 mod diagnose_gnss_noise;
 mod diagnose_heldout;
 mod diagnose_sim;
