@@ -1,0 +1,795 @@
+//! One round of the search: every remaining candidate against the current model, the decision
+//! on each (evidence, estimate, held-out windows; GNSS-side and nested clock models), the tuned
+//! noise competing, and the candidate added.
+use super::*;
+
+/// The IMU samples the regressors of every candidate against the current model `cur` read:
+/// those nearest its fixes ([`imu_cache::ImuView::near`], one pass over the record for a whole round).
+pub(crate) fn near_fixes(ctx: &Ctx<'_>, cur: &Eval) -> Vec<ImuSample> {
+    let mut times: Vec<f64> = cur.run.innovations.iter().map(|r| r.t_s).collect();
+    times.sort_by(f64::total_cmp);
+    ctx.p.case.imu.near(&times).unwrap_or_default()
+}
+
+/// Evidence, significance and the held-out comparison of one candidate (`b`, the current
+/// model's options `cur_opts` with it: `opts`, adding `params` parameters:
+/// [`prior::added_params`]) against the current model, and its decision;
+/// `near`: the samples nearest the current model's fixes ([`near_fixes`]).
+pub(crate) fn evaluate_candidate(
+    ctx: &Ctx<'_>,
+    cur: &Eval,
+    near: &[ImuSample],
+    cur_opts: &RunOptions,
+    n_meas: f64,
+    (b, opts, params): (Block, &RunOptions, usize),
+) -> (CandidateEvidence, Option<Eval>) {
+    let (rc, n) = regressor_correlation(b, near, &cur.run);
+    let penalty = 0.5 * params as f64 * n_meas.ln();
+    let mut ev = CandidateEvidence {
+        name: b.name().to_string(),
+        freed: prior::is_frozen(cur_opts, b),
+        regressor_correlation: rc,
+        correlation_z: rc * (n as f64).sqrt(),
+        delta_log_likelihood: None,
+        bic_penalty: penalty,
+        evidence: None,
+        estimate: Vec::new(),
+        sigma: Vec::new(),
+        max_z: 0.0,
+        detectability_bound: Vec::new(),
+        outage_error_m: None,
+        errors: None,
+        heldout: None,
+        window_errors_m: Vec::new(),
+        heldout_fixes: None,
+        decision: Decision::Failed,
+        reason: String::new(),
+        refused: None,
+        note: None,
+    };
+    match ctx.evaluate(opts) {
+        Ok(r) => {
+            let d = r.errors.log_likelihood - cur.errors.log_likelihood;
+            ev.delta_log_likelihood = Some(d);
+            ev.evidence = Some(d - penalty);
+            (ev.estimate, ev.sigma) = effect_values(&r.run, b.name());
+            ev.max_z = validate::max_z(&ev.estimate, &ev.sigma);
+            ev.detectability_bound = validate::detectability_bound(&ev.sigma, penalty);
+            ev.outage_error_m = Some(outage_error_m(&r.metrics));
+            ev.errors = Some(r.errors);
+            let h = validate::compare_windows(&cur.windows, &r.windows);
+            ev.heldout = Some(h);
+            ev.window_errors_m.clone_from(&r.windows);
+            let (decision, why) = decide(d - penalty, ev.max_z, is_noise_like(b), &h);
+            ev.decision = decision;
+            ev.refused = (decision != Decision::Eligible).then(|| why.clone());
+            ev.reason = why;
+            (ev, Some(r))
+        }
+        Err(e) => {
+            ev.note = Some(e.to_string());
+            ev.reason = format!("run failed: {e}");
+            ev.refused = Some(ev.reason.clone());
+            (ev, None)
+        }
+    }
+}
+
+/// Whether a block is noise-like: its final estimate is one draw of a random process (a
+/// Gauss-Markov error), so its |estimate|/sigma says nothing about whether it is present;
+/// its significance is the held-out windows' paired decision.
+pub fn is_noise_like(b: Block) -> bool {
+    b == Block::GnssPositionGm
+}
+
+/// The decision on a candidate with `evidence` (log-likelihood gain minus BIC penalty, nats),
+/// its largest |estimate|/sigma, whether it is [noise-like](is_noise_like) (no test on the
+/// estimate: the held-out decision is its significance) and its held-out comparison, and the
+/// reason in words. Eligible needs the windows significantly lower (paired test) and their
+/// RMS not raised beyond one window
+/// ([`HeldoutComparison::rms_raised_beyond_one_window`](validate::HeldoutComparison)).
+pub fn decide(
+    evidence: f64,
+    max_z: f64,
+    noise_like: bool,
+    h: &HeldoutComparison,
+) -> (Decision, String) {
+    let held = h.describe();
+    if h.verdict == HeldoutVerdict::Worse {
+        return (
+            Decision::Refused,
+            format!("held-out error significantly higher: {held}"),
+        );
+    }
+    if evidence <= 0.0 {
+        return (
+            Decision::NotSignificant,
+            format!("likelihood gain below the BIC penalty ({evidence:.1} nats); {held}"),
+        );
+    }
+    if !noise_like && max_z < validate::MIN_Z {
+        return (
+            Decision::NotSignificant,
+            format!(
+                "estimate not significant (largest |estimate|/sigma {max_z:.2} < {}); {held}",
+                validate::MIN_Z
+            ),
+        );
+    }
+    // the paired test counts windows; a few windows much worse can outweigh many slightly
+    // better ones in the prediction error itself (a 3 mg accelerometer bias step named as a
+    // clock drift: 15 of 20 windows lower, p 0.024, RMS 3.860 -> 4.009 m). One window alone
+    // does not veto: a 60 s gap's metres of free-inertial drift scatter between runs
+    // (accelerometer misalignment, 18 of 20 windows lower, RMS 0.758 -> 1.048 m from one gap
+    // at 1.94 -> 4.40 m, the others 2.41 -> 0.37 and 1.33 -> 1.56 m)
+    if h.verdict == HeldoutVerdict::Better && h.rms_raised_beyond_one_window {
+        return (
+            Decision::NotSignificant,
+            format!("held-out windows RMS raised although most windows are lower: {held}"),
+        );
+    }
+    if h.verdict == HeldoutVerdict::Better {
+        return (
+            Decision::Eligible,
+            format!("evidence {evidence:.1} nats, estimate {max_z:.1} sigma, {held}"),
+        );
+    }
+    (
+        Decision::NotSignificant,
+        format!(
+            "not significant either way on the held-out windows ({evidence:.1} nats of \
+             evidence): {held}"
+        ),
+    )
+}
+
+/// A GNSS-side candidate ([`is_noise_like`]: a time-correlated error of the fixes) is judged
+/// on the fixes withheld one at a time ([`Ctx::fix_errors`]), paired per fix with the current
+/// model's: a model that carries the error predicts a fix from its neighbours, while across
+/// the held-out windows the IMU's drift swamps it. Judged so when its evidence pays and its
+/// held-out windows are not significantly higher (never significantly worse there); the
+/// decision is then [`decide`]'s on the fixes. The current model's run is made once.
+pub(crate) fn judge_gnss_side(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    candidate_opts: &(dyn Fn(Block) -> RunOptions + Sync),
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let judged: Vec<usize> = (0..results.len())
+        .filter(|&i| {
+            let c = &results[i].0;
+            Block::effect_from_name(&c.name).is_some_and(is_noise_like)
+                && c.evidence.is_some_and(|e| e > 0.0)
+                && c.decision != Decision::Refused
+                && results[i].1.is_some()
+        })
+        .collect();
+    if judged.is_empty() || ctx.interleaved.len() < 10 {
+        return;
+    }
+    let (cur, cands) = rayon::join(
+        || ctx.fix_errors(cur_opts),
+        || {
+            judged
+                .par_iter()
+                .map(|&i| {
+                    let b = Block::effect_from_name(&results[i].0.name)?;
+                    ctx.fix_errors(&candidate_opts(b)).ok()
+                })
+                .collect::<Vec<_>>()
+        },
+    );
+    let Ok(cur) = cur else {
+        return;
+    };
+    for (&i, new) in judged.iter().zip(cands) {
+        let Some(new) = new else {
+            continue;
+        };
+        let c = &mut results[i].0;
+        let h = validate::compare_fixes(&cur, &new);
+        let (decision, why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
+        c.heldout_fixes = Some(h);
+        c.decision = decision;
+        c.reason = format!(
+            "on the fixes withheld one at a time: {why}; held-out windows: {}",
+            c.heldout.map_or("-".into(), |w| w.describe())
+        );
+        c.refused = (decision != Decision::Eligible).then(|| c.reason.clone());
+    }
+}
+
+/// Model selection between the nested clock models: a constant offset (`time_offset`, one
+/// parameter) and an offset with a rate (`imu_clock_drift`, `[dt_0, rate]`). The drift stays
+/// eligible only when its rate is significant beside the offset ([`drift_beside_offset`]);
+/// otherwise it is NOT SIGNIFICANT (a constant offset is not named a drift). The held-out
+/// comparison with the offset is the windows', or, when those do not tell the two apart and
+/// the rate pays, the fixes withheld one at a time ([`Ctx::fix_errors`]; two runs).
+pub(crate) fn clock_drift_beside_offset(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+    n_meas: f64,
+) {
+    let find = |name: &str, r: &[(CandidateEvidence, Option<Eval>)]| {
+        r.iter().position(|x| x.0.name == name)
+    };
+    let Some(di) = find(Block::ImuClockDrift.name(), results) else {
+        return;
+    };
+    if results[di].0.decision != Decision::Eligible {
+        return;
+    }
+    let penalty = 0.5 * n_meas.max(2.0).ln();
+    let mut offset = find(Block::TimeOffset.name(), results).and_then(|oi| {
+        let (o, d) = (&results[oi], &results[di]);
+        let extra = d.0.delta_log_likelihood? - o.0.delta_log_likelihood?;
+        let h = validate::compare_windows(&o.1.as_ref()?.windows, &d.1.as_ref()?.windows);
+        Some((extra, h))
+    });
+    let d = &mut results[di].0;
+    let rate_z = match (d.estimate.get(1), d.sigma.get(1)) {
+        (Some(e), Some(s)) if *s > 0.0 => (e / s).abs(),
+        _ => 0.0,
+    };
+    // a rate that pays but is not seen on the windows: judged on the fixes withheld one at
+    // a time, where a timing error of milliseconds shows (a 10 ms change of the offset over
+    // the drive is 0.1 m at 10 m/s, against about 1.2 m of drift across a window)
+    if let Some((extra, h)) = offset.as_mut() {
+        if rate_z >= validate::MIN_Z
+            && *extra > penalty
+            && h.verdict != HeldoutVerdict::Better
+            && ctx.interleaved.len() >= 10
+        {
+            let (a, b) = rayon::join(
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::TimeOffset])),
+                || ctx.fix_errors(&options_with(cur_opts, &[Block::ImuClockDrift])),
+            );
+            if let (Ok(a), Ok(b)) = (a, b) {
+                let hf = validate::compare_fixes(&a, &b);
+                d.reason = format!(
+                    "{}; against time_offset on the fixes withheld one at a time: {}",
+                    d.reason,
+                    hf.describe()
+                );
+                if hf.verdict == HeldoutVerdict::Better {
+                    *h = hf;
+                }
+            }
+        }
+    }
+    if let Some(why) = drift_beside_offset(rate_z, offset.as_ref(), penalty) {
+        d.decision = Decision::NotSignificant;
+        d.reason = format!("{why}; {}", d.reason);
+        d.refused = Some(d.reason.clone());
+    }
+}
+
+/// Why a clock drift (offset + rate) is not named beside a constant offset, None when it is:
+/// its rate must be at least [`validate::MIN_Z`] sigma from zero (`rate_z`) and, when the
+/// offset was run in the same round (`offset`: the drift's log-likelihood gain over the
+/// offset's, nats, and the drift's held-out windows paired with the offset's), the extra gain
+/// must pay the BIC penalty of the one extra parameter (`penalty`, nats) and the held-out
+/// errors must be significantly lower than the offset's (the nested, larger model is
+/// preferred only when it also predicts the withheld fixes better).
+pub fn drift_beside_offset(
+    rate_z: f64,
+    offset: Option<&(f64, HeldoutComparison)>,
+    penalty: f64,
+) -> Option<String> {
+    if rate_z.is_nan() || rate_z < validate::MIN_Z {
+        return Some(format!(
+            "the clock rate is not significant ({rate_z:.2} sigma < {}): a constant offset, \
+             not a drift",
+            validate::MIN_Z
+        ));
+    }
+    let (extra, h) = offset?;
+    if extra.is_nan() || *extra <= penalty {
+        return Some(format!(
+            "the clock rate does not pay beside a constant offset (nested models: {extra:.1} \
+             nats over time_offset, BIC penalty of the rate {penalty:.1})"
+        ));
+    }
+    (h.verdict != HeldoutVerdict::Better).then(|| {
+        format!(
+            "the clock rate does not predict the withheld fixes better than a constant offset \
+             (paired with time_offset: {})",
+            h.describe()
+        )
+    })
+}
+
+/// The clock drift as the upgrade of an added time offset: its run carries the drift in the
+/// offset's place ([`prior::with_candidate`]), so its log-likelihood gain, BIC penalty (one
+/// parameter, the rate) and held-out windows are against the offset already, as
+/// [`clock_drift_beside_offset`] compares them within a round. Its rate must be
+/// [`validate::MIN_Z`] sigma from zero ([`drift_beside_offset`]); when its evidence pays but
+/// the windows do not decide (not significantly different either way, or significantly lower
+/// with their RMS raised beyond one window: the 60 s gaps' metres of free-inertial drift
+/// against the short windows' centimetres), the fixes withheld one at a time decide
+/// ([`decide`] on them, paired with the offset's; two runs): a rate of 30-80 ppm moves the
+/// offset by 0.2-0.5 m over 10 minutes at 10 m/s, hidden in the windows' drift, not in a
+/// single fix's prediction.
+pub(crate) fn drift_over_added_offset(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    drift_opts: &RunOptions,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let Some(d) = results
+        .iter_mut()
+        .find(|x| x.0.name == Block::ImuClockDrift.name() && x.1.is_some())
+        .map(|x| &mut x.0)
+    else {
+        return;
+    };
+    let rate_z = match (d.estimate.get(1), d.sigma.get(1)) {
+        (Some(e), Some(s)) if *s > 0.0 => (e / s).abs(),
+        _ => 0.0,
+    };
+    if let Some(why) = drift_beside_offset(rate_z, None, 0.0) {
+        if d.decision == Decision::Eligible {
+            d.decision = Decision::NotSignificant;
+            d.reason = format!("{why}; {}", d.reason);
+            d.refused = Some(d.reason.clone());
+        }
+        return;
+    }
+    let evidence = d.evidence.unwrap_or(f64::NAN);
+    let undecided = d.heldout.is_some_and(|h| {
+        h.verdict == HeldoutVerdict::NotSignificant
+            || (h.verdict == HeldoutVerdict::Better && h.rms_raised_beyond_one_window)
+    });
+    if d.decision != Decision::NotSignificant
+        || evidence.is_nan()
+        || evidence <= 0.0
+        || !undecided
+        || ctx.interleaved.len() < 10
+    {
+        return;
+    }
+    let (a, b) = rayon::join(|| ctx.fix_errors(cur_opts), || ctx.fix_errors(drift_opts));
+    let (Ok(a), Ok(b)) = (a, b) else {
+        return;
+    };
+    let hf = validate::compare_fixes(&a, &b);
+    let (decision, why) = decide(evidence, d.max_z, false, &hf);
+    d.heldout_fixes = Some(hf);
+    d.reason = format!(
+        "{}; against the time offset on the fixes withheld one at a time: {why}",
+        d.reason
+    );
+    if decision == Decision::Eligible {
+        d.decision = Decision::Eligible;
+        d.refused = None;
+    } else {
+        d.refused = Some(d.reason.clone());
+    }
+}
+
+/// One round: every remaining candidate against the current model; adds the best eligible
+/// one (or the tuned noise when its evidence is stronger). False when the search stops.
+pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
+    let cur_opts = options_with(&s.base_opts, &s.added);
+    // a candidate is appended, or takes the place of the block nested in it (a clock drift
+    // of an added time offset: appended beside it, the drift would change nothing)
+    let candidate_opts = |b: Block| options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
+    let remaining: Vec<Block> = all
+        .iter()
+        .copied()
+        .filter(|&b| {
+            !s.added.contains(&b)
+                && !prior::nested_in(&s.added, b)
+                && dim_of(&candidate_opts(b)) <= MAX_EXTRA_DIM
+        })
+        .collect();
+    if remaining.is_empty() {
+        return false;
+    }
+    let n_meas = residual_stats(&s.cur.run.innovations)
+        .scalar_measurements
+        .max(2) as f64;
+    let cur = &s.cur;
+    let near = near_fixes(ctx, cur);
+    let mut results: Vec<(CandidateEvidence, Option<Eval>)> = remaining
+        .par_iter()
+        .map(|&b| {
+            let o = candidate_opts(b);
+            let params = prior::added_params(&s.added, b);
+            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params))
+        })
+        .collect();
+    let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
+    results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
+    if prior::upgrades(&s.added, Block::ImuClockDrift).is_some() {
+        drift_over_added_offset(
+            ctx,
+            &cur_opts,
+            &candidate_opts(Block::ImuClockDrift),
+            &mut results,
+        );
+    } else {
+        clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    }
+    judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
+    let mut eligible: Vec<usize> = (0..results.len())
+        .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
+        .collect();
+    // a GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
+    // bias step's): it is added only when no specific effect pays with significantly lower
+    // held-out windows, eligible or not
+    let gnss_side =
+        |c: &CandidateEvidence| Block::effect_from_name(&c.name).is_some_and(is_noise_like);
+    let specific = results.iter().any(|(c, _)| {
+        !gnss_side(c)
+            && c.evidence.is_some_and(|e| e > 0.0)
+            && c.heldout
+                .is_some_and(|h| h.verdict == HeldoutVerdict::Better)
+    });
+    if specific {
+        eligible.retain(|&i| !gnss_side(&results[i].0));
+    }
+    let mut round = Round {
+        model_effects: validate::names(&s.added),
+        log_likelihood: s.cur.errors.log_likelihood,
+        candidates: Vec::new(),
+        added: None,
+        ambiguous: None,
+        unexplained: None,
+    };
+    // the strongest paying candidate not eligible: gain no effect explains
+    let best_eligible = eligible.first().map(|&j| key(&results[j].0));
+    let best_eligible_gain = eligible.first().map(|&j| {
+        let c = &results[j].0;
+        (key(c), c.heldout.map_or(f64::NEG_INFINITY, |h| h.gain))
+    });
+    if let Some((c, _)) = results
+        .iter()
+        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))
+    {
+        if best_eligible.is_none_or(|b| b < key(c)) {
+            round.unexplained = Some(format!(
+                "{} ({:.1} nats): {}",
+                c.name,
+                key(c),
+                c.refused.as_deref().unwrap_or("")
+            ));
+        }
+    }
+    if try_noise(
+        ctx,
+        s,
+        &cur_opts,
+        n_meas,
+        best_eligible_gain,
+        &mut round,
+        &results,
+    ) {
+        return true;
+    }
+    let Some(&top) = eligible.first() else {
+        if try_noise_with_effect(ctx, s, n_meas, &mut results) {
+            round.added = s.added.last().map(|b| b.name().to_string());
+            round.unexplained = None;
+            round.candidates = results.into_iter().map(|r| r.0).collect();
+            s.rounds.push(round);
+            return true;
+        }
+        round.candidates = results.into_iter().map(|r| r.0).collect();
+        s.rounds.push(round);
+        return false;
+    };
+    let pick = pick_ambiguous(ctx, &results, &eligible, &mut round);
+    add_candidate(s, results, top, pick, round)
+}
+
+/// The tuned noise, pending, competes in the round: adopted when its evidence beats the best
+/// eligible effect's, its held-out gain is at least that effect's (`best_eligible`: evidence,
+/// nats, and held-out gain) and its held-out errors are not significantly higher. True when
+/// adopted (the round is recorded).
+pub(crate) fn try_noise(
+    ctx: &Ctx<'_>,
+    s: &mut Search,
+    cur_opts: &RunOptions,
+    n_meas: f64,
+    best_eligible: Option<(f64, f64)>,
+    round: &mut Round,
+    results: &[(CandidateEvidence, Option<Eval>)],
+) -> bool {
+    let Some(k) = s.pending_noise else {
+        return false;
+    };
+    let mut o = cur_opts.clone();
+    k.apply(&mut o);
+    let params = k.params();
+    let label = format!("noise tuned: {}", k.describe());
+    let ev = match ctx.evaluate(&o) {
+        Ok(ev) => ev,
+        Err(e) => {
+            s.warnings.push(format!("tuned noise run failed: {e}"));
+            s.pending_noise = None;
+            return false;
+        }
+    };
+    let pen = 0.5 * params as f64 * n_meas.ln();
+    let evidence = ev.errors.log_likelihood - s.cur.errors.log_likelihood - pen;
+    let h = validate::compare_windows(&s.cur.windows, &ev.windows);
+    let check = if evidence <= 0.0 {
+        Err("likelihood gain below the BIC penalty".to_string())
+    } else {
+        noise_heldout_check(&s.cur.errors, &ev.errors, &h)
+    };
+    // a noise change explains any misfit by widening the variances: it pre-empts an eligible
+    // effect only when it also predicts the withheld fixes at least as well (on the real
+    // drive the tuned noise out-gained the time offset, 28.9k nats, and then absorbed it)
+    let beats = best_eligible.is_none_or(|(b, gain)| evidence > b && h.gain >= gain);
+    match check {
+        Ok(()) if beats => {
+            s.steps.push(Step {
+                label,
+                accepted: true,
+                reason: None,
+                errors: ev.errors,
+                heldout: Some(h),
+            });
+            round.added = Some(format!("noise ({evidence:.1} nats)"));
+            round.candidates = results.iter().map(|r| r.0.clone()).collect();
+            s.rounds.push(round.clone());
+            if let Some(t) = s.noise_tuning.as_mut() {
+                t.adopted = true;
+            }
+            k.apply(&mut s.base_opts);
+            s.pending_noise = None;
+            s.last_noise_refusal = None;
+            s.cur = ev;
+            true
+        }
+        Ok(()) => false,
+        Err(why) => {
+            s.last_noise_refusal = Some(Step {
+                label,
+                accepted: false,
+                reason: Some(why),
+                errors: ev.errors,
+                heldout: Some(h),
+            });
+            false
+        }
+    }
+}
+
+/// With no effect eligible and the tuned noise (pending) not adopted alone, the noise and the
+/// strongest paying candidate whose held-out windows alone are significantly lower are judged
+/// together ([`decide`] on the joint run: evidence over the BIC penalty of the noise factors
+/// and the block, the block's estimate at least 2 sigma, held-out windows significantly lower
+/// and their RMS not raised beyond one window). An overconfident noise model can leave a real effect's estimate
+/// within 2 sigma (understated white noise x16 with a 0.05 s time offset: the offset at 1.55
+/// sigma with a +91 % held-out gain) while the tuned noise alone, without the effect, raises
+/// the windows' RMS. True when both were adopted (the candidate marked added in `results`).
+pub(crate) fn try_noise_with_effect(
+    ctx: &Ctx<'_>,
+    s: &mut Search,
+    n_meas: f64,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) -> bool {
+    let Some(k) = s.pending_noise else {
+        return false;
+    };
+    let Some(i) = results.iter().position(|(c, r)| {
+        r.is_some()
+            && c.decision == Decision::NotSignificant
+            && c.evidence.is_some_and(|e| e > 0.0)
+            && c.heldout
+                .is_some_and(|h| h.verdict == HeldoutVerdict::Better)
+    }) else {
+        return false;
+    };
+    let Some(b) = Block::effect_from_name(&results[i].0.name) else {
+        return false;
+    };
+    let mut o = options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
+    k.apply(&mut o);
+    let Ok(ev) = ctx.evaluate(&o) else {
+        return false;
+    };
+    let pen = 0.5 * (k.params() + prior::added_params(&s.added, b)) as f64 * n_meas.ln();
+    let d = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
+    let (est, sig) = effect_values(&ev.run, b.name());
+    let h = validate::compare_windows(&s.cur.windows, &ev.windows);
+    let (decision, why) = decide(d - pen, validate::max_z(&est, &sig), is_noise_like(b), &h);
+    let c = &mut results[i].0;
+    if decision != Decision::Eligible {
+        c.reason = format!("{}; with the tuned noise: {why}", c.reason);
+        return false;
+    }
+    c.decision = Decision::Added;
+    c.reason = format!("added with the tuned noise ({}): {why}", k.describe());
+    c.refused = None;
+    s.steps.push(Step {
+        label: format!("noise tuned: {} + {}", k.describe(), b.name()),
+        accepted: true,
+        reason: Some(c.reason.clone()),
+        errors: ev.errors,
+        heldout: Some(h),
+    });
+    push_added(
+        s,
+        b,
+        AddedEffect {
+            name: b.name().to_string(),
+            estimate: est,
+            sigma: sig,
+            unit: b.unit().to_string(),
+            evidence: d - pen,
+            delta_log_likelihood: d,
+            heldout: h,
+            runner_up: None,
+            ambiguous_with: None,
+            freed: c.freed,
+            replaced: None,
+            before: s.cur.errors,
+            after: ev.errors,
+        },
+    );
+    if let Some(t) = s.noise_tuning.as_mut() {
+        t.adopted = true;
+    }
+    k.apply(&mut s.base_opts);
+    s.pending_noise = None;
+    s.last_noise_refusal = None;
+    s.cur = ev;
+    true
+}
+
+/// The held-out check of a noise change (a nuisance parameter, not an effect that claims a
+/// gain): refused when its held-out window errors are significantly higher, or their RMS is
+/// higher (on the real drive a tuned noise the paired test let through raised the outage
+/// error 9.8 -> 17.2 m).
+pub(crate) fn noise_heldout_check(
+    cur: &StepErrors,
+    new: &StepErrors,
+    h: &HeldoutComparison,
+) -> Result<(), String> {
+    if h.verdict == HeldoutVerdict::Worse {
+        return Err(format!(
+            "held-out error significantly higher: {}",
+            h.describe()
+        ));
+    }
+    if let (Some(c), Some(n)) = (cur.heldout_windows_rms_m, new.heldout_windows_rms_m) {
+        if n.is_nan() || n > c {
+            return Err(format!(
+                "held-out windows RMS raised ({c:.3} -> {n:.3} m): {}",
+                h.describe()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// With two eligible candidates within the ambiguity margin, the one with the larger
+/// held-out gain; notes the ambiguity in the round. Returns the index to add.
+pub(crate) fn pick_ambiguous(
+    ctx: &Ctx<'_>,
+    results: &[(CandidateEvidence, Option<Eval>)],
+    eligible: &[usize],
+    round: &mut Round,
+) -> usize {
+    let top = eligible[0];
+    let Some(&second) = eligible.get(1) else {
+        return top;
+    };
+    let e = |i: usize| results[i].0.evidence.unwrap_or(f64::NEG_INFINITY);
+    let margin = e(top) - e(second);
+    if margin >= ctx.dopts.ambiguity_margin {
+        return top;
+    }
+    let g = |i: usize| results[i].0.heldout.map_or(f64::NEG_INFINITY, |h| h.gain);
+    let pick = if g(second) > g(top) { second } else { top };
+    round.ambiguous = Some(format!(
+        "ambiguous between {} and {} ({margin:.1} nats); added {} (larger held-out gain)",
+        results[top].0.name, results[second].0.name, results[pick].0.name
+    ));
+    pick
+}
+
+/// Adds the picked candidate to the model and records the round. False when it cannot be
+/// added (no run, unknown name).
+pub(crate) fn add_candidate(
+    s: &mut Search,
+    results: Vec<(CandidateEvidence, Option<Eval>)>,
+    top: usize,
+    pick: usize,
+    mut round: Round,
+) -> bool {
+    let other = if pick == top { None } else { Some(top) };
+    let ambiguous_with = round.ambiguous.as_ref().map(|_| {
+        let o = other.unwrap_or_else(|| {
+            (0..results.len())
+                .find(|&i| i != pick && results[i].0.decision == Decision::Eligible)
+                .unwrap_or(top)
+        });
+        results[o].0.name.clone()
+    });
+    let mut cands: Vec<CandidateEvidence> = Vec::with_capacity(results.len());
+    let mut run = None;
+    for (i, (mut c, r)) in results.into_iter().enumerate() {
+        if i == pick {
+            c.decision = Decision::Added;
+            run = r;
+        }
+        cands.push(c);
+    }
+    let c = cands[pick].clone();
+    round.candidates = cands;
+    let (Some(b), Some(run)) = (Block::effect_from_name(&c.name), run) else {
+        s.rounds.push(round);
+        return false;
+    };
+    let runner_up = round
+        .candidates
+        .iter()
+        .find(|x| x.name != c.name && x.evidence.is_some_and(|e| e > 0.0))
+        .map(|x| {
+            (
+                x.name.clone(),
+                c.evidence.unwrap_or(0.0) - x.evidence.unwrap_or(0.0),
+            )
+        });
+    round.added = Some(c.name.clone());
+    s.rounds.push(round);
+    let heldout = c
+        .heldout_fixes
+        .or(c.heldout)
+        .unwrap_or_else(|| validate::compare_windows(&[], &[]));
+    let replaced = prior::upgrades(&s.added, b);
+    s.steps.push(Step {
+        label: match replaced {
+            Some(old) => format!("+ {} (in place of {})", c.name, old.name()),
+            None => format!("+ {}", c.name),
+        },
+        accepted: true,
+        reason: Some(c.reason.clone()),
+        errors: run.errors,
+        heldout: Some(heldout),
+    });
+    push_added(
+        s,
+        b,
+        AddedEffect {
+            name: c.name.clone(),
+            estimate: c.estimate.clone(),
+            sigma: c.sigma.clone(),
+            unit: b.unit().to_string(),
+            evidence: c.evidence.unwrap_or(0.0),
+            delta_log_likelihood: c.delta_log_likelihood.unwrap_or(0.0),
+            heldout,
+            runner_up,
+            ambiguous_with,
+            freed: c.freed,
+            replaced: None,
+            before: s.cur.errors,
+            after: run.errors,
+        },
+    );
+    s.cur = run;
+    true
+}
+
+/// Puts block `b` into the search's model with its record `info`: appended, or in the place
+/// of the block it upgrades ([`prior::upgrades`]: an IMU clock drift replaces an added time
+/// offset, in the model and in the list of added effects, `info.replaced` naming it).
+pub(crate) fn push_added(s: &mut Search, b: Block, mut info: AddedEffect) {
+    let Some(old) = prior::upgrades(&s.added, b) else {
+        s.added.push(b);
+        s.added_info.push(info);
+        return;
+    };
+    s.added = prior::with_candidate(&s.added, b);
+    info.replaced = Some(old.name().to_string());
+    match s.added_info.iter_mut().find(|e| e.name == old.name()) {
+        Some(e) => *e = info,
+        None => s.added_info.push(info),
+    }
+}
