@@ -14,6 +14,7 @@ pub mod cli_enum;
 pub mod diagnose;
 pub mod init;
 pub mod mounting;
+pub mod png;
 pub mod run;
 pub mod sim;
 pub mod study;

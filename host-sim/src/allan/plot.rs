@@ -115,7 +115,7 @@ where
 pub fn plot_allan(p: &PlotInput<'_>, stem: &Path) -> anyhow::Result<()> {
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    draw(BitMapBackend::new(&png, (1000, 720)).into_drawing_area(), p)?;
+    crate::png::draw_png(&png, (1000, 720), |root| draw(root.clone(), p))?;
     draw(SVGBackend::new(&svg, (1000, 720)).into_drawing_area(), p)?;
     Ok(())
 }

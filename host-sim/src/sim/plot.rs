@@ -76,96 +76,98 @@ where
 
 /// Writes a 2x3 overview PNG of the trajectory to `path`.
 pub fn plot_trajectory(tr: &Trajectory, path: &Path) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(path, (1800, 1100)).into_drawing_area();
-    root.fill(&WHITE)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    let areas = root.split_evenly((2, 3));
-    // Decimate to about 5 points per second of data.
-    let step = ((0.2 / tr.dt_s).round() as usize).max(1);
-    let s0 = tr.truth.first().copied().unwrap_or_default();
-    let p0 = Llh {
-        lat_rad: s0.lat_rad,
-        lon_rad: s0.lon_rad,
-        h_m: s0.h_m,
-    };
-    let pts: Vec<_> = tr.truth.iter().step_by(step).collect();
-    let t = |s: &nav_core::types::NavSolution| (s.t_s - tr.t0_s) / 60.0;
-    let ned: Vec<(f64, f64)> = pts
-        .iter()
-        .map(|s| {
-            let d = ned_offset_m(
-                &p0,
-                &Llh {
-                    lat_rad: s.lat_rad,
-                    lon_rad: s.lon_rad,
-                    h_m: s.h_m,
-                },
-            );
-            (d.y, d.x)
-        })
-        .collect();
-    let title = format!("`{}`: ground track (start at 0,0)", tr.scenario.name);
-    let a = areas
-        .first()
-        .ok_or_else(|| anyhow::anyhow!("plot layout"))?;
-    panel(
-        a,
-        &title,
-        "east [m]",
-        "north [m]",
-        &[("track", BLUE, ned)],
-        true,
-    )?;
-    let speed: Vec<_> = pts
-        .iter()
-        .map(|s| {
-            let v = s.vel_ned_mps;
-            (t(s), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        })
-        .collect();
-    let height: Vec<_> = pts.iter().map(|s| (t(s), s.h_m - s0.h_m)).collect();
-    if let Some(a) = areas.get(1) {
+    crate::png::draw_png(path, (1800, 1100), |root| {
+        let root = root.clone();
+        root.fill(&WHITE)
+            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        let areas = root.split_evenly((2, 3));
+        // Decimate to about 5 points per second of data.
+        let step = ((0.2 / tr.dt_s).round() as usize).max(1);
+        let s0 = tr.truth.first().copied().unwrap_or_default();
+        let p0 = Llh {
+            lat_rad: s0.lat_rad,
+            lon_rad: s0.lon_rad,
+            h_m: s0.h_m,
+        };
+        let pts: Vec<_> = tr.truth.iter().step_by(step).collect();
+        let t = |s: &nav_core::types::NavSolution| (s.t_s - tr.t0_s) / 60.0;
+        let ned: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|s| {
+                let d = ned_offset_m(
+                    &p0,
+                    &Llh {
+                        lat_rad: s.lat_rad,
+                        lon_rad: s.lon_rad,
+                        h_m: s.h_m,
+                    },
+                );
+                (d.y, d.x)
+            })
+            .collect();
+        let title = format!("`{}`: ground track (start at 0,0)", tr.scenario.name);
+        let a = areas
+            .first()
+            .ok_or_else(|| anyhow::anyhow!("plot layout"))?;
         panel(
             a,
-            "speed [m/s] and height change [m]",
-            "time [min]",
-            "",
-            &[("speed m/s", BLUE, speed), ("height m", RED, height)],
-            false,
+            &title,
+            "east [m]",
+            "north [m]",
+            &[("track", BLUE, ned)],
+            true,
         )?;
-    }
-    let yaw = unwrapped_yaw_deg(&pts, t);
-    if let Some(a) = areas.get(2) {
-        panel(
-            a,
-            "yaw, unwrapped [deg]",
-            "time [min]",
-            "deg",
-            &[("yaw", BLUE, yaw)],
-            false,
-        )?;
-    }
-    let roll: Vec<_> = pts
-        .iter()
-        .map(|s| (t(s), s.rpy_rad[0].to_degrees()))
-        .collect();
-    let pitch: Vec<_> = pts
-        .iter()
-        .map(|s| (t(s), s.rpy_rad[1].to_degrees()))
-        .collect();
-    if let Some(a) = areas.get(3) {
-        panel(
-            a,
-            "roll and pitch [deg]",
-            "time [min]",
-            "deg",
-            &[("roll", BLUE, roll), ("pitch", RED, pitch)],
-            false,
-        )?;
-    }
-    imu_panels(&areas, tr, step)?;
-    root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    Ok(())
+        let speed: Vec<_> = pts
+            .iter()
+            .map(|s| {
+                let v = s.vel_ned_mps;
+                (t(s), (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            })
+            .collect();
+        let height: Vec<_> = pts.iter().map(|s| (t(s), s.h_m - s0.h_m)).collect();
+        if let Some(a) = areas.get(1) {
+            panel(
+                a,
+                "speed [m/s] and height change [m]",
+                "time [min]",
+                "",
+                &[("speed m/s", BLUE, speed), ("height m", RED, height)],
+                false,
+            )?;
+        }
+        let yaw = unwrapped_yaw_deg(&pts, t);
+        if let Some(a) = areas.get(2) {
+            panel(
+                a,
+                "yaw, unwrapped [deg]",
+                "time [min]",
+                "deg",
+                &[("yaw", BLUE, yaw)],
+                false,
+            )?;
+        }
+        let roll: Vec<_> = pts
+            .iter()
+            .map(|s| (t(s), s.rpy_rad[0].to_degrees()))
+            .collect();
+        let pitch: Vec<_> = pts
+            .iter()
+            .map(|s| (t(s), s.rpy_rad[1].to_degrees()))
+            .collect();
+        if let Some(a) = areas.get(3) {
+            panel(
+                a,
+                "roll and pitch [deg]",
+                "time [min]",
+                "deg",
+                &[("roll", BLUE, roll), ("pitch", RED, pitch)],
+                false,
+            )?;
+        }
+        imu_panels(&areas, tr, step)?;
+        root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        Ok(())
+    })
 }
 
 /// Yaw in degrees against time, unwrapped (continuous through +-180 deg).

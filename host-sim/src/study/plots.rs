@@ -117,10 +117,11 @@ fn outage_span(res: &StudyResult, case: Case) -> Option<(f64, f64)> {
 /// 3x3 grid (rows position, velocity, attitude; columns N, E, D), log scale: the filter's
 /// standard deviation (dashed) and the Monte Carlo RMS true error (solid) of every model.
 pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(path, (1800, 1350)).into_drawing_area();
-    root.fill(&WHITE).map_err(perr)?;
-    let (title, body) = root.split_vertically(50);
-    title
+    crate::png::draw_png(path, (1800, 1350), |root| {
+        let root = root.clone();
+        root.fill(&WHITE).map_err(perr)?;
+        let (title, body) = root.split_vertically(50);
+        title
         .draw_text(
             &format!(
                 "{}: filter std (dashed) and RMS true error over {} runs (solid); N red, NBK blue, NBK-single green, N+id.gyro purple",
@@ -131,76 +132,78 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
             (20, 12),
         )
         .map_err(perr)?;
-    let areas = body.split_evenly((3, 3));
-    let cells: Vec<&Cell> = res.cells.iter().filter(|c| c.case == case).collect();
-    let order = [6, 7, 8, 3, 4, 5, 0, 1, 2];
-    for (a, &i) in areas.iter().zip(order.iter()) {
-        let sc = display_scale(i);
-        let skip = |t: f64| t >= 1.0;
-        let (y0, y1) = log_range(cells.iter().flat_map(|c| {
-            c.stats
-                .t_rel_s
-                .iter()
-                .zip(c.stats.rms_err.iter().zip(&c.stats.std))
-                .filter(|(t, _)| skip(**t))
-                .flat_map(move |(_, (e, s))| [e[i] * sc, s[i] * sc])
-        }));
-        let (y0, y1) = (y0.log10(), y1.log10());
-        let x1 = res.duration_s / 60.0;
-        let mut ch = ChartBuilder::on(a)
-            .caption(component_title(i), ("sans-serif", 20))
-            .margin(8)
-            .x_label_area_size(34)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..x1, y0..y1)
-            .map_err(perr)?;
-        ch.configure_mesh()
-            .x_desc("time [min]")
-            .y_desc("log scale")
-            .y_label_formatter(&pow10_label)
-            .draw()
-            .map_err(perr)?;
-        if let Some((s0, s1)) = outage_span(res, case) {
-            ch.draw_series(std::iter::once(Rectangle::new(
-                [(s0, y0), (s1, y1)],
-                OUTAGE_FILL.filled(),
-            )))
-            .map_err(perr)?;
-        }
-        for c in &cells {
-            let col = model_color(c.model);
-            let pts = |v: &Vec<[f64; 9]>| -> Vec<(f64, f64)> {
+        let areas = body.split_evenly((3, 3));
+        let cells: Vec<&Cell> = res.cells.iter().filter(|c| c.case == case).collect();
+        let order = [6, 7, 8, 3, 4, 5, 0, 1, 2];
+        for (a, &i) in areas.iter().zip(order.iter()) {
+            let sc = display_scale(i);
+            let skip = |t: f64| t >= 1.0;
+            let (y0, y1) = log_range(cells.iter().flat_map(|c| {
                 c.stats
                     .t_rel_s
                     .iter()
-                    .zip(v)
-                    .filter(|(t, x)| skip(**t) && x[i] > 0.0)
-                    .map(|(t, x)| (t / 60.0, (x[i] * sc).log10().clamp(y0, y1)))
-                    .collect()
-            };
-            segments(&mut ch, &pts(&c.stats.rms_err), col.stroke_width(2))?;
-            dashed(&mut ch, &pts(&c.stats.std), col.stroke_width(2))?;
+                    .zip(c.stats.rms_err.iter().zip(&c.stats.std))
+                    .filter(|(t, _)| skip(**t))
+                    .flat_map(move |(_, (e, s))| [e[i] * sc, s[i] * sc])
+            }));
+            let (y0, y1) = (y0.log10(), y1.log10());
+            let x1 = res.duration_s / 60.0;
+            let mut ch = ChartBuilder::on(a)
+                .caption(component_title(i), ("sans-serif", 20))
+                .margin(8)
+                .x_label_area_size(34)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..x1, y0..y1)
+                .map_err(perr)?;
+            ch.configure_mesh()
+                .x_desc("time [min]")
+                .y_desc("log scale")
+                .y_label_formatter(&pow10_label)
+                .draw()
+                .map_err(perr)?;
+            if let Some((s0, s1)) = outage_span(res, case) {
+                ch.draw_series(std::iter::once(Rectangle::new(
+                    [(s0, y0), (s1, y1)],
+                    OUTAGE_FILL.filled(),
+                )))
+                .map_err(perr)?;
+            }
+            for c in &cells {
+                let col = model_color(c.model);
+                let pts = |v: &Vec<[f64; 9]>| -> Vec<(f64, f64)> {
+                    c.stats
+                        .t_rel_s
+                        .iter()
+                        .zip(v)
+                        .filter(|(t, x)| skip(**t) && x[i] > 0.0)
+                        .map(|(t, x)| (t / 60.0, (x[i] * sc).log10().clamp(y0, y1)))
+                        .collect()
+                };
+                segments(&mut ch, &pts(&c.stats.rms_err), col.stroke_width(2))?;
+                dashed(&mut ch, &pts(&c.stats.std), col.stroke_width(2))?;
+            }
         }
-    }
-    root.present().map_err(perr)?;
-    Ok(())
+        root.present().map_err(perr)?;
+        Ok(())
+    })
 }
 
 /// Position N, E, D in linear scale around the outage (case 2) or over the drive (case 1):
 /// the +-1 sigma bands of N (red lines) and NBK (blue fill) and the true errors of the first
 /// runs of each (thin lines).
 pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(path, (1800, 1200)).into_drawing_area();
-    root.fill(&WHITE).map_err(perr)?;
-    let (title, body) = root.split_vertically(50);
-    let (t0, t1) = match case {
-        Case::Outage => (
-            res.config.outage_start_rel_s - 60.0,
-            res.config.outage_end_rel_s() + 60.0,
-        ),
-        Case::Continuous => (180.0, res.duration_s),
-    };
-    title
+    crate::png::draw_png(path, (1800, 1200), |root| {
+        let root = root.clone();
+        root.fill(&WHITE).map_err(perr)?;
+        let (title, body) = root.split_vertically(50);
+        let (t0, t1) = match case {
+            Case::Outage => (
+                res.config.outage_start_rel_s - 60.0,
+                res.config.outage_end_rel_s() + 60.0,
+            ),
+            Case::Continuous => (180.0, res.duration_s),
+        };
+        title
         .draw_text(
             &format!(
                 "{}: position +-1 sigma of N (red lines) and NBK (blue band); true errors of {} runs each (thin)",
@@ -211,16 +214,17 @@ pub fn plot_bands(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<
             (20, 12),
         )
         .map_err(perr)?;
-    let areas = body.split_evenly((3, 1));
-    let n = res.cell(Variant::N, case);
-    let k = res.cell(Variant::Nbk, case);
-    let unit = if case == Case::Continuous { 100.0 } else { 1.0 };
-    let uname = if case == Case::Continuous { "cm" } else { "m" };
-    for (a, i) in areas.iter().zip(6..9) {
-        band_panel(a, res, case, [n, k], i, (t0, t1), (unit, uname))?;
-    }
-    root.present().map_err(perr)?;
-    Ok(())
+        let areas = body.split_evenly((3, 1));
+        let n = res.cell(Variant::N, case);
+        let k = res.cell(Variant::Nbk, case);
+        let unit = if case == Case::Continuous { 100.0 } else { 1.0 };
+        let uname = if case == Case::Continuous { "cm" } else { "m" };
+        for (a, i) in areas.iter().zip(6..9) {
+            band_panel(a, res, case, [n, k], i, (t0, t1), (unit, uname))?;
+        }
+        root.present().map_err(perr)?;
+        Ok(())
+    })
 }
 
 /// One panel of [`plot_bands`]: the position error's component `i` (6, 7, 8: north, east,
@@ -344,11 +348,12 @@ where
 /// Average NEES over the runs per group (attitude, velocity, position) and model, log scale,
 /// with the two-sided 95 % band (dashed).
 pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(path, (1800, 1200)).into_drawing_area();
-    root.fill(&WHITE).map_err(perr)?;
-    let (title, body) = root.split_vertically(50);
-    let (lo, hi) = chi2::nees_band_95(res.config.runs, 3);
-    title
+    crate::png::draw_png(path, (1800, 1200), |root| {
+        let root = root.clone();
+        root.fill(&WHITE).map_err(perr)?;
+        let (title, body) = root.split_vertically(50);
+        let (lo, hi) = chi2::nees_band_95(res.config.runs, 3);
+        title
         .draw_text(
             &format!(
                 "{}: average NEES of {} runs (3 dof each); 95 % band [{lo:.2}, {hi:.2}] dashed; N red, NBK blue, NBK-single green, N+id.gyro purple",
@@ -359,76 +364,77 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
             (20, 12),
         )
         .map_err(perr)?;
-    let areas = body.split_evenly((3, 1));
-    let cells: Vec<&Cell> = res.cells.iter().filter(|c| c.case == case).collect();
-    for (a, g) in areas.iter().zip([2usize, 1, 0]) {
-        let (mut y0, mut y1) = log_range(
-            cells
-                .iter()
-                .flat_map(|c| c.stats.nees.iter().map(move |n| n[g])),
-        );
-        y0 = y0.min(lo / 2.0).max(1e-3).log10();
-        y1 = y1.max(hi * 2.0).log10();
-        let x1 = res.duration_s / 60.0;
-        let mut ch = ChartBuilder::on(a)
-            .caption(
-                format!("{} NEES (average over runs)", nav_study::stats::GROUPS[g]),
-                ("sans-serif", 20),
-            )
-            .margin(8)
-            .x_label_area_size(34)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..x1, y0..y1)
-            .map_err(perr)?;
-        ch.configure_mesh()
-            .x_desc("time [min]")
-            .y_desc("log scale")
-            .y_label_formatter(&pow10_label)
-            .draw()
-            .map_err(perr)?;
-        if let Some((s0, s1)) = outage_span(res, case) {
-            ch.draw_series(std::iter::once(Rectangle::new(
-                [(s0, y0), (s1, y1)],
-                OUTAGE_FILL.filled(),
-            )))
-            .map_err(perr)?;
-        }
-        for b in [lo, 3.0, hi] {
-            let style = if b == 3.0 {
-                BLACK.mix(0.4).stroke_width(1)
-            } else {
-                BLACK.stroke_width(2)
-            };
-            let b = b.log10();
-            ch.draw_series(DashedLineSeries::new(vec![(0.0, b), (x1, b)], 10, 6, style))
+        let areas = body.split_evenly((3, 1));
+        let cells: Vec<&Cell> = res.cells.iter().filter(|c| c.case == case).collect();
+        for (a, g) in areas.iter().zip([2usize, 1, 0]) {
+            let (mut y0, mut y1) = log_range(
+                cells
+                    .iter()
+                    .flat_map(|c| c.stats.nees.iter().map(move |n| n[g])),
+            );
+            y0 = y0.min(lo / 2.0).max(1e-3).log10();
+            y1 = y1.max(hi * 2.0).log10();
+            let x1 = res.duration_s / 60.0;
+            let mut ch = ChartBuilder::on(a)
+                .caption(
+                    format!("{} NEES (average over runs)", nav_study::stats::GROUPS[g]),
+                    ("sans-serif", 20),
+                )
+                .margin(8)
+                .x_label_area_size(34)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..x1, y0..y1)
+                .map_err(perr)?;
+            ch.configure_mesh()
+                .x_desc("time [min]")
+                .y_desc("log scale")
+                .y_label_formatter(&pow10_label)
+                .draw()
+                .map_err(perr)?;
+            if let Some((s0, s1)) = outage_span(res, case) {
+                ch.draw_series(std::iter::once(Rectangle::new(
+                    [(s0, y0), (s1, y1)],
+                    OUTAGE_FILL.filled(),
+                )))
+                .map_err(perr)?;
+            }
+            for b in [lo, 3.0, hi] {
+                let style = if b == 3.0 {
+                    BLACK.mix(0.4).stroke_width(1)
+                } else {
+                    BLACK.stroke_width(2)
+                };
+                let b = b.log10();
+                ch.draw_series(DashedLineSeries::new(vec![(0.0, b), (x1, b)], 10, 6, style))
+                    .map_err(perr)?;
+            }
+            for c in &cells {
+                let col = model_color(c.model);
+                let pts: Vec<(f64, f64)> = c
+                    .stats
+                    .t_rel_s
+                    .iter()
+                    .zip(&c.stats.nees)
+                    .filter(|(_, n)| n[g] > 0.0)
+                    .map(|(t, n)| (t / 60.0, n[g].log10().clamp(y0, y1)))
+                    .collect();
+                ch.draw_series(LineSeries::new(pts, col.stroke_width(2)))
+                    .map_err(perr)?
+                    .label(c.model.label())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
+                    });
+            }
+            ch.configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
                 .map_err(perr)?;
         }
-        for c in &cells {
-            let col = model_color(c.model);
-            let pts: Vec<(f64, f64)> = c
-                .stats
-                .t_rel_s
-                .iter()
-                .zip(&c.stats.nees)
-                .filter(|(_, n)| n[g] > 0.0)
-                .map(|(t, n)| (t / 60.0, n[g].log10().clamp(y0, y1)))
-                .collect();
-            ch.draw_series(LineSeries::new(pts, col.stroke_width(2)))
-                .map_err(perr)?
-                .label(c.model.label())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 18, y)], col.stroke_width(3))
-                });
-        }
-        ch.configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(perr)?;
-    }
-    root.present().map_err(perr)?;
-    Ok(())
+        root.present().map_err(perr)?;
+        Ok(())
+    })
 }
 
 fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
@@ -510,14 +516,16 @@ fn budget_panel(a: &Area<'_>, b: &Budget) -> anyhow::Result<()> {
 /// error at the end of the outage, gyro red, accelerometer blue, others grey.
 pub fn plot_budget(res: &StudyResult, path: &Path) -> anyhow::Result<()> {
     let nb = res.budgets.len().max(1);
-    let root = BitMapBackend::new(path, (1600, 520 * nb as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(perr)?;
-    let areas = root.split_evenly((nb, 1));
-    for (a, b) in areas.iter().zip(&res.budgets) {
-        budget_panel(a, b)?;
-    }
-    root.present().map_err(perr)?;
-    Ok(())
+    crate::png::draw_png(path, (1600, 520 * nb as u32), |root| {
+        let root = root.clone();
+        root.fill(&WHITE).map_err(perr)?;
+        let areas = root.split_evenly((nb, 1));
+        for (a, b) in areas.iter().zip(&res.budgets) {
+            budget_panel(a, b)?;
+        }
+        root.present().map_err(perr)?;
+        Ok(())
+    })
 }
 
 /// All plots; returns the file names written.

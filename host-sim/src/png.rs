@@ -1,0 +1,39 @@
+//! PNG figures: plotters' bitmap backend draws into memory and the `png` crate encodes the
+//! pixels, so the command line does not carry an image library for one file format.
+
+use plotters::coord::Shift;
+use plotters::prelude::{BitMapBackend, DrawingArea, IntoDrawingArea};
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+/// The drawing area of a figure of [`draw_png`]: 8-bit RGB pixels in memory.
+pub type PngArea<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// Draws a `width` x `height` pixel figure with `draw` (which fills, plots and presents the
+/// area it is given) and writes it to `path` as an 8-bit RGB PNG.
+pub fn draw_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    draw: impl for<'a> FnOnce(&PngArea<'a>) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let mut pixels = vec![0u8; 3 * width as usize * height as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+        draw(&root)?;
+        root.present()
+            .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+    }
+    let file = File::create(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc
+        .write_header()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    w.write_image_data(&pixels)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    w.finish()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(())
+}
