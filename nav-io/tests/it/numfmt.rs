@@ -218,13 +218,17 @@ fn nav_lines_through_a_block_buffer_match_display() {
             lat_rad: (48.199 + x * 1e-7).to_radians(),
             lon_rad: (16.37 - x * 3e-8).to_radians(),
             // every 97th a non-finite height (the `Display` path) and a tie-prone value
-            h_m: if k % 97 == 0 {
+            h_m: if k.is_multiple_of(97) {
                 f64::NAN
             } else {
                 220.0 + (x * 0.01).sin()
             },
             vel_ned_mps: [x * 1e-3, -(x * 1e-6), (x * 0.3).cos() * 1e-5],
-            rpy_rad: [1e-9 * x, if k % 89 == 0 { 0.25 } else { -0.01 }, 3.0],
+            rpy_rad: [
+                1e-9 * x,
+                if k.is_multiple_of(89) { 0.25 } else { -0.01 },
+                3.0,
+            ],
             ..NavSolution::default()
         }
     }
