@@ -273,17 +273,13 @@ impl Block {
     /// interval the accumulator keeps anyway (`Accumulator::c_dt`); [`Self::add_bias_f`]
     /// puts it in at the discretisation (the same sums, bit for bit, without adding 18 or 36
     /// numbers per IMU epoch).
-    ///
-    /// `c_dt` is the epoch's `C_b^n dt` (`reg.c_nb` scaled by `reg.dt`, s), formed once per
-    /// epoch by the caller for all blocks.
     pub fn accumulate_f<T: Scalar, const N: usize>(
         self,
         off: usize,
         reg: &Regressors<T>,
-        c_dt: &[[T; 3]; 3],
         f_top: &mut [[T; N]; CORE_DIM],
     ) {
-        let c_dt = *c_dt;
+        let c_dt = scale3(&reg.c_nb, reg.dt);
         match self {
             // the bias blocks: Self::add_bias_f at the discretisation
             Self::Core | Self::GyroBias(_) | Self::AccelBias(_) => {}

@@ -76,15 +76,13 @@ impl<T: Scalar, const N: usize> Accumulator<T, N> {
         for (a, f) in self.f_ned_dt.iter_mut().zip(f_ned_mps2) {
             *a += *f * reg.dt;
         }
-        // C_b^n dt formed once for the sum and every block's coupling (the same products)
-        let c_dt = super::scale3(&reg.c_nb, reg.dt);
-        for (arow, crow) in self.c_dt.iter_mut().zip(&c_dt) {
+        for (arow, crow) in self.c_dt.iter_mut().zip(&reg.c_nb) {
             for (a, c) in arow.iter_mut().zip(crow) {
-                *a += *c;
+                *a += *c * reg.dt;
             }
         }
         for (off, b) in layout.iter() {
-            b.accumulate_f(off, reg, &c_dt, &mut self.f_top);
+            b.accumulate_f(off, reg, &mut self.f_top);
         }
     }
 }
