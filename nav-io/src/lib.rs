@@ -60,7 +60,7 @@ pub use lines::{
 };
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;
-pub use numfmt::LineBuf;
+pub use numfmt::{BlockBuf, LineBuf};
 pub use odometer::{
     read_odometer, write_odometer, OdometerReader, OdometerSample, OdometerStream, OdometerTrack,
 };

@@ -26,12 +26,17 @@ use std::io::Write;
 /// Longest text written through the fast path (longer numbers go through `Display`).
 const FAST_MAX: usize = 48;
 
-/// A line assembled on the stack and written with one `write_all` (at most 512 bytes are
-/// held; a longer line is written in pieces).
-pub struct LineBuf {
-    buf: [u8; 512],
+/// Text assembled in a buffer of `CAP` bytes (default 512, one line on the stack) and written
+/// with one `write_all` when it is flushed or full (a longer text is written in pieces). A
+/// large buffer (e.g. [`BlockBuf`]) holds many lines and writes them in blocks.
+pub struct LineBuf<const CAP: usize = 512> {
+    buf: [u8; CAP],
     len: usize,
 }
+
+/// A [`LineBuf`] of 128 KiB, kept on the heap: many lines written in blocks (no write per
+/// line; a block larger than a 64 KiB `BufWriter` goes past its buffer, no second copy).
+pub type BlockBuf = LineBuf<{ 128 << 10 }>;
 
 impl Default for LineBuf {
     fn default() -> Self {
@@ -46,6 +51,44 @@ impl LineBuf {
             buf: [0; 512],
             len: 0,
         }
+    }
+}
+
+impl BlockBuf {
+    /// An empty block buffer on the heap.
+    pub fn boxed() -> Box<Self> {
+        Box::new(Self {
+            buf: [0; 128 << 10],
+            len: 0,
+        })
+    }
+}
+
+impl<const CAP: usize> LineBuf<CAP> {
+    /// An empty buffer of `CAP` bytes (by value: on the stack for a small `CAP`; see
+    /// [`BlockBuf::boxed`] for the large one).
+    pub fn new_block() -> Self {
+        Self {
+            buf: [0; CAP],
+            len: 0,
+        }
+    }
+
+    /// Bytes held, not yet written.
+    pub fn pending(&self) -> usize {
+        self.len
+    }
+
+    /// Appends one byte (flushing to `w` first when the buffer is full).
+    pub fn push_byte<W: Write + ?Sized>(&mut self, w: &mut W, b: u8) -> std::io::Result<()> {
+        if self.len >= CAP {
+            self.flush(w)?;
+        }
+        if let Some(d) = self.buf.get_mut(self.len) {
+            *d = b;
+            self.len += 1;
+        }
+        Ok(())
     }
 
     /// Appends raw bytes (flushing to `w` first when they would not fit).

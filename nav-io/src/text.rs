@@ -798,6 +798,18 @@ pub fn write_nav_line_with<W: Write + ?Sized>(
     n: &NavSolution,
 ) -> std::io::Result<()> {
     lb.clear();
+    push_nav_line(lb, w, n)?;
+    lb.flush(w)
+}
+
+/// Appends the `nav.txt` line of `n` ([`write_nav_line`]'s bytes) to `lb`, which writes to
+/// `w` only when it is full: with a [`super::numfmt::BlockBuf`] many lines go out in one
+/// write. The caller flushes `lb` at the end.
+pub fn push_nav_line<W: Write + ?Sized, const CAP: usize>(
+    lb: &mut super::numfmt::LineBuf<CAP>,
+    w: &mut W,
+    n: &NavSolution,
+) -> std::io::Result<()> {
     lb.push_u64(w, u64::from(n.week))?;
     for x in [
         n.t_s,
@@ -811,11 +823,10 @@ pub fn write_nav_line_with<W: Write + ?Sized>(
         n.rpy_rad[1].to_degrees(),
         n.rpy_rad[2].to_degrees(),
     ] {
-        lb.push_bytes(w, b" ")?;
+        lb.push_byte(w, b' ')?;
         lb.push_f64(w, x)?;
     }
-    lb.push_bytes(w, b"\n")?;
-    lb.flush(w)
+    lb.push_byte(w, b'\n')
 }
 
 /// [`write_nav_line`] with `write!` and `Display` (the reference the fast form must equal;

@@ -127,6 +127,13 @@ pub trait RunSink {
     fn wants_epochs(&self) -> bool {
         true
     }
+    /// True when the sink reads the standard deviations of the [`Self::nav`] records
+    /// (`pos_std_ned_m`, `vel_std_ned_mps`, `att_std_rad`); when false, a navigation record
+    /// taken without an epoch record carries NaN there (the attitude sigmas cost a matrix
+    /// inverse and four trigonometric calls per record).
+    fn wants_nav_std(&self) -> bool {
+        true
+    }
 }
 
 /// The in-memory sink: keeps every record (what [`super::run_filter`] returns).
@@ -454,6 +461,7 @@ pub(crate) fn run_layout_stream<T: Scalar, const N: usize>(
     let mut hooks =
         engine_hooks::<T, N>(sink, opts, &outages, &coast_modes, gnss, (t0, first, gi0))?;
     hooks.want_epochs = hooks.sink.wants_epochs();
+    hooks.want_nav_std = hooks.sink.wants_nav_std();
     if let Some(f) = nav.filter() {
         hooks.record(f);
     }
@@ -560,6 +568,7 @@ fn engine_hooks<'a, 'g, T: Scalar, const N: usize>(
         nav_dec: Decimator::new(opts.record.nav_rate_hz, t0),
         ep_dec: Decimator::new(opts.record.epoch_rate_hz, t0),
         want_epochs: false,
+        want_nav_std: true,
         coast_modes,
         coasters: Vec::new(),
         raw: None,

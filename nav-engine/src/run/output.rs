@@ -92,10 +92,10 @@ pub fn std_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Resul
     let mut lb = nav_io::LineBuf::new();
     lb.push_fixed(w, r.t_s, 4)?;
     for s in &r.state_std {
-        lb.push_bytes(w, b" ")?;
+        lb.push_byte(w, b' ')?;
         lb.push_exp(w, *s, 6)?;
     }
-    lb.push_bytes(w, b"\n")?;
+    lb.push_byte(w, b'\n')?;
     lb.flush(w)
 }
 
@@ -160,11 +160,11 @@ pub fn bias_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Resu
     for b in &r.blocks {
         let (_, k) = unit_of(&b.name);
         for v in b.value.iter().chain(b.std.iter()) {
-            lb.push_bytes(w, b" ")?;
+            lb.push_byte(w, b' ')?;
             lb.push_fixed(w, v * k, 6)?;
         }
     }
-    lb.push_bytes(w, b"\n")?;
+    lb.push_byte(w, b'\n')?;
     lb.flush(w)
 }
 

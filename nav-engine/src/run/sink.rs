@@ -202,8 +202,9 @@ struct Writer {
     inn: Out,
     bias_head: bool,
     line: Vec<u8>,
-    /// The `nav.txt` line being assembled (kept: no buffer set up per line).
-    nav_line: nav_io::LineBuf,
+    /// The `nav.txt` lines not yet written: formatted in place into a block, written to the
+    /// file when it is full and at the end ([`Writer::flush_nav`]).
+    nav_block: Box<nav_io::BlockBuf>,
 }
 
 impl Writer {
@@ -224,11 +225,12 @@ impl Writer {
 
     fn nav_line(&mut self, s: &NavSolution) -> Result<(), RunError> {
         if self.nav.cut.is_none() && !solution_is_finite(s) {
-            self.nav.cut = Some(self.nav.n);
+            // the bytes written plus those still in the block
+            self.nav.cut = Some(self.nav.n + self.nav_block.pending() as u64);
         }
         let Out { w, n, .. } = &mut self.nav;
-        let r = nav_io::text::write_nav_line_with(
-            &mut self.nav_line,
+        let r = nav_io::text::push_nav_line(
+            &mut *self.nav_block,
             &mut Counted { w, n },
             &NavSolution {
                 week: self.week,
@@ -238,6 +240,13 @@ impl Writer {
         r.map_err(|e| self.nav.err(e))?;
         self.nav_sync.poke(self.nav.n);
         Ok(())
+    }
+
+    /// Writes the `nav.txt` lines still in the block to the file's buffer.
+    fn flush_nav(&mut self) -> Result<(), RunError> {
+        let Out { w, n, .. } = &mut self.nav;
+        let r = self.nav_block.flush(&mut Counted { w, n });
+        r.map_err(|e| self.nav.err(e))
     }
 
     fn epoch_lines(&mut self, l: &mut Vec<u8>, r: &EpochRecord) -> Result<(), RunError> {
@@ -329,7 +338,7 @@ impl<'a> FileSink<'a> {
             inn,
             bias_head: false,
             line: Vec::with_capacity(256),
-            nav_line: nav_io::LineBuf::new(),
+            nav_block: nav_io::BlockBuf::boxed(),
         };
         let (tx, rx) = sync_channel::<Vec<Rec>>(QUEUE);
         // at most QUEUE + 2 batches exist at once: the returned ones fit without waiting
@@ -345,6 +354,7 @@ impl<'a> FileSink<'a> {
                     // dropped when the filter thread has enough (or is gone)
                     let _ = spent_tx.try_send(batch);
                 }
+                w.flush_nav()?;
                 Ok(w)
             })
             .map_err(|source| {
@@ -574,6 +584,12 @@ impl RunSink for FileSink<'_> {
 
     fn epoch(&mut self, r: EpochRecord) -> Result<(), RunError> {
         self.push(Rec::Epoch(Box::new(r)))
+    }
+
+    /// `nav.txt` and the metrics read no standard deviation of a navigation record
+    /// (`std.txt` takes them from the epoch records).
+    fn wants_nav_std(&self) -> bool {
+        false
     }
 
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {

@@ -203,3 +203,52 @@ fn nav_lines_through_a_kept_line_buffer_match_display() {
         String::from_utf8(reference_text).unwrap()
     );
 }
+
+/// Many nav lines appended to a block buffer (written only when it is full, so lines are cut
+/// across writes) give the bytes of `write!` and `Display`, with a small buffer (a write every
+/// few lines, numbers through `Display` after a flush) and with the run's [`nav_io::BlockBuf`].
+#[test]
+fn nav_lines_through_a_block_buffer_match_display() {
+    use nav_core::types::NavSolution;
+    fn lines(k: u32) -> NavSolution {
+        let x = f64::from(k);
+        NavSolution {
+            week: 2227,
+            t_s: 118_800.0 + x * 0.005,
+            lat_rad: (48.199 + x * 1e-7).to_radians(),
+            lon_rad: (16.37 - x * 3e-8).to_radians(),
+            // every 97th a non-finite height (the `Display` path) and a tie-prone value
+            h_m: if k.is_multiple_of(97) {
+                f64::NAN
+            } else {
+                220.0 + (x * 0.01).sin()
+            },
+            vel_ned_mps: [x * 1e-3, -(x * 1e-6), (x * 0.3).cos() * 1e-5],
+            rpy_rad: [
+                1e-9 * x,
+                if k.is_multiple_of(89) { 0.25 } else { -0.01 },
+                3.0,
+            ],
+            ..NavSolution::default()
+        }
+    }
+    let mut reference_text = Vec::new();
+    for k in 0..3000u32 {
+        nav_io::text::write_nav_line_display(&mut reference_text, &lines(k)).unwrap();
+    }
+    let mut small = LineBuf::<200>::new_block();
+    let mut big = nav_io::BlockBuf::boxed();
+    let (mut small_text, mut big_text) = (Vec::new(), Vec::new());
+    for k in 0..3000u32 {
+        nav_io::text::push_nav_line(&mut small, &mut small_text, &lines(k)).unwrap();
+        nav_io::text::push_nav_line(&mut *big, &mut big_text, &lines(k)).unwrap();
+    }
+    assert!(big.pending() > 0 && big_text.len() > 128 << 10);
+    assert_eq!(small_text.len() + small.pending(), reference_text.len());
+    small.flush(&mut small_text).unwrap();
+    big.flush(&mut big_text).unwrap();
+    assert_eq!(big.pending(), 0);
+    let r = String::from_utf8(reference_text).unwrap();
+    assert_eq!(String::from_utf8(small_text).unwrap(), r);
+    assert_eq!(String::from_utf8(big_text).unwrap(), r);
+}

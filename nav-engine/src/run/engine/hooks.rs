@@ -13,7 +13,7 @@ use nav_core::filter::{Filter, FilterError};
 use nav_core::model::ImuCorrection;
 use nav_core::navigator::{FixEvent, NavHooks, ObserveWith};
 use nav_core::scalar::Scalar;
-use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use nav_core::types::{FixQuality, GnssFix, ImuSample, NavSolution};
 
 /// The host run's additions to the navigator's loop ([`NavHooks`]): records at every epoch,
 /// innovations, fixes withheld inside outages, outage snapshots and the coasters they start,
@@ -35,6 +35,9 @@ pub(super) struct EngineHooks<'a, 'g, T: Scalar> {
     pub(super) nav_dec: Decimator,
     pub(super) ep_dec: Decimator,
     pub(super) want_epochs: bool,
+    /// The sink reads the navigation records' standard deviations
+    /// ([`RunSink::wants_nav_std`]).
+    pub(super) want_nav_std: bool,
     pub(super) coast_modes: &'a [CoastMode],
     pub(super) coasters: Vec<Coaster>,
     /// The raw sample being pushed and the next sample's time (the coasters step on it after
@@ -76,7 +79,15 @@ impl<T: Scalar> EngineHooks<'_, '_, T> {
         let take_nav = self.nav_dec.take(t);
         let take_ep = self.ep_dec.take(t) && self.want_epochs;
         if take_nav || take_ep {
-            let s = f.solution();
+            let s = if take_ep || self.want_nav_std {
+                f.solution()
+            } else {
+                // the same position, velocity, attitude and status; sigmas NaN (unread)
+                NavSolution {
+                    status: f.status(),
+                    ..f.nav_state().to_solution()
+                }
+            };
             if take_nav {
                 let r = self.sink.nav(&s);
                 self.put(r);
