@@ -668,17 +668,21 @@ pub struct Measurements {
     pub realized: Realized,
 }
 
-/// Sensors and sources of the random streams.
+// Sensors and sources of the random streams ([`stream`]).
 const ACCEL: u64 = 1;
 const GYRO: u64 = 2;
-const GNSS: u64 = 3;
+/// The GNSS receiver's sensor number in [`stream`].
+pub const GNSS: u64 = 3;
 const TEMP: u64 = 4;
-const SRC_WHITE: u64 = 1;
-const SRC_GM: u64 = 2;
+/// The white-noise source number in [`stream`].
+pub const SRC_WHITE: u64 = 1;
+/// The Gauss-Markov source number in [`stream`].
+pub const SRC_GM: u64 = 2;
 const SRC_RW: u64 = 3;
 const SRC_FLICKER: u64 = 4;
 const SRC_TURN_ON: u64 = 5;
-const SRC_GNSS_VEL: u64 = 6;
+/// The GNSS velocity-noise source number in [`stream`].
+pub const SRC_GNSS_VEL: u64 = 6;
 
 /// The random stream of (sensor, source, axis) for a seed: independent of every other
 /// stream, so turning a source on or off never changes the others.

@@ -6,14 +6,17 @@
 //! 100 Hz 0.43 mm, 3e-6 m/s and 1.1e-10 rad on the drive, 3.6 cm, 2.6e-4 m/s and 1.5e-7 rad
 //! on the drive with wobble (test-support's test `filter_sim_truth`
 //! measures it; until the generator moved onto `nav_sim` the truth was the strapdown's own
-//! output and this error was zero by construction). The errors:
+//! output and this error was zero by construction). The errors are drawn by `nav_sim`'s
+//! sensor-error model (`nav_sim::errors::AxisErrors`, the one `host-sim simulate` applies,
+//! with its per-seed streams), sample by sample:
 //!
-//! * accelerometer bias = b_GM (first-order Gauss-Markov, stationary start) + b_RW (random
-//!   walk starting at N(0, bias_init_sigma^2)); gyro bias likewise (GM part only when the
-//!   gyro S_B > 0); optional Gauss-Markov scale factors;
+//! * accelerometer bias = Gauss-Markov (S_B, T_B, stationary start) + random walk (S_K,
+//!   from 0) + a turn-on constant of sigma `bias_init_sigma`; gyro bias likewise;
 //! * white noise on the increments with variance S_N dt;
-//! * GNSS antenna positions (and velocities) with white noise of the stated sigma, at integer
-//!   seconds aligned with IMU epochs.
+//! * optional Gauss-Markov scale factors (`nav_sim::noise::GaussMarkov`, stationary sigma
+//!   and correlation time from `truth`);
+//! * GNSS antenna positions (and velocities) with white noise of the stated sigma (the
+//!   simulator's GNSS noise streams), at integer seconds aligned with IMU epochs.
 //!
 //! The trajectory is a repeating 100 s drive: accelerations, decelerations, left and right
 //! turns (heading and horizontal accelerometer biases become observable) and gentle vertical
@@ -42,6 +45,10 @@ use nav_core::filter::{Filter, InitialUncertainty};
 use nav_core::scalar::Scalar;
 use nav_core::strapdown::NavState;
 use nav_core::types::{FixQuality, GnssFix, ImuSample};
+use nav_sim::errors::{
+    stream, Axes3, AxisErrors, Sensor, SensorErrors, GNSS, SRC_GM, SRC_GNSS_VEL, SRC_WHITE,
+};
+use nav_sim::noise::GaussMarkov;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -189,11 +196,39 @@ pub struct Epoch {
     pub gyro_sf: [f64; 3],
 }
 
-/// Gauss-Markov + random-walk triad.
-#[derive(Debug, Clone, Copy, Default)]
-struct Bias {
-    gm: [f64; 3],
-    rw: [f64; 3],
+/// The sensor-error model of a sensor triad's noise parameters (`nav_sim`'s): white noise
+/// S_N, Gauss-Markov S_B/T_B (stationary start), random walk S_K and the random walk's start
+/// as a turn-on bias of sigma `bias_init_sigma`.
+fn sensor_errors(n: &nav_core::config::SensorNoise) -> SensorErrors {
+    SensorErrors {
+        white_psd: Axes3(n.s_n),
+        gm_psd: Axes3(n.s_b),
+        gm_tau_s: Axes3::splat(n.t_b_s),
+        rw_psd: Axes3(n.s_k),
+        turn_on_bias_sigma: Axes3(n.bias_init_sigma),
+        ..SensorErrors::default()
+    }
+}
+
+/// The random streams of the Gauss-Markov scale factors (sensor numbers of `nav_sim`'s
+/// [`stream`] beyond its own: 5 accelerometer, 6 gyro scale factor).
+const SF_ACCEL: u64 = 5;
+const SF_GYRO: u64 = 6;
+
+/// A Gauss-Markov scale-factor error of stationary sigma `sigma` and correlation time
+/// `tau_s` (s) as `nav_sim`'s process (driving PSD `2 sigma^2 / tau`), with its stream.
+fn scale_factor_process(
+    sigma: f64,
+    tau_s: f64,
+    dt_s: f64,
+    seed: u64,
+    sensor: u64,
+    axis: u64,
+) -> (GaussMarkov, ChaCha8Rng) {
+    (
+        GaussMarkov::new(2.0 * sigma * sigma / tau_s, tau_s, dt_s),
+        stream(seed, sensor, SRC_GM, axis),
+    )
 }
 
 /// The test vehicle as a `nav_sim` motion: along-track acceleration and yaw rate held over
@@ -289,16 +324,19 @@ impl nav_sim::Motion for DriveMotion {
 /// The generator.
 pub struct Sim {
     pub cfg: SimConfig,
+    /// The draws of the initial state's errors ([`Sim::perturbed_initial`]).
     rng: ChaCha8Rng,
     integ: nav_sim::Integrator<DriveMotion>,
     truth: NavState,
     k: u64,
     t0_s: f64,
     dt_s: f64,
-    accel: Bias,
-    gyro: Bias,
-    accel_sf: [f64; 3],
-    gyro_sf: [f64; 3],
+    /// Accelerometer axes, then gyro axes: `nav_sim`'s sensor-error model.
+    imu_errors: [AxisErrors; 6],
+    /// Gauss-Markov scale factors (accelerometer axes, then gyro axes), when on.
+    sf_processes: Option<[(GaussMarkov, ChaCha8Rng); 6]>,
+    /// GNSS position (N, E, D) then velocity noise streams.
+    gnss_rng: [ChaCha8Rng; 6],
     /// Inertial body rate of the last generated interval, rad/s.
     last_w_ib: Vector3<f64>,
 }
@@ -328,31 +366,13 @@ impl Sim {
 
     /// A generator whose truth is integrated with `n_sub` RK4 sub-steps per IMU interval.
     pub fn with_substeps(cfg: SimConfig, seed: u64, n_sub: u32) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let rng = ChaCha8Rng::seed_from_u64(seed);
         let speed = if cfg.motion == Motion::Static {
             0.0
         } else {
             cfg.speed0_mps
         };
         let init = initial_truth(speed);
-        let draw_bias = |n: &nav_core::config::SensorNoise, rng: &mut ChaCha8Rng| {
-            let mut b = Bias::default();
-            for i in 0..3 {
-                b.gm[i] = (0.5 * n.s_b[i] * n.t_b_s).sqrt() * randn(rng);
-                b.rw[i] = n.bias_init_sigma[i] * randn(rng);
-            }
-            b
-        };
-        let accel = draw_bias(&cfg.truth.accel, &mut rng);
-        let gyro = draw_bias(&cfg.truth.gyro, &mut rng);
-        let mut accel_sf = [0.0; 3];
-        let mut gyro_sf = [0.0; 3];
-        if cfg.scale_factors {
-            for i in 0..3 {
-                accel_sf[i] = cfg.truth.accel_scale.sigma[i] * randn(&mut rng);
-                gyro_sf[i] = cfg.truth.gyro_scale.sigma[i] * randn(&mut rng);
-            }
-        }
         let drive = DriveMotion {
             motion: cfg.motion,
             wobble: cfg.wobble,
@@ -363,6 +383,29 @@ impl Sim {
         };
         let dt_s = 1.0 / cfg.imu_hz;
         let yaw0 = 30f64.to_radians();
+        let (acc, gyr) = (
+            sensor_errors(&cfg.truth.accel),
+            sensor_errors(&cfg.truth.gyro),
+        );
+        let imu_errors = std::array::from_fn(|k| {
+            let (e, sensor) = if k < 3 {
+                (&acc, Sensor::Accel)
+            } else {
+                (&gyr, Sensor::Gyro)
+            };
+            AxisErrors::for_sensor(e, sensor, k % 3, seed, dt_s, 0)
+        });
+        let sf_processes = cfg.scale_factors.then(|| {
+            std::array::from_fn(|k| {
+                let (p, sensor) = if k < 3 {
+                    (&cfg.truth.accel_scale, SF_ACCEL)
+                } else {
+                    (&cfg.truth.gyro_scale, SF_GYRO)
+                };
+                let sigma = p.sigma[k % 3];
+                scale_factor_process(sigma, p.t_s, dt_s, seed, sensor, (k % 3) as u64)
+            })
+        });
         Self {
             cfg,
             rng,
@@ -371,10 +414,12 @@ impl Sim {
             k: 0,
             t0_s: init.t_s,
             dt_s,
-            accel,
-            gyro,
-            accel_sf,
-            gyro_sf,
+            imu_errors,
+            sf_processes,
+            gnss_rng: std::array::from_fn(|k| {
+                let src = if k < 3 { SRC_WHITE } else { SRC_GNSS_VEL };
+                stream(seed, GNSS, src, (k % 3) as u64)
+            }),
             last_w_ib: Vector3::zeros(),
         }
     }
@@ -400,18 +445,26 @@ impl Sim {
             q_nb: UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(kin.c_bn)),
         };
 
-        // sensor errors during this sample
-        let ab = self.bias_total(true);
-        let gb = self.bias_total(false);
-        let tr = &self.cfg.truth;
+        // sensor errors during this sample: scale factors, then nav_sim's error model
+        let sf: [f64; 6] = match self.sf_processes.as_mut() {
+            Some(p) => std::array::from_fn(|k| {
+                let (g, rng) = &mut p[k];
+                g.next(rng)
+            }),
+            None => [0.0; 6],
+        };
+        let (accel_sf, gyro_sf) = ([sf[0], sf[1], sf[2]], [sf[3], sf[4], sf[5]]);
+        let k = self.k as usize - 1;
         let mut imu = clean;
+        let mut ab = [0.0; 3];
+        let mut gb = [0.0; 3];
         for i in 0..3 {
-            imu.dtheta_rad[i] = (1.0 + self.gyro_sf[i]) * dtheta[i]
-                + gb[i] * dt
-                + (tr.gyro.s_n[i] * dt).sqrt() * randn(&mut self.rng);
-            imu.dv_mps[i] = (1.0 + self.accel_sf[i]) * dv[i]
-                + ab[i] * dt
-                + (tr.accel.s_n[i] * dt).sqrt() * randn(&mut self.rng);
+            let a = &mut self.imu_errors[i];
+            imu.dv_mps[i] = a.apply(k, (1.0 + accel_sf[i]) * dv[i]);
+            ab[i] = a.bias_now();
+            let g = &mut self.imu_errors[3 + i];
+            imu.dtheta_rad[i] = g.apply(k, (1.0 + gyro_sf[i]) * dtheta[i]);
+            gb[i] = g.bias_now();
         }
         let fx = self.cfg.effects;
         if let Some(tp) = fx.temperature {
@@ -432,10 +485,6 @@ impl Sim {
                 imu.dv_mps[i] += fx.accel_sf[i] * dv[i] + ma[i] + fx.accel_temp_coeff[i] * d_t * dt;
             }
         }
-        let epoch_accel_sf = self.accel_sf;
-        let epoch_gyro_sf = self.gyro_sf;
-        self.advance_errors(dt);
-
         let truth = self.truth;
         let gnss = if self.k.is_multiple_of(self.cfg.imu_hz.round() as u64) {
             Some(self.fix(&truth))
@@ -448,47 +497,17 @@ impl Sim {
             gnss,
             accel_bias_mps2: ab,
             gyro_bias_radps: gb,
-            accel_sf: epoch_accel_sf,
-            gyro_sf: epoch_gyro_sf,
-        }
-    }
-
-    fn bias_total(&self, accel: bool) -> [f64; 3] {
-        let b = if accel { &self.accel } else { &self.gyro };
-        [b.gm[0] + b.rw[0], b.gm[1] + b.rw[1], b.gm[2] + b.rw[2]]
-    }
-
-    fn advance_errors(&mut self, dt: f64) {
-        let tr = self.cfg.truth;
-        for (b, n) in [(&mut self.accel, &tr.accel), (&mut self.gyro, &tr.gyro)] {
-            let phi = (-dt / n.t_b_s).exp();
-            for i in 0..3 {
-                let q = 0.5 * n.s_b[i] * n.t_b_s * (1.0 - phi * phi);
-                b.gm[i] = phi * b.gm[i] + q.sqrt() * randn(&mut self.rng);
-                b.rw[i] += (n.s_k[i] * dt).sqrt() * randn(&mut self.rng);
-            }
-        }
-        if self.cfg.scale_factors {
-            for (s, p) in [
-                (&mut self.accel_sf, &tr.accel_scale),
-                (&mut self.gyro_sf, &tr.gyro_scale),
-            ] {
-                let phi = (-dt / p.t_s).exp();
-                for i in 0..3 {
-                    let q = p.sigma[i] * p.sigma[i] * (1.0 - phi * phi);
-                    s[i] = phi * s[i] + q.sqrt() * randn(&mut self.rng);
-                }
-            }
+            accel_sf,
+            gyro_sf,
         }
     }
 
     fn fix(&mut self, truth: &NavState) -> GnssFix {
         let c = truth.q_nb.to_rotation_matrix().into_inner();
         let l = Vector3::from(self.cfg.lever_arm_body_m);
-        let mut n = Vector3::zeros();
-        for i in 0..3 {
-            n[i] = self.cfg.gnss_pos_sigma_m[i] * randn(&mut self.rng);
-        }
+        // nav_sim's GNSS white-noise streams (position, velocity), one draw per fix
+        let n =
+            Vector3::from_fn(|i, _| self.cfg.gnss_pos_sigma_m[i] * randn(&mut self.gnss_rng[i]));
         let ant = earth::displace(&truth.pos, &(c * l));
         let p = earth::displace(&ant, &n);
         let mut vel = [0.0; 3];
@@ -499,7 +518,7 @@ impl Sim {
                 + earth::transport_rate_ned_radps(lat, truth.pos.h_m, &truth.vel_ned_mps);
             let v = truth.vel_ned_mps + c * w.cross(&l) - w_in.cross(&(c * l));
             for i in 0..3 {
-                vel[i] = v[i] + self.cfg.gnss_vel_sigma_mps[i] * randn(&mut self.rng);
+                vel[i] = v[i] + self.cfg.gnss_vel_sigma_mps[i] * randn(&mut self.gnss_rng[3 + i]);
             }
         }
         GnssFix {
@@ -955,12 +974,11 @@ pub fn check_outage_improvement(name: &str, with: &RunStats, without: &RunStats)
 
 #[cfg(test)]
 mod tests {
-    use nav_sim::errors::{Axes3, AxisErrors, Sensor};
+    use super::*;
     use nav_sim::{ErrorModel, Scenario, Trajectory};
 
-    /// `nav_sim`'s sensor-error model applied sample by sample (one `AxisErrors` per axis, as
-    /// a streaming generator like this one draws) gives the simulator's measurements bit for
-    /// bit: the same
+    /// The generator's way of drawing the sensor errors (sample by sample, one
+    /// `AxisErrors` per axis) gives the simulator's measurements bit for bit: the same
     /// model and seed through `ErrorModel::apply_imu` over a 20 s drive, with every stochastic
     /// source on (turn-on bias, bias step, white, Gauss-Markov, random walk, flicker,
     /// quantization).
