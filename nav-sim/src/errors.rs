@@ -566,13 +566,7 @@ impl ErrorModel {
                     "{name}: bias_step must be finite and bias_step_at_s finite and >= 0"
                 ));
             }
-            if let Some(g) = &s.scale_factor_gm {
-                if !(g.sigma_ppm.all(|x| x.is_finite() && x >= 0.0) && pos(g.tau_s)) {
-                    return bad(format!(
-                        "{name}.scale_factor_gm: sigma_ppm finite and >= 0, tau_s > 0"
-                    ));
-                }
-            }
+            check_scale_gm(name, s.scale_factor_gm.as_ref())?;
             let finite = [s.bias, s.scale_factor_ppm, s.temp_coeff_per_c];
             if !finite.iter().all(|a| a.all(f64::is_finite))
                 || !s.misalignment_rad.iter().flatten().all(|x| x.is_finite())
@@ -649,6 +643,18 @@ impl ErrorModel {
             }
         }
         Ok(())
+    }
+}
+
+/// Checks a sensor's Gauss-Markov scale factor (`name` the sensor, for the message).
+fn check_scale_gm(name: &str, g: Option<&ScaleFactorGm>) -> Result<(), ErrorModelError> {
+    match g {
+        Some(g) if !(g.sigma_ppm.all(|x| x.is_finite() && x >= 0.0) && pos(g.tau_s)) => {
+            Err(ErrorModelError::Invalid(format!(
+                "{name}.scale_factor_gm: sigma_ppm must be finite and >= 0, tau_s > 0"
+            )))
+        }
+        _ => Ok(()),
     }
 }
 
