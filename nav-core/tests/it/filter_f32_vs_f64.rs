@@ -238,7 +238,7 @@ fn predicted_f32_covariance_is_exactly_symmetric() {
         let p = f.covariance();
         for (i, row) in p.iter().enumerate() {
             for (j, v) in row.iter().enumerate().take(i) {
-                if v.to_bits() != p[j][i].to_bits() && asymmetric.len() < 10 {
+                if v.to_bits() != p[j][i].to_bits() && !asymmetric.contains(&(i, j)) {
                     asymmetric.push((i, j));
                 }
             }
