@@ -163,13 +163,8 @@ impl Strapdown {
         let hdt32 = 0.5 * dt32;
 
         // 1. Body frame: coning, rotation compensation and sculling (the terms of `update`).
-        let BodyTerms {
-            dth32,
-            dv32,
-            dv_corr,
-            phi32,
-            ..
-        } = self.body_terms(dtheta_rad, dv_mps, dt32);
+        let (dth32, dv32) = (dtheta_rad, dv_mps);
+        let BodyTerms { dv_corr, phi32, .. } = self.body_terms(dth32, dv32, dt32);
         let dv_b = add32(dv32, dv_corr);
 
         let s = self.state;
