@@ -537,14 +537,13 @@ impl Strapdown {
         self.have_prev = false;
     }
 
-    /// The body-frame terms of the step over `dt32` s (step 1 of [`Strapdown::update`]): the
-    /// increments in f32, the coning term (two-sample, with the previous interval's
-    /// increments when it is usable, else zero), the rotation compensation plus sculling of
-    /// `dv` and the body rotation vector `dtheta + coning`, rad and m/s.
+    /// The body-frame terms of the step over `dt32` s (step 1 of [`Strapdown::update`] and of
+    /// [`Strapdown::update_single`]) from the increments `dth32` (rad) and `dv32` (m/s) in
+    /// f32: the coning term (two-sample, with the previous interval's increments when it is
+    /// usable, else zero), the rotation compensation plus sculling of `dv` and the body
+    /// rotation vector `dtheta + coning`, rad and m/s.
     #[inline(always)]
-    fn body_terms(&self, imu: &ImuSample, dt32: f32) -> BodyTerms {
-        let dth32 = arr32(&imu.dtheta_rad);
-        let dv32 = arr32(&imu.dv_mps);
+    fn body_terms(&self, dth32: [f32; 3], dv32: [f32; 3], dt32: f32) -> BodyTerms {
         let use_prev =
             self.have_prev && dt32 <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt32;
         let (p_th, p_dv) = if use_prev {
@@ -591,7 +590,7 @@ impl Strapdown {
             coning,
             dv_corr,
             phi32,
-        } = self.body_terms(imu, dt32);
+        } = self.body_terms(arr32(&imu.dtheta_rad), arr32(&imu.dv_mps), dt32);
 
         let s = self.state;
         let q = *s.q_nb.quaternion();
@@ -687,9 +686,8 @@ impl Strapdown {
     }
 }
 
-/// The previous, straightforward `f64` implementation of the same algorithm (one `sin`, `cos`,
-/// `sqrt` per step, every term in `f64`), kept as the reference the optimised step is checked
-/// against.
+/// The single-precision step ([`Strapdown::update_single`], the MCU's): the same body terms
+/// ([`Strapdown::body_terms`]), every increment in `f32`, the state's sums in `f64`.
 mod single;
 pub use single::StepInfo32;
 
@@ -742,6 +740,9 @@ fn attitude_step(
     UnitQuaternion::new_unchecked(q2 * f)
 }
 
+/// The previous, straightforward `f64` implementation of the same algorithm (one `sin`, `cos`,
+/// `sqrt` per step, every term in `f64`), kept as the reference the optimised step is checked
+/// against.
 #[cfg(test)]
 mod plain;
 

@@ -10,7 +10,8 @@
 //! dv_meas     = (I + diag(sf_a) + M_a) dv + (same bias terms) + white, then quantization
 //! ```
 //!
-//! with `dtheta`, `dv` the ideal increments, `sf` the scale factors, `M` the off-diagonal
+//! with `dtheta`, `dv` the ideal increments, `sf` the scale factors (fixed, plus an optional
+//! first-order Gauss-Markov part, [`SensorErrors::scale_factor_gm`]), `M` the off-diagonal
 //! misalignment/non-orthogonality matrix (`meas_i += M_ij * true_j`, rad), `G` the gyro
 //! g-sensitivity (rad/s per m/s^2, so `G dv` is in rad), `k_T` the temperature coefficient of
 //! the bias and `T(t)` the simulated sensor temperature. GNSS: the antenna position (IMU
@@ -123,6 +124,10 @@ pub struct SensorErrors {
     pub quantization_step: Axes3,
     /// Scale-factor error, ppm.
     pub scale_factor_ppm: Axes3,
+    /// A time-varying scale-factor error on top of `scale_factor_ppm`: first-order
+    /// Gauss-Markov (KF-GINS' scale-factor model), stationary start; none when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_factor_gm: Option<ScaleFactorGm>,
     /// Misalignment / non-orthogonality, rad: row i = sensor axis, column j = body axis;
     /// `meas_i += M_ij * true_j`. The diagonal must be zero (use `scale_factor_ppm`).
     pub misalignment_rad: [[f64; 3]; 3],
@@ -149,11 +154,24 @@ impl Default for SensorErrors {
             bias_step_at_s: 0.0,
             quantization_step: Axes3::default(),
             scale_factor_ppm: Axes3::default(),
+            scale_factor_gm: None,
             misalignment_rad: [[0.0; 3]; 3],
             temp_coeff_per_c: Axes3::default(),
             g_sensitivity_radps_per_mps2: [[0.0; 3]; 3],
         }
     }
+}
+
+/// A Gauss-Markov scale-factor error ([`SensorErrors::scale_factor_gm`]): per axis the
+/// process `s' = -s / tau + w` with stationary standard deviation `sigma_ppm` (the driving
+/// PSD `2 sigma^2 / tau`), drawn from the stationary distribution at the first sample.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScaleFactorGm {
+    /// Stationary standard deviation, ppm.
+    pub sigma_ppm: Axes3,
+    /// Correlation time, s.
+    pub tau_s: f64,
 }
 
 /// Simulated sensor temperature: `T(t) = start_c + rise_c (1 - exp(-(t - t0) / tau_s))`.
@@ -548,6 +566,7 @@ impl ErrorModel {
                     "{name}: bias_step must be finite and bias_step_at_s finite and >= 0"
                 ));
             }
+            check_scale_gm(name, s.scale_factor_gm.as_ref())?;
             let finite = [s.bias, s.scale_factor_ppm, s.temp_coeff_per_c];
             if !finite.iter().all(|a| a.all(f64::is_finite))
                 || !s.misalignment_rad.iter().flatten().all(|x| x.is_finite())
@@ -627,6 +646,18 @@ impl ErrorModel {
     }
 }
 
+/// Checks a sensor's Gauss-Markov scale factor (`name` the sensor, for the message).
+fn check_scale_gm(name: &str, g: Option<&ScaleFactorGm>) -> Result<(), ErrorModelError> {
+    match g {
+        Some(g) if !(g.sigma_ppm.all(|x| x.is_finite() && x >= 0.0) && pos(g.tau_s)) => {
+            Err(ErrorModelError::Invalid(format!(
+                "{name}.scale_factor_gm: sigma_ppm must be finite and >= 0, tau_s > 0"
+            )))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// True when `x` is finite and positive.
 fn pos(x: f64) -> bool {
     x.is_finite() && x > 0.0
@@ -679,6 +710,7 @@ const SRC_RW: u64 = 3;
 const SRC_FLICKER: u64 = 4;
 const SRC_TURN_ON: u64 = 5;
 const SRC_GNSS_VEL: u64 = 6;
+const SRC_SCALE_GM: u64 = 7;
 
 /// The random stream of (sensor, source, axis) for a seed: independent of every other
 /// stream, so turning a source on or off never changes the others.
@@ -717,54 +749,17 @@ impl ErrorModel {
         }
     }
 
-    /// IMU samples with errors and the realised random constants.
+    /// IMU samples with errors and the realised random constants (the trajectory's samples
+    /// through [`ImuErrors`] one by one).
     pub fn apply_imu(&self, traj: &Trajectory, seed: u64) -> (Vec<ImuSample>, Realized) {
-        let dt = traj.dt_s;
-        let n = traj.imu.len();
-        let ma = transform(&self.accel);
-        let mg = transform(&self.gyro);
-        let gs = Matrix3::from_fn(|i, j| self.gyro.g_sensitivity_radps_per_mps2[i][j]);
-        let mut out: Vec<ImuSample> = Vec::with_capacity(n);
-        let mut temp_rng = stream(seed, TEMP, SRC_WHITE, 0);
-        // the increments over the true interval of a stamped one (IMU clock drift)
-        let true_interval = 1.0 / (1.0 + self.imu_clock_drift_ppm * 1e-6);
-        for (k, s) in traj.imu.iter().enumerate() {
-            let dth = Vector3::from(s.dtheta_rad);
-            let dv = Vector3::from(s.dv_mps);
-            let mut dth_m = (mg * dth + gs * dv) * true_interval;
-            let mut dv_m = ma * dv * true_interval;
-            let mut temperature_c = f64::NAN;
-            if let Some(t) = &self.temperature {
-                let (a, b) = (k as f64 * dt, (k + 1) as f64 * dt);
-                let integ = t.integral_rel(a, b);
-                for i in 0..3 {
-                    dv_m[i] += self.accel.temp_coeff_per_c.0[i] * integ;
-                    dth_m[i] += self.gyro.temp_coeff_per_c.0[i] * integ;
-                }
-                temperature_c = t.at(b);
-                if t.report_noise_c > 0.0 {
-                    temperature_c += t.report_noise_c * gauss(&mut temp_rng);
-                }
-            }
-            out.push(ImuSample {
-                t_s: s.t_s,
-                dtheta_rad: dth_m.into(),
-                dv_mps: dv_m.into(),
-                temperature_c,
-            });
-        }
-        let mut realized = Realized::default();
-        for (sensor, e) in [(ACCEL, &self.accel), (GYRO, &self.gyro)] {
-            for axis in 0..3 {
-                let b = add_stochastic(&mut out, e, sensor, axis, seed, dt);
-                if sensor == ACCEL {
-                    realized.accel_bias_mps2[axis] = b;
-                } else {
-                    realized.gyro_bias_radps[axis] = b;
-                }
-            }
-        }
-        (out, realized)
+        let mut e = ImuErrors::new(self, seed, traj.dt_s, traj.imu.len());
+        let out = traj
+            .imu
+            .iter()
+            .enumerate()
+            .map(|(k, s)| e.apply(k, s))
+            .collect();
+        (out, e.realized())
     }
 
     /// GNSS fixes of the trajectory with errors, lever arm, time offset and outages.
@@ -777,33 +772,12 @@ impl ErrorModel {
         let std = g.reported_std();
         let vstd = g.reported_vel_std();
         let lever = Vector3::from(g.lever_arm_b_m.0);
-        let mut white: Vec<ChaCha8Rng> = (0..3).map(|a| stream(seed, GNSS, SRC_WHITE, a)).collect();
-        let mut gm_rng: Vec<ChaCha8Rng> = (0..3).map(|a| stream(seed, GNSS, SRC_GM, a)).collect();
-        let mut vel_rng: Vec<ChaCha8Rng> = (0..3)
-            .map(|a| stream(seed, GNSS, SRC_GNSS_VEL, a))
-            .collect();
-        let phi = if g.gm_tau_s > 0.0 {
-            (-period / g.gm_tau_s).exp()
-        } else {
-            0.0
-        };
-        let mut gm = [0.0f64; 3];
+        let mut noise = GnssNoise::new(g, seed);
         let mut fixes = Vec::with_capacity(n);
         for k in 0..n {
             let t_rel = k as f64 * period;
             // Draw every epoch's errors (also in outages) so outages do not shift the streams.
-            let mut err = Vector3::zeros();
-            let mut verr = Vector3::zeros();
-            for i in 0..3 {
-                let sg = g.gm_sigma_ned_m.0[i];
-                gm[i] = if k == 0 {
-                    sg * gauss(&mut gm_rng[i])
-                } else {
-                    phi * gm[i] + sg * (1.0 - phi * phi).sqrt() * gauss(&mut gm_rng[i])
-                };
-                err[i] = gm[i] + g.white_sigma_ned_m.0[i] * gauss(&mut white[i]);
-                verr[i] = g.vel_white_sigma_ned_mps.0[i] * gauss(&mut vel_rng[i]);
-            }
+            let (err, verr) = noise.next_epoch();
             if outages
                 .iter()
                 .any(|o| t_rel >= o.start_s && t_rel < o.start_s + o.duration_s)
@@ -840,32 +814,6 @@ impl ErrorModel {
         }
         fixes
     }
-}
-
-fn comp(s: &mut ImuSample, sensor: u64, axis: usize) -> &mut f64 {
-    if sensor == ACCEL {
-        &mut s.dv_mps[axis]
-    } else {
-        &mut s.dtheta_rad[axis]
-    }
-}
-
-/// Adds the stochastic and bias terms of one axis to `out` (dv for ACCEL, dtheta for GYRO),
-/// then quantizes; returns the constant bias (fixed + turn-on) of the axis.
-fn add_stochastic(
-    out: &mut [ImuSample],
-    e: &SensorErrors,
-    sensor: u64,
-    axis: usize,
-    seed: u64,
-    dt: f64,
-) -> f64 {
-    let mut ax = AxisErrors::new(e, sensor, axis, seed, dt, out.len());
-    for (k, s) in out.iter_mut().enumerate() {
-        let x = comp(s, sensor, axis);
-        *x = ax.apply(k, *x);
-    }
-    ax.constant_bias()
 }
 
 /// The sensor a stream of [`AxisErrors`] belongs to.
@@ -1012,5 +960,212 @@ impl AxisErrors {
     /// quantization), rate units (m/s^2, rad/s).
     pub fn bias_now(&self) -> f64 {
         self.last_bias
+    }
+}
+
+/// The IMU errors of an [`ErrorModel`] applied sample by sample: the deterministic terms
+/// (scale factor, misalignment, g-sensitivity, temperature bias, IMU clock drift; the
+/// Gauss-Markov scale factor when the model has one) on the ideal increments, then each
+/// axis's bias and stochastic errors ([`AxisErrors`]). [`ErrorModel::apply_imu`] runs it over
+/// a trajectory; a streaming generator (the filter tests' `test_support::filter_sim`) runs it
+/// on samples as they are made and gets the same values for the same seed.
+#[derive(Debug, Clone)]
+pub struct ImuErrors {
+    dt: f64,
+    ma: Matrix3<f64>,
+    mg: Matrix3<f64>,
+    gs: Matrix3<f64>,
+    accel_temp: [f64; 3],
+    gyro_temp: [f64; 3],
+    temperature: Option<Temperature>,
+    temp_rng: ChaCha8Rng,
+    true_interval: f64,
+    /// Accelerometer axes, then gyro axes.
+    axes: [AxisErrors; 6],
+    /// Gauss-Markov scale factors (accelerometer axes, then gyro axes), when on.
+    scale_gm: Option<[(GaussMarkov, ChaCha8Rng); 6]>,
+    /// The Gauss-Markov scale factors of the last sample (accelerometer, gyro).
+    last_scale_gm: [f64; 6],
+}
+
+impl ImuErrors {
+    /// The IMU errors of `model` for `seed`, samples of `dt_s` s; `n_samples` sizes the flicker
+    /// blocks (as for a trajectory of that many samples).
+    pub fn new(model: &ErrorModel, seed: u64, dt_s: f64, n_samples: usize) -> Self {
+        let axes = std::array::from_fn(|k| {
+            let (e, sensor) = if k < 3 {
+                (&model.accel, Sensor::Accel)
+            } else {
+                (&model.gyro, Sensor::Gyro)
+            };
+            AxisErrors::for_sensor(e, sensor, k % 3, seed, dt_s, n_samples)
+        });
+        let scale_gm = (model.accel.scale_factor_gm.is_some()
+            || model.gyro.scale_factor_gm.is_some())
+        .then(|| {
+            std::array::from_fn(|k| {
+                let (e, sensor) = if k < 3 {
+                    (&model.accel, ACCEL)
+                } else {
+                    (&model.gyro, GYRO)
+                };
+                let (sigma, tau) = e
+                    .scale_factor_gm
+                    .map(|g| (g.sigma_ppm.0[k % 3] * 1e-6, g.tau_s))
+                    .unwrap_or((0.0, 1.0));
+                (
+                    GaussMarkov::new(2.0 * sigma * sigma / tau, tau, dt_s),
+                    stream(seed, sensor, SRC_SCALE_GM, (k % 3) as u64),
+                )
+            })
+        });
+        Self {
+            dt: dt_s,
+            ma: transform(&model.accel),
+            mg: transform(&model.gyro),
+            gs: Matrix3::from_fn(|i, j| model.gyro.g_sensitivity_radps_per_mps2[i][j]),
+            accel_temp: model.accel.temp_coeff_per_c.0,
+            gyro_temp: model.gyro.temp_coeff_per_c.0,
+            temperature: model.temperature.clone(),
+            temp_rng: stream(seed, TEMP, SRC_WHITE, 0),
+            // the increments over the true interval of a stamped one (IMU clock drift)
+            true_interval: 1.0 / (1.0 + model.imu_clock_drift_ppm * 1e-6),
+            axes,
+            scale_gm,
+            last_scale_gm: [0.0; 6],
+        }
+    }
+
+    /// The measured sample `k` (0 = the first of the run) of the ideal sample `s`
+    /// (increments in rad and m/s; the temperature column filled when the model has a
+    /// profile).
+    pub fn apply(&mut self, k: usize, s: &ImuSample) -> ImuSample {
+        let dt = self.dt;
+        let dth = Vector3::from(s.dtheta_rad);
+        let dv = Vector3::from(s.dv_mps);
+        let mut dth_m = (self.mg * dth + self.gs * dv) * self.true_interval;
+        let mut dv_m = self.ma * dv * self.true_interval;
+        if let Some(p) = self.scale_gm.as_mut() {
+            for (j, (g, rng)) in p.iter_mut().enumerate() {
+                self.last_scale_gm[j] = g.next(rng);
+            }
+            let sf = self.last_scale_gm;
+            for i in 0..3 {
+                dv_m[i] += sf[i] * dv[i] * self.true_interval;
+                dth_m[i] += sf[3 + i] * dth[i] * self.true_interval;
+            }
+        }
+        let mut temperature_c = f64::NAN;
+        if let Some(t) = &self.temperature {
+            let (a, b) = (k as f64 * dt, (k + 1) as f64 * dt);
+            let integ = t.integral_rel(a, b);
+            for i in 0..3 {
+                dv_m[i] += self.accel_temp[i] * integ;
+                dth_m[i] += self.gyro_temp[i] * integ;
+            }
+            temperature_c = t.at(b);
+            if t.report_noise_c > 0.0 {
+                temperature_c += t.report_noise_c * gauss(&mut self.temp_rng);
+            }
+        }
+        let (acc, gyr) = self.axes.split_at_mut(3);
+        ImuSample {
+            t_s: s.t_s,
+            dtheta_rad: std::array::from_fn(|i| match gyr.get_mut(i) {
+                Some(a) => a.apply(k, dth_m[i]),
+                None => dth_m[i],
+            }),
+            dv_mps: std::array::from_fn(|i| match acc.get_mut(i) {
+                Some(a) => a.apply(k, dv_m[i]),
+                None => dv_m[i],
+            }),
+            temperature_c,
+        }
+    }
+
+    /// The accelerometer bias during the last sample given to [`ImuErrors::apply`]
+    /// ([`AxisErrors::bias_now`]), m/s^2.
+    pub fn accel_bias_now(&self) -> [f64; 3] {
+        std::array::from_fn(|i| self.axes[i].bias_now())
+    }
+
+    /// The gyro bias during the last sample ([`AxisErrors::bias_now`]), rad/s.
+    pub fn gyro_bias_now(&self) -> [f64; 3] {
+        std::array::from_fn(|i| self.axes[3 + i].bias_now())
+    }
+
+    /// The Gauss-Markov scale factors during the last sample (accelerometer, gyro;
+    /// dimensionless, zero without [`SensorErrors::scale_factor_gm`]).
+    pub fn scale_gm_now(&self) -> ([f64; 3], [f64; 3]) {
+        let s = self.last_scale_gm;
+        ([s[0], s[1], s[2]], [s[3], s[4], s[5]])
+    }
+
+    /// The realised random constants (fixed plus turn-on bias per axis).
+    pub fn realized(&self) -> Realized {
+        Realized {
+            accel_bias_mps2: std::array::from_fn(|i| self.axes[i].constant_bias()),
+            gyro_bias_radps: std::array::from_fn(|i| self.axes[3 + i].constant_bias()),
+        }
+    }
+}
+
+/// The GNSS errors of [`GnssErrors`] fix epoch by fix epoch (white and Gauss-Markov position
+/// errors, white velocity errors, NED), each axis and source from its own stream of the seed:
+/// what [`ErrorModel::apply_gnss`] adds to the true antenna position and velocity, for a
+/// generator that makes its fixes one at a time.
+#[derive(Debug, Clone)]
+pub struct GnssNoise {
+    white_sigma_m: [f64; 3],
+    gm_sigma_m: [f64; 3],
+    vel_sigma_mps: [f64; 3],
+    /// `exp(-period / tau)` of the Gauss-Markov part.
+    phi: f64,
+    gm: [f64; 3],
+    first: bool,
+    white: [ChaCha8Rng; 3],
+    gm_rng: [ChaCha8Rng; 3],
+    vel_rng: [ChaCha8Rng; 3],
+}
+
+impl GnssNoise {
+    /// The errors of `g` for `seed`, epochs `1 / g.rate_hz` s apart.
+    pub fn new(g: &GnssErrors, seed: u64) -> Self {
+        let period = 1.0 / g.rate_hz;
+        Self {
+            white_sigma_m: g.white_sigma_ned_m.0,
+            gm_sigma_m: g.gm_sigma_ned_m.0,
+            vel_sigma_mps: g.vel_white_sigma_ned_mps.0,
+            phi: if g.gm_tau_s > 0.0 {
+                (-period / g.gm_tau_s).exp()
+            } else {
+                0.0
+            },
+            gm: [0.0; 3],
+            first: true,
+            white: std::array::from_fn(|a| stream(seed, GNSS, SRC_WHITE, a as u64)),
+            gm_rng: std::array::from_fn(|a| stream(seed, GNSS, SRC_GM, a as u64)),
+            vel_rng: std::array::from_fn(|a| stream(seed, GNSS, SRC_GNSS_VEL, a as u64)),
+        }
+    }
+
+    /// The position error (m) and velocity error (m/s), NED, of the next fix epoch (the
+    /// Gauss-Markov part from its stationary distribution at the first epoch).
+    pub fn next_epoch(&mut self) -> (Vector3<f64>, Vector3<f64>) {
+        let mut err = Vector3::zeros();
+        let mut verr = Vector3::zeros();
+        let phi = self.phi;
+        for i in 0..3 {
+            let sg = self.gm_sigma_m[i];
+            self.gm[i] = if self.first {
+                sg * gauss(&mut self.gm_rng[i])
+            } else {
+                phi * self.gm[i] + sg * (1.0 - phi * phi).sqrt() * gauss(&mut self.gm_rng[i])
+            };
+            err[i] = self.gm[i] + self.white_sigma_m[i] * gauss(&mut self.white[i]);
+            verr[i] = self.vel_sigma_mps[i] * gauss(&mut self.vel_rng[i]);
+        }
+        self.first = false;
+        (err, verr)
     }
 }

@@ -161,23 +161,10 @@ impl Strapdown {
         }
         let dt32 = dt as f32;
         let hdt32 = 0.5 * dt32;
-        let (dth32, dv32) = (dtheta_rad, dv_mps);
 
-        // 1. Body frame: coning, rotation compensation and sculling (as in `update`).
-        let use_prev =
-            self.have_prev && dt32 <= 2.0 * self.prev_dt_s && self.prev_dt_s <= 2.0 * dt32;
-        let (p_th, p_dv) = if use_prev {
-            (self.prev_dtheta_rad, self.prev_dv_mps)
-        } else {
-            ([0.0; 3], [0.0; 3])
-        };
-        let coning = scale32(cross32(p_th, dth32), 1.0 / 12.0);
-        let half_rot = scale32(cross32(dth32, dv32), 0.5);
-        let dv_corr = add32(
-            add32(half_rot, scale32(cross32(dth32, half_rot), 1.0 / 3.0)),
-            scale32(add32(cross32(p_th, dv32), cross32(p_dv, dth32)), 1.0 / 12.0),
-        );
-        let phi32 = add32(dth32, coning);
+        // 1. Body frame: coning, rotation compensation and sculling (the terms of `update`).
+        let (dth32, dv32) = (dtheta_rad, dv_mps);
+        let BodyTerms { dv_corr, phi32, .. } = self.body_terms(dth32, dv32, dt32);
         let dv_b = add32(dv32, dv_corr);
 
         let s = self.state;
