@@ -47,7 +47,8 @@ impl<T: Scalar, const N: usize> Filter<T, N> {
     }
 }
 
-/// `C diag(v) C^T` for the attitude, velocity and position variances `v` (body axes, 3 each).
+/// `C diag(v) C^T` for the attitude, velocity and position variances `v` (body axes, 3 each),
+/// each block exactly symmetric (upper triangle computed, mirrored).
 #[inline(never)]
 fn fill_noise_ned(q_nb: &UnitQuaternion<f64>, var: &[f64; 9]) -> [[[f64; 3]; 3]; 3] {
     let c = q_nb.to_rotation_matrix();
@@ -55,7 +56,7 @@ fn fill_noise_ned(q_nb: &UnitQuaternion<f64>, var: &[f64; 9]) -> [[[f64; 3]; 3];
     let mut out = [[[0.0; 3]; 3]; 3];
     for (b, o) in out.iter_mut().enumerate() {
         for (i, row) in o.iter_mut().enumerate() {
-            for (j, x) in row.iter_mut().enumerate() {
+            for (j, x) in row.iter_mut().enumerate().skip(i) {
                 let mut acc = 0.0;
                 for k in 0..3 {
                     let v = var.get(3 * b + k).copied().unwrap_or(0.0);
@@ -66,6 +67,7 @@ fn fill_noise_ned(q_nb: &UnitQuaternion<f64>, var: &[f64; 9]) -> [[[f64; 3]; 3];
                 *x = acc;
             }
         }
+        *o = crate::model::discrete::symmetric_from_upper3(*o);
     }
     out
 }

@@ -209,13 +209,15 @@ pub fn discretize<T: Scalar, const N: usize>(
     }
 }
 
-/// `C diag(s) C^T * t`.
+/// `C diag(s) C^T * t`, exactly symmetric: the upper triangle is computed and mirrored (the
+/// (i, j) and (j, i) sums round differently, and the covariance prediction must stay
+/// bit-symmetric).
 fn rotate_diag<T: Scalar>(c: &[[T; 3]; 3], s: &[f64; 3], t: T) -> [[T; 3]; 3] {
     let s_t = s.map(T::of_f64);
     let cs = super::mul_diag3(c, &s_t);
     let mut out = [[T::ZERO; 3]; 3];
-    for (orow, csrow) in out.iter_mut().zip(&cs) {
-        for (o, crow) in orow.iter_mut().zip(c) {
+    for (i, (orow, csrow)) in out.iter_mut().zip(&cs).enumerate() {
+        for (o, crow) in orow.iter_mut().zip(c).skip(i) {
             let mut acc = T::ZERO;
             for (a, b) in csrow.iter().zip(crow) {
                 acc += *a * *b;
@@ -223,7 +225,13 @@ fn rotate_diag<T: Scalar>(c: &[[T; 3]; 3], s: &[f64; 3], t: T) -> [[T; 3]; 3] {
             *o = acc * t;
         }
     }
-    out
+    symmetric_from_upper3(out)
+}
+
+/// The symmetric 3x3 matrix whose upper triangle is that of `m`.
+pub(crate) fn symmetric_from_upper3<T: Copy>(m: [[T; 3]; 3]) -> [[T; 3]; 3] {
+    let [[a00, a01, a02], [_, a11, a12], [_, _, a22]] = m;
+    [[a00, a01, a02], [a01, a11, a12], [a02, a12, a22]]
 }
 
 /// `m += a x` element by element (`m_j = m_j + a x_j`, each rounded as written), four
