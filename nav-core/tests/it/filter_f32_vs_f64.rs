@@ -138,7 +138,7 @@ fn f32_and_f64_filters_agree_to_1cm_and_1mdeg_over_a_1_hour_drive() {
 }
 
 /// The 4-hour drive of the precision note (`docs/precision.md`): `cargo test --release -p
-/// nav-core --test filter_f32_vs_f64 -- --ignored --nocapture`.
+/// nav-core --test it -- --ignored --nocapture filter_f32_vs_f64`.
 #[test]
 #[ignore = "4 hours of 200 Hz drive, two 21-state filters: about a minute in release"]
 fn f32_and_f64_filters_agree_over_a_4_hour_drive() {
