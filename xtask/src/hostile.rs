@@ -25,10 +25,10 @@
 mod captures;
 mod families;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use std::collections::BTreeMap;
 use std::hash::{Hash, Hasher};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::time::Duration;
 use test_support::cli::{run_bounded, Bounded};
@@ -36,11 +36,8 @@ use test_support::cli::{run_bounded, Bounded};
 /// Longest run of one try.
 const LIMIT: Duration = Duration::from_secs(120);
 
-/// The release binaries under test.
-pub(crate) struct Bins {
-    pub(crate) host_sim: PathBuf,
-    pub(crate) hw_bridge: PathBuf,
-}
+/// The release binaries under test: the ones `cargo test --workspace --release` builds.
+pub(crate) use crate::hil::HostBins as Bins;
 
 /// What a try must do.
 pub(crate) struct Expect {
@@ -220,32 +217,12 @@ pub(crate) fn bounded(cmd: &mut Command) -> Bounded {
     run_bounded(cmd, LIMIT)
 }
 
-/// Builds the binaries, runs every family in a temporary folder (kept with `keep`), prints
-/// the table.
+/// Builds the binaries (the CI's test build), runs every family in a temporary folder (kept
+/// with `keep`), prints the table.
 pub fn run(keep: bool) -> Result<()> {
-    let status = crate::cargo()
-        .args([
-            "build",
-            "--release",
-            "-p",
-            "host-sim",
-            "-p",
-            "hw-bridge",
-            "--bins",
-        ])
-        .current_dir(crate::root())
-        .status()
-        .context("building the release binaries")?;
-    if !status.success() {
-        bail!("building the release binaries failed ({status})");
-    }
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| crate::root().join("target"));
-    let bins = Bins {
-        host_sim: target.join("release/host-sim"),
-        hw_bridge: target.join("release/hw-bridge"),
-    };
+    // the test build's binaries: `cargo build -p ...` would resolve the dependencies' features
+    // differently and compile most of them a second time
+    let bins = crate::hil::host_bins()?;
     let dir = std::env::temp_dir().join(format!("navcore-hostile-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir)?;
