@@ -165,19 +165,19 @@ impl Tally {
         println!(
             "{:<22} {}",
             "family",
-            head.map(|h| format!("{h:>14}")).join("")
+            head.map(|h| format!("{h:>16}")).join("")
         );
         let mut total = [0u64; 7];
         for (fam, row) in &self.rows {
             for (t, v) in total.iter_mut().zip(row) {
                 *t += v;
             }
-            println!("{fam:<22} {}", row.map(|v| format!("{v:>14}")).join(""));
+            println!("{fam:<22} {}", row.map(|v| format!("{v:>16}")).join(""));
         }
         println!(
             "{:<22} {}",
             "total",
-            total.map(|v| format!("{v:>14}")).join("")
+            total.map(|v| format!("{v:>16}")).join("")
         );
         for f in &self.findings {
             println!("- {f}");
