@@ -69,8 +69,9 @@ pub const MAX_NIS_BEFORE: f64 = 6.0;
 pub const MIN_GAIN_NATS: f64 = 10.0;
 /// Spacing of the coarse back-scan of the step time beyond the time scan's earlier end, s.
 pub const BACK_SCAN_STEP_S: f64 = 10.0;
-/// Longest span of the coarse back-scan before the onset, s (the CUSUM's alarm can lag a
-/// gyro step by minutes: its position error grows with the square of the time).
+/// Longest span of the coarse back-scan before the time scan's earlier end, s (the CUSUM's
+/// alarm can lag a gyro step by minutes: its position error grows with the square of the
+/// time).
 pub const BACK_SCAN_S: f64 = 150.0;
 
 /// Which sensor triad's bias steps.
@@ -270,8 +271,9 @@ fn consistent_before(used: &[&InnovationRecord], keep: &[bool], from: f64, onset
 }
 
 /// The onset a step is fitted from and the earliest time it may be placed at, s: the onset
-/// of [`cusum_onset`] when the fixes before it are consistent ([`consistent_before`]);
-/// otherwise the first alarm of the restarted CUSUM ([`cusum_alarms`]) whose fixes since the
+/// of [`cusum_onset`] when the fixes before it are consistent (at least
+/// [`MIN_FIXES_BEFORE`] settled used fixes with a mean position NIS of at most
+/// [`MAX_NIS_BEFORE`]); otherwise the first alarm of the restarted CUSUM ([`cusum_alarms`]) whose fixes since the
 /// alarm before it are consistent (an alarm too early to fit restarts the search; the step
 /// is then placed after that alarm). None when no alarm is usable.
 pub fn usable_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
