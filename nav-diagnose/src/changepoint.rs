@@ -10,7 +10,11 @@
 //!    the middle of a gap of the used fixes when the onset is the first fix after it. A step needs a consistent model before it: at least
 //!    [`MIN_FIXES_BEFORE`] used fixes before the onset with a mean position NIS below
 //!    [`MAX_NIS_BEFORE`] (an effect present from the start, which inflates the innovations
-//!    throughout, is left to the effect search).
+//!    throughout, is left to the effect search). When the fixes before that onset are not
+//!    consistent, the CUSUM restarted at each alarm ([`cusum_alarms`]) gives the next
+//!    candidates: the first alarm whose fixes since the alarm before it are consistent is the
+//!    onset ([`usable_onset`]; an effect that shows when the vehicle starts raises an alarm
+//!    too early to fit, and a later step still raises its own).
 //! 2. Magnitude: the IMU data after the onset are corrected by a candidate step `c` (body
 //!    axes) and the filter re-run. The innovations are linear in `c` to first order,
 //!    `nu(c) = nu(c0) + J (c - c0)`, with J from one re-run per axis; `c` minimises
@@ -22,7 +26,12 @@
 //!    [`TIME_SEARCH_S`] in 1 s steps (the scan extended by [`TIME_SEARCH_S`], up to
 //!    [`MAX_TIME_EXTENSIONS`] times, while its best time is at an end: the CUSUM's onset lags
 //!    a step whose error grows slowly; a step first fitted in a gap is scanned over the whole
-//!    gap and [`TIME_SEARCH_S`] beyond its ends); the time of largest log-likelihood is kept. A step's
+//!    gap and [`TIME_SEARCH_S`] beyond its ends); the time of largest log-likelihood is kept.
+//!    When the best time is still the scan's earlier end after the extensions, the step time
+//!    is scanned back coarsely from there ([`BACK_SCAN_STEP_S`] apart over [`BACK_SCAN_S`],
+//!    not before the alarm the CUSUM restarted after) by the gain the linearised innovations
+//!    predict for a step refitted at each time, and the 1 s scan repeated around the best
+//!    when its fit there is more likely. A step's
 //!    time is sharp: moving it by [`TIME_SEARCH_S`] either way (beyond the ends of a gap in
 //!    the used fixes when it lies in one: there it can only be placed within the gap) must
 //!    cost at least
@@ -58,6 +67,12 @@ pub const MIN_FIXES_BEFORE: usize = 60;
 pub const MAX_NIS_BEFORE: f64 = 6.0;
 /// Log-likelihood gain the corrected run must have beyond the BIC penalty, nats.
 pub const MIN_GAIN_NATS: f64 = 10.0;
+/// Spacing of the coarse back-scan of the step time beyond the time scan's earlier end, s.
+pub const BACK_SCAN_STEP_S: f64 = 10.0;
+/// Longest span of the coarse back-scan before the time scan's earlier end, s (the CUSUM's
+/// alarm can lag a gyro step by minutes: its position error grows with the square of the
+/// time).
+pub const BACK_SCAN_S: f64 = 150.0;
 
 /// Which sensor triad's bias steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -202,6 +217,82 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
     best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
 }
 
+/// An alarm of the CUSUM restarted at each alarm ([`cusum_alarms`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CusumAlarm {
+    /// First fix of the stretch that raised the alarm (after the statistic's last zero), s.
+    pub onset_t_s: f64,
+    /// The fix at which the statistic reached [`CUSUM_ALARM_NATS`], s.
+    pub alarm_t_s: f64,
+}
+
+/// The alarms of the CUSUM of [`cusum_onset`] restarted at each alarm: the statistic is set
+/// to zero at the fix where it reaches [`CUSUM_ALARM_NATS`] and runs on, so a change after
+/// an early one (an effect that shows when the vehicle starts) raises an alarm of its own.
+pub fn cusum_alarms(innovations: &[InnovationRecord]) -> Vec<CusumAlarm> {
+    let lam = CUSUM_INFLATION;
+    let mut s = 0.0f64;
+    let mut start_t = f64::NAN;
+    let mut out = Vec::new();
+    let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
+    let keep = settled(&used);
+    for (r, k) in used.iter().zip(&keep) {
+        if !*k {
+            continue;
+        }
+        let (nis, d) = position_nis(r);
+        let llr = 0.5 * nis * (1.0 - 1.0 / lam) - 0.5 * d as f64 * lam.ln();
+        if s <= 0.0 {
+            start_t = r.t_s;
+        }
+        s = (s + llr).max(0.0);
+        if s >= CUSUM_ALARM_NATS {
+            out.push(CusumAlarm {
+                onset_t_s: start_t,
+                alarm_t_s: r.t_s,
+            });
+            s = 0.0;
+        }
+    }
+    out
+}
+
+/// Whether the settled used fixes in `(from, onset)` are a consistent model before a step:
+/// at least [`MIN_FIXES_BEFORE`] with a mean position NIS of at most [`MAX_NIS_BEFORE`].
+fn consistent_before(used: &[&InnovationRecord], keep: &[bool], from: f64, onset: f64) -> bool {
+    let before: Vec<f64> = used
+        .iter()
+        .zip(keep)
+        .filter(|(r, k)| **k && r.t_s > from && r.t_s < onset)
+        .map(|(r, _)| position_nis(r).0)
+        .collect();
+    before.len() >= MIN_FIXES_BEFORE
+        && before.iter().sum::<f64>() / before.len() as f64 <= MAX_NIS_BEFORE
+}
+
+/// The onset a step is fitted from and the earliest time it may be placed at, s: the onset
+/// of [`cusum_onset`] when the fixes before it are consistent (at least
+/// [`MIN_FIXES_BEFORE`] settled used fixes with a mean position NIS of at most
+/// [`MAX_NIS_BEFORE`]); otherwise the first alarm of the restarted CUSUM ([`cusum_alarms`]) whose fixes since the
+/// alarm before it are consistent (an alarm too early to fit restarts the search; the step
+/// is then placed after that alarm). None when no alarm is usable.
+pub fn usable_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
+    let (onset, _) = cusum_onset(innovations)?;
+    let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
+    let keep = settled(&used);
+    if consistent_before(&used, &keep, f64::NEG_INFINITY, onset) {
+        return Some((onset, f64::NEG_INFINITY));
+    }
+    let mut from = f64::NEG_INFINITY;
+    for a in cusum_alarms(innovations) {
+        if consistent_before(&used, &keep, from, a.onset_t_s) {
+            return Some((a.onset_t_s, from));
+        }
+        from = a.alarm_t_s;
+    }
+    None
+}
+
 /// Time after a gap in the used fixes whose fixes the CUSUM and the consistency check before
 /// the onset leave out, s: the filter's error grown across the gap shows in them.
 pub const SETTLE_S: f64 = 10.0;
@@ -272,16 +363,17 @@ fn run_ll(case: &Case, opts: &RunOptions) -> Option<(RunOutput, f64)> {
     Some((out, ll))
 }
 
-/// One Gauss-Newton step from the run `at` (correction `c0`): the correction minimising the
-/// weighted innovations after `t_s` and its 1-sigma, from the runs with `c0 + probe e_j`.
-fn gauss_newton(
+/// The normal equations `(A, g)` of the weighted least squares of the innovations after
+/// `t_s` in the step correction, linearised at the run `at` (correction `c0`) from the runs
+/// with `c0 + probe e_j`: the Gauss-Newton step is `-A^-1 g`.
+fn normal_equations(
     case: &Case,
     opts: &RunOptions,
     sensor: BiasStepSensor,
     t_s: f64,
     c0: &[f64; 3],
     at: &RunOutput,
-) -> Option<([f64; 3], [f64; 3])> {
+) -> Option<(nalgebra::Matrix3<f64>, nalgebra::Vector3<f64>)> {
     let recs = fit_records(at, t_s);
     if recs.len() < 10 {
         return None;
@@ -329,6 +421,20 @@ fn gauss_newton(
             g += row * (w * nu);
         }
     }
+    Some((a, g))
+}
+
+/// One Gauss-Newton step from the run `at` (correction `c0`): the correction minimising the
+/// weighted innovations after `t_s` and its 1-sigma ([`normal_equations`]).
+fn gauss_newton(
+    case: &Case,
+    opts: &RunOptions,
+    sensor: BiasStepSensor,
+    t_s: f64,
+    c0: &[f64; 3],
+    at: &RunOutput,
+) -> Option<([f64; 3], [f64; 3])> {
+    let (a, g) = normal_equations(case, opts, sensor, t_s, c0, at)?;
     let ai = a.try_inverse()?;
     let dc = -(ai * g);
     let c = [c0[0] + dc[0], c0[1] + dc[1], c0[2] + dc[2]];
@@ -350,6 +456,90 @@ fn fit(
     let (c2, s2) = gauss_newton(case, opts, sensor, t_s, &c1, &r1)?;
     let (_, ll2) = run_ll(&corrected(case, sensor, t_s, &c2), opts)?;
     Some((c2, s2, ll2))
+}
+
+/// The log-likelihood a step of `sensor` at `t_s` is predicted to gain over the run `base`
+/// by the linearised innovations ([`normal_equations`] from no correction): `g^T A^-1 g / 2`,
+/// nats.
+fn predicted_gain(
+    case: &Case,
+    opts: &RunOptions,
+    base: &RunOutput,
+    sensor: BiasStepSensor,
+    t_s: f64,
+) -> Option<f64> {
+    let (a, g) = normal_equations(case, opts, sensor, t_s, &[0.0; 3], base)?;
+    let ai = a.try_inverse()?;
+    let q = 0.5 * (g.transpose() * ai * g)[(0, 0)];
+    q.is_finite().then_some(q)
+}
+
+/// The coarse back-scan of the step time from the earlier end `t_end` of a time scan whose
+/// best time stayed there ([`time_scan`]): the times [`BACK_SCAN_STEP_S`] apart before
+/// `t_end`, back over [`BACK_SCAN_S`] and after `from` (the alarm the CUSUM restarted after,
+/// [`usable_onset`]), the step of `sensor` at each time by its predicted gain
+/// ([`predicted_gain`]: three runs per time); the time of the largest, the step fitted there
+/// ([`fit`]): `(step, 1-sigma, log-likelihood, time)`.
+fn back_scan(
+    case: &Case,
+    opts: &RunOptions,
+    base: &RunOutput,
+    sensor: BiasStepSensor,
+    (t_end, from): (f64, f64),
+) -> Option<([f64; 3], [f64; 3], f64, f64)> {
+    let n = (BACK_SCAN_S / BACK_SCAN_STEP_S).round() as i32;
+    let times: Vec<f64> = (1..=n)
+        .map(|k| t_end - f64::from(k) * BACK_SCAN_STEP_S)
+        .filter(|&t| t > from)
+        .collect();
+    let (t_s, _) = times
+        .into_par_iter()
+        .filter_map(|t| predicted_gain(case, opts, base, sensor, t).map(|q| (t, q)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    fit(case, opts, base, sensor, t_s).map(|(c, sg, ll)| (c, sg, ll, t_s))
+}
+
+/// The corrected run's log-likelihood `(t, ll)` with the step `step` of `sensor` moved from
+/// `t_s` over [`first_scan`]'s offsets in 1 s steps, the scan extended by [`TIME_SEARCH_S`],
+/// up to [`MAX_TIME_EXTENSIONS`] times, while its best time is at an end (the CUSUM's onset
+/// lags a step whose position error grows slowly); and whether the best time is still at the
+/// scan's earlier end after the extensions.
+fn time_scan(
+    case: &Case,
+    opts: &RunOptions,
+    sensor: BiasStepSensor,
+    step: &[f64; 3],
+    t_s: f64,
+    gap: Option<(f64, f64)>,
+) -> (Vec<(f64, f64)>, bool) {
+    let n = TIME_SEARCH_S as i32;
+    let ll_at = |k: i32| {
+        let t = t_s + f64::from(k);
+        run_ll(&corrected(case, sensor, t, step), opts).map(|(_, ll)| (t, ll))
+    };
+    let (mut lo_k, mut hi_k) = first_scan(t_s, gap);
+    let mut profile: Vec<(f64, f64)> = (lo_k..=hi_k).into_par_iter().filter_map(ll_at).collect();
+    let best_t = |p: &[(f64, f64)]| {
+        p.iter()
+            .copied()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|b| b.0)
+    };
+    for _ in 0..MAX_TIME_EXTENSIONS {
+        let Some(tb) = best_t(&profile) else { break };
+        let more: Vec<i32> = if tb <= t_s + f64::from(lo_k) {
+            lo_k -= n;
+            (lo_k..lo_k + n).collect()
+        } else if tb >= t_s + f64::from(hi_k) {
+            hi_k += n;
+            (hi_k - n + 1..=hi_k).collect()
+        } else {
+            break;
+        };
+        profile.extend(more.into_par_iter().filter_map(ll_at).collect::<Vec<_>>());
+    }
+    let at_lower_end = best_t(&profile).is_some_and(|tb| tb <= t_s + f64::from(lo_k));
+    (profile, at_lower_end)
 }
 
 /// The time a step is first fitted at, from the CUSUM onset `onset` and the used fixes: one
@@ -383,19 +573,8 @@ fn first_scan(t_s: f64, gap: Option<(f64, f64)>) -> (i32, i32) {
 /// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
 /// corrected run does not pay.
 pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
-    let (onset, _) = cusum_onset(&base.innovations)?;
+    let (onset, from) = usable_onset(&base.innovations)?;
     let used: Vec<&InnovationRecord> = base.innovations.iter().filter(|r| in_stats(r)).collect();
-    let before: Vec<f64> = used
-        .iter()
-        .zip(settled(&used))
-        .filter(|(r, k)| *k && r.t_s < onset)
-        .map(|(r, _)| position_nis(r).0)
-        .collect();
-    if before.len() < MIN_FIXES_BEFORE
-        || before.iter().sum::<f64>() / before.len() as f64 > MAX_NIS_BEFORE
-    {
-        return None;
-    }
     let t0 = case.imu.first_t_s()?;
     let rs = residual_stats(&base.innovations);
     let base_ll = rs.log_likelihood;
@@ -403,7 +582,7 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
     // the step is placed one fix interval before the first fix that shows it, or in the
     // middle of the gap that fix follows
     let (t_start, gap) = initial_step_time(&used, onset);
-    let (sensor, step, sigma, ll, t_s) = BiasStepSensor::ALL
+    let (sensor, mut step, mut sigma, mut ll, mut t_s) = BiasStepSensor::ALL
         .par_iter()
         .filter_map(|&s| {
             fit(case, opts, base, s, t_start).map(|(c, sg, ll)| (s, c, sg, ll, t_start))
@@ -415,26 +594,20 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
     // the time: the corrected run's likelihood over +-TIME_SEARCH_S in 1 s steps, extended
     // by TIME_SEARCH_S while the best time is at an end of the scan (the CUSUM's onset lags
     // a step whose position error grows slowly)
-    let n = TIME_SEARCH_S as i32;
-    let ll_at = |k: i32| {
-        let t = t_s + f64::from(k);
-        run_ll(&corrected(case, sensor, t, &step), opts).map(|(_, ll)| (t, ll))
-    };
-    let (mut lo_k, mut hi_k) = first_scan(t_s, gap);
-    let mut profile: Vec<(f64, f64)> = (lo_k..=hi_k).into_par_iter().filter_map(ll_at).collect();
-    for _ in 0..MAX_TIME_EXTENSIONS {
-        let best = profile.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((tb, _)) = best else { break };
-        let more: Vec<i32> = if tb <= t_s + f64::from(lo_k) {
-            lo_k -= n;
-            (lo_k..lo_k + n).collect()
-        } else if tb >= t_s + f64::from(hi_k) {
-            hi_k += n;
-            (hi_k - n + 1..=hi_k).collect()
-        } else {
-            break;
-        };
-        profile.extend(more.into_par_iter().filter_map(ll_at).collect::<Vec<_>>());
+    let (mut profile, at_lower_end) = time_scan(case, opts, sensor, &step, t_s, gap);
+    // still rising at the scan's earlier end: the onset lags the step by more than the
+    // extensions reach; the step time scanned back coarsely from there
+    let ll_scan = profile
+        .iter()
+        .map(|p| p.1)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if at_lower_end {
+        let lo_t = profile.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+        let back = back_scan(case, opts, base, sensor, (lo_t, from)).filter(|f| f.2 > ll_scan);
+        if let Some(f) = back {
+            (step, sigma, ll, t_s) = f;
+            (profile, _) = time_scan(case, opts, sensor, &step, t_s, None);
+        }
     }
     let (t_best, ll_best) = profile
         .iter()
@@ -541,6 +714,39 @@ mod tests {
         let mut w: Vec<InnovationRecord> = (0..100).map(white).collect();
         w.extend((100..105).map(|k| rec(f64::from(k), 3.0)));
         assert_eq!(cusum_onset(&w).map(|o| o.0), Some(100.0));
+    }
+
+    #[test]
+    fn an_alarm_too_early_to_fit_restarts_the_search() {
+        // inflated innovations over the first 6 fixes (an effect that shows when the vehicle
+        // starts), white ones to 200 s, inflated again from 200 s on (the step)
+        let white = |k: i32| rec(f64::from(k), if k % 2 == 0 { 1.0 } else { -0.8 });
+        let mut v: Vec<InnovationRecord> = (0..6).map(|k| rec(f64::from(k), 20.0)).collect();
+        v.extend((6..200).map(white));
+        v.extend((200..240).map(|k| rec(f64::from(k), 3.0)));
+        // the peak stretch starts at the first fix (the early fixes' 2690 nats decay by about
+        // 1.2 nats a white fix): no fixes before it
+        let (onset, _) = cusum_onset(&v).unwrap();
+        assert_eq!(onset, 0.0);
+        // restarted at each alarm: one alarm per early fix, then the step's
+        let alarms = cusum_alarms(&v);
+        let early: Vec<f64> = alarms.iter().take(6).map(|a| a.alarm_t_s).collect();
+        assert_eq!(early, [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
+        assert_eq!(
+            alarms.get(6),
+            Some(&CusumAlarm {
+                onset_t_s: 200.0,
+                alarm_t_s: 203.0
+            })
+        );
+        // the first usable alarm: the step's, the step placed after the last early alarm
+        assert_eq!(usable_onset(&v), Some((200.0, 5.0)));
+        // a usable peak onset is kept as it was
+        let mut w: Vec<InnovationRecord> = (0..100).map(white).collect();
+        w.extend((100..130).map(|k| rec(f64::from(k), 3.0)));
+        assert_eq!(usable_onset(&w), Some((100.0, f64::NEG_INFINITY)));
+        // only the early alarm: nothing usable
+        assert!(usable_onset(&v[..200]).is_none());
     }
 
     #[test]

@@ -383,7 +383,14 @@ pub(crate) fn late_bias_step(ctx: &Ctx<'_>, s: &Search) -> Option<(changepoint::
         return None;
     }
     let opts = ctx.searching(&options_with(&s.base_opts, &s.added));
-    let b = changepoint::find_bias_step(&ctx.p.case, &opts, &s.cur.run)?;
+    let b = changepoint::find_bias_step(&ctx.p.case, &opts, &s.cur.run).or_else(|| {
+        // an adopted noise model widens the innovations' variances and can hide a step's
+        // inflation from the CUSUM: the configuration's noise with the added effects
+        s.noise_tuning.as_ref().filter(|t| t.adopted)?;
+        let opts = ctx.searching(&options_with(&ctx.p.opts, &s.added));
+        let run = spill::run_innovations(&ctx.p.case, &opts).ok()?;
+        changepoint::find_bias_step(&ctx.p.case, &opts, &run)
+    })?;
     let stepped = Data {
         case: b.corrected_case(&ctx.p.case),
         ..ctx.p.clone()
