@@ -158,6 +158,10 @@ enum Cmd {
         /// (0 < hours <= 24).
         #[arg(long)]
         hours: Option<f64>,
+        /// Run the `host-sim` and `hw-bridge` executables in this folder (e.g.
+        /// `target/release`) instead of building the workspace's release test binaries.
+        #[arg(long)]
+        bins: Option<PathBuf>,
         /// Keep the case, capture and outputs (the directory is printed).
         #[arg(long)]
         keep: bool,
@@ -230,8 +234,9 @@ fn main() -> std::process::ExitCode {
         Cmd::BenchReplay {
             scenario,
             hours,
+            bins,
             keep,
-        } => replaybench::run(&scenario, hours, keep),
+        } => replaybench::run(&scenario, hours, bins.as_deref(), keep),
         Cmd::Hostile { keep } => hostile::run(keep),
         Cmd::BenchRun {
             hours,

@@ -67,12 +67,18 @@ fn timed(cmd: &mut Command) -> Result<Timed> {
 }
 
 /// Runs the benchmark in `dir` (kept when `keep`) on `scenario`, or with `hours` on the
-/// generated drive of that many hours.
-pub fn run(scenario: &str, hours: Option<f64>, keep: bool) -> Result<()> {
+/// generated drive of that many hours; with `bins` the executables in that folder.
+pub fn run(scenario: &str, hours: Option<f64>, bins: Option<&Path>, keep: bool) -> Result<()> {
     if let Some(h) = hours.filter(|h| !(*h > 0.0 && *h <= 24.0)) {
         bail!("--hours {h}: expected 0 < hours <= 24");
     }
-    let bins = host_bins()?;
+    let bins = match bins {
+        Some(d) => HostBins {
+            host_sim: d.join("host-sim"),
+            hw_bridge: d.join("hw-bridge"),
+        },
+        None => host_bins()?,
+    };
     let dir = std::env::temp_dir().join(format!("navcore-bench-replay-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let r = match hours {
@@ -101,58 +107,9 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     )?;
     eprint!("  {}", sim.stdout);
     eprintln!("  simulate: {:.1} s", sim.wall_s);
-    // send -> pty pair -> record
-    let a = dir.join("A");
-    let b = dir.join("B");
-    let socat = Kill(
-        Command::new("socat")
-            .arg(format!("pty,raw,echo=0,link={}", a.display()))
-            .arg(format!("pty,raw,echo=0,link={}", b.display()))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .context("starting socat")?,
-    );
-    let t0 = Instant::now();
-    while !(a.exists() && b.exists()) {
-        if t0.elapsed() > Duration::from_secs(10) {
-            bail!("socat made no pty pair");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let cap = dir.join("drive.cap");
-    let mut rec = Command::new(&bins.hw_bridge);
-    rec.args(["record", "--quiet", "--idle-exit", "3", "--port"])
-        .arg(&b)
-        .arg("--out")
-        .arg(&cap)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped());
-    eprintln!("  $ {}", crate::show(&rec));
-    let mut rec = rec.spawn().context("starting hw-bridge record")?;
-    let mut err = std::io::BufReader::new(rec.stderr.take().context("record stderr")?);
-    let mut line = String::new();
-    std::io::BufRead::read_line(&mut err, &mut line)?;
-    let send = timed(
-        Command::new(&bins.hw_bridge)
-            .args(["send", "--quiet", "--as-fast-as-possible", "--case"])
-            .arg(&case)
-            .arg("--port")
-            .arg(&a),
-    )?;
-    let st = rec.wait()?;
-    drop(socat);
-    if !st.success() {
-        bail!("hw-bridge record failed ({st})");
-    }
+    let cap = capture(bins, dir, &case)?;
     let cap_bytes = std::fs::metadata(&cap)?.len();
-    eprintln!(
-        "  send over the pty pair: {} in {:.1} s; capture {:.1} MB",
-        send.stdout.trim(),
-        send.wall_s,
-        cap_bytes as f64 / 1e6
-    );
+    eprintln!("  capture {:.1} MB", cap_bytes as f64 / 1e6);
 
     let dec = timed(
         Command::new(&bins.hw_bridge)
@@ -216,4 +173,60 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
         bail!("replay --config and host-sim run disagree on the same drive");
     }
     Ok(())
+}
+
+/// `hw-bridge send --as-fast-as-possible` of `case` over a socat pty pair into `hw-bridge
+/// record`: the capture's path.
+fn capture(bins: &HostBins, dir: &Path, case: &Path) -> Result<std::path::PathBuf> {
+    // send -> pty pair -> record
+    let a = dir.join("A");
+    let b = dir.join("B");
+    let socat = Kill(
+        Command::new("socat")
+            .arg(format!("pty,raw,echo=0,link={}", a.display()))
+            .arg(format!("pty,raw,echo=0,link={}", b.display()))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("starting socat")?,
+    );
+    let t0 = Instant::now();
+    while !(a.exists() && b.exists()) {
+        if t0.elapsed() > Duration::from_secs(10) {
+            bail!("socat made no pty pair");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let cap = dir.join("drive.cap");
+    let mut rec = Command::new(&bins.hw_bridge);
+    rec.args(["record", "--quiet", "--idle-exit", "3", "--port"])
+        .arg(&b)
+        .arg("--out")
+        .arg(&cap)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    eprintln!("  $ {}", crate::show(&rec));
+    let mut rec = rec.spawn().context("starting hw-bridge record")?;
+    let mut err = std::io::BufReader::new(rec.stderr.take().context("record stderr")?);
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut err, &mut line)?;
+    let send = timed(
+        Command::new(&bins.hw_bridge)
+            .args(["send", "--quiet", "--as-fast-as-possible", "--case"])
+            .arg(case)
+            .arg("--port")
+            .arg(&a),
+    )?;
+    let st = rec.wait()?;
+    drop(socat);
+    if !st.success() {
+        bail!("hw-bridge record failed ({st})");
+    }
+    eprintln!(
+        "  send over the pty pair: {} in {:.1} s",
+        send.stdout.trim(),
+        send.wall_s
+    );
+    Ok(cap)
 }
