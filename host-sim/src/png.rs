@@ -24,16 +24,16 @@ pub fn draw_png(
         root.present()
             .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
     }
-    let file = File::create(path).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc
-        .write_header()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    w.write_image_data(&pixels)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    w.finish()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(())
+    // the file and the encoder: any error names the file once
+    let write = || -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let file = File::create(path)?;
+        let mut enc = png::Encoder::new(BufWriter::new(file), width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header()?;
+        w.write_image_data(&pixels)?;
+        w.finish()?;
+        Ok(())
+    };
+    write().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }

@@ -338,8 +338,8 @@ proptest! {
             period_s: period,
         });
         spec.outages.push(nav_engine::run::Outage { start_s: start, duration_s: dur });
-        spec.nav_rate_hz = Some(nav_rate);
-        spec.std_rate_hz = std_rate;
+        spec.record.nav_rate_hz = Some(nav_rate);
+        spec.record.epoch_rate_hz = Some(std_rate);
         spec.imu_time_offset_s = Some(offset);
         let base = alloc::reset_peak();
         let t = Instant::now();

@@ -32,10 +32,9 @@ fn peak_of<T>(f: impl FnOnce() -> T) -> (T, usize) {
 }
 
 fn spec(config: &std::path::Path) -> RunSpec {
-    RunSpec {
-        smoother_history: true,
-        ..RunSpec::new(config)
-    }
+    let mut s = RunSpec::new(config);
+    s.set.smoother_history = true;
+    s
 }
 
 struct Measured {

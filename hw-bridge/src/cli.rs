@@ -160,10 +160,13 @@ impl From<&ReplayArgs> for cmd::ReplayOptions {
             input: a.input,
             leap_seconds: a.leap_seconds,
             verbose: a.verbose,
-            config: a.config.clone(),
-            case: a.case.clone(),
-            model: a.model,
-            f32: a.f32,
+            filter: a.config.as_ref().map(|c| {
+                let mut spec = nav_engine::RunSpec::new(c);
+                spec.case = a.case.clone();
+                spec.set.model = a.model;
+                spec.set.precision = a.f32.then_some(nav_engine::run::Precision::F32);
+                spec
+            }),
             keep_frames: false,
         }
     }
@@ -338,8 +341,10 @@ mod tests {
         let o = cmd::ReplayOptions::from(&a);
         assert_eq!(o.input, InputKind::Gnss);
         assert_eq!(o.max_gap_s, 2.0);
-        assert_eq!(o.model, Some(nav_engine::run::Model::Nbk));
-        assert!(o.f32 && o.config.is_some());
+        let spec = o.filter.expect("--config runs the filter");
+        assert_eq!(spec.config, PathBuf::from("r.toml"));
+        assert_eq!(spec.set.model, Some(nav_engine::run::Model::Nbk));
+        assert_eq!(spec.set.precision, Some(nav_engine::run::Precision::F32));
 
         let Cmd::Send(a) = parse(&["send", "--case", "d", "--port", "p"]) else {
             panic!()

@@ -32,21 +32,18 @@ pub fn partial_name(path: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// Opens the output folder `dir` of a replay reading `capture` (and, with `config`, the
-/// files of that run configuration and of the case folder `case`): see the module notes.
+/// Opens the output folder `dir` of a replay reading `capture` (and, with the filter's run
+/// `filter`, the files of its configuration and case folder): see the module notes.
 pub fn open_out(
     dir: &Path,
     capture: &Path,
-    config: Option<&Path>,
-    case: Option<&Path>,
+    filter: Option<&nav_engine::RunSpec>,
 ) -> anyhow::Result<OutDir> {
     let mut inputs = vec![capture.to_path_buf()];
-    if let Some(c) = config {
-        let mut spec = nav_engine::RunSpec::new(c);
-        spec.case = case.map(Path::to_path_buf);
+    if let Some(spec) = filter {
         inputs.extend(
-            nav_engine::run::prepare::run_inputs(&spec)
-                .with_context(|| format!("preparing the filter from {}", c.display()))?,
+            nav_engine::run::prepare::run_inputs(spec)
+                .with_context(|| format!("preparing the filter from {}", spec.config.display()))?,
         );
     }
     Ok(OutDir::open(dir, &inputs)?)

@@ -163,7 +163,7 @@ fn build_baseline(rev: &str) -> Result<PathBuf> {
 /// A drive of `seconds` at 200 Hz: 3 min static, then blocks of driving with turns, speed
 /// changes and stops, 2 min static at the end (the scenario's TOML, built with the
 /// simulator's own types).
-fn scenario(seconds: f64) -> String {
+pub(crate) fn scenario(seconds: f64) -> String {
     let mut b = nav_sim::ScenarioBuilder::new("bench-run")
         .description("generated drive for cargo xtask bench-run")
         .start(48.199, 16.37, 220.0, 120.0)

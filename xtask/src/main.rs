@@ -15,8 +15,9 @@
 //! - `fw hil`: UART loopback, the navigation application's frame link, and `hw-bridge send`
 //!   / `hw-bridge record` of a simulated drive through the `nav` firmware, over qemu's UART
 //!   on a socket and a socat pty, compared with the host;
-//! - `bench-replay`: `hw-bridge replay --config` of a 1-hour 200 Hz capture against
-//!   `host-sim run` on the same case (wall times, ratio, identical output);
+//! - `bench-replay [--hours H]`: `hw-bridge replay --config` of a 1-hour (or H-hour) 200 Hz
+//!   capture against `host-sim run` on the same case (wall times, peak memory, ratio,
+//!   identical output);
 //! - `fuzz [--seconds S]`: every libFuzzer target of `fuzz/` for S seconds (default 60; not a CI
 //!   step: the test suite replays the corpus and the regressions and runs each property on
 //!   random inputs);
@@ -153,6 +154,14 @@ enum Cmd {
         /// Scenario to simulate (a shipped name or a TOML file).
         #[arg(long, default_value = "long")]
         scenario: String,
+        /// Instead of the scenario, the generated drive of `bench-run` of this many hours
+        /// (0 < hours <= 24).
+        #[arg(long)]
+        hours: Option<f64>,
+        /// Run the `host-sim` and `hw-bridge` executables in this folder (e.g.
+        /// `target/release`) instead of building the workspace's release test binaries.
+        #[arg(long)]
+        bins: Option<PathBuf>,
         /// Keep the case, capture and outputs (the directory is printed).
         #[arg(long)]
         keep: bool,
@@ -222,7 +231,12 @@ fn main() -> std::process::ExitCode {
         Cmd::TestHost => test_host(),
         Cmd::Fuzz { seconds } => fuzz::run(seconds),
         Cmd::Soak { seconds } => soak::run(seconds),
-        Cmd::BenchReplay { scenario, keep } => replaybench::run(&scenario, keep),
+        Cmd::BenchReplay {
+            scenario,
+            hours,
+            bins,
+            keep,
+        } => replaybench::run(&scenario, hours, bins.as_deref(), keep),
         Cmd::Hostile { keep } => hostile::run(keep),
         Cmd::BenchRun {
             hours,

@@ -8,7 +8,11 @@
 //! 3. `hw-bridge replay --as-fast-as-possible --config kf-gins.yaml` on the capture.
 //!
 //! and (3)'s `nav.txt` must be byte-identical to (2)'s. It prints the times and the ratio
-//! (3)/(2): the framing overhead. A benchmark, not a test: wall times depend on the machine.
+//! (3)/(2): the framing overhead, and the peak resident set of each command (its own
+//! `VmHWM`, read while it runs: [`test_support::cli::try_run_bounded`]). `--hours H` drives
+//! the generated drive of `cargo xtask bench-run` of H hours instead of the scenario, so that
+//! the peaks of a short and a long capture can be held side by side (the replay's memory must
+//! not grow with the capture). A benchmark, not a test: wall times depend on the machine.
 
 use crate::hil::{host_bins, HostBins};
 use anyhow::{bail, Context, Result};
@@ -24,32 +28,67 @@ impl Drop for Kill {
     }
 }
 
-fn timed(cmd: &mut Command) -> Result<(f64, String)> {
-    eprintln!("  $ {}", crate::show(cmd));
-    let t = Instant::now();
-    let out = cmd
-        .stdin(Stdio::null())
-        .output()
-        .with_context(|| format!("starting {}", crate::show(cmd)))?;
-    let dt = t.elapsed().as_secs_f64();
-    let so = String::from_utf8_lossy(&out.stdout).into_owned();
-    if !out.status.success() {
-        bail!(
-            "`{}` failed ({}): {so}{}",
-            crate::show(cmd),
-            out.status,
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    Ok((dt, so))
+/// Longest a measured command may run before it is killed (and the benchmark fails), s.
+const LIMIT_S: u64 = 6 * 3600;
+
+/// One command run to its end: wall time (s), peak resident set (MiB), its stdout.
+struct Timed {
+    wall_s: f64,
+    rss_mib: f64,
+    stdout: String,
 }
 
-/// Runs the benchmark in `dir` (kept when `keep`).
-pub fn run(scenario: &str, keep: bool) -> Result<()> {
-    let bins = host_bins()?;
+/// Runs `cmd` to its end, timed on the wall clock, with its own peak resident set; `Err`
+/// when it fails.
+fn timed(cmd: &mut Command) -> Result<Timed> {
+    eprintln!("  $ {}", crate::show(cmd));
+    cmd.stdin(Stdio::null());
+    let r = test_support::cli::try_run_bounded(cmd, Duration::from_secs(LIMIT_S))
+        .with_context(|| format!("running {}", crate::show(cmd)))?;
+    if r.timed_out() || r.code() != Some(0) {
+        bail!(
+            "`{}` failed ({:?}{}): {}{}",
+            crate::show(cmd),
+            r.status,
+            if r.timed_out() {
+                ", killed at the limit"
+            } else {
+                ""
+            },
+            r.stdout,
+            r.stderr
+        );
+    }
+    Ok(Timed {
+        wall_s: r.wall_s,
+        rss_mib: r.max_rss_kib as f64 / 1024.0,
+        stdout: r.stdout,
+    })
+}
+
+/// Runs the benchmark in `dir` (kept when `keep`) on `scenario`, or with `hours` on the
+/// generated drive of that many hours; with `bins` the executables in that folder.
+pub fn run(scenario: &str, hours: Option<f64>, bins: Option<&Path>, keep: bool) -> Result<()> {
+    if let Some(h) = hours.filter(|h| !(*h > 0.0 && *h <= 24.0)) {
+        bail!("--hours {h}: expected 0 < hours <= 24");
+    }
+    let bins = match bins {
+        Some(d) => HostBins {
+            host_sim: d.join("host-sim"),
+            hw_bridge: d.join("hw-bridge"),
+        },
+        None => host_bins()?,
+    };
     let dir = std::env::temp_dir().join(format!("navcore-bench-replay-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let r = run_in(&bins, &dir, scenario);
+    let r = match hours {
+        Some(h) => {
+            let sc = dir.join("scenario.toml");
+            std::fs::write(&sc, crate::benchrun::scenario(h * 3600.0))?;
+            run_in(&bins, &dir, &sc.to_string_lossy())
+        }
+        None => run_in(&bins, &dir, scenario),
+    };
     if keep {
         eprintln!("  kept {}", dir.display());
     } else {
@@ -60,14 +99,85 @@ pub fn run(scenario: &str, keep: bool) -> Result<()> {
 
 fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     let case = dir.join("case");
-    let (t_sim, so) = timed(
+    let sim = timed(
         Command::new(&bins.host_sim)
             .args(["simulate", "--scenario", scenario, "--errors", "tactical"])
             .args(["--seed", "1", "--kf-gins", "--out"])
             .arg(&case),
     )?;
-    eprint!("  {so}");
-    eprintln!("  simulate: {t_sim:.1} s");
+    eprint!("  {}", sim.stdout);
+    eprintln!("  simulate: {:.1} s", sim.wall_s);
+    let cap = capture(bins, dir, &case)?;
+    let cap_bytes = std::fs::metadata(&cap)?.len();
+    eprintln!("  capture {:.1} MB", cap_bytes as f64 / 1e6);
+
+    let dec = timed(
+        Command::new(&bins.hw_bridge)
+            .args(["replay", "--as-fast-as-possible"])
+            .arg(&cap),
+    )?;
+    let config = case.join("kf-gins.yaml");
+    let out_sim = dir.join("out-sim");
+    let sim_run = timed(
+        Command::new(&bins.host_sim)
+            .args(["run", "--quiet", "--config"])
+            .arg(&config)
+            .arg("--out")
+            .arg(&out_sim),
+    )?;
+    let out_rep = dir.join("out-replay");
+    let rep = timed(
+        Command::new(&bins.hw_bridge)
+            .args(["replay", "--as-fast-as-possible"])
+            .arg(&cap)
+            .arg("--config")
+            .arg(&config)
+            .arg("--out")
+            .arg(&out_rep),
+    )?;
+    let same = std::fs::read(out_sim.join("nav.txt"))? == std::fs::read(out_rep.join("nav.txt"))?;
+    let first = |s: &str| s.lines().next().unwrap_or("").to_string();
+    let filter_line = rep
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("filter:"))
+        .unwrap_or("")
+        .to_string();
+    eprintln!(
+        "\n  replay, decode only: {} ({:.2} s wall incl. process start)",
+        first(&dec.stdout),
+        dec.wall_s
+    );
+    eprintln!("  replay --config:    {} ", first(&rep.stdout));
+    eprintln!("                      {filter_line}");
+    for (what, t) in [
+        ("hw-bridge replay (decode only)", &dec),
+        ("host-sim run on the case files", &sim_run),
+        ("hw-bridge replay --config on capture", &rep),
+    ] {
+        eprintln!(
+            "  {what:<38} {:8.2} s wall, peak {:7.1} MiB",
+            t.wall_s, t.rss_mib
+        );
+    }
+    eprintln!(
+        "  ratio replay / host-sim run: {:.3} (framing, decoding and capture reading {:+.2} s)",
+        rep.wall_s / sim_run.wall_s,
+        rep.wall_s - sim_run.wall_s
+    );
+    eprintln!(
+        "  nav.txt of the replay is {} to host-sim run's",
+        if same { "byte-identical" } else { "DIFFERENT" }
+    );
+    if !same {
+        bail!("replay --config and host-sim run disagree on the same drive");
+    }
+    Ok(())
+}
+
+/// `hw-bridge send --as-fast-as-possible` of `case` over a socat pty pair into `hw-bridge
+/// record`: the capture's path.
+fn capture(bins: &HostBins, dir: &Path, case: &Path) -> Result<std::path::PathBuf> {
     // send -> pty pair -> record
     let a = dir.join("A");
     let b = dir.join("B");
@@ -101,10 +211,10 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     let mut err = std::io::BufReader::new(rec.stderr.take().context("record stderr")?);
     let mut line = String::new();
     std::io::BufRead::read_line(&mut err, &mut line)?;
-    let (t_send, so) = timed(
+    let send = timed(
         Command::new(&bins.hw_bridge)
             .args(["send", "--quiet", "--as-fast-as-possible", "--case"])
-            .arg(&case)
+            .arg(case)
             .arg("--port")
             .arg(&a),
     )?;
@@ -113,63 +223,10 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     if !st.success() {
         bail!("hw-bridge record failed ({st})");
     }
-    let cap_bytes = std::fs::metadata(&cap)?.len();
     eprintln!(
-        "  send over the pty pair: {} in {t_send:.1} s; capture {:.1} MB",
-        so.trim(),
-        cap_bytes as f64 / 1e6
+        "  send over the pty pair: {} in {:.1} s",
+        send.stdout.trim(),
+        send.wall_s
     );
-
-    let (t_dec, so_dec) = timed(
-        Command::new(&bins.hw_bridge)
-            .args(["replay", "--as-fast-as-possible"])
-            .arg(&cap),
-    )?;
-    let config = case.join("kf-gins.yaml");
-    let out_sim = dir.join("out-sim");
-    let (t_sim_run, _) = timed(
-        Command::new(&bins.host_sim)
-            .args(["run", "--quiet", "--config"])
-            .arg(&config)
-            .arg("--out")
-            .arg(&out_sim),
-    )?;
-    let out_rep = dir.join("out-replay");
-    let (t_rep, so_rep) = timed(
-        Command::new(&bins.hw_bridge)
-            .args(["replay", "--as-fast-as-possible"])
-            .arg(&cap)
-            .arg("--config")
-            .arg(&config)
-            .arg("--out")
-            .arg(&out_rep),
-    )?;
-    let same = std::fs::read(out_sim.join("nav.txt"))? == std::fs::read(out_rep.join("nav.txt"))?;
-    let first = |s: &str| s.lines().next().unwrap_or("").to_string();
-    let filter_line = so_rep
-        .lines()
-        .find(|l| l.starts_with("filter:"))
-        .unwrap_or("")
-        .to_string();
-    eprintln!(
-        "\n  replay, decode only: {} ({t_dec:.2} s wall incl. process start)",
-        first(&so_dec)
-    );
-    eprintln!("  replay --config:    {} ", first(&so_rep));
-    eprintln!("                      {filter_line}");
-    eprintln!("  host-sim run on the case files:         {t_sim_run:7.2} s wall");
-    eprintln!("  hw-bridge replay --config on capture:   {t_rep:7.2} s wall");
-    eprintln!(
-        "  ratio replay / host-sim run: {:.3} (framing, decoding and capture reading {:+.2} s)",
-        t_rep / t_sim_run,
-        t_rep - t_sim_run
-    );
-    eprintln!(
-        "  nav.txt of the replay is {} to host-sim run's",
-        if same { "byte-identical" } else { "DIFFERENT" }
-    );
-    if !same {
-        bail!("replay --config and host-sim run disagree on the same drive");
-    }
-    Ok(())
+    Ok(cap)
 }

@@ -33,8 +33,9 @@ use nav_engine::run::prepare::DEFAULT_STD_RATE_HZ;
 pub use nav_engine::run::prepare::{
     read_config, scale_white_noise, CaseIndex, ConfigKind, ImuStream, Loaded, Prepared, RunSpec,
 };
-use nav_engine::run::Effect;
-use nav_io::ImuClassName;
+use nav_engine::run::prepare::{FilterOverrides, ImuChecksOverrides, Overrides};
+use nav_engine::run::{Effect, Precision, RecordOptions};
+use nav_io::{ImuChecksConfig, ImuClassName};
 use std::path::PathBuf;
 
 /// Arguments of `host-sim run` (a `clap::Parser` too, so that a test can parse a command line
@@ -157,27 +158,37 @@ impl RunArgs {
             config: self.config.clone(),
             case: self.case.clone(),
             truth: self.truth.clone(),
-            model: self.model,
             outages: self.outages.clone(),
             periodic_outages: self.periodic_outages.clone(),
             kf_gins_outages: self.kf_gins_outages,
-            std_rate_hz: self.std_rate,
-            nav_rate_hz: self.nav_rate,
-            f32: self.f32,
             imu_time_offset_s: self.imu_time_offset,
-            gate: self.gate,
-            velocity_gate: self.velocity_gate.map(|v| v.0),
-            gnss_velocity: self.gnss_velocity,
-            noise_scale: self.noise_scale,
-            effects: self.effects.clone(),
-            imu_class: self.imu_class,
-            imu_max_rate_dps: self.imu_max_rate_dps,
-            imu_max_accel_g: self.imu_max_accel_g,
-            no_imu_limits: self.no_imu_limits,
-            imu_max_gap_s: self.imu_max_gap,
-            imu_gaps: self.imu_gaps,
-            imu_strict: self.imu_strict,
-            smoother_history: self.smooth,
+            record: RecordOptions {
+                nav_rate_hz: self.nav_rate,
+                epoch_rate_hz: Some(self.std_rate),
+            },
+            set: Overrides {
+                model: self.model,
+                precision: self.f32.then_some(Precision::F32),
+                filter: FilterOverrides {
+                    gating: self.gate,
+                    velocity_gating: self.velocity_gate.map(|v| v.0),
+                    use_gnss_velocity: self.gnss_velocity,
+                    white_noise_scale: self.noise_scale,
+                },
+                imu_checks: ImuChecksOverrides {
+                    table: ImuChecksConfig {
+                        class: self.imu_class,
+                        max_rate_deg_s: self.imu_max_rate_dps,
+                        max_accel_g: self.imu_max_accel_g,
+                        max_gap_s: self.imu_max_gap,
+                        stop_on_implausible: self.imu_strict,
+                    },
+                    no_limits: self.no_imu_limits,
+                    increments: self.imu_gaps,
+                },
+                effects: self.effects.clone(),
+                smoother_history: self.smooth,
+            },
         }
     }
 }

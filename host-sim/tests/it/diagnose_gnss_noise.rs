@@ -119,7 +119,7 @@ static_s = 10.0
 
 fn load(config: &Path, gate: Option<Gating>) -> Prepared {
     let mut spec = RunSpec::new(config);
-    spec.gate = gate;
+    spec.set.filter.gating = gate;
     nav_engine::load(&spec, false).unwrap().prepared
 }
 

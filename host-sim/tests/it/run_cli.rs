@@ -219,7 +219,8 @@ fn run_arguments_become_the_typed_run_spec() {
     use clap::Parser;
     use host_sim::run::cli::RunArgs;
     use nav_core::config::{GateProbability, Gating, VelocityGating};
-    use nav_engine::run::{Effect, Model};
+    use nav_engine::run::prepare::{FilterOverrides, ImuChecksOverrides, Overrides};
+    use nav_engine::run::{Effect, Model, Precision, RecordOptions};
     let a = RunArgs::try_parse_from([
         "run",
         "--config",
@@ -241,36 +242,82 @@ fn run_arguments_become_the_typed_run_spec() {
         "--smooth",
         "--imu-time-offset",
         "-0.125",
+        "--f32",
+        "--noise-scale",
+        "2.5",
+        "--gnss-velocity",
+        "false",
+        "--imu-class",
+        "tactical",
+        "--imu-max-rate-dps",
+        "400",
+        "--imu-max-accel-g",
+        "8",
+        "--imu-max-gap",
+        "0.5",
+        "--imu-gaps",
+        "span",
+        "--imu-strict",
+        "--no-imu-limits",
     ])
     .unwrap();
     let s = a.to_spec();
     assert_eq!(s.config, Path::new("c.toml"));
     assert_eq!(
-        s.effects,
+        s.set.effects,
         [Effect::TimeOffset, Effect::LeverArm, Effect::ImuClockDrift]
     );
     let max_rej = Gating::default().max_consecutive_rejections;
     assert_eq!(
-        s.gate,
-        Some(Gating::with_probability(GateProbability::P99, max_rej))
+        s.set.filter,
+        FilterOverrides {
+            gating: Some(Gating::with_probability(GateProbability::P99, max_rej)),
+            velocity_gating: Some(Some(VelocityGating::hard(GateProbability::P9999))),
+            use_gnss_velocity: Some(false),
+            white_noise_scale: Some(2.5),
+        }
     );
+    assert_eq!(s.set.model, Some(Model::Nbk));
+    assert_eq!(s.set.precision, Some(Precision::F32));
     assert_eq!(
-        s.velocity_gate,
-        Some(Some(VelocityGating::hard(GateProbability::P9999)))
+        s.record,
+        RecordOptions {
+            nav_rate_hz: Some(20.0),
+            epoch_rate_hz: Some(5.0)
+        }
     );
-    assert_eq!(s.model, Some(Model::Nbk));
-    assert_eq!((s.std_rate_hz, s.nav_rate_hz), (5.0, Some(20.0)));
     assert_eq!(s.imu_time_offset_s, Some(-0.125));
-    assert!(s.smoother_history);
+    assert!(s.set.smoother_history);
+    assert_eq!(
+        s.set.imu_checks,
+        ImuChecksOverrides {
+            table: nav_io::ImuChecksConfig {
+                class: Some(nav_io::ImuClassName::Tactical),
+                max_rate_deg_s: Some(400.0),
+                max_accel_g: Some(8.0),
+                max_gap_s: Some(0.5),
+                stop_on_implausible: true,
+            },
+            no_limits: true,
+            increments: Some(nav_core::imu_guard::GapIncrements::Span),
+        }
+    );
     // the defaults are the engine's
     let d = RunArgs::try_parse_from(["run", "--config", "c.toml", "--velocity-gate", "joint"])
         .unwrap()
         .to_spec();
     let e = nav_engine::RunSpec::new("c.toml");
-    assert_eq!(d.velocity_gate, Some(None));
+    assert_eq!(d.set.filter.velocity_gating, Some(None));
+    assert_eq!(d.record, e.record);
     assert_eq!(
-        (d.std_rate_hz, d.nav_rate_hz, d.gate, d.effects.len(), d.f32),
-        (e.std_rate_hz, e.nav_rate_hz, e.gate, e.effects.len(), e.f32)
+        Overrides {
+            filter: FilterOverrides {
+                velocity_gating: None,
+                ..d.set.filter
+            },
+            ..d.set
+        },
+        e.set
     );
 }
 

@@ -31,34 +31,17 @@ pub fn decode_capture(path: &Path) -> anyhow::Result<ReplayOutcome> {
     replay(&ReplayOptions::new(path))
 }
 
-/// The options of `host-sim run --config CONFIG [--case DIR]` for a capture's frames.
-fn spec(
-    config: &Path,
-    case: Option<&Path>,
-    model: Option<nav_engine::run::Model>,
-    f32: bool,
-) -> nav_engine::RunSpec {
-    let mut spec = nav_engine::RunSpec::new(config);
-    spec.case = case.map(Path::to_path_buf);
-    spec.model = model;
-    spec.f32 = f32;
-    spec
-}
-
-/// Runs the host filter on decoded frames in memory the way `host-sim run --config CONFIG
-/// [--case DIR]` runs it on files: the configuration is loaded by the run engine
-/// (`nav_engine::load`), then its IMU samples and GNSS fixes are replaced by the frames' (the
-/// configuration's GNSS sigma scale applied by the engine, as on files). Same samples, same
-/// options: the same solution, bit for bit. The output holds every record.
+/// Runs the host filter on decoded frames in memory the way `host-sim run` runs `spec` on
+/// files: the run is loaded by the run engine (`nav_engine::load`), then its IMU samples and
+/// GNSS fixes are replaced by the frames' (the configuration's GNSS sigma scale applied by
+/// the engine, as on files). Same samples, same options: the same solution, bit for bit. The
+/// output holds every record.
 pub fn run_filter_on_frames(
     log: &FrameLog,
-    config: &Path,
-    case: Option<&Path>,
-    model: Option<nav_engine::run::Model>,
-    f32: bool,
+    spec: &nav_engine::RunSpec,
 ) -> anyhow::Result<FilterRun> {
-    let loaded = nav_engine::load(&spec(config, case, model, f32), false)
-        .with_context(|| format!("preparing the filter from {}", config.display()))?;
+    let loaded = nav_engine::load(spec, false)
+        .with_context(|| format!("preparing the filter from {}", spec.config.display()))?;
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
@@ -150,19 +133,13 @@ fn explain_start_failure(
 }
 
 impl FilterFeed {
-    /// Loads the configuration as `host-sim run --config CONFIG [--case DIR]` does (its IMU
-    /// and GNSS files are not read: the frames replace them; its truth file is read as the
-    /// solution advances) and starts the live run writing into `stage` (the stage folder of
-    /// the replay's output folder, moved into place by the replay).
-    pub fn start(
-        config: &Path,
-        case: Option<&Path>,
-        model: Option<nav_engine::run::Model>,
-        f32: bool,
-        stage: &Path,
-    ) -> anyhow::Result<Self> {
-        let loaded = nav_engine::load(&spec(config, case, model, f32), true)
-            .with_context(|| format!("preparing the filter from {}", config.display()))?;
+    /// Loads the run `spec` as `host-sim run` does (its IMU and GNSS files are not read: the
+    /// frames replace them; its truth file is read as the solution advances) and starts the
+    /// live run writing into `stage` (the stage folder of the replay's output folder, moved
+    /// into place by the replay).
+    pub fn start(spec: &nav_engine::RunSpec, stage: &Path) -> anyhow::Result<Self> {
+        let loaded = nav_engine::load(spec, true)
+            .with_context(|| format!("preparing the filter from {}", spec.config.display()))?;
         for w in &loaded.warnings {
             eprintln!("warning: {w}");
         }

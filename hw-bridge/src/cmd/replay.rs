@@ -65,16 +65,10 @@ pub struct ReplayOptions {
     pub leap_seconds: i64,
     /// Print every rejected chunk with its byte offset.
     pub verbose: bool,
-    /// Run the host filter on the decoded IMU and GNSS frames as `host-sim run --config`
-    /// does on files, with this run configuration (its outputs in `out`).
-    pub config: Option<PathBuf>,
-    /// A case directory written by `host-sim simulate` (truth, outages, GPS week), as in
-    /// `host-sim run --case`; only with `config`.
-    pub case: Option<PathBuf>,
-    /// Error-state model for `config` (None: the configuration's).
-    pub model: Option<nav_engine::run::Model>,
-    /// f32 covariance (as on the MCU) for `config`.
-    pub f32: bool,
+    /// Run the host filter on the decoded IMU and GNSS frames as `host-sim run` does on
+    /// files, with this run (its configuration, case folder and overrides; the frames replace
+    /// its IMU and GNSS files; its outputs in `out`).
+    pub filter: Option<nav_engine::RunSpec>,
     /// Keep every decoded frame in [`ReplayOutcome::log`] (the command line keeps only what
     /// its outputs need: memory independent of the capture's length with `out`).
     pub keep_frames: bool,
@@ -95,10 +89,7 @@ impl ReplayOptions {
             input: InputKind::Frames,
             leap_seconds: DEFAULT_LEAP_SECONDS,
             verbose: false,
-            config: None,
-            case: None,
-            model: None,
-            f32: false,
+            filter: None,
             keep_frames: true,
         }
     }
@@ -244,12 +235,7 @@ pub fn replay(a: &ReplayOptions) -> anyhow::Result<ReplayOutcome> {
     // the output folder checked (none of the inputs in it) and locked before anything is
     // written in it
     let od = match &a.out {
-        Some(dir) => Some(open_out(
-            dir,
-            &a.capture,
-            a.config.as_deref(),
-            a.case.as_deref(),
-        )?),
+        Some(dir) => Some(open_out(dir, &a.capture, a.filter.as_ref())?),
         None => None,
     };
     let mut dec = Decoding::new(a, &rd, port, od.as_ref())?;
@@ -375,14 +361,10 @@ impl Decoding {
         if rd.header().streams_from_start {
             frames.expect_stream_starts();
         }
-        let filter = match (&a.config, od) {
-            (Some(cfg), Some(od)) if a.input == InputKind::Frames => Some(FilterFeed::start(
-                cfg,
-                a.case.as_deref(),
-                a.model,
-                a.f32,
-                od.stage(),
-            )),
+        let filter = match (&a.filter, od) {
+            (Some(spec), Some(od)) if a.input == InputKind::Frames => {
+                Some(FilterFeed::start(spec, od.stage()))
+            }
             _ => None,
         };
         Ok(Self {
@@ -401,7 +383,7 @@ impl Decoding {
             files,
             filter,
             keep_frames: a.keep_frames,
-            keep_samples: a.config.is_some() && a.out.is_none(),
+            keep_samples: a.filter.is_some() && a.out.is_none(),
             last_imu_t: None,
             last_gnss_t: None,
         })
@@ -545,14 +527,12 @@ impl Decoding {
         // The filter first, so that the summary says whether its result is a navigation
         // solution; a filter run that fails still leaves the decoded files and the summary in
         // place.
-        let filter = match (&a.config, self.filter) {
+        let filter = match (&a.filter, self.filter) {
             (Some(_), _) if a.input != InputKind::Frames => Err(anyhow::anyhow!(
                 "--config runs the filter on wire frames: not with --input gnss"
             )),
             (Some(_), Some(feed)) => feed.and_then(FilterFeed::finish).map(Some),
-            (Some(cfg), None) => {
-                run_filter_on_frames(&out.log, cfg, a.case.as_deref(), a.model, a.f32).map(Some)
-            }
+            (Some(spec), None) => run_filter_on_frames(&out.log, spec).map(Some),
             (None, _) => Ok(None),
         };
         // a filter run that could not start for want of a usable fix: not a navigation

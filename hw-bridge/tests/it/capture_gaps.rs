@@ -74,7 +74,7 @@ fn a_lost_imu_frame_is_filled_and_the_solution_kept() {
         let cap = d.join(format!("cap-{flip:?}.bin"));
         write_capture(&case, &cap, flip);
         let dec = decode_capture(&cap).unwrap();
-        let f = run_filter_on_frames(&dec.log, &config, None, None, false).unwrap();
+        let f = run_filter_on_frames(&dec.log, &nav_engine::RunSpec::new(&config)).unwrap();
         (dec, f)
     };
     let (dec0, intact) = run(None);

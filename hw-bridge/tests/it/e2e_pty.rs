@@ -391,11 +391,10 @@ fn send_record_replay_with_config_equals_the_run_engine_on_the_case_files_bit_fo
     assert_eq!(decoded.stats.lost(), 0);
     for f32 in [false, true] {
         let mut spec = RunSpec::new(&config);
-        spec.f32 = f32;
+        spec.set.precision = f32.then_some(nav_engine::run::Precision::F32);
         let p = nav_engine::load(&spec, false).unwrap().prepared;
         let (want, _) = nav_engine::execute(&p, &mut |_, _| {}).unwrap();
-        let got =
-            hw_bridge::cmd::run_filter_on_frames(&decoded.log, &config, None, None, f32).unwrap();
+        let got = hw_bridge::cmd::run_filter_on_frames(&decoded.log, &spec).unwrap();
         let c = &got.output.counters;
         assert_eq!(got.output.nav.len(), p.case.imu.len() + 1, "f32 {f32}");
         assert_eq!(got.output.outages.len(), 1);

@@ -806,7 +806,11 @@ pub fn run_engine(
 
 /// [`run_engine`] on a layout with extra effect blocks: one filter instantiation per state
 /// count in [`MIN_EXTRA_DIM`]..=[`MAX_EXTRA_DIM`], dispatched on the layout's dimension.
-#[cfg(not(test))]
+///
+/// In this crate's own unit-test build the 25 instantiations are left out (they are two
+/// thirds of the crate's compile time and no unit test runs an extended layout; the
+/// integration tests and every dependent crate get the full dispatch): the layout is then
+/// refused with [`RunError::Options`].
 fn run_extended(
     layout: Layout,
     input: Streams<'_>,
@@ -815,38 +819,31 @@ fn run_extended(
     sink: &mut dyn RunSink,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RunOutput, RunError> {
-    macro_rules! dims {
-        ($($n:literal)*) => {
-            match layout.dim() {
-                $($n => engine::run_layout_stream::<f64, $n>(
-                    layout, input, opts, coast, sink, progress,
-                ),)*
-                d => Err(RunError::Options(format!(
-                    "layout of {d} states: run supports {MIN_EXTRA_DIM} to {MAX_EXTRA_DIM} \
-                     states with extra effect blocks"
-                ))),
-            }
-        };
+    #[cfg(test)]
+    {
+        let _ = (input, opts, coast, sink, progress);
+        Err(RunError::Options(format!(
+            "layout of {} states: extended layouts are not compiled into nav-engine's unit tests",
+            layout.dim()
+        )))
     }
-    dims!(16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40)
-}
-
-/// In this crate's own unit-test build the 25 instantiations of [`run_extended`] are left
-/// out (they are two thirds of the crate's compile time and no unit test runs an extended
-/// layout; the integration tests and every dependent crate get the full dispatch).
-#[cfg(test)]
-fn run_extended(
-    layout: Layout,
-    _input: Streams<'_>,
-    _opts: &RunOptions,
-    _coast: CoastPlan,
-    _sink: &mut dyn RunSink,
-    _progress: &mut dyn FnMut(usize, usize),
-) -> Result<RunOutput, RunError> {
-    Err(RunError::Options(format!(
-        "layout of {} states: extended layouts are not compiled into nav-engine's unit tests",
-        layout.dim()
-    )))
+    #[cfg(not(test))]
+    {
+        macro_rules! dims {
+            ($($n:literal)*) => {
+                match layout.dim() {
+                    $($n => engine::run_layout_stream::<f64, $n>(
+                        layout, input, opts, coast, sink, progress,
+                    ),)*
+                    d => Err(RunError::Options(format!(
+                        "layout of {d} states: run supports {MIN_EXTRA_DIM} to {MAX_EXTRA_DIM} \
+                         states with extra effect blocks"
+                    ))),
+                }
+            };
+        }
+        dims!(16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40)
+    }
 }
 
 /// The model's layout with [`RunOptions::extra_blocks`] appended (f64 only), validated.

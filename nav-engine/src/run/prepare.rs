@@ -26,7 +26,7 @@ use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
 use super::streams::{read_prefix, ConfigFiles, ImuFile};
 pub use super::streams::{GnssStream, ImuStream};
-use super::{CaseData, Effect, Model, Precision, RunOptions};
+use super::{CaseData, Effect, Model, Precision, RecordOptions, RunOptions};
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise, VelocityGating};
@@ -39,13 +39,16 @@ use nav_core::types::ImuSample;
 use nav_io::restcheck::check_config_biases as rest_check;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
-    ImuChecksConfig, ImuClassName, InitMode, KfGinsConfig, RunConfig, TruthData,
+    ImuChecksConfig, InitMode, KfGinsConfig, RunConfig, TruthData,
 };
 use std::path::{Path, PathBuf};
 
-/// What to run: a configuration file and the overrides a front end (a command line, a serial
-/// bridge, a test) applies to it. [`RunSpec::new`] gives the configuration as it is.
-#[derive(Debug, Clone)]
+/// What to run: a configuration file, what a user asked relative to its data (outages, an
+/// IMU time offset, output rates), and overrides of the options the configuration gives
+/// ([`RunOptions`]' own types, each meaning written there once). [`load`] resolves the
+/// relative values against the data and merges the overrides into the configuration's
+/// [`RunOptions`] in one place. [`RunSpec::new`] gives the configuration as it is.
+#[derive(Debug, Clone, PartialEq)]
 pub struct RunSpec {
     /// Run configuration: the project's TOML, or a KF-GINS YAML file.
     pub config: PathBuf,
@@ -54,87 +57,96 @@ pub struct RunSpec {
     pub case: Option<PathBuf>,
     /// Reference trajectory in the nav format (overrides the configuration's).
     pub truth: Option<PathBuf>,
-    /// Error-state model (default: from the configuration; KF-GINS YAML: kf-gins-feedback).
-    pub model: Option<Model>,
-    /// GNSS outages, start in s after the first IMU epoch (after the start time).
+    /// GNSS outages, start in s after the first IMU epoch (after the start time): resolved
+    /// into [`RunOptions::outages`] (absolute times).
     pub outages: Vec<Outage>,
-    /// Repeating outages, first start in s after the first IMU epoch.
+    /// Repeating outages, first start in s after the first IMU epoch: expanded into
+    /// [`RunOptions::outages`].
     pub periodic_outages: Vec<PeriodicOutages>,
-    /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s.
+    /// The KF-GINS paper's protocol: 60 s outages every 180 s, the first at 180 s
+    /// ([`PeriodicOutages::KF_GINS`]).
     pub kf_gins_outages: bool,
-    /// Rate of the standard deviations and block estimates (std.txt, bias.txt), Hz: in
-    /// (0, IMU rate]; a higher one is clamped to the IMU rate with a warning.
-    pub std_rate_hz: f64,
-    /// Rate of the navigation output (nav.txt), Hz (None: every IMU epoch): checked like
-    /// `std_rate_hz`, the value to use is [`Loaded::nav_rate_hz`].
-    pub nav_rate_hz: Option<f64>,
-    /// f32 covariance (as on the MCU) instead of f64.
-    pub f32: bool,
     /// Extra offset added to the IMU time stamps, s (e.g. a logging-delay correction).
     pub imu_time_offset_s: Option<f64>,
-    /// Innovation gate (default: the configuration's; the configuration's velocity gate is
-    /// kept).
-    pub gate: Option<Gating>,
-    /// The GNSS velocity's own gate (default: the configuration's): `Some(None)` joint
-    /// position + velocity updates, `Some(Some(g))` a separate velocity update gated by `g`
-    /// ([`parse_velocity_gate`]).
-    pub velocity_gate: Option<Option<VelocityGating>>,
-    /// Use the GNSS velocities (default: the configuration's).
-    pub gnss_velocity: Option<bool>,
-    /// Multiply the accelerometer and gyro white-noise PSDs by this factor (model tuning).
-    pub noise_scale: Option<f64>,
-    /// Effect blocks to append to the model, in order (after the configuration's own).
+    /// The output rates asked, Hz: [`RecordOptions::epoch_rate_hz`] of std.txt and bias.txt
+    /// (the engine's [`RunOptions::record`]), [`RecordOptions::nav_rate_hz`] of nav.txt (the
+    /// writer's, [`Loaded::nav_rate_hz`]; the engine records every epoch for the metrics).
+    /// Each in (0, IMU rate]; a higher one is clamped to the IMU rate with a warning.
+    pub record: RecordOptions,
+    /// Overrides of the configuration's options; what they leave unset is the
+    /// configuration's.
+    pub set: Overrides,
+}
+
+/// Overrides of a configuration's [`RunOptions`] (a front end's options): `None`, `false` or
+/// empty keeps the configuration's. Merged by [`load`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// [`RunOptions::model`] (default: the configuration's; KF-GINS YAML: kf-gins-feedback).
+    pub model: Option<Model>,
+    /// [`RunOptions::precision`].
+    pub precision: Option<Precision>,
+    /// The options of [`RunOptions::filter`] a front end sets.
+    pub filter: FilterOverrides,
+    /// [`RunOptions::imu_checks`] (after the configuration's `[imu.checks]`).
+    pub imu_checks: ImuChecksOverrides,
+    /// Effects whose blocks are appended, in order, to [`RunOptions::extra_blocks`] (after
+    /// the configuration's own).
     pub effects: Vec<Effect>,
-    /// IMU class giving the plausibility limits (its full-scale range + 10 %).
-    pub imu_class: Option<ImuClassName>,
-    /// Largest plausible angular rate, deg/s on any axis (overrides the class).
-    pub imu_max_rate_dps: Option<f64>,
-    /// Largest plausible specific force, g on any axis (overrides the class).
-    pub imu_max_accel_g: Option<f64>,
-    /// No plausibility limits (only non-finite samples are rejected).
-    pub no_imu_limits: bool,
-    /// Longest IMU time gap bridged, s (a longer gap ends the run with an error).
-    pub imu_max_gap_s: Option<f64>,
-    /// What the IMU increment after a time gap covers (default: from the data's origin).
-    pub imu_gaps: Option<GapIncrements>,
-    /// Stop at the first implausible IMU sample instead of skipping it.
-    pub imu_strict: bool,
-    /// Record what the Rauch-Tung-Striebel smoother needs ([`RunOptions::smoother_history`]).
+    /// Sets [`RunOptions::smoother_history`].
     pub smoother_history: bool,
 }
 
-/// Default rate of std.txt and bias.txt ([`RunSpec::std_rate_hz`]), Hz.
+/// Overrides of the configuration's [`FilterConfig`] ([`Overrides::filter`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FilterOverrides {
+    /// [`FilterConfig::gating`] but for its velocity gate, which stays the configuration's
+    /// ([`parse_gate`]).
+    pub gating: Option<Gating>,
+    /// The velocity gate of [`FilterConfig::gating`] ([`parse_velocity_gate`]).
+    pub velocity_gating: Option<Option<VelocityGating>>,
+    /// [`FilterConfig::use_gnss_velocity`].
+    pub use_gnss_velocity: Option<bool>,
+    /// A factor on the accelerometer and gyro white-noise PSDs ([`scale_white_noise`]), in
+    /// [1 / [`MAX_NOISE_SCALE`], [`MAX_NOISE_SCALE`]].
+    pub white_noise_scale: Option<f64>,
+}
+
+/// Overrides of the IMU checks ([`Overrides::imu_checks`], applied to [`super::ImuChecks`]
+/// after the configuration's `[imu.checks]`).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ImuChecksOverrides {
+    /// The fields of `[imu.checks]` ([`ImuChecksConfig`]: class, rate and specific-force
+    /// limits, longest gap, stop on an implausible sample), applied the same way; the
+    /// longest gap here at most [`MAX_IMU_MAX_GAP_S`].
+    pub table: ImuChecksConfig,
+    /// No plausibility limits ([`ImuLimits::none`]; only non-finite samples are rejected).
+    pub no_limits: bool,
+    /// [`super::ImuChecks::increments`].
+    pub increments: Option<GapIncrements>,
+}
+
+/// Default rate of std.txt and bias.txt ([`RecordOptions::epoch_rate_hz`] of
+/// [`RunSpec::record`]), Hz.
 pub const DEFAULT_STD_RATE_HZ: f64 = 10.0;
 
 impl RunSpec {
     /// The configuration `config` as it is: no overrides, standard deviations at
-    /// [`DEFAULT_STD_RATE_HZ`].
+    /// [`DEFAULT_STD_RATE_HZ`], nav.txt at every IMU epoch.
     pub fn new(config: impl Into<PathBuf>) -> Self {
         Self {
             config: config.into(),
             case: None,
             truth: None,
-            model: None,
             outages: Vec::new(),
             periodic_outages: Vec::new(),
             kf_gins_outages: false,
-            std_rate_hz: DEFAULT_STD_RATE_HZ,
-            nav_rate_hz: None,
-            f32: false,
             imu_time_offset_s: None,
-            gate: None,
-            velocity_gate: None,
-            gnss_velocity: None,
-            noise_scale: None,
-            effects: Vec::new(),
-            imu_class: None,
-            imu_max_rate_dps: None,
-            imu_max_accel_g: None,
-            no_imu_limits: false,
-            imu_max_gap_s: None,
-            imu_gaps: None,
-            imu_strict: false,
-            smoother_history: false,
+            record: RecordOptions {
+                nav_rate_hz: None,
+                epoch_rate_hz: Some(DEFAULT_STD_RATE_HZ),
+            },
+            set: Overrides::default(),
         }
     }
 }
@@ -165,7 +177,8 @@ pub struct Loaded {
     /// files, IMU (and its time-tag file), GNSS, truth, aiding. An output folder must hold
     /// none of them ([`super::outdir::check_inputs`]).
     pub inputs: Vec<PathBuf>,
-    /// [`RunSpec::nav_rate_hz`], checked and clamped to the IMU rate.
+    /// The rate of nav.txt, Hz ([`RecordOptions::nav_rate_hz`] of [`RunSpec::record`]),
+    /// checked, and None when clamped to the IMU rate (every epoch).
     pub nav_rate_hz: Option<f64>,
     /// GNSS records the reader dropped by the quality filter (`[gnss] max_q`, no fix).
     pub gnss_dropped_by_quality: u64,
@@ -393,19 +406,20 @@ pub fn parse_gap_increments(s: &str) -> anyhow::Result<GapIncrements> {
     })
 }
 
-/// Applies `[imu.checks]` of a run configuration to the run options.
-fn apply_imu_checks(ch: &ImuChecksConfig, opts: &mut RunOptions) -> anyhow::Result<()> {
-    if let Some(c) = ch.class {
-        opts.imu_checks.limits = ImuLimits::for_class(c.class());
+/// Applies `[imu.checks]` of a run configuration (or the same fields of
+/// [`ImuChecksOverrides::table`]) to the checks `c`.
+fn apply_imu_checks(ch: &ImuChecksConfig, c: &mut super::ImuChecks) -> anyhow::Result<()> {
+    if let Some(class) = ch.class {
+        c.limits = ImuLimits::for_class(class.class());
     }
-    set_limits(&mut opts.imu_checks, ch.max_rate_deg_s, ch.max_accel_g)?;
+    set_limits(c, ch.max_rate_deg_s, ch.max_accel_g)?;
     if let Some(g) = ch.max_gap_s {
         if !(g.is_finite() && g > 0.0) {
             bail!("imu.checks.max_gap_s = {g}: must be positive");
         }
-        opts.imu_checks.max_gap_s = g;
+        c.max_gap_s = g;
     }
-    opts.imu_checks.stop_on_implausible |= ch.stop_on_implausible;
+    c.stop_on_implausible |= ch.stop_on_implausible;
     Ok(())
 }
 
@@ -644,7 +658,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     };
     let (mut case, mut opts, mut week, mut description, streams) = match kind {
         ConfigKind::KfGins(k) => {
-            prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.model, stream)?
+            prepare_kf_gins(&k, &cfg_dir, case_dir.as_ref(), args.set.model, stream)?
         }
         ConfigKind::Run(mut r) => {
             if stream {
@@ -687,7 +701,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     {
         state.t_s += dt;
     }
-    apply_overrides(args, &mut opts, &mut description)?;
+    args.set.apply(&mut opts, &mut description)?;
     let nav_rate_hz = schedule(
         args,
         &case,
@@ -696,7 +710,6 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         &mut opts,
         &mut warnings,
     )?;
-    opts.smoother_history = args.smoother_history;
     inputs.extend(opts.aiding.odometer_file.iter().cloned());
     inputs.extend(opts.aiding.heading_file.iter().cloned());
     if let Some(st) = &imu_stream {
@@ -771,68 +784,76 @@ fn apply_time_offset(
     Ok(())
 }
 
-/// The command line's overrides of the configuration's options (model, effects, precision,
-/// gates, IMU checks, GNSS velocity, noise scale), checked.
-fn apply_overrides(
-    args: &RunSpec,
-    opts: &mut RunOptions,
-    description: &mut String,
-) -> anyhow::Result<()> {
-    if let Some(m) = args.model {
-        opts.model = m;
-    }
-    for e in &args.effects {
-        opts.add_effect_block(e.block());
-    }
-    if !args.effects.is_empty() {
-        description.push_str(&format!("; effects {}", Effect::join(&args.effects)));
-    }
-    if args.f32 {
-        opts.precision = Precision::F32;
-    }
-    if let Some(g) = args.gate {
-        let v = opts.filter.gating.velocity;
-        opts.filter.gating = g;
-        opts.filter.gating.velocity = v;
-    }
-    if let Some(v) = args.velocity_gate {
-        opts.filter.gating.velocity = v;
-    }
-    if let Some(c) = args.imu_class {
-        opts.imu_checks.limits = ImuLimits::for_class(c.class());
-    }
-    set_limits(
-        &mut opts.imu_checks,
-        args.imu_max_rate_dps,
-        args.imu_max_accel_g,
-    )?;
-    if args.no_imu_limits {
-        opts.imu_checks.limits = ImuLimits::none();
-    }
-    if let Some(g) = args.imu_max_gap_s {
-        if !(g > 0.0 && g <= MAX_IMU_MAX_GAP_S) {
-            bail!("--imu-max-gap {g}: must be in (0, {MAX_IMU_MAX_GAP_S}] s");
+impl Overrides {
+    /// Merges the overrides into the configuration's options `opts` (the one place a front
+    /// end's options reach [`RunOptions`]), checked; the effects and the noise scale are
+    /// named in the run's `description`.
+    fn apply(&self, opts: &mut RunOptions, description: &mut String) -> anyhow::Result<()> {
+        if let Some(m) = self.model {
+            opts.model = m;
         }
-        opts.imu_checks.max_gap_s = g;
-    }
-    if args.imu_gaps.is_some() {
-        opts.imu_checks.increments = args.imu_gaps;
-    }
-    opts.imu_checks.stop_on_implausible |= args.imu_strict;
-    if let Some(v) = args.gnss_velocity {
-        opts.filter.use_gnss_velocity = v;
-    }
-    if let Some(k) = args.noise_scale {
-        if !((1.0 / MAX_NOISE_SCALE..=MAX_NOISE_SCALE).contains(&k)) {
-            bail!(
-                "--noise-scale {k}: must be in [{}, {MAX_NOISE_SCALE}]",
-                1.0 / MAX_NOISE_SCALE
-            );
+        for e in &self.effects {
+            opts.add_effect_block(e.block());
         }
-        scale_white_noise(&mut opts.filter, k);
-        description.push_str(&format!("; white-noise PSDs x{k}"));
+        if !self.effects.is_empty() {
+            description.push_str(&format!("; effects {}", Effect::join(&self.effects)));
+        }
+        if let Some(p) = self.precision {
+            opts.precision = p;
+        }
+        self.imu_checks.apply(&mut opts.imu_checks)?;
+        self.filter.apply(&mut opts.filter, description)?;
+        opts.smoother_history |= self.smoother_history;
+        Ok(())
     }
-    Ok(())
+}
+
+impl FilterOverrides {
+    /// Merges the overrides into the configuration's `filter`, checked (the noise scale
+    /// named in `description`).
+    fn apply(&self, filter: &mut FilterConfig, description: &mut String) -> anyhow::Result<()> {
+        if let Some(g) = self.gating {
+            let v = filter.gating.velocity;
+            filter.gating = g;
+            filter.gating.velocity = v;
+        }
+        if let Some(v) = self.velocity_gating {
+            filter.gating.velocity = v;
+        }
+        if let Some(v) = self.use_gnss_velocity {
+            filter.use_gnss_velocity = v;
+        }
+        if let Some(k) = self.white_noise_scale {
+            if !((1.0 / MAX_NOISE_SCALE..=MAX_NOISE_SCALE).contains(&k)) {
+                bail!(
+                    "--noise-scale {k}: must be in [{}, {MAX_NOISE_SCALE}]",
+                    1.0 / MAX_NOISE_SCALE
+                );
+            }
+            scale_white_noise(filter, k);
+            description.push_str(&format!("; white-noise PSDs x{k}"));
+        }
+        Ok(())
+    }
+}
+
+impl ImuChecksOverrides {
+    /// Merges the overrides into the checks `c` (the configuration's), checked.
+    fn apply(&self, c: &mut super::ImuChecks) -> anyhow::Result<()> {
+        if let Some(g) = self.table.max_gap_s {
+            if !(g > 0.0 && g <= MAX_IMU_MAX_GAP_S) {
+                bail!("--imu-max-gap {g}: must be in (0, {MAX_IMU_MAX_GAP_S}] s");
+            }
+        }
+        apply_imu_checks(&self.table, c)?;
+        if self.no_limits {
+            c.limits = ImuLimits::none();
+        }
+        if self.increments.is_some() {
+            c.increments = self.increments;
+        }
+        Ok(())
+    }
 }
 
 /// The run's time window and rates: the epoch rate set in `opts`, the outages of the
@@ -867,13 +888,18 @@ fn schedule(
         Some(st) => imu_interval_s(st.file.open()?.map_while(Result::ok).map(|(s, _)| s.t_s)),
         None => imu_interval_s(case.imu.iter().map(|s| s.t_s)),
     };
-    opts.record.nav_rate_hz = None;
-    opts.record.epoch_rate_hz = check_rate("--std-rate", args.std_rate_hz, dt_s, warnings)?;
-    let nav_rate_hz = args
-        .nav_rate_hz
-        .map(|r| check_rate("--nav-rate", r, dt_s, warnings))
-        .transpose()?
-        .flatten();
+    // the engine records every navigation epoch (the metrics see them all); nav.txt's rate
+    // is the writer's
+    let rate = |name: &str, hz: Option<f64>, warnings: &mut Vec<String>| {
+        hz.map(|r| check_rate(name, r, dt_s, warnings))
+            .transpose()
+            .map(Option::flatten)
+    };
+    opts.record = RecordOptions {
+        nav_rate_hz: None,
+        epoch_rate_hz: rate("--std-rate", args.record.epoch_rate_hz, warnings)?,
+    };
+    let nav_rate_hz = rate("--nav-rate", args.record.nav_rate_hz, warnings)?;
     let mut periodic = args.periodic_outages.clone();
     if args.kf_gins_outages {
         periodic.push(PeriodicOutages::KF_GINS);
@@ -1135,7 +1161,7 @@ fn prepare_run_config(
     let mut opts = RunOptions::new(model, filter, init);
     opts.gnss_sigma_scale = r.gnss.sigma_scale;
     if let Some(ch) = &r.imu.checks {
-        apply_imu_checks(ch, &mut opts).context("[imu.checks]")?;
+        apply_imu_checks(ch, &mut opts.imu_checks).context("[imu.checks]")?;
     }
     opts.lever_arm_m = r.gnss.lever_arm_m;
     if let Some(a) = &r.aiding {
@@ -1281,6 +1307,69 @@ impl CaseIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every override lands in the option it names, once, over the configuration's value;
+    /// unset ones keep the configuration's.
+    #[test]
+    fn overrides_merge_into_the_configurations_options() {
+        let mut filter = FilterConfig::source_nbk_model();
+        filter.gating.velocity = Some(VelocityGating::ROBUST);
+        let config = || {
+            let mut o = RunOptions::new(
+                Model::Nbk,
+                filter,
+                InitSpec::StaticAlignment(StaticAlign::new(10.0)),
+            );
+            o.imu_checks.max_gap_s = 0.2;
+            o
+        };
+        let (mut kept, mut d) = (config(), String::new());
+        Overrides::default().apply(&mut kept, &mut d).unwrap();
+        assert_eq!(format!("{kept:?}"), format!("{:?}", config()));
+        assert!(d.is_empty());
+
+        let set = Overrides {
+            model: Some(Model::N),
+            precision: Some(Precision::F32),
+            filter: FilterOverrides {
+                gating: Some(Gating::disabled()),
+                velocity_gating: None,
+                use_gnss_velocity: Some(true),
+                white_noise_scale: Some(4.0),
+            },
+            imu_checks: ImuChecksOverrides {
+                table: ImuChecksConfig {
+                    max_rate_deg_s: Some(100.0),
+                    stop_on_implausible: true,
+                    ..ImuChecksConfig::default()
+                },
+                no_limits: false,
+                increments: Some(GapIncrements::Sample),
+            },
+            effects: vec![Effect::LeverArm],
+            smoother_history: true,
+        };
+        let mut o = config();
+        set.apply(&mut o, &mut d).unwrap();
+        assert_eq!((o.model, o.precision), (Model::N, Precision::F32));
+        // the gate replaced but for the configuration's velocity gate
+        assert_eq!(o.filter.gating.max_consecutive_rejections, 0);
+        assert_eq!(o.filter.gating.velocity, Some(VelocityGating::ROBUST));
+        assert!(o.filter.use_gnss_velocity);
+        assert_eq!(o.filter.accel.s_n[0], 4.0 * filter.accel.s_n[0]);
+        assert_eq!(o.imu_checks.limits.max_rate_radps, 100f64.to_radians());
+        assert_eq!(o.imu_checks.max_gap_s, 0.2);
+        assert_eq!(o.imu_checks.increments, Some(GapIncrements::Sample));
+        assert!(o.imu_checks.stop_on_implausible && o.smoother_history);
+        assert_eq!(o.extra_blocks, [Block::LeverArm]);
+        assert_eq!(d, "; effects lever_arm; white-noise PSDs x4");
+
+        // a bad value names the option
+        let mut bad = Overrides::default();
+        bad.imu_checks.table.max_gap_s = Some(5000.0);
+        let e = bad.apply(&mut config(), &mut d).unwrap_err().to_string();
+        assert!(e.starts_with("--imu-max-gap 5000"), "{e}");
+    }
 
     #[test]
     fn streamed_gnss_is_the_loaded_list_and_errors_before_the_run() {

@@ -83,8 +83,8 @@ struct Ours {
 fn run(dir: &std::path::Path, model: Option<Model>, gate: Option<&str>) -> Ours {
     let mut args = RunSpec::new(dir.join("kf-gins.yaml"));
     args.truth = Some(dir.join("truth.nav.gz"));
-    args.gate = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
-    args.model = model;
+    args.set.filter.gating = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
+    args.set.model = model;
     let mut p = args.prepare().expect("prepare");
     // the outages are rows removed from gnss.txt; declaring them lets the metrics cover them
     p.opts.outages = outages(dir);

@@ -26,7 +26,7 @@ struct Row {
 
 fn run(dir: &std::path::Path, gate: Option<&str>) -> Row {
     let mut args = RunSpec::new(dir.join("kf-gins.yaml"));
-    args.gate = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
+    args.set.filter.gating = gate.map(|g| nav_engine::run::prepare::parse_gate(g).unwrap());
     let p = args.prepare().expect("prepare");
     assert!(
         p.case.truth.is_some(),

@@ -79,7 +79,7 @@ fn replay_with_config_on_a_capture_of_a_simulated_case_equals_host_sim_run_byte_
     // ... and hw-bridge replay --config on the capture
     let out_rep = d.join("out-replay");
     let mut a = ReplayOptions::new(&cap);
-    a.config = Some(config.clone());
+    a.filter = Some(nav_engine::RunSpec::new(&config));
     a.out = Some(out_rep.clone());
     let o = replay(&a).unwrap();
     assert_eq!(o.stats.rejected(), 0);
