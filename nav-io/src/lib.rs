@@ -31,6 +31,7 @@ pub mod mount;
 pub mod noisecfg;
 pub mod numfmt;
 pub mod odometer;
+mod plainnum;
 pub mod pos;
 pub mod restcheck;
 pub mod runcfg;

@@ -350,20 +350,26 @@ impl ImuTextReader {
 /// Whether two IMU samples are the same record: equal time, increments and temperature (NaN
 /// temperatures equal), bit for bit.
 pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
-    // the 8 values of `ImuSample::to_values`: the last one is the temperature
-    let (a, b) = (a.to_values(), b.to_values());
-    a.iter()
-        .zip(&b)
-        .enumerate()
-        .all(|(i, (x, y))| x.to_bits() == y.to_bits() || (i == 7 && x.is_nan() && y.is_nan()))
+    let same = |x: f64, y: f64| x.to_bits() == y.to_bits();
+    // the time first: consecutive samples differ there, and the rest is not looked at
+    same(a.t_s, b.t_s)
+        && a.dtheta_rad
+            .iter()
+            .zip(&b.dtheta_rad)
+            .chain(a.dv_mps.iter().zip(&b.dv_mps))
+            .all(|(x, y)| same(*x, *y))
+        && (same(a.temperature_c, b.temperature_c)
+            || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
 }
 
-/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
-/// `fast-float2` (no field list, no UTF-8 check: every accepted byte is ASCII), or `None`
+/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass (a
+/// plain number by `plainnum`, any other spelling by `fast-float2`; no field list, no
+/// UTF-8 check: every accepted byte is ASCII), or `None`
 /// when the line is anything else (blank, comment, comma-separated, non-ASCII, a field that
 /// is not a plain finite number, too few or too many fields). What it accepts, it reads to
-/// the bits [`parse_imu_line`] gives (both parse a plain number with `fast-float2`, see
-/// [`super::lines::parse_f64`]); everything else goes to [`parse_imu_line`].
+/// the bits [`parse_imu_line`] gives (both round correctly: `plainnum` exactly by its two
+/// methods, `fast-float2` as [`super::lines::parse_f64`] does); everything else goes to
+/// [`parse_imu_line`].
 fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
     let mut v = [0.0f64; 8];
     let mut n = 0usize;
@@ -378,10 +384,16 @@ fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
         }
         // a finite result is a plain number ([+-] digits [. digits] [e [+-] digits]):
         // `inf`/`nan` spellings give non-finite values and go to the general parser
-        let (x, used) = fast_float2::parse_partial::<f64, _>(rest).ok()?;
-        if used == 0 || !x.is_finite() {
-            return None;
-        }
+        let (x, used) = match super::plainnum::parse_plain_f64(rest) {
+            Some(p) => p,
+            None => {
+                let (x, used) = fast_float2::parse_partial::<f64, _>(rest).ok()?;
+                if used == 0 || !x.is_finite() {
+                    return None;
+                }
+                (x, used)
+            }
+        };
         i += used;
         if b.get(i).is_some_and(|c| !c.is_ascii_whitespace()) {
             return None;
@@ -811,21 +823,21 @@ pub fn push_nav_line<W: Write + ?Sized, const CAP: usize>(
     n: &NavSolution,
 ) -> std::io::Result<()> {
     lb.push_u64(w, u64::from(n.week))?;
-    for x in [
-        n.t_s,
-        n.lat_rad.to_degrees(),
-        n.lon_rad.to_degrees(),
-        n.h_m,
-        n.vel_ned_mps[0],
-        n.vel_ned_mps[1],
-        n.vel_ned_mps[2],
-        n.rpy_rad[0].to_degrees(),
-        n.rpy_rad[1].to_degrees(),
-        n.rpy_rad[2].to_degrees(),
-    ] {
-        lb.push_byte(w, b' ')?;
-        lb.push_f64(w, x)?;
-    }
+    lb.push_spaced_f64s(
+        w,
+        &[
+            n.t_s,
+            n.lat_rad.to_degrees(),
+            n.lon_rad.to_degrees(),
+            n.h_m,
+            n.vel_ned_mps[0],
+            n.vel_ned_mps[1],
+            n.vel_ned_mps[2],
+            n.rpy_rad[0].to_degrees(),
+            n.rpy_rad[1].to_degrees(),
+            n.rpy_rad[2].to_degrees(),
+        ],
+    )?;
     lb.push_byte(w, b'\n')
 }
 
