@@ -31,7 +31,6 @@ pub mod mount;
 pub mod noisecfg;
 pub mod numfmt;
 pub mod odometer;
-mod plainnum;
 pub mod pos;
 pub mod restcheck;
 pub mod runcfg;

@@ -258,7 +258,7 @@ fn maybe_tie(x: f64) -> bool {
 }
 
 /// 5^k for k = 0..=26 (5^27 > 10^18: beyond, a value has more than 18 significant digits).
-const POW5: [u64; 27] = {
+static POW5: [u64; 27] = {
     let mut t = [1u64; 27];
     let mut i = 1;
     while i < 27 {
@@ -427,7 +427,7 @@ fn copy_short(out: &mut [u8; FAST_MAX], src: &[u8]) -> Option<()> {
 }
 
 /// Exact powers of ten representable in f64: 10^0 ..= 10^22.
-const POW10: [f64; 23] = {
+static POW10: [f64; 23] = {
     let mut t = [1.0f64; 23];
     let mut i = 1;
     while i < 23 {
@@ -438,7 +438,7 @@ const POW10: [f64; 23] = {
 };
 
 /// 10^0 ..= 10^19 as integers.
-const POW10_U64: [u64; 20] = {
+static POW10_U64: [u64; 20] = {
     let mut t = [1u64; 20];
     let mut i = 1;
     while i < 20 {
@@ -472,7 +472,7 @@ fn round_exact(y: f64) -> Option<u64> {
 }
 
 /// The two-digit groups `00` ..= `99`, back to back.
-const DIGIT_PAIRS: [u8; 200] = {
+static DIGIT_PAIRS: [u8; 200] = {
     let mut t = [0u8; 200];
     let mut i = 0;
     while i < 100 {
