@@ -96,3 +96,53 @@ impl<T, E> Iterator for Chunks<T, E> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::read_in_chunks;
+
+    /// The items come in order across chunk boundaries, an error after the items before it
+    /// and then nothing; a source that cannot be opened gives its error alone.
+    #[test]
+    fn items_then_the_error_then_nothing() {
+        for n in [0usize, 1, 2, 3, 7, 9] {
+            let it = read_in_chunks(
+                "t",
+                3,
+                1,
+                move || {
+                    let v: Vec<Result<usize, String>> = (0..n)
+                        .map(Ok)
+                        .chain(std::iter::once(Err("bad".to_string())))
+                        .collect();
+                    Ok::<_, String>(v.into_iter())
+                },
+                |e| e.to_string(),
+            );
+            let got: Vec<Result<usize, String>> = it.collect();
+            let want: Vec<Result<usize, String>> = (0..n)
+                .map(Ok)
+                .chain(std::iter::once(Err("bad".to_string())))
+                .collect();
+            assert_eq!(got, want, "{n} items");
+        }
+        let failed: Vec<Result<usize, String>> = read_in_chunks(
+            "t",
+            3,
+            1,
+            || Err::<std::vec::IntoIter<Result<usize, String>>, _>("no file".to_string()),
+            |e| e.to_string(),
+        )
+        .collect();
+        assert_eq!(failed, vec![Err("no file".to_string())]);
+        let whole: Vec<Result<usize, String>> = read_in_chunks(
+            "t",
+            4,
+            2,
+            || Ok::<_, String>((0..10).map(Ok).collect::<Vec<_>>().into_iter()),
+            |e| e.to_string(),
+        )
+        .collect();
+        assert_eq!(whole, (0..10).map(Ok).collect::<Vec<_>>());
+    }
+}
