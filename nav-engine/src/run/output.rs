@@ -219,38 +219,6 @@ pub fn innovations_header<W: Write + ?Sized>(w: &mut W) -> std::io::Result<()> {
 
 /// One line of `innovations.txt`.
 pub fn innovation_line<W: Write + ?Sized>(w: &mut W, r: &InnovationRecord) -> std::io::Result<()> {
-    let mut lb = nav_io::LineBuf::new();
-    lb.push_fixed(w, r.t_s, 4)?;
-    lb.push_byte(w, b' ')?;
-    lb.push_bytes(w, use_name(r.used).as_bytes())?;
-    lb.push_byte(w, b' ')?;
-    // the outage index as an i64 (-1: none), as `Display` writes it
-    let outage = r.outage.map_or(-1, |o| o as i64);
-    if outage < 0 {
-        lb.push_byte(w, b'-')?;
-    }
-    lb.push_u64(w, outage.unsigned_abs())?;
-    lb.push_byte(w, b' ')?;
-    lb.push_u64(w, r.dim as u64)?;
-    lb.push_byte(w, b' ')?;
-    lb.push_u64(w, u64::from(r.quality))?;
-    for v in r.innovation.iter().chain(r.innovation_var.iter()) {
-        lb.push_byte(w, b' ')?;
-        lb.push_exp(w, *v, 6)?;
-    }
-    for v in [r.nis, r.nis_threshold] {
-        lb.push_byte(w, b' ')?;
-        lb.push_fixed(w, v, 4)?;
-    }
-    lb.push_byte(w, b'\n')?;
-    lb.flush(w)
-}
-
-/// [`innovation_line`] with `write!` (the reference it must equal; tests).
-pub fn innovation_line_fmt<W: Write + ?Sized>(
-    w: &mut W,
-    r: &InnovationRecord,
-) -> std::io::Result<()> {
     write!(
         w,
         "{:.4} {} {} {} {}",
@@ -422,51 +390,6 @@ mod tests {
                 String::from_utf8_lossy(&a),
                 String::from_utf8_lossy(&b),
                 "bias line {k}"
-            );
-        }
-    }
-
-    /// `innovations.txt` lines without `core::fmt` are `core::fmt`'s, byte for byte, over
-    /// 20,000 pseudo-random records (every outcome, with and without an outage, NaN and
-    /// random-bit values).
-    #[test]
-    fn innovation_lines_equal_core_fmt() {
-        let mut s = 29u64;
-        let uses = [
-            FixUse::Accepted,
-            FixUse::Forced,
-            FixUse::Rejected,
-            FixUse::Withheld,
-            FixUse::Invalid,
-        ];
-        let (mut a, mut b) = (Vec::new(), Vec::new());
-        for k in 0..20_000usize {
-            let nan_or = |s: &mut u64| {
-                if next(s) % 7 == 0 {
-                    f64::NAN
-                } else {
-                    value(s)
-                }
-            };
-            let r = InnovationRecord {
-                t_s: 200_000.0 + value(&mut s).abs(),
-                used: uses[k % uses.len()],
-                outage: (k % 3 == 0).then_some(k % 11),
-                dim: if k % 2 == 0 { 3 } else { 6 },
-                innovation: std::array::from_fn(|_| nan_or(&mut s)),
-                innovation_var: std::array::from_fn(|_| nan_or(&mut s)),
-                nis: nan_or(&mut s),
-                nis_threshold: nan_or(&mut s),
-                quality: (next(&mut s) % 256) as u8,
-            };
-            a.clear();
-            b.clear();
-            innovation_line(&mut a, &r).unwrap();
-            innovation_line_fmt(&mut b, &r).unwrap();
-            assert_eq!(
-                String::from_utf8_lossy(&a),
-                String::from_utf8_lossy(&b),
-                "innovation line {k}"
             );
         }
     }
