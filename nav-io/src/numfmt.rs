@@ -135,6 +135,46 @@ impl<const CAP: usize> LineBuf<CAP> {
         self.push_with(w, |d| display_f64(x, d), |w| write!(w, "{x}"))
     }
 
+    /// Appends each of `xs` after a space, as `Display` writes it (`" {x}"` per number), with
+    /// one check of the free room for all of them (the buffer is flushed to `w` first when
+    /// fewer than `xs.len() * (1 + FAST_MAX)` bytes are free): the separators and the digits
+    /// go straight into the buffer. A number the fast path declines is written by `Display`
+    /// after a flush, as [`LineBuf::push_f64`] does.
+    pub fn push_spaced_f64s<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        xs: &[f64],
+    ) -> std::io::Result<()> {
+        const SLOT: usize = 1 + FAST_MAX;
+        if self.len + xs.len() * SLOT > CAP {
+            self.flush(w)?;
+        }
+        for &x in xs {
+            let at = self.len;
+            let slot = self
+                .buf
+                .get_mut(at..at + SLOT)
+                .and_then(|d| d.split_first_mut())
+                .and_then(|(sp, d)| Some((sp, <&mut [u8; FAST_MAX]>::try_from(d).ok()?)));
+            let Some((sp, dst)) = slot else {
+                // a buffer too small for the whole line: number by number
+                self.push_byte(w, b' ')?;
+                self.push_f64(w, x)?;
+                continue;
+            };
+            *sp = b' ';
+            match display_f64(x, dst) {
+                Some(n) => self.len = at + 1 + n,
+                None => {
+                    self.len = at + 1;
+                    self.flush(w)?;
+                    write!(w, "{x}")?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Appends an unsigned integer.
     pub fn push_u64<W: Write + ?Sized>(&mut self, w: &mut W, v: u64) -> std::io::Result<()> {
         let mut tmp = [0u8; 20];
@@ -218,7 +258,7 @@ fn maybe_tie(x: f64) -> bool {
 }
 
 /// 5^k for k = 0..=26 (5^27 > 10^18: beyond, a value has more than 18 significant digits).
-const POW5: [u64; 27] = {
+static POW5: [u64; 27] = {
     let mut t = [1u64; 27];
     let mut i = 1;
     while i < 27 {
@@ -387,7 +427,7 @@ fn copy_short(out: &mut [u8; FAST_MAX], src: &[u8]) -> Option<()> {
 }
 
 /// Exact powers of ten representable in f64: 10^0 ..= 10^22.
-const POW10: [f64; 23] = {
+static POW10: [f64; 23] = {
     let mut t = [1.0f64; 23];
     let mut i = 1;
     while i < 23 {
@@ -398,7 +438,7 @@ const POW10: [f64; 23] = {
 };
 
 /// 10^0 ..= 10^19 as integers.
-const POW10_U64: [u64; 20] = {
+static POW10_U64: [u64; 20] = {
     let mut t = [1u64; 20];
     let mut i = 1;
     while i < 20 {
@@ -418,7 +458,9 @@ fn round_exact(y: f64) -> Option<u64> {
     if !(0.0..4_503_599_627_370_496.0).contains(&y) {
         return None;
     }
-    let f = y.floor();
+    // the integer part (y >= 0 and below 2^52: truncation is the floor, and exact; no
+    // call to a software `floor`)
+    let f = (y as u64) as f64;
     // exact: f and y share the binade or f is smaller with coarser-or-equal spacing
     let r = y - f;
     let ulp = f64::from_bits(y.to_bits() + 1) - y;
@@ -429,22 +471,44 @@ fn round_exact(y: f64) -> Option<u64> {
     Some(if r > 0.5 { n + 1 } else { n })
 }
 
-/// Writes `v` in decimal, left-padded with zeros to `width` digits, at `out[*len..]`.
+/// The two-digit groups `00` ..= `99`, back to back.
+static DIGIT_PAIRS: [u8; 200] = {
+    let mut t = [0u8; 200];
+    let mut i = 0;
+    while i < 100 {
+        t[2 * i] = b'0' + (i / 10) as u8;
+        t[2 * i + 1] = b'0' + (i % 10) as u8;
+        i += 1;
+    }
+    t
+};
+
+/// Writes `v` in decimal, left-padded with zeros to `width` digits (at most 20), at
+/// `out[*len..]`; `v = 0` writes at least one `0`.
 fn put_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<()> {
-    // the digits written in place, last first (no copy through a temporary)
-    let mut n = 0usize;
-    let mut p = v;
-    while p > 0 {
-        n += 1;
-        p /= 10;
-    }
-    let n = n.max(width);
-    let dst = out.get_mut(*len..*len + n)?;
+    // two digits per division, last first, into a zero-filled scratch
+    let mut tmp = [b'0'; 20];
+    let mut i = tmp.len();
     let mut v = v;
-    for d in dst.iter_mut().rev() {
-        *d = b'0' + (v % 10) as u8;
-        v /= 10;
+    while v >= 100 {
+        let r = (v % 100) as usize;
+        v /= 100;
+        i -= 2;
+        tmp.get_mut(i..i + 2)?
+            .copy_from_slice(DIGIT_PAIRS.get(2 * r..2 * r + 2)?);
     }
+    if v >= 10 {
+        let r = v as usize;
+        i -= 2;
+        tmp.get_mut(i..i + 2)?
+            .copy_from_slice(DIGIT_PAIRS.get(2 * r..2 * r + 2)?);
+    } else {
+        i -= 1;
+        *tmp.get_mut(i)? = b'0' + v as u8;
+    }
+    let n = (tmp.len() - i).max(width);
+    let src = tmp.get(tmp.len().checked_sub(n)?..)?;
+    out.get_mut(*len..*len + n)?.copy_from_slice(src);
     *len += n;
     Some(())
 }
@@ -506,7 +570,8 @@ pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<u
     let mut e = if biased == 0 {
         a.log10().floor() as i32
     } else {
-        (f64::from(biased - 1023) * std::f64::consts::LOG10_2).floor() as i32
+        // floor(E log10 2) in integers, exact for |E| <= 1650 (78913 / 2^18 ~ log10 2)
+        ((biased - 1023) * 78_913) >> 18
     };
     let mut y = scale10(a, prec as i32 - e)?;
     if y < lo {

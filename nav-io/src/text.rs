@@ -350,12 +350,16 @@ impl ImuTextReader {
 /// Whether two IMU samples are the same record: equal time, increments and temperature (NaN
 /// temperatures equal), bit for bit.
 pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
-    // the 8 values of `ImuSample::to_values`: the last one is the temperature
-    let (a, b) = (a.to_values(), b.to_values());
-    a.iter()
-        .zip(&b)
-        .enumerate()
-        .all(|(i, (x, y))| x.to_bits() == y.to_bits() || (i == 7 && x.is_nan() && y.is_nan()))
+    let same = |x: f64, y: f64| x.to_bits() == y.to_bits();
+    // the time first: consecutive samples differ there, and the rest is not looked at
+    same(a.t_s, b.t_s)
+        && a.dtheta_rad
+            .iter()
+            .zip(&b.dtheta_rad)
+            .chain(a.dv_mps.iter().zip(&b.dv_mps))
+            .all(|(x, y)| same(*x, *y))
+        && (same(a.temperature_c, b.temperature_c)
+            || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
 }
 
 /// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
@@ -811,21 +815,21 @@ pub fn push_nav_line<W: Write + ?Sized, const CAP: usize>(
     n: &NavSolution,
 ) -> std::io::Result<()> {
     lb.push_u64(w, u64::from(n.week))?;
-    for x in [
-        n.t_s,
-        n.lat_rad.to_degrees(),
-        n.lon_rad.to_degrees(),
-        n.h_m,
-        n.vel_ned_mps[0],
-        n.vel_ned_mps[1],
-        n.vel_ned_mps[2],
-        n.rpy_rad[0].to_degrees(),
-        n.rpy_rad[1].to_degrees(),
-        n.rpy_rad[2].to_degrees(),
-    ] {
-        lb.push_byte(w, b' ')?;
-        lb.push_f64(w, x)?;
-    }
+    lb.push_spaced_f64s(
+        w,
+        &[
+            n.t_s,
+            n.lat_rad.to_degrees(),
+            n.lon_rad.to_degrees(),
+            n.h_m,
+            n.vel_ned_mps[0],
+            n.vel_ned_mps[1],
+            n.vel_ned_mps[2],
+            n.rpy_rad[0].to_degrees(),
+            n.rpy_rad[1].to_degrees(),
+            n.rpy_rad[2].to_degrees(),
+        ],
+    )?;
     lb.push_byte(w, b'\n')
 }
 

@@ -58,12 +58,91 @@ where
             }
         });
     // a thread that did not start dropped its sender: the channel is empty and closed
-    let failed = spawned.err().map(|e| Err(spawn_failed(e)));
-    failed.into_iter().chain(rx.into_iter().flat_map(|m| {
-        let (items, err) = match m {
-            Ok(v) => (v, None),
-            Err(e) => (Vec::new(), Some(Err(e))),
-        };
-        items.into_iter().map(Ok).chain(err)
-    }))
+    Chunks {
+        failed: spawned.err().map(spawn_failed),
+        rx,
+        items: Vec::new().into_iter(),
+        err: None,
+    }
+}
+
+/// The consumer's side of [`read_in_chunks`]: the items of the chunk at hand, then the next
+/// chunk's, and an error after the items before it (one branch per item in the common case).
+struct Chunks<T, E> {
+    /// The thread could not be started: this error first (and then nothing).
+    failed: Option<E>,
+    rx: std::sync::mpsc::Receiver<Result<Vec<T>, E>>,
+    /// The chunk being consumed.
+    items: std::vec::IntoIter<T>,
+    /// The error received, passed on once the items before it are.
+    err: Option<E>,
+}
+
+impl<T, E> Iterator for Chunks<T, E> {
+    type Item = Result<T, E>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            if let Some(x) = self.items.next() {
+                return Some(Ok(x));
+            }
+            if let Some(e) = self.failed.take().or_else(|| self.err.take()) {
+                return Some(Err(e));
+            }
+            match self.rx.recv().ok()? {
+                Ok(v) => self.items = v.into_iter(),
+                Err(e) => self.err = Some(e),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::read_in_chunks;
+
+    /// The items come in order across chunk boundaries, an error after the items before it
+    /// and then nothing; a source that cannot be opened gives its error alone.
+    #[test]
+    fn items_then_the_error_then_nothing() {
+        for n in [0usize, 1, 2, 3, 7, 9] {
+            let it = read_in_chunks(
+                "t",
+                3,
+                1,
+                move || {
+                    let v: Vec<Result<usize, String>> = (0..n)
+                        .map(Ok)
+                        .chain(std::iter::once(Err("bad".to_string())))
+                        .collect();
+                    Ok::<_, String>(v.into_iter())
+                },
+                |e| e.to_string(),
+            );
+            let got: Vec<Result<usize, String>> = it.collect();
+            let want: Vec<Result<usize, String>> = (0..n)
+                .map(Ok)
+                .chain(std::iter::once(Err("bad".to_string())))
+                .collect();
+            assert_eq!(got, want, "{n} items");
+        }
+        let failed: Vec<Result<usize, String>> = read_in_chunks(
+            "t",
+            3,
+            1,
+            || Err::<std::vec::IntoIter<Result<usize, String>>, _>("no file".to_string()),
+            |e| e.to_string(),
+        )
+        .collect();
+        assert_eq!(failed, vec![Err("no file".to_string())]);
+        let whole: Vec<Result<usize, String>> = read_in_chunks(
+            "t",
+            4,
+            2,
+            || Ok::<_, String>((0..10).map(Ok).collect::<Vec<_>>().into_iter()),
+            |e| e.to_string(),
+        )
+        .collect();
+        assert_eq!(whole, (0..10).map(Ok).collect::<Vec<_>>());
+    }
 }

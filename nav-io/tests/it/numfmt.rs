@@ -252,3 +252,57 @@ fn nav_lines_through_a_block_buffer_match_display() {
     assert_eq!(String::from_utf8(small_text).unwrap(), r);
     assert_eq!(String::from_utf8(big_text).unwrap(), r);
 }
+
+/// A run of numbers appended with one room check (`LineBuf::push_spaced_f64s`) gives
+/// `" {x}"` per number as `Display` writes it, for awkward values (signed zeros, ties,
+/// non-finite, subnormal, huge, tiny) and buffers that hold the run, hold it only after a
+/// flush, or cannot hold it at all.
+#[test]
+fn spaced_runs_match_display_in_every_buffer() {
+    let awkward = [
+        0.0,
+        -0.0,
+        1.0,
+        -1.5e-7,
+        200_000.005,
+        200_000.0 + 2f64.powi(-12),
+        -1_514_017_065_704_403.2,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        5e-324,
+        f64::MAX,
+        1e16,
+        -123_456_789.123_456_78,
+        0.25,
+        48.199_000_010_687_65,
+    ];
+    let runs: Vec<&[f64]> = awkward.chunks(10).chain(awkward.chunks(3)).collect();
+    let mut reference = String::new();
+    for _ in 0..40 {
+        for r in &runs {
+            for x in *r {
+                reference.push_str(&format!(" {x}"));
+            }
+            reference.push('\n');
+        }
+    }
+    fn through<const CAP: usize>(mut lb: LineBuf<CAP>, runs: &[&[f64]]) -> String {
+        let mut out = Vec::new();
+        for _ in 0..40 {
+            for r in runs {
+                lb.push_spaced_f64s(&mut out, r).unwrap();
+                lb.push_byte(&mut out, b'\n').unwrap();
+            }
+        }
+        lb.flush(&mut out).unwrap();
+        String::from_utf8(out).unwrap()
+    }
+    assert_eq!(through(LineBuf::<512>::new_block(), &runs), reference);
+    assert_eq!(through(LineBuf::<600>::new_block(), &runs), reference);
+    assert_eq!(through(LineBuf::<100>::new_block(), &runs), reference);
+    assert_eq!(
+        through(LineBuf::<{ 64 << 10 }>::new_block(), &runs),
+        reference
+    );
+}
