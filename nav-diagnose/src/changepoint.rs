@@ -194,10 +194,22 @@ fn corrected(case: &Case, sensor: BiasStepSensor, t_s: f64, step: &[f64; 3]) -> 
 /// it; restarted at each gap, its largest stretch would be the last and the onset placed
 /// after the last gap).
 pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
+    let mut best: Option<(f64, f64)> = None;
+    cusum_walk(innovations, |start_t, _, s| {
+        if *s > best.map_or(0.0, |b| b.1) {
+            best = Some((start_t, *s));
+        }
+    });
+    best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
+}
+
+/// The CUSUM of [`cusum_onset`] over the settled used fixes: after each fix, `step(onset_t_s,
+/// t_s, s)` with the first fix after the statistic's last zero, the fix's time and the
+/// statistic (nats), which `step` may reset.
+fn cusum_walk(innovations: &[InnovationRecord], mut step: impl FnMut(f64, f64, &mut f64)) {
     let lam = CUSUM_INFLATION;
     let mut s = 0.0f64;
     let mut start_t = f64::NAN;
-    let mut best: Option<(f64, f64)> = None;
     let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
     let keep = settled(&used);
     for (r, k) in used.iter().zip(&keep) {
@@ -210,11 +222,8 @@ pub fn cusum_onset(innovations: &[InnovationRecord]) -> Option<(f64, f64)> {
             start_t = r.t_s;
         }
         s = (s + llr).max(0.0);
-        if s > best.map_or(0.0, |b| b.1) {
-            best = Some((start_t, s));
-        }
+        step(start_t, r.t_s, &mut s);
     }
-    best.filter(|b| b.1 >= CUSUM_ALARM_NATS)
 }
 
 /// An alarm of the CUSUM restarted at each alarm ([`cusum_alarms`]).
@@ -230,30 +239,16 @@ pub struct CusumAlarm {
 /// to zero at the fix where it reaches [`CUSUM_ALARM_NATS`] and runs on, so a change after
 /// an early one (an effect that shows when the vehicle starts) raises an alarm of its own.
 pub fn cusum_alarms(innovations: &[InnovationRecord]) -> Vec<CusumAlarm> {
-    let lam = CUSUM_INFLATION;
-    let mut s = 0.0f64;
-    let mut start_t = f64::NAN;
     let mut out = Vec::new();
-    let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
-    let keep = settled(&used);
-    for (r, k) in used.iter().zip(&keep) {
-        if !*k {
-            continue;
-        }
-        let (nis, d) = position_nis(r);
-        let llr = 0.5 * nis * (1.0 - 1.0 / lam) - 0.5 * d as f64 * lam.ln();
-        if s <= 0.0 {
-            start_t = r.t_s;
-        }
-        s = (s + llr).max(0.0);
-        if s >= CUSUM_ALARM_NATS {
+    cusum_walk(innovations, |start_t, t_s, s| {
+        if *s >= CUSUM_ALARM_NATS {
             out.push(CusumAlarm {
                 onset_t_s: start_t,
-                alarm_t_s: r.t_s,
+                alarm_t_s: t_s,
             });
-            s = 0.0;
+            *s = 0.0;
         }
-    }
+    });
     out
 }
 
