@@ -138,7 +138,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     for st in &dg.steps {
         let e = &st.errors;
         println!(
-            "step {}{}: held-out windows RMS {} m, GNSS prior residual {:.3} m, written solution vs fixes {:.3} m, NIS {:.2}{}",
+            "model after step `{}`{}: held-out windows RMS {} m, GNSS prior residual {:.3} m, written solution vs fixes {:.3} m, NIS {:.2}{}",
             st.label,
             if st.accepted { "" } else { " (refused)" },
             e.heldout_windows_rms_m.map_or("-".into(), |x| format!("{x:.3}")),

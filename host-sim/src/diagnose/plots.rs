@@ -343,8 +343,15 @@ fn plot_errors(path: &Path, p: &Prepared, d: &DiagnoseOutput) -> anyhow::Result<
             let (_, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([0.0]));
             let mut ch = ChartBuilder::on(&bottom)
                 .caption(
-                    "3D position error vs truth [m] (final run, every fix used): before (red), \
-                 after (blue); imposed outages shaded",
+                    format!(
+                        "3D position error vs truth [m] (final run, every fix used): before \
+                         (red), after (blue){}",
+                        if d.before.outages.is_empty() {
+                            ""
+                        } else {
+                            "; imposed outages shaded"
+                        }
+                    ),
                     ("sans-serif", 20),
                 )
                 .margin(10)
