@@ -229,14 +229,7 @@ fn check_bias_step(effect: Effect) {
     );
     assert_eq!(s.name, effect.block_name());
     assert!((s.t_s - t0 - truth_t).abs() <= 3.0, "time {}", s.t_s - t0);
-    let norm = truth.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let err = s
-        .step
-        .iter()
-        .zip(&truth)
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>()
-        .sqrt();
+    let (err, norm) = step_error(&s.step, &truth);
     assert!(err <= 0.2 * norm, "step {:?} vs {truth:?}", s.step);
     let h = s.heldout.expect("judged on the held-out windows");
     assert!(h.p_better < 0.05 && h.gain > 0.0, "{}", h.describe());
@@ -412,14 +405,7 @@ fn accelerometer_scale_factor_and_gyro_bias_step_are_both_named_with_the_file_ga
     let s = d.bias_step.as_ref().expect("the gyro step kept");
     let (truth, truth_t) = (m.gyro.bias_step.0, m.gyro.bias_step_at_s);
     assert!((s.t_rel_s - truth_t).abs() <= 5.0, "time {}", s.t_rel_s);
-    let norm = truth.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let err = s
-        .step
-        .iter()
-        .zip(&truth)
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>()
-        .sqrt();
+    let (err, norm) = step_error(&s.step, &truth);
     assert!(err <= 0.1 * norm, "step {:?} vs {truth:?}", s.step);
 }
 
@@ -753,4 +739,16 @@ fn sweep_ten_seeds_per_effect() {
         }
     }
     assert!(failed.is_empty(), "criteria not met: {}", failed.join("; "));
+}
+
+/// The Euclidean norm of a kept step's error against the truth, and of the truth.
+fn step_error(step: &[f64], truth: &[f64]) -> (f64, f64) {
+    let err = step
+        .iter()
+        .zip(truth)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt();
+    let norm = truth.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (err, norm)
 }

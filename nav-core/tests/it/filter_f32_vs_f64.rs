@@ -43,6 +43,19 @@ fn sim21(imu_hz: f64) -> SimConfig {
     }
 }
 
+/// The 100 Hz drive of seed `seed` and the f32 21-state filter started on its perturbed
+/// initial state.
+fn f32_filter_100hz(seed: u64) -> (Sim, Filter<f32, N21>) {
+    let sc = sim21(100.0);
+    let mut cfg = config21();
+    cfg.lever_arm_body_m = sc.lever_arm_body_m;
+    let mut sim = Sim::new(sc, seed);
+    let unc = test_uncertainty();
+    let init = sim.perturbed_initial(&unc);
+    let f = Filter::new(LAYOUT_KF_GINS, &cfg, init, &unc).unwrap();
+    (sim, f)
+}
+
 /// Largest and RMS differences of the f32 filter (f32 covariance, single-precision
 /// mechanization: the MCU's filter) from the f64 filter (the host's default), and the f64
 /// filter's own largest position error against the truth after the first minute.
@@ -153,13 +166,7 @@ fn f32_and_f64_filters_agree_over_a_4_hour_drive() {
 /// conditioned as the f64 filter's (smallest correlation-matrix eigenvalue 3.1e-2 in both).
 #[test]
 fn f32_covariance_stays_positive_definite_over_6_hours() {
-    let sc = sim21(100.0);
-    let mut cfg = config21();
-    cfg.lever_arm_body_m = sc.lever_arm_body_m;
-    let mut sim = Sim::new(sc, 4242);
-    let unc = test_uncertainty();
-    let init = sim.perturbed_initial(&unc);
-    let mut f: Filter<f32, N21> = Filter::new(LAYOUT_KF_GINS, &cfg, init, &unc).unwrap();
+    let (mut sim, mut f) = f32_filter_100hz(4242);
     let mut checks = 0;
     let mut rejected = 0;
     let mut min_ratio = f64::INFINITY;
@@ -214,13 +221,7 @@ fn f32_covariance_stays_positive_definite_over_6_hours() {
 /// which asks for exact symmetry first, holds after a prediction that no update follows.
 #[test]
 fn predicted_f32_covariance_is_exactly_symmetric() {
-    let sc = sim21(100.0);
-    let mut cfg = config21();
-    cfg.lever_arm_body_m = sc.lever_arm_body_m;
-    let mut sim = Sim::new(sc, 4242);
-    let unc = test_uncertainty();
-    let init = sim.perturbed_initial(&unc);
-    let mut f: Filter<f32, N21> = Filter::new(LAYOUT_KF_GINS, &cfg, init, &unc).unwrap();
+    let (mut sim, mut f) = f32_filter_100hz(4242);
     let mut asymmetric = Vec::new();
     for _ in 0..(60 * 100) {
         f.propagate(&sim.step().imu).unwrap();
