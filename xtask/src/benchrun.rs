@@ -36,10 +36,13 @@ const PEER_RSS_MIB: f64 = 11.0;
 
 /// One whole-process measurement.
 #[derive(Debug, Clone, Copy)]
-struct Meas {
-    wall_s: f64,
-    cpu_s: f64,
-    rss_mib: f64,
+pub(crate) struct Meas {
+    /// Wall time, s.
+    pub(crate) wall_s: f64,
+    /// CPU time (user + system), s.
+    pub(crate) cpu_s: f64,
+    /// Peak resident set, MiB (0 when the process ended before it could be read).
+    pub(crate) rss_mib: f64,
 }
 
 /// Longest a measured command may run before it is killed (and the benchmark fails), s.
@@ -49,8 +52,9 @@ const MEASURE_LIMIT_S: u64 = 6 * 3600;
 /// ([`test_support::cli::try_run_bounded`]): its CPU time (user + system) from `wait4`, its
 /// peak resident set from its own `VmHWM`, read while it runs. Not `wait4`'s `ru_maxrss`:
 /// that keeps the high-water mark of the address space the child left at `exec`, xtask's
-/// own.
-fn measure(cmd: &mut Command) -> Result<Meas> {
+/// own. Returns the figures and the command's standard output; `Err` when the command fails
+/// or is still running after [`MEASURE_LIMIT_S`].
+pub(crate) fn measure_with_output(cmd: &mut Command) -> Result<(Meas, String)> {
     eprintln!("  $ {}", crate::show(cmd));
     let limit = std::time::Duration::from_secs(MEASURE_LIMIT_S);
     let r = test_support::cli::try_run_bounded(cmd, limit)
@@ -63,23 +67,32 @@ fn measure(cmd: &mut Command) -> Result<Meas> {
     }
     if r.code() != Some(0) {
         bail!(
-            "`{}` failed ({:?}): {}",
+            "`{}` failed ({:?}): {}{}",
             crate::show(cmd),
             r.status,
+            r.stdout,
             r.stderr
         );
     }
-    if r.max_rss_kib == 0 {
+    let m = Meas {
+        wall_s: r.wall_s,
+        cpu_s: r.cpu_s,
+        rss_mib: r.max_rss_kib as f64 / 1024.0,
+    };
+    Ok((m, r.stdout))
+}
+
+/// [`measure_with_output`] without the output, and an error when the peak resident set
+/// could not be read.
+fn measure(cmd: &mut Command) -> Result<Meas> {
+    let (m, _) = measure_with_output(cmd)?;
+    if m.rss_mib == 0.0 {
         bail!(
             "`{}` ended before its resident set could be read",
             crate::show(cmd)
         );
     }
-    Ok(Meas {
-        wall_s: r.wall_s,
-        cpu_s: r.cpu_s,
-        rss_mib: r.max_rss_kib as f64 / 1024.0,
-    })
+    Ok(m)
 }
 
 fn median(v: &mut [Meas]) -> Meas {

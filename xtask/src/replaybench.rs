@@ -14,6 +14,7 @@
 //! the peaks of a short and a long capture can be held side by side (the replay's memory must
 //! not grow with the capture). A benchmark, not a test: wall times depend on the machine.
 
+use crate::benchrun::{measure_with_output, Meas};
 use crate::hil::{host_bins, HostBins};
 use anyhow::{bail, Context, Result};
 use std::path::Path;
@@ -28,42 +29,16 @@ impl Drop for Kill {
     }
 }
 
-/// Longest a measured command may run before it is killed (and the benchmark fails), s.
-const LIMIT_S: u64 = 6 * 3600;
-
-/// One command run to its end: wall time (s), peak resident set (MiB), its stdout.
+/// One command run to its end: its figures ([`Meas`]) and its standard output.
 struct Timed {
-    wall_s: f64,
-    rss_mib: f64,
+    meas: Meas,
     stdout: String,
 }
 
-/// Runs `cmd` to its end, timed on the wall clock, with its own peak resident set; `Err`
-/// when it fails.
+/// [`measure_with_output`] as a [`Timed`].
 fn timed(cmd: &mut Command) -> Result<Timed> {
-    eprintln!("  $ {}", crate::show(cmd));
-    cmd.stdin(Stdio::null());
-    let r = test_support::cli::try_run_bounded(cmd, Duration::from_secs(LIMIT_S))
-        .with_context(|| format!("running {}", crate::show(cmd)))?;
-    if r.timed_out() || r.code() != Some(0) {
-        bail!(
-            "`{}` failed ({:?}{}): {}{}",
-            crate::show(cmd),
-            r.status,
-            if r.timed_out() {
-                ", killed at the limit"
-            } else {
-                ""
-            },
-            r.stdout,
-            r.stderr
-        );
-    }
-    Ok(Timed {
-        wall_s: r.wall_s,
-        rss_mib: r.max_rss_kib as f64 / 1024.0,
-        stdout: r.stdout,
-    })
+    let (meas, stdout) = measure_with_output(cmd)?;
+    Ok(Timed { meas, stdout })
 }
 
 /// Runs the benchmark in `dir` (kept when `keep`) on `scenario`, or with `hours` on the
@@ -106,7 +81,7 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
             .arg(&case),
     )?;
     eprint!("  {}", sim.stdout);
-    eprintln!("  simulate: {:.1} s", sim.wall_s);
+    eprintln!("  simulate: {:.1} s", sim.meas.wall_s);
     let cap = capture(bins, dir, &case)?;
     let cap_bytes = std::fs::metadata(&cap)?.len();
     eprintln!("  capture {:.1} MB", cap_bytes as f64 / 1e6);
@@ -146,7 +121,7 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     eprintln!(
         "\n  replay, decode only: {} ({:.2} s wall incl. process start)",
         first(&dec.stdout),
-        dec.wall_s
+        dec.meas.wall_s
     );
     eprintln!("  replay --config:    {} ", first(&rep.stdout));
     eprintln!("                      {filter_line}");
@@ -157,13 +132,13 @@ fn run_in(bins: &HostBins, dir: &Path, scenario: &str) -> Result<()> {
     ] {
         eprintln!(
             "  {what:<38} {:8.2} s wall, peak {:7.1} MiB",
-            t.wall_s, t.rss_mib
+            t.meas.wall_s, t.meas.rss_mib
         );
     }
     eprintln!(
         "  ratio replay / host-sim run: {:.3} (framing, decoding and capture reading {:+.2} s)",
-        rep.wall_s / sim_run.wall_s,
-        rep.wall_s - sim_run.wall_s
+        rep.meas.wall_s / sim_run.meas.wall_s,
+        rep.meas.wall_s - sim_run.meas.wall_s
     );
     eprintln!(
         "  nav.txt of the replay is {} to host-sim run's",
@@ -226,7 +201,7 @@ fn capture(bins: &HostBins, dir: &Path, case: &Path) -> Result<std::path::PathBu
     eprintln!(
         "  send over the pty pair: {} in {:.1} s",
         send.stdout.trim(),
-        send.wall_s
+        send.meas.wall_s
     );
     Ok(cap)
 }
