@@ -536,13 +536,7 @@ pub(crate) fn try_noise(
             round.added = Some(format!("noise ({evidence:.1} nats)"));
             round.candidates = results.iter().map(|r| r.0.clone()).collect();
             s.rounds.push(round.clone());
-            if let Some(t) = s.noise_tuning.as_mut() {
-                t.adopted = true;
-            }
-            k.apply(&mut s.base_opts);
-            s.pending_noise = None;
-            s.last_noise_refusal = None;
-            s.cur = ev;
+            s.adopt_noise(k, ev);
             true
         }
         Ok(()) => false,
@@ -632,13 +626,7 @@ pub(crate) fn try_noise_with_effect(
             after: ev.errors,
         },
     );
-    if let Some(t) = s.noise_tuning.as_mut() {
-        t.adopted = true;
-    }
-    k.apply(&mut s.base_opts);
-    s.pending_noise = None;
-    s.last_noise_refusal = None;
-    s.cur = ev;
+    s.adopt_noise(k, ev);
     true
 }
 

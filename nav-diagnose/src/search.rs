@@ -245,6 +245,20 @@ pub(crate) struct Search {
     pub(crate) time_offset_held: Option<f64>,
 }
 
+impl Search {
+    /// Adopts the tuned noise `k` with its run `ev` as the current model: the base options
+    /// take it, the tuning is marked adopted and nothing is pending or refused any more.
+    pub(crate) fn adopt_noise(&mut self, k: NoiseFactors, ev: Eval) {
+        if let Some(t) = self.noise_tuning.as_mut() {
+            t.adopted = true;
+        }
+        k.apply(&mut self.base_opts);
+        self.pending_noise = None;
+        self.last_noise_refusal = None;
+        self.cur = ev;
+    }
+}
+
 /// The data of `case` with its IMU samples in memory (for the smoother's runs).
 pub(crate) fn in_memory(case: &Case) -> Result<nav_engine::run::CaseData, nav_io::IoError> {
     let mut c = (**case).clone();
