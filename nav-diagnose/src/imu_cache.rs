@@ -196,7 +196,8 @@ impl ImuCache {
         }
         Ok(CacheReader {
             f,
-            buf: Vec::new(),
+            block: Vec::new(),
+            end: 0,
             pos: 0,
             path: self.path.clone(),
             first: from,
@@ -222,9 +223,11 @@ impl ImuCache {
 /// [`READ_BLOCK_SAMPLES`] at a time and decoded one by one.
 pub struct CacheReader {
     f: File,
-    /// The block read last (whole records).
-    buf: Vec<u8>,
-    /// Offset of the next record in `buf`, bytes.
+    /// The block read last: its whole records are `block[..end]`.
+    block: Vec<u8>,
+    /// End of the whole records in `block`, bytes.
+    end: usize,
+    /// Offset of the next record in `block`, bytes.
     pos: usize,
     path: PathBuf,
     /// Index of the first sample read.
@@ -241,19 +244,23 @@ impl CacheReader {
     /// the records before it are returned first).
     fn refill(&mut self) -> std::io::Result<()> {
         let want = self.left.min(READ_BLOCK_SAMPLES) * IMU_RECORD_BYTES;
-        self.buf.resize(want, 0);
+        // the block's buffer zeroed once, at its first fill (not at every block)
+        if self.block.len() < want {
+            self.block.resize(want, 0);
+        }
         self.pos = 0;
+        self.end = 0;
         let mut got = 0;
         while got < want {
-            match self.f.read(&mut self.buf[got..]) {
-                Ok(0) => break,
-                Ok(n) => got += n,
-                Err(e) if e.kind() == ErrorKind::Interrupted => {}
-                Err(e) => return Err(e),
+            match self.block.get_mut(got..want).map(|b| self.f.read(b)) {
+                Some(Ok(0)) | None => break,
+                Some(Ok(n)) => got += n,
+                Some(Err(e)) if e.kind() == ErrorKind::Interrupted => {}
+                Some(Err(e)) => return Err(e),
             }
         }
         let whole = got - got % IMU_RECORD_BYTES;
-        self.buf.truncate(whole);
+        self.end = whole;
         if whole == 0 {
             let k = self.first + self.read;
             return Err(std::io::Error::new(
@@ -272,6 +279,7 @@ impl CacheReader {
 impl Iterator for CacheReader {
     type Item = Result<(ImuSample, usize), IoError>;
 
+    #[inline]
     fn next(&mut self) -> Option<Self::Item> {
         if self.left == 0 {
             return None;
@@ -282,7 +290,7 @@ impl Iterator for CacheReader {
                 return Some(Err(stopped(&self.path, sig)));
             }
         }
-        if self.pos >= self.buf.len() {
+        if self.pos >= self.end {
             if let Err(source) = self.refill() {
                 self.left = 0;
                 return Some(Err(IoError::Read {
@@ -293,7 +301,7 @@ impl Iterator for CacheReader {
             }
         }
         let rec = self
-            .buf
+            .block
             .get(self.pos..self.pos + IMU_RECORD_BYTES)
             .and_then(|b| <&[u8; IMU_RECORD_BYTES]>::try_from(b).ok())?;
         self.pos += IMU_RECORD_BYTES;
@@ -309,6 +317,35 @@ impl Iterator for CacheReader {
 
 /// IMU samples as the engine's stream.
 pub type ImuItems = Box<dyn Iterator<Item = Result<ImuItem, RunError>>>;
+
+/// The adjusted samples of a view from its first one as the engine's items
+/// ([`ImuView::stream`]): each record decoded, adjusted and handed on in one step (what
+/// [`ImuView::read_from`] yields, without its chain of adapters per sample).
+struct Items {
+    r: CacheReader,
+    /// The recorded time of the sample before the next one (the bias step's interval).
+    prev: Option<f64>,
+    adjust: Adjust,
+}
+
+impl Iterator for Items {
+    type Item = Result<ImuItem, RunError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        Some(match self.r.next()? {
+            Ok((s, line)) => {
+                let sample = self.adjust.apply(s, self.prev);
+                self.prev = Some(s.t_s);
+                Ok(ImuItem { sample, line })
+            }
+            Err(e) => Err(RunError::Input(e)),
+        })
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.r.size_hint()
+    }
+}
 
 /// What a model's data changes of the recorded IMU samples, applied as they are read.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -421,11 +458,11 @@ impl ImuView {
     /// The samples as the engine's IMU stream (a read error ends the run with it), and
     /// where they come from.
     pub fn stream(&self) -> Result<(ImuItems, ImuSourceInfo), RunError> {
-        let it = self.read_from(0).map_err(RunError::Input)?;
-        let it = it.map(|r| {
-            r.map(|(sample, line)| ImuItem { sample, line })
-                .map_err(RunError::Input)
-        });
+        let it = Items {
+            r: self.cache.read_from(0).map_err(RunError::Input)?,
+            prev: None,
+            adjust: self.adjust,
+        };
         Ok((Box::new(it), self.cache.info().clone()))
     }
 

@@ -221,14 +221,19 @@ pub fn write_files(
         0.0,
     )?;
     // the after solution on the GNSS clock when a time offset was added (written record by
-    // record from the file: no copy of the solution in memory)
+    // record from the file: no copy of the solution in memory); the base run's own records
+    // unshifted (nothing changed) are nav_before.txt's bytes, copied instead of formatted
     let shift = d.after_nav_shift_s;
-    output::write_nav_records(
-        &dir.join("nav_after.txt"),
-        d.after_nav.records()?,
-        p.week,
-        shift,
-    )?;
+    let after = dir.join("nav_after.txt");
+    if shift == 0.0 && d.after_nav.path() == d.before_nav.path() {
+        let before = dir.join("nav_before.txt");
+        std::fs::copy(&before, &after).map_err(|source| DiagnoseError::Write {
+            path: after,
+            source,
+        })?;
+    } else {
+        output::write_nav_records(&after, d.after_nav.records()?, p.week, shift)?;
+    }
     let jp = dir.join("diagnosis.json");
     std::fs::write(&jp, serde_json::to_string_pretty(&d.diagnosis)?)
         .map_err(|source| DiagnoseError::Write { path: jp, source })?;

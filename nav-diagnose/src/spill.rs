@@ -275,7 +275,9 @@ impl NavWriter {
     }
 }
 
-/// The sink of a full-rate run: navigation records to a [`NavFile`], innovation records and
+/// The sink of a diagnosis run with its navigation: the records to a [`NavFile`] without their
+/// standard deviations (NaN: `nav_*.txt`, the metrics and the search read none, and the
+/// attitude sigmas cost a matrix inverse per record), innovation records and
 /// outage snapshots in memory; of the epoch records (recorded only when the run's options ask
 /// for them: a model with a GNSS error state, [`search_recording`](crate::search_recording))
 /// the time and the state estimates.
@@ -307,6 +309,10 @@ impl RunSink for SpillSink {
     fn wants_epochs(&self) -> bool {
         self.wants_epochs
     }
+    fn wants_nav_std(&self) -> bool {
+        // nothing the diagnosis writes or computes reads them (nav_*.txt has no sigmas)
+        false
+    }
 }
 
 /// The sink of a run the search reads only the innovations of (and, for a model with a GNSS
@@ -335,6 +341,9 @@ impl RunSink for InnovationsOnly {
     fn wants_epochs(&self) -> bool {
         self.wants_epochs
     }
+    fn wants_nav_std(&self) -> bool {
+        false
+    }
 }
 
 /// Whether a run of `opts` records the epochs whose estimates predict its withheld fixes: a
@@ -353,6 +362,10 @@ pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunE
         wants_epochs: wants_gnss_error(opts),
         ..InnovationsOnly::default()
     };
+    // no navigation records: the sink drops them (the filter is the same at any rate)
+    let mut no_nav = opts.clone();
+    no_nav.record.nav_rate_hz = Some(0.0);
+    let opts = &no_nav;
     let (it, info) = case.imu.stream()?;
     let streams = Streams {
         imu: it,

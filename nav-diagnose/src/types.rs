@@ -286,14 +286,15 @@ pub struct DiagnoseOutput {
     pub diagnosis: Diagnosis,
     /// The base run: innovations, snapshots, final estimates (`nav` and `epochs` empty).
     pub before: Arc<RunOutput>,
-    /// Navigation records of the base run (`nav_before.txt`).
+    /// Navigation records of the base run (`nav_before.txt`); their standard deviations are
+    /// not recorded (NaN).
     pub before_nav: spill::NavFile,
     /// The run of the final model (the base run again when nothing changed), on the IMU
     /// clock (`nav_after.txt` adds [`Diagnosis::output_clock_shift_s`]); `nav` and `epochs`
     /// empty.
     pub after: Arc<RunOutput>,
     /// Navigation records of the final model's run: IMU clock, or the GNSS clock when the
-    /// time offset was held ([`Diagnosis::time_offset_held_s`]).
+    /// time offset was held ([`Diagnosis::time_offset_held_s`]); standard deviations NaN.
     pub after_nav: spill::NavFile,
     /// Time added to `after_nav`'s records when `nav_after.txt` is written, s:
     /// [`Diagnosis::output_clock_shift_s`], 0 when they are on the GNSS clock already.
