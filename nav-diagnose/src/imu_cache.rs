@@ -25,6 +25,7 @@ use nav_engine::run::{interrupt, CaseData, ImuItem, ImuSourceInfo, RunError, Run
 use nav_io::IoError;
 
 use super::changepoint::BiasStepSensor;
+use super::memo::RunMemo;
 use super::spill::TempFolder;
 
 /// Bytes of one sample in an [`ImuCache`]: time (s), angle increments (rad), velocity
@@ -542,6 +543,8 @@ pub struct Case {
     data: CaseData,
     /// The IMU samples.
     pub imu: ImuView,
+    /// The runs made on this data and its adjusted views ([`RunMemo`]).
+    memo: Arc<RunMemo>,
 }
 
 impl Case {
@@ -555,6 +558,7 @@ impl Case {
                 ..data
             },
             imu: ImuView::new(cache),
+            memo: Arc::default(),
         }
     }
 
@@ -571,7 +575,14 @@ impl Case {
         Self {
             data,
             imu: self.imu.with_adjust(adjust),
+            memo: self.memo.clone(),
         }
+    }
+
+    /// The runs made on this data and its adjusted views: one memo for the diagnosis's data
+    /// (its key holds the adjustment).
+    pub(crate) fn memo(&self) -> &RunMemo {
+        &self.memo
     }
 
     /// `file line N` of IMU sample `index` (or `IMU sample index` without its line).

@@ -78,6 +78,7 @@
 pub mod changepoint;
 mod error;
 pub mod imu_cache;
+mod memo;
 pub mod noise;
 pub mod prior;
 pub mod report;

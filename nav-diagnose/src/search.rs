@@ -156,6 +156,12 @@ impl Ctx<'_> {
         ro: &RunOptions,
     ) -> Result<Eval, nav_engine::run::RunError> {
         use nav_engine::run::RunError;
+        // the same model on the same data scored before ([`crate::memo`])
+        let key = crate::memo::RunMemo::key(case, ro);
+        let rate = ro.record.nav_rate_hz;
+        if let Some(ev) = case.memo().eval(&key, rate) {
+            return Ok(ev);
+        }
         let name = format!(
             "search-{}",
             self.runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
@@ -171,7 +177,9 @@ impl Ctx<'_> {
         spill::remove(nav);
         let (m, e, kept) = res.map_err(RunError::Output)?;
         out.nav = kept;
-        Ok(self.scored(out, m, e))
+        let ev = self.scored(out, m, e);
+        case.memo().keep_eval(key, rate, &ev);
+        Ok(ev)
     }
 
     /// The run scored on the held-out windows; its navigation thinned to what the search

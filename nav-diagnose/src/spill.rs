@@ -358,6 +358,11 @@ fn wants_gnss_error(opts: &RunOptions) -> bool {
 /// the re-tuning read of a run, in memory proportional to the fixes. The same records and
 /// errors as [`nav_engine::run::run_filter`]'s.
 pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunError> {
+    // the same model on the same data asked for before ([`crate::memo`])
+    let key = crate::memo::RunMemo::key(case, opts);
+    if let Some(out) = case.memo().innovations(&key) {
+        return Ok(out);
+    }
     let mut sink = InnovationsOnly {
         wants_epochs: wants_gnss_error(opts),
         ..InnovationsOnly::default()
@@ -387,6 +392,7 @@ pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunE
         &track,
         opts.filter.effects.gnss_position_gm.t_s,
     );
+    case.memo().keep_innovations(key, &out);
     Ok(out)
 }
 
