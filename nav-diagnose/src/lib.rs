@@ -50,7 +50,15 @@
 //!
 //! Cost: per round one filter run per candidate, plus the noise tuning (about 30 runs before
 //! and 30 with the effects), the search's base run when the diagnosis withholds windows, and
-//! the final run; see the README for a 40-minute 200 Hz drive.
+//! the final run (on a clean 40-minute 200 Hz drive 47 runs: the base, its search run, 38
+//! noise trials, 7 candidates; see `docs/benchmarks.md`). A run asked for again (the same
+//! model on the same data: a refined noise factor on a trial already run, a candidate whose
+//! options equal an earlier round's) is answered from a memo of the last runs instead of run
+//! again (on the real drive's default command 12 of its 265 runs repeat an earlier one; the
+//! memo answers 9: a scored search run needs its navigation, which a run kept for its
+//! innovations has not). Runs whose navigation is not
+//! read record none, and no run computes its navigation records' standard deviations
+//! (nothing the diagnosis writes reads them).
 //! Memory: the IMU record is decoded once into a temporary file ([`imu_cache`], 72 bytes a
 //! sample on disk) and every run streams from it, a bias step removed and a held time offset
 //! applied as the samples are read; in memory stay the fixes and the truth when given (a
@@ -59,7 +67,8 @@
 //! records go to temporary files ([`spill`], removed at the end, also on error); what the
 //! diagnosis keeps of a run grows with the GNSS fixes only: its innovation records and, for a
 //! search run, its navigation record nearest each fix (about 320 bytes a fix for each run
-//! kept: the base and final runs, the current model's and each candidate's of a round).
+//! kept: the base and final runs, the current model's and each candidate's of a round, and
+//! the memo's last runs, at most 32 of them and 2^17 innovation records in all).
 //! The filter's state count is a compile-time constant: [`nav_engine::run::run_filter`] dispatches
 //! layouts with extra blocks on their dimension (16 to [`MAX_EXTRA_DIM`] states).
 //!

@@ -5,8 +5,9 @@
 //! model), and a run's records depend only on the IMU data as the model sees it (the record
 //! through its [`Adjust`](crate::imu_cache::Adjust)ment; the fixes and the truth are the
 //! diagnosis's) and on the run's options. The navigation recording rate changes which
-//! navigation records a run writes, not the filter: a run kept for its innovations answers a
-//! request at any rate, a scored search run ([`Eval`]) only one at its own.
+//! navigation records a run writes, not the filter: a request for the innovations is answered
+//! by any kept run of the same key, a request for a scored search run ([`Eval`]) only by a
+//! scored run at the same rate (a run kept for its innovations has no navigation to score).
 //!
 //! A remembered run is answered in place of a new one: the same records, bit for bit. The
 //! memo keeps the last [`MEMO_RUNS`] runs and at most [`MEMO_INNOVATIONS`] innovation records

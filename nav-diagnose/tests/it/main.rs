@@ -7,4 +7,5 @@ mod diagnose_spill;
 mod errors;
 mod gnss_side;
 mod heldout_rule;
+mod run_memo;
 mod vocabulary;
