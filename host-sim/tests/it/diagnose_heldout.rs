@@ -197,6 +197,35 @@ fn vocabulary_effects_are_named_first_with_the_file_gaps_and_no_imposed_outage()
     println!("{} drives in {:.1} s", res.len(), t.elapsed().as_secs_f64());
 }
 
+/// Centre of the GNSS Gauss-Markov sigma of [`gnss_correlated_error_of_named_size_is_named_first`],
+/// m (each axis 0.5-1.5 times it).
+const GNSS_GM_NAMED_M: f64 = 0.6;
+
+/// The GNSS correlated error at the smallest size the sweep names first reliably
+/// ([`GNSS_GM_NAMED_M`]; docs/diagnose.md, "GNSS-side effects", detectability by size), with
+/// the effect's own white noise (2-4x the declared sigmas), seed 21 at the CI sizes: named
+/// first, judged on the fixes withheld one at a time (significantly lower there), and the
+/// model not significantly worse than the configuration on the held-out windows.
+#[test]
+fn gnss_correlated_error_of_named_size_is_named_first() {
+    let spec = DriveSpec {
+        gnss_error_size: Some(GnssErrorSize {
+            gm_sigma_m: GNSS_GM_NAMED_M,
+            white_factor: None,
+        }),
+        ..SweepDrive::One(Effect::GnssCorrelatedError).spec(21, CI)
+    };
+    let (p, _) = prepare(&spec);
+    let first_only = DiagnoseOptions {
+        max_effects: 1,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&p, &first_only).expect("diagnose").diagnosis;
+    check_named_first(Effect::GnssCorrelatedError, &d);
+    let first = &d.added_effects[0];
+    assert!(first.heldout.of_single_fixes, "{}", summary(&d));
+}
+
 /// A bias step of the drive generator (`effect`: the accelerometer's or the gyro's; seed 21:
 /// 10 min, the step 15 s after the GNSS window following the middle of the drive), three gaps
 /// in the GNSS file and no imposed outage: the change point is found on the file's gaps and
