@@ -325,7 +325,8 @@ fn judged_drive_with_truth(
 }
 
 /// The true accelerometer misalignment (urad, `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`) and IMU
-/// clock drift (ppm) of a drive, and every round's estimate / sigma of those two candidates.
+/// clock drift (ppm) of a drive, every round's estimate / sigma and window errors of those two
+/// candidates and of the added ones, and the final model's window errors.
 fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
     let a = m.accel.misalignment_rad;
     let mut s = format!(
@@ -360,11 +361,11 @@ fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
         w.join(", ")
     ));
     for (i, r) in d.rounds.iter().enumerate() {
-        for c in r
-            .candidates
-            .iter()
-            .filter(|c| c.name == "accel_misalignment" || c.name == "imu_clock_drift")
-        {
+        for c in r.candidates.iter().filter(|c| {
+            c.name == "accel_misalignment"
+                || c.name == "imu_clock_drift"
+                || c.decision == nav_diagnose::Decision::Added
+        }) {
             let scale = if c.name == "accel_misalignment" {
                 1e6
             } else {
@@ -395,6 +396,12 @@ fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
             ));
         }
     }
+    let after: Vec<String> = d
+        .window_errors_after_m
+        .iter()
+        .map(|e| format!("{e:.2}"))
+        .collect();
+    s.push_str(&format!("  final windows [{}]\n", after.join(", ")));
     s
 }
 
