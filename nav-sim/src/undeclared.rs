@@ -255,6 +255,38 @@ pub struct DriveSpec {
     /// The GNSS file's gaps: `None` the periodic outages of [`drive_outages`]; `Some(n)`: `n`
     /// gaps of [`OUTAGE_S`] spread over the drive ([`spread_gaps`], not on fix epochs).
     pub file_gaps: Option<usize>,
+    /// The size of the GNSS correlated error when [`Effect::GnssCorrelatedError`] is one of
+    /// the drive's effects (`None`: the effect's own ranges, 5-15 cm with white noise 2-4x).
+    pub gnss_error_size: Option<GnssErrorSize>,
+}
+
+/// The size of a drive's GNSS correlated error ([`Effect::GnssCorrelatedError`]) other than
+/// the effect's own: the per-axis Gauss-Markov sigmas and the white-noise factor drawn for the
+/// seed as for the effect, then rescaled, so that one seed keeps its realisation (its draws,
+/// its correlation time of 100-300 s) across sizes. A single-point or SBAS receiver has errors
+/// of 0.3-1 m correlated over minutes; the effect's own size (5-15 cm) is an RTK float's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GnssErrorSize {
+    /// Centre of the Gauss-Markov sigma, m: each axis gets `[0.5, 1.5]` times it (0.1 m is
+    /// the effect's own 5-15 cm).
+    pub gm_sigma_m: f64,
+    /// The white noise as a multiple of the reported standard deviations, the same on every
+    /// axis (`None`: the effect's own draw, 2-4).
+    pub white_factor: Option<f64>,
+}
+
+impl GnssErrorSize {
+    /// Centre of the Gauss-Markov sigma of [`Effect::GnssCorrelatedError`]'s own range, m.
+    pub const OWN_GM_SIGMA_M: f64 = 0.1;
+
+    /// Rescales the GNSS correlated error drawn by [`add_effect`] in `m` to this size.
+    pub fn apply(&self, m: &mut ErrorModel) {
+        let k = self.gm_sigma_m / Self::OWN_GM_SIGMA_M;
+        m.gnss.gm_sigma_ned_m = Axes3(m.gnss.gm_sigma_ned_m.0.map(|s| s * k));
+        if let Some(w) = self.white_factor {
+            m.gnss.white_sigma_ned_m = Axes3(m.gnss.reported_std().map(|s| s * w));
+        }
+    }
 }
 
 impl DriveSpec {
@@ -270,6 +302,7 @@ impl DriveSpec {
             substeps: 8,
             seed: 13,
             file_gaps: None,
+            gnss_error_size: None,
         }
     }
 }
@@ -554,6 +587,9 @@ pub fn generate(spec: &DriveSpec) -> Result<UndeclaredDrive, SimError> {
     }
     for e in spec.effect.iter().chain(&spec.second) {
         add_effect(&mut errors, *e, spec.seed, duration_s);
+        if let (Effect::GnssCorrelatedError, Some(size)) = (e, spec.gnss_error_size) {
+            size.apply(&mut errors);
+        }
     }
     let mut what: Vec<&str> = spec
         .effect
@@ -848,6 +884,37 @@ mod tests {
             "{}",
             mp.describe()
         );
+    }
+
+    #[test]
+    fn a_gnss_error_size_rescales_the_drawn_error_and_keeps_its_correlation_time() {
+        let spec = DriveSpec {
+            minutes: 4.0,
+            rate_hz: 20.0,
+            substeps: 1,
+            file_gaps: Some(1),
+            ..DriveSpec::new(Some(Effect::GnssCorrelatedError))
+        };
+        let own = generate(&spec).unwrap().case.errors.gnss;
+        let sized = generate(&DriveSpec {
+            gnss_error_size: Some(GnssErrorSize {
+                gm_sigma_m: 0.6,
+                white_factor: Some(1.0),
+            }),
+            ..spec
+        })
+        .unwrap()
+        .case
+        .errors
+        .gnss;
+        assert_eq!(own.gm_tau_s, sized.gm_tau_s);
+        assert_eq!(own.reported_std(), sized.reported_std());
+        for i in 0..3 {
+            let g = sized.gm_sigma_ned_m.0[i];
+            assert!((g - 6.0 * own.gm_sigma_ned_m.0[i]).abs() < 1e-12);
+            assert!((0.3..=0.9).contains(&g), "{g}");
+            assert!((sized.white_sigma_ned_m.0[i] - sized.reported_std()[i]).abs() < 1e-12);
+        }
     }
 
     #[test]

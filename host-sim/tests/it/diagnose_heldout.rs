@@ -27,7 +27,7 @@
 use host_sim::run::cli::Prepared;
 use nav_diagnose::{diagnose, validate, DiagnoseOptions, Diagnosis, WindowKind};
 use nav_engine::RunSpec;
-use nav_sim::undeclared::{generate, DriveSpec, Effect, OutsideEffect};
+use nav_sim::undeclared::{generate, DriveSpec, Effect, GnssErrorSize, OutsideEffect};
 use nav_sim::ErrorModel;
 use rayon::prelude::*;
 
@@ -197,6 +197,35 @@ fn vocabulary_effects_are_named_first_with_the_file_gaps_and_no_imposed_outage()
     println!("{} drives in {:.1} s", res.len(), t.elapsed().as_secs_f64());
 }
 
+/// Centre of the GNSS Gauss-Markov sigma of [`gnss_correlated_error_of_named_size_is_named_first`],
+/// m (each axis 0.5-1.5 times it).
+const GNSS_GM_NAMED_M: f64 = 0.6;
+
+/// The GNSS correlated error at the smallest size the sweep names first reliably
+/// ([`GNSS_GM_NAMED_M`]; docs/diagnose.md, "GNSS-side effects", detectability by size), with
+/// the effect's own white noise (2-4x the declared sigmas), seed 21 at the CI sizes: named
+/// first, judged on the fixes withheld one at a time (significantly lower there), and the
+/// model not significantly worse than the configuration on the held-out windows.
+#[test]
+fn gnss_correlated_error_of_named_size_is_named_first() {
+    let spec = DriveSpec {
+        gnss_error_size: Some(GnssErrorSize {
+            gm_sigma_m: GNSS_GM_NAMED_M,
+            white_factor: None,
+        }),
+        ..SweepDrive::One(Effect::GnssCorrelatedError).spec(21, CI)
+    };
+    let (p, _) = prepare(&spec);
+    let first_only = DiagnoseOptions {
+        max_effects: 1,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&p, &first_only).expect("diagnose").diagnosis;
+    check_named_first(Effect::GnssCorrelatedError, &d);
+    let first = &d.added_effects[0];
+    assert!(first.heldout.of_single_fixes, "{}", summary(&d));
+}
+
 /// A bias step of the drive generator (`effect`: the accelerometer's or the gyro's; seed 21:
 /// 10 min, the step 15 s after the GNSS window following the middle of the drive), three gaps
 /// in the GNSS file and no imposed outage: the change point is found on the file's gaps and
@@ -254,12 +283,14 @@ fn gyro_bias_step_is_a_change_point_with_the_file_gaps_and_no_imposed_outage() {
     check_bias_step(Effect::GyroBiasStep);
 }
 
-/// Sizes of the drives: length, IMU rate and truth RK4 substeps.
+/// Sizes of the drives: length, IMU rate, truth RK4 substeps and the size of the GNSS
+/// correlated error (`None`: the effect's own).
 #[derive(Debug, Clone, Copy)]
 struct Sizes {
     minutes: f64,
     rate_hz: f64,
     substeps: u32,
+    gnss: Option<GnssErrorSize>,
 }
 
 /// The CI tests' drives: 10 minutes at 50 Hz, truth RK4 x4.
@@ -267,6 +298,7 @@ const CI: Sizes = Sizes {
     minutes: 10.0,
     rate_hz: 50.0,
     substeps: 4,
+    gnss: None,
 };
 
 /// The diagnosis (default options) of one drive of the sweep (`kind`, `seed`, `sizes`; the
@@ -283,7 +315,7 @@ fn judged_drive_with_truth(
     seed: u64,
     sizes: Sizes,
 ) -> (Diagnosis, bool, String, ErrorModel) {
-    let (p, m) = prepare(&kind.spec(seed, sizes.minutes, sizes.rate_hz, sizes.substeps));
+    let (p, m) = prepare(&kind.spec(seed, sizes));
     let d = diagnose(&p, &DiagnoseOptions::default())
         .expect("diagnose")
         .diagnosis;
@@ -293,7 +325,8 @@ fn judged_drive_with_truth(
 }
 
 /// The true accelerometer misalignment (urad, `[m_xy, m_xz, m_yx, m_yz, m_zx, m_zy]`) and IMU
-/// clock drift (ppm) of a drive, and every round's estimate / sigma of those two candidates.
+/// clock drift (ppm) of a drive, every round's estimate / sigma and window errors of those two
+/// candidates and of the added ones, and the final model's window errors.
 fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
     let a = m.accel.misalignment_rad;
     let mut s = format!(
@@ -328,11 +361,11 @@ fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
         w.join(", ")
     ));
     for (i, r) in d.rounds.iter().enumerate() {
-        for c in r
-            .candidates
-            .iter()
-            .filter(|c| c.name == "accel_misalignment" || c.name == "imu_clock_drift")
-        {
+        for c in r.candidates.iter().filter(|c| {
+            c.name == "accel_misalignment"
+                || c.name == "imu_clock_drift"
+                || c.decision == nav_diagnose::Decision::Added
+        }) {
             let scale = if c.name == "accel_misalignment" {
                 1e6
             } else {
@@ -363,6 +396,12 @@ fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
             ));
         }
     }
+    let after: Vec<String> = d
+        .window_errors_after_m
+        .iter()
+        .map(|e| format!("{e:.2}"))
+        .collect();
+    s.push_str(&format!("  final windows [{}]\n", after.join(", ")));
     s
 }
 
@@ -552,13 +591,14 @@ enum SweepDrive {
 }
 
 impl SweepDrive {
-    fn spec(self, seed: u64, minutes: f64, rate_hz: f64, substeps: u32) -> DriveSpec {
+    fn spec(self, seed: u64, sizes: Sizes) -> DriveSpec {
         let base = DriveSpec {
-            minutes,
-            rate_hz,
-            substeps,
+            minutes: sizes.minutes,
+            rate_hz: sizes.rate_hz,
+            substeps: sizes.substeps,
             seed,
             file_gaps: Some(3),
+            gnss_error_size: sizes.gnss,
             ..DriveSpec::new(None)
         };
         match self {
@@ -627,7 +667,9 @@ impl SweepDrive {
 /// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`), `DIAGNOSE_HELDOUT_EFFECTS`
 /// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_ONLY_SEEDS` (seeds,
 /// comma-separated: only those drives of the groups; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
-/// (`true`: every drive's rounds printed). Prints one line per drive and the counts per
+/// (`true`: every drive's rounds printed), `DIAGNOSE_HELDOUT_GNSS_GM_M` and
+/// `DIAGNOSE_HELDOUT_GNSS_WHITE_X` (the size of the GNSS correlated error:
+/// [`gnss_error_size_from_env`]). Prints one line per drive and the counts per
 /// group.
 #[test]
 #[ignore = "long: 10 seeds of each effect, 20 clean drives, pairs, outside the vocabulary"]
@@ -636,6 +678,7 @@ fn sweep_ten_seeds_per_effect() {
         minutes: env_or("DIAGNOSE_HELDOUT_MINUTES", 40.0),
         rate_hz: env_or("DIAGNOSE_HELDOUT_RATE_HZ", 100.0),
         substeps: env_or("DIAGNOSE_HELDOUT_SUBSTEPS", 8),
+        gnss: gnss_error_size_from_env(),
     };
     let seeds: u64 = env_or("DIAGNOSE_HELDOUT_SEEDS", 10);
     let clean_seeds: u64 = env_or("DIAGNOSE_HELDOUT_CLEAN_SEEDS", 20);
@@ -682,11 +725,16 @@ fn sweep_ten_seeds_per_effect() {
     }
     println!(
         "{} drives of {} min at {} Hz (truth RK4 x{}), three 60 s gaps in the GNSS file, \
-         default options",
+         default options{}",
         jobs.len(),
         sizes.minutes,
         sizes.rate_hz,
-        sizes.substeps
+        sizes.substeps,
+        sizes.gnss.map_or(String::new(), |g| format!(
+            ", GNSS correlated error {} m Gauss-Markov (x0.5-1.5 per axis), white {}",
+            g.gm_sigma_m,
+            g.white_factor.map_or("2-4x".into(), |w| format!("{w}x"))
+        ))
     );
     let res: Vec<(SweepDrive, bool)> = jobs
         .par_iter()
@@ -739,6 +787,23 @@ fn sweep_ten_seeds_per_effect() {
         }
     }
     assert!(failed.is_empty(), "criteria not met: {}", failed.join("; "));
+}
+
+/// The size of the GNSS correlated error from the environment: `DIAGNOSE_HELDOUT_GNSS_GM_M`
+/// (centre of the Gauss-Markov sigma, m; each axis 0.5-1.5 times it) and
+/// `DIAGNOSE_HELDOUT_GNSS_WHITE_X` (white noise as a multiple of the reported sigmas); None
+/// (the effect's own sizes) when neither is set.
+fn gnss_error_size_from_env() -> Option<GnssErrorSize> {
+    let gm: Option<f64> = std::env::var("DIAGNOSE_HELDOUT_GNSS_GM_M")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let white: Option<f64> = std::env::var("DIAGNOSE_HELDOUT_GNSS_WHITE_X")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    (gm.is_some() || white.is_some()).then(|| GnssErrorSize {
+        gm_sigma_m: gm.unwrap_or(GnssErrorSize::OWN_GM_SIGMA_M),
+        white_factor: white,
+    })
 }
 
 /// The Euclidean norm of a kept step's error against the truth, and of the truth.
