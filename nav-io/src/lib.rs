@@ -19,6 +19,7 @@
 
 pub mod aidingcfg;
 mod error;
+mod fastnum;
 pub mod gnss;
 pub mod gnsscsv;
 pub mod gnsslog;
