@@ -405,6 +405,75 @@ mod tests {
         }
     }
 
+    /// The items of a reader as text (`Debug` of a number is its shortest round trip, so equal
+    /// texts are equal bits; the NaN temperatures compare equal), errors as their message.
+    fn items(rd: ImuLines) -> Vec<String> {
+        rd.map(|r| match r {
+            Ok(s) => format!("{s:?}"),
+            Err(e) => format!("error: {e}"),
+        })
+        .collect()
+    }
+
+    #[test]
+    fn the_carried_prefix_and_its_reader_give_the_files_items_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        // 20 min at 10 Hz: the prefix (600 s) ends in the middle; a comment line, a repeated
+        // line and a bad line after the prefix
+        let mut text = String::from("# t gx gy gz ax ay az\n");
+        for i in 0..12_000 {
+            let t = 100.0 + f64::from(i) * 0.1;
+            text.push_str(&format!("{t} 1e-5 -2e-5 3e-5 0.001 -0.002 -0.98\n"));
+            if i == 3 {
+                text.push_str(&format!("{t} 1e-5 -2e-5 3e-5 0.001 -0.002 -0.98\n"));
+            }
+        }
+        text.push_str("1300.5 x 0 0 0 0 -0.98\n");
+        let p = d.join("imu.txt");
+        std::fs::write(&p, &text).unwrap();
+        let f = ImuFile::Text(p.clone());
+        let want = items(f.open().unwrap());
+        assert!(want.last().unwrap().starts_with("error: "));
+        let carried = CarriedPrefix::default();
+        let prefix = read_prefix(&f, None, &[], Some(&carried)).unwrap();
+        assert_eq!(prefix.first_t_s, 100.0);
+        // the samples up to 600 s after the first and the one past it
+        assert_eq!(carried.len(), 6_003);
+        let shared = carried.clone();
+        assert_eq!(format!("{shared:?}"), "CarriedPrefix(6003 samples)");
+        assert_eq!(items(carried.take_or_open(&f).unwrap()), want);
+        // taken: the clones open the file again, with the same items
+        assert!(shared.is_empty());
+        assert_eq!(items(shared.take_or_open(&f).unwrap()), want);
+        // a read error inside the prefix: nothing kept
+        let bad = d.join("bad.txt");
+        std::fs::write(
+            &bad,
+            "100.0 0 0 0 0 0 -0.98\n100.1 0 0 0 0 0 -0.98\n100.2 y\n",
+        )
+        .unwrap();
+        let fb = ImuFile::Text(bad);
+        let c = CarriedPrefix::default();
+        read_prefix(&fb, None, &[], Some(&c)).unwrap();
+        assert!(c.is_empty());
+        assert_eq!(
+            items(c.take_or_open(&fb).unwrap()),
+            items(fb.open().unwrap())
+        );
+        // a short file read to its end: all of it kept, nothing after it
+        let short = d.join("short.txt");
+        std::fs::write(&short, "100.0 0 0 0 0 0 -0.98\n100.1 0 0 0 0 0 -0.98\n").unwrap();
+        let fs = ImuFile::Text(short);
+        let c = CarriedPrefix::default();
+        read_prefix(&fs, None, &[], Some(&c)).unwrap();
+        assert_eq!(c.len(), 2);
+        assert_eq!(
+            items(c.take_or_open(&fs).unwrap()),
+            items(fs.open().unwrap())
+        );
+    }
+
     #[test]
     fn the_configurations_gap_convention_and_first_time_without_the_reader_say_what_it_says() {
         let dir = tempfile::tempdir().unwrap();
