@@ -19,7 +19,6 @@
 
 pub mod aidingcfg;
 mod error;
-mod fastnum;
 pub mod gnss;
 pub mod gnsscsv;
 pub mod gnsslog;
