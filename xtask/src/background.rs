@@ -8,7 +8,6 @@
 use anyhow::{anyhow, bail, Context, Result};
 use std::fs::File;
 use std::io::Write;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::mpsc::{channel, Receiver};
@@ -36,16 +35,17 @@ struct Done<T> {
     secs: f64,
 }
 
-/// The process group of the command running now, and whether the jobs were abandoned.
+/// The process id of the command running now, and whether the jobs were abandoned.
 #[derive(Default)]
 struct Running {
-    pgid: Option<u32>,
+    pid: Option<u32>,
     cancelled: bool,
 }
 
 /// Jobs running one after the other in a background thread (see the module documentation).
-/// Dropping it before every job was waited for stops the running command (its whole process
-/// group) and the jobs not yet started.
+/// Dropping it before every job was waited for stops the running command (with every process
+/// it started) and the jobs not yet started. The commands stay in CI's process group, so an
+/// interrupt (Ctrl-C) reaches them too.
 pub struct Background<T> {
     rx: Receiver<Done<T>>,
     log: PathBuf,
@@ -141,15 +141,23 @@ impl<T: Send + 'static> Background<T> {
 
 impl<T> Drop for Background<T> {
     fn drop(&mut self) {
-        let pgid = {
+        let pid = {
             let mut r = self.running.lock().unwrap_or_else(|p| p.into_inner());
             r.cancelled = true;
-            r.pgid
+            r.pid
         };
-        if let Some(pgid) = pgid {
-            eprintln!("  stopping the background job (process group {pgid})");
+        if let Some(pid) = pid {
+            let mut pids = vec![pid];
+            let mut i = 0;
+            while let Some(&p) = pids.get(i) {
+                pids.extend(children(p));
+                i += 1;
+            }
+            eprintln!("  stopping the background job (processes {pids:?})");
             let _ = Command::new("kill")
-                .args(["-TERM", "--", &format!("-{pgid}")])
+                .arg("-TERM")
+                .args(pids.iter().map(u32::to_string))
+                .stderr(Stdio::null())
                 .status();
         }
         if let Some(t) = self.thread.take() {
@@ -158,8 +166,18 @@ impl<T> Drop for Background<T> {
     }
 }
 
-/// Runs one job's command with its output in `log`, in its own process group (recorded in
-/// `running` while it runs), then the job's `then`.
+/// The child processes of `pid` (Linux's `/proc/PID/task/PID/children`; none where it cannot
+/// be read).
+fn children(pid: u32) -> Vec<u32> {
+    std::fs::read_to_string(format!("/proc/{pid}/task/{pid}/children"))
+        .unwrap_or_default()
+        .split_whitespace()
+        .filter_map(|s| s.parse().ok())
+        .collect()
+}
+
+/// Runs one job's command with its output in `log` (its process id recorded in `running`
+/// while it runs), then the job's `then`.
 fn run_job<T>(job: Job<T>, log: &File, running: &Mutex<Running>) -> Result<T> {
     let Job {
         label,
@@ -173,8 +191,7 @@ fn run_job<T>(job: Job<T>, log: &File, running: &Mutex<Running>) -> Result<T> {
         .current_dir(crate::root())
         .stdin(Stdio::null())
         .stdout(out.try_clone().context("duplicating the log file")?)
-        .stderr(out)
-        .process_group(0);
+        .stderr(out);
     let mut child = {
         let mut r = running.lock().unwrap_or_else(|p| p.into_inner());
         if r.cancelled {
@@ -183,11 +200,11 @@ fn run_job<T>(job: Job<T>, log: &File, running: &Mutex<Running>) -> Result<T> {
         let child = command
             .spawn()
             .with_context(|| format!("cannot start {shown}"))?;
-        r.pgid = Some(child.id());
+        r.pid = Some(child.id());
         child
     };
     let status = child.wait();
-    running.lock().unwrap_or_else(|p| p.into_inner()).pgid = None;
+    running.lock().unwrap_or_else(|p| p.into_inner()).pid = None;
     let status = status.with_context(|| format!("waiting for {shown}"))?;
     if !status.success() {
         bail!("`{shown}` failed ({status})");
@@ -282,14 +299,34 @@ mod tests {
     }
 
     #[test]
-    fn dropping_stops_a_running_job() {
+    fn dropping_stops_a_running_job_and_what_it_started() {
         let path = log("drop");
+        let pid_file = log("drop-pid");
+        let script = format!("sleep 30 & echo $! > {}; wait", pid_file.display());
         let t = std::time::Instant::now();
-        let bg = Background::start(vec![sh("slow", "sleep 30", 1)], &path).unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(200));
+        let bg = Background::start(vec![sh("slow", &script, 1)], &path).unwrap();
+        let mut sleep_pid = None;
+        while sleep_pid.is_none() && t.elapsed().as_secs() < 10 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            sleep_pid = std::fs::read_to_string(&pid_file)
+                .ok()
+                .and_then(|s| s.trim().parse::<u32>().ok());
+        }
+        let sleep_pid = sleep_pid.expect("the job wrote its child's pid");
         drop(bg);
         assert!(t.elapsed().as_secs() < 10, "{:?}", t.elapsed());
+        // the grandchild is gone (or a zombie waiting to be reaped), not sleeping on
+        let alive = || {
+            std::fs::read_to_string(format!("/proc/{sleep_pid}/stat"))
+                .is_ok_and(|s| !s.rsplit(") ").next().unwrap_or("").starts_with('Z'))
+        };
+        let t = std::time::Instant::now();
+        while alive() && t.elapsed().as_secs() < 5 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        assert!(!alive(), "sleep {sleep_pid} still running");
         let _ = std::fs::remove_file(path);
+        let _ = std::fs::remove_file(pid_file);
     }
 
     #[test]
