@@ -62,7 +62,7 @@ fn needs() -> Vec<Need> {
     ]
 }
 
-fn which(name: &str) -> Option<PathBuf> {
+pub(crate) fn which(name: &str) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
     std::env::split_paths(&path)
         .map(|d| d.join(name))
@@ -258,6 +258,14 @@ impl FwBuild {
 
 /// Cross-builds the firmware (release) for `board`: every binary of the board.
 pub fn fw_build(board: Board) -> Result<FwBuild> {
+    run(&mut fw_build_command(board)?)?;
+    fw_collect(board)
+}
+
+/// The cargo command that cross-builds the firmware (release) for `board` (run in the
+/// workspace root). Every board builds into the same cargo target directory, so a second
+/// board reuses the first one's `core`, `compiler_builtins`, nalgebra and nav-core.
+pub fn fw_build_command(board: Board) -> Result<Command> {
     let mut cmd = embedded_cargo(None)?;
     cmd.args([
         "build",
@@ -269,7 +277,12 @@ pub fn fw_build(board: Board) -> Result<FwBuild> {
         "--release",
     ])
     .args(board.feature_args());
-    run(&mut cmd)?;
+    Ok(cmd)
+}
+
+/// Copies the ELFs of the last [`fw_build_command`] for `board` out of cargo's release
+/// directory into `target/embedded/<board>/`, where the next board's build leaves them alone.
+pub fn fw_collect(board: Board) -> Result<FwBuild> {
     let out = root().join("target/embedded").join(TARGET).join("release");
     let dir = root().join("target/embedded").join(board.name());
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;

@@ -34,6 +34,7 @@
 //! - `test-host`: the host test suite only (no root, no embedded toolchain, no qemu);
 //! - `ci`: everything CI checks, each step named and timed.
 
+mod background;
 mod benchrun;
 mod budget;
 mod embedded;
@@ -322,6 +323,9 @@ fn ci() -> Result<()> {
     step("setup: embedded toolchain and emulator", &mut || {
         embedded::setup()
     })?;
+    // Both boards' firmware builds (their own cargo target directory) run from here on in the
+    // background, niced: they take the cores the host build and the test run leave idle.
+    let mut fw_bg = start_firmware_builds()?;
     step(
         "cargo fmt --check (host workspace and firmware)",
         &mut || {
@@ -366,10 +370,13 @@ fn ci() -> Result<()> {
         "host test suite (cargo test --workspace --release)",
         &mut test_host,
     )?;
-    firmware_steps(&mut step)?;
+    firmware_steps(&mut step, &mut fw_bg)?;
     eprintln!("\n[ci] summary");
     for (name, dt) in &steps {
         eprintln!("  {dt:7.1} s  {name}");
+    }
+    for (name, dt) in fw_bg.finished() {
+        eprintln!("  {dt:7.1} s  (in the background, overlapping the steps above) {name}");
     }
     eprintln!(
         "[ci] all {} steps passed in {:.1} s",
@@ -384,18 +391,44 @@ fn test_host() -> Result<()> {
     run(cargo().args(["test", "--workspace", "--release"]))
 }
 
+/// The firmware builds CI runs in the background: each board's ELFs, labelled by board name.
+type FwBackground = background::Background<embedded::FwBuild>;
+
+/// Starts both boards' firmware builds (emulated board first) in the background, niced, their
+/// output in `target/embedded/ci-firmware-build.log`.
+fn start_firmware_builds() -> Result<FwBackground> {
+    let mut jobs = Vec::new();
+    for board in [Board::Mps2An386, Board::Stm32f407] {
+        jobs.push(background::Job {
+            label: board.name().to_string(),
+            command: background::niced(embedded::fw_build_command(board)?),
+            then: Box::new(move || embedded::fw_collect(board)),
+        });
+    }
+    let log = root().join("target/embedded/ci-firmware-build.log");
+    eprintln!(
+        "  firmware builds (boards {}, {}) started in the background, log {}",
+        Board::Mps2An386.name(),
+        Board::Stm32f407.name(),
+        log.display()
+    );
+    background::Background::start(jobs, &log)
+}
+
 /// A step runner: runs the closure under the step's name, timing it.
 type StepFn<'a> = dyn FnMut(&'static str, &mut dyn FnMut() -> Result<()>) -> Result<()> + 'a;
 
 /// The firmware half of CI, in order: build (emulated board), self-test, sizes, the two HIL
 /// tests, the real board's build and size, and the budget check (last, so everything else has
-/// been checked when a budget fails). `step` names, times and runs each.
-fn firmware_steps(step: &mut StepFn) -> Result<()> {
+/// been checked when a budget fails). `step` names, times and runs each. The two build steps
+/// wait for the builds `bg` runs in the background (see [`start_firmware_builds`]); their own
+/// build times are printed.
+fn firmware_steps(step: &mut StepFn, bg: &mut FwBackground) -> Result<()> {
     let mut fw: Option<embedded::FwBuild> = None;
     step(
         "firmware build (thumbv7em-none-eabihf, release, board mps2-an386)",
         &mut || {
-            fw = Some(embedded::fw_build(Board::Mps2An386)?);
+            fw = Some(bg.wait(Board::Mps2An386.name())?);
             Ok(())
         },
     )?;
@@ -437,7 +470,7 @@ fn firmware_steps(step: &mut StepFn) -> Result<()> {
     step(
         "real board firmware build (stm32f407) and size",
         &mut || {
-            let b = embedded::fw_build(Board::Stm32f407)?;
+            let b = bg.wait(Board::Stm32f407.name())?;
             for (bin, s) in embedded::fw_size(&b)? {
                 real_sizes.push((format!("{}:{bin}", b.board.name()), s));
             }
@@ -486,7 +519,8 @@ fn fw_ci() -> Result<()> {
     step("setup: embedded toolchain and emulator", &mut || {
         embedded::setup()
     })?;
-    firmware_steps(&mut step)?;
+    let mut bg = start_firmware_builds()?;
+    firmware_steps(&mut step, &mut bg)?;
     eprintln!(
         "[fw ci] all {n} steps passed in {:.1} s",
         t0.elapsed().as_secs_f64()
