@@ -533,12 +533,39 @@ fn put_sign_and_digits(
         *out.get_mut(*len)? = b'-';
         *len += 1;
     }
-    put_digits(out, len, n / p10, 1)?;
+    let int = n / p10;
+    if int < 10 {
+        // one digit (always so in exponent form): no scratch
+        *out.get_mut(*len)? = b'0' + int as u8;
+        *len += 1;
+    } else {
+        put_digits(out, len, int, 1)?;
+    }
     if prec > 0 {
         *out.get_mut(*len)? = b'.';
         *len += 1;
-        put_digits(out, len, n % p10, prec)?;
+        put_width_digits(out, len, n % p10, prec)?;
     }
+    Some(())
+}
+
+/// Writes `v` (below 10^`width`) as exactly `width` digits, zeros in front, straight into
+/// `out` (two digits at a time from the last; no scratch, no copy of a variable length).
+fn put_width_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<()> {
+    let dst = out.get_mut(*len..*len + width)?;
+    let mut v = v;
+    let mut i = width;
+    while i >= 2 {
+        let r = (v % 100) as usize;
+        v /= 100;
+        i -= 2;
+        let pair = DIGIT_PAIRS.get(2 * r..2 * r + 2)?;
+        dst.get_mut(i..i + 2)?.copy_from_slice(pair);
+    }
+    if i == 1 {
+        *dst.first_mut()? = b'0' + (v % 10) as u8;
+    }
+    *len += width;
     Some(())
 }
 
@@ -605,7 +632,13 @@ pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<u
         *out.get_mut(len)? = b'-';
         len += 1;
     }
-    put_digits(out, &mut len, u64::from(e.unsigned_abs()), 1)?;
+    let e = e.unsigned_abs();
+    if e < 10 {
+        *out.get_mut(len)? = b'0' + e as u8;
+        len += 1;
+    } else {
+        put_digits(out, &mut len, u64::from(e), 1)?;
+    }
     Some(len)
 }
 
