@@ -18,7 +18,7 @@ use super::coast::{coast_outages, CoastMode};
 use super::outdir::OutDir;
 use super::output;
 use super::prepare::{ImuStream, Prepared};
-use super::streams::{CarriedPrefix, ImuFile};
+use super::streams::ImuFile;
 use super::truth::TruthFile;
 use super::{CaseData, CoastPlan, FixSource, RunOptions, RunOutput, Streams};
 use crate::metrics::{self, Metrics};
@@ -97,7 +97,7 @@ impl<'a> Source<'a> {
                     path: Some(st.file.path()),
                     increments_span_gaps: st.file.increments_span_gaps(),
                 };
-                let imu = Box::new(threaded_stream_reader(st));
+                let imu = Box::new(threaded_file_reader(st.file.clone(), st.time_offset_s));
                 let gnss = match &st.gnss {
                     // the fixes read as the filter goes (memory independent of the length)
                     Some(g) => g.source()?,
@@ -371,33 +371,13 @@ pub fn threaded_file_reader(
     file: ImuFile,
     time_offset_s: f64,
 ) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
-    threaded_carried_reader(file, time_offset_s, CarriedPrefix::default())
-}
-
-/// [`threaded_file_reader`] on a prepared stream: its file with its time offset, starting
-/// from the samples its mounting check read when they are still kept
-/// ([`ImuStream::carried`]; the same items as the file read from its start).
-pub fn threaded_stream_reader(
-    st: &ImuStream,
-) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
-    threaded_carried_reader(st.file.clone(), st.time_offset_s, st.carried.clone())
-}
-
-/// [`threaded_file_reader`] reading `file` through `carried` ([`CarriedPrefix::take_or_open`]).
-fn threaded_carried_reader(
-    file: ImuFile,
-    time_offset_s: f64,
-    carried: CarriedPrefix,
-) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
     let path = file.path();
     super::reader_thread::read_in_chunks(
         "imu-reader",
         READ_CHUNK,
         READ_QUEUE,
         move || {
-            let rd = carried
-                .take_or_open(&file)
-                .map_err(super::RunError::Input)?;
+            let rd = file.open().map_err(super::RunError::Input)?;
             Ok(rd.map(move |r| match r {
                 Ok((mut sample, line)) => {
                     sample.t_s += time_offset_s;

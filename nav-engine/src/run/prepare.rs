@@ -682,7 +682,6 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
             &st.file,
             st.gnss.as_ref().map(|g| &g.file),
             &case.gnss,
-            Some(&st.carried),
         )?),
         None => None,
     };

@@ -21,7 +21,7 @@ use nav_core::types::{GnssFix, ImuSample};
 use nav_io::runcfg::GnssReadSummary;
 use nav_io::{GnssTextReader, ImuFileKind, ImuTextReader, IoError, RunConfig};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// A run configuration and the folder its relative paths are resolved against.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,7 +43,7 @@ pub enum ImuFile {
 }
 
 /// IMU samples with their 1-based file lines, as a reader yields them.
-pub type ImuLines = Box<dyn Iterator<Item = Result<(ImuSample, usize), IoError>> + Send>;
+pub type ImuLines = Box<dyn Iterator<Item = Result<(ImuSample, usize), IoError>>>;
 
 impl ImuFile {
     /// The file.
@@ -104,86 +104,16 @@ pub struct ImuStream {
     /// The GNSS file read while the filter runs (then `prepared.case.gnss` is empty); None:
     /// the fixes are in `prepared.case.gnss`.
     pub gnss: Option<GnssStream>,
-    /// The file's first samples as [`read_prefix`] read them, with its reader positioned
-    /// after them, for the first run that reads the stream (no second parse of the start of
-    /// the file); empty: the run reads the file from its start.
-    pub carried: CarriedPrefix,
 }
 
 impl ImuStream {
-    /// The IMU file `file`, no extra time offset, no GNSS stream, nothing carried.
+    /// The IMU file `file`, no extra time offset, no GNSS stream.
     pub fn new(file: ImuFile) -> Self {
         Self {
             file,
             time_offset_s: 0.0,
             gnss: None,
-            carried: CarriedPrefix::default(),
         }
-    }
-}
-
-/// Most samples [`read_prefix`] keeps for the run (about 9 MiB; 600 s at 200 Hz is 120,000):
-/// a longer prefix (a faster IMU) is not kept, and the run reads the file from its start.
-pub const CARRIED_PREFIX_MAX: usize = 1 << 17;
-
-/// The first samples of an IMU file, read by [`read_prefix`] with their 1-based file lines,
-/// and the reader positioned after them: the same items, in the same order, as a reader
-/// opened afresh ([`ImuFile::open`]) yields. Taken once ([`CarriedPrefix::take_or_open`]): the
-/// clones share it, and whoever comes after the first taker reads the file from its start.
-/// A cache, not part of a stream's identity: any two compare equal.
-#[derive(Clone, Default)]
-pub struct CarriedPrefix(Arc<Mutex<Option<Carried>>>);
-
-/// What a [`CarriedPrefix`] holds.
-struct Carried {
-    /// The samples read, in file order, with their lines.
-    samples: Vec<(ImuSample, usize)>,
-    /// The reader after them.
-    rest: ImuLines,
-}
-
-impl CarriedPrefix {
-    /// Keeps `samples` and the reader `rest` after them (replacing what was kept).
-    fn keep(&self, samples: Vec<(ImuSample, usize)>, rest: ImuLines) {
-        if let Ok(mut g) = self.0.lock() {
-            *g = Some(Carried { samples, rest });
-        }
-    }
-
-    /// The kept samples followed by the rest of their reader, or else `file` opened from its
-    /// start: the file's items either way.
-    pub fn take_or_open(&self, file: &ImuFile) -> Result<ImuLines, IoError> {
-        match self.0.lock().ok().and_then(|mut g| g.take()) {
-            Some(c) => Ok(Box::new(c.samples.into_iter().map(Ok).chain(c.rest))),
-            None => file.open(),
-        }
-    }
-
-    /// Samples kept (0 when nothing is, or after the take).
-    pub fn len(&self) -> usize {
-        self.0
-            .lock()
-            .ok()
-            .and_then(|g| g.as_ref().map(|c| c.samples.len()))
-            .unwrap_or(0)
-    }
-
-    /// Whether nothing is kept.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-impl std::fmt::Debug for CarriedPrefix {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "CarriedPrefix({} samples)", self.len())
-    }
-}
-
-impl PartialEq for CarriedPrefix {
-    /// Always equal: a cache of the file's own items.
-    fn eq(&self, _: &Self) -> bool {
-        true
     }
 }
 
@@ -295,14 +225,10 @@ pub struct Prefix {
 /// check does not), the fixes unscaled. Errors opening the IMU file or in its first sample
 /// are returned; a read error after that ends the pass quietly (the check covers what came
 /// before it): the run itself reports it, with the outputs up to it.
-///
-/// `carry`: where the samples read are kept with the reader after them, for the run (at most
-/// [`CARRIED_PREFIX_MAX`]; nothing is kept after a read error or past that count).
 pub fn read_prefix(
     imu: &ImuFile,
     gnss: Option<&GnssFile>,
     fixes_in_memory: &[GnssFix],
-    carry: Option<&CarriedPrefix>,
 ) -> anyhow::Result<Prefix> {
     let mut samples = imu.open()?;
     let Some(first) = samples.next().transpose()? else {
@@ -323,18 +249,8 @@ pub fn read_prefix(
         None => Box::new(fixes_in_memory.iter().copied()),
     };
     let mut ahead: Option<GnssFix> = None;
-    // the items read, kept for the run while they are all samples and not too many
-    let mut kept = carry.map(|_| Vec::with_capacity(1024));
-    let mut next = Some(first);
-    while let Some(item) = next.take() {
-        let s = item.0;
-        if let Some(k) = kept.as_mut() {
-            if k.len() < CARRIED_PREFIX_MAX {
-                k.push(item);
-            } else {
-                kept = None;
-            }
-        }
+    let rest = samples.map_while(Result::ok).map(|(s, _)| s);
+    for s in std::iter::once(first.0).chain(rest) {
         if s.t_s > end {
             break;
         }
@@ -348,16 +264,6 @@ pub fn read_prefix(
             }
         }
         c.push_imu(&s);
-        match samples.next() {
-            Some(Ok(item)) => next = Some(item),
-            // the end of the file: what was read is all of it, nothing after it
-            None => samples = Box::new(std::iter::empty()),
-            // a read error ends the pass quietly; the run reads the file again and reports it
-            Some(Err(_)) => kept = None,
-        }
-    }
-    if let (Some(k), Some(c)) = (kept, carry) {
-        c.keep(k, samples);
     }
     // the fixes after the last sample read, up to the prefix end
     for g in ahead.into_iter().chain(fixes) {
