@@ -319,32 +319,48 @@ impl Iterator for CacheReader {
 /// IMU samples as the engine's stream.
 pub type ImuItems = Box<dyn Iterator<Item = Result<ImuItem, RunError>>>;
 
-/// The adjusted samples of a view from its first one as the engine's items
-/// ([`ImuView::stream`]): each record decoded, adjusted and handed on in one step (what
-/// [`ImuView::read_from`] yields, without its chain of adapters per sample).
-struct Items {
+/// The adjusted samples of a view with their file lines ([`ImuView::read_from`]): each record
+/// decoded and adjusted in one step.
+pub struct Adjusted {
     r: CacheReader,
     /// The recorded time of the sample before the next one (the bias step's interval).
     prev: Option<f64>,
     adjust: Adjust,
 }
 
+impl Iterator for Adjusted {
+    type Item = Result<(ImuSample, usize), IoError>;
+
+    #[inline]
+    fn next(&mut self) -> Option<Self::Item> {
+        Some(self.r.next()?.map(|(s, line)| {
+            let sample = self.adjust.apply(s, self.prev);
+            self.prev = Some(s.t_s);
+            (sample, line)
+        }))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.r.size_hint()
+    }
+}
+
+/// The adjusted samples of a view from its first one as the engine's items
+/// ([`ImuView::stream`]).
+struct Items(Adjusted);
+
 impl Iterator for Items {
     type Item = Result<ImuItem, RunError>;
 
     fn next(&mut self) -> Option<Self::Item> {
-        Some(match self.r.next()? {
-            Ok((s, line)) => {
-                let sample = self.adjust.apply(s, self.prev);
-                self.prev = Some(s.t_s);
-                Ok(ImuItem { sample, line })
-            }
+        Some(match self.0.next()? {
+            Ok((sample, line)) => Ok(ImuItem { sample, line }),
             Err(e) => Err(RunError::Input(e)),
         })
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
-        self.r.size_hint()
+        self.0.size_hint()
     }
 }
 
@@ -430,23 +446,17 @@ impl ImuView {
 
     /// The adjusted samples from index `from` on, with their file lines (the sample before
     /// `from` is read too, for the bias step's interval).
-    pub fn read_from(
-        &self,
-        from: usize,
-    ) -> Result<impl Iterator<Item = Result<(ImuSample, usize), IoError>>, IoError> {
+    pub fn read_from(&self, from: usize) -> Result<Adjusted, IoError> {
         let mut r = self.cache.read_from(from.saturating_sub(1))?;
         let mut prev = None;
         if from > 0 {
             prev = r.next().transpose()?.map(|(s, _)| s.t_s);
         }
-        let adjust = self.adjust;
-        Ok(r.map(move |x| {
-            x.map(|(s, line)| {
-                let a = adjust.apply(s, prev);
-                prev = Some(s.t_s);
-                (a, line)
-            })
-        }))
+        Ok(Adjusted {
+            r,
+            prev,
+            adjust: self.adjust,
+        })
     }
 
     /// The adjusted samples from index `from` on; a read error ends them (the coasting
@@ -459,11 +469,7 @@ impl ImuView {
     /// The samples as the engine's IMU stream (a read error ends the run with it), and
     /// where they come from.
     pub fn stream(&self) -> Result<(ImuItems, ImuSourceInfo), RunError> {
-        let it = Items {
-            r: self.cache.read_from(0).map_err(RunError::Input)?,
-            prev: None,
-            adjust: self.adjust,
-        };
+        let it = Items(self.read_from(0).map_err(RunError::Input)?);
         Ok((Box::new(it), self.cache.info().clone()))
     }
 
