@@ -17,32 +17,3 @@ where
 {
     PossibleValuesParser::new(T::VARIANTS.iter().copied()).try_map(|s| s.parse::<T>())
 }
-
-#[cfg(test)]
-mod tests {
-    use super::parser;
-    use clap::Parser;
-    use nav_engine::run::Model;
-
-    #[derive(Parser, Debug)]
-    struct Args {
-        #[arg(long, value_parser = parser::<Model>(), default_value = "nbk")]
-        model: Model,
-    }
-
-    #[test]
-    fn names_parse_to_their_variant_and_others_are_refused_with_the_list() {
-        let a = Args::try_parse_from(["x", "--model", "kf-gins-feedback"]).unwrap();
-        assert_eq!(a.model, Model::KfGinsFeedback);
-        assert_eq!(Args::try_parse_from(["x"]).unwrap().model, Model::Nbk);
-        let e = Args::try_parse_from(["x", "--model", "kf"])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("kf-gins, kf-gins-feedback"), "{e}");
-        for name in <Model as strum::VariantNames>::VARIANTS {
-            let m: Model = name.parse().unwrap();
-            assert_eq!(m.name(), *name);
-            assert_eq!(m.to_string(), *name);
-        }
-    }
-}

@@ -19,6 +19,10 @@
 //!    but not grow, and when it shrinks its entry must follow
 //!    (`cargo xtask lint --update-allowlist` lowers and removes entries, it never adds or
 //!    raises one).
+//! 5. The crates whose test harnesses cargo does not build ([`NO_HARNESS`], `test = false` in
+//!    their manifest: a harness would compile the whole crate once more in the release test
+//!    build for no test of its own) have no `#[cfg(test)]` in the files of those targets: such
+//!    a test would never run. Their tests are in the crate's `tests/it`.
 
 use anyhow::{bail, Context, Result};
 use regex::Regex;
@@ -44,6 +48,24 @@ pub const LIBRARY_CRATES: [&str; 7] = [
 /// The crates with both a library and a binary whose library functions may not take the
 /// binary's clap argument structs (rule 3).
 pub const CLI_CRATES: [&str; 2] = ["host-sim", "hw-bridge"];
+
+/// Which of a crate's targets have no test harness (`test = false`), for rule 5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoHarness {
+    /// The library and the binaries: every `src/` file.
+    All,
+    /// The library only: every `src/` file but `main.rs`, `src/bin/` and the modules
+    /// `main.rs` declares.
+    Library,
+}
+
+/// The crates whose test harnesses are off (`test = false` in their manifest), for rule 5.
+pub const NO_HARNESS: [(&str, NoHarness); 4] = [
+    ("host-sim", NoHarness::All),
+    ("hw-bridge", NoHarness::Library),
+    ("nav-app", NoHarness::All),
+    ("tests", NoHarness::All),
+];
 
 /// The allowlist of functions longer than [`MAX_FN_LINES`], relative to the workspace root:
 /// one `LINES PATH NAME` a line, `#` comments.
@@ -357,28 +379,8 @@ fn binary_modules(main_rs: &str) -> Result<Vec<String>, syn::Error> {
 
 /// Rule 3 over one crate of [`CLI_CRATES`] at `root`.
 fn check_cli_crate(root: &Path, krate: &str) -> Result<Vec<Finding>> {
-    let src = root.join(krate).join("src");
-    let main_rs = std::fs::read_to_string(src.join("main.rs"))
-        .with_context(|| format!("reading {krate}/src/main.rs"))?;
-    let bin_mods = binary_modules(&main_rs).with_context(|| format!("{krate}/src/main.rs"))?;
-    let mut all = Vec::new();
-    files(&src, &[".rs"], &mut all)?;
-    let lib: Vec<(String, String)> = all
+    let lib: Vec<(String, String)> = library_files(root, krate)?
         .iter()
-        .filter(|p| {
-            let r = p.strip_prefix(&src).unwrap_or(p);
-            let first = r
-                .components()
-                .next()
-                .map(|c| {
-                    c.as_os_str()
-                        .to_string_lossy()
-                        .trim_end_matches(".rs")
-                        .to_string()
-                })
-                .unwrap_or_default();
-            first != "main" && first != "bin" && !bin_mods.contains(&first)
-        })
         .map(|p| Ok((rel(root, p), std::fs::read_to_string(p)?)))
         .collect::<Result<_>>()?;
     let mut args = Vec::new();
@@ -398,6 +400,72 @@ fn check_cli_crate(root: &Path, krate: &str) -> Result<Vec<Finding>> {
         }
     }
     Ok(findings)
+}
+
+/// The `src/` files of `krate` that belong to the library, not to a binary: every file but
+/// `main.rs`, `src/bin/` and the modules `main.rs` declares.
+fn library_files(root: &Path, krate: &str) -> Result<Vec<PathBuf>> {
+    let src = root.join(krate).join("src");
+    let main_rs = src.join("main.rs");
+    let bin_mods = match std::fs::read_to_string(&main_rs) {
+        Ok(t) => binary_modules(&t).with_context(|| format!("{krate}/src/main.rs"))?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+        Err(e) => return Err(e).with_context(|| format!("reading {krate}/src/main.rs")),
+    };
+    let mut all = Vec::new();
+    files(&src, &[".rs"], &mut all)?;
+    all.retain(|p| {
+        let r = p.strip_prefix(&src).unwrap_or(p);
+        let first = r
+            .components()
+            .next()
+            .map(|c| {
+                c.as_os_str()
+                    .to_string_lossy()
+                    .trim_end_matches(".rs")
+                    .to_string()
+            })
+            .unwrap_or_default();
+        first != "main" && first != "bin" && !bin_mods.contains(&first)
+    });
+    Ok(all)
+}
+
+/// Rule 5 over one crate of [`NO_HARNESS`] at `root`: each `#[cfg(test)]` in a file of a
+/// target without a harness.
+fn check_no_harness(root: &Path, krate: &str, which: NoHarness) -> Result<Vec<Finding>> {
+    let paths = match which {
+        NoHarness::All => {
+            let mut all = Vec::new();
+            files(&root.join(krate).join("src"), &[".rs"], &mut all)?;
+            all
+        }
+        NoHarness::Library => library_files(root, krate)?,
+    };
+    let mut findings = Vec::new();
+    for p in paths {
+        let r = rel(root, &p);
+        let text = std::fs::read_to_string(&p).with_context(|| format!("reading {r}"))?;
+        findings.extend(cfg_test_lines(&text).into_iter().map(|line| Finding {
+            path: PathBuf::from(&r),
+            line,
+            col: 0,
+            message: format!(
+                "`#[cfg(test)]` in a target of {krate} built without a test harness \
+                 (`test = false`): it would never run; put the test in {krate}/tests/it"
+            ),
+        }));
+    }
+    Ok(findings)
+}
+
+/// The 1-based lines of `src` (Rust source) that carry `#[cfg(test)]`.
+pub fn cfg_test_lines(src: &str) -> Vec<usize> {
+    src.lines()
+        .enumerate()
+        .filter(|(_, l)| l.trim_start().starts_with("#[cfg(test)]"))
+        .map(|(i, _)| i + 1)
+        .collect()
 }
 
 /// Every function with a body in `src` (Rust source), in order of appearance.
@@ -611,6 +679,9 @@ pub fn check_repo(root: &Path, update_allowlist: bool) -> Result<Vec<Finding>> {
     for krate in CLI_CRATES {
         findings.extend(check_cli_crate(root, krate)?);
     }
+    for (krate, which) in NO_HARNESS {
+        findings.extend(check_no_harness(root, krate, which)?);
+    }
     let allow_path = root.join(ALLOWLIST);
     let allow = match std::fs::read_to_string(&allow_path) {
         Ok(t) => parse_allowlist(&t)?,
@@ -782,6 +853,16 @@ mod tests {
         assert_eq!(found, ["load", "inside", "with", "run"], "{found:?}");
         let main_rs = "mod cli;\nmod inline { }\nfn main() {}\n";
         assert_eq!(binary_modules(main_rs).unwrap(), ["cli"]);
+    }
+
+    #[test]
+    fn cfg_test_lines_are_found_and_the_repository_has_none_where_no_harness_runs() {
+        let src = "fn f() {}\n\n    #[cfg(test)]\nmod tests {}\n// #[cfg(test)] in a comment\n";
+        assert_eq!(cfg_test_lines(src), [3]);
+        for (krate, which) in NO_HARNESS {
+            let f = check_no_harness(&crate::root(), krate, which).unwrap();
+            assert!(f.is_empty(), "{f:?}");
+        }
     }
 
     #[test]

@@ -106,17 +106,3 @@ pub fn run(args: SimulateArgs) -> anyhow::Result<()> {
     );
     Ok(())
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn outage_argument_parses_and_rejects_garbage() {
-        let o = parse_outage("600:300").unwrap();
-        assert_eq!((o.start_s, o.duration_s), (600.0, 300.0));
-        assert!(parse_outage("600").is_err());
-        assert!(parse_outage("a:3").is_err());
-        assert!(parse_outage("10:-3").is_err());
-    }
-}

@@ -5,6 +5,8 @@
 mod html;
 pub mod plots;
 
+pub use html::base64;
+
 use crate::cli_enum;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -144,33 +146,4 @@ pub fn run(args: StudyArgs) -> anyhow::Result<()> {
         args.out.join("report.md").display()
     );
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::StudyArgs;
-    use clap::Parser;
-    use nav_study::setup::Variant;
-
-    #[derive(Parser)]
-    struct Cli {
-        #[command(flatten)]
-        study: StudyArgs,
-    }
-
-    fn budget(args: &[&str]) -> Vec<Variant> {
-        let argv = std::iter::once("study").chain(args.iter().copied());
-        Cli::try_parse_from(argv).unwrap().study.budget_models
-    }
-
-    #[test]
-    fn budget_models_default_list_and_none() {
-        assert_eq!(budget(&[]), [Variant::Nbk, Variant::N]);
-        assert_eq!(
-            budget(&["--budget-models", "nbk-single,n-id-gyro"]),
-            [Variant::NbkSingle, Variant::NIdGyro]
-        );
-        assert!(budget(&["--budget-models"]).is_empty());
-        assert!(Cli::try_parse_from(["study", "--budget-models", "kbn"]).is_err());
-    }
 }

@@ -5,6 +5,7 @@
 mod aiding_inputs;
 mod allan_adis16405;
 mod allan_params_run;
+mod cli_helpers;
 mod diagnose_clock_gnss_step;
 mod diagnose_gnss_gm;
 mod diagnose_gnss_noise;
