@@ -651,3 +651,71 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
         with_effects: None,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trial at white-noise factor `k` with the log-likelihood `ll(log2 k)`.
+    fn at(k: f64, ll: &dyn Fn(f64) -> f64) -> NoiseTrial {
+        NoiseTrial {
+            factors: imu_f(NoiseFactors::ONE, k),
+            log_likelihood: ll(k.log2()),
+            nis_mean: 1.0,
+        }
+    }
+
+    #[test]
+    fn climb_finds_the_whole_grids_best_point_and_its_neighbours_on_a_unimodal_curve() {
+        let ks: Vec<f64> = (-2..=10).map(|i| 2f64.powi(i)).collect();
+        let centre = 2; // factor 1
+        for peak in [-3.0, -2.0, -1.4, -0.2, 0.0, 0.3, 1.0, 2.6, 7.0, 10.0, 14.0] {
+            // concave in log2(k), as the innovation log-likelihood of a noise factor
+            let ll = move |x: f64| {
+                let d = x - peak;
+                if d < 0.0 {
+                    -3.0 * d * d
+                } else {
+                    -d * d
+                }
+            };
+            let runs = std::sync::atomic::AtomicUsize::new(0);
+            let run = |k: f64| {
+                runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                at(k, &ll)
+            };
+            let got = climb(at(1.0, &ll), &ks, centre, &run);
+            let whole: Vec<NoiseTrial> = ks.iter().map(|&k| at(k, &ll)).collect();
+            let want = best(&whole).unwrap().factors.accel_white;
+            assert_eq!(best(&got).unwrap().factors.accel_white, want, "peak {peak}");
+            // ascending, the centre among them, every trial run once
+            assert!(got
+                .windows(2)
+                .all(|w| w[0].factors.accel_white < w[1].factors.accel_white));
+            assert_eq!(runs.into_inner(), got.len() - 1, "peak {peak}");
+            // the parabola's three points are there: the same vertex as on the whole grid
+            let x = |t: &NoiseTrial| t.factors.accel_white.log2();
+            assert_eq!(vertex(&got, x), vertex(&whole, x), "peak {peak}");
+            // the run count: the neighbours and one past the best (none past a grid end)
+            let i = ks.iter().position(|&k| k == want).unwrap();
+            let far = i.abs_diff(centre);
+            let past = (i < centre && i > 0) || (i > centre && i + 1 < ks.len());
+            let want_runs = if far == 0 {
+                2
+            } else {
+                2 + far - 1 + usize::from(past)
+            };
+            assert_eq!(got.len() - 1, want_runs, "peak {peak}");
+        }
+    }
+
+    #[test]
+    fn climb_stops_at_a_failed_run_and_starts_at_the_grids_end() {
+        let ks = [1.0, 2.0, 4.0, 8.0];
+        let ll = |x: f64| if x >= 2.0 { f64::NAN } else { x };
+        let got = climb(at(1.0, &ll), &ks, 0, &|k| at(k, &ll));
+        let lls: Vec<f64> = got.iter().map(|t| t.factors.accel_white).collect();
+        assert_eq!(lls, [1.0, 2.0, 4.0]);
+        assert_eq!(best(&got).unwrap().factors.accel_white, 2.0);
+    }
+}
