@@ -7,22 +7,29 @@
 //! Stages, each adopted only when its log-likelihood gain pays the BIC penalty `1/2 ln n` per
 //! parameter it changes (n scalar measurements):
 //! 0. GNSS: one factor on the fixes' sigmas (horizontal and vertical together), grid
-//!    2^(i/2), i = 0 .. 10 (1 .. 32, 10 runs besides 1; never below 1: time-correlated fix
-//!    errors make smaller sigmas look likelier although nothing is wrong with the declared
-//!    ones) with the IMU noise as configured,
+//!    2^(i/2), i = 0 .. 10 (1 .. 32; never below 1: time-correlated fix errors make smaller
+//!    sigmas look likelier although nothing is wrong with the declared ones) with the IMU
+//!    noise as configured,
 //!    in parallel with stage 1 at the configured GNSS sigmas. Whichever gains more is kept and
-//!    the other grid is run again on top of it (both sources inflate the innovations; the
+//!    the other grid is searched again on top of it (both sources inflate the innovations; the
 //!    first fit must not absorb the other's error);
-//! 1. one factor on both sensors' white-noise PSDs, grid 2^-2 .. 2^10 (13 runs);
+//! 1. one factor on both sensors' white-noise PSDs, grid 2^-2 .. 2^10;
 //!    Then the GNSS factor refined: the joint factor at the log-parabola vertex through the best grid point
-//!    and its neighbours (one run), then horizontal and vertical each times 2^(+-1/4),
+//!    and its neighbours (one run), then horizontal and vertical each on the grid 2^(+-1/4),
 //!    2^(+-1/2) and their own vertex, each at least 1 (a second parameter, its own penalty);
-//! 2. per sensor (accelerometer, gyro) a factor 1/4, 1/2, 2, 4 on top of stage 1's;
-//! 3. per sensor a factor 1/16, 1/4, 4, 16 on the bias driving PSDs (Gauss-Markov S_B and
-//!    random walk S_K together; skipped for a sensor whose bias is a random constant).
+//! 2. per sensor (accelerometer, gyro) a factor on the grid 1/4, 1/2, 2, 4 on top of stage 1's;
+//! 3. per sensor a factor on the grid 1/16, 1/4, 4, 16 on the bias driving PSDs (Gauss-Markov
+//!    S_B and random walk S_K together; skipped for a sensor whose bias is a random constant).
 //!
 //! Stages 2 and 3 pick each sensor's best factor with the other sensor at the previous stage's
 //! value and confirm the combination with one more run.
+//!
+//! Every grid is climbed, not run whole: from the point the stage starts at (factor 1) its two
+//! neighbours, then onwards in the direction that gains while the log-likelihood rises. On a
+//! log-likelihood unimodal along the grid (as the factor's curves are: one maximum, the
+//! innovations' fit falling off on both sides) that is the whole grid's best point with its
+//! two neighbours (the vertex's three points) in 2 to 4 runs where the grid has 4 to 12;
+//! the trials reported are the runs made.
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -158,7 +165,8 @@ pub struct NoiseTrial {
 /// The noise tuning of a diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct NoiseTuning {
-    /// Stage 0: factors tried on the GNSS sigmas (horizontal and vertical together).
+    /// Stage 0: factors tried on the GNSS sigmas (horizontal and vertical together), ascending
+    /// (the grid points the climb reached, 1 among them).
     pub gnss_scales: Vec<f64>,
     /// Their innovation log-likelihoods, nats (NaN: the run failed).
     pub gnss_log_likelihood: Vec<f64>,
@@ -167,7 +175,8 @@ pub struct NoiseTuning {
     /// Stage 0's log-likelihood gain over the model it started from minus one BIC penalty,
     /// nats (> 0: the GNSS sigmas were rescaled).
     pub gnss_evidence: f64,
-    /// Stage 1: factors tried on both white-noise PSDs.
+    /// Stage 1: factors tried on both white-noise PSDs, ascending (the grid points the climb
+    /// reached, 1 among them).
     pub scales: Vec<f64>,
     /// Their innovation log-likelihoods, nats (NaN: the run failed).
     pub log_likelihood: Vec<f64>,
@@ -267,6 +276,60 @@ fn best(trials: &[NoiseTrial]) -> Option<&NoiseTrial> {
         .max_by(|a, b| a.log_likelihood.total_cmp(&b.log_likelihood))
 }
 
+/// The trials of a climb on the factors `ks` (ascending) from `centre`, the trial at
+/// `ks[at]`: both neighbours of the centre first (in parallel), then onwards from the one that
+/// gains, one grid point at a time while the log-likelihood rises, stopping at the first point
+/// that does not gain (or failed) or at an end of the grid. Returns the trials run and the
+/// centre, ordered as `ks`. When the log-likelihood is unimodal on the grid this finds the same
+/// best point as the whole grid, with the best point's two grid neighbours among the trials
+/// (what [`vertex`] needs); on the usual curve (best at or next to the centre) it runs 2 to 3
+/// trials instead of the grid's length minus one.
+fn climb(
+    centre: NoiseTrial,
+    ks: &[f64],
+    at: usize,
+    run: &(impl Fn(f64) -> NoiseTrial + Sync),
+) -> Vec<NoiseTrial> {
+    let probe = |i: Option<usize>| i.and_then(|i| ks.get(i)).map(|&k| (k, run(k)));
+    let (lo, hi) = rayon::join(|| probe(at.checked_sub(1)), || probe(at.checked_add(1)));
+    let gains = |t: &Option<(f64, NoiseTrial)>, than: f64| {
+        t.as_ref()
+            .is_some_and(|(_, t)| t.log_likelihood.is_finite() && t.log_likelihood > than)
+    };
+    let ll = |t: &Option<(f64, NoiseTrial)>| {
+        t.as_ref().map_or(f64::NEG_INFINITY, |t| t.1.log_likelihood)
+    };
+    let mut below: Vec<NoiseTrial> = Vec::new();
+    let mut above: Vec<NoiseTrial> = Vec::new();
+    // the direction of the neighbour that gains more (both gain only off a unimodal curve)
+    let up = gains(&hi, centre.log_likelihood)
+        && !(gains(&lo, centre.log_likelihood) && ll(&lo) > ll(&hi));
+    let down = !up && gains(&lo, centre.log_likelihood);
+    let (mut last, side, step): (f64, &mut Vec<NoiseTrial>, isize) = if up {
+        (ll(&hi), &mut above, 1)
+    } else {
+        (ll(&lo), &mut below, -1)
+    };
+    if up || down {
+        let mut i = at as isize + 2 * step;
+        while let Some(&k) = usize::try_from(i).ok().and_then(|i| ks.get(i)) {
+            let t = run(k);
+            side.push(t);
+            if !(t.log_likelihood.is_finite() && t.log_likelihood > last) {
+                break;
+            }
+            last = t.log_likelihood;
+            i += step;
+        }
+    }
+    let mut out: Vec<NoiseTrial> = below.into_iter().rev().collect();
+    out.extend(lo.map(|t| t.1));
+    out.push(centre);
+    out.extend(hi.map(|t| t.1));
+    out.extend(above);
+    out
+}
+
 /// Stage 1's change: both white-noise PSD factors set to `k`.
 fn imu_f(f: NoiseFactors, k: f64) -> NoiseFactors {
     NoiseFactors {
@@ -298,17 +361,16 @@ fn coarse(
     scales: &[f64],
     gnss_scales: &[f64],
 ) -> (Vec<NoiseTrial>, Vec<NoiseTrial>, f64, f64, NoiseTrial) {
+    // a climb from the grid point that is `from` itself (the whole grid when none is)
     let grid = |from: NoiseTrial, ks: &[f64], make: Make| -> Vec<NoiseTrial> {
-        ks.par_iter()
-            .map(|&k| {
-                let f = make(from.factors, k);
-                if f == from.factors {
-                    from
-                } else {
-                    trial(case, opts, f)
-                }
-            })
-            .collect()
+        let run = |k: f64| trial(case, opts, make(from.factors, k));
+        match ks
+            .iter()
+            .position(|&k| make(from.factors, k) == from.factors)
+        {
+            Some(at) => climb(from, ks, at, &run),
+            None => ks.par_iter().map(|&k| run(k)).collect(),
+        }
     };
     let (s1_first, s0_first) = rayon::join(
         || grid(one, scales, imu_f),
@@ -375,19 +437,18 @@ fn refine_gnss(
             cur = t;
         }
     }
-    let steps = [-0.5, -0.25, 0.25, 0.5].map(|e: f64| 2f64.powf(e));
+    let steps = [-0.5, -0.25, 0.0, 0.25, 0.5].map(|e: f64| 2f64.powf(e));
     let base_f = cur.factors;
     let split: [fn(&mut NoiseFactors, f64); 2] =
         [|f, k| f.gnss_horizontal *= k, |f, k| f.gnss_vertical *= k];
-    let per: Vec<(usize, NoiseTrial)> = (0..2)
-        .flat_map(|c| steps.iter().map(move |&k| (c, k)))
-        .collect::<Vec<_>>()
-        .par_iter()
-        .map(|&(c, k)| {
-            let mut f = base_f;
-            split[c](&mut f, k);
-            (c, trial(case, opts, f))
-        })
+    let (h, v) = rayon::join(
+        || per_factor(case, opts, cur, &steps, split[0]),
+        || per_factor(case, opts, cur, &steps, split[1]),
+    );
+    let per: Vec<(usize, NoiseTrial)> = h
+        .into_iter()
+        .map(|t| (0, t))
+        .chain(v.into_iter().map(|t| (1, t)))
         .collect();
     refinement.extend(per.iter().map(|t| t.1));
     let mut combined = base_f;
@@ -425,6 +486,30 @@ fn refine_gnss(
     cur
 }
 
+/// The trials of a climb from `cur` on one factor multiplied by `grid` (ascending, with 1,
+/// which is `cur` itself) through `set`; `cur` not among them.
+fn per_factor(
+    case: &Case,
+    opts: &RunOptions,
+    cur: NoiseTrial,
+    grid: &[f64],
+    set: fn(&mut NoiseFactors, f64),
+) -> Vec<NoiseTrial> {
+    let run = |k: f64| {
+        let mut f = cur.factors;
+        set(&mut f, k);
+        trial(case, opts, f)
+    };
+    let at = grid.iter().position(|&k| k == 1.0);
+    let all = match at {
+        Some(at) => climb(cur, grid, at, &run),
+        None => grid.par_iter().map(|&k| run(k)).collect(),
+    };
+    all.into_iter()
+        .filter(|t| t.factors != cur.factors)
+        .collect()
+}
+
 /// Stages 2 and 3 from the trial `cur`: per sensor the white-noise and then the bias PSD
 /// factors, the combination confirmed; every trial run is added to `refinement`. Returns the
 /// trial chosen.
@@ -438,11 +523,11 @@ fn per_sensor(
     type Set = fn(&mut NoiseFactors, f64);
     let stages: [(&[f64], [Set; 2]); 2] = [
         (
-            &[0.25, 0.5, 2.0, 4.0],
+            &[0.25, 0.5, 1.0, 2.0, 4.0],
             [|f, k| f.accel_white *= k, |f, k| f.gyro_white *= k],
         ),
         (
-            &[1.0 / 16.0, 0.25, 4.0, 16.0],
+            &[1.0 / 16.0, 0.25, 1.0, 4.0, 16.0],
             [|f, k| f.accel_bias *= k, |f, k| f.gyro_bias *= k],
         ),
     ];
@@ -461,21 +546,17 @@ fn per_sensor(
                 .chain(&opts.filter.gyro.s_k)
                 .any(|s| *s > 0.0),
         ];
-        let jobs: Vec<(usize, f64)> = (0..2)
-            .filter(|&s| si == 0 || has_bias[s])
-            .flat_map(|s| grid.iter().map(move |&k| (s, k)))
-            .collect();
-        if jobs.is_empty() {
+        if si == 1 && !has_bias.contains(&true) {
             continue;
         }
         let base_f = cur.factors;
-        let trials: Vec<(usize, NoiseTrial)> = jobs
+        let sensors: Vec<usize> = (0..2).filter(|&s| si == 0 || has_bias[s]).collect();
+        let trials: Vec<(usize, NoiseTrial)> = sensors
             .par_iter()
-            .map(|&(s, k)| {
-                let mut f = base_f;
-                setters[s](&mut f, k);
-                (s, trial(case, opts, f))
-            })
+            .map(|&s| (s, per_factor(case, opts, cur, grid, setters[s])))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .flat_map(|(s, ts)| ts.into_iter().map(move |t| (s, t)))
             .collect();
         refinement.extend(trials.iter().map(|t| t.1));
         let mut combined = base_f;
@@ -551,11 +632,11 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
     let cur = per_sensor(case, opts, penalty, cur, &mut refinement);
     let params = cur.factors.params();
     NoiseTuning {
-        gnss_scales,
+        gnss_scales: s0.iter().map(|t| t.factors.gnss_horizontal).collect(),
         gnss_log_likelihood: s0.iter().map(|t| t.log_likelihood).collect(),
         gnss_nis_mean: s0.iter().map(|t| t.nis_mean).collect(),
         gnss_evidence,
-        scales,
+        scales: s1.iter().map(|t| t.factors.accel_white).collect(),
         log_likelihood: s1.iter().map(|t| t.log_likelihood).collect(),
         nis_mean: s1.iter().map(|t| t.nis_mean).collect(),
         chosen_scale,
@@ -568,5 +649,73 @@ pub fn tune(case: &Case, opts: &RunOptions, base: &ResidualStats) -> NoiseTuning
         nis_expected: base.nis_expected,
         adopted: false,
         with_effects: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trial at white-noise factor `k` with the log-likelihood `ll(log2 k)`.
+    fn at(k: f64, ll: &dyn Fn(f64) -> f64) -> NoiseTrial {
+        NoiseTrial {
+            factors: imu_f(NoiseFactors::ONE, k),
+            log_likelihood: ll(k.log2()),
+            nis_mean: 1.0,
+        }
+    }
+
+    #[test]
+    fn climb_finds_the_whole_grids_best_point_and_its_neighbours_on_a_unimodal_curve() {
+        let ks: Vec<f64> = (-2..=10).map(|i| 2f64.powi(i)).collect();
+        let centre = 2; // factor 1
+        for peak in [-3.0, -2.0, -1.4, -0.2, 0.0, 0.3, 1.0, 2.6, 7.0, 10.0, 14.0] {
+            // concave in log2(k), as the innovation log-likelihood of a noise factor
+            let ll = move |x: f64| {
+                let d = x - peak;
+                if d < 0.0 {
+                    -3.0 * d * d
+                } else {
+                    -d * d
+                }
+            };
+            let runs = std::sync::atomic::AtomicUsize::new(0);
+            let run = |k: f64| {
+                runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                at(k, &ll)
+            };
+            let got = climb(at(1.0, &ll), &ks, centre, &run);
+            let whole: Vec<NoiseTrial> = ks.iter().map(|&k| at(k, &ll)).collect();
+            let want = best(&whole).unwrap().factors.accel_white;
+            assert_eq!(best(&got).unwrap().factors.accel_white, want, "peak {peak}");
+            // ascending, the centre among them, every trial run once
+            assert!(got
+                .windows(2)
+                .all(|w| w[0].factors.accel_white < w[1].factors.accel_white));
+            assert_eq!(runs.into_inner(), got.len() - 1, "peak {peak}");
+            // the parabola's three points are there: the same vertex as on the whole grid
+            let x = |t: &NoiseTrial| t.factors.accel_white.log2();
+            assert_eq!(vertex(&got, x), vertex(&whole, x), "peak {peak}");
+            // the run count: the neighbours and one past the best (none past a grid end)
+            let i = ks.iter().position(|&k| k == want).unwrap();
+            let far = i.abs_diff(centre);
+            let past = (i < centre && i > 0) || (i > centre && i + 1 < ks.len());
+            let want_runs = if far == 0 {
+                2
+            } else {
+                2 + far - 1 + usize::from(past)
+            };
+            assert_eq!(got.len() - 1, want_runs, "peak {peak}");
+        }
+    }
+
+    #[test]
+    fn climb_stops_at_a_failed_run_and_starts_at_the_grids_end() {
+        let ks = [1.0, 2.0, 4.0, 8.0];
+        let ll = |x: f64| if x >= 2.0 { f64::NAN } else { x };
+        let got = climb(at(1.0, &ll), &ks, 0, &|k| at(k, &ll));
+        let lls: Vec<f64> = got.iter().map(|t| t.factors.accel_white).collect();
+        assert_eq!(lls, [1.0, 2.0, 4.0]);
+        assert_eq!(best(&got).unwrap().factors.accel_white, 2.0);
     }
 }
