@@ -1,5 +1,6 @@
-//! A run configuration's own files are streamed by `host-sim run` (`nav_engine::load` with
-//! streaming + `execute_streaming`): an IMU CSV log (200 Hz, time in seconds) and an RTKLIB
+//! A run configuration's own files are streamed by `host-sim run`
+//! (`nav_engine::load_checking_in_run` + `execute_streaming`: the mounting check made on the
+//! run's own reading): an IMU CSV log (200 Hz, time in seconds) and an RTKLIB
 //! `.pos` GNSS file written by the test at two lengths (5 and 20 minutes), run while a
 //! counting global allocator tracks the live heap. Loading would hold every IMU sample (and
 //! its file line); streamed, the peak must not grow with the length beyond what the GNSS
@@ -9,7 +10,7 @@
 //!
 //! A test binary of its own: the allocator's counters are process-wide.
 
-use nav_engine::{execute_streaming, load, RunSpec};
+use nav_engine::{execute_streaming, load, load_checking_in_run, RunSpec};
 use test_support::alloc;
 use test_support::csvcase::write_csv_pos_case;
 
@@ -48,7 +49,7 @@ fn measure(minutes: f64, with_loaded: bool) -> Measured {
     // the streamed run, outputs written
     let out = dir.path().join("out");
     let ((l, ran), run) = peak_of(|| {
-        let l = load(&RunSpec::new(&case.config), true).unwrap();
+        let l = load_checking_in_run(&RunSpec::new(&case.config)).unwrap();
         let ran = execute_streaming(
             &l.prepared,
             l.imu_stream.as_ref(),

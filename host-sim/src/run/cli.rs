@@ -255,7 +255,11 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         return run_smoothed(&args);
     }
     let t = std::time::Instant::now();
-    let loaded = load(&args, true)?;
+    // the mounting check on the run's own reading of the IMU file: its warnings after the run
+    let loaded = nav_engine::load_checking_in_run(&args.to_spec())?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
     let Loaded {
         prepared: p,
         imu_stream: imu,
@@ -285,6 +289,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         &mut |done, _| pb.set_position(done as u64),
     );
     pb.finish_and_clear();
+    for w in loaded.mounting_warnings() {
+        eprintln!("warning: {w}");
+    }
     let t_run = t.elapsed().as_secs_f64();
     // no fix to align on and none usable: not a navigation solution (exit 2), naming why
     let (out, m) = res.map_err(|e| loaded.explain_start_failure(e))?;

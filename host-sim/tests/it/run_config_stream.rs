@@ -8,17 +8,19 @@
 //!   flipped the same two warnings, the drive being shorter than the streamed check's
 //!   prefix);
 //! - a generated CSV + `.pos` case longer than the prefix with an upside-down mounting: the
-//!   same warning, from the prefix;
+//!   same warning, from the prefix, and the same again from the check made on the run's own
+//!   reading (`load_checking_in_run`: after the run, the outputs unchanged);
 //! - a generated CSV + `.pos` case with an IMU gap and periodic outages: outputs
 //!   byte-identical, the gap in the run's IMU report;
 //! - a simulated case directory and its KF-GINS file (IMU text streamed): the mounting
-//!   check's warnings the same streamed and loaded, with the IMU upside down and without;
+//!   check's warnings the same streamed and loaded, with the IMU upside down and without, and
+//!   made on the run's own reading;
 //! - a CSV row that does not parse in the middle of the streamed file: the error names the
 //!   file and line, and the outputs up to it are kept as `*.partial`.
 
 use nav_engine::run::output::{partial_path, OUTPUT_NAMES};
 use nav_engine::run::streams::MOUNTING_PREFIX_S;
-use nav_engine::{execute_streaming, load, Loaded, RunSpec};
+use nav_engine::{execute_streaming, load, load_checking_in_run, Loaded, RunSpec};
 use std::path::{Path, PathBuf};
 use test_support::csvcase::{write_csv_pos_case, T0_S};
 
@@ -50,6 +52,25 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
     )
     .unwrap();
     l
+}
+
+/// Loads `spec` with the mounting check made on the run's own reading
+/// (`load_checking_in_run`) and runs it into `out`: the warnings before the run, and the
+/// check's after it (none before), whether the run succeeded or not (given as the third).
+fn run_checking_in_run(spec: &RunSpec, out: &Path) -> (Vec<String>, Vec<String>, bool) {
+    let l = load_checking_in_run(spec).unwrap();
+    assert!(l.mounting_warnings().is_empty());
+    let ok = execute_streaming(
+        &l.prepared,
+        l.imu_stream.as_ref(),
+        l.truth_stream.as_ref(),
+        out,
+        &l.inputs,
+        None,
+        &mut |_, _| {},
+    )
+    .is_ok();
+    (l.warnings.clone(), l.mounting_warnings(), ok)
 }
 
 fn assert_same_outputs(a: &Path, b: &Path) {
@@ -238,6 +259,14 @@ fn an_upside_down_imu_is_named_from_the_streamed_prefix_of_a_longer_record() {
     let (a, b) = (rest(&loaded.warnings[0]), rest(&streamed.warnings[0]));
     assert_eq!(a, 2.0 * MOUNTING_PREFIX_S - 2.0);
     assert_eq!(b, MOUNTING_PREFIX_S - 1.0);
+    // the check made on the run's own reading: the same warning, after the run, and the
+    // same outputs as the run checked before it
+    let (before, after, ok) = run_checking_in_run(&spec, &dir.path().join("in-run"));
+    assert!(before.is_empty(), "{before:?}");
+    assert_eq!(after, streamed.warnings);
+    assert!(ok);
+    run(&spec, true, &dir.path().join("before"));
+    assert_same_outputs(&dir.path().join("before"), &dir.path().join("in-run"));
 }
 
 #[test]
@@ -445,5 +474,12 @@ fn case_directories_and_kf_gins_files_streamed_warn_as_loaded() {
             s.warnings[1].contains("tilts the body by 180 deg"),
             "{name}"
         );
+        // made on the run's own reading of the IMU text file: the same two, after the run
+        let out = dir
+            .path()
+            .join(format!("in-run-{}", name.replace(' ', "-")));
+        let (before, after, _) = run_checking_in_run(spec, &out);
+        assert!(before.is_empty(), "{name}: {before:?}");
+        assert_eq!(after, s.warnings, "{name}");
     }
 }

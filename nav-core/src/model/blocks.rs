@@ -328,6 +328,77 @@ impl Block {
         }
     }
 
+    /// [`Self::accumulate_f`] with the epoch's `C_b^n dt` given (`c_dt`: `reg.c_nb` scaled by
+    /// `reg.dt`, formed once for all the blocks of an epoch instead of once per block): the
+    /// same sums, bit for bit. Host builds only: on the MCU the per-block form is kept, for
+    /// its smaller code. Not inlined: inlined into the loop over the blocks, the products of
+    /// every arm were formed for every block.
+    #[cfg(not(target_os = "none"))]
+    #[inline(never)]
+    pub fn accumulate_f_scaled<T: Scalar, const N: usize>(
+        self,
+        off: usize,
+        reg: &Regressors<T>,
+        c_dt: &[[T; 3]; 3],
+        f_top: &mut [[T; N]; CORE_DIM],
+    ) {
+        // the 3x3 products written out (no array `map`: its drain is not always inlined)
+        let scale = |m: &[[T; 3]; 3], s: T| {
+            let [[a, b, c], [d, e, f], [g, h, i]] = *m;
+            [
+                [a * s, b * s, c * s],
+                [d * s, e * s, f * s],
+                [g * s, h * s, i * s],
+            ]
+        };
+        let diag = |m: &[[T; 3]; 3], v: &[T; 3]| {
+            let [[a, b, c], [d, e, f], [g, h, i]] = *m;
+            let [x, y, z] = *v;
+            [
+                [a * x, b * y, c * z],
+                [d * x, e * y, f * z],
+                [g * x, h * y, i * z],
+            ]
+        };
+        match self {
+            Self::Core | Self::GyroBias(_) | Self::AccelBias(_) => {}
+            Self::GyroScaleFactor => {
+                add3(f_top, IDX_ATT, off, &diag(c_dt, &reg.omega_b));
+            }
+            Self::AccelScaleFactor => {
+                let m = diag(c_dt, &reg.f_b);
+                add3(f_top, IDX_VEL, off, &scale(&m, -T::ONE));
+            }
+            Self::GyroMisalignment => {
+                effects::add_block(f_top, IDX_ATT, off, &effects::c_mis(c_dt, &reg.omega_b));
+            }
+            Self::AccelMisalignment => {
+                let neg = scale(c_dt, -T::ONE);
+                effects::add_block(f_top, IDX_VEL, off, &effects::c_mis(&neg, &reg.f_b));
+            }
+            Self::GyroTemperatureBias => {
+                let d_t = effects::temperature_regressor(reg.temperature_c);
+                if d_t != T::ZERO {
+                    add3(f_top, IDX_ATT, off, &scale(c_dt, d_t));
+                }
+            }
+            Self::AccelTemperatureBias => {
+                let d_t = effects::temperature_regressor(reg.temperature_c);
+                if d_t != T::ZERO {
+                    add3(f_top, IDX_VEL, off, &scale(c_dt, -d_t));
+                }
+            }
+            Self::GyroGSensitivity => {
+                add3(f_top, IDX_ATT, off, &diag(c_dt, &reg.f_b));
+            }
+            Self::LeverArm
+            | Self::TimeOffset
+            | Self::ImuClockDrift
+            | Self::GnssPositionGm
+            | Self::OdometerScale => {}
+        }
+    }
+
     /// Adds the coupling of a bias block integrated over a whole interval to `a_top` (the 9
     /// core rows of the integrated F dt, zero in the block's columns) at column `off`, from
     /// `c_dt` = the sum of `C_b^n dt` over the interval ([`Self::accumulate_f`] left them

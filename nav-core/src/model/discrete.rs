@@ -81,6 +81,21 @@ impl<T: Scalar, const N: usize> Accumulator<T, N> {
                 *a += *c * reg.dt;
             }
         }
+        // the host forms C_b^n dt once for every block; the MCU per block (smaller code)
+        #[cfg(not(target_os = "none"))]
+        {
+            let [[a, b, c], [d, e, f], [g, h, i]] = reg.c_nb;
+            let s = reg.dt;
+            let c_dt = [
+                [a * s, b * s, c * s],
+                [d * s, e * s, f * s],
+                [g * s, h * s, i * s],
+            ];
+            for (off, b) in layout.iter() {
+                b.accumulate_f_scaled(off, reg, &c_dt, &mut self.f_top);
+            }
+        }
+        #[cfg(target_os = "none")]
         for (off, b) in layout.iter() {
             b.accumulate_f(off, reg, &mut self.f_top);
         }

@@ -189,3 +189,46 @@ proptest! {
         check::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
     }
 }
+
+/// `Accumulator::add` (the host's form: `C_b^n dt` formed once per epoch for every block)
+/// against the per-block form `Block::accumulate_f` (the MCU's) over 50 random epochs of the
+/// largest layout: the same sums, bit for bit, in f64 and f32.
+fn accumulation_is_the_per_block_form<T: Scalar, const N: usize>(seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut acc = Accumulator::<T, N>::default();
+    let mut per_block = [[T::ZERO; N]; CORE_DIM];
+    let mut r = |a: f64, b: f64| T::of_f64(rng.random_range(a..b));
+    for _ in 0..50 {
+        let reg = Regressors {
+            dt: r(0.001, 0.02),
+            c_nb: [[0.0f64; 3]; 3].map(|row| row.map(|_| r(-1.0, 1.0))),
+            f_b: [r(-3.0, 3.0), r(-3.0, 3.0), r(-10.5, -9.0)],
+            omega_b: [0.0f64; 3].map(|_| r(-0.5, 0.5)),
+            temperature_c: r(-10.0, 10.0),
+        };
+        acc.add(&LAYOUT_ALL, &reg, 0.005, &[T::ZERO; 3]);
+        for (off, b) in LAYOUT_ALL.iter() {
+            b.accumulate_f(off, &reg, &mut per_block);
+        }
+    }
+    let bits = |m: &[[T; N]; CORE_DIM]| -> Vec<u64> {
+        m.iter().flatten().map(|v| v.to_f64().to_bits()).collect()
+    };
+    assert_eq!(bits(&acc.f_top), bits(&per_block));
+    assert!(
+        per_block
+            .iter()
+            .flatten()
+            .filter(|v| v.to_f64() != 0.0)
+            .count()
+            > 50
+    );
+}
+
+#[test]
+fn accumulation_equals_the_per_block_form_bit_for_bit() {
+    for seed in 0..4 {
+        accumulation_is_the_per_block_form::<f64, { LAYOUT_ALL.dim() }>(seed);
+        accumulation_is_the_per_block_form::<f32, { LAYOUT_ALL.dim() }>(seed);
+    }
+}

@@ -97,7 +97,11 @@ impl<'a> Source<'a> {
                     path: Some(st.file.path()),
                     increments_span_gaps: st.file.increments_span_gaps(),
                 };
-                let imu = Box::new(threaded_file_reader(st.file.clone(), st.time_offset_s));
+                let imu = Box::new(threaded_tapped_reader(
+                    st.file.clone(),
+                    st.time_offset_s,
+                    st.mounting.clone(),
+                ));
                 let gnss = match &st.gnss {
                     // the fixes read as the filter goes (memory independent of the length)
                     Some(g) => g.source()?,
@@ -371,6 +375,16 @@ pub fn threaded_file_reader(
     file: ImuFile,
     time_offset_s: f64,
 ) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
+    threaded_tapped_reader(file, time_offset_s, None)
+}
+
+/// [`threaded_file_reader`] feeding the samples, as the file gives them, to the mounting
+/// check of `tap` ([`super::streams::MountingTap`]) on the reader thread.
+fn threaded_tapped_reader(
+    file: ImuFile,
+    time_offset_s: f64,
+    tap: Option<super::streams::MountingTap>,
+) -> impl Iterator<Item = Result<super::ImuItem, super::RunError>> {
     let path = file.path();
     super::reader_thread::read_in_chunks(
         "imu-reader",
@@ -378,8 +392,12 @@ pub fn threaded_file_reader(
         READ_QUEUE,
         move || {
             let rd = file.open().map_err(super::RunError::Input)?;
+            let mut check = tap.as_ref().map(super::streams::MountingTap::start);
             Ok(rd.map(move |r| match r {
                 Ok((mut sample, line)) => {
+                    if let Some(c) = &mut check {
+                        c.observe(&sample);
+                    }
                     sample.t_s += time_offset_s;
                     Ok(super::ImuItem { sample, line })
                 }

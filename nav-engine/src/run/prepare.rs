@@ -24,9 +24,10 @@
 use super::gnss_use::{time_span, GnssAccount};
 use super::init::{InitSpec, StaticAlign};
 use super::outage::{Outage, PeriodicOutages};
-use super::streams::{read_prefix, ConfigFiles, ImuFile};
+use super::streams::{cut_lines, read_prefix, ConfigFiles, ImuFile, MountingTap, Prefix};
 pub use super::streams::{GnssStream, ImuStream};
 use super::{CaseData, Effect, Model, Precision, RecordOptions, RunOptions};
+use crate::mounting::MountingCheck;
 use anyhow::{bail, Context};
 use nalgebra::Vector3;
 use nav_core::config::{FilterConfig, GateProbability, Gating, ScaleFactorNoise, VelocityGating};
@@ -35,7 +36,7 @@ use nav_core::filter::InitialUncertainty;
 use nav_core::imu_guard::{GapIncrements, ImuLimits};
 use nav_core::model::{Block, BlockKind};
 use nav_core::strapdown::NavState;
-use nav_core::types::ImuSample;
+use nav_core::types::{GnssFix, ImuSample};
 use nav_io::restcheck::check_config_biases as rest_check;
 use nav_io::{
     read_gnss_text, read_imu_text, read_kf_gins_yaml, read_nav_text, read_run_config, BiasModel,
@@ -185,6 +186,17 @@ pub struct Loaded {
 }
 
 impl Loaded {
+    /// The warnings of the mounting check made on the run's own reading
+    /// ([`load_checking_in_run`]), once the run has read far enough (or stopped); empty
+    /// before, and for a run loaded otherwise (its check's warnings are in
+    /// [`Self::warnings`]).
+    pub fn mounting_warnings(&self) -> Vec<String> {
+        let tap = self.imu_stream.as_ref().and_then(|st| st.mounting.as_ref());
+        tap.and_then(|t| t.result())
+            .map(|m| m.warnings)
+            .unwrap_or_default()
+    }
+
     /// Where the run's fixes went ([`GnssAccount`]) from its counters; with `spans` the
     /// time spans of the fixes and of the IMU data too (a pass over each streamed file).
     pub fn gnss_account(&self, counters: &super::RunCounters, spans: bool) -> GnssAccount {
@@ -626,6 +638,19 @@ fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
 /// With `stream_imu` the truth is never loaded (`case.truth` stays None): its file is checked
 /// and returned in [`Loaded::truth_stream`], to be read as the solution advances.
 pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
+    load_with(args, stream_imu, false)
+}
+
+/// [`load`] with the IMU and GNSS files streamed, the mounting check made on the run's own
+/// reading of the IMU file ([`super::streams::MountingTap`] in [`ImuStream::mounting`])
+/// instead of a pass over the first minutes of the files before the run: [`Loaded::warnings`]
+/// do not hold the check's warnings; [`Loaded::mounting_warnings`] gives them once the run
+/// has read the first [`super::streams::MOUNTING_PREFIX_S`] of IMU data (or stopped before).
+pub fn load_checking_in_run(args: &RunSpec) -> anyhow::Result<Loaded> {
+    load_with(args, true, true)
+}
+
+fn load_with(args: &RunSpec, stream_imu: bool, check_in_run: bool) -> anyhow::Result<Loaded> {
     let stream = stream_imu;
     let mut warnings = Vec::new();
     let mut dropped_by_quality = 0u64;
@@ -677,14 +702,7 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
     let mut imu_stream = streams;
     // the data against the configured mounting (z gyro vs GNSS course, gravity at rest): a
     // streamed run checks the first minutes of its files (and learns its first IMU time)
-    let prefix = match &imu_stream {
-        Some(st) => Some(read_prefix(
-            &st.file,
-            st.gnss.as_ref().map(|g| &g.file),
-            &case.gnss,
-        )?),
-        None => None,
-    };
+    let prefix = prefix_of(imu_stream.as_mut(), &case.gnss, check_in_run)?;
     warnings.extend(match &prefix {
         Some(p) => p.mounting.warnings.clone(),
         None => crate::mounting::check_mounting(&case.imu, &case.gnss).warnings,
@@ -730,6 +748,42 @@ pub fn load(args: &RunSpec, stream_imu: bool) -> anyhow::Result<Loaded> {
         inputs,
         nav_rate_hz,
         gnss_dropped_by_quality: dropped_by_quality,
+    })
+}
+
+/// The start of a streamed run's files (None when the run is loaded): the first IMU time and
+/// the mounting check, made here ([`read_prefix`]) or, with `check_in_run`, left to the run's
+/// own reading (a [`MountingTap`] set in `st`; the check here holds only the warnings about
+/// a last line cut short).
+fn prefix_of(
+    imu_stream: Option<&mut ImuStream>,
+    fixes_in_memory: &[GnssFix],
+    check_in_run: bool,
+) -> anyhow::Result<Option<Prefix>> {
+    Ok(match imu_stream {
+        Some(st) if check_in_run => {
+            let gnss = st.gnss.as_ref().map(|g| &g.file);
+            let (first_t_s, _) = st.file.time_span(false)?;
+            st.mounting = Some(MountingTap::new(&st.file, first_t_s, gnss, fixes_in_memory));
+            // the cut last lines now, the check's own warnings after the run
+            let mounting = MountingCheck {
+                turn_slope: None,
+                rest_f_body_mps2: None,
+                rest_dt_s: None,
+                gnss_lag_s: None,
+                warnings: cut_lines(&st.file, gnss),
+            };
+            Some(Prefix {
+                first_t_s,
+                mounting,
+            })
+        }
+        Some(st) => Some(read_prefix(
+            &st.file,
+            st.gnss.as_ref().map(|g| &g.file),
+            fixes_in_memory,
+        )?),
+        None => None,
     })
 }
 

@@ -21,7 +21,7 @@ use nav_core::types::{GnssFix, ImuSample};
 use nav_io::runcfg::GnssReadSummary;
 use nav_io::{GnssTextReader, ImuFileKind, ImuTextReader, IoError, RunConfig};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// A run configuration and the folder its relative paths are resolved against.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,6 +104,10 @@ pub struct ImuStream {
     /// The GNSS file read while the filter runs (then `prepared.case.gnss` is empty); None:
     /// the fixes are in `prepared.case.gnss`.
     pub gnss: Option<GnssStream>,
+    /// The mounting check made on the run's own reading of the IMU file
+    /// ([`super::prepare::load_checking_in_run`]); None: made before the run
+    /// ([`read_prefix`]) or not at all.
+    pub mounting: Option<MountingTap>,
 }
 
 impl ImuStream {
@@ -113,6 +117,7 @@ impl ImuStream {
             file,
             time_offset_s: 0.0,
             gnss: None,
+            mounting: None,
         }
     }
 }
@@ -235,55 +240,214 @@ pub fn read_prefix(
         bail!("no IMU samples in {}", imu.path().display());
     };
     let first_t_s = first.0.t_s;
-    let end = first_t_s + MOUNTING_PREFIX_S;
-    let input = match imu {
+    let mut c = PrefixCheck::new(
+        imu_input(imu),
+        first_t_s + MOUNTING_PREFIX_S,
+        prefix_fixes(gnss, fixes_in_memory),
+    );
+    let rest = samples.map_while(Result::ok).map(|(s, _)| s);
+    for s in std::iter::once(first.0).chain(rest) {
+        if !c.push_imu(&s) {
+            break;
+        }
+    }
+    let mut mounting = c.finish();
+    mounting.warnings.extend(cut_lines(imu, gnss));
+    Ok(Prefix {
+        first_t_s,
+        mounting,
+    })
+}
+
+/// What the IMU file holds, for the mounting check's warnings.
+fn imu_input(imu: &ImuFile) -> ImuInput {
+    match imu {
         ImuFile::Config(c) if c.config.imu.format == ImuFileKind::Csv => ImuInput::CsvRates,
         _ => ImuInput::Increments,
-    };
-    let mut c = MountingChecker::for_input(input);
-    let mut fixes: Box<dyn Iterator<Item = GnssFix> + '_> = match gnss {
+    }
+}
+
+/// The fixes the mounting check reads: the streamed GNSS file's (read up to its first error;
+/// none when it cannot be opened), or else those in memory.
+fn prefix_fixes<'a>(
+    gnss: Option<&GnssFile>,
+    fixes_in_memory: &'a [GnssFix],
+) -> Box<dyn Iterator<Item = GnssFix> + 'a> {
+    match gnss {
         Some(f) => match f.open() {
             Ok(rd) => Box::new(rd.map_while(Result::ok)),
             Err(_) => Box::new(std::iter::empty()),
         },
         None => Box::new(fixes_in_memory.iter().copied()),
-    };
-    let mut ahead: Option<GnssFix> = None;
-    let rest = samples.map_while(Result::ok).map(|(s, _)| s);
-    for s in std::iter::once(first.0).chain(rest) {
-        if s.t_s > end {
-            break;
+    }
+}
+
+/// The warnings about a last line cut short in the IMU or GNSS file
+/// ([`nav_io::incomplete_last_line`]).
+pub(crate) fn cut_lines(imu: &ImuFile, gnss: Option<&GnssFile>) -> Vec<String> {
+    let files = std::iter::once(imu.path()).chain(gnss.map(GnssFile::path));
+    // a file that cannot be read here is reported by its reader
+    files
+        .filter_map(|p| nav_io::incomplete_last_line(&p).ok().flatten())
+        .map(|cut| cut.to_string())
+        .collect()
+}
+
+/// The mounting check over the IMU samples up to `end_s` and the fixes up to it, fed one
+/// sample at a time ([`MountingChecker`], the fixes up to each sample pushed first).
+struct PrefixCheck<'a> {
+    c: MountingChecker,
+    end_s: f64,
+    fixes: Box<dyn Iterator<Item = GnssFix> + 'a>,
+    ahead: Option<GnssFix>,
+}
+
+impl<'a> PrefixCheck<'a> {
+    fn new(input: ImuInput, end_s: f64, fixes: Box<dyn Iterator<Item = GnssFix> + 'a>) -> Self {
+        Self {
+            c: MountingChecker::for_input(input),
+            end_s,
+            fixes,
+            ahead: None,
+        }
+    }
+
+    /// Takes the sample `s` (as the configuration gives it) when it is within the prefix;
+    /// false when it is after it (not taken: the check is complete).
+    fn push_imu(&mut self, s: &ImuSample) -> bool {
+        if s.t_s > self.end_s {
+            return false;
         }
         // the fixes up to this sample first (the checker's contract)
-        while let Some(g) = ahead.take().or_else(|| fixes.next()) {
+        while let Some(g) = self.ahead.take().or_else(|| self.fixes.next()) {
             if g.t_s <= s.t_s {
-                c.push_fix(&g);
+                self.c.push_fix(&g);
             } else {
-                ahead = Some(g);
+                self.ahead = Some(g);
                 break;
             }
         }
-        c.push_imu(&s);
+        self.c.push_imu(s);
+        true
     }
-    // the fixes after the last sample read, up to the prefix end
-    for g in ahead.into_iter().chain(fixes) {
-        if g.t_s > end {
-            break;
+
+    /// The check, with the fixes after the last sample taken up to the prefix end.
+    fn finish(mut self) -> MountingCheck {
+        for g in self.ahead.take().into_iter().chain(&mut self.fixes) {
+            if g.t_s > self.end_s {
+                break;
+            }
+            self.c.push_fix(&g);
         }
-        c.push_fix(&g);
+        self.c.finish()
     }
-    let mut mounting = c.finish();
-    let files = std::iter::once(imu.path()).chain(gnss.map(GnssFile::path));
-    for p in files {
-        // a file that cannot be read here is reported by its reader
-        if let Ok(Some(cut)) = nav_io::incomplete_last_line(&p) {
-            mounting.warnings.push(cut.to_string());
+}
+
+/// The mounting check of a streamed run made on the run's own reading of the IMU file
+/// instead of a pass of its own before the run ([`read_prefix`]): the reader thread feeds it
+/// the samples of the first [`MOUNTING_PREFIX_S`] as it parses them (the configuration's
+/// times, before the run's extra offset), with the fixes of that span read beside them, and
+/// leaves the result here once it has passed the prefix or stopped before its end (the check
+/// then covers what was read, as [`read_prefix`] after a read error). The same check, bit
+/// for bit, as [`read_prefix`] makes when the run reads the prefix; nothing is held but the
+/// checker's own window.
+#[derive(Debug, Clone)]
+pub struct MountingTap {
+    input: ImuInput,
+    end_s: f64,
+    gnss: Option<GnssFile>,
+    /// The fixes of the prefix when they are in memory (no streamed GNSS file).
+    fixes: Arc<[GnssFix]>,
+    result: Arc<Mutex<Option<MountingCheck>>>,
+}
+
+impl PartialEq for MountingTap {
+    /// The same tap (its result shared), not an equal one.
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.result, &other.result)
+    }
+}
+
+impl MountingTap {
+    /// A tap for the IMU file `imu` whose first sample is at `first_t_s` (s, the
+    /// configuration's times), checked against the streamed GNSS file `gnss` or else the
+    /// fixes in memory.
+    pub fn new(
+        imu: &ImuFile,
+        first_t_s: f64,
+        gnss: Option<&GnssFile>,
+        fixes_in_memory: &[GnssFix],
+    ) -> Self {
+        let end_s = first_t_s + MOUNTING_PREFIX_S;
+        let fixes: Arc<[GnssFix]> = match gnss {
+            Some(_) => Arc::from(Vec::new()),
+            None => fixes_in_memory
+                .iter()
+                .copied()
+                .take_while(|g| g.t_s <= end_s)
+                .collect(),
+        };
+        Self {
+            input: imu_input(imu),
+            end_s,
+            gnss: gnss.cloned(),
+            fixes,
+            result: Arc::new(Mutex::new(None)),
         }
     }
-    Ok(Prefix {
-        first_t_s,
-        mounting,
-    })
+
+    /// The check once the run has read the prefix (or stopped): None before.
+    pub fn result(&self) -> Option<MountingCheck> {
+        self.result.lock().ok().and_then(|r| r.clone())
+    }
+
+    /// A check fed by `observe` (one call per sample read, in order) that leaves its result
+    /// in the tap when it is complete or dropped.
+    pub(crate) fn start(&self) -> TapCheck {
+        let fixes = Arc::clone(&self.fixes);
+        let it: Box<dyn Iterator<Item = GnssFix>> = match &self.gnss {
+            Some(f) => prefix_fixes(Some(f), &[]),
+            None => Box::new((0..fixes.len()).filter_map(move |i| fixes.get(i).copied())),
+        };
+        TapCheck {
+            check: Some(PrefixCheck::new(self.input, self.end_s, it)),
+            result: Arc::clone(&self.result),
+        }
+    }
+}
+
+/// A [`MountingTap`]'s check in the reader thread.
+pub(crate) struct TapCheck {
+    check: Option<PrefixCheck<'static>>,
+    result: Arc<Mutex<Option<MountingCheck>>>,
+}
+
+impl TapCheck {
+    /// Feeds the sample `s` (the configuration's times); after the prefix the check is
+    /// completed and further samples cost one branch.
+    #[inline]
+    pub(crate) fn observe(&mut self, s: &ImuSample) {
+        if let Some(c) = &mut self.check {
+            if !c.push_imu(s) {
+                self.complete();
+            }
+        }
+    }
+
+    fn complete(&mut self) {
+        if let Some(c) = self.check.take() {
+            let m = c.finish();
+            if let Ok(mut r) = self.result.lock() {
+                *r = Some(m);
+            }
+        }
+    }
+}
+
+impl Drop for TapCheck {
+    fn drop(&mut self) {
+        self.complete();
+    }
 }
 
 #[cfg(test)]
