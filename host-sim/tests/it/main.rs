@@ -8,6 +8,7 @@ mod allan_params_run;
 mod diagnose_clock_gnss_step;
 mod diagnose_gnss_gm;
 mod diagnose_gnss_noise;
+mod diagnose_gyro_step;
 mod diagnose_heldout;
 mod diagnose_sim;
 mod init;
