@@ -32,11 +32,15 @@
 //!    not before the alarm the CUSUM restarted after) by the gain the linearised innovations
 //!    predict for a step refitted at each time, and the 1 s scan repeated around the best
 //!    when its fit there is more likely. A step's
-//!    time is sharp: moving it by [`TIME_SEARCH_S`] either way (beyond the ends of a gap in
-//!    the used fixes when it lies in one: there it can only be placed within the gap) must
-//!    cost at least
-//!    [`MIN_SHARPNESS_NATS`] (a slowly growing error, e.g. a drifting clock, that a small step
-//!    absorbs in part has a flat profile and is left to the effect search).
+//!    time is sharp: moving it by its sensor's span ([`BiasStepSensor::sharpness_span_s`]:
+//!    [`TIME_SEARCH_S`] for the accelerometers, [`GYRO_SHARPNESS_SPAN_S`] for the gyros)
+//!    either way (beyond the ends of a gap in the used fixes when it lies in one: there it
+//!    can only be placed within the gap) must cost at least [`MIN_SHARPNESS_NATS`] (a slowly
+//!    growing error, e.g. a drifting clock, that a small step absorbs in part has a flat
+//!    profile and is left to the effect search). A gyro step reaches the position one
+//!    integration later than an accelerometer step, through the attitude error, and a step
+//!    about the vertical axis only under horizontal acceleration: moved by a few seconds it
+//!    changes the fit little, least towards a gap of the fixes that follows it closely.
 //!
 //! A step is reported when the corrected run gains more than the BIC penalty of its four
 //! parameters (3 axes and the time) plus [`MIN_GAIN_NATS`]. [`BiasStep::corrected_case`] gives
@@ -56,8 +60,12 @@ pub const CUSUM_INFLATION: f64 = 4.0;
 pub const CUSUM_ALARM_NATS: f64 = 25.0;
 /// Half-width of the search for the step time around the CUSUM onset, s.
 pub const TIME_SEARCH_S: f64 = 6.0;
-/// Log-likelihood a step must lose when moved by [`TIME_SEARCH_S`] either way, nats.
+/// Log-likelihood a step must lose when its time is moved either way by its sensor's span
+/// ([`BiasStepSensor::sharpness_span_s`]), nats.
 pub const MIN_SHARPNESS_NATS: f64 = 20.0;
+/// How far a gyro step's time is moved either way to judge that it is sharp, s
+/// ([`BiasStepSensor::sharpness_span_s`]).
+pub const GYRO_SHARPNESS_SPAN_S: f64 = 24.0;
 /// How many times the time scan is extended by [`TIME_SEARCH_S`] while its best time is at an
 /// end of it.
 pub const MAX_TIME_EXTENSIONS: usize = 4;
@@ -101,6 +109,18 @@ impl BiasStepSensor {
         match self {
             BiasStepSensor::Accel => "m/s^2",
             BiasStepSensor::Gyro => "rad/s",
+        }
+    }
+
+    /// How far the step time is moved either way to judge that it is sharp (the move must
+    /// cost at least [`MIN_SHARPNESS_NATS`]), s: [`TIME_SEARCH_S`] for the accelerometers,
+    /// [`GYRO_SHARPNESS_SPAN_S`] for the gyros (a gyro step reaches the position one
+    /// integration later, through the attitude error, and a vertical one only under
+    /// horizontal acceleration: its likelihood profile is wider).
+    pub const fn sharpness_span_s(self) -> f64 {
+        match self {
+            BiasStepSensor::Accel => TIME_SEARCH_S,
+            BiasStepSensor::Gyro => GYRO_SHARPNESS_SPAN_S,
         }
     }
 
@@ -564,6 +584,32 @@ fn first_scan(t_s: f64, gap: Option<(f64, f64)>) -> (i32, i32) {
     })
 }
 
+/// The step `(step, 1-sigma, log-likelihood, time)` refitted at a time other than where its
+/// magnitude was first fitted: the time scanned again ([`time_scan`]) with the refitted
+/// magnitude and, when its best moves and is more likely, the magnitude refitted there
+/// ([`fit`]). A step's magnitude and time trade off (a gyro step's attitude error grows as
+/// the step times the time since it: a smaller step placed earlier), so the time found with
+/// the magnitude fitted elsewhere is biased towards it.
+fn rescan(
+    case: &Case,
+    opts: &RunOptions,
+    base: &RunOutput,
+    sensor: BiasStepSensor,
+    (step, sigma, ll, t_s): ([f64; 3], [f64; 3], f64, f64),
+) -> ([f64; 3], [f64; 3], f64, f64) {
+    let (profile, _) = time_scan(case, opts, sensor, &step, t_s, None);
+    let best = profile
+        .into_iter()
+        .filter(|p| p.0 != t_s && p.1 > ll)
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    let Some((t2, ll2)) = best else {
+        return (step, sigma, ll, t_s);
+    };
+    fit(case, opts, base, sensor, t2)
+        .filter(|f| f.2 >= ll2)
+        .map_or((step, sigma, ll2, t2), |(c, sg, l)| (c, sg, l, t2))
+}
+
 /// Looks for a bias step in the data of `case` under the model `opts`, from the base run
 /// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
 /// corrected run does not pay.
@@ -609,24 +655,24 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
         .copied()
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap_or((t_s, ll));
-    // sharp in time: the profile's ends (the best time moved by TIME_SEARCH_S, or the scan's
-    // ends) lose at least MIN_SHARPNESS_NATS
+    // sharp in time: the best time moved by the sensor's span either way loses at least
+    // MIN_SHARPNESS_NATS (the profile's value there when the run fails)
     let at = |t: f64| {
         profile
             .iter()
             .min_by(|a, b| (a.0 - t).abs().total_cmp(&(b.0 - t).abs()))
             .map_or(f64::INFINITY, |p| p.1)
     };
-    // a step inside a gap of the used fixes can only be placed within the gap: moved by
-    // TIME_SEARCH_S beyond the gap's ends
+    // moved by the sensor's span either way; a step inside a gap of the used fixes can only
+    // be placed within the gap: moved by the span beyond the gap's ends
     let used: Vec<f64> = used.iter().map(|r| r.t_s).collect();
+    let span = sensor.sharpness_span_s();
     let (lo_t, hi_t) = super::validate::fix_gaps(&used)
         .into_iter()
         .find(|&(a, b)| a < t_best && t_best < b)
-        .map_or(
-            (t_best - TIME_SEARCH_S, t_best + TIME_SEARCH_S),
-            |(a, b)| (a - TIME_SEARCH_S, b + TIME_SEARCH_S),
-        );
+        .map_or((t_best - span, t_best + span), |(a, b)| {
+            (a - span, b + span)
+        });
     let ll_or_profile = |t: f64| {
         run_ll(&corrected(case, sensor, t, &step), opts).map_or_else(|| at(t), |(_, ll)| ll)
     };
@@ -634,13 +680,14 @@ pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Optio
     if ll_best - lo.max(hi) < MIN_SHARPNESS_NATS {
         return None;
     }
-    // refit the magnitude at the chosen time
-    let (step, sigma, ll) = if t_best != t_s {
-        fit(case, opts, base, sensor, t_best)
+    // refit the magnitude at the chosen time, then the time with that magnitude
+    let (step, sigma, ll, t_best) = if t_best != t_s {
+        let (step, sigma, ll) = fit(case, opts, base, sensor, t_best)
             .filter(|f| f.2 >= ll_best)
-            .unwrap_or((step, sigma, ll_best))
+            .unwrap_or((step, sigma, ll_best));
+        rescan(case, opts, base, sensor, (step, sigma, ll, t_best))
     } else {
-        (step, sigma, ll)
+        (step, sigma, ll, t_best)
     };
     Some(BiasStep {
         sensor,
