@@ -289,7 +289,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<()> {
         &mut |done, _| pb.set_position(done as u64),
     );
     pb.finish_and_clear();
-    for w in loaded.mounting_warnings() {
+    for w in loaded.mounting_warnings(res.is_ok()) {
         eprintln!("warning: {w}");
     }
     let t_run = t.elapsed().as_secs_f64();

@@ -187,14 +187,26 @@ pub struct Loaded {
 
 impl Loaded {
     /// The warnings of the mounting check made on the run's own reading
-    /// ([`load_checking_in_run`]), once the run has read far enough (or stopped); empty
-    /// before, and for a run loaded otherwise (its check's warnings are in
-    /// [`Self::warnings`]).
-    pub fn mounting_warnings(&self) -> Vec<String> {
-        let tap = self.imu_stream.as_ref().and_then(|st| st.mounting.as_ref());
-        tap.and_then(|t| t.result())
-            .map(|m| m.warnings)
-            .unwrap_or_default()
+    /// ([`load_checking_in_run`]), to be asked once the run has ended; `run_succeeded`: whether
+    /// it did. A run that failed, or whose reading has not left a complete check, gets the
+    /// check made on a pass of its own over the file's first minutes (as [`load`] makes it),
+    /// so that a failed initialisation still hears what the check names (an accelerometer in
+    /// g read as m/s^2, increments stamped at the wrong rate). Empty for a run loaded
+    /// otherwise (its check's warnings are in [`Self::warnings`]).
+    pub fn mounting_warnings(&self, run_succeeded: bool) -> Vec<String> {
+        let Some(st) = self.imu_stream.as_ref() else {
+            return Vec::new();
+        };
+        let Some(tap) = st.mounting.as_ref() else {
+            return Vec::new();
+        };
+        match tap.result() {
+            Some(m) if run_succeeded => m.warnings,
+            _ => match tap.check_on_own_pass(&st.file) {
+                Ok(m) => m.warnings,
+                Err(e) => vec![format!("mounting check not made: {e:#}")],
+            },
+        }
     }
 
     /// Where the run's fixes went ([`GnssAccount`]) from its counters; with `spans` the

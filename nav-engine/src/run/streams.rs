@@ -404,15 +404,34 @@ impl MountingTap {
     /// A check fed by `observe` (one call per sample read, in order) that leaves its result
     /// in the tap when it is complete or dropped.
     pub(crate) fn start(&self) -> TapCheck {
+        TapCheck {
+            check: Some(self.prefix_check()),
+            result: Arc::clone(&self.result),
+        }
+    }
+
+    /// The check on a pass of its own over the prefix of `imu` (the file this tap was made
+    /// for), as [`read_prefix`] makes it before a run, without the cut-line warnings: for a
+    /// run that stopped before its own reading completed the check (an initialisation that
+    /// failed, perhaps for what the check names). The tap's result is left as it is.
+    pub fn check_on_own_pass(&self, imu: &ImuFile) -> anyhow::Result<MountingCheck> {
+        let mut c = self.prefix_check();
+        for s in imu.open()?.map_while(Result::ok).map(|(s, _)| s) {
+            if !c.push_imu(&s) {
+                break;
+            }
+        }
+        Ok(c.finish())
+    }
+
+    /// A fresh check over the prefix with this tap's fixes.
+    fn prefix_check(&self) -> PrefixCheck<'static> {
         let fixes = Arc::clone(&self.fixes);
         let it: Box<dyn Iterator<Item = GnssFix>> = match &self.gnss {
             Some(f) => prefix_fixes(Some(f), &[]),
             None => Box::new((0..fixes.len()).filter_map(move |i| fixes.get(i).copied())),
         };
-        TapCheck {
-            check: Some(PrefixCheck::new(self.input, self.end_s, it)),
-            result: Arc::clone(&self.result),
-        }
+        PrefixCheck::new(self.input, self.end_s, it)
     }
 }
 
