@@ -614,7 +614,50 @@ fn rescan(
 /// `base` (its innovations): see the module notes. None when the CUSUM sees no change or the
 /// corrected run does not pay.
 pub fn find_bias_step(case: &Case, opts: &RunOptions, base: &RunOutput) -> Option<BiasStep> {
-    let (onset, from) = usable_onset(&base.innovations)?;
+    find_bias_step_after(case, opts, base, f64::NEG_INFINITY)
+}
+
+/// The end of the stretch a step was found from, s ([`find_bias_step_after`] with it gives
+/// the next candidate): the step's time or the first alarm of the restarted CUSUM
+/// ([`cusum_alarms`]) at or after the step's onset, whichever is later (the last fix when no
+/// alarm follows the onset).
+pub fn stretch_end(innovations: &[InnovationRecord], step: &BiasStep) -> f64 {
+    let alarm = cusum_alarms(innovations)
+        .into_iter()
+        .map(|a| a.alarm_t_s)
+        .find(|&t| t >= step.onset_t_s)
+        .or_else(|| innovations.last().map(|r| r.t_s))
+        .unwrap_or(f64::INFINITY);
+    alarm.max(step.t_s)
+}
+
+/// [`usable_onset`] on the fixes after `after` (s) only: the onset and the earliest time the
+/// step may be placed at (not before `after`).
+pub fn usable_onset_after(innovations: &[InnovationRecord], after: f64) -> Option<(f64, f64)> {
+    if after == f64::NEG_INFINITY {
+        return usable_onset(innovations);
+    }
+    let later: Vec<InnovationRecord> = innovations
+        .iter()
+        .filter(|r| r.t_s > after)
+        .copied()
+        .collect();
+    let (onset, from) = usable_onset(&later)?;
+    Some((onset, from.max(after)))
+}
+
+/// [`find_bias_step`] with the change point looked for in the fixes after `after` (s) only:
+/// the CUSUM and the consistency check before the onset see none before it, and the step is
+/// placed after it. A step refused on the held-out windows (a constant effect's misfit that
+/// a step absorbs for a while) ends its stretch ([`stretch_end`]); a later true step raises
+/// an alarm of its own there.
+pub fn find_bias_step_after(
+    case: &Case,
+    opts: &RunOptions,
+    base: &RunOutput,
+    after: f64,
+) -> Option<BiasStep> {
+    let (onset, from) = usable_onset_after(&base.innovations, after)?;
     let used: Vec<&InnovationRecord> = base.innovations.iter().filter(|r| in_stats(r)).collect();
     let t0 = case.imu.first_t_s()?;
     let rs = residual_stats(&base.innovations);
@@ -789,6 +832,41 @@ mod tests {
         assert_eq!(usable_onset(&w), Some((100.0, f64::NEG_INFINITY)));
         // only the early alarm: nothing usable
         assert!(usable_onset(&v[..200]).is_none());
+    }
+
+    #[test]
+    fn a_refused_stretch_ends_and_the_next_onset_is_looked_for_after_it() {
+        // a strong misfit from 100 s to 130 s (the CUSUM's peak), white to 400 s, a weaker
+        // change from 400 s on (the step)
+        let white = |k: i32| rec(f64::from(k), if k % 2 == 0 { 1.0 } else { -0.8 });
+        let mut v: Vec<InnovationRecord> = (0..100).map(white).collect();
+        v.extend((100..130).map(|k| rec(f64::from(k), 5.0)));
+        v.extend((130..400).map(white));
+        v.extend((400..440).map(|k| rec(f64::from(k), 3.0)));
+        assert_eq!(usable_onset(&v), Some((100.0, f64::NEG_INFINITY)));
+        // the step fitted there and refused: its stretch ends at the first alarm after its
+        // onset (each misfit fix alone passes the alarm level)
+        let refused = BiasStep {
+            sensor: BiasStepSensor::Gyro,
+            name: BiasStepSensor::Gyro.name().into(),
+            t_s: 99.0,
+            t_rel_s: 99.0,
+            onset_t_s: 100.0,
+            step: [0.0; 3],
+            sigma: [1.0; 3],
+            magnitude: 0.0,
+            unit: BiasStepSensor::Gyro.unit().into(),
+            delta_log_likelihood: 0.0,
+            bic_penalty: 0.0,
+            heldout: None,
+            reason: None,
+        };
+        let end = stretch_end(&v, &refused);
+        assert_eq!(end, 100.0);
+        // after it: the misfit's own alarms have no consistent fixes before them, the step's
+        // has, placed after the misfit's last alarm
+        assert_eq!(usable_onset_after(&v, end), Some((400.0, 129.0)));
+        assert_eq!(usable_onset_after(&v, f64::NEG_INFINITY), usable_onset(&v));
     }
 
     #[test]

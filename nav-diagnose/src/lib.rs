@@ -146,6 +146,8 @@ pub fn diagnose_cached(
     dopts: &DiagnoseOptions,
 ) -> Result<DiagnoseOutput, DiagnoseError> {
     let folder = imu.folder().clone();
+    // the data with a step found after an added effect removed, when it is kept
+    let late_data = std::cell::OnceCell::new();
     let data = Data {
         case: Case::new(case, Arc::new(imu)),
         opts: opts.clone(),
@@ -180,12 +182,23 @@ pub fn diagnose_cached(
     // the search and the final model run on the data with the step removed when it is kept
     let (ctx, step) = judge_bias_step(base_ctx, &base, found.as_ref())?;
     let mut s = start_search(&ctx, &base, step)?;
-    let more = search_rounds(&ctx, &mut s, &all, true);
-    // a step the base model's misfit hid: looked for again with the first added effect
-    let late = late_bias_step(&ctx, &s);
-    let ctx = judge_late_bias_step(ctx, &mut s, late.as_ref())?;
-    if more {
-        search_rounds(&ctx, &mut s, &all, false);
+    // a step the base model's misfit hid: looked for again after each added effect
+    let mut ctx = ctx;
+    let mut searched_with = 0;
+    loop {
+        let more = search_rounds(&ctx, &mut s, &all, true);
+        if s.added.len() > searched_with {
+            searched_with = s.added.len();
+            if let Some(stepped) = late_bias_step(&ctx, &mut s)? {
+                ctx = Ctx {
+                    p: late_data.get_or_init(|| stepped),
+                    ..ctx
+                };
+            }
+        }
+        if !more {
+            break;
+        }
     }
     if let Some(st) = s
         .last_noise_refusal

@@ -1,5 +1,5 @@
 //! The search's context and state: a model's run scored on the held-out windows, the base
-//! run, the bias step judged before and after the first added effect, the start of the search.
+//! run, the bias step judged before the search and after each added effect, the start of the search.
 use super::*;
 
 pub(crate) fn error_summary(m: &Metrics, output_vs_fixes: f64) -> ErrorSummary {
@@ -251,6 +251,8 @@ pub(crate) struct Search {
     /// The time offset held at its estimate when it was added ([`hold_time_offset`]): the
     /// final model runs on the IMU data moved onto the GNSS clock, without the state.
     pub(crate) time_offset_held: Option<f64>,
+    /// Step candidates judged after added effects so far ([`late_bias_step`]).
+    pub(crate) late_steps_judged: usize,
 }
 
 impl Search {
@@ -376,95 +378,111 @@ pub(crate) fn judge_bias_step<'a>(
 }
 
 /// Search rounds while an effect pays and fewer than [`DiagnoseOptions::max_effects`] are
-/// added; with `until_first` the rounds stop after the one that adds the first effect. True
-/// when they stopped there (more rounds may pay).
+/// added; with `until_added` the rounds stop after the one that adds an effect. True when
+/// they stopped there (more rounds may pay).
 pub(crate) fn search_rounds(
     ctx: &Ctx<'_>,
     s: &mut Search,
     all: &[Block],
-    until_first: bool,
+    until_added: bool,
 ) -> bool {
+    let n0 = s.added.len();
     while s.added.len() < ctx.dopts.max_effects {
         if !search_round(ctx, s, all) {
             return false;
         }
-        if until_first && !s.added.is_empty() {
+        if until_added && s.added.len() > n0 {
             return true;
         }
     }
     false
 }
 
-/// A bias step looked for again once an effect is added ([`changepoint::find_bias_step`] on
-/// the current model's search run), when none was found before the search: an effect present
-/// from the start (a lever arm, a scale factor) inflates the base run's innovations before a
-/// step, and the change-point search needs a consistent model before the onset. None when a
-/// step was already judged, no effect is added, or none is found.
-pub(crate) fn late_bias_step(ctx: &Ctx<'_>, s: &Search) -> Option<(changepoint::BiasStep, Data)> {
-    if s.bias_step.is_some() || s.bias_step_not_kept.is_some() || s.added.is_empty() {
-        return None;
-    }
-    let opts = ctx.searching(&options_with(&s.base_opts, &s.added));
-    let b = changepoint::find_bias_step(&ctx.p.case, &opts, &s.cur.run).or_else(|| {
-        // an adopted noise model widens the innovations' variances and can hide a step's
-        // inflation from the CUSUM: the configuration's noise with the added effects
-        s.noise_tuning.as_ref().filter(|t| t.adopted)?;
-        let opts = ctx.searching(&options_with(&ctx.p.opts, &s.added));
-        let run = spill::run_innovations(&ctx.p.case, &opts).ok()?;
-        changepoint::find_bias_step(&ctx.p.case, &opts, &run)
-    })?;
-    let stepped = Data {
-        case: b.corrected_case(&ctx.p.case),
-        ..ctx.p.clone()
-    };
-    Some((b, stepped))
-}
+/// How many step candidates the searches after the added effects judge at most in all
+/// ([`late_bias_step`]): a refused one ends its stretch and the change point is looked for
+/// after it, and again with the next added effect, so a constant effect's misfit the step
+/// search takes for a step does not hide a later true step; bounded so the cost stays that
+/// of a few step searches.
+pub(crate) const MAX_LATE_STEP_CANDIDATES: usize = 3;
 
-/// Judges a step found with the added effects ([`late_bias_step`]) as the first search's
-/// ([`decide`]) against the current model on the held-out windows; kept, the search goes on
-/// (and the final model runs) on the data with the step removed.
-pub(crate) fn judge_late_bias_step<'a>(
-    ctx: Ctx<'a>,
-    s: &mut Search,
-    found: Option<&'a (changepoint::BiasStep, Data)>,
-) -> Result<Ctx<'a>, DiagnoseError> {
-    let Some((b, stepped)) = found else {
-        return Ok(ctx);
-    };
-    let recorded = ctx.p;
-    let sctx = Ctx { p: stepped, ..ctx };
-    let cur = sctx.evaluate(&options_with(&s.base_opts, &s.added))?;
-    let h = validate::compare_windows(&s.cur.windows, &cur.windows);
-    let z = validate::max_z(&b.step, &b.sigma);
-    let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
-    let mut b = b.clone();
-    b.heldout = Some(h);
-    b.reason = Some(why.clone());
-    let kept = decision == Decision::Eligible;
-    s.steps.push(Step {
-        label: format!(
-            "bias step removed (with the added effects): {}",
-            b.describe()
-        ),
-        accepted: kept,
-        reason: Some(why.clone()),
-        errors: cur.errors,
-        heldout: Some(h),
-    });
-    if kept {
-        s.cur = cur;
-        s.bias_step = Some(b);
-        return Ok(sctx);
+/// A bias step looked for again after an effect is added ([`changepoint::find_bias_step`]
+/// on the current model's search run), when the search before the effects found none: an
+/// effect present from the start (a lever arm, a scale factor) inflates the base run's
+/// innovations before a step, and the change-point search needs a consistent model before
+/// the onset. Each step found is judged as the first search's ([`decide`]) against the
+/// current model on the held-out windows; a refused one ends its stretch
+/// ([`changepoint::stretch_end`]) and the search runs again on the fixes after it; the next
+/// added effect (which may take away the misfit a refused step came from) starts the search
+/// anew; at most [`MAX_LATE_STEP_CANDIDATES`] candidates in all. Returns the data with the
+/// kept step removed (the search goes on, and the final model runs, there; the current
+/// model's run is then that of these data); None when a step is kept already, the first
+/// search's step was refused, no effect is added, or none is found or kept.
+pub(crate) fn late_bias_step(ctx: &Ctx<'_>, s: &mut Search) -> Result<Option<Data>, DiagnoseError> {
+    let first_refused = s.bias_step_not_kept.is_some() && s.late_steps_judged == 0;
+    if s.bias_step.is_some() || first_refused || s.added.is_empty() {
+        return Ok(None);
     }
-    s.warnings.push(format!(
-        "{} at {:.1} s found as a change point with the added effects but not kept: {why}",
-        b.name, b.t_s
-    ));
-    s.bias_step_not_kept = Some(b);
-    Ok(Ctx {
-        p: recorded,
-        ..sctx
-    })
+    let model = options_with(&s.base_opts, &s.added);
+    let opts = ctx.searching(&model);
+    // an adopted noise model widens the innovations' variances and can hide a step's
+    // inflation from the CUSUM: the configuration's noise with the added effects
+    let mut conf: Option<(RunOptions, Arc<RunOutput>)> = None;
+    let cur_run = s.cur.run.clone();
+    let mut after = f64::NEG_INFINITY;
+    while s.late_steps_judged < MAX_LATE_STEP_CANDIDATES {
+        let mut found = changepoint::find_bias_step_after(&ctx.p.case, &opts, &cur_run, after)
+            .map(|b| (b, cur_run.clone()));
+        if found.is_none() && s.noise_tuning.as_ref().is_some_and(|t| t.adopted) {
+            if conf.is_none() {
+                let o = ctx.searching(&options_with(&ctx.p.opts, &s.added));
+                conf = spill::run_innovations(&ctx.p.case, &o)
+                    .ok()
+                    .map(|r| (o, Arc::new(r)));
+            }
+            found = conf.as_ref().and_then(|(o, r)| {
+                changepoint::find_bias_step_after(&ctx.p.case, o, r, after).map(|b| (b, r.clone()))
+            });
+        }
+        let Some((b, run)) = found else {
+            return Ok(None);
+        };
+        let stepped = Data {
+            case: b.corrected_case(&ctx.p.case),
+            ..ctx.p.clone()
+        };
+        let cur = ctx.evaluate_case(&stepped.case, &model)?;
+        let h = validate::compare_windows(&s.cur.windows, &cur.windows);
+        let z = validate::max_z(&b.step, &b.sigma);
+        let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
+        let mut b = b.clone();
+        b.heldout = Some(h);
+        b.reason = Some(why.clone());
+        let kept = decision == Decision::Eligible;
+        s.late_steps_judged += 1;
+        s.steps.push(Step {
+            label: format!(
+                "bias step removed (with the added effects): {}",
+                b.describe()
+            ),
+            accepted: kept,
+            reason: Some(why.clone()),
+            errors: cur.errors,
+            heldout: Some(h),
+        });
+        if kept {
+            s.cur = cur;
+            s.bias_step = Some(b);
+            s.bias_step_not_kept = None;
+            return Ok(Some(stepped));
+        }
+        s.warnings.push(format!(
+            "{} at {:.1} s found as a change point with the added effects but not kept: {why}",
+            b.name, b.t_s
+        ));
+        after = changepoint::stretch_end(&run.innovations, &b);
+        s.bias_step_not_kept = Some(b);
+    }
+    Ok(None)
 }
 
 /// The search's start on `ctx`'s data (the bias step removed when kept): the base model's
@@ -531,5 +549,6 @@ pub(crate) fn start_search(
         bias_step,
         bias_step_not_kept,
         time_offset_held: None,
+        late_steps_judged: 0,
     })
 }

@@ -666,7 +666,9 @@ impl SweepDrive {
 /// `DIAGNOSE_HELDOUT_PAIR_SEEDS` (per pair of effects, 3), `DIAGNOSE_HELDOUT_OUTSIDE_SEEDS`
 /// (5), `DIAGNOSE_HELDOUT_PARTS` (`effects,pairs,clean,outside`), `DIAGNOSE_HELDOUT_EFFECTS`
 /// (the effects' names, comma-separated; all when empty), `DIAGNOSE_HELDOUT_ONLY_SEEDS` (seeds,
-/// comma-separated: only those drives of the groups; all when empty), `DIAGNOSE_HELDOUT_VERBOSE`
+/// comma-separated: only those drives of the groups; all when empty), `DIAGNOSE_HELDOUT_PAIRS`
+/// (the pairs as `first+second` effect names, comma-separated; all when empty),
+/// `DIAGNOSE_HELDOUT_VERBOSE`
 /// (`true`: every drive's rounds printed), `DIAGNOSE_HELDOUT_GNSS_GM_M` and
 /// `DIAGNOSE_HELDOUT_GNSS_WHITE_X` (the size of the GNSS correlated error:
 /// [`gnss_error_size_from_env`]). Prints one line per drive and the counts per
@@ -705,8 +707,11 @@ fn sweep_ten_seeds_per_effect() {
             jobs.extend((0..seeds).map(|s| (SweepDrive::One(e), 100 + s)));
         }
     }
+    let only_pairs: String = env_or("DIAGNOSE_HELDOUT_PAIRS", String::new());
     if parts.contains("pairs") {
-        for (a, b) in pairs {
+        for (a, b) in pairs.into_iter().filter(|(a, b)| {
+            only_pairs.is_empty() || only_pairs.split(',').any(|n| n == format!("{a}+{b}"))
+        }) {
             jobs.extend((0..pair_seeds).map(|s| (SweepDrive::Two(a, b), 200 + s)));
         }
     }
