@@ -9,9 +9,9 @@ use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
 use nav_core::strapdown::NavState;
 
-/// The initial 1-sigma of a standing start ([`RunOptions::standing_start`]): attitude 1 mrad about
-/// the north and east axes (level) and 10 mrad about down (heading), velocity 0.1 m/s and
-/// position 1 m on each NED axis.
+/// The initial 1-sigma of a standing start ([`RunOptions::standing_start`]): attitude 1 mrad
+/// about the north and east axes (level) and 10 mrad about down (heading), velocity 0.1 m/s
+/// and position 1 m on each NED axis.
 pub const STANDING_START_UNCERTAINTY: InitialUncertainty = InitialUncertainty {
     att_sigma_rad: [1e-3, 1e-3, 1e-2],
     vel_sigma_mps: [0.1; 3],
