@@ -10,12 +10,12 @@ use std::time::Instant;
 
 use host_sim::run::cli::Prepared;
 use nav_core::config::FilterConfig;
-use nav_core::filter::InitialUncertainty;
 use nav_diagnose::{diagnose, DiagnoseOptions};
 use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_sim::errors::{Axes3, Temperature};
 use nav_sim::ScenarioBuilder;
 use nav_sim::{simulate, ErrorModel, Scenario};
+use test_support::truth_start::TRUTH_START_UNCERTAINTY;
 
 fn scenario() -> Scenario {
     let mut b = ScenarioBuilder::new("diagnose-bench")
@@ -69,16 +69,7 @@ fn main() {
     let mut opts = RunOptions::new(
         Model::Nbk,
         FilterConfig::source_nbk_model(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [1e-4, 1e-4, 5e-4],
-                vel_sigma_mps: [0.01; 3],
-                pos_sigma_m: [0.02; 3],
-            },
-        },
+        InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
     );
     let mut start = t0 + 150.0;
     while start + 30.0 < t_end - 10.0 {

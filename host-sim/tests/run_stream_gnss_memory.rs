@@ -10,15 +10,11 @@
 //! A test binary of its own: the allocator's counters are process-wide (another test running
 //! at the same time would count too).
 
-use nalgebra::Vector3;
-use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
-use nav_core::filter::InitialUncertainty;
-use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, NavSolution};
 use nav_engine::run::{
-    run_engine, CoastPlan, CoastTrack, EpochRecord, FixUse, ImuItem, ImuSourceInfo, InitSpec,
-    InnovationRecord, Model, Outage, RunError, RunOptions, RunSink, Streams,
+    run_engine, CoastPlan, CoastTrack, EpochRecord, FixUse, ImuItem, ImuSourceInfo,
+    InnovationRecord, Outage, RunError, RunOptions, RunSink, Streams,
 };
 use test_support::{alloc, standing};
 
@@ -80,17 +76,7 @@ fn hours_of_imu_and_gnss_run_in_bounded_memory() {
     // GNSS at 10 Hz at the same place, generated as the engine reads them
     let n_fix = (HOURS * 3600.0 * GNSS_HZ) as usize - 1;
     let gnss = standing::fixes(pos, T0, GNSS_HZ, n_fix).map(Ok);
-    let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let mut opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::Given(state, unc),
-    );
+    let mut opts = RunOptions::standing_start(T0, pos);
     opts.record.epoch_rate_hz = Some(0.0);
     let n_out = (HOURS * 3600.0 / OUTAGE_EVERY_S) as usize;
     opts.outages = (0..n_out)

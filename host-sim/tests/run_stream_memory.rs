@@ -6,15 +6,11 @@
 //! small fixed bound instead, and that the run was a real one (every sample integrated, the
 //! solution next to the fixes).
 
-use nalgebra::Vector3;
-use nav_core::config::FilterConfig;
 use nav_core::earth::{self, Llh};
-use nav_core::filter::InitialUncertainty;
-use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_engine::run::{
-    run_engine, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InitSpec, InnovationRecord, Model,
-    RunError, RunOptions, RunSink, Streams,
+    run_engine, CoastPlan, EpochRecord, ImuItem, ImuSourceInfo, InnovationRecord, RunError,
+    RunOptions, RunSink, Streams,
 };
 use test_support::{alloc, standing};
 
@@ -65,17 +61,7 @@ fn hours_of_imu_run_in_bounded_memory() {
     // GNSS at 1 Hz at the same place (held in memory: 150 B a fix)
     let fixes: Vec<GnssFix> =
         standing::fixes(pos, T0, 1.0, (HOURS * 3600.0) as usize - 1).collect();
-    let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let mut opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::Given(state, unc),
-    );
+    let mut opts = RunOptions::standing_start(T0, pos);
     opts.record.epoch_rate_hz = Some(0.0);
     let mut sink = Count::default();
     let base = alloc::reset_peak();

@@ -10,15 +10,14 @@
 //! A test binary of its own: the allocator's counters are process-wide (another test running
 //! at the same time would count too).
 
-use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
-use nav_core::filter::InitialUncertainty;
 use nav_core::types::NavSolution;
 use nav_engine::run::execute::metrics_json;
 use nav_engine::run::sink::FileSink;
 use nav_engine::run::truth::{self, start_records, TruthFile};
 use nav_engine::run::{
-    run_engine, CoastPlan, ImuItem, ImuSourceInfo, InitSpec, Model, Outage, RunOptions, Streams,
+    run_engine, CoastPlan, ImuItem, ImuSourceInfo, InitSpec, Outage, RunOptions, Streams,
+    STANDING_START_UNCERTAINTY,
 };
 use std::io::Write;
 use std::path::Path;
@@ -76,20 +75,8 @@ fn run(dir: &Path, minutes: f64) -> Measured {
     let mut imu = standing::imu(p, T0, RATE_HZ, n).map(|sample| Ok(ImuItem { sample, line: 0 }));
     let n_fix = (minutes * 60.0 * GNSS_HZ) as usize - 1;
     let gnss = standing::fixes(p, T0, GNSS_HZ, n_fix).map(Ok);
-    let mut opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [1e-3, 1e-3, 1e-2],
-                vel_sigma_mps: [0.1; 3],
-                pos_sigma_m: [1.0; 3],
-            },
-        },
-    );
+    let mut opts = RunOptions::standing_start(T0, p);
+    opts.init = InitSpec::exact_truth(STANDING_START_UNCERTAINTY);
     opts.record.epoch_rate_hz = Some(0.0);
     let n_out = ((minutes * 60.0 - OUTAGE_FIRST_S - OUTAGE_S) / OUTAGE_EVERY_S) as usize + 1;
     opts.outages = (0..n_out)

@@ -17,16 +17,12 @@
 //! what `nav_before.txt` and `nav_after.txt` hold, the search rate for the search runs) must
 //! not be in memory: it is in the diagnosis's temporary files.
 
-use nalgebra::Vector3;
-use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
-use nav_core::filter::InitialUncertainty;
 use nav_core::model::Block;
-use nav_core::strapdown::NavState;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_diagnose::imu_cache::ImuCache;
 use nav_diagnose::{diagnose, diagnose_cached, spill, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
-use nav_engine::run::{CaseData, ImuSourceInfo, InitSpec, InnovationRecord, Model, RunOptions};
+use nav_engine::run::{CaseData, ImuSourceInfo, InnovationRecord, RunOptions};
 use nav_engine::Prepared;
 use test_support::{alloc, standing};
 
@@ -68,17 +64,7 @@ fn position() -> Llh {
 fn prepared(minutes: f64) -> Prepared {
     let pos = position();
     let gnss = standing::fixes(pos, T0, 1.0, (minutes * 60.0) as usize - 1).collect();
-    let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::Given(state, unc),
-    );
+    let opts = RunOptions::standing_start(T0, pos);
     Prepared {
         case: CaseData {
             imu: Vec::new(),

@@ -10,6 +10,7 @@ pub mod scenario;
 pub mod standing;
 pub mod trajectory;
 pub mod transition;
+pub mod truth_start;
 
 /// Chi-square statistics for consistency bands: the workspace's one definition.
 pub use noise_id::stats;

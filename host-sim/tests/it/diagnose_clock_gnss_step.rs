@@ -14,13 +14,13 @@
 #![allow(clippy::needless_range_loop)]
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
-use nav_core::filter::InitialUncertainty;
 use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, UG_MPS2};
 use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
+use test_support::truth_start::TRUTH_START_UNCERTAINTY;
 
 /// A drive of about 11 minutes: a static start, then three laps of accelerations, turns both
 /// ways, hills and stops.
@@ -61,16 +61,7 @@ fn prepared(errors: &ErrorModel, seed: u64) -> Prepared {
     let mut opts = RunOptions::new(
         Model::Nbk,
         FilterConfig::source_nbk_model(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [1e-4, 1e-4, 5e-4],
-                vel_sigma_mps: [0.01; 3],
-                pos_sigma_m: [0.02; 3],
-            },
-        },
+        InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
     );
     let mut start = t0 + 150.0;
     while start + 30.0 < t_end - 10.0 {

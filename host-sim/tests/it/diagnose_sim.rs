@@ -9,7 +9,6 @@
 use host_sim::diagnose::write_outputs;
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
-use nav_core::filter::InitialUncertainty;
 use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
@@ -17,6 +16,7 @@ use nav_sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
 use nav_sim::{simulate, ErrorModel, Scenario};
 use rayon::prelude::*;
 use test_support::scenario::ScenarioToml;
+use test_support::truth_start::TRUTH_START_UNCERTAINTY;
 
 /// A drive of about 11 minutes: a static start, then three laps of accelerations, turns both
 /// ways, hills and stops; `v` varies speeds, radii and the start heading.
@@ -74,16 +74,7 @@ fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u
     let mut opts = RunOptions::new(
         Model::Nbk,
         FilterConfig::source_nbk_model(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [1e-4, 1e-4, 5e-4],
-                vel_sigma_mps: [0.01; 3],
-                pos_sigma_m: [0.02; 3],
-            },
-        },
+        InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
     );
     opts.lever_arm_m = declared_lever_arm_m;
     let mut start = t0 + 150.0;

@@ -213,23 +213,13 @@ fn the_samples_kept_near_the_fixes_hold_the_nearest_sample_and_its_predecessor()
 
 #[test]
 fn an_imu_sample_out_of_order_is_named_by_its_file_and_line_through_the_record_file() {
-    use nalgebra::Vector3;
-    use nav_core::config::FilterConfig;
     use nav_core::earth::Llh;
-    use nav_core::filter::InitialUncertainty;
-    use nav_core::strapdown::NavState;
-    use nav_engine::run::{InitSpec, Model, RunOptions};
+    use nav_engine::run::RunOptions;
     let pos = Llh::from_deg(30.5, 114.3, 20.0);
     let t0 = 100_000.0;
     let mut imu: Vec<ImuSample> = test_support::standing::imu(pos, t0, 200.0, 2000).collect();
     imu[700].t_s = imu[698].t_s;
     let lines: Vec<usize> = (0..imu.len()).map(|k| 2 * k + 5).collect();
-    let state = NavState::from_rpy(t0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
     let p = nav_engine::Prepared {
         case: CaseData {
             imu,
@@ -241,11 +231,7 @@ fn an_imu_sample_out_of_order_is_named_by_its_file_and_line_through_the_record_f
                 increments_span_gaps: false,
             }),
         },
-        opts: RunOptions::new(
-            Model::N,
-            FilterConfig::source_n_model(),
-            InitSpec::Given(state, unc),
-        ),
+        opts: RunOptions::standing_start(t0, pos),
         week: 2227,
         description: "standing vehicle".into(),
     };

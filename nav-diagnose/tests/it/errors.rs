@@ -1,22 +1,12 @@
 //! The diagnosis's typed errors: the cause is the variant, its own error the source.
-use nalgebra::Vector3;
-use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
-use nav_core::filter::InitialUncertainty;
-use nav_core::strapdown::NavState;
 use nav_diagnose::{diagnose, DiagnoseError, DiagnoseOptions};
-use nav_engine::run::{CaseData, InitSpec, Model, RunError, RunOptions};
+use nav_engine::run::{CaseData, RunError, RunOptions};
 
 /// A standing vehicle's fixes and options, with the IMU samples `imu`.
 fn prepared(imu: Vec<nav_core::types::ImuSample>) -> nav_engine::Prepared {
     let pos = Llh::from_deg(30.5, 114.3, 20.0);
     let t0 = 100_000.0;
-    let state = NavState::from_rpy(t0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
     nav_engine::Prepared {
         case: CaseData {
             imu,
@@ -24,11 +14,7 @@ fn prepared(imu: Vec<nav_core::types::ImuSample>) -> nav_engine::Prepared {
             truth: None,
             imu_origin: None,
         },
-        opts: RunOptions::new(
-            Model::N,
-            FilterConfig::source_n_model(),
-            InitSpec::Given(state, unc),
-        ),
+        opts: RunOptions::standing_start(t0, pos),
         week: 2227,
         description: "standing vehicle".into(),
     }

@@ -5,17 +5,11 @@
 
 use std::sync::Arc;
 
-use nalgebra::Vector3;
-use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
-use nav_core::filter::InitialUncertainty;
-use nav_core::strapdown::NavState;
 use nav_diagnose::changepoint::BiasStepSensor;
 use nav_diagnose::imu_cache::{Adjust, Case, ImuCache};
 use nav_diagnose::spill::{run_innovations, temp_folder};
-use nav_engine::run::{
-    CaseData, ImuSourceInfo, InitSpec, InnovationRecord, Model, Outage, RunOptions,
-};
+use nav_engine::run::{CaseData, ImuSourceInfo, InnovationRecord, Outage, RunOptions};
 use test_support::standing;
 
 const T0: f64 = 100_000.0;
@@ -45,17 +39,7 @@ fn setup() -> (Arc<ImuCache>, CaseData, RunOptions) {
         truth: None,
         imu_origin: None,
     };
-    let state = NavState::from_rpy(T0, pos, Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [1e-3, 1e-3, 1e-2],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let mut opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::Given(state, unc),
-    );
+    let mut opts = RunOptions::standing_start(T0, pos);
     opts.outages.push(Outage {
         start_s: T0 + 60.0,
         duration_s: 10.0,

@@ -39,6 +39,7 @@ pub mod output;
 pub mod prepare;
 mod reader_thread;
 pub mod sink;
+mod start;
 pub mod streams;
 pub mod truth;
 
@@ -51,6 +52,7 @@ pub use engine::{
 pub use fault::FaultCause;
 pub use init::{InitData, InitReport, InitSpec, StaticAlign};
 pub use outage::{parse_outage, parse_periodic, Outage, PeriodicOutages};
+pub use start::STANDING_START_UNCERTAINTY;
 
 use nalgebra::Vector3;
 use nav_core::config::FilterConfig;

@@ -46,16 +46,11 @@ pub(crate) fn options(aiding: AidingConfig, outages: Vec<Outage>) -> RunOptions 
     let mut o = RunOptions::new(
         Model::Nbk,
         consumer_filter(),
-        InitSpec::FromTruth {
-            pos_err_m: [0.0; 3],
-            vel_err_mps: [0.0; 3],
-            att_err_rad: [0.0; 3],
-            unc: InitialUncertainty {
-                att_sigma_rad: [0.5f64.to_radians(), 0.5f64.to_radians(), 2f64.to_radians()],
-                vel_sigma_mps: [0.05; 3],
-                pos_sigma_m: [0.05; 3],
-            },
-        },
+        InitSpec::exact_truth(InitialUncertainty {
+            att_sigma_rad: [0.5f64.to_radians(), 0.5f64.to_radians(), 2f64.to_radians()],
+            vel_sigma_mps: [0.05; 3],
+            pos_sigma_m: [0.05; 3],
+        }),
     );
     o.outages = outages;
     o.aiding = aiding.into();

@@ -4,9 +4,8 @@ use nav_core::config::{ConfigError, FilterConfig};
 use nav_core::earth::Llh;
 use nav_core::filter::{FilterError, InitialUncertainty};
 use nav_core::imu_guard::GuardError;
-use nav_core::strapdown::NavState;
 use nav_core::types::ImuSample;
-use nav_engine::run::{FaultCause, InitSpec, Model};
+use nav_engine::run::{FaultCause, InitSpec, Model, STANDING_START_UNCERTAINTY};
 use nav_engine::{run_filter, CaseData, RunError, RunOptions};
 use std::error::Error;
 
@@ -26,13 +25,11 @@ fn case() -> CaseData {
 }
 
 fn opts(pos: Llh, cfg: FilterConfig) -> RunOptions {
-    let init = NavState::from_rpy(100.0, pos, nalgebra::Vector3::zeros(), [0.0; 3]);
     let unc = InitialUncertainty {
         att_sigma_rad: [0.01; 3],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
+        ..STANDING_START_UNCERTAINTY
     };
-    RunOptions::new(Model::N, cfg, InitSpec::Given(init, unc))
+    RunOptions::new(Model::N, cfg, InitSpec::at_rest(100.0, pos, unc))
 }
 
 #[test]

@@ -1,13 +1,11 @@
 //! The live run (samples and fixes pushed one by one) against the streaming run of the same
 //! case: the same files byte for byte, no deadlock, refusal after the run has ended.
 
-use nav_core::config::FilterConfig;
 use nav_core::earth::Llh;
 use nav_core::filter::InitialUncertainty;
-use nav_core::strapdown::NavState;
 use nav_engine::run::live::QUEUE;
 use nav_engine::run::output::OUTPUT_NAMES;
-use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{CaseData, InitSpec, Outage, RunOptions, STANDING_START_UNCERTAINTY};
 use nav_engine::{execute_streaming, LiveRun, Prepared};
 use std::path::Path;
 
@@ -20,16 +18,14 @@ fn prepared() -> Prepared {
         lon_rad: 0.3,
         h_m: 200.0,
     };
-    let state = NavState::from_rpy(T0, pos, nalgebra::Vector3::zeros(), [0.0; 3]);
-    let unc = InitialUncertainty {
-        att_sigma_rad: [0.01; 3],
-        vel_sigma_mps: [0.1; 3],
-        pos_sigma_m: [1.0; 3],
-    };
-    let mut opts = RunOptions::new(
-        Model::N,
-        FilterConfig::source_n_model(),
-        InitSpec::Given(state, unc),
+    let mut opts = RunOptions::standing_start(T0, pos);
+    opts.init = InitSpec::at_rest(
+        T0,
+        pos,
+        InitialUncertainty {
+            att_sigma_rad: [0.01; 3],
+            ..STANDING_START_UNCERTAINTY
+        },
     );
     opts.outages = vec![Outage {
         start_s: T0 + 40.0,

@@ -4,7 +4,6 @@
 use crate::case_data;
 use nav_core::config::FilterConfig;
 use nav_core::earth;
-use nav_core::filter::InitialUncertainty;
 use nav_engine::metrics::{self, errors_vs_truth, ErrSample};
 use nav_engine::run::{
     coast_outages, run_filter, CoastMode, FixUse, InitSpec, Model, Outage, Precision, RunOptions,
@@ -12,27 +11,15 @@ use nav_engine::run::{
 };
 use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::six_minute_drive;
+use test_support::truth_start::TRUTH_START_UNCERTAINTY;
 
 /// The shared 6-minute drive at 100 Hz (`test_support::scenario::six_minute_drive`).
 fn scenario() -> Scenario {
     Scenario::from_toml_str(&six_minute_drive("run-test").build(), "run-test").unwrap()
 }
 
-fn truth_unc() -> InitialUncertainty {
-    InitialUncertainty {
-        att_sigma_rad: [1e-4, 1e-4, 5e-4],
-        vel_sigma_mps: [0.01; 3],
-        pos_sigma_m: [0.02; 3],
-    }
-}
-
 fn from_truth() -> InitSpec {
-    InitSpec::FromTruth {
-        pos_err_m: [0.0; 3],
-        vel_err_mps: [0.0; 3],
-        att_err_rad: [0.0; 3],
-        unc: truth_unc(),
-    }
+    InitSpec::exact_truth(TRUTH_START_UNCERTAINTY)
 }
 
 #[test]
@@ -89,7 +76,7 @@ fn initial_position_error_appears_in_the_metrics_with_its_sign() {
             pos_err_m: [1.0, -0.5, 0.0],
             vel_err_mps: [0.0; 3],
             att_err_rad: [0.0; 3],
-            unc: truth_unc(),
+            unc: TRUTH_START_UNCERTAINTY,
         },
     );
     opts.outages = vec![Outage {
