@@ -269,7 +269,10 @@ static POW5: [u64; 27] = {
 };
 
 /// Writes `x` as `format!("{x}")` would into `out`; `None` when the fast path does not apply
-/// (non-finite, possible tie, or longer than `out`): the caller uses `Display` then.
+/// (non-finite, possible tie, or longer than `out`): the caller uses `Display` then. Inlined
+/// into the callers' loops (no call, no register saves per number); the rare text with an
+/// exponent is rewritten out of line (`positional_from_exp`).
+#[inline(always)]
 pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     if !x.is_finite() {
         return None;
@@ -296,6 +299,13 @@ pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
         copy_short(out, s)?;
         return Some(s.len());
     }
+    positional_from_exp(s, out)
+}
+
+/// zmij's text of a number with an exponent (`s`, e.g. `-1.5e-7`, `1e16`) written positionally
+/// into `out` as `Display` writes it; `None` when it does not fit or is not such a text.
+#[inline(never)]
+fn positional_from_exp(s: &[u8], out: &mut [u8; FAST_MAX]) -> Option<usize> {
     // Split zmij's text into sign, significant digits and the decimal exponent `p` such that
     // |x| = 0.d1 d2 ... dn * 10^p.
     let (neg, body) = match s.split_first() {

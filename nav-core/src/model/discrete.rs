@@ -297,14 +297,10 @@ pub fn predict_covariance<T: Scalar, const N: usize>(p: &mut Cov<T, N>, d: &Disc
     add_noise_half(p, d);
     let phi = &d.phi;
     // M_top = Phi_top P  (9 x N)
-    let mut m_top = [[T::ZERO; N]; CORE_DIM];
-    for (mrow, prow_phi) in m_top.iter_mut().zip(phi.top.iter()) {
-        for (phik, prow) in prow_phi.iter().zip(p.iter()) {
-            if *phik != T::ZERO {
-                axpy(mrow, *phik, prow);
-            }
-        }
-    }
+    #[cfg(not(target_os = "none"))]
+    let m_top = top_times_rows(&phi.top, p);
+    #[cfg(target_os = "none")]
+    let m_top = top_times(&phi.top, p);
     // sensor-sensor block: d_i P_ij d_j
     for (i, (prow, di)) in p.iter_mut().zip(phi.diag.iter()).enumerate().skip(CORE_DIM) {
         for (pij, dj) in prow.iter_mut().zip(phi.diag.iter()).skip(i) {
@@ -327,6 +323,49 @@ pub fn predict_covariance<T: Scalar, const N: usize>(p: &mut Cov<T, N>, d: &Disc
     }
     mirror_upper(p);
     add_noise_half(p, d);
+}
+
+/// `Phi_top P` (9 x N), the first step of [`predict_covariance`]: row `i` is the sum over the
+/// non-zero `top[i][k]`, in ascending `k`, of `top[i][k] P[k]`, each element accumulated from
+/// zero and rounded term by term (`m_j = m_j + a P_kj`, as written). The zero entries of `top`
+/// (the known-zero blocks of Phi's core rows) are skipped.
+#[inline(always)]
+pub fn top_times<T: Scalar, const N: usize>(
+    top: &[[T; N]; CORE_DIM],
+    p: &Cov<T, N>,
+) -> [[T; N]; CORE_DIM] {
+    let mut m_top = [[T::ZERO; N]; CORE_DIM];
+    for (mrow, prow_phi) in m_top.iter_mut().zip(top.iter()) {
+        for (phik, prow) in prow_phi.iter().zip(p.iter()) {
+            if *phik != T::ZERO {
+                axpy(mrow, *phik, prow);
+            }
+        }
+    }
+    m_top
+}
+
+/// [`top_times`] with each row summed in a local array of its own and stored once at the end,
+/// so that the compiler keeps the row in registers across the terms (no load and store of the
+/// partial sums per term): the same operations in the same order, the same bits (infinities
+/// included; a NaN where the other has one, its sign and payload unspecified). Host builds
+/// only: the MCU keeps [`top_times`] (its code size).
+#[cfg(not(target_os = "none"))]
+pub fn top_times_rows<T: Scalar, const N: usize>(
+    top: &[[T; N]; CORE_DIM],
+    p: &Cov<T, N>,
+) -> [[T; N]; CORE_DIM] {
+    let mut m_top = [[T::ZERO; N]; CORE_DIM];
+    for (mrow, prow_phi) in m_top.iter_mut().zip(top.iter()) {
+        let mut m = [T::ZERO; N];
+        for (phik, prow) in prow_phi.iter().zip(p.iter()) {
+            if *phik != T::ZERO {
+                axpy(&mut m, *phik, prow);
+            }
+        }
+        *mrow = m;
+    }
+    m_top
 }
 
 /// Adds half of the interval's noise (see the module docs) to P.

@@ -3,7 +3,8 @@
 //! product `Phi (P + Q/2) Phi^T + Q/2` computed in f64, for the 15-, 18- and 21-state layouts
 //! and the largest layout (every block), in f64 and f32: equal within the rounding bound of
 //! the products (`4 N eps` times the sum of the absolute terms), exactly symmetric, and on
-//! random states, epochs and covariances (proptest).
+//! random states, epochs and covariances (proptest); the host's forms of the accumulation and of
+//! `Phi_top P` against the MCU's, bit for bit.
 // the reference is written with matrix indices, as the formula reads
 #![allow(clippy::needless_range_loop)]
 
@@ -230,5 +231,76 @@ fn accumulation_equals_the_per_block_form_bit_for_bit() {
     for seed in 0..4 {
         accumulation_is_the_per_block_form::<f64, { LAYOUT_ALL.dim() }>(seed);
         accumulation_is_the_per_block_form::<f32, { LAYOUT_ALL.dim() }>(seed);
+    }
+}
+
+/// The bits of `v`, or one value for every NaN: the sign and payload of a NaN are not fixed by
+/// Rust's float semantics (the compiler may swap the operands of an addition, and the x86 FPU
+/// keeps the first operand's NaN), and no output shows them (a non-finite covariance is a
+/// numerical failure; a NaN is written `NaN`).
+fn bits_or_nan(v: f64) -> u64 {
+    if v.is_nan() {
+        u64::MAX
+    } else {
+        v.to_bits()
+    }
+}
+
+/// The host's `Phi_top P` (`discrete::top_times_rows`, each row summed in a local array)
+/// against the MCU's (`discrete::top_times`) for one layout: the same bits (NaN at the same
+/// places) on the case above,
+/// on a covariance with NaN, infinities, signed zeros, a subnormal and the largest finite value
+/// planted in it, and with non-finite entries in Phi as well (they propagate the same way).
+fn row_product_is_the_mcu_form<T: Scalar, const N: usize>(layout: &Layout, seed: u64) {
+    let (mut p, d) = case::<T, N>(layout, seed);
+    let bits = |m: &[[T; N]; CORE_DIM]| -> Vec<u64> {
+        m.iter()
+            .flatten()
+            .map(|v| bits_or_nan(v.to_f64()))
+            .collect()
+    };
+    let mut top = d.phi.top;
+    let same = |top: &[[T; N]; CORE_DIM], p: &Cov<T, N>| {
+        let rows = discrete::top_times_rows(top, p);
+        assert_eq!(bits(&rows), bits(&discrete::top_times(top, p)));
+        rows
+    };
+    let finite = same(&top, &p);
+    assert!(finite.iter().flatten().all(|v| v.to_f64().is_finite()));
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+    let specials = [
+        f64::NAN,
+        -f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        -0.0,
+        0.0,
+        f64::MIN_POSITIVE * 0.25,
+        f64::MAX,
+    ];
+    for s in specials {
+        let (i, j) = (rng.random_range(0..N), rng.random_range(0..N));
+        p[i][j] = T::of_f64(s);
+    }
+    let planted = same(&top, &p);
+    assert!(planted.iter().flatten().any(|v| v.to_f64().is_nan()));
+    for s in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0] {
+        let (i, k) = (rng.random_range(0..CORE_DIM), rng.random_range(0..N));
+        top[i][k] = T::of_f64(s);
+    }
+    same(&top, &p);
+}
+
+#[test]
+fn row_product_equals_the_mcu_form_bit_for_bit_on_every_layout() {
+    for seed in 0..3 {
+        row_product_is_the_mcu_form::<f64, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
+        row_product_is_the_mcu_form::<f64, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
+        row_product_is_the_mcu_form::<f64, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        row_product_is_the_mcu_form::<f64, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
+        row_product_is_the_mcu_form::<f32, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
+        row_product_is_the_mcu_form::<f32, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
+        row_product_is_the_mcu_form::<f32, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        row_product_is_the_mcu_form::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
     }
 }
