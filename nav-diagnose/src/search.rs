@@ -350,20 +350,7 @@ pub(crate) fn judge_bias_step<'a>(
     let recorded = ctx.p;
     let sctx = Ctx { p: stepped, ..ctx };
     let cur = sctx.evaluate(&recorded.opts)?;
-    let h = validate::compare_windows(&base.windows, &cur.windows);
-    let z = validate::max_z(&b.step, &b.sigma);
-    let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
-    let mut b = b.clone();
-    b.heldout = Some(h);
-    b.reason = Some(why.clone());
-    let kept = decision == Decision::Eligible;
-    let step = Step {
-        label: format!("bias step removed: {}", b.describe()),
-        accepted: kept,
-        reason: Some(why),
-        errors: cur.errors,
-        heldout: Some(h),
-    };
+    let (b, step, kept) = judge_step(b, &base.windows, &cur, "bias step removed");
     Ok(if kept {
         (sctx, StepJudged::Kept(b, Box::new(cur), step))
     } else {
@@ -375,6 +362,33 @@ pub(crate) fn judge_bias_step<'a>(
             StepJudged::NotKept(b, step),
         )
     })
+}
+
+/// A step found as a change point judged ([`decide`]: its evidence over the BIC penalty, its
+/// largest z, and the held-out windows of `cur`, the run on the data with it removed, against
+/// `before_windows`, m): the step with its comparison and reason, the model step labelled
+/// `label` and the step's description, and whether it is kept.
+fn judge_step(
+    b: &changepoint::BiasStep,
+    before_windows: &[f64],
+    cur: &Eval,
+    label: &str,
+) -> (changepoint::BiasStep, Step, bool) {
+    let h = validate::compare_windows(before_windows, &cur.windows);
+    let z = validate::max_z(&b.step, &b.sigma);
+    let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
+    let mut b = b.clone();
+    b.heldout = Some(h);
+    b.reason = Some(why.clone());
+    let kept = decision == Decision::Eligible;
+    let step = Step {
+        label: format!("{label}: {}", b.describe()),
+        accepted: kept,
+        reason: Some(why),
+        errors: cur.errors,
+        heldout: Some(h),
+    };
+    (b, step, kept)
 }
 
 /// Search rounds while an effect pays and fewer than [`DiagnoseOptions::max_effects`] are
@@ -451,24 +465,15 @@ pub(crate) fn late_bias_step(ctx: &Ctx<'_>, s: &mut Search) -> Result<Option<Dat
             ..ctx.p.clone()
         };
         let cur = ctx.evaluate_case(&stepped.case, &model)?;
-        let h = validate::compare_windows(&s.cur.windows, &cur.windows);
-        let z = validate::max_z(&b.step, &b.sigma);
-        let (decision, why) = decide(b.delta_log_likelihood - b.bic_penalty, z, false, &h);
-        let mut b = b.clone();
-        b.heldout = Some(h);
-        b.reason = Some(why.clone());
-        let kept = decision == Decision::Eligible;
+        let (b, step, kept) = judge_step(
+            &b,
+            &s.cur.windows,
+            &cur,
+            "bias step removed (with the added effects)",
+        );
+        let why = step.reason.clone().unwrap_or_default();
         s.late_steps_judged += 1;
-        s.steps.push(Step {
-            label: format!(
-                "bias step removed (with the added effects): {}",
-                b.describe()
-            ),
-            accepted: kept,
-            reason: Some(why.clone()),
-            errors: cur.errors,
-            heldout: Some(h),
-        });
+        s.steps.push(step);
         if kept {
             s.cur = cur;
             s.bias_step = Some(b);
