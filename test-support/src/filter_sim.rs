@@ -5,8 +5,8 @@
 //! mechanization's own (second-order) error on these increments: over 300 s at
 //! 100 Hz 0.43 mm, 3e-6 m/s and 1.1e-10 rad on the drive, 3.6 cm, 2.6e-4 m/s and 1.5e-7 rad
 //! on the drive with wobble (test-support's test `filter_sim_truth`
-//! measures it; until the generator moved onto `nav_sim` the truth was the strapdown's own
-//! output and this error was zero by construction).
+//! measures it; a truth taken from the strapdown's own output would make this error zero by
+//! construction).
 //!
 //! The errors are not drawn here: the generator's settings become a `nav_sim` error model
 //! ([`error_model`]) and every sample goes through `nav_sim::errors::ImuErrors`, every fix's

@@ -162,7 +162,7 @@ fn lost_50_samples_in_a_turn_keep_the_gapless_accuracy() {
 
 #[test]
 fn integrating_the_next_increment_over_the_gap_as_before_is_far_off() {
-    // the test above is sensitive: the former handling (the increment after the gap used
+    // the test above is sensitive: the naive handling (the increment after the gap used
     // over the whole gap) on the same records is more than 10x worse in height (hard gate)
     let dir = tempfile::tempdir().unwrap();
     let p = prepared(&write_case(dir.path()));

@@ -82,7 +82,7 @@ fn drive0708_loads_through_its_config_in_body_axes() {
     );
     assert_eq!(inp.imu.gaps.count(), 0);
     // ticks at face value: 54,857 increments over 548.571 s (99.97 Hz with the tag stretch
-    // x1.00029 the configuration no longer applies, see its [imu.csv.time] notes)
+    // x1.00029, which the configuration does not apply, see its [imu.csv.time] notes)
     assert!(
         (inp.imu.mean_rate_hz() - 99.9998).abs() < 0.0001,
         "{}",
