@@ -473,6 +473,26 @@ fn fit(
     Some((c2, s2, ll2))
 }
 
+/// The step `step` refitted at its time under another model `opts` (an effect added beside
+/// it): two Gauss-Newton iterations from its magnitude, `at` being that model's run on the
+/// data with `step` removed. Returns the step, its 1-sigma and the corrected run's
+/// log-likelihood. A step fitted under a model that lacks an effect present throughout
+/// absorbs part of that effect's misfit after the step time, and the effect then no longer
+/// shows on the data with the step removed.
+pub(crate) fn refit_magnitude(
+    case: &Case,
+    opts: &RunOptions,
+    at: &RunOutput,
+    step: &BiasStep,
+) -> Option<([f64; 3], [f64; 3], f64)> {
+    let (sensor, t_s) = (step.sensor, step.t_s);
+    let (c1, _) = gauss_newton(case, opts, sensor, t_s, &step.step, at)?;
+    let (r1, _) = run_ll(&corrected(case, sensor, t_s, &c1), opts)?;
+    let (c2, s2) = gauss_newton(case, opts, sensor, t_s, &c1, &r1)?;
+    let (_, ll2) = run_ll(&corrected(case, sensor, t_s, &c2), opts)?;
+    Some((c2, s2, ll2))
+}
+
 /// The log-likelihood a step of `sensor` at `t_s` is predicted to gain over the run `base`
 /// by the linearised innovations ([`normal_equations`] from no correction): `g^T A^-1 g / 2`,
 /// nats.

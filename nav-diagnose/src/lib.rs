@@ -148,6 +148,8 @@ pub fn diagnose_cached(
     let folder = imu.folder().clone();
     // the data with a step found after an added effect removed, when it is kept
     let late_data = std::cell::OnceCell::new();
+    // the data with the kept step refitted beside an effect removed ([`refit_step_with_effect`])
+    let refit_data = std::cell::OnceCell::new();
     let data = Data {
         case: Case::new(case, Arc::new(imu)),
         opts: opts.clone(),
@@ -197,7 +199,17 @@ pub fn diagnose_cached(
             }
         }
         if !more {
-            break;
+            // no effect eligible beside a kept step: the step refitted with the strongest
+            // paying candidate, judged together (once)
+            match refit_step_with_effect(&ctx, &mut s)? {
+                Some(stepped) => {
+                    ctx = Ctx {
+                        p: refit_data.get_or_init(|| stepped),
+                        ..ctx
+                    };
+                }
+                None => break,
+            }
         }
     }
     if let Some(st) = s

@@ -253,6 +253,8 @@ pub(crate) struct Search {
     pub(crate) time_offset_held: Option<f64>,
     /// Step candidates judged after added effects so far ([`late_bias_step`]).
     pub(crate) late_steps_judged: usize,
+    /// Whether the kept bias step was refitted with a candidate ([`refit_step_with_effect`]).
+    pub(crate) step_refitted: bool,
 }
 
 impl Search {
@@ -490,6 +492,132 @@ pub(crate) fn late_bias_step(ctx: &Ctx<'_>, s: &mut Search) -> Result<Option<Dat
     Ok(None)
 }
 
+/// The strongest candidate of the search's last round (none added) that pays its BIC penalty
+/// with an estimate at least 2 sigma from zero, its held-out windows not significantly
+/// higher: the one [`refit_step_with_effect`] judges with the kept step refitted.
+fn paying_candidate(s: &Search) -> Option<Block> {
+    let round = s.rounds.last().filter(|r| r.added.is_none())?;
+    let c = round
+        .candidates
+        .iter()
+        .find(|c| c.decision == Decision::NotSignificant && c.evidence.is_some_and(|e| e > 0.0))?;
+    let b = Block::effect_from_name(&c.name)?;
+    let significant = is_noise_like(b) || c.max_z >= validate::MIN_Z;
+    let not_worse = c
+        .heldout
+        .is_some_and(|h| h.verdict != HeldoutVerdict::Worse);
+    (significant && not_worse).then_some(b)
+}
+
+/// A kept bias step and the strongest paying candidate of the last round ([`paying_candidate`])
+/// judged together, once, when no effect is eligible on the data with the step removed: the
+/// step was fitted under a model without the candidate, so its magnitude absorbs part of an
+/// effect present throughout (on the accelerometer scale factor + gyro step drive, seed 201, a
+/// pitch-axis step of -0.90 deg/h at 5 sigma beside the true vertical one), and the effect
+/// then no longer shows on the windows. The step is refitted at its time with the candidate
+/// in the model ([`changepoint::refit_magnitude`]), and the candidate on the data with the
+/// refitted step removed is judged against the current model as any candidate ([`decide`]:
+/// evidence over the BIC penalty of its parameters, estimate 2 sigma, held-out windows
+/// significantly lower). Returns the data with the refitted step removed when the candidate
+/// is added (the search goes on, and the final model runs, there).
+pub(crate) fn refit_step_with_effect(
+    ctx: &Ctx<'_>,
+    s: &mut Search,
+) -> Result<Option<Data>, DiagnoseError> {
+    if s.step_refitted {
+        return Ok(None);
+    }
+    let (Some(kept), Some(b)) = (s.bias_step.clone(), paying_candidate(s)) else {
+        return Ok(None);
+    };
+    s.step_refitted = true;
+    let model = options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
+    let opts = ctx.searching(&model);
+    // the candidate's run in the last round (the memo's)
+    let at = ctx.evaluate(&model)?;
+    let Some((step, sigma, _)) = changepoint::refit_magnitude(&ctx.p.case, &opts, &at.run, &kept)
+    else {
+        return Ok(None);
+    };
+    let refit = changepoint::BiasStep {
+        step,
+        sigma,
+        magnitude: step.iter().map(|x| x * x).sum::<f64>().sqrt(),
+        ..kept.clone()
+    };
+    let stepped = Data {
+        case: refit.corrected_case(&ctx.p.case),
+        ..ctx.p.clone()
+    };
+    let ev = ctx.evaluate_case(&stepped.case, &model)?;
+    let n_meas = residual_stats(&s.cur.run.innovations)
+        .scalar_measurements
+        .max(2) as f64;
+    let penalty = 0.5 * prior::added_params(&s.added, b) as f64 * n_meas.ln();
+    let d = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
+    let (est, sig) = effect_values(&ev.run, b.name());
+    let h = validate::compare_windows(&s.cur.windows, &ev.windows);
+    let (decision, why) = decide(
+        d - penalty,
+        validate::max_z(&est, &sig),
+        is_noise_like(b),
+        &h,
+    );
+    let label = format!(
+        "{} with {} refitted: {}",
+        b.name(),
+        kept.name,
+        refit.describe()
+    );
+    if decision != Decision::Eligible {
+        s.warnings.push(format!("{label}: not added: {why}"));
+        return Ok(None);
+    }
+    s.steps.push(Step {
+        label: format!("+ {label}"),
+        accepted: true,
+        reason: Some(why.clone()),
+        errors: ev.errors,
+        heldout: Some(h),
+    });
+    if let Some(r) = s.rounds.last_mut() {
+        r.added = Some(b.name().to_string());
+        r.unexplained = None;
+        if let Some(c) = r.candidates.iter_mut().find(|c| c.name == b.name()) {
+            c.decision = Decision::Added;
+            c.reason = format!("added with {} refitted beside it: {why}", kept.name);
+            c.refused = None;
+        }
+    }
+    let freed = prior::is_frozen(&options_with(&s.base_opts, &s.added), b);
+    push_added(
+        s,
+        b,
+        AddedEffect {
+            name: b.name().to_string(),
+            estimate: est,
+            sigma: sig,
+            unit: b.unit().to_string(),
+            evidence: d - penalty,
+            delta_log_likelihood: d,
+            heldout: h,
+            runner_up: None,
+            ambiguous_with: None,
+            freed,
+            replaced: None,
+            before: s.cur.errors,
+            after: ev.errors,
+        },
+    );
+    s.bias_step = Some(changepoint::BiasStep {
+        reason: Some(format!("refitted with {}: {why}", b.name())),
+        heldout: Some(h),
+        ..refit
+    });
+    s.cur = ev;
+    Ok(Some(stepped))
+}
+
 /// The search's start on `ctx`'s data (the bias step removed when kept): the base model's
 /// run there, the noise fitted on it, the first steps (the configuration on the recorded
 /// data, the bias step's removal, kept or not).
@@ -555,5 +683,6 @@ pub(crate) fn start_search(
         bias_step_not_kept,
         time_offset_held: None,
         late_steps_judged: 0,
+        step_refitted: false,
     })
 }
