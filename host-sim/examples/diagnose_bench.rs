@@ -11,7 +11,7 @@ use std::time::Instant;
 use host_sim::run::cli::Prepared;
 use nav_core::config::FilterConfig;
 use nav_diagnose::{diagnose, DiagnoseOptions};
-use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{InitSpec, Model, PeriodicOutages, RunOptions};
 use nav_sim::errors::{Axes3, Temperature};
 use nav_sim::ScenarioBuilder;
 use nav_sim::{simulate, ErrorModel, Scenario};
@@ -71,14 +71,13 @@ fn main() {
         FilterConfig::source_nbk_model(),
         InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
     );
-    let mut start = t0 + 150.0;
-    while start + 30.0 < t_end - 10.0 {
-        opts.outages.push(Outage {
-            start_s: start,
-            duration_s: 30.0,
-        });
-        start += 100.0;
-    }
+    // 30 s every 100 s from 150 s, the last ending at least 10 s before the data
+    let outages = PeriodicOutages {
+        first_start_s: 150.0,
+        duration_s: 30.0,
+        period_s: 100.0,
+    };
+    opts.outages = outages.expand(t0, t_end - 10.0);
     let p = Prepared {
         case: case_data(&case),
         opts,

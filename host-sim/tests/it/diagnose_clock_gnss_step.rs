@@ -12,15 +12,12 @@
 //!   (a noise-like block: significant by the held-out paired decision, not by its final
 //!   estimate), the outage error after below the error before.
 #![allow(clippy::needless_range_loop)]
-use host_sim::run::case_data;
-use nav_core::config::FilterConfig;
+use crate::diagnose_sim::{assert_outages_every_100_s, nbk_with_outages};
 use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use nav_engine::run::{InitSpec, Model, Outage, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, UG_MPS2};
 use nav_sim::{simulate, ErrorModel, Scenario};
 use test_support::scenario::ScenarioToml;
-use test_support::truth_start::TRUTH_START_UNCERTAINTY;
 
 /// A drive of about 11 minutes: a static start, then three laps of accelerations, turns both
 /// ways, hills and stops.
@@ -56,27 +53,13 @@ fn scenario() -> Scenario {
 /// The case, the NBK filter, 30 s outages every 100 s from 150 s.
 fn prepared(errors: &ErrorModel, seed: u64) -> Prepared {
     let case = simulate(&scenario(), errors, seed).unwrap();
-    let t0 = case.meas.imu[0].t_s;
-    let t_end = case.meas.imu.last().unwrap().t_s;
-    let mut opts = RunOptions::new(
-        Model::Nbk,
-        FilterConfig::source_nbk_model(),
-        InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
-    );
-    let mut start = t0 + 150.0;
-    while start + 30.0 < t_end - 10.0 {
-        opts.outages.push(Outage {
-            start_s: start,
-            duration_s: 30.0,
-        });
-        start += 100.0;
-    }
-    Prepared {
-        case: case_data(&case),
-        opts,
-        week: 2227,
-        description: "diagnose clock/GNSS/step test".into(),
-    }
+    nbk_with_outages(&case, "diagnose clock/GNSS/step test")
+}
+
+#[test]
+fn the_drive_has_30_s_outages_every_100_s() {
+    let e = ErrorModel::preset("seed-nbk").unwrap();
+    assert_outages_every_100_s(&prepared(&e, 1));
 }
 
 fn summary(d: &Diagnosis) -> String {

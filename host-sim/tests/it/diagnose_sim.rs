@@ -10,10 +10,10 @@ use host_sim::diagnose::write_outputs;
 use host_sim::run::case_data;
 use nav_core::config::FilterConfig;
 use nav_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use nav_engine::run::{CaseData, InitSpec, Model, Outage, RunOptions};
+use nav_engine::run::{CaseData, InitSpec, Model, PeriodicOutages, RunOptions};
 use nav_engine::Prepared;
 use nav_sim::errors::{Axes3, Temperature, DEG_PER_H_RADPS, UG_MPS2};
-use nav_sim::{simulate, ErrorModel, Scenario};
+use nav_sim::{simulate, Case, ErrorModel, Scenario};
 use rayon::prelude::*;
 use test_support::scenario::ScenarioToml;
 use test_support::truth_start::TRUTH_START_UNCERTAINTY;
@@ -69,6 +69,22 @@ fn base_errors() -> ErrorModel {
 /// from 150 s.
 fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u64) -> Prepared {
     let case = simulate(&scenario(v), errors, seed).unwrap();
+    let mut p = nbk_with_outages(&case, "diagnose test");
+    p.opts.lever_arm_m = declared_lever_arm_m;
+    p
+}
+
+/// 30 s GNSS outages every 100 s, the first 150 s after the first IMU epoch.
+const OUTAGES_EVERY_100_S: PeriodicOutages = PeriodicOutages {
+    first_start_s: 150.0,
+    duration_s: 30.0,
+    period_s: 100.0,
+};
+
+/// A simulated case for the NBK filter (the source's configuration, started at the truth)
+/// with [`OUTAGES_EVERY_100_S`], the last one ending at least 10 s before the last IMU epoch;
+/// the GPS week of the test drives.
+pub(crate) fn nbk_with_outages(case: &Case, description: &str) -> Prepared {
     let t0 = case.meas.imu[0].t_s;
     let t_end = case.meas.imu.last().unwrap().t_s;
     let mut opts = RunOptions::new(
@@ -76,20 +92,44 @@ fn prepared(v: u32, errors: &ErrorModel, declared_lever_arm_m: [f64; 3], seed: u
         FilterConfig::source_nbk_model(),
         InitSpec::exact_truth(TRUTH_START_UNCERTAINTY),
     );
-    opts.lever_arm_m = declared_lever_arm_m;
-    let mut start = t0 + 150.0;
-    while start + 30.0 < t_end - 10.0 {
-        opts.outages.push(Outage {
-            start_s: start,
-            duration_s: 30.0,
-        });
-        start += 100.0;
-    }
+    opts.outages = OUTAGES_EVERY_100_S.expand(t0, t_end - 10.0);
     Prepared {
-        case: case_data(&case),
+        case: case_data(case),
         opts,
         week: 2227,
-        description: "diagnose test".into(),
+        description: description.into(),
+    }
+}
+
+/// Checks the imposed outages of [`nbk_with_outages`]: 30 s each, the first 150 s after the
+/// first IMU epoch, one every 100 s, the last ending more than 10 s before the last IMU epoch
+/// and no further one fitting.
+pub(crate) fn assert_outages_every_100_s(p: &Prepared) {
+    let t0 = p.case.imu[0].t_s;
+    let t_end = p.case.imu.last().unwrap().t_s;
+    let o = &p.opts.outages;
+    assert!(!o.is_empty(), "no outage");
+    for (k, x) in o.iter().enumerate() {
+        let want = t0 + 150.0 + 100.0 * k as f64;
+        assert!(
+            (x.start_s - want).abs() < 1e-6,
+            "outage {k} at {}",
+            x.start_s
+        );
+        assert_eq!(x.duration_s, 30.0);
+    }
+    let last = o.last().unwrap().end_s();
+    assert!(
+        last < t_end - 10.0,
+        "last outage ends at {last}, data at {t_end}"
+    );
+    assert!(last + 100.0 >= t_end - 10.0, "an outage left out");
+}
+
+#[test]
+fn the_test_drives_have_30_s_outages_every_100_s() {
+    for v in 0..4 {
+        assert_outages_every_100_s(&prepared(v, &base_errors(), [0.0; 3], 1));
     }
 }
 

@@ -20,7 +20,9 @@
 
 use nav_engine::run::output::{partial_path, OUTPUT_NAMES};
 use nav_engine::run::streams::MOUNTING_PREFIX_S;
-use nav_engine::{execute_streaming, load, load_checking_in_run, Loaded, RunSpec};
+use nav_engine::{
+    execute_streaming, load, load_checking_in_run, Loaded, Metrics, RunOutput, RunSpec,
+};
 use std::path::{Path, PathBuf};
 use test_support::csvcase::{write_csv_pos_case, T0_S};
 
@@ -41,6 +43,12 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
     assert_eq!(l.imu_stream.is_some(), stream);
     assert_eq!(l.prepared.case.imu.is_empty(), stream);
     assert_eq!(l.prepared.case.gnss.is_empty(), stream);
+    execute(&l, out).unwrap();
+    l
+}
+
+/// Runs what `l` loaded into `out` (`nav.txt` at every IMU epoch), as `host-sim run` does.
+fn execute(l: &Loaded, out: &Path) -> anyhow::Result<(RunOutput, Metrics)> {
     execute_streaming(
         &l.prepared,
         l.imu_stream.as_ref(),
@@ -50,8 +58,6 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
         None,
         &mut |_, _| {},
     )
-    .unwrap();
-    l
 }
 
 /// Loads `spec` with the mounting check made on the run's own reading
@@ -59,16 +65,7 @@ fn run(spec: &RunSpec, stream: bool, out: &Path) -> Loaded {
 /// check's after it, and whether the run succeeded.
 fn run_checking_in_run(spec: &RunSpec, out: &Path) -> (Vec<String>, Vec<String>, bool) {
     let l = load_checking_in_run(spec).unwrap();
-    let ok = execute_streaming(
-        &l.prepared,
-        l.imu_stream.as_ref(),
-        l.truth_stream.as_ref(),
-        out,
-        &l.inputs,
-        None,
-        &mut |_, _| {},
-    )
-    .is_ok();
+    let ok = execute(&l, out).is_ok();
     (l.warnings.clone(), l.mounting_warnings(ok), ok)
 }
 
@@ -282,16 +279,7 @@ fn a_bad_csv_row_mid_stream_names_file_and_line_and_keeps_the_outputs_before_it(
     // streamed: the files open, the run stops at the row
     let l = load(&spec, true).unwrap();
     let out = dir.path().join("out");
-    let e = execute_streaming(
-        &l.prepared,
-        l.imu_stream.as_ref(),
-        l.truth_stream.as_ref(),
-        &out,
-        &l.inputs,
-        None,
-        &mut |_, _| {},
-    )
-    .unwrap_err();
+    let e = execute(&l, &out).unwrap_err();
     let e = format!("{e:#}");
     println!("{e}");
     assert!(e.contains(&want), "{e}");

@@ -3,8 +3,9 @@
 //! product `Phi (P + Q/2) Phi^T + Q/2` computed in f64, for the 15-, 18- and 21-state layouts
 //! and the largest layout (every block), in f64 and f32: equal within the rounding bound of
 //! the products (`4 N eps` times the sum of the absolute terms), exactly symmetric, and on
-//! random states, epochs and covariances (proptest); the host's forms of the accumulation and of
-//! `Phi_top P` against the MCU's, bit for bit.
+//! random states, epochs and covariances (proptest); the accumulation of the coupling and
+//! both forms of `Phi_top P` (the host's and the MCU's) against plain entry-by-entry
+//! references, bit for bit.
 // the reference is written with matrix indices, as the formula reads
 #![allow(clippy::needless_range_loop)]
 
@@ -191,46 +192,110 @@ proptest! {
     }
 }
 
-/// `Accumulator::add` (the host's form: `C_b^n dt` formed once per epoch for every block)
-/// against the per-block form `Block::accumulate_f` (the MCU's) over 50 random epochs of the
-/// largest layout: the same sums, bit for bit, in f64 and f32.
-fn accumulation_is_the_per_block_form<T: Scalar, const N: usize>(seed: u64) {
+/// One IMU epoch's coupling of the sensor-error blocks into the core rows (`F[core, block]
+/// dt`), written out entry by entry from the error model of [`Block::accumulate_f`]'s docs in
+/// `T`, each term `(C_ij dt) v_j` rounded as written and negated where the model has a minus
+/// (the bias blocks come in at the discretisation; the measurement-only blocks have none).
+fn plain_coupling<T: Scalar, const N: usize>(
+    layout: &Layout,
+    reg: &Regressors<T>,
+    f_top: &mut [[T; N]; CORE_DIM],
+) {
+    let c_dt = |i: usize, j: usize| reg.c_nb[i][j] * reg.dt;
+    let d_t = if reg.temperature_c.finite() {
+        reg.temperature_c
+    } else {
+        T::ZERO
+    };
+    // the columns of J(v) (misalignment order): (column of C, component of v)
+    const MIS: [(usize, usize); 6] = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)];
+    for (off, b) in layout.iter() {
+        for i in 0..3 {
+            let (att, vel) = (IDX_ATT + i, IDX_VEL + i);
+            match b {
+                Block::GyroScaleFactor => {
+                    for j in 0..3 {
+                        f_top[att][off + j] += c_dt(i, j) * reg.omega_b[j];
+                    }
+                }
+                Block::AccelScaleFactor => {
+                    for j in 0..3 {
+                        f_top[vel][off + j] += -(c_dt(i, j) * reg.f_b[j]);
+                    }
+                }
+                Block::GyroMisalignment => {
+                    for (k, (j, l)) in MIS.into_iter().enumerate() {
+                        f_top[att][off + k] += c_dt(i, j) * reg.omega_b[l];
+                    }
+                }
+                Block::AccelMisalignment => {
+                    for (k, (j, l)) in MIS.into_iter().enumerate() {
+                        f_top[vel][off + k] += -(c_dt(i, j) * reg.f_b[l]);
+                    }
+                }
+                Block::GyroTemperatureBias if d_t != T::ZERO => {
+                    for j in 0..3 {
+                        f_top[att][off + j] += c_dt(i, j) * d_t;
+                    }
+                }
+                Block::AccelTemperatureBias if d_t != T::ZERO => {
+                    for j in 0..3 {
+                        f_top[vel][off + j] += -(c_dt(i, j) * d_t);
+                    }
+                }
+                Block::GyroGSensitivity => {
+                    for j in 0..3 {
+                        f_top[att][off + j] += c_dt(i, j) * reg.f_b[j];
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+}
+
+/// `Accumulator::add` (the host's form: `C_b^n dt` formed once per epoch for every block) and
+/// the per-block form `Block::accumulate_f` (the MCU's) against [`plain_coupling`] over 50
+/// random epochs of the largest layout (every seventh without a temperature): the same sums,
+/// bit for bit, in f64 and f32.
+fn accumulation_is_the_plain_coupling<T: Scalar, const N: usize>(seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut acc = Accumulator::<T, N>::default();
+    let mut plain = [[T::ZERO; N]; CORE_DIM];
     let mut per_block = [[T::ZERO; N]; CORE_DIM];
     let mut r = |a: f64, b: f64| T::of_f64(rng.random_range(a..b));
-    for _ in 0..50 {
+    for k in 0..50 {
+        let temperature_c = r(-10.0, 10.0);
         let reg = Regressors {
             dt: r(0.001, 0.02),
             c_nb: [[0.0f64; 3]; 3].map(|row| row.map(|_| r(-1.0, 1.0))),
             f_b: [r(-3.0, 3.0), r(-3.0, 3.0), r(-10.5, -9.0)],
             omega_b: [0.0f64; 3].map(|_| r(-0.5, 0.5)),
-            temperature_c: r(-10.0, 10.0),
+            temperature_c: if k % 7 == 3 {
+                T::of_f64(f64::NAN)
+            } else {
+                temperature_c
+            },
         };
         acc.add(&LAYOUT_ALL, &reg, 0.005, &[T::ZERO; 3]);
         for (off, b) in LAYOUT_ALL.iter() {
             b.accumulate_f(off, &reg, &mut per_block);
         }
+        plain_coupling(&LAYOUT_ALL, &reg, &mut plain);
     }
     let bits = |m: &[[T; N]; CORE_DIM]| -> Vec<u64> {
         m.iter().flatten().map(|v| v.to_f64().to_bits()).collect()
     };
-    assert_eq!(bits(&acc.f_top), bits(&per_block));
-    assert!(
-        per_block
-            .iter()
-            .flatten()
-            .filter(|v| v.to_f64() != 0.0)
-            .count()
-            > 50
-    );
+    assert_eq!(bits(&acc.f_top), bits(&plain));
+    assert_eq!(bits(&per_block), bits(&plain));
+    assert!(plain.iter().flatten().filter(|v| v.to_f64() != 0.0).count() > 50);
 }
 
 #[test]
-fn accumulation_equals_the_per_block_form_bit_for_bit() {
+fn accumulation_equals_the_plain_coupling_bit_for_bit() {
     for seed in 0..4 {
-        accumulation_is_the_per_block_form::<f64, { LAYOUT_ALL.dim() }>(seed);
-        accumulation_is_the_per_block_form::<f32, { LAYOUT_ALL.dim() }>(seed);
+        accumulation_is_the_plain_coupling::<f64, { LAYOUT_ALL.dim() }>(seed);
+        accumulation_is_the_plain_coupling::<f32, { LAYOUT_ALL.dim() }>(seed);
     }
 }
 
@@ -246,12 +311,31 @@ fn bits_or_nan(v: f64) -> u64 {
     }
 }
 
-/// The host's `Phi_top P` (`discrete::top_times_rows`, each row summed in a local array)
-/// against the MCU's (`discrete::top_times`) for one layout: the same bits (NaN at the same
-/// places) on the case above,
-/// on a covariance with NaN, infinities, signed zeros, a subnormal and the largest finite value
-/// planted in it, and with non-finite entries in Phi as well (they propagate the same way).
-fn row_product_is_the_mcu_form<T: Scalar, const N: usize>(layout: &Layout, seed: u64) {
+/// `Phi_top P` as written: element `(i, j)` summed from zero over `k` ascending, the terms
+/// `top[i][k] P[k][j]` of the non-zero `top[i][k]` only, each rounded as it is added.
+fn plain_top_times<T: Scalar, const N: usize>(
+    top: &[[T; N]; CORE_DIM],
+    p: &Cov<T, N>,
+) -> [[T; N]; CORE_DIM] {
+    let mut m = [[T::ZERO; N]; CORE_DIM];
+    for i in 0..CORE_DIM {
+        for j in 0..N {
+            for k in 0..N {
+                if top[i][k] != T::ZERO {
+                    m[i][j] += top[i][k] * p[k][j];
+                }
+            }
+        }
+    }
+    m
+}
+
+/// `discrete::top_times_rows` (the host's `Phi_top P`, the first step of the prediction) and
+/// `discrete::top_times` (the MCU's) against [`plain_top_times`] for one layout: the same bits (NaN at the same places) on the case
+/// above, on a covariance with NaN, infinities, signed zeros, a subnormal and the largest
+/// finite value planted in it, and with non-finite entries in Phi as well (they propagate the
+/// same way).
+fn row_product_is_the_plain_product<T: Scalar, const N: usize>(layout: &Layout, seed: u64) {
     let (mut p, d) = case::<T, N>(layout, seed);
     let bits = |m: &[[T; N]; CORE_DIM]| -> Vec<u64> {
         m.iter()
@@ -261,8 +345,10 @@ fn row_product_is_the_mcu_form<T: Scalar, const N: usize>(layout: &Layout, seed:
     };
     let mut top = d.phi.top;
     let same = |top: &[[T; N]; CORE_DIM], p: &Cov<T, N>| {
+        let plain = bits(&plain_top_times(top, p));
         let rows = discrete::top_times_rows(top, p);
-        assert_eq!(bits(&rows), bits(&discrete::top_times(top, p)));
+        assert_eq!(bits(&rows), plain);
+        assert_eq!(bits(&discrete::top_times(top, p)), plain);
         rows
     };
     let finite = same(&top, &p);
@@ -292,15 +378,15 @@ fn row_product_is_the_mcu_form<T: Scalar, const N: usize>(layout: &Layout, seed:
 }
 
 #[test]
-fn row_product_equals_the_mcu_form_bit_for_bit_on_every_layout() {
+fn row_product_equals_the_plain_product_bit_for_bit_on_every_layout() {
     for seed in 0..3 {
-        row_product_is_the_mcu_form::<f64, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
-        row_product_is_the_mcu_form::<f64, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
-        row_product_is_the_mcu_form::<f64, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
-        row_product_is_the_mcu_form::<f64, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
-        row_product_is_the_mcu_form::<f32, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
-        row_product_is_the_mcu_form::<f32, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
-        row_product_is_the_mcu_form::<f32, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
-        row_product_is_the_mcu_form::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
+        row_product_is_the_plain_product::<f64, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
+        row_product_is_the_plain_product::<f64, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
+        row_product_is_the_plain_product::<f64, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        row_product_is_the_plain_product::<f64, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
+        row_product_is_the_plain_product::<f32, { LAYOUT_N.dim() }>(&LAYOUT_N, seed);
+        row_product_is_the_plain_product::<f32, { LAYOUT_NBK.dim() }>(&LAYOUT_NBK, seed);
+        row_product_is_the_plain_product::<f32, { LAYOUT_KF_GINS.dim() }>(&LAYOUT_KF_GINS, seed);
+        row_product_is_the_plain_product::<f32, { LAYOUT_ALL.dim() }>(&LAYOUT_ALL, seed);
     }
 }

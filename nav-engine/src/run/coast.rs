@@ -103,17 +103,7 @@ pub fn coast_outages_with<I: Iterator<Item = ImuSample>>(
                 }
                 fi += 1;
                 let inn = position_innovation(&st, &run.lever_arm_m, f);
-                fixes.push(InnovationRecord {
-                    t_s: f.t_s,
-                    used: FixUse::Withheld,
-                    outage: Some(snap.outage),
-                    dim: 3,
-                    innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
-                    innovation_var: [f64::NAN; 6],
-                    nis: f64::NAN,
-                    nis_threshold: f64::NAN,
-                    quality: f.quality.rtklib_q(),
-                });
+                fixes.push(InnovationRecord::withheld(f, snap.outage, inn));
             }
             if st.t_s >= o.end_s() && fi >= fixes_by_t.len() {
                 break;

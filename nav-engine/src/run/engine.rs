@@ -40,7 +40,7 @@ use super::coast::{CoastMode, CoastTrack};
 use super::init::{self, InitData, InitReport};
 use super::{
     block_estimates, effect_estimates, filter_err, gating_report, outage, position_innovation,
-    state_names, Decimator, EpochRecord, FixUse, ImuEvent, ImuReport, InnovationRecord, Model,
+    state_names, Decimator, EpochRecord, ImuEvent, ImuReport, InnovationRecord, Model,
     OutageSnapshot, RunCounters, RunError, RunOptions, RunOutput, MAX_IMU_EVENTS,
 };
 use crate::run::FaultCause;
@@ -252,17 +252,8 @@ impl Coaster {
             }
             self.next_fix += 1;
             let inn = position_innovation(&st, &self.lever_arm_m, f);
-            self.out_fixes.push(InnovationRecord {
-                t_s: f.t_s,
-                used: FixUse::Withheld,
-                outage: Some(self.outage),
-                dim: 3,
-                innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
-                innovation_var: [f64::NAN; 6],
-                nis: f64::NAN,
-                nis_threshold: f64::NAN,
-                quality: f.quality.rtklib_q(),
-            });
+            self.out_fixes
+                .push(InnovationRecord::withheld(f, self.outage, inn));
         }
         st.t_s >= self.end_s && self.next_fix >= self.fixes.len()
     }

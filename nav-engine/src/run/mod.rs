@@ -398,6 +398,23 @@ pub struct InnovationRecord {
 }
 
 impl InnovationRecord {
+    /// The record of `fix` withheld by the outage `outage` (index into
+    /// [`RunOutput::outages`]): its position innovation `inn` (measured minus predicted
+    /// antenna position, N, E, D, m), no innovation covariance, NIS or gate.
+    pub fn withheld(fix: &GnssFix, outage: usize, inn: [f64; 3]) -> Self {
+        Self {
+            t_s: fix.t_s,
+            used: FixUse::Withheld,
+            outage: Some(outage),
+            dim: 3,
+            innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
+            innovation_var: [f64::NAN; 6],
+            nis: f64::NAN,
+            nis_threshold: f64::NAN,
+            quality: fix.quality.rtklib_q(),
+        }
+    }
+
     /// Solution error against the fix (predicted minus measured), N, E, D, m.
     pub fn pos_error_ned_m(&self) -> [f64; 3] {
         [

@@ -207,17 +207,9 @@ impl<T: Scalar, const N: usize> NavHooks<T, N> for EngineHooks<'_, '_, T> {
             ..*fix
         };
         let inn = position_innovation(filter.nav_state(), &filter.lever_arm_body_m(), &shifted);
-        let r = self.sink.innovation(&InnovationRecord {
-            t_s: fix.t_s,
-            used: FixUse::Withheld,
-            outage: Some(oi),
-            dim: 3,
-            innovation: [inn[0], inn[1], inn[2], 0.0, 0.0, 0.0],
-            innovation_var: [f64::NAN; 6],
-            nis: f64::NAN,
-            nis_threshold: f64::NAN,
-            quality: fix.quality.rtklib_q(),
-        });
+        let r = self
+            .sink
+            .innovation(&InnovationRecord::withheld(fix, oi, inn));
         self.put(r);
         true
     }
