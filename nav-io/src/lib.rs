@@ -18,7 +18,6 @@
 #![deny(missing_docs)]
 
 pub mod aidingcfg;
-mod decimal;
 mod error;
 pub mod gnss;
 pub mod gnsscsv;
