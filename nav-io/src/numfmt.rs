@@ -148,42 +148,30 @@ impl<const CAP: usize> LineBuf<CAP> {
         self.push_spaced_with(w, xs, display_f64, |w, x| write!(w, "{x}"))
     }
 
-    /// Appends each of `xs` after a space as `format!(" {x:.prec$}")` writes it (`prec`
-    /// decimals, rounded from the exact value), with one check of the free room for all of
-    /// them, as [`LineBuf::push_spaced_f64s`] does. Inlined: with a constant `prec` the
-    /// divisions by `10^prec` become multiplications.
+    /// Appends each of `xs` after a space as `format!(" {x:.P$}")` writes it (`P` decimals,
+    /// rounded from the exact value), with one check of the free room for all of them, as
+    /// [`LineBuf::push_spaced_f64s`] does. The precision is a constant: the divisions by
+    /// `10^P` become multiplications and the formatting is inlined.
     #[inline(always)]
-    pub fn push_spaced_fixed<W: Write + ?Sized>(
+    pub fn push_spaced_fixed<const P: usize, W: Write + ?Sized>(
         &mut self,
         w: &mut W,
         xs: &[f64],
-        prec: usize,
     ) -> std::io::Result<()> {
-        self.push_spaced_with(
-            w,
-            xs,
-            |x, d| fixed_f64(x, prec, d),
-            |w, x| write!(w, "{x:.prec$}"),
-        )
+        self.push_spaced_with(w, xs, fixed_const::<P>, |w, x| write!(w, "{x:.P$}"))
     }
 
-    /// Appends each of `xs` after a space as `format!(" {x:.prec$e}")` writes it (`prec + 1`
+    /// Appends each of `xs` after a space as `format!(" {x:.P$e}")` writes it (`P + 1`
     /// significant digits, rounded from the exact value), with one check of the free room for
-    /// all of them, as [`LineBuf::push_spaced_f64s`] does. Inlined: with a constant `prec` the
-    /// divisions by `10^prec` become multiplications.
+    /// all of them, as [`LineBuf::push_spaced_f64s`] does. The precision is a constant: the
+    /// divisions by `10^P` become multiplications and the formatting is inlined.
     #[inline(always)]
-    pub fn push_spaced_exp<W: Write + ?Sized>(
+    pub fn push_spaced_exp<const P: usize, W: Write + ?Sized>(
         &mut self,
         w: &mut W,
         xs: &[f64],
-        prec: usize,
     ) -> std::io::Result<()> {
-        self.push_spaced_with(
-            w,
-            xs,
-            |x, d| exp_f64(x, prec, d),
-            |w, x| write!(w, "{x:.prec$e}"),
-        )
+        self.push_spaced_with(w, xs, exp_const::<P>, |w, x| write!(w, "{x:.P$e}"))
     }
 
     /// Appends each of `xs` after a space, written by `fast` into the buffer (one check of the
@@ -451,6 +439,8 @@ fn positional_from_exp(s: &[u8], out: &mut [u8; FAST_MAX]) -> Option<usize> {
 
 /// Copies `src` (at most [`FAST_MAX`] bytes) to the start of `out` with two overlapping
 /// fixed-size moves (no call to `memcpy` for a number's few bytes); `None` when it is longer.
+/// Inlined into the number's formatting (no call per number).
+#[inline(always)]
 fn copy_short(out: &mut [u8; FAST_MAX], src: &[u8]) -> Option<()> {
     /// One fixed-size move of `K` bytes from `src[at..]` to `out[at..]`.
     fn mv<const K: usize>(out: &mut [u8], src: &[u8], at: usize) -> Option<()> {
@@ -646,6 +636,18 @@ pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option
     let mut len = 0usize;
     put_sign_and_digits(out, &mut len, x.is_sign_negative(), n, p10, prec)?;
     Some(len)
+}
+
+/// [`fixed_f64`] with the precision `P` a constant (inlined where it is used).
+#[inline(always)]
+fn fixed_const<const P: usize>(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    fixed_f64(x, P, out)
+}
+
+/// [`exp_f64`] with the precision `P` a constant (inlined where it is used).
+#[inline(always)]
+fn exp_const<const P: usize>(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    exp_f64(x, P, out)
 }
 
 /// Writes `x` as `format!("{x:.prec$e}")` would into `out`; `None` when the fast path does
