@@ -145,6 +145,45 @@ impl<const CAP: usize> LineBuf<CAP> {
         w: &mut W,
         xs: &[f64],
     ) -> std::io::Result<()> {
+        self.push_spaced_with(w, xs, display_f64, |w, x| write!(w, "{x}"))
+    }
+
+    /// Appends each of `xs` after a space as `format!(" {x:.P$}")` writes it (`P` decimals,
+    /// rounded from the exact value), with one check of the free room for all of them, as
+    /// [`LineBuf::push_spaced_f64s`] does. The precision is a constant: the divisions by
+    /// `10^P` become multiplications and the formatting is inlined.
+    #[inline(always)]
+    pub fn push_spaced_fixed<const P: usize, W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        xs: &[f64],
+    ) -> std::io::Result<()> {
+        self.push_spaced_with(w, xs, fixed_const::<P>, |w, x| write!(w, "{x:.P$}"))
+    }
+
+    /// Appends each of `xs` after a space as `format!(" {x:.P$e}")` writes it (`P + 1`
+    /// significant digits, rounded from the exact value), with one check of the free room for
+    /// all of them, as [`LineBuf::push_spaced_f64s`] does. The precision is a constant: the
+    /// divisions by `10^P` become multiplications and the formatting is inlined.
+    #[inline(always)]
+    pub fn push_spaced_exp<const P: usize, W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        xs: &[f64],
+    ) -> std::io::Result<()> {
+        self.push_spaced_with(w, xs, exp_const::<P>, |w, x| write!(w, "{x:.P$e}"))
+    }
+
+    /// Appends each of `xs` after a space, written by `fast` into the buffer (one check of the
+    /// free room for all of them), or by `slow` to `w` after a flush when `fast` declines.
+    #[inline(always)]
+    fn push_spaced_with<W: Write + ?Sized>(
+        &mut self,
+        w: &mut W,
+        xs: &[f64],
+        fast: impl Fn(f64, &mut [u8; FAST_MAX]) -> Option<usize>,
+        slow: impl Fn(&mut W, f64) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
         const SLOT: usize = 1 + FAST_MAX;
         if self.len + xs.len() * SLOT > CAP {
             self.flush(w)?;
@@ -159,16 +198,16 @@ impl<const CAP: usize> LineBuf<CAP> {
             let Some((sp, dst)) = slot else {
                 // a buffer too small for the whole line: number by number
                 self.push_byte(w, b' ')?;
-                self.push_f64(w, x)?;
+                self.push_with(w, |d| fast(x, d), |w| slow(w, x))?;
                 continue;
             };
             *sp = b' ';
-            match display_f64(x, dst) {
+            match fast(x, dst) {
                 Some(n) => self.len = at + 1 + n,
                 None => {
                     self.len = at + 1;
                     self.flush(w)?;
-                    write!(w, "{x}")?;
+                    slow(w, x)?;
                 }
             }
         }
@@ -400,6 +439,8 @@ fn positional_from_exp(s: &[u8], out: &mut [u8; FAST_MAX]) -> Option<usize> {
 
 /// Copies `src` (at most [`FAST_MAX`] bytes) to the start of `out` with two overlapping
 /// fixed-size moves (no call to `memcpy` for a number's few bytes); `None` when it is longer.
+/// Inlined into the number's formatting (no call per number).
+#[inline(always)]
 fn copy_short(out: &mut [u8; FAST_MAX], src: &[u8]) -> Option<()> {
     /// One fixed-size move of `K` bytes from `src[at..]` to `out[at..]`.
     fn mv<const K: usize>(out: &mut [u8], src: &[u8], at: usize) -> Option<()> {
@@ -464,6 +505,7 @@ const PREC_MAX: usize = 15;
 /// The integer nearest to the exact value that `y` (>= 0) approximates within half an ulp
 /// (`y` is the correctly rounded result of one operation), or `None` when that value may lie
 /// too close to a half-integer to tell from `y` (or `y >= 2^52`).
+#[inline(always)]
 fn round_exact(y: f64) -> Option<u64> {
     if !(0.0..4_503_599_627_370_496.0).contains(&y) {
         return None;
@@ -524,6 +566,7 @@ fn put_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<(
 }
 
 /// `|x| * 10^k` with one correctly rounded operation (`k` in -22..=22), else `None`.
+#[inline(always)]
 fn scale10(a: f64, k: i32) -> Option<f64> {
     let p = *POW10.get(k.unsigned_abs() as usize)?;
     Some(if k >= 0 { a * p } else { a / p })
@@ -531,6 +574,7 @@ fn scale10(a: f64, k: i32) -> Option<f64> {
 
 /// Writes `-` when `negative`, then `n / p10`, and for `prec > 0` a `.` and the `prec` digits of
 /// `n % p10` (the mantissa of both the fixed and the exponent form).
+#[inline(always)]
 fn put_sign_and_digits(
     out: &mut [u8; FAST_MAX],
     len: &mut usize,
@@ -561,6 +605,7 @@ fn put_sign_and_digits(
 
 /// Writes `v` (below 10^`width`) as exactly `width` digits, zeros in front, straight into
 /// `out` (two digits at a time from the last; no scratch, no copy of a variable length).
+#[inline(always)]
 fn put_width_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Option<()> {
     let dst = out.get_mut(*len..*len + width)?;
     let mut v = v;
@@ -581,6 +626,7 @@ fn put_width_digits(out: &mut [u8], len: &mut usize, v: u64, width: usize) -> Op
 
 /// Writes `x` as `format!("{x:.prec$}")` would into `out`; `None` when the fast path does not
 /// apply (see the module docs): the caller uses `core::fmt` then.
+#[inline(always)]
 pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     if !x.is_finite() || prec > PREC_MAX {
         return None;
@@ -592,8 +638,21 @@ pub(crate) fn fixed_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option
     Some(len)
 }
 
+/// [`fixed_f64`] with the precision `P` a constant (inlined where it is used).
+#[inline(always)]
+fn fixed_const<const P: usize>(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    fixed_f64(x, P, out)
+}
+
+/// [`exp_f64`] with the precision `P` a constant (inlined where it is used).
+#[inline(always)]
+fn exp_const<const P: usize>(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    exp_f64(x, P, out)
+}
+
 /// Writes `x` as `format!("{x:.prec$e}")` would into `out`; `None` when the fast path does
 /// not apply (see the module docs): the caller uses `core::fmt` then.
+#[inline(always)]
 pub(crate) fn exp_f64(x: f64, prec: usize, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     if !x.is_finite() || x == 0.0 || prec > PREC_MAX {
         return None;

@@ -91,10 +91,7 @@ pub fn std_header<W: Write + ?Sized>(
 pub fn std_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Result<()> {
     let mut lb = nav_io::LineBuf::new();
     lb.push_fixed(w, r.t_s, 4)?;
-    for s in &r.state_std {
-        lb.push_byte(w, b' ')?;
-        lb.push_exp(w, *s, 6)?;
-    }
+    lb.push_spaced_exp::<6, _>(w, &r.state_std)?;
     lb.push_byte(w, b'\n')?;
     lb.flush(w)
 }
@@ -159,10 +156,10 @@ pub fn bias_line<W: Write + ?Sized>(w: &mut W, r: &EpochRecord) -> std::io::Resu
     lb.push_fixed(w, r.t_s, 4)?;
     for b in &r.blocks {
         let (_, k) = unit_of(&b.name);
-        for v in b.value.iter().chain(b.std.iter()) {
-            lb.push_byte(w, b' ')?;
-            lb.push_fixed(w, v * k, 6)?;
-        }
+        let [v0, v1, v2] = b.value;
+        let [s0, s1, s2] = b.std;
+        let scaled = [v0 * k, v1 * k, v2 * k, s0 * k, s1 * k, s2 * k];
+        lb.push_spaced_fixed::<6, _>(w, &scaled)?;
     }
     lb.push_byte(w, b'\n')?;
     lb.flush(w)

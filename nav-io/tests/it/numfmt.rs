@@ -47,7 +47,47 @@ const FORMS: [Form; 9] = [
     Form::Exp(3),
 ];
 
+/// `xs` through the spaced runs with a constant precision (`{:.4}`, `{:.6}`, `{:.6e}`, each
+/// run ended by `|`), in a buffer of `CAP` bytes.
+fn spaced_fixed_exp<const CAP: usize>(xs: &[f64]) -> String {
+    let mut v = Vec::new();
+    let mut lb = LineBuf::<CAP>::new_block();
+    lb.push_spaced_fixed::<4, _>(&mut v, xs).unwrap();
+    lb.push_byte(&mut v, b'|').unwrap();
+    lb.push_spaced_fixed::<6, _>(&mut v, xs).unwrap();
+    lb.push_byte(&mut v, b'|').unwrap();
+    lb.push_spaced_exp::<6, _>(&mut v, xs).unwrap();
+    lb.push_byte(&mut v, b'|').unwrap();
+    lb.flush(&mut v).unwrap();
+    String::from_utf8(v).unwrap()
+}
+
+/// What [`spaced_fixed_exp`] must write, by `core::fmt`.
+fn spaced_fixed_exp_reference(xs: &[f64]) -> String {
+    let mut s = String::new();
+    for x in xs {
+        s.push_str(&format!(" {x:.4}"));
+    }
+    s.push('|');
+    for x in xs {
+        s.push_str(&format!(" {x:.6}"));
+    }
+    s.push('|');
+    for x in xs {
+        s.push_str(&format!(" {x:.6e}"));
+    }
+    s.push('|');
+    s
+}
+
 fn check(x: f64) -> Result<(), TestCaseError> {
+    prop_assert_eq!(
+        spaced_fixed_exp::<512>(&[x]),
+        spaced_fixed_exp_reference(&[x]),
+        "spaced runs of {:e} ({:#x})",
+        x,
+        x.to_bits()
+    );
     for f in FORMS {
         prop_assert_eq!(
             fast(x, f),
@@ -305,4 +345,10 @@ fn spaced_runs_match_display_in_every_buffer() {
         through(LineBuf::<{ 64 << 10 }>::new_block(), &runs),
         reference
     );
+    // the spaced runs with a constant precision, in the same kinds of buffer
+    let fixed_exp = spaced_fixed_exp_reference(&awkward);
+    assert_eq!(spaced_fixed_exp::<2048>(&awkward), fixed_exp);
+    assert_eq!(spaced_fixed_exp::<600>(&awkward), fixed_exp);
+    assert_eq!(spaced_fixed_exp::<100>(&awkward), fixed_exp);
+    assert_eq!(spaced_fixed_exp::<{ 64 << 10 }>(&awkward), fixed_exp);
 }
