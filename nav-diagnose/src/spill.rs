@@ -371,27 +371,9 @@ pub fn run_innovations(case: &Case, opts: &RunOptions) -> Result<RunOutput, RunE
     let mut no_nav = opts.clone();
     no_nav.record.nav_rate_hz = Some(0.0);
     let opts = &no_nav;
-    let (it, info) = case.imu.stream()?;
-    let streams = Streams {
-        imu: it,
-        info,
-        gnss: Box::new(case.gnss.iter().copied().map(Ok)),
-        truth: case.truth.as_deref(),
-    };
-    let mut out = nav_engine::run::run_engine(
-        streams,
-        opts,
-        CoastPlan::default(),
-        &mut sink,
-        &mut |_, _| {},
-    )?;
+    let mut out = run_case(case, opts, &mut sink)?;
     out.innovations = sink.innovations;
-    let track = gnss_error_track(&out.state_names, &sink.estimates);
-    predict_withheld_fixes(
-        &mut out.innovations,
-        &track,
-        opts.filter.effects.gnss_position_gm.t_s,
-    );
+    predict_withheld(&mut out, &sink.estimates, opts);
     case.memo().keep_innovations(key, &out);
     Ok(out)
 }
@@ -426,6 +408,17 @@ pub fn run_nav_to_file(
         estimates: Vec::new(),
         wants_epochs: wants_gnss_error(opts),
     };
+    let mut out = run_case(case, opts, &mut sink)?;
+    out.innovations = sink.innovations;
+    out.snapshots = sink.snapshots;
+    predict_withheld(&mut out, &sink.estimates, opts);
+    let nav = sink.nav.finish().map_err(RunError::Output)?;
+    Ok((out, nav))
+}
+
+/// Runs `opts` on `case` into `sink`: the IMU record decoded as it is read, the case's fixes
+/// and truth, no coasting baselines. Returns the run's summary (its record lists empty).
+fn run_case(case: &Case, opts: &RunOptions, sink: &mut dyn RunSink) -> Result<RunOutput, RunError> {
     let (it, info) = case.imu.stream()?;
     let streams = Streams {
         imu: it,
@@ -433,23 +426,19 @@ pub fn run_nav_to_file(
         gnss: Box::new(case.gnss.iter().copied().map(Ok)),
         truth: case.truth.as_deref(),
     };
-    let mut out = nav_engine::run::run_engine(
-        streams,
-        opts,
-        CoastPlan::default(),
-        &mut sink,
-        &mut |_, _| {},
-    )?;
-    out.innovations = sink.innovations;
-    out.snapshots = sink.snapshots;
-    let track = gnss_error_track(&out.state_names, &sink.estimates);
+    nav_engine::run::run_engine(streams, opts, CoastPlan::default(), sink, &mut |_, _| {})
+}
+
+/// The withheld fixes of `out`'s innovations predicted with the run's GNSS error estimate
+/// (`estimates`: time, every state's estimate; nothing changes without the
+/// `gnss_position_gm` block), as [`predict_withheld_fixes`] does.
+fn predict_withheld(out: &mut RunOutput, estimates: &[(f64, Vec<f64>)], opts: &RunOptions) {
+    let track = gnss_error_track(&out.state_names, estimates);
     predict_withheld_fixes(
         &mut out.innovations,
         &track,
         opts.filter.effects.gnss_position_gm.t_s,
     );
-    let nav = sink.nav.finish().map_err(RunError::Output)?;
-    Ok((out, nav))
 }
 
 /// The GNSS error estimate of a model with the `gnss_position_gm` block over a run: (time, s;
