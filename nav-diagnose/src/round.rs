@@ -623,46 +623,89 @@ pub(crate) fn try_noise_with_effect(
         return false;
     };
     let pen = 0.5 * (k.params() + prior::added_params(&s.added, b)) as f64 * n_meas.ln();
-    let d = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
-    let (est, sig) = effect_values(&ev.run, b.name());
-    let h = validate::compare_windows(&s.cur.windows, &ev.windows);
-    let (decision, why) = decide(d - pen, validate::max_z(&est, &sig), is_noise_like(b), &h);
+    let v = judge_joint(s, b, &ev, pen);
     let c = &mut results[i].0;
-    if decision != Decision::Eligible {
-        c.reason = format!("{}; with the tuned noise: {why}", c.reason);
+    if v.decision != Decision::Eligible {
+        c.reason = format!("{}; with the tuned noise: {}", c.reason, v.why);
         return false;
     }
     c.decision = Decision::Added;
-    c.reason = format!("added with the tuned noise ({}): {why}", k.describe());
+    c.reason = format!("added with the tuned noise ({}): {}", k.describe(), v.why);
     c.refused = None;
     s.steps.push(Step {
         label: format!("noise tuned: {} + {}", k.describe(), b.name()),
         accepted: true,
         reason: Some(c.reason.clone()),
         errors: ev.errors,
-        heldout: Some(h),
+        heldout: Some(v.heldout),
     });
-    push_added(
-        s,
-        b,
-        AddedEffect {
-            name: b.name().to_string(),
-            estimate: est,
-            sigma: sig,
-            unit: b.unit().to_string(),
-            evidence: d - pen,
-            delta_log_likelihood: d,
-            heldout: h,
-            runner_up: None,
-            ambiguous_with: None,
-            freed: c.freed,
-            replaced: None,
-            before: s.cur.errors,
-            after: ev.errors,
-        },
-    );
+    let freed = c.freed;
+    add_joint(s, b, v, &ev, freed);
     s.adopt_noise(k, ev);
     true
+}
+
+/// A candidate `b` judged on a run `ev` made together with another change to the model (the
+/// tuned noise, a refitted bias step), against the current model by the rule of a round's
+/// candidates ([`decide`]).
+pub(crate) struct JointVerdict {
+    /// Log-likelihood gain of `ev` over the current model, nats.
+    pub(crate) gain_nats: f64,
+    /// The BIC penalty it pays, nats.
+    pub(crate) penalty_nats: f64,
+    /// The candidate's estimate, in its block's unit.
+    pub(crate) estimate: Vec<f64>,
+    /// The estimate's standard deviations, same unit.
+    pub(crate) sigma: Vec<f64>,
+    /// Its held-out windows against the current model's.
+    pub(crate) heldout: HeldoutComparison,
+    pub(crate) decision: Decision,
+    /// Why, in the report's words.
+    pub(crate) why: String,
+}
+
+/// Judges `b` on the joint run `ev` ([`JointVerdict`]), `penalty_nats` the BIC penalty of every
+/// parameter the run adds to the current model.
+pub(crate) fn judge_joint(s: &Search, b: Block, ev: &Eval, penalty_nats: f64) -> JointVerdict {
+    let gain_nats = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
+    let (estimate, sigma) = effect_values(&ev.run, b.name());
+    let heldout = validate::compare_windows(&s.cur.windows, &ev.windows);
+    let (decision, why) = decide(
+        gain_nats - penalty_nats,
+        validate::max_z(&estimate, &sigma),
+        is_noise_like(b),
+        &heldout,
+    );
+    JointVerdict {
+        gain_nats,
+        penalty_nats,
+        estimate,
+        sigma,
+        heldout,
+        decision,
+        why,
+    }
+}
+
+/// Adds `b`, judged eligible on the joint run `ev` ([`judge_joint`]), to the search's model and
+/// its list of added effects ([`push_added`]), the current model's errors as its "before".
+pub(crate) fn add_joint(s: &mut Search, b: Block, v: JointVerdict, ev: &Eval, freed: bool) {
+    let info = AddedEffect {
+        name: b.name().to_string(),
+        estimate: v.estimate,
+        sigma: v.sigma,
+        unit: b.unit().to_string(),
+        evidence: v.gain_nats - v.penalty_nats,
+        delta_log_likelihood: v.gain_nats,
+        heldout: v.heldout,
+        runner_up: None,
+        ambiguous_with: None,
+        freed,
+        replaced: None,
+        before: s.cur.errors,
+        after: ev.errors,
+    };
+    push_added(s, b, info);
 }
 
 /// The held-out check of a noise change (a nuisance parameter, not an effect that claims a

@@ -554,22 +554,16 @@ pub(crate) fn refit_step_with_effect(
         .scalar_measurements
         .max(2) as f64;
     let penalty = 0.5 * prior::added_params(&s.added, b) as f64 * n_meas.ln();
-    let d = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
-    let (est, sig) = effect_values(&ev.run, b.name());
-    let h = validate::compare_windows(&s.cur.windows, &ev.windows);
-    let (decision, why) = decide(
-        d - penalty,
-        validate::max_z(&est, &sig),
-        is_noise_like(b),
-        &h,
-    );
+    let v = round::judge_joint(s, b, &ev, penalty);
     let label = format!(
         "{} with {} refitted: {}",
         b.name(),
         kept.name,
         refit.describe()
     );
-    if decision != Decision::Eligible {
+    let why = v.why.clone();
+    let h = v.heldout;
+    if v.decision != Decision::Eligible {
         s.warnings.push(format!("{label}: not added: {why}"));
         return Ok(None);
     }
@@ -590,25 +584,7 @@ pub(crate) fn refit_step_with_effect(
         }
     }
     let freed = prior::is_frozen(&options_with(&s.base_opts, &s.added), b);
-    push_added(
-        s,
-        b,
-        AddedEffect {
-            name: b.name().to_string(),
-            estimate: est,
-            sigma: sig,
-            unit: b.unit().to_string(),
-            evidence: d - penalty,
-            delta_log_likelihood: d,
-            heldout: h,
-            runner_up: None,
-            ambiguous_with: None,
-            freed,
-            replaced: None,
-            before: s.cur.errors,
-            after: ev.errors,
-        },
-    );
+    round::add_joint(s, b, v, &ev, freed);
     s.bias_step = Some(changepoint::BiasStep {
         reason: Some(format!("refitted with {}: {why}", b.name())),
         heldout: Some(h),
