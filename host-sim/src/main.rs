@@ -91,15 +91,17 @@ fn main() -> std::process::ExitCode {
 }
 
 /// The error and its causes on one line, each said once: `nav_io::IoError` prints its
-/// source in its own message, so a cause the line already contains is not repeated.
+/// source in its own message, so a cause the line already contains is not repeated (compared
+/// without its trailing line end: a message that adds a hint after its cause trims it).
 fn error_chain(e: &anyhow::Error) -> String {
     let mut out = String::new();
     for text in e.chain().map(ToString::to_string) {
-        if !text.is_empty() && !out.contains(&text) {
+        let text = text.trim_end();
+        if !text.is_empty() && !out.contains(text) {
             if !out.is_empty() {
                 out.push_str(": ");
             }
-            out.push_str(&text);
+            out.push_str(text);
         }
     }
     out

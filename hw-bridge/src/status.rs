@@ -89,18 +89,20 @@ pub fn decoder_report(s: &DecoderStats) -> String {
 
 /// An error and its causes on one line, each cause said once: a cause whose text the message
 /// so far already contains (an error type that prints its source in its own message, as
-/// `nav_io::IoError` does) is not repeated.
+/// `nav_io::IoError` does) is not repeated, compared without its trailing line end (a message
+/// that adds a hint after its cause trims it).
 pub fn error_chain(e: &anyhow::Error) -> String {
     let mut out = String::new();
     for cause in e.chain() {
         let text = cause.to_string();
-        if text.is_empty() || out.contains(&text) {
+        let text = text.trim_end();
+        if text.is_empty() || out.contains(text) {
             continue;
         }
         if !out.is_empty() {
             out.push_str(": ");
         }
-        out.push_str(&text);
+        out.push_str(text);
     }
     out
 }

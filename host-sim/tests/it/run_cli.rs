@@ -213,6 +213,47 @@ fn wrong_option_values_fail_at_argument_parsing_before_any_file_is_read() {
     }
 }
 
+/// A misspelt key in a run configuration: exit 1, the file, line and column, the valid keys
+/// and the nearest one, each said once (the parser's message is not repeated after the hint),
+/// and nothing written.
+#[test]
+fn a_misspelt_configuration_key_is_named_once_with_the_nearest_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("typo.toml");
+    std::fs::write(
+        &cfg,
+        "# written by hand\nname = \"typo\"\n[imu]\npath = \"imu.txt\"\nformat = \"text\"\n\
+         [gnss]\npath = \"gnss.txt\"\nformat = \"text\"\nmaxq = 1  # RTK fixed only\n\
+         [noise]\nmodel = \"nbk\"\n",
+    )
+    .unwrap();
+    let out_dir = tmp.path().join("out");
+    let out = host_sim()
+        .args(["run", "--config", cfg.to_str().unwrap(), "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("typo.toml"), "names the file: {err}");
+    assert!(
+        err.contains("line 9, column 1"),
+        "names line and column: {err}"
+    );
+    assert!(err.contains("did you mean `max_q`?"), "{err}");
+    assert_eq!(
+        err.matches("unknown field `maxq`").count(),
+        1,
+        "said once: {err}"
+    );
+    assert_eq!(
+        err.matches("TOML parse error").count(),
+        1,
+        "said once: {err}"
+    );
+    assert!(!out_dir.exists(), "nothing written");
+}
+
 /// `RunArgs::to_spec`: each command-line option lands in its typed `RunSpec` field.
 #[test]
 fn run_arguments_become_the_typed_run_spec() {

@@ -396,3 +396,40 @@ fn sigterm_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
 fn sigint_mid_replay_keeps_the_partial_replay_and_the_previous_outputs() {
     interrupt_mid_replay("INT", SIGINT);
 }
+
+/// `replay --config` with a misspelt key in the configuration: exit 1 naming the file, line and
+/// column and the nearest key, the parser's message said once (not repeated after the hint),
+/// and nothing written into `--out`.
+#[test]
+fn a_misspelt_configuration_key_is_named_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cap = capture(tmp.path(), 400);
+    let cfg = tmp.path().join("typo.toml");
+    std::fs::write(
+        &cfg,
+        "name = \"typo\"\n[imu]\npath = \"imu.txt\"\nformat = \"text\"\n[gnss]\n\
+         path = \"gnss.txt\"\nformat = \"text\"\nmaxq = 1\n[noise]\nmodel = \"nbk\"\n",
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let o = replay(&["--config", cfg.to_str().unwrap()], &cap, &out);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("typo.toml"), "names the file: {err}");
+    assert!(
+        err.contains("line 8, column 1"),
+        "names line and column: {err}"
+    );
+    assert!(err.contains("did you mean `max_q`?"), "{err}");
+    assert_eq!(
+        err.matches("unknown field `maxq`").count(),
+        1,
+        "said once: {err}"
+    );
+    assert_eq!(
+        err.matches("TOML parse error").count(),
+        1,
+        "said once: {err}"
+    );
+    assert!(!out.exists() || decoded(&out).is_empty(), "nothing written");
+}
