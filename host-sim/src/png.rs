@@ -37,3 +37,19 @@ pub fn draw_png(
     };
     write().map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
+
+/// Tick label of a log10 axis drawn linearly (the coordinate is log10 of the value): the value
+/// 10^v, `1eN` at a whole power of ten (`1e0`, never `1e-0`), else two decimals between 0.01
+/// and 1000 and two significant digits outside.
+pub fn pow10_label(v: &f64) -> String {
+    let x = 10f64.powf(*v);
+    let r = v.round();
+    if (v - r).abs() < 1e-9 {
+        // `as` maps -0.0 to 0: a log10 of exactly 0 computed as -0.0 is labelled 1e0
+        format!("1e{}", r as i64)
+    } else if (0.01..1000.0).contains(&x) {
+        format!("{x:.2}")
+    } else {
+        format!("{x:.1e}")
+    }
+}

@@ -154,18 +154,19 @@ fn plot_nis(path: &Path, before: &RunOutput, after: &RunOutput, t0: f64) -> anyh
         let (y0, y1) = range(sb.iter().chain(&sa).map(|p| p.1).chain([band.0, band.1]));
         let x1 = sb.iter().chain(&sa).map(|p| p.0).fold(1e-3, f64::max);
         let mut ch = ChartBuilder::on(&root)
-        .caption(
-            "NIS / dim, 60-fix running mean (log10): before (red), after (blue); grey: 95 % band",
-            ("sans-serif", 22),
-        )
-        .margin(10)
-        .x_label_area_size(34)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..x1, y0..y1)
-        .map_err(perr)?;
+            .caption(
+                "NIS / dim, 60-fix running mean: before (red), after (blue); grey: 95 % band",
+                ("sans-serif", 22),
+            )
+            .margin(10)
+            .x_label_area_size(34)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..x1, y0..y1)
+            .map_err(perr)?;
         ch.configure_mesh()
             .x_desc("time [min]")
-            .y_desc("log10(NIS/dim)")
+            .y_desc("NIS / dim (log scale)")
+            .y_label_formatter(&crate::png::pow10_label)
             .draw()
             .map_err(perr)?;
         ch.draw_series(std::iter::once(Rectangle::new(

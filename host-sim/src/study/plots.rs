@@ -81,18 +81,6 @@ fn component_title(i: usize) -> String {
     format!("{q} {ax} [{unit}]")
 }
 
-/// Tick label of a log10 axis drawn linearly: the value 10^v with two significant digits.
-fn pow10_label(v: &f64) -> String {
-    let x = 10f64.powf(*v);
-    if (v - v.round()).abs() < 1e-9 {
-        format!("1e{}", v.round())
-    } else if (0.01..1000.0).contains(&x) {
-        format!("{x:.2}")
-    } else {
-        format!("{x:.1e}")
-    }
-}
-
 fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in vals.filter(|v| v.is_finite() && *v > 0.0) {
@@ -158,7 +146,7 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
             ch.configure_mesh()
                 .x_desc("time [min]")
                 .y_desc("log scale")
-                .y_label_formatter(&pow10_label)
+                .y_label_formatter(&crate::png::pow10_label)
                 .draw()
                 .map_err(perr)?;
             if let Some((s0, s1)) = outage_span(res, case) {
@@ -388,7 +376,7 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
             ch.configure_mesh()
                 .x_desc("time [min]")
                 .y_desc("log scale")
-                .y_label_formatter(&pow10_label)
+                .y_label_formatter(&crate::png::pow10_label)
                 .draw()
                 .map_err(perr)?;
             if let Some((s0, s1)) = outage_span(res, case) {

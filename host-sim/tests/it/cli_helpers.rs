@@ -1,6 +1,6 @@
 //! The command line's value parsers (`cli_enum::parser`, the simulator's `START:DURATION`
-//! outage, `host-sim study --budget-models`) and the HTML report's base64 encoder, through the
-//! library's public API.
+//! outage, `host-sim study --budget-models`), the HTML report's base64 encoder and the plots'
+//! log-axis tick labels, through the library's public API.
 use clap::Parser;
 use host_sim::cli_enum::parser;
 use host_sim::sim::cli::parse_outage;
@@ -74,4 +74,25 @@ fn budget_models_default_list_and_none() {
     );
     assert!(budget(&["--budget-models"]).is_empty());
     assert!(StudyCli::try_parse_from(["study", "--budget-models", "kbn"]).is_err());
+}
+
+/// The tick labels of a log axis drawn on log10 of the values: whole powers of ten as `1eN`
+/// (a zero computed as -0.0 is `1e0`, not `1e-0`), two decimals between 0.01 and 1000, two
+/// significant digits outside.
+#[test]
+fn log_axis_tick_labels_name_the_value() {
+    use host_sim::png::pow10_label;
+    for (v, want) in [
+        (0.0, "1e0"),
+        (-0.0, "1e0"),
+        (-1e-12, "1e0"),
+        (2.0, "1e2"),
+        (-3.0, "1e-3"),
+        (0.2, "1.58"),
+        (-0.5, "0.32"),
+        (-2.5, "3.2e-3"),
+        (3.5, "3.2e3"),
+    ] {
+        assert_eq!(pow10_label(&v), want, "log10 value {v}");
+    }
 }
