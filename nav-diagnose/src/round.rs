@@ -726,7 +726,8 @@ pub(crate) fn noise_heldout_check(
     if let (Some(c), Some(n)) = (cur.heldout_windows_rms_m, new.heldout_windows_rms_m) {
         if n.is_nan() || n > c {
             return Err(format!(
-                "held-out windows RMS raised ({c:.3} -> {n:.3} m): {}",
+                "held-out windows RMS raised ({}): {}",
+                crate::validate::rms_change_m(c, n),
                 h.describe()
             ));
         }

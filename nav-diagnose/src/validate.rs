@@ -681,6 +681,17 @@ fn raised_beyond_one(pairs: &[(f64, f64)]) -> bool {
     rise.iter().sum::<f64>() - largest > 0.0
 }
 
+/// `a -> b m` with millimetre decimals; when both print alike but differ, the change in mm
+/// follows (`2.087 -> 2.087 m (+0.312 mm)`), so that a rise or fall is never shown as equal.
+pub(crate) fn rms_change_m(a: f64, b: f64) -> String {
+    let (sa, sb) = (format!("{a:.3}"), format!("{b:.3}"));
+    if sa == sb && a != b {
+        format!("{sa} -> {sb} m ({:+.3} mm)", 1e3 * (b - a))
+    } else {
+        format!("{sa} -> {sb} m")
+    }
+}
+
 impl HeldoutComparison {
     /// `gain -3.1 % [-8.0, +1.2] (7 of 12 windows lower, p 0.21 / 0.74)`.
     pub fn describe(&self) -> String {
@@ -694,7 +705,7 @@ impl HeldoutComparison {
             }
         };
         format!(
-            "held-out gain {} % [{}, {}] ({} of {} {} lower, RMS {:.3} -> {:.3} m, \
+            "held-out gain {} % [{}, {}] ({} of {} {} lower, RMS {}, \
              p lower {:.3}, p higher {:.3})",
             pc(self.gain),
             pc(self.gain_ci90[0]),
@@ -706,8 +717,7 @@ impl HeldoutComparison {
             } else {
                 "windows"
             },
-            self.current_rms_m,
-            self.new_rms_m,
+            rms_change_m(self.current_rms_m, self.new_rms_m),
             self.p_better,
             self.p_worse
         )

@@ -38,3 +38,17 @@ fn a_rms_rise_over_two_windows_still_vetoes() {
     assert_eq!(d, Decision::NotSignificant, "{why}");
     assert!(why.contains("RMS raised"), "{why}");
 }
+
+/// A held-out RMS that rises by less than a millimetre is shown as a rise: the change in mm
+/// follows the two RMS values when they print alike, and equal values print without it.
+#[test]
+fn a_sub_millimetre_rms_change_is_shown_with_its_sign() {
+    let mut new = BASE_107;
+    new[1] += 0.002;
+    let h = compare_windows(&BASE_107, &new);
+    assert!(h.new_rms_m > h.current_rms_m, "{}", h.describe());
+    let d = h.describe();
+    assert!(d.contains("RMS 0.759 -> 0.759 m (+0.318 mm)"), "{d}");
+    let same = compare_windows(&BASE_107, &BASE_107).describe();
+    assert!(same.contains("RMS 0.759 -> 0.759 m,"), "{same}");
+}
