@@ -63,7 +63,24 @@ pub fn resolve_scenario(arg: &str) -> anyhow::Result<PathBuf> {
             return Ok(c);
         }
     }
-    anyhow::bail!("scenario `{arg}`: no such file and no shipped scenario of that name")
+    let mut names: Vec<String> = [PathBuf::from("scenarios"), scenarios_dir()]
+        .iter()
+        .filter_map(|d| std::fs::read_dir(d).ok())
+        .flat_map(|d| d.flatten())
+        .filter_map(|e| {
+            let p = e.path();
+            (p.extension()? == "toml").then(|| p.file_stem()?.to_str().map(str::to_string))?
+        })
+        .collect();
+    names.sort();
+    names.dedup();
+    let hint = nav_io::did_you_mean(arg, names.iter().map(String::as_str))
+        .map(|h| format!("; {h}"))
+        .unwrap_or_default();
+    anyhow::bail!(
+        "scenario `{arg}`: no such file and no shipped scenario of that name (shipped: {}){hint}",
+        names.join(", ")
+    )
 }
 
 /// Runs `host-sim simulate`.

@@ -138,6 +138,14 @@ fn simulate_rejects_bad_inputs_with_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("no/such/scenario.toml"), "{e}");
+    // a misspelt shipped name: the shipped names listed and the nearest one suggested
+    let e = run(args("defualt", "none")).unwrap_err().to_string();
+    assert!(e.contains("scenario `defualt`"), "{e}");
+    assert!(
+        e.contains("figure8, land_stops"),
+        "lists the shipped names: {e}"
+    );
+    assert!(e.contains("did you mean `default`?"), "{e}");
     let e = run(args("static", "no-such-preset"))
         .unwrap_err()
         .to_string();
