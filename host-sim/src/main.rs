@@ -31,8 +31,9 @@ enum Cmd {
     /// Run the filter on a case (simulated or real): nav.txt, std.txt, bias.txt,
     /// innovations.txt and metrics.json, with imposed GNSS outages.
     Run(host_sim::run::cli::RunArgs),
-    /// Find the effect the model lacks from the innovations, add it if the data pay for it
-    /// (BIC), and write diagnosis.json, nav_before.txt and nav_after.txt.
+    /// Find the effects the model lacks from the innovations, add each one whose held-out
+    /// prediction is significantly better, and write report.md, diagnosis.json,
+    /// augmented.toml, nav_before.txt, nav_after.txt and plots.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
     /// Estimate the IMU-to-body rotation from the data (the configured [imu.mounting] is
     /// ignored) and print the [imu.mounting] section to paste.
