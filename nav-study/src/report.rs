@@ -437,7 +437,7 @@ pub fn table(res: &StudyResult) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "\nCase 1, continuous 1 Hz GNSS: time-RMS from {CASE1_FROM_S:.0} s to the end ({} runs; NEES 95 % band [{:.2}, {:.2}])",
+        "\nCase 1, continuous 1 Hz GNSS: time-RMS from {CASE1_FROM_S:.0} s to the end ({} runs; NEES 95 % band [{:.2}, {:.2}])\n",
         res.config.runs, band.0, band.1
     );
     let _ = writeln!(
@@ -461,7 +461,7 @@ pub fn table(res: &StudyResult) -> String {
     }
     let _ = writeln!(
         s,
-        "\nCase 2, {:.0}-s GNSS outage from {:.0} s: at its end (t = {:.0} s, {:.0} s after the last fix used)",
+        "\nCase 2, {:.0}-s GNSS outage from {:.0} s: at its end (t = {:.0} s, {:.0} s after the last fix used)\n",
         res.config.outage_duration_s,
         res.config.outage_start_rel_s,
         res.config.outage_eval_rel_s(),
@@ -500,7 +500,7 @@ pub fn table(res: &StudyResult) -> String {
 fn budget_section(s: &mut String, b: &Budget) {
     let _ = writeln!(
         s,
-        "\nError budget, {} model: position error at the end of the outage with each source alone ({} runs)",
+        "\nError budget, {} model: position error at the end of the outage with each source alone ({} runs)\n",
         b.model.label(),
         b.runs
     );
@@ -530,7 +530,7 @@ fn budget_section(s: &mut String, b: &Budget) {
     );
     let _ = writeln!(
         s,
-        "gyro sources {:.1} % of the variance, accelerometer sources {}, largest: {}",
+        "\n- gyro sources {:.1} % of the variance, accelerometer sources {}, largest: {}",
         100.0 * b.gyro_share,
         percent(b.accel_share),
         b.largest.label()
@@ -538,7 +538,7 @@ fn budget_section(s: &mut String, b: &Budget) {
     if let Some(n) = b.total_pos_nees {
         let _ = writeln!(
             s,
-            "position NEES of the {} all-sources runs at the end of the outage: {:.2}, {} [{:.2}, {:.2}]",
+            "- position NEES of the {} all-sources runs at the end of the outage: {:.2}, {} [{:.2}, {:.2}]",
             b.runs,
             n,
             Consistency::of(n, b.total_pos_nees_band).words(),

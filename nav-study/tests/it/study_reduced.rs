@@ -30,7 +30,22 @@ fn study_reduced_nbk_std_smaller_nees_consistent_and_budget_adds_up() {
         res.filter_runs,
         t.elapsed().as_secs_f64()
     );
-    eprintln!("{}", nav_study::report::table(&res));
+    let table = nav_study::report::table(&res);
+    eprintln!("{table}");
+    // Markdown: every table stands apart from the text around it (a line directly after a
+    // table is rendered as one of its rows, one directly before it as text run into it)
+    let lines: Vec<&str> = table.lines().collect();
+    for (i, w) in lines.windows(2).enumerate() {
+        let (a, b) = (w[0].starts_with('|'), w[1].starts_with('|'));
+        assert!(
+            a == b || w[0].trim().is_empty() || w[1].trim().is_empty(),
+            "line {} and {} of the report's table: {:?} / {:?}",
+            i + 1,
+            i + 2,
+            w[0],
+            w[1]
+        );
+    }
 
     // 1. NBK's estimated position std is smaller than N's at every epoch of the outage
     assert!(v.nbk_std_smaller_than_n_during_outage);
