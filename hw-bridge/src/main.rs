@@ -13,8 +13,8 @@ Exit status:
            could not be written (the message names the cause once)
   2        finished but incomplete: the outputs hold everything up to the fault and say so
            (e.g. replay --config whose filter run is not a navigation solution)
-  130/143  stopped by SIGINT/SIGTERM (128 + the signal): a replay's outputs kept as *.partial,
-           a recording's capture complete";
+  130/143  stopped by SIGINT/SIGTERM (128 + the signal): a replay's outputs kept as *.partial
+           (record: SIGINT/SIGTERM end the recording normally, exit 0, the capture complete)";
 
 /// Serial bridge between a navigation board or GNSS receiver and nav-core.
 #[derive(Parser, Debug)]

@@ -116,6 +116,13 @@ fn ctrl_c_and_sigterm_end_a_recording_with_every_byte_in_a_complete_capture() {
         );
         assert_eq!(o.status.code(), Some(0), "SIG{sig}: {out}\n{err}");
         assert!(out.contains(&format!("stopped by SIG{sig}")), "{out}");
+        // as `hw-bridge --help` lists it under the exit status
+        let help = Command::new(BIN).arg("--help").output().unwrap();
+        let help = String::from_utf8_lossy(&help.stdout);
+        assert!(
+            help.contains("(record: SIGINT/SIGTERM end the recording normally, exit 0"),
+            "{help}"
+        );
         // complete: under its final name, nothing left as .partial, every byte in
         assert!(!dir.path().join(format!("{name}.partial")).exists());
         let (data, resets) = capture_data(&cap);
