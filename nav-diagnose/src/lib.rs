@@ -30,7 +30,9 @@
 //!    added; when the next eligible one trails by less than
 //!    [`DiagnoseOptions::ambiguity_margin`] (3 nats: a likelihood ratio of 20, "strong" on the
 //!    Kass-Raftery scale) the two are reported as "ambiguous between A and B" and the one
-//!    with the larger held-out gain is added. The noise steps (tuned, re-tuned) are kept
+//!    with the larger held-out gain is added; the note gives the pair's joint fit (each
+//!    block's significance beside the other: "the same signal" when neither keeps a state
+//!    2 sigma from zero). The noise steps (tuned, re-tuned) are kept
 //!    unless their held-out errors are significantly higher. A paying candidate left out is
 //!    unexplained gain; with it (or a NIS mean above its band) the diagnosis says where in
 //!    time the misfit sits ([`stats::misfit_spans`]). A GNSS-side block (`gnss_position_gm`,

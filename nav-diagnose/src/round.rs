@@ -515,7 +515,7 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         s.rounds.push(round);
         return false;
     };
-    let pick = pick_ambiguous(ctx, &results, &eligible, &mut round);
+    let pick = pick_ambiguous(ctx, s, n_meas, &results, &eligible, &mut round);
     add_candidate(s, results, top, pick, round)
 }
 
@@ -736,9 +736,12 @@ pub(crate) fn noise_heldout_check(
 }
 
 /// With two eligible candidates within the ambiguity margin, the one with the larger
-/// held-out gain; notes the ambiguity in the round. Returns the index to add.
+/// held-out gain; notes the ambiguity in the round with the pair's joint fit ([`joint_fit`]),
+/// which says whether the two explain the same signal. Returns the index to add.
 pub(crate) fn pick_ambiguous(
     ctx: &Ctx<'_>,
+    s: &Search,
+    n_meas: f64,
     results: &[(CandidateEvidence, Option<Eval>)],
     eligible: &[usize],
     round: &mut Round,
@@ -755,10 +758,75 @@ pub(crate) fn pick_ambiguous(
     let g = |i: usize| results[i].0.heldout.map_or(f64::NEG_INFINITY, |h| h.gain);
     let pick = if g(second) > g(top) { second } else { top };
     round.ambiguous = Some(format!(
-        "ambiguous between {} and {} ({margin:.1} nats); added {} (larger held-out gain)",
-        results[top].0.name, results[second].0.name, results[pick].0.name
+        "ambiguous between {} and {} ({margin:.1} nats); added {} (larger held-out gain); {}",
+        results[top].0.name,
+        results[second].0.name,
+        results[pick].0.name,
+        joint_fit(ctx, s, n_meas, results, top, second)
     ));
     pick
+}
+
+/// The ambiguous pair `a`, `b` (indices into `results`) fitted jointly, in words: one run of
+/// the current model with both blocks, each block's largest |estimate|/sigma there and its
+/// log-likelihood gain beyond the other alone less its BIC penalty (nested models). When two
+/// effects explain the data alike the joint fit shares the signal between them: a block that
+/// keeps a state [`validate::MIN_Z`] sigma from zero there carries signal the other cannot
+/// take; when neither does, the two explain the same signal on this drive. (For blocks of one
+/// size the two gains beyond the other differ by the evidence margin: they describe, they
+/// cannot separate the pair.)
+pub(crate) fn joint_fit(
+    ctx: &Ctx<'_>,
+    s: &Search,
+    n_meas: f64,
+    results: &[(CandidateEvidence, Option<Eval>)],
+    a: usize,
+    b: usize,
+) -> String {
+    let (Some(ba), Some(bb)) = (
+        Block::effect_from_name(&results[a].0.name),
+        Block::effect_from_name(&results[b].0.name),
+    ) else {
+        return "not fitted jointly (unknown block)".into();
+    };
+    let with_a = prior::with_candidate(&s.added, ba);
+    let with_b = prior::with_candidate(&s.added, bb);
+    let o = options_with(&s.base_opts, &prior::with_candidate(&with_b, ba));
+    if dim_of(&o) > MAX_EXTRA_DIM {
+        return "not fitted jointly (the pair exceeds the filter's size)".into();
+    }
+    let ev = match ctx.evaluate(&o) {
+        Ok(ev) => ev,
+        Err(e) => return format!("joint run failed: {e}"),
+    };
+    let gain = ev.errors.log_likelihood - s.cur.errors.log_likelihood;
+    let ln_n = n_meas.max(2.0).ln();
+    // block `bi`'s largest z in the joint run, and its gain beyond candidate `j` alone less its
+    // penalty beside `j` (`beside`: the model with `j`)
+    let beyond = |bi: Block, j: usize, beside: &[Block]| {
+        let alone = results[j].0.delta_log_likelihood.unwrap_or(f64::NAN);
+        let pen = 0.5 * prior::added_params(beside, bi) as f64 * ln_n;
+        let (est, sig) = effect_values(&ev.run, bi.name());
+        (validate::max_z(&est, &sig), gain - alone - pen)
+    };
+    let (za, xa) = beyond(ba, b, &with_b);
+    let (zb, xb) = beyond(bb, a, &with_a);
+    let same = if za < validate::MIN_Z && zb < validate::MIN_Z {
+        format!(
+            ": the same signal (neither keeps a state {} sigma from zero beside the other)",
+            validate::MIN_Z
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "fitted jointly{same}: {} {za:.1} sigma, {xa:.1} nats beyond {} over its penalty; {} \
+         {zb:.1} sigma, {xb:.1} nats beyond {}",
+        ba.name(),
+        bb.name(),
+        bb.name(),
+        ba.name()
+    )
 }
 
 /// Adds the picked candidate to the model and records the round. False when it cannot be

@@ -110,7 +110,7 @@ pub struct Round {
     /// The effect added in this round (None: no candidate was eligible, search stopped).
     pub added: Option<String>,
     /// "ambiguous between A and B (margin nats)" when the two best eligible candidates were
-    /// closer than the margin.
+    /// closer than the margin, with the pick and the pair's joint fit in words.
     pub ambiguous: Option<String>,
     /// Likelihood gain no eligible effect explains: the best paying candidate that was
     /// refused, with its gain minus penalty, nats, and the reason.

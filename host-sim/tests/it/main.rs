@@ -9,6 +9,7 @@ mod cli_helpers;
 mod diagnose_clock_gnss_step;
 mod diagnose_gnss_gm;
 mod diagnose_gnss_noise;
+mod diagnose_gyro_misalignment;
 mod diagnose_gyro_step;
 mod diagnose_heldout;
 mod diagnose_sim;
