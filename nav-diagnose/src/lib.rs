@@ -96,6 +96,7 @@ pub mod stats;
 pub mod validate;
 
 mod finish;
+mod gnss_error;
 mod round;
 mod search;
 mod types;
