@@ -26,9 +26,10 @@ const SIGMA_STEPS: std::ops::RangeInclusive<i32> = -12..=4;
 const RATIO_STEPS: std::ops::RangeInclusive<i32> = -4..=2;
 /// Grid of the correlation time, s: `300 * 2^(k/2)`, k = -6..=4 (37.5 .. 1200 s).
 const TAU_STEPS: std::ops::RangeInclusive<i32> = -6..=4;
-/// Grid of the factor on the current GNSS sigma scale: `2^(k/2)`, k = -4..=6 (1/4 .. 8),
-/// kept at or above the configuration's scale.
-const WHITE_STEPS: std::ops::RangeInclusive<i32> = -4..=6;
+/// Grid of the factor on the current GNSS sigma scale: `2^(k/4)`, k = -8..=12 (1/4 .. 8),
+/// kept at or above the configuration's scale; climbed two steps at a time, then refined by
+/// one.
+const WHITE_STEPS: std::ops::RangeInclusive<i32> = -8..=12;
 /// Hyperparameters the fit chooses (horizontal sigma, vertical ratio, correlation time,
 /// white-noise factor): counted in the candidate's BIC penalty beside its three states.
 pub const FITTED_PARAMS: usize = 4;
@@ -64,7 +65,7 @@ impl GnssErrorFit {
         Self {
             sigma_m: [d[0] * f, d[1] * f, d[2] * f * r],
             t_s: 300.0 * 2f64.powf(f64::from(k[2]) / 2.0),
-            white_factor: 2f64.powf(f64::from(k[3]) / 2.0),
+            white_factor: 2f64.powf(f64::from(k[3]) / 4.0),
             log_likelihood: f64::NAN,
             runs: 0,
             at: k,
@@ -99,10 +100,11 @@ impl GnssErrorFit {
 /// Fits the prior of the GNSS error state in the model `with_state` (the current model with
 /// the block appended, as the search runs it) by the likelihood of its innovations, from
 /// `from` (the previous round's fit) or the default prior: a climb over the white-noise
-/// factor in which every point has its Gauss-Markov prior climbed (horizontal sigma, then
-/// correlation time: a lower white noise pays only with a larger Gauss-Markov sigma, a ridge
-/// a climb one coordinate at a time does not follow), then the vertical ratio and the
-/// horizontal sigma once more.
+/// factor (steps of 2^(1/2)) in which every point has its Gauss-Markov prior climbed
+/// (horizontal sigma, then correlation time: a lower white noise pays only with a larger
+/// Gauss-Markov sigma, a ridge a climb one coordinate at a time does not follow), then the
+/// white-noise factor refined (steps of 2^(1/4)), the vertical ratio and the horizontal sigma
+/// once more.
 /// `floor`: the smallest white-noise factor (the configuration's sigma scale over the
 /// current one, per component, the larger).
 pub(crate) fn fit(
@@ -116,11 +118,12 @@ pub(crate) fn fit(
         runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut o = ctx.searching(with_state);
         GnssErrorFit::at(k).apply(&mut o);
-        let l = spill::run_innovations(&ctx.p.case, &o)
-            .map_or(f64::NAN, |out| residual_stats(&out.innovations).log_likelihood);
+        let l = spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
+            residual_stats(&out.innovations).log_likelihood
+        });
         (k, l)
     };
-    let white_min = (2.0 * floor.max(1e-9).log2()).ceil() as i32;
+    let white_min = (4.0 * floor.max(1e-9).log2()).ceil() as i32;
     let ranges = [
         SIGMA_STEPS,
         RATIO_STEPS,
@@ -135,14 +138,14 @@ pub(crate) fn fit(
     let prior = |k: At| -> (At, f64) {
         let mut cur = ll(k);
         for axis in [0, 2] {
-            cur = climb(cur, axis, &ranges[axis], &ll);
+            cur = climb(cur, (axis, 1), &ranges[axis], &ll);
         }
         cur
     };
-    let mut best = climb(prior(at), 3, &ranges[3], &prior);
-    // then the vertical ratio and the horizontal sigma once more
-    for axis in [1, 0] {
-        best = climb(best, axis, &ranges[axis], &ll);
+    let mut best = climb(prior(at), (3, 2), &ranges[3], &prior);
+    // then the white-noise factor refined, the vertical ratio and the horizontal sigma
+    for (axis, stride) in [(3, 1), (1, 1), (0, 1)] {
+        best = climb(best, (axis, stride), &ranges[axis], &ll);
     }
     let (at, best) = best;
     best.is_finite().then(|| GnssErrorFit {
@@ -153,19 +156,19 @@ pub(crate) fn fit(
 }
 
 /// One coordinate of a climb: from `cur` (a point and its log-likelihood), both neighbours
-/// along `axis` (in parallel), then onwards from the one that gains while the log-likelihood
+/// `stride` grid steps away along `axis` (in parallel), then onwards from the one that gains while the log-likelihood
 /// rises, within `range`. `ll` gives a point's log-likelihood and the point it reached (an
 /// inner climb may move the other coordinates). Returns the best point and its
 /// log-likelihood.
 fn climb(
     cur: (At, f64),
-    axis: usize,
+    (axis, stride): (usize, i32),
     range: &std::ops::RangeInclusive<i32>,
     ll: &(dyn Fn(At) -> (At, f64) + Sync),
 ) -> (At, f64) {
     let moved = |k: At, d: i32| {
         let mut k = k;
-        k[axis] += d;
+        k[axis] += d * stride;
         range.contains(&k[axis]).then_some(k)
     };
     let probe = |d: i32| moved(cur.0, d).map(ll);

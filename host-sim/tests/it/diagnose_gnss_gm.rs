@@ -151,8 +151,12 @@ fn gnss_error_against_the_noise_scale() {
         let mut best = (f64::NEG_INFINITY, 0.0);
         for i in 0..12 {
             let k = 2f64.powf(i as f64 / 4.0);
-            let ll = residual_stats(&run_filter(&p.case, &scaled(&p.opts, k)).expect("run").innovations)
-                .log_likelihood;
+            let ll = residual_stats(
+                &run_filter(&p.case, &scaled(&p.opts, k))
+                    .expect("run")
+                    .innovations,
+            )
+            .log_likelihood;
             if ll > best.0 {
                 best = (ll, k);
             }

@@ -70,7 +70,10 @@ fn summary(d: &Diagnosis) -> String {
         for c in &r.candidates {
             s.push_str(&format!("    {} {:?}: {}\n", c.name, c.decision, c.reason));
             if let Some(n) = &c.note {
-                s.push_str(&format!("      ({n}; dLL {:.1})\n", c.delta_log_likelihood.unwrap_or(f64::NAN)));
+                s.push_str(&format!(
+                    "      ({n}; dLL {:.1})\n",
+                    c.delta_log_likelihood.unwrap_or(f64::NAN)
+                ));
             }
         }
     }
