@@ -36,10 +36,12 @@
 //!    unless their held-out errors are significantly higher. A paying candidate left out is
 //!    unexplained gain; with it (or a NIS mean above its band) the diagnosis says where in
 //!    time the misfit sits ([`stats::misfit_spans`]). A GNSS-side block (`gnss_position_gm`,
-//!    [`is_noise_like`]) whose evidence pays is judged on fixes withheld one at a time
-//!    ([`validate::interleaved_fixes`]) instead of the windows, where it must only not be
-//!    significantly worse; a model with the block predicts a withheld fix as the antenna
-//!    position plus the block's estimate ([`spill::predict_withheld_fixes`]).
+//!    [`is_noise_like`]) has its prior (sigma, correlation time) fitted by likelihood jointly
+//!    with a factor on the GNSS sigma scale; when its evidence pays it is eligible on
+//!    significantly lower windows, or, when those do not tell, on fixes withheld one at a
+//!    time ([`validate::interleaved_fixes`]), and never when either is significantly higher;
+//!    a model with the block predicts a withheld fix as the antenna position plus the
+//!    block's estimate ([`spill::predict_withheld_fixes`]).
 //! 6. Every model change (tuned noise, each effect, the re-tuned noise) is a [`Step`] with its
 //!    errors and its paired held-out comparison with the model before it.
 //! 7. Effects not added get a detectability bound ([`validate::detectability_bound`]): the
@@ -98,6 +100,7 @@ pub mod stats;
 pub mod validate;
 
 mod finish;
+mod gnss_error;
 mod round;
 mod search;
 mod types;

@@ -188,13 +188,26 @@ pub(crate) fn judge_gnss_side(
         };
         let c = &mut results[i].0;
         let h = validate::compare_fixes(&cur, &new);
-        let (decision, why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
+        let (mut decision, mut why) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &h);
+        // the windows are every candidate's ground: significantly lower there (RMS not raised
+        // beyond one window), the state is eligible unless the single fixes are significantly
+        // higher (they are its second chance, not a veto)
+        if let (Decision::NotSignificant, Some(w)) = (decision, c.heldout) {
+            let (d, wy) = decide(c.evidence.unwrap_or(0.0), c.max_z, true, &w);
+            if d == Decision::Eligible && h.verdict == HeldoutVerdict::NotSignificant {
+                (decision, why) = (d, format!("on the held-out windows: {wy}"));
+            }
+        }
         c.heldout_fixes = Some(h);
         c.decision = decision;
-        c.reason = format!(
-            "on the fixes withheld one at a time: {why}; held-out windows: {}",
-            c.heldout.map_or("-".into(), |w| w.describe())
-        );
+        c.reason = if why.starts_with("on the held-out windows") {
+            format!("{why}; fixes withheld one at a time: {}", h.describe())
+        } else {
+            format!(
+                "on the fixes withheld one at a time: {why}; held-out windows: {}",
+                c.heldout.map_or("-".into(), |w| w.describe())
+            )
+        };
         c.refused = (decision != Decision::Eligible).then(|| c.reason.clone());
     }
 }
@@ -411,19 +424,35 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     let cur_opts = options_with(&s.base_opts, &s.added);
     // a candidate is appended, or takes the place of the block nested in it (a clock drift
     // of an added time offset: appended beside it, the drift would change nothing)
-    let candidate_opts = |b: Block| options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
+    let plain_opts = |b: Block| options_with(&s.base_opts, &prior::with_candidate(&s.added, b));
     let remaining: Vec<Block> = all
         .iter()
         .copied()
         .filter(|&b| {
             !s.added.contains(&b)
                 && !prior::nested_in(&s.added, b)
-                && dim_of(&candidate_opts(b)) <= MAX_EXTRA_DIM
+                && dim_of(&plain_opts(b)) <= MAX_EXTRA_DIM
         })
         .collect();
     if remaining.is_empty() {
         return false;
     }
+    // the GNSS error state's prior is fitted, not the default's ([`gnss_error`])
+    let gm = Block::GnssPositionGm;
+    if remaining.contains(&gm) {
+        let cfg = ctx.p.opts.gnss_sigma_scale;
+        let now = cur_opts.gnss_sigma_scale;
+        let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
+        s.gnss_error_fit = gnss_error::fit(ctx, &plain_opts(gm), floor, s.gnss_error_fit.as_ref());
+    }
+    let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
+    let candidate_opts = |b: Block| {
+        let mut o = plain_opts(b);
+        if let (true, Some(f)) = (b == gm, gm_fit.as_ref()) {
+            f.apply(&mut o);
+        }
+        o
+    };
     let n_meas = residual_stats(&s.cur.run.innovations)
         .scalar_measurements
         .max(2) as f64;
@@ -433,8 +462,17 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         .par_iter()
         .map(|&b| {
             let o = candidate_opts(b);
-            let params = prior::added_params(&s.added, b);
-            evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params))
+            let fitted = if b == gm && gm_fit.is_some() {
+                gnss_error::FITTED_PARAMS
+            } else {
+                0
+            };
+            let params = prior::added_params(&s.added, b) + fitted;
+            let mut r = evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params));
+            if let (true, Some(f)) = (b == gm, gm_fit.as_ref()) {
+                r.0.note.get_or_insert_with(|| f.describe());
+            }
+            r
         })
         .collect();
     let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
@@ -862,6 +900,10 @@ pub(crate) fn add_candidate(
         s.rounds.push(round);
         return false;
     };
+    // an added GNSS error state keeps the prior and white-noise factor it was judged with
+    if let (Block::GnssPositionGm, Some(f)) = (b, s.gnss_error_fit) {
+        f.apply(&mut s.base_opts);
+    }
     let runner_up = round
         .candidates
         .iter()
@@ -874,9 +916,12 @@ pub(crate) fn add_candidate(
         });
     round.added = Some(c.name.clone());
     s.rounds.push(round);
+    // a GNSS-side state's deciding comparison: the single fixes', unless the windows decided
     let heldout = c
         .heldout_fixes
+        .filter(|h| h.verdict == HeldoutVerdict::Better)
         .or(c.heldout)
+        .or(c.heldout_fixes)
         .unwrap_or_else(|| validate::compare_windows(&[], &[]));
     let replaced = prior::upgrades(&s.added, b);
     s.steps.push(Step {

@@ -255,6 +255,9 @@ pub(crate) struct Search {
     pub(crate) late_steps_judged: usize,
     /// Whether the kept bias step was refitted with a candidate ([`refit_step_with_effect`]).
     pub(crate) step_refitted: bool,
+    /// The last round's fitted prior of the GNSS error state candidate
+    /// ([`gnss_error::fit`]): the next round's fit starts there, an added state keeps it.
+    pub(crate) gnss_error_fit: Option<gnss_error::GnssErrorFit>,
 }
 
 impl Search {
@@ -660,5 +663,6 @@ pub(crate) fn start_search(
         time_offset_held: None,
         late_steps_judged: 0,
         step_refitted: false,
+        gnss_error_fit: None,
     })
 }

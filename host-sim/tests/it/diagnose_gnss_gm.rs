@@ -105,3 +105,91 @@ fn gnss_error_innovation_whiteness() {
         }
     }
 }
+
+/// The base model with the GNSS sigmas scaled by `k`.
+fn scaled(o: &RunOptions, k: f64) -> RunOptions {
+    let mut o = o.clone();
+    o.gnss_sigma_scale.horizontal *= k;
+    o.gnss_sigma_scale.vertical *= k;
+    o
+}
+
+/// The model `o` with the GNSS error state of per-axis sigma `sigma` (m, N E D) and
+/// correlation time `t_s`.
+fn with_gm(o: &RunOptions, sigma: [f64; 3], t_s: f64) -> RunOptions {
+    let mut o = options_with(o, &[Block::GnssPositionGm]);
+    o.filter.effects.gnss_position_gm.sigma_m = sigma;
+    o.filter.effects.gnss_position_gm.t_s = t_s;
+    o
+}
+
+/// Prints, for GNSS Gauss-Markov drives and clean drives, the log-likelihood and innovation
+/// whiteness of the white-noise model at the GNSS noise scale that fits best (a grid) against
+/// the model with the GNSS error state at the drive's true Gauss-Markov sigma and correlation
+/// time and at the candidate's default prior, each with the true white-noise scale
+/// (a measurement: docs/diagnose.md, "GNSS-side effects").
+#[test]
+#[ignore = "a measurement: prints likelihood and whiteness with the noise scale in the model"]
+fn gnss_error_against_the_noise_scale() {
+    let seeds: Vec<u64> = std::env::var("GNSS_GM_SEEDS")
+        .ok()
+        .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![100, 101, 102, 103]);
+    let clean = std::env::var("GNSS_GM_CLEAN").is_ok_and(|v| v == "true");
+    for seed in seeds {
+        let e = (!clean).then_some(Effect::GnssCorrelatedError);
+        let (p, m) = prepare(&spec(e, seed));
+        let (w, r) = (m.gnss.white_sigma_ned_m.0, m.gnss.reported_std());
+        let k_true = w[0] / r[0];
+        println!(
+            "{} seed {seed}: GNSS white {:?} m (x{k_true:.2}), GM {:?} m / {:.0} s",
+            e.map_or("clean".to_string(), |e| e.to_string()),
+            w,
+            m.gnss.gm_sigma_ned_m.0,
+            m.gnss.gm_tau_s,
+        );
+        let mut best = (f64::NEG_INFINITY, 0.0);
+        for i in 0..12 {
+            let k = 2f64.powf(i as f64 / 4.0);
+            let ll = residual_stats(
+                &run_filter(&p.case, &scaled(&p.opts, k))
+                    .expect("run")
+                    .innovations,
+            )
+            .log_likelihood;
+            if ll > best.0 {
+                best = (ll, k);
+            }
+        }
+        let k = best.1;
+        let truth = m.gnss.gm_sigma_ned_m.0;
+        let tau = m.gnss.gm_tau_s;
+        let mut rows = vec![
+            (format!("white x{k:.2} (best)"), scaled(&p.opts, k)),
+            (format!("white x{k_true:.2}"), scaled(&p.opts, k_true)),
+            (
+                format!("x{k_true:.2} + gm truth"),
+                with_gm(&scaled(&p.opts, k_true), truth, tau),
+            ),
+            (
+                format!("x{k_true:.2} + gm default"),
+                scaled(&options_with(&p.opts, &[Block::GnssPositionGm]), k_true),
+            ),
+            (
+                format!("x{k:.2} + gm default"),
+                scaled(&options_with(&p.opts, &[Block::GnssPositionGm]), k),
+            ),
+        ];
+        for s in [0.05, 0.1, 0.2] {
+            for t in [100.0, 300.0] {
+                rows.push((
+                    format!("x{k_true:.2} + gm {s}/{t}"),
+                    with_gm(&scaled(&p.opts, k_true), [s, s, s], t),
+                ));
+            }
+        }
+        for (label, o) in rows {
+            println!("{}", whiteness_line(&label, &p.case, &o));
+        }
+    }
+}

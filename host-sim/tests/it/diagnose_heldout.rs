@@ -69,6 +69,12 @@ fn summary(d: &Diagnosis) -> String {
         s.push_str(&format!("  round {i}:\n"));
         for c in &r.candidates {
             s.push_str(&format!("    {} {:?}: {}\n", c.name, c.decision, c.reason));
+            if let Some(n) = &c.note {
+                s.push_str(&format!(
+                    "      ({n}; dLL {:.1})\n",
+                    c.delta_log_likelihood.unwrap_or(f64::NAN)
+                ));
+            }
         }
     }
     for w in &d.warnings {
