@@ -219,17 +219,58 @@ pub fn read_imu_text_rates(path: &Path) -> Result<Channels, ReadError> {
             rec.gaps.gaps.len()
         ));
     }
-    Ok(Channels {
+    let ch = Channels {
         names: IMU_KEYS.iter().map(|s| s.to_string()).collect(),
         kinds: IMU_KEYS.iter().map(|k| kind_of(k)).collect(),
         data,
         tau0_s: dt,
         notes,
-    })
+    };
+    check_sensor_channels_vary(path, &ch)?;
+    Ok(ch)
 }
 
 /// Reads a generic column file.
 pub fn read_columns(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadError> {
+    let ch = read_columns_unchecked(path, spec)?;
+    check_sensor_channels_vary(path, &ch)?;
+    Ok(ch)
+}
+
+/// A gyro or accelerometer channel that holds one value in every sample is not a sensor's
+/// output (a real sensor has at least its quantization noise): a dead channel, or columns of
+/// another file (a GNSS file's constant sigma columns read as IMU increments). Its Allan
+/// deviation is zero and nothing can be fitted, so the reading fails instead of writing
+/// parameters without that sensor.
+fn check_sensor_channels_vary(path: &Path, ch: &Channels) -> Result<(), ReadError> {
+    let constant: Vec<String> = ch
+        .names
+        .iter()
+        .zip(&ch.kinds)
+        .zip(&ch.data)
+        .filter(|((_, k), y)| {
+            matches!(k, SensorKind::Gyro | SensorKind::Accel)
+                && y.len() >= 2
+                && y.iter().all(|v| v.to_bits() == y[0].to_bits())
+        })
+        .map(|((n, _), y)| format!("{n} = {}", y[0]))
+        .collect();
+    if constant.is_empty() {
+        return Ok(());
+    }
+    Err(ReadError::Content {
+        path: path.display().to_string(),
+        message: format!(
+            "the same value in every one of the {} samples on {}: a dead channel or not IMU \
+             data (the IMU text format is `t dtheta_x dtheta_y dtheta_z dv_x dv_y dv_z`, \
+             increments in rad and m/s); the Allan deviation of a constant is zero",
+            ch.data.first().map_or(0, Vec::len),
+            constant.join(", ")
+        ),
+    })
+}
+
+fn read_columns_unchecked(path: &Path, spec: &ColumnSpec) -> Result<Channels, ReadError> {
     let cols: Vec<String> = spec
         .columns
         .iter()

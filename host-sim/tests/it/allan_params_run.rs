@@ -216,3 +216,40 @@ fn a_single_channel_takes_its_unit_or_prints_si_with_si_headings() {
 fn rate_sqrt(rate_hz: f64) -> f64 {
     rate_hz.sqrt()
 }
+
+/// A GNSS file given to `allan` as the IMU file (both are seven numeric columns): its
+/// constant sigma columns, read as accelerometer increments, fail the reading with the file
+/// and the channels named; nothing is written.
+#[test]
+fn allan_refuses_a_gnss_file_given_as_the_imu_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let gnss = dir.path().join("gnss.txt");
+    let lines: String = (0..600)
+        .map(|i| {
+            let d = f64::from(i) * 1e-7;
+            format!(
+                "{} {} {} {} 0.01 0.01 0.02\n",
+                200000 + i,
+                48.199 + d,
+                16.37 - d,
+                220.0 + d * 1e3
+            )
+        })
+        .collect();
+    std::fs::write(&gnss, lines).unwrap();
+    let out = dir.path().join("allan");
+    let ran = HOST_SIM.run([
+        "allan",
+        gnss.to_str().unwrap(),
+        "--out-dir",
+        out.to_str().unwrap(),
+        "--no-plot",
+        "--quiet",
+    ]);
+    println!("{}\n{}", ran.stdout, ran.stderr);
+    assert!(!ran.ok, "a GNSS file analysed as IMU data with exit 0");
+    assert!(ran.stderr.contains("gnss.txt"), "{}", ran.stderr);
+    assert!(ran.stderr.contains("not IMU data"), "{}", ran.stderr);
+    assert!(ran.stderr.contains("ax = 0.01"), "{}", ran.stderr);
+    assert!(!out.join("allan_params.toml").exists());
+}
