@@ -519,15 +519,17 @@ fn round_exact(y: f64) -> Option<u64> {
         return None;
     }
     // the integer part (y >= 0 and below 2^52: truncation is the floor, and exact; no
-    // call to a software `floor`)
-    let f = (y as u64) as f64;
+    // call to a software `floor`). Through i64, which x86-64 converts to and from f64 in
+    // one instruction each (u64 takes a sequence of them); the value fits either way.
+    let n = y as i64;
+    let f = n as f64;
     // exact: f and y share the binade or f is smaller with coarser-or-equal spacing
     let r = y - f;
     let ulp = f64::from_bits(y.to_bits() + 1) - y;
     if (r - 0.5).abs() <= ulp {
         return None;
     }
-    let n = f as u64;
+    let n = n.unsigned_abs();
     Some(if r > 0.5 { n + 1 } else { n })
 }
 
