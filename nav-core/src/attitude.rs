@@ -8,7 +8,7 @@
 //! of that rotation (the exponential map). ZYX Euler angles are `[roll, pitch, yaw]` in rad with
 //! C_b^n = Rz(yaw) Ry(pitch) Rx(roll).
 
-use libm::{atan2, cos, sin, sqrt};
+use libm::{atan2, cos, sin, sincos, sqrt};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 /// Squared rotation angle (rad^2) below which [`quat_from_rotvec`] uses its series: with
@@ -130,7 +130,8 @@ pub fn euler_zyx_from_dcm(c: &Matrix3<f64>) -> [f64; 3] {
     } else {
         atan2(c21, c11)
     };
-    let (sy, cy) = (sin(yaw), cos(yaw));
+    // one argument reduction for both (the same bits as `sin` and `cos` apart)
+    let (sy, cy) = sincos(yaw);
     // Rz(yaw)^T C = Ry(pitch) Rx(roll): row 2 is [0, cos roll, -sin roll], row 1 starts with
     // cos pitch and row 3 with -sin pitch.
     let roll = atan2(sy * c13 - cy * c23, cy * c22 - sy * c12);
@@ -215,6 +216,40 @@ pub fn renormalized(q: Quaternion<f64>) -> Quaternion<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `euler_zyx_from_dcm` takes sine and cosine of the yaw from one `sincos`: the same bits
+    /// as `sin` and `cos` apart (the angles, and so `nav.txt`, do not change), over every
+    /// quadrant, the argument-reduction boundaries, tiny angles and the non-finite values.
+    #[test]
+    fn sincos_equals_sin_and_cos_bit_for_bit() {
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let check = |x: f64| {
+            let (s, c) = sincos(x);
+            assert!(same(s, sin(x)) && same(c, cos(x)), "{x:e}");
+        };
+        let fixed = [
+            0.0,
+            -0.0,
+            1e-300,
+            1.0e-8,
+            1.4e-8,
+            1.5e-8,
+            2.0e-8,
+            core::f64::consts::FRAC_PI_4,
+            core::f64::consts::PI,
+            -core::f64::consts::PI,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        fixed.into_iter().for_each(check);
+        let mut x = 1.0e-9_f64;
+        while x < 10.0 {
+            [x, -x, x.next_up(), x.next_down()]
+                .into_iter()
+                .for_each(check);
+            x *= 1.000_37;
+        }
+    }
 
     #[test]
     fn rotvec_round_trip_small_and_large_angles() {

@@ -216,20 +216,20 @@ impl<const CAP: usize> LineBuf<CAP> {
 
     /// Appends an unsigned integer.
     pub fn push_u64<W: Write + ?Sized>(&mut self, w: &mut W, v: u64) -> std::io::Result<()> {
-        let mut tmp = [0u8; 20];
-        let mut i = tmp.len();
-        let mut v = v;
-        loop {
-            i -= 1;
-            if let Some(d) = tmp.get_mut(i) {
-                *d = b'0' + (v % 10) as u8;
-            }
-            v /= 10;
-            if v == 0 || i == 0 {
-                break;
+        // the digits, two at a time from the last, at the start of a scratch of fixed size,
+        // which goes to the buffer in one fixed-size move when the buffer has room for it
+        let n = 1 + POW10_U64.iter().skip(1).take_while(|&&p| v >= p).count();
+        let mut tmp = [b'0'; 20];
+        let mut len = 0usize;
+        put_width_digits(&mut tmp, &mut len, v, n).unwrap_or(());
+        if self.len + tmp.len() <= CAP {
+            if let Some(dst) = self.buf.get_mut(self.len..self.len + tmp.len()) {
+                dst.copy_from_slice(&tmp);
+                self.len += len;
+                return Ok(());
             }
         }
-        self.push_bytes(w, tmp.get(i..).unwrap_or(&[]))
+        self.push_bytes(w, tmp.get(..len).unwrap_or(&[]))
     }
 
     /// Appends `x` as `format!("{x:.prec$}")` writes it (`prec` decimals, rounded from the
@@ -270,9 +270,17 @@ impl<const CAP: usize> LineBuf<CAP> {
 /// Whether `x` (finite, non-zero) may be an exact tie between two shortest candidates, where
 /// the shortest-digit crates and `Display` may pick different digits: its exact decimal
 /// expansion has at most 18 significant digits, or it is an integer of 2^53 or more.
+#[inline(always)]
 fn maybe_tie(x: f64) -> bool {
     let bits = x.to_bits();
     let biased = ((bits >> 52) & 0x7ff) as i32;
+    // The common case first, in a few instructions: a normal x = m 2^e whose significand m
+    // (bit 52 set, so at most 52 trailing zeros) reduced by its trailing zeros leaves
+    // k = 1075 - biased - tz >= 27 binary places after the point, more than 18 digits.
+    let tz = (bits | (1u64 << 52)).trailing_zeros() as i32;
+    if biased != 0 && 1075 - biased - tz >= 27 {
+        return false;
+    }
     let frac = bits & ((1u64 << 52) - 1);
     let (m, e) = if biased == 0 {
         (frac, -1074)
@@ -511,15 +519,17 @@ fn round_exact(y: f64) -> Option<u64> {
         return None;
     }
     // the integer part (y >= 0 and below 2^52: truncation is the floor, and exact; no
-    // call to a software `floor`)
-    let f = (y as u64) as f64;
+    // call to a software `floor`). Through i64, which x86-64 converts to and from f64 in
+    // one instruction each (u64 takes a sequence of them); the value fits either way.
+    let n = y as i64;
+    let f = n as f64;
     // exact: f and y share the binade or f is smaller with coarser-or-equal spacing
     let r = y - f;
     let ulp = f64::from_bits(y.to_bits() + 1) - y;
     if (r - 0.5).abs() <= ulp {
         return None;
     }
-    let n = f as u64;
+    let n = n.unsigned_abs();
     Some(if r > 0.5 { n + 1 } else { n })
 }
 
@@ -805,6 +815,30 @@ mod tests {
         }
         let mut out = [0u8; FAST_MAX];
         assert_eq!(copy_short(&mut out, &src), None);
+    }
+
+    /// Integers are `Display`'s at every digit count, in a buffer with room and in one that
+    /// has to be flushed first.
+    #[test]
+    fn integers_match_display() {
+        let mut vals = vec![0u64, 1, 9, 10, 99, 100, 2227, u64::MAX, u64::MAX - 1];
+        for k in 1..20 {
+            let p = 10u64.pow(k);
+            vals.extend([p - 1, p, p + 1]);
+        }
+        for v in vals {
+            let mut out = Vec::new();
+            let mut lb = LineBuf::new();
+            lb.push_u64(&mut out, v).unwrap();
+            lb.flush(&mut out).unwrap();
+            assert_eq!(String::from_utf8(out).unwrap(), v.to_string());
+            let mut out = Vec::new();
+            let mut small = LineBuf::<24>::new_block();
+            small.push_bytes(&mut out, b"0123456789").unwrap();
+            small.push_u64(&mut out, v).unwrap();
+            small.flush(&mut out).unwrap();
+            assert_eq!(String::from_utf8(out).unwrap(), format!("0123456789{v}"));
+        }
     }
 
     #[test]

@@ -814,22 +814,37 @@ pub fn push_nav_line<W: Write + ?Sized, const CAP: usize>(
     w: &mut W,
     n: &NavSolution,
 ) -> std::io::Result<()> {
-    lb.push_u64(w, u64::from(n.week))?;
-    lb.push_spaced_f64s(
-        w,
-        &[
-            n.t_s,
-            n.lat_rad.to_degrees(),
-            n.lon_rad.to_degrees(),
-            n.h_m,
-            n.vel_ned_mps[0],
-            n.vel_ned_mps[1],
-            n.vel_ned_mps[2],
-            n.rpy_rad[0].to_degrees(),
-            n.rpy_rad[1].to_degrees(),
-            n.rpy_rad[2].to_degrees(),
-        ],
-    )?;
+    push_nav_values(lb, w, n.week, &nav_line_values(n))
+}
+
+/// The numbers of the `nav.txt` line of `n` after the week, in the order written: time (s of
+/// week), latitude and longitude (deg), height (m), NED velocity (m/s), roll, pitch and yaw
+/// (deg). What a writer of `nav.txt` on another thread needs of a solution (80 bytes).
+pub fn nav_line_values(n: &NavSolution) -> [f64; 10] {
+    [
+        n.t_s,
+        n.lat_rad.to_degrees(),
+        n.lon_rad.to_degrees(),
+        n.h_m,
+        n.vel_ned_mps[0],
+        n.vel_ned_mps[1],
+        n.vel_ned_mps[2],
+        n.rpy_rad[0].to_degrees(),
+        n.rpy_rad[1].to_degrees(),
+        n.rpy_rad[2].to_degrees(),
+    ]
+}
+
+/// Appends the `nav.txt` line of GPS week `week` and the numbers `v` (see
+/// [`nav_line_values`]) to `lb`, as [`push_nav_line`] does.
+pub fn push_nav_values<W: Write + ?Sized, const CAP: usize>(
+    lb: &mut super::numfmt::LineBuf<CAP>,
+    w: &mut W,
+    week: u16,
+    v: &[f64; 10],
+) -> std::io::Result<()> {
+    lb.push_u64(w, u64::from(week))?;
+    lb.push_spaced_f64s(w, v)?;
     lb.push_byte(w, b'\n')
 }
 

@@ -178,18 +178,22 @@ impl Out {
     }
 }
 
-/// A record for the writer thread.
+/// A record for the writer thread (88 bytes: the `nav.txt` line's numbers, the rarer
+/// records boxed).
 enum Rec {
-    /// A line of `nav.txt`.
-    Nav(NavSolution),
-    /// A line of `std.txt` and of `bias.txt` (the header of `bias.txt` before the first);
-    /// boxed so that the common `Nav` message stays small.
+    /// A line of `nav.txt`: its numbers ([`nav_io::text::nav_line_values`]) and whether the
+    /// solution is finite ([`solution_is_finite`]).
+    Nav([f64; 10], bool),
+    /// A line of `std.txt` and of `bias.txt` (the header of `bias.txt` before the first).
     Epoch(Box<EpochRecord>),
     /// A line of `innovations.txt`.
-    Inn(InnovationRecord),
+    Inn(Box<InnovationRecord>),
     /// Raw bytes for `std.txt` (its header).
     StdRaw(Vec<u8>),
 }
+
+// a batch of records stays small (the common `Nav` record is not padded to a rare one's size)
+const _: () = assert!(std::mem::size_of::<Rec>() <= 88);
 
 /// The files and their formatting, owned by the writer thread.
 struct Writer {
@@ -212,7 +216,7 @@ impl Writer {
         let mut l = std::mem::take(&mut self.line);
         l.clear();
         let res = match r {
-            Rec::Nav(s) => self.nav_line(s),
+            Rec::Nav(v, finite) => self.nav_line(v, *finite),
             Rec::Epoch(e) => self.epoch_lines(&mut l, e),
             Rec::Inn(i) => output::innovation_line(&mut l, i)
                 .map_err(|e| self.inn.err(e))
@@ -223,19 +227,17 @@ impl Writer {
         res
     }
 
-    fn nav_line(&mut self, s: &NavSolution) -> Result<(), RunError> {
-        if self.nav.cut.is_none() && !solution_is_finite(s) {
+    fn nav_line(&mut self, v: &[f64; 10], finite: bool) -> Result<(), RunError> {
+        if self.nav.cut.is_none() && !finite {
             // the bytes written plus those still in the block
             self.nav.cut = Some(self.nav.n + self.nav_block.pending() as u64);
         }
         let Out { w, n, .. } = &mut self.nav;
-        let r = nav_io::text::push_nav_line(
+        let r = nav_io::text::push_nav_values(
             &mut *self.nav_block,
             &mut Counted { w, n },
-            &NavSolution {
-                week: self.week,
-                ..*s
-            },
+            self.week,
+            v,
         );
         r.map_err(|e| self.nav.err(e))?;
         self.nav_sync.poke(self.nav.n);
@@ -576,7 +578,10 @@ impl RunSink for FileSink<'_> {
         if !dec.take(s.t_s) {
             return Ok(());
         }
-        self.push(Rec::Nav(*s))?;
+        self.push(Rec::Nav(
+            nav_io::text::nav_line_values(s),
+            solution_is_finite(s),
+        ))?;
         self.nav_count += 1;
         self.last_nav_t = s.t_s;
         Ok(())
@@ -593,7 +598,7 @@ impl RunSink for FileSink<'_> {
     }
 
     fn innovation(&mut self, r: &InnovationRecord) -> Result<(), RunError> {
-        self.push(Rec::Inn(*r))?;
+        self.push(Rec::Inn(Box::new(*r)))?;
         self.residuals.push(r);
         if self.truth.is_none() && r.used == FixUse::Withheld {
             for e in metrics::errors_vs_fixes(std::iter::once(r), |_| true) {
