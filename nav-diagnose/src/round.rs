@@ -488,48 +488,19 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
     }
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
-    let mut eligible: Vec<usize> = (0..results.len())
-        .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
-        .collect();
-    // a GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
-    // bias step's): it yields to a specific effect that pays with significantly lower
-    // held-out windows ([`yields_to`])
-    let yielded: Vec<(usize, String)> = eligible
-        .iter()
-        .filter_map(|&i| Some((i, yields_to(&results[i].0, &results)?)))
-        .collect();
-    for (i, why) in yielded {
-        eligible.retain(|&j| j != i);
-        let c = &mut results[i].0;
-        c.reason = format!("{}; {why}", c.reason);
-    }
+    let eligible = eligible_after_yields(&mut results);
     let mut round = Round {
         model_effects: validate::names(&s.added),
         log_likelihood: s.cur.errors.log_likelihood,
         candidates: Vec::new(),
         added: None,
         ambiguous: None,
-        unexplained: None,
+        unexplained: unexplained_gain(&results, &eligible),
     };
-    // the strongest paying candidate not eligible: gain no effect explains
-    let best_eligible = eligible.first().map(|&j| key(&results[j].0));
     let best_eligible_gain = eligible.first().map(|&j| {
         let c = &results[j].0;
         (key(c), c.heldout.map_or(f64::NEG_INFINITY, |h| h.gain))
     });
-    if let Some((c, _)) = results
-        .iter()
-        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))
-    {
-        if best_eligible.is_none_or(|b| b < key(c)) {
-            round.unexplained = Some(format!(
-                "{} ({:.1} nats): {}",
-                c.name,
-                key(c),
-                c.refused.as_deref().unwrap_or("")
-            ));
-        }
-    }
     if try_noise(
         ctx,
         s,
@@ -555,6 +526,49 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     };
     let pick = pick_ambiguous(ctx, s, n_meas, &results, &eligible, &mut round);
     add_candidate(s, results, top, pick, round)
+}
+
+/// The indices of the eligible candidates of a round (`results` sorted by evidence, strongest
+/// first) once a GNSS error state has yielded: it absorbs any slowly varying misfit (a lever
+/// arm's, a clock drift's, a bias step's), so it yields to a specific effect that pays with
+/// significantly lower held-out windows ([`yields_to`]; the reason is added to its own).
+fn eligible_after_yields(results: &mut [(CandidateEvidence, Option<Eval>)]) -> Vec<usize> {
+    let mut eligible: Vec<usize> = (0..results.len())
+        .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
+        .collect();
+    let all: &[(CandidateEvidence, Option<Eval>)] = results;
+    let yielded: Vec<(usize, String)> = eligible
+        .iter()
+        .filter_map(|&i| Some((i, yields_to(&all[i].0, all)?)))
+        .collect();
+    for (i, why) in yielded {
+        eligible.retain(|&j| j != i);
+        let c = &mut results[i].0;
+        c.reason = format!("{}; {why}", c.reason);
+    }
+    eligible
+}
+
+/// The strongest paying candidate that is not eligible, when it out-gains every eligible
+/// one: a likelihood gain no effect of the vocabulary explains (name, evidence in nats, why
+/// refused).
+fn unexplained_gain(
+    results: &[(CandidateEvidence, Option<Eval>)],
+    eligible: &[usize],
+) -> Option<String> {
+    let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
+    let best_eligible = eligible.first().map(|&j| key(&results[j].0));
+    let (c, _) = results
+        .iter()
+        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))?;
+    best_eligible.is_none_or(|b| b < key(c)).then(|| {
+        format!(
+            "{} ({:.1} nats): {}",
+            c.name,
+            key(c),
+            c.refused.as_deref().unwrap_or("")
+        )
+    })
 }
 
 /// The tuned noise, pending, competes in the round: adopted when its evidence beats the best
