@@ -418,6 +418,42 @@ pub(crate) fn drift_over_added_offset(
     }
 }
 
+/// A GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
+/// bias step's): it yields to a specific effect that pays with significantly lower held-out
+/// windows ([`yields_to`]); the yielding candidates leave `eligible`, the reason noted.
+fn drop_yielded(eligible: &mut Vec<usize>, results: &mut [(CandidateEvidence, Option<Eval>)]) {
+    let yielded: Vec<(usize, String)> = eligible
+        .iter()
+        .filter_map(|&i| Some((i, yields_to(&results[i].0, results)?)))
+        .collect();
+    for (i, why) in yielded {
+        eligible.retain(|&j| j != i);
+        let c = &mut results[i].0;
+        c.reason = format!("{}; {why}", c.reason);
+    }
+}
+
+/// The strongest paying candidate of `results` (sorted by evidence) that is not eligible,
+/// when its evidence beats the best eligible one's (`best_eligible`, nats): gain no effect
+/// explains, in words.
+fn unexplained_gain(
+    results: &[(CandidateEvidence, Option<Eval>)],
+    best_eligible: Option<f64>,
+) -> Option<String> {
+    let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
+    let (c, _) = results
+        .iter()
+        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))?;
+    best_eligible.is_none_or(|b| b < key(c)).then(|| {
+        format!(
+            "{} ({:.1} nats): {}",
+            c.name,
+            key(c),
+            c.refused.as_deref().unwrap_or("")
+        )
+    })
+}
+
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
@@ -491,18 +527,7 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     let mut eligible: Vec<usize> = (0..results.len())
         .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
         .collect();
-    // a GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
-    // bias step's): it yields to a specific effect that pays with significantly lower
-    // held-out windows ([`yields_to`])
-    let yielded: Vec<(usize, String)> = eligible
-        .iter()
-        .filter_map(|&i| Some((i, yields_to(&results[i].0, &results)?)))
-        .collect();
-    for (i, why) in yielded {
-        eligible.retain(|&j| j != i);
-        let c = &mut results[i].0;
-        c.reason = format!("{}; {why}", c.reason);
-    }
+    drop_yielded(&mut eligible, &mut results);
     let mut round = Round {
         model_effects: validate::names(&s.added),
         log_likelihood: s.cur.errors.log_likelihood,
@@ -511,25 +536,11 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         ambiguous: None,
         unexplained: None,
     };
-    // the strongest paying candidate not eligible: gain no effect explains
-    let best_eligible = eligible.first().map(|&j| key(&results[j].0));
     let best_eligible_gain = eligible.first().map(|&j| {
         let c = &results[j].0;
         (key(c), c.heldout.map_or(f64::NEG_INFINITY, |h| h.gain))
     });
-    if let Some((c, _)) = results
-        .iter()
-        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))
-    {
-        if best_eligible.is_none_or(|b| b < key(c)) {
-            round.unexplained = Some(format!(
-                "{} ({:.1} nats): {}",
-                c.name,
-                key(c),
-                c.refused.as_deref().unwrap_or("")
-            ));
-        }
-    }
+    round.unexplained = unexplained_gain(&results, best_eligible_gain.map(|(e, _)| e));
     if try_noise(
         ctx,
         s,
