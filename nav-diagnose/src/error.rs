@@ -46,9 +46,16 @@ pub enum DiagnoseError {
     /// The diagnosis could not be written as JSON (`diagnosis.json`).
     #[error("diagnosis.json")]
     Json(#[from] serde_json::Error),
-    /// The tuned GNSS sigma scale could not be written as TOML (`augmented.toml`).
-    #[error("GNSS sigma_scale")]
-    SigmaScale(#[source] toml::ser::Error),
+    /// A tuned `[gnss]` key (`sigma_scale`, `error_state`) could not be written as TOML
+    /// (`augmented.toml`).
+    #[error("gnss.{key} of augmented.toml")]
+    GnssKey {
+        /// The key of `[gnss]`.
+        key: &'static str,
+        /// The serialiser's error.
+        #[source]
+        source: toml::ser::Error,
+    },
 }
 
 /// `error: its source: ...`: an error with its chain of sources, each once (what

@@ -223,6 +223,10 @@ pub(crate) fn finish(
     let p = ctx.p;
     let final_gnss_sigma_scale = (final_opts.gnss_sigma_scale != p.opts.gnss_sigma_scale)
         .then_some(final_opts.gnss_sigma_scale);
+    let final_gm = final_opts.filter.effects.gnss_position_gm;
+    let final_gnss_error_prior = (prior::carried(&final_opts, Block::GnssPositionGm)
+        && final_gm != p.opts.filter.effects.gnss_position_gm)
+        .then(|| nav_io::GnssErrorPrior::from(final_gm));
     let changed = final_opts.filter != p.opts.filter
         || final_gnss_sigma_scale.is_some()
         || !s.added.is_empty()
@@ -296,6 +300,7 @@ pub(crate) fn finish(
             noise_tuning: s.noise_tuning,
             final_noise_psd,
             final_gnss_sigma_scale,
+            final_gnss_error_prior,
             steps: s.steps,
             undetected,
             unexplained,

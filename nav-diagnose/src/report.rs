@@ -380,7 +380,8 @@ fn evidence_section(s: &mut String, dg: &Diagnosis) {
 /// added lever-arm correction folded into `gnss.lever_arm_m`, the time offset into
 /// `imu.time_offset_s` (the IMU on the GNSS clock, so the run's output is on the GNSS clock),
 /// the tuned noise as SI PSDs in `[noise.accel]`/`[noise.gyro]`, the tuned GNSS noise scale as
-/// `gnss.sigma_scale` (times the configuration's), and its relative paths made
+/// `gnss.sigma_scale` (times the configuration's), the fitted prior of an added GNSS error
+/// state as `gnss.error_state`, and its relative paths made
 /// absolute; a comment header lists every
 /// added effect with its estimate; the other added effects (IMU effect blocks) are listed in
 /// the top-level `effects` key, so `host-sim run --config augmented.toml` runs the augmented
@@ -426,7 +427,7 @@ fn absolute_paths(doc: &mut toml::Table, config: &Path) {
 }
 
 /// The lever-arm estimate added to `gnss.lever_arm_m`, the tuned GNSS noise scale as
-/// `gnss.sigma_scale`.
+/// `gnss.sigma_scale`, the fitted GNSS error state prior as `gnss.error_state`.
 fn fold_gnss(doc: &mut toml::Table, d: &Diagnosis) -> Result<(), DiagnoseError> {
     let gnss = doc
         .entry("gnss")
@@ -453,8 +454,19 @@ fn fold_gnss(doc: &mut toml::Table, d: &Diagnosis) -> Result<(), DiagnoseError> 
         if let Some(s) = d.final_gnss_sigma_scale {
             // the configuration's scale times the tuned GNSS noise scale: one number when
             // horizontal and vertical agree, else the table form
-            let v = toml::Value::try_from(s).map_err(DiagnoseError::SigmaScale)?;
+            let v = toml::Value::try_from(s).map_err(|source| DiagnoseError::GnssKey {
+                key: "sigma_scale",
+                source,
+            })?;
             g.insert("sigma_scale".into(), v);
+        }
+        if let Some(e) = d.final_gnss_error_prior {
+            // the fitted prior of the GNSS error state, which the `effects` key adds
+            let v = toml::Value::try_from(e).map_err(|source| DiagnoseError::GnssKey {
+                key: "error_state",
+                source,
+            })?;
+            g.insert("error_state".into(), v);
         }
     }
     Ok(())

@@ -418,6 +418,42 @@ pub(crate) fn drift_over_added_offset(
     }
 }
 
+/// A GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
+/// bias step's): it yields to a specific effect that pays with significantly lower held-out
+/// windows ([`yields_to`]); the yielding candidates leave `eligible`, the reason noted.
+fn drop_yielded(eligible: &mut Vec<usize>, results: &mut [(CandidateEvidence, Option<Eval>)]) {
+    let yielded: Vec<(usize, String)> = eligible
+        .iter()
+        .filter_map(|&i| Some((i, yields_to(&results[i].0, results)?)))
+        .collect();
+    for (i, why) in yielded {
+        eligible.retain(|&j| j != i);
+        let c = &mut results[i].0;
+        c.reason = format!("{}; {why}", c.reason);
+    }
+}
+
+/// The strongest paying candidate of `results` (sorted by evidence) that is not eligible,
+/// when its evidence beats the best eligible one's (`best_eligible`, nats): gain no effect
+/// explains, in words.
+fn unexplained_gain(
+    results: &[(CandidateEvidence, Option<Eval>)],
+    best_eligible: Option<f64>,
+) -> Option<String> {
+    let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
+    let (c, _) = results
+        .iter()
+        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))?;
+    best_eligible.is_none_or(|b| b < key(c)).then(|| {
+        format!(
+            "{} ({:.1} nats): {}",
+            c.name,
+            key(c),
+            c.refused.as_deref().unwrap_or("")
+        )
+    })
+}
+
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
@@ -488,19 +524,23 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
     }
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
-    let eligible = eligible_after_yields(&mut results);
+    let mut eligible: Vec<usize> = (0..results.len())
+        .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
+        .collect();
+    drop_yielded(&mut eligible, &mut results);
     let mut round = Round {
         model_effects: validate::names(&s.added),
         log_likelihood: s.cur.errors.log_likelihood,
         candidates: Vec::new(),
         added: None,
         ambiguous: None,
-        unexplained: unexplained_gain(&results, &eligible),
+        unexplained: None,
     };
     let best_eligible_gain = eligible.first().map(|&j| {
         let c = &results[j].0;
         (key(c), c.heldout.map_or(f64::NEG_INFINITY, |h| h.gain))
     });
+    round.unexplained = unexplained_gain(&results, best_eligible_gain.map(|(e, _)| e));
     if try_noise(
         ctx,
         s,
@@ -526,49 +566,6 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     };
     let pick = pick_ambiguous(ctx, s, n_meas, &results, &eligible, &mut round);
     add_candidate(s, results, top, pick, round)
-}
-
-/// The indices of the eligible candidates of a round (`results` sorted by evidence, strongest
-/// first) once a GNSS error state has yielded: it absorbs any slowly varying misfit (a lever
-/// arm's, a clock drift's, a bias step's), so it yields to a specific effect that pays with
-/// significantly lower held-out windows ([`yields_to`]; the reason is added to its own).
-fn eligible_after_yields(results: &mut [(CandidateEvidence, Option<Eval>)]) -> Vec<usize> {
-    let mut eligible: Vec<usize> = (0..results.len())
-        .filter(|&i| results[i].0.decision == Decision::Eligible && results[i].1.is_some())
-        .collect();
-    let all: &[(CandidateEvidence, Option<Eval>)] = results;
-    let yielded: Vec<(usize, String)> = eligible
-        .iter()
-        .filter_map(|&i| Some((i, yields_to(&all[i].0, all)?)))
-        .collect();
-    for (i, why) in yielded {
-        eligible.retain(|&j| j != i);
-        let c = &mut results[i].0;
-        c.reason = format!("{}; {why}", c.reason);
-    }
-    eligible
-}
-
-/// The strongest paying candidate that is not eligible, when it out-gains every eligible
-/// one: a likelihood gain no effect of the vocabulary explains (name, evidence in nats, why
-/// refused).
-fn unexplained_gain(
-    results: &[(CandidateEvidence, Option<Eval>)],
-    eligible: &[usize],
-) -> Option<String> {
-    let key = |c: &CandidateEvidence| c.evidence.unwrap_or(f64::NEG_INFINITY);
-    let best_eligible = eligible.first().map(|&j| key(&results[j].0));
-    let (c, _) = results
-        .iter()
-        .find(|(c, _)| c.decision != Decision::Eligible && c.evidence.is_some_and(|e| e > 0.0))?;
-    best_eligible.is_none_or(|b| b < key(c)).then(|| {
-        format!(
-            "{} ({:.1} nats): {}",
-            c.name,
-            key(c),
-            c.refused.as_deref().unwrap_or("")
-        )
-    })
 }
 
 /// The tuned noise, pending, competes in the round: adopted when its evidence beats the best

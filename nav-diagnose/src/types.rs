@@ -225,6 +225,11 @@ pub struct Diagnosis {
     /// The final model's GNSS `sigma_scale` (the configuration's times the tuned GNSS noise
     /// scale) when the tuning changed it.
     pub final_gnss_sigma_scale: Option<nav_io::SigmaScale>,
+    /// The final model's GNSS error state prior (`gnss_position_gm`: per-axis sigma, m;
+    /// correlation time, s) when the model carries the state with a prior other than the
+    /// configuration's (the fitted one): `[gnss] error_state` of `augmented.toml`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub final_gnss_error_prior: Option<nav_io::GnssErrorPrior>,
     /// Every model change in order, with its errors (the first is the configuration).
     pub steps: Vec<Step>,
     /// Effects not added, with their detectability bounds on this drive.

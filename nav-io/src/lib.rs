@@ -69,10 +69,10 @@ pub use pos::{
 };
 pub use runcfg::{
     check_leap_seconds, did_you_mean, parse_run_config, read_run_config, write_run_config,
-    AccelNoiseConfig, AlignSpec, BiasModel, GivenState, GnssFileKind, GnssSource, GyroNoiseConfig,
-    ImuChecksConfig, ImuClassName, ImuFileKind, ImuSource, InitConfig, InitMode, NoiseConfig,
-    RunConfig, RunInputs, ScaleNoiseConfig, SigmaScale, TruthData, TruthFileKind, TruthSource,
-    MAX_LEVER_ARM_M, MAX_TIME_OFFSET_S,
+    AccelNoiseConfig, AlignSpec, BiasModel, GivenState, GnssErrorPrior, GnssFileKind, GnssSource,
+    GyroNoiseConfig, ImuChecksConfig, ImuClassName, ImuFileKind, ImuSource, InitConfig, InitMode,
+    NoiseConfig, RunConfig, RunInputs, ScaleNoiseConfig, SigmaScale, TruthData, TruthFileKind,
+    TruthSource, MAX_LEVER_ARM_M, MAX_TIME_OFFSET_S,
 };
 pub use tag::{read_time_tag, tick_clock_fit, TickClockFit, TimeTag};
 pub use text::{

@@ -19,6 +19,7 @@ pub use super::noisecfg::{
 use super::pos::{read_rtklib_pos, PosOptions};
 use super::text::{read_nav_text, ImuRecord};
 use super::IoError;
+use nav_core::config::GnssErrorNoise;
 use nav_core::types::{GnssFix, NavSolution};
 use std::path::{Path, PathBuf};
 
@@ -227,6 +228,46 @@ impl SigmaScale {
     }
 }
 
+/// The prior of the GNSS error state (`[gnss] error_state`): the first-order Gauss-Markov
+/// antenna-position error of the `gnss_position_gm` effect, used when that effect is in the
+/// model. In TOML `error_state = { sigma_m = [0.08, 0.08, 0.16], correlation_time_s = 120.0 }`.
+/// Absent: the filter's default (0.5, 0.5, 1.0 m; 300 s).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GnssErrorPrior {
+    /// Stationary (and initial) 1-sigma per NED axis (north, east, down), m; each > 0.
+    pub sigma_m: [f64; 3],
+    /// Correlation time, s; > 0.
+    pub correlation_time_s: f64,
+}
+
+impl GnssErrorPrior {
+    /// Whether every sigma and the correlation time are finite and > 0.
+    pub fn is_valid(&self) -> bool {
+        self.sigma_m
+            .iter()
+            .chain(core::iter::once(&self.correlation_time_s))
+            .all(|v| v.is_finite() && *v > 0.0)
+    }
+
+    /// The prior as the filter's effect configuration.
+    pub fn noise(&self) -> GnssErrorNoise {
+        GnssErrorNoise {
+            sigma_m: self.sigma_m,
+            t_s: self.correlation_time_s,
+        }
+    }
+}
+
+impl From<GnssErrorNoise> for GnssErrorPrior {
+    fn from(n: GnssErrorNoise) -> Self {
+        Self {
+            sigma_m: n.sigma_m,
+            correlation_time_s: n.t_s,
+        }
+    }
+}
+
 /// Where the GNSS fixes come from and how to use them.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -257,6 +298,10 @@ pub struct GnssSource {
     /// axes, or `{ horizontal = .., vertical = .. }` ([`SigmaScale`]).
     #[serde(default)]
     pub sigma_scale: SigmaScale,
+    /// Prior of the GNSS error state of the `gnss_position_gm` effect ([`GnssErrorPrior`]:
+    /// per-axis sigma in m, correlation time in s); absent: the filter's default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_state: Option<GnssErrorPrior>,
     /// Innovation gate of the filter: "off", or the acceptance probability "0.95", "0.99",
     /// "0.999", "0.9999" (default: the filter's, 0.9999).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -515,7 +560,7 @@ impl RunConfig {
     }
 
     /// The problems of the IMU and GNSS inputs' settings (formats and their mappings, the
-    /// mounting, time offsets, fix quality, lever arm, sigma scale), handed to `push` as
+    /// mounting, time offsets, fix quality, lever arm, sigma scale, GNSS error state prior), handed to `push` as
     /// (table, key, message).
     fn input_problems(&self, push: &mut impl FnMut(&'static str, &'static str, String)) {
         if self.imu.format == ImuFileKind::Csv && self.imu.csv.is_none() {
@@ -581,6 +626,13 @@ impl RunConfig {
                 "gnss",
                 "sigma_scale",
                 "gnss.sigma_scale must be > 0 (horizontal and vertical)".into(),
+            );
+        }
+        if self.gnss.error_state.is_some_and(|e| !e.is_valid()) {
+            push(
+                "gnss",
+                "error_state",
+                "gnss.error_state: sigma_m and correlation_time_s must be finite and > 0".into(),
             );
         }
     }

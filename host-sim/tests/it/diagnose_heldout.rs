@@ -232,6 +232,131 @@ fn gnss_correlated_error_of_named_size_is_named_first() {
     assert!(first.heldout.of_single_fixes, "{}", summary(&d));
 }
 
+/// The drive of `dir` (written by [`generate`]) as a project run configuration `run.toml`
+/// with the declared model of its `kf-gins.yaml` (given initial state and sigmas, white noise,
+/// 1 h Gauss-Markov biases and their initial sigmas), so that `host-sim diagnose` writes an
+/// `augmented.toml` for it.
+fn run_toml_of_drive(dir: &std::path::Path) -> std::path::PathBuf {
+    let k = nav_io::read_kf_gins_yaml(dir.join("kf-gins.yaml")).expect("kf-gins.yaml");
+    let n = &k.imunoise;
+    // mGal -> ug
+    let ug = |mgal: f64| mgal * 1e-5 / 9.806_65e-6;
+    let text = format!(
+        "name = \"gnss-gm-loop\"\nstart_s = {start}\n\
+         [imu]\npath = \"imu.txt\"\nformat = \"text\"\n\
+         [gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n\
+         [truth]\npath = \"truth.nav\"\nformat = \"nav_text\"\n\
+         [init]\npos_std_m = {pos:?}\nvel_std_mps = {vel:?}\natt_std_deg = {att:?}\n\
+         [init.given]\npos_deg_deg_m = {p0:?}\nvel_ned_mps = {v0:?}\nrpy_deg = {r0:?}\n\
+         [noise]\nmodel = \"nbk\"\n\
+         [noise.accel]\nvrw_mps_per_sqrt_h = {vrw}\ngm_sigma_ug = {ab}\nt_b_s = {tb}\n\
+         bias_init_ug = {ba0}\n\
+         [noise.gyro]\narw_deg_per_sqrt_h = {arw}\ngm_sigma_deg_per_h = {gb}\nt_b_s = {tb}\n\
+         bias_init_deg_per_h = {bg0}\n",
+        start = k.starttime,
+        pos = k.initposstd,
+        vel = k.initvelstd,
+        att = k.initattstd,
+        p0 = k.initpos,
+        v0 = k.initvel,
+        r0 = k.initatt,
+        vrw = n.vrw[0],
+        ab = ug(n.abstd[0]),
+        tb = n.corrtime * 3600.0,
+        ba0 = ug(k.initbastd.expect("initbastd")[0]),
+        arw = n.arw[0],
+        gb = n.gbstd[0],
+        bg0 = k.initbgstd.expect("initbgstd")[0],
+    );
+    let p = dir.join("run.toml");
+    std::fs::write(&p, text).expect("write run.toml");
+    p
+}
+
+/// The product's loop for the GNSS error state: on the drive of
+/// [`gnss_correlated_error_of_named_size_is_named_first`] as a run configuration, the
+/// diagnosis adds `gnss_position_gm` with a fitted prior, `augmented.toml` carries that prior
+/// as `[gnss] error_state`, and `host-sim run --config augmented.toml` (the same preparation)
+/// reproduces the diagnosis's after-run: the same GNSS updates and innovation log-likelihood.
+/// Without the key (the filter's default prior) the run's likelihood is lower.
+#[test]
+fn augmented_config_reproduces_the_after_run_with_the_fitted_gnss_error_prior() {
+    let spec = DriveSpec {
+        gnss_error_size: Some(GnssErrorSize {
+            gm_sigma_m: GNSS_GM_NAMED_M,
+            white_factor: None,
+        }),
+        ..SweepDrive::One(Effect::GnssCorrelatedError).spec(21, CI)
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    generate(&spec)
+        .expect("generate")
+        .write(dir.path())
+        .expect("write");
+    let cfg = run_toml_of_drive(dir.path());
+    let load = |c: &std::path::Path| {
+        nav_engine::load(&RunSpec::new(c), false)
+            .expect("load")
+            .prepared
+    };
+    let p = load(&cfg);
+    let first_only = DiagnoseOptions {
+        max_effects: 1,
+        ..DiagnoseOptions::default()
+    };
+    let out = diagnose(&p, &first_only).expect("diagnose");
+    let d = &out.diagnosis;
+    println!("{}", summary(d));
+    assert!(
+        d.added_effects.iter().any(|e| e.name == "gnss_position_gm"),
+        "{}",
+        summary(d)
+    );
+    let prior = d
+        .final_gnss_error_prior
+        .expect("fitted prior in the diagnosis");
+    let diag_dir = dir.path().join("diag");
+    host_sim::diagnose::write_outputs(&diag_dir, &p, &out, Some(&cfg)).expect("write outputs");
+    let aug = diag_dir.join("augmented.toml");
+    let text = std::fs::read_to_string(&aug).expect("augmented.toml");
+    let rc = nav_io::read_run_config(&aug).expect("augmented.toml parses");
+    assert_eq!(rc.gnss.error_state, Some(prior), "{text}");
+    assert!(rc.effects.iter().any(|e| e == "gnss_position_gm"), "{text}");
+    // the user's run of augmented.toml: the diagnosis's after-run
+    let pa = load(&aug);
+    let (run, _) = nav_engine::execute(&pa, &mut |_, _| {}).expect("run augmented.toml");
+    let got = nav_diagnose::stats::residual_stats(&run.innovations);
+    let want = &d.residuals_after;
+    println!(
+        "after-run: {} updates, log-likelihood {:.3} nats, NIS {:.4}; augmented.toml: {} \
+         updates, {:.3} nats, NIS {:.4}",
+        want.updates,
+        want.log_likelihood,
+        want.nis_mean,
+        got.updates,
+        got.log_likelihood,
+        got.nis_mean
+    );
+    assert_eq!(got.updates, want.updates);
+    assert_eq!(got.scalar_measurements, want.scalar_measurements);
+    assert!(
+        (got.log_likelihood - want.log_likelihood).abs() <= 1e-6 * want.log_likelihood.abs(),
+        "{} vs {}",
+        got.log_likelihood,
+        want.log_likelihood
+    );
+    assert!((got.nis_mean - want.nis_mean).abs() <= 1e-9 * want.nis_mean);
+    // the same configuration without the key: the default prior, a lower likelihood
+    let mut no_key = rc.clone();
+    no_key.gnss.error_state = None;
+    let p_default = dir.path().join("diag").join("default_prior.toml");
+    nav_io::write_run_config(&p_default, &no_key).expect("write");
+    let (run_d, _) = nav_engine::execute(&load(&p_default), &mut |_, _| {}).expect("run");
+    let ll_default = nav_diagnose::stats::residual_stats(&run_d.innovations).log_likelihood;
+    println!("default prior: log-likelihood {ll_default:.3} nats");
+    assert!(ll_default < want.log_likelihood - 1.0, "{ll_default}");
+}
+
 /// A bias step of the drive generator (`effect`: the accelerometer's or the gyro's; seed 21:
 /// 10 min, the step 15 s after the GNSS window following the middle of the drive), three gaps
 /// in the GNSS file and no imposed outage: the change point is found on the file's gaps and

@@ -1226,6 +1226,9 @@ fn prepare_run_config(
     let init = run_config_init(r, &imu, imu_stream.as_ref())?;
     let mut opts = RunOptions::new(model, filter, init);
     opts.gnss_sigma_scale = r.gnss.sigma_scale;
+    if let Some(e) = &r.gnss.error_state {
+        opts.filter.effects.gnss_position_gm = e.noise();
+    }
     if let Some(ch) = &r.imu.checks {
         apply_imu_checks(ch, &mut opts.imu_checks).context("[imu.checks]")?;
     }

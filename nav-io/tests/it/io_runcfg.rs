@@ -339,6 +339,60 @@ fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
     assert!(e.contains("gnss.sigma_scale must be > 0"), "{e}");
 }
 
+#[test]
+fn gnss_error_state_prior_parses_validates_and_defaults_to_the_filter_prior() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = base_toml(dir.path());
+    let with = |line: &str| {
+        base.replace(
+            "time_offset_s = -0.01\n",
+            &format!("time_offset_s = -0.01\n{line}\n"),
+        )
+    };
+    let p = Path::new("run.toml");
+    // absent: none, and the written configuration has no such key
+    let c = nav_io::parse_run_config(p, &base).unwrap();
+    assert_eq!(c.gnss.error_state, None);
+    assert!(!toml::to_string(&c).unwrap().contains("error_state"));
+    // given: per-axis sigma in m, correlation time in s, as the filter's prior
+    let c = nav_io::parse_run_config(
+        p,
+        &with("error_state = { sigma_m = [0.08, 0.07, 0.16], correlation_time_s = 120.0 }"),
+    )
+    .unwrap();
+    let e = c.gnss.error_state.expect("error_state");
+    assert_eq!(e.sigma_m, [0.08, 0.07, 0.16]);
+    assert_eq!(e.correlation_time_s, 120.0);
+    let n = e.noise();
+    assert_eq!((n.sigma_m, n.t_s), ([0.08, 0.07, 0.16], 120.0));
+    // written back and read back the same
+    let text = toml::to_string(&c).unwrap();
+    assert_eq!(nav_io::parse_run_config(p, &text).unwrap(), c);
+    // zero sigma, negative or non-finite time: refused, the key named with its line
+    for bad in [
+        "error_state = { sigma_m = [0.0, 0.08, 0.16], correlation_time_s = 120.0 }",
+        "error_state = { sigma_m = [0.08, 0.08, 0.16], correlation_time_s = -1.0 }",
+        "error_state = { sigma_m = [0.08, 0.08, 0.16], correlation_time_s = nan }",
+    ] {
+        let text = with(bad);
+        let line = 1 + text
+            .lines()
+            .position(|l| l.starts_with("error_state"))
+            .unwrap();
+        let m = err_of(dir.path(), &text);
+        assert!(
+            m.contains("gnss.error_state") && m.contains(&format!("line {line}:")),
+            "{bad}: {m}"
+        );
+    }
+    // an unknown key of the table: refused, named
+    let m = err_of(
+        dir.path(),
+        &with("error_state = { sigma_m = [0.08, 0.08, 0.16], tau_s = 120.0 }"),
+    );
+    assert!(m.contains("tau_s"), "{m}");
+}
+
 /// The IMU and the GNSS CSV name GPS seconds of week the same: `gps_sow` (canonical) and
 /// `seconds` (the IMU's older name) are accepted in both sections.
 #[test]
