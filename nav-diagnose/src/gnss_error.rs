@@ -59,12 +59,12 @@ pub struct GnssErrorFit {
 impl GnssErrorFit {
     /// The fit at grid point `k`.
     fn at(k: At) -> Self {
-        let d = EffectsConfig::default().gnss_position_gm.sigma_m;
+        let d = EffectsConfig::default().gnss_position_gm;
         let f = 2f64.powf(f64::from(k[0]) / 2.0);
         let r = 2f64.powf(f64::from(k[1]) / 2.0);
         Self {
-            sigma_m: [d[0] * f, d[1] * f, d[2] * f * r],
-            t_s: 300.0 * 2f64.powf(f64::from(k[2]) / 2.0),
+            sigma_m: [d.sigma_m[0] * f, d.sigma_m[1] * f, d.sigma_m[2] * f * r],
+            t_s: d.t_s * 2f64.powf(f64::from(k[2]) / 2.0),
             white_factor: 2f64.powf(f64::from(k[3]) / 4.0),
             log_likelihood: f64::NAN,
             runs: 0,
