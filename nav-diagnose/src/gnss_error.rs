@@ -17,6 +17,8 @@
 //! scale itself).
 use super::*;
 use nav_core::config::{EffectsConfig, GnssErrorNoise};
+use nav_engine::run::InnovationRecord;
+use stats::in_stats;
 
 /// Grid of the factor on the default prior's horizontal sigma: `2^(k/2)`, k = -12..=4 (0.5 m
 /// -> 7.8 mm .. 2 m); the climb starts at 1.
@@ -52,6 +54,9 @@ pub struct GnssErrorFit {
     pub log_likelihood: f64,
     /// Runs the fit made (memoised runs included).
     pub runs: usize,
+    /// True when the screen stopped the fit ([`fit`]): the prior is the better screen point,
+    /// which gains nothing over the current model.
+    pub screened: bool,
     /// Grid indices of the fit.
     at: At,
 }
@@ -68,6 +73,7 @@ impl GnssErrorFit {
             white_factor: 2f64.powf(f64::from(k[3]) / 4.0),
             log_likelihood: f64::NAN,
             runs: 0,
+            screened: false,
             at: k,
         }
     }
@@ -86,7 +92,12 @@ impl GnssErrorFit {
     /// The fit in words: sigma (cm), correlation time, the white-noise factor.
     pub fn describe(&self) -> String {
         format!(
-            "prior fitted: {:.1}/{:.1}/{:.1} cm, {:.0} s, GNSS sigma scale x{:.2} ({} runs)",
+            "prior {}: {:.1}/{:.1}/{:.1} cm, {:.0} s, GNSS sigma scale x{:.2} ({} runs)",
+            if self.screened {
+                "not fitted (no screen point gains over the current model)"
+            } else {
+                "fitted"
+            },
             self.sigma_m[0] * 100.0,
             self.sigma_m[1] * 100.0,
             self.sigma_m[2] * 100.0,
@@ -97,14 +108,30 @@ impl GnssErrorFit {
     }
 }
 
+/// The current model's side of a fit: its innovations (the search run's) and their
+/// log-likelihood, nats.
+pub(crate) struct Current<'a> {
+    /// Innovation records of the current model's search run.
+    pub(crate) innovations: &'a [InnovationRecord],
+    /// Their log-likelihood ([`residual_stats`]), nats.
+    pub(crate) log_likelihood: f64,
+}
+
 /// Fits the prior of the GNSS error state in the model `with_state` (the current model with
-/// the block appended, as the search runs it) by the likelihood of its innovations, from
-/// `from` (the previous round's fit) or the default prior: a climb over the white-noise
-/// factor (steps of 2^(1/2)) in which every point has its Gauss-Markov prior climbed
-/// (horizontal sigma, then correlation time: a lower white noise pays only with a larger
-/// Gauss-Markov sigma, a ridge a climb one coordinate at a time does not follow), then the
-/// white-noise factor refined (steps of 2^(1/4)), the vertical ratio and the horizontal sigma
-/// once more.
+/// the block appended, as the search runs it) by the likelihood of its innovations.
+///
+/// First a screen of one or two runs: the state nearly absent (the bottom of the sigma grid)
+/// and at the moment estimate of its horizontal sigma ([`sigma_start`], from the current
+/// model's innovations), each with the previous round's vertical ratio and correlation time
+/// (`from`, or the default prior's) at the current GNSS sigma scale. When neither run's
+/// log-likelihood is above the current model's, the innovations carry no correlated misfit
+/// for the state to take and the better screen point is the fit (on the sweep's drives the
+/// whole climb then gained at most 2 nats, against a penalty of 23 or more). Otherwise a
+/// climb from `from` (or the default prior) over the white-noise factor (steps of 2^(1/2))
+/// in which every point has its Gauss-Markov prior climbed (horizontal sigma, then
+/// correlation time: a lower white noise pays only with a larger Gauss-Markov sigma, a ridge
+/// a climb one coordinate at a time does not follow), then the white-noise factor refined
+/// (steps of 2^(1/4)), the vertical ratio and the horizontal sigma once more.
 /// `floor`: the smallest white-noise factor (the configuration's sigma scale over the
 /// current one, per component, the larger).
 pub(crate) fn fit(
@@ -112,11 +139,15 @@ pub(crate) fn fit(
     with_state: &RunOptions,
     floor: f64,
     from: Option<&GnssErrorFit>,
+    current: &Current<'_>,
 ) -> Option<GnssErrorFit> {
     let runs = std::sync::atomic::AtomicUsize::new(0);
     let ll = |k: At| -> (At, f64) {
         runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut o = ctx.searching(with_state);
+        // the likelihood reads the used fixes' innovations only: no epoch records, no
+        // predicted withheld fixes
+        o.record.epoch_rate_hz = Some(0.0);
         GnssErrorFit::at(k).apply(&mut o);
         let l = spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
             residual_stats(&out.innovations).log_likelihood
@@ -130,9 +161,35 @@ pub(crate) fn fit(
         TAU_STEPS,
         *WHITE_STEPS.start().max(&white_min)..=*WHITE_STEPS.end(),
     ];
-    let mut at = from.map_or([0; 4], |f| f.at);
-    for (a, r) in at.iter_mut().zip(&ranges) {
-        *a = (*a).clamp(*r.start(), *r.end());
+    let clamp = |mut k: At| {
+        for (a, r) in k.iter_mut().zip(&ranges) {
+            *a = (*a).clamp(*r.start(), *r.end());
+        }
+        k
+    };
+    let prev = from.map(|f| f.at);
+    let [_, ratio, tau, _] = prev.unwrap_or([0; 4]);
+    // the screen: the state nearly absent (the bottom of the sigma grid) and at the moment
+    // estimate of its sigma, at the current GNSS sigma scale
+    let bottom = clamp([*SIGMA_STEPS.start(), ratio, tau, 0]);
+    let moment = clamp([sigma_start(current.innovations), ratio, tau, 0]);
+    let points = if moment == bottom {
+        vec![ll(bottom)]
+    } else {
+        let (b, m) = rayon::join(|| ll(bottom), || ll(moment));
+        vec![b, m]
+    };
+    let (at, screen) = points
+        .into_iter()
+        .filter(|p| p.1.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    if screen <= current.log_likelihood {
+        return Some(GnssErrorFit {
+            log_likelihood: screen,
+            runs: runs.into_inner(),
+            screened: true,
+            ..GnssErrorFit::at(at)
+        });
     }
     // the horizontal sigma and the correlation time climbed at the white-noise factor of `k`
     let prior = |k: At| -> (At, f64) {
@@ -142,7 +199,8 @@ pub(crate) fn fit(
         }
         cur
     };
-    let mut best = climb(prior(at), (3, 2), &ranges[3], &prior);
+    let start = clamp(prev.unwrap_or([0; 4]));
+    let mut best = climb(prior(start), (3, 2), &ranges[3], &prior);
     // then the white-noise factor refined, the vertical ratio and the horizontal sigma
     for (axis, stride) in [(3, 1), (1, 1), (0, 1)] {
         best = climb(best, (axis, stride), &ranges[axis], &ll);
@@ -153,6 +211,50 @@ pub(crate) fn fit(
         runs: runs.into_inner(),
         ..GnssErrorFit::at(at)
     })
+}
+
+/// The screen's horizontal sigma as a grid index of [`SIGMA_STEPS`]: a Gauss-Markov error of
+/// correlation time `T` beside white noise makes the position innovations of consecutive
+/// fixes (`dt` << `T`) covary by about its variance, while a white error makes them
+/// uncorrelated; so the sigma is the square root of the lag-1 autocovariance of the
+/// horizontal position innovations (N and E averaged; pairs of the used fixes at most 1.5
+/// times the median spacing apart), rounded to the grid (its bottom when the autocovariance
+/// is not positive or there are fewer than 3 such pairs).
+pub(crate) fn sigma_start(innovations: &[InnovationRecord]) -> i32 {
+    let used: Vec<&InnovationRecord> = innovations.iter().filter(|r| in_stats(r)).collect();
+    let mut dts: Vec<f64> = used.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+    dts.sort_by(f64::total_cmp);
+    let Some(&median) = dts.get(dts.len() / 2) else {
+        return *SIGMA_STEPS.start();
+    };
+    let pairs: Vec<[&InnovationRecord; 2]> = used
+        .windows(2)
+        .filter(|w| w[1].t_s - w[0].t_s <= 1.5 * median)
+        .map(|w| [w[0], w[1]])
+        .collect();
+    if pairs.len() < 3 {
+        return *SIGMA_STEPS.start();
+    }
+    let n = pairs.len() as f64;
+    let cov = |c: usize| {
+        let mean = used.iter().map(|r| r.innovation[c]).sum::<f64>() / used.len() as f64;
+        pairs
+            .iter()
+            .map(|[a, b]| (a.innovation[c] - mean) * (b.innovation[c] - mean))
+            .sum::<f64>()
+            / n
+    };
+    let var = 0.5 * (cov(0) + cov(1));
+    let default = EffectsConfig::default().gnss_position_gm.sigma_m[0];
+    if !(var > 0.0 && default > 0.0) {
+        return *SIGMA_STEPS.start();
+    }
+    // sigma = default * 2^(k/2): k = 2 log2(sigma / default) = log2(var / default^2)
+    let k = (var / (default * default)).log2().round();
+    k.clamp(
+        f64::from(*SIGMA_STEPS.start()),
+        f64::from(*SIGMA_STEPS.end()),
+    ) as i32
 }
 
 /// One coordinate of a climb: from `cur` (a point and its log-likelihood), both neighbours
@@ -188,4 +290,53 @@ fn climb(
         best = next;
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nav_engine::run::FixUse;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// Innovation records at 1 Hz of N and E position innovations `x` (m), used.
+    fn records(x: &[[f64; 2]]) -> Vec<InnovationRecord> {
+        x.iter()
+            .enumerate()
+            .map(|(i, v)| InnovationRecord {
+                t_s: i as f64,
+                used: FixUse::Accepted,
+                outage: None,
+                dim: 3,
+                innovation: [v[0], v[1], 0.0, 0.0, 0.0, 0.0],
+                innovation_var: [1e-4, 1e-4, 4e-4, 0.0, 0.0, 0.0],
+                nis: 1.0,
+                nis_threshold: f64::NAN,
+                quality: 1,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn sigma_start_is_the_bottom_for_white_innovations_and_near_a_gauss_markov_sigma() {
+        let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut n = || -> f64 { StandardNormal.sample(&mut r) };
+        // 2,400 fixes of 3 cm white noise: the lag-1 autocovariance is noise, |c1| about
+        // 9e-4 / 49 m^2, below the grid's smallest sigma squared (7.8 mm: 6.1e-5 m^2)
+        let white: Vec<[f64; 2]> = (0..2400).map(|_| [0.03 * n(), 0.03 * n()]).collect();
+        assert!(sigma_start(&records(&white)) <= -11);
+        // a Gauss-Markov error of 10 cm and 300 s beside the same white noise: sigma
+        // 0.5 * 2^(k/2) = 0.1 m at k = -4.6
+        let phi = (-1.0f64 / 300.0).exp();
+        let q = 0.1 * (1.0 - phi * phi).sqrt();
+        let mut gm = [0.1 * n(), 0.1 * n()];
+        let correlated: Vec<[f64; 2]> = (0..2400)
+            .map(|_| {
+                gm = [phi * gm[0] + q * n(), phi * gm[1] + q * n()];
+                [gm[0] + 0.03 * n(), gm[1] + 0.03 * n()]
+            })
+            .collect();
+        let k = sigma_start(&records(&correlated));
+        assert!((-7..=-3).contains(&k), "{k}");
+    }
 }

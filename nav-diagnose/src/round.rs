@@ -479,7 +479,12 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         let cfg = ctx.p.opts.gnss_sigma_scale;
         let now = cur_opts.gnss_sigma_scale;
         let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
-        s.gnss_error_fit = gnss_error::fit(ctx, &plain_opts(gm), floor, s.gnss_error_fit.as_ref());
+        let current = gnss_error::Current {
+            innovations: &s.cur.run.innovations,
+            log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
+        };
+        let from = s.gnss_error_fit.as_ref();
+        s.gnss_error_fit = gnss_error::fit(ctx, &plain_opts(gm), floor, from, &current);
     }
     let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
     let candidate_opts = |b: Block| {
