@@ -362,11 +362,12 @@ pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
             || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
 }
 
-/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
-/// `fast-float2` (no field list, no UTF-8 check: every accepted byte is ASCII), or `None`
-/// when the line is anything else (blank, comment, comma-separated, non-ASCII, a field that
-/// is not a plain finite number, too few or too many fields). What it accepts, it reads to
-/// the bits [`parse_imu_line`] gives (both parse a plain number with `fast-float2`, see
+/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass (no
+/// field list, no UTF-8 check: every accepted byte is ASCII) with the plain-decimal reader
+/// (`decimal::parse_plain`) and `fast-float2` for the numbers it leaves, or `None` when the
+/// line is anything else (blank, comment, comma-separated, non-ASCII, a field that is not a
+/// plain finite number, too few or too many fields). What it accepts, it reads to the bits
+/// [`parse_imu_line`] gives (all three readers are correctly rounded, see
 /// [`super::lines::parse_f64`]); everything else goes to [`parse_imu_line`].
 fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
     let mut v = [0.0f64; 8];
@@ -380,9 +381,13 @@ fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
         if rest.is_empty() {
             break;
         }
-        // a finite result is a plain number ([+-] digits [. digits] [e [+-] digits]):
-        // `inf`/`nan` spellings give non-finite values and go to the general parser
-        let (x, used) = fast_float2::parse_partial::<f64, _>(rest).ok()?;
+        // the common spelling read here, the others by `fast-float2`; a finite result is a
+        // plain number ([+-] digits [. digits] [e [+-] digits]): `inf`/`nan` spellings give
+        // non-finite values and go to the general parser
+        let (x, used) = match super::decimal::parse_plain(rest) {
+            Some(r) => r,
+            None => fast_float2::parse_partial::<f64, _>(rest).ok()?,
+        };
         if used == 0 || !x.is_finite() {
             return None;
         }
