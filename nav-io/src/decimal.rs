@@ -151,7 +151,14 @@ pub(crate) fn parse_plain(b: &[u8]) -> Option<(f64, usize)> {
     let neg = b.first() == Some(&b'-');
     let start = usize::from(neg);
     let mut w = 0u64;
-    let mut i = digits(b, start, &mut w);
+    // the common integer part, one digit and the point, without the eight-byte read
+    let mut i = match (b.get(start).map(|c| c.wrapping_sub(b'0')), b.get(start + 1)) {
+        (Some(d), Some(b'.')) if d < 10 => {
+            w = u64::from(d);
+            start + 1
+        }
+        _ => digits(b, start, &mut w),
+    };
     let n_int = i - start;
     if n_int == 0 {
         return None;
@@ -191,22 +198,25 @@ pub(crate) fn parse_plain(b: &[u8]) -> Option<(f64, usize)> {
 /// An exponent's `[+-]digits` (at most 4 digits) at the start of `b`: its value and length.
 #[inline(always)]
 fn exponent(b: &[u8]) -> Option<(i64, usize)> {
+    let digit = |i: usize| {
+        b.get(i)
+            .map(|c| c.wrapping_sub(b'0'))
+            .filter(|d| *d < 10)
+            .map(i64::from)
+    };
     let (neg, s) = match b.first() {
         Some(b'-') => (true, 1),
         Some(b'+') => (false, 1),
         _ => (false, 0),
     };
-    let mut e = 0i64;
-    let mut i = s;
-    while let Some(d) = b.get(i).map(|c| c.wrapping_sub(b'0')).filter(|d| *d < 10) {
-        e = e * 10 + i64::from(d);
+    let mut e = digit(s)?;
+    let mut i = s + 1;
+    while let Some(d) = digit(i) {
+        e = e * 10 + d;
         i += 1;
         if i - s > 4 {
             return None;
         }
-    }
-    if i == s {
-        return None;
     }
     Some((if neg { -e } else { e }, i))
 }

@@ -370,13 +370,16 @@ pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
 /// [`parse_imu_line`] gives (all three readers are correctly rounded, see
 /// [`super::lines::parse_f64`]); everything else goes to [`parse_imu_line`].
 fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
-    let mut v = [0.0f64; 8];
-    let mut n = 0usize;
-    let mut i = 0usize;
-    loop {
+    let skip_space = |mut i: usize| {
         while b.get(i).is_some_and(u8::is_ascii_whitespace) {
             i += 1;
         }
+        i
+    };
+    let mut v = [0.0f64; 8];
+    let mut n = 0usize;
+    let mut i = skip_space(0);
+    for slot in v.iter_mut() {
         let rest = b.get(i..)?;
         if rest.is_empty() {
             break;
@@ -391,12 +394,20 @@ fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
         if used == 0 || !x.is_finite() {
             return None;
         }
-        i += used;
-        if b.get(i).is_some_and(|c| !c.is_ascii_whitespace()) {
-            return None;
-        }
-        *v.get_mut(n)? = x;
+        *slot = x;
         n += 1;
+        i += used;
+        // the separator: usually one space
+        match b.get(i) {
+            None => break,
+            Some(b' ') if !b.get(i + 1).is_some_and(u8::is_ascii_whitespace) => i += 1,
+            Some(c) if c.is_ascii_whitespace() => i = skip_space(i),
+            Some(_) => return None,
+        }
+    }
+    // a ninth field
+    if i < b.len() {
+        return None;
     }
     if n < 7 {
         return None;
