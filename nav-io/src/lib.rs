@@ -18,6 +18,7 @@
 #![deny(missing_docs)]
 
 pub mod aidingcfg;
+mod decimal;
 mod error;
 pub mod gnss;
 pub mod gnsscsv;

@@ -362,36 +362,52 @@ pub fn same_sample(a: &ImuSample, b: &ImuSample) -> bool {
             || (a.temperature_c.is_nan() && b.temperature_c.is_nan()))
 }
 
-/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass with
-/// `fast-float2` (no field list, no UTF-8 check: every accepted byte is ASCII), or `None`
-/// when the line is anything else (blank, comment, comma-separated, non-ASCII, a field that
-/// is not a plain finite number, too few or too many fields). What it accepts, it reads to
-/// the bits [`parse_imu_line`] gives (both parse a plain number with `fast-float2`, see
+/// An IMU line of 7 or 8 numbers separated by ASCII white space, parsed in one pass (no
+/// field list, no UTF-8 check: every accepted byte is ASCII) with the plain-decimal reader
+/// (`decimal::parse_plain`) and `fast-float2` for the numbers it leaves, or `None` when the
+/// line is anything else (blank, comment, comma-separated, non-ASCII, a field that is not a
+/// plain finite number, too few or too many fields). What it accepts, it reads to the bits
+/// [`parse_imu_line`] gives (all three readers are correctly rounded, see
 /// [`super::lines::parse_f64`]); everything else goes to [`parse_imu_line`].
 fn parse_imu_fast(b: &[u8]) -> Option<ImuSample> {
-    let mut v = [0.0f64; 8];
-    let mut n = 0usize;
-    let mut i = 0usize;
-    loop {
+    let skip_space = |mut i: usize| {
         while b.get(i).is_some_and(u8::is_ascii_whitespace) {
             i += 1;
         }
+        i
+    };
+    let mut v = [0.0f64; 8];
+    let mut n = 0usize;
+    let mut i = skip_space(0);
+    for slot in v.iter_mut() {
         let rest = b.get(i..)?;
         if rest.is_empty() {
             break;
         }
-        // a finite result is a plain number ([+-] digits [. digits] [e [+-] digits]):
-        // `inf`/`nan` spellings give non-finite values and go to the general parser
-        let (x, used) = fast_float2::parse_partial::<f64, _>(rest).ok()?;
+        // the common spelling read here, the others by `fast-float2`; a finite result is a
+        // plain number ([+-] digits [. digits] [e [+-] digits]): `inf`/`nan` spellings give
+        // non-finite values and go to the general parser
+        let (x, used) = match super::decimal::parse_plain(rest) {
+            Some(r) => r,
+            None => fast_float2::parse_partial::<f64, _>(rest).ok()?,
+        };
         if used == 0 || !x.is_finite() {
             return None;
         }
-        i += used;
-        if b.get(i).is_some_and(|c| !c.is_ascii_whitespace()) {
-            return None;
-        }
-        *v.get_mut(n)? = x;
+        *slot = x;
         n += 1;
+        i += used;
+        // the separator: usually one space
+        match b.get(i) {
+            None => break,
+            Some(b' ') if !b.get(i + 1).is_some_and(u8::is_ascii_whitespace) => i += 1,
+            Some(c) if c.is_ascii_whitespace() => i = skip_space(i),
+            Some(_) => return None,
+        }
+    }
+    // a ninth field
+    if i < b.len() {
+        return None;
     }
     if n < 7 {
         return None;
