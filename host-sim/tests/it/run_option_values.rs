@@ -148,6 +148,20 @@ fn an_outage_beyond_the_data_is_told_with_the_data_span() {
     );
 }
 
+/// `--gate off` is said once in the run's summary.
+#[test]
+fn gate_off_is_said_once_in_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = run_standing(dir.path(), &["--gate=off"]);
+    assert_eq!(r.code(), Some(0), "{}", r.stderr);
+    assert!(
+        r.stdout.contains("gate (off): every valid fix used\n"),
+        "{}",
+        r.stdout
+    );
+    assert_eq!(r.stdout.matches("gate off").count(), 0, "{}", r.stdout);
+}
+
 /// A number as a user may type it on the command line: odd spellings and extremes, and
 /// plausible values (drawn more often: runs that go to the end).
 fn cli_number() -> impl Strategy<Value = String> {
