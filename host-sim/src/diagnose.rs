@@ -72,15 +72,29 @@ fn short_list(v: &[f64]) -> String {
     format!("[{}]", items.join(", "))
 }
 
+/// What `host-sim diagnose` keeps when SIGINT/SIGTERM stop it (the message on stderr).
+pub const KEPT_ON_STOP: &str =
+    "the diagnosis keeps no partial output: its runs end, its temporary files are removed and \
+     the output folder stays as it was";
+
+/// What `host-sim diagnose` keeps when SIGINT/SIGTERM end it at once (while it loads its
+/// inputs or writes its outputs).
+pub const KEPT_ON_EXIT: &str = "the diagnosis keeps no partial output, the output folder as it was";
+
 /// Runs `host-sim diagnose`.
 ///
 /// The outputs are written in the stage folder of `--out` ([`OutDir`]: refused when it holds
-/// one of the inputs or another run is writing into it) and moved into place at the end;
-/// SIGINT/SIGTERM before that end the process with `--out` unchanged.
+/// one of the inputs or another run is writing into it) and moved into place at the end.
+/// SIGINT/SIGTERM (once [`nav_engine::run::interrupt::install`] is in place) end the
+/// diagnosis's runs at their next IMU read; the command then removes its temporary files and
+/// ends with the error [`KEPT_ON_STOP`] (exit `128 + signal`), `--out` as it was.
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let l = crate::run::cli::load(&args.run, true)?;
     let od = OutDir::open(&args.run.out, &l.inputs)?;
     let truth_file = l.truth_stream.clone();
+    // a signal from here ends the runs (the IMU reads notice it) instead of the process,
+    // so that the temporary folder goes
+    let stoppable = nav_engine::run::interrupt::Stoppable::enter();
     let (mut p, imu) = imu_cache::load_cached(l)?;
     println!("{}", p.description);
     let dopts = DiagnoseOptions {
@@ -96,12 +110,18 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         Some(_) => std::mem::take(&mut p.case),
         None => p.case.clone(),
     };
-    let d = diagnose_cached(case, &p.opts, imu, &dopts)?;
-    // stopped by SIGINT/SIGTERM: the runs ended early; nothing written, the temporary
-    // files removed with `d`
+    let d = diagnose_cached(case, &p.opts, imu, &dopts);
+    drop(stoppable);
+    // stopped by SIGINT/SIGTERM: the runs ended early (an error or a diagnosis of cut runs);
+    // nothing written, the temporary files removed with `d`
     if let Some(sig) = nav_engine::run::interrupt::requested() {
-        anyhow::bail!("{}: stopped", nav_engine::run::interrupt::signal_name(sig));
+        drop(d);
+        anyhow::bail!(
+            "{}: stopped; {KEPT_ON_STOP}",
+            nav_engine::run::interrupt::signal_name(sig)
+        );
     }
+    let d = d?;
     if let Some(t) = &truth_file {
         p.case.truth = Some(t.open()?.collect::<Result<_, _>>()?);
     }
@@ -138,7 +158,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     for st in &dg.steps {
         let e = &st.errors;
         println!(
-            "model after step `{}`{}: held-out windows RMS {} m, GNSS prior residual {:.3} m, written solution vs fixes {:.3} m, NIS {:.2}{}",
+            "model after step `{}`{}: held-out windows RMS {} m; its search run (held-out fixes withheld): GNSS prior residual {:.3} m, solution vs the used fixes {:.3} m, NIS {:.2}{}",
             st.label,
             if st.accepted { "" } else { " (refused)" },
             e.heldout_windows_rms_m.map_or("-".into(), |x| format!("{x:.3}")),
@@ -171,7 +191,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         )
     };
     println!(
-        "{outage}; GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, posterior: favours no time offset): before {:.3} m, after {:.3} m{}",
+        "{outage}; runs with every fix: GNSS prior residual (horizontal): before {:.3} m, after {:.3} m; written solution vs the used fixes (horizontal, at the final model's antenna; posterior: favours no time offset; nav_after.txt follows the filter's running estimate of an added lever arm, its convergence counts here, a run of augmented.toml starts at the estimate): before {:.3} m, after {:.3} m{}",
         dg.error_before.gnss_residual_horizontal_rms_m,
         dg.error_after.gnss_residual_horizontal_rms_m,
         dg.error_before.output_vs_fixes_horizontal_rms_m,

@@ -9,7 +9,8 @@ Exit status:
            could not be written (the message names the cause, with file and line)
   2        not a navigation solution: no GNSS fix (or too few) used; the outputs, when
            written, are a dead-reckoning track
-  130/143  stopped by SIGINT/SIGTERM (128 + the signal): the outputs kept as *.partial";
+  130/143  stopped by SIGINT/SIGTERM (128 + the signal): run keeps its outputs so far as
+           *.partial; diagnose keeps nothing (the output folder as it was)";
 
 /// INS/GNSS navigation core on the host: simulate, identify noise, run, study, diagnose.
 #[derive(Parser, Debug)]
@@ -57,7 +58,14 @@ fn main() -> std::process::ExitCode {
         }
     };
     if matches!(cli.cmd, Cmd::Run(_) | Cmd::Diagnose(_)) {
-        // SIGINT/SIGTERM: a run keeps what it processed as *.partial (else the default)
+        // SIGINT/SIGTERM: a run keeps what it processed as *.partial, a diagnosis ends its
+        // runs and keeps nothing (else the system's default)
+        if matches!(cli.cmd, Cmd::Diagnose(_)) {
+            nav_engine::run::interrupt::say_on_stop(
+                host_sim::diagnose::KEPT_ON_STOP,
+                host_sim::diagnose::KEPT_ON_EXIT,
+            );
+        }
         if let Err(e) = nav_engine::run::interrupt::install() {
             eprintln!("warning: SIGINT/SIGTERM handling not installed: {e}");
         }

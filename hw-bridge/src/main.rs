@@ -58,6 +58,12 @@ fn main() -> ExitCode {
     if matches!(cli.cmd, Cmd::Record(_) | Cmd::Replay(_)) {
         // SIGINT/SIGTERM: a recording ends with its capture complete, a replay keeps what it
         // decoded as *.partial (else the system's default)
+        if matches!(cli.cmd, Cmd::Record(_)) {
+            nav_engine::run::interrupt::say_on_stop(
+                cmd::RECORD_KEPT_ON_STOP,
+                "the capture is left as OUT.partial",
+            );
+        }
         if let Err(e) = nav_engine::run::interrupt::install() {
             eprintln!("warning: SIGINT/SIGTERM handling not installed: {e}");
         }

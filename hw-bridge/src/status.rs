@@ -1,15 +1,18 @@
 //! The live status line of `record`, `stream` and `send`.
 
 use nav_core::wire::DecoderStats;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
 
-/// Prints a one-line status to stderr at most every `period`.
+/// Prints a one-line status to stderr at most every `period`: rewritten in place on a
+/// terminal, one plain line per update (no terminal control codes) when stderr is a file or
+/// a pipe.
 pub struct StatusLine {
     period: Duration,
     last: Instant,
     last_frames: u64,
     enabled: bool,
+    terminal: bool,
 }
 
 impl StatusLine {
@@ -20,6 +23,7 @@ impl StatusLine {
             last: Instant::now(),
             last_frames: 0,
             enabled,
+            terminal: std::io::stderr().is_terminal(),
         }
     }
 
@@ -34,13 +38,18 @@ impl StatusLine {
         self.last = Instant::now();
         self.last_frames = frames;
         let mut e = std::io::stderr().lock();
-        let _ = write!(e, "\r\x1b[2K{rate:7.1} frames/s  {}", text());
+        let _ = if self.terminal {
+            // back to the line's start, the line cleared
+            write!(e, "\r\x1b[2K{rate:7.1} frames/s  {}", text())
+        } else {
+            writeln!(e, "{rate:7.1} frames/s  {}", text())
+        };
         let _ = e.flush();
     }
 
-    /// Ends the line.
+    /// Ends the line (on a terminal: a file or pipe has whole lines already).
     pub fn finish(&self) {
-        if self.enabled {
+        if self.enabled && self.terminal {
             eprintln!();
         }
     }

@@ -277,7 +277,7 @@ fn errors_section(s: &mut String, dg: &Diagnosis) {
     let (b, a) = (&dg.error_before, &dg.error_after);
     let _ = writeln!(
         s,
-        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n| written solution vs the USED GNSS fixes outside outages, horizontal RMS [m] (posterior: favours no time offset, see docs/diagnose.md) | {:.3} | {:.3} |\n",
+        "| outages compared | {} | {} |\n| RMS over outages of the max 3D error [m] | {:.3} | {:.3} |\n| RMS over outages of the end horizontal error [m] | {:.3} | {:.3} |\n| 3D RMS, all epochs [m] | {:.3} | {:.3} |\n| prior GNSS residual, horizontal RMS [m] | {:.3} | {:.3} |\n| written solution vs the USED GNSS fixes outside outages, horizontal RMS [m] (at the final model's antenna; posterior: favours no time offset; the after solution follows the filter's running estimate of an added lever arm, its convergence included; see docs/diagnose.md) | {:.3} | {:.3} |\n",
         b.outages,
         a.outages,
         b.outage_max_3d_rms_m,

@@ -856,9 +856,49 @@ pub fn did_you_mean<'a>(
     (best.0 <= allowed).then(|| format!("did you mean `{}`?", best.1))
 }
 
+/// The tables a run configuration must have, with what each holds.
+const REQUIRED_TABLES: [(&str, &str); 3] = [
+    ("imu", "the IMU input"),
+    ("gnss", "the GNSS input"),
+    ("noise", "the IMU noise model"),
+];
+
+/// The message of a required table absent from `text` when the parser's error (`message`,
+/// without its position: the parser places a missing table at the start of the file) is
+/// that; `None` otherwise.
+fn missing_table(message: &str, text: &str) -> Option<String> {
+    let field = message.strip_prefix("missing field `")?.split('`').next()?;
+    if !REQUIRED_TABLES.iter().any(|(name, _)| *name == field) {
+        return None;
+    }
+    let table: toml::Table = text.parse().ok()?;
+    let missing: Vec<String> = REQUIRED_TABLES
+        .iter()
+        .filter(|(name, _)| !table.contains_key(*name))
+        .map(|(name, what)| format!("[{name}] ({what})"))
+        .collect();
+    (!missing.is_empty()).then(|| {
+        format!(
+            "missing table{} {}: `host-sim init` writes a complete configuration, every key is \
+             in docs/your-data.md",
+            if missing.len() > 1 { "s" } else { "" },
+            missing.join(", ")
+        )
+    })
+}
+
 /// Parses and validates a run configuration from TOML text (`name` is used in errors).
 pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     let cfg: RunConfig = toml::from_str(text).map_err(|e| {
+        // a missing table: named, without the parser's message (its position is the file's
+        // start, not where anything is wrong)
+        if let Some(message) = missing_table(e.message(), text) {
+            return IoError::Config {
+                path: name.to_path_buf(),
+                message,
+                source: None,
+            };
+        }
         let mut message = e.to_string();
         if let Some(hint) = nearest_name_hint(&message) {
             message = format!("{}; {hint}", message.trim_end());

@@ -77,9 +77,18 @@ where
 fn component_title(i: usize) -> String {
     let q = ["attitude error phi", "velocity error", "position error"][i / 3];
     let ax = ["north", "east", "down"][i % 3];
-    let unit = ["deg", "m/s", "m"][i / 3];
-    format!("{q} {ax} [{unit}]")
+    format!("{q} {ax}")
 }
+
+/// The y-axis label of component `i` (as [`component_title`]) on a log scale, with its unit.
+fn component_axis(i: usize) -> String {
+    let q = ["attitude error", "velocity error", "position error"][i / 3];
+    let unit = ["deg", "m/s", "m"][i / 3];
+    format!("{q} [{unit}], log scale")
+}
+
+/// The font of the axis labels (plotters' default is hard to read at these sizes).
+const AXIS_DESC_FONT: (&str, u32) = ("sans-serif", 16);
 
 fn log_range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -145,7 +154,8 @@ pub fn plot_errors(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result
                 .map_err(perr)?;
             ch.configure_mesh()
                 .x_desc("time [min]")
-                .y_desc("log scale")
+                .y_desc(component_axis(i))
+                .axis_desc_style(AXIS_DESC_FONT)
                 .y_label_formatter(&crate::png::pow10_label)
                 .draw()
                 .map_err(perr)?;
@@ -249,10 +259,7 @@ where
     let ymax = if ymax > 0.0 { ymax * 1.1 } else { 1.0 };
     let mut ch = ChartBuilder::on(a)
         .caption(
-            format!(
-                "position error {} [{uname}]",
-                ["north", "east", "down"][i - 6]
-            ),
+            format!("position error {}", ["north", "east", "down"][i - 6]),
             ("sans-serif", 20),
         )
         .margin(8)
@@ -262,6 +269,8 @@ where
         .map_err(perr)?;
     ch.configure_mesh()
         .x_desc("time [min]")
+        .y_desc(format!("position error [{uname}]"))
+        .axis_desc_style(AXIS_DESC_FONT)
         .draw()
         .map_err(perr)?;
     if let Some((s0, s1)) = outage_span(res, case) {
@@ -375,7 +384,8 @@ pub fn plot_nees(res: &StudyResult, case: Case, path: &Path) -> anyhow::Result<(
                 .map_err(perr)?;
             ch.configure_mesh()
                 .x_desc("time [min]")
-                .y_desc("log scale")
+                .y_desc("NEES (dimensionless), log scale")
+                .axis_desc_style(AXIS_DESC_FONT)
                 .y_label_formatter(&crate::png::pow10_label)
                 .draw()
                 .map_err(perr)?;

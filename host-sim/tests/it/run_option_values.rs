@@ -100,6 +100,68 @@ fn an_imu_time_offset_moves_a_given_initial_state_with_the_samples() {
     }
 }
 
+/// `host-sim run` on the standing case with `extra` options (into `dir/out`).
+fn run_standing(dir: &Path, extra: &[&str]) -> test_support::cli::Bounded {
+    let zero = || "0.0".to_string();
+    let cfg = config(dir, &[zero(), zero(), zero()], "0.0");
+    let mut cmd = std::process::Command::new(HOST_SIM);
+    cmd.args(["run", "--quiet", "--config"])
+        .arg(&cfg)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .args(extra);
+    run_bounded(&mut cmd, WALL_LIMIT)
+}
+
+/// An outage beyond the data is refused with the times as a user reads them (no binary
+/// rounding digits) and the span of the data.
+#[test]
+fn an_outage_beyond_the_data_is_told_with_the_data_span() {
+    let dir = tempfile::tempdir().unwrap();
+    for given in ["99999:10", "99999.1:0.3"] {
+        let r = run_standing(dir.path(), &[&format!("--outage={given}")]);
+        assert_eq!(r.code(), Some(1), "{given}: {}", r.stderr);
+        // 4000 samples at 200 Hz from t = 100000.005 s: 19.995 s
+        let want = format!(
+            "--outage {given}: START is at or beyond the end of the data: the data span \
+             19.995 s (IMU time 100000.005 to 100020.000 s), so START must be in [0, 19.995) s"
+        );
+        assert!(r.stderr.contains(&want), "{given}: {}", r.stderr);
+    }
+    let r = run_standing(dir.path(), &["--outage=5:0.001"]);
+    assert_eq!(r.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(
+            "--outage 5:0.001: DURATION must be finite and at least one IMU interval, 5.000 ms"
+        ),
+        "{}",
+        r.stderr
+    );
+    let r = run_standing(dir.path(), &["--periodic-outage=30:5:10"]);
+    assert_eq!(r.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(
+            "--periodic-outage 30:5:10: FIRST must be in [0, 19.995) s (the data span 19.995 s"
+        ),
+        "{}",
+        r.stderr
+    );
+}
+
+/// `--gate off` is said once in the run's summary.
+#[test]
+fn gate_off_is_said_once_in_the_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = run_standing(dir.path(), &["--gate=off"]);
+    assert_eq!(r.code(), Some(0), "{}", r.stderr);
+    assert!(
+        r.stdout.contains("gate (off): every valid fix used\n"),
+        "{}",
+        r.stdout
+    );
+    assert_eq!(r.stdout.matches("gate off").count(), 0, "{}", r.stdout);
+}
+
 /// A number as a user may type it on the command line: odd spellings and extremes, and
 /// plausible values (drawn more often: runs that go to the end).
 fn cli_number() -> impl Strategy<Value = String> {

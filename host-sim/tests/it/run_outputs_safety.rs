@@ -395,3 +395,66 @@ fn sigterm_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
 fn sigint_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
     interrupt_mid_run("INT", SIGINT);
 }
+
+/// SIGINT in the middle of a diagnosis's search: the diagnosis keeps no partial output and
+/// says so, exits 130, its runs end at once, its temporary folder goes, and the folder of an
+/// earlier complete run stays as it was.
+#[test]
+fn sigint_mid_diagnosis_says_it_keeps_nothing_and_leaves_no_temporary_files() {
+    let d = input_folder("sig-diag");
+    let cfg = d.join("run.toml");
+    let out = case().0.join("sig-diag-out");
+    bin().run_ok(run_args(&cfg, &out));
+    let before = hashes(&out);
+    let tmp = tempfile::tempdir().unwrap();
+    // signalled once a search run is writing (the base run done)
+    let mut ready = || {
+        std::fs::read_dir(tmp.path()).unwrap().flatten().any(|e| {
+            std::fs::read_dir(e.path()).is_ok_and(|rd| {
+                rd.flatten()
+                    .any(|f| f.file_name().to_string_lossy().starts_with("search-"))
+            })
+        })
+    };
+    let r = interrupt_when_ready(
+        bin().command().env("TMPDIR", tmp.path()).args([
+            "diagnose",
+            "--config",
+            s(&cfg),
+            "--out",
+            s(&out),
+            "--quiet",
+        ]),
+        &mut ready,
+        SIGINT,
+        Duration::from_secs(120),
+        Duration::from_secs(30),
+    )
+    .unwrap_or_else(|e| panic!("the diagnosis never searched: {e}"));
+    assert_eq!(r.code(), Some(130), "{r:?}");
+    assert!(
+        r.stderr
+            .contains("SIGINT: stopping; the diagnosis keeps no partial output"),
+        "{}",
+        r.stderr
+    );
+    assert!(
+        r.stderr
+            .contains("error: SIGINT: stopped; the diagnosis keeps no partial output"),
+        "{}",
+        r.stderr
+    );
+    let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+    let after = hashes(&out);
+    let changed: Vec<_> = after
+        .iter()
+        .filter(|(k, v)| !k.starts_with(".nav-out.lock") && before.get(*k) != Some(v))
+        .collect();
+    assert!(changed.is_empty(), "{changed:?}");
+    println!(
+        "SIGINT mid-diagnosis: exit {:?}, ended {:.2} s after the signal",
+        r.code(),
+        r.wall_s
+    );
+}

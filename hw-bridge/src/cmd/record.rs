@@ -93,6 +93,10 @@ pub struct RecordOutcome {
     pub stopped_by: Option<String>,
 }
 
+/// What a SIGINT/SIGTERM received by [`record`] does (the message on stderr): the normal end
+/// of a recording, the capture complete.
+pub const RECORD_KEPT_ON_STOP: &str = "the recording ends here, its capture complete (exit 0)";
+
 /// `record`: raw bytes with receive timestamps into a capture file, live status on stderr.
 /// When the port fails (unplugged, pty closed) a link-reset record is written and the port is
 /// reopened until it comes back or a stop condition is met; SIGINT (Ctrl-C) and SIGTERM are

@@ -11,3 +11,4 @@ mod link;
 mod outputs_safety;
 mod record_safety;
 mod simcase;
+mod status_line;

@@ -116,6 +116,14 @@ fn ctrl_c_and_sigterm_end_a_recording_with_every_byte_in_a_complete_capture() {
         );
         assert_eq!(o.status.code(), Some(0), "SIG{sig}: {out}\n{err}");
         assert!(out.contains(&format!("stopped by SIG{sig}")), "{out}");
+        // the signal's message says the recording ends complete, nothing kept as .partial
+        assert!(
+            err.contains(&format!(
+                "SIG{sig}: stopping; the recording ends here, its capture complete (exit 0)"
+            )),
+            "{err}"
+        );
+        assert!(!err.contains("kept as"), "{err}");
         // as `hw-bridge --help` lists it under the exit status
         let help = Command::new(BIN).arg("--help").output().unwrap();
         let help = String::from_utf8_lossy(&help.stdout);

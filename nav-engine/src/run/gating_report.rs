@@ -151,7 +151,7 @@ impl GatingReport {
         }
         if parts.is_empty() {
             return match self.mode.as_str() {
-                "off" => "gate off: every valid fix used".to_string(),
+                "off" => "every valid fix used".to_string(),
                 _ => "innovations consistent with the model: no fix down-weighted, rejected or \
                       reset"
                     .to_string(),

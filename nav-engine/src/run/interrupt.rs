@@ -11,8 +11,12 @@
 //!   with `128 + signal`: nothing of `--out` has changed yet (the outputs are written in a
 //!   stage folder, see [`super::outdir`]);
 //! - a second signal while a stop is pending exits at once as well.
+//!
+//! What the message on stderr says is kept is the command's ([`say_on_stop`]): by default
+//! the outputs so far as `*.partial` inside a section and nothing outside.
 
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
+use std::sync::OnceLock;
 
 /// The first signal received while a [`Stoppable`] section was open (0: none).
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
@@ -60,19 +64,62 @@ pub fn exit_code() -> Option<u8> {
     requested().and_then(|s| u8::try_from(128 + s).ok())
 }
 
+/// What a signal's message says is kept, set by the command ([`say_on_stop`]).
+#[derive(Debug, Clone, Copy)]
+struct StopWords {
+    /// After "SIGINT: stopping; " inside a [`Stoppable`] section.
+    stopping: &'static str,
+    /// After "SIGINT: stopped; " when the process ends at once.
+    ended: &'static str,
+}
+
+/// The command's [`StopWords`] (unset: [`DEFAULT_WORDS`]).
+static WORDS: OnceLock<StopWords> = OnceLock::new();
+
+/// What a run keeps: its outputs so far as `*.partial` once they are being written, nothing
+/// before (`--out` unchanged).
+const DEFAULT_WORDS: StopWords = StopWords {
+    stopping: "the outputs so far are kept as *.partial",
+    ended: "nothing kept, the output folder unchanged",
+};
+
+/// Sets what the message of a signal says the command keeps (once per process, before
+/// [`install`]; later calls do nothing): `stopping` inside a [`Stoppable`] section (the
+/// default: the outputs so far as `*.partial`), `ended` when the process ends at once (the
+/// default: nothing, the output folder unchanged).
+pub fn say_on_stop(stopping: &'static str, ended: &'static str) {
+    let _ = WORDS.set(StopWords { stopping, ended });
+}
+
+/// The message of `sig` received: `stopping` true inside a [`Stoppable`] section (the stop
+/// requested), false when the process ends at once.
+pub fn stop_message(sig: i32, stopping: bool) -> String {
+    let w = WORDS.get().copied().unwrap_or(DEFAULT_WORDS);
+    if stopping {
+        format!(
+            "{}: stopping; {} (send it again to end at once)",
+            signal_name(sig),
+            w.stopping
+        )
+    } else {
+        format!("{}: stopped; {}", signal_name(sig), w.ended)
+    }
+}
+
 /// Handles a signal received: a stop request inside a section, else the end of the process.
 fn on_signal(sig: i32) {
     let first = SIGNAL
         .compare_exchange(0, sig, Ordering::SeqCst, Ordering::SeqCst)
         .is_ok();
-    if !(first && STOPPABLE.load(Ordering::SeqCst) > 0) {
-        eprintln!("\n{}: stopped", signal_name(sig));
+    if !first {
+        eprintln!("\n{}: stopped at once", signal_name(sig));
         std::process::exit(128 + sig);
     }
-    eprintln!(
-        "\n{}: stopping; the outputs so far are kept as *.partial (send it again to end at once)",
-        signal_name(sig)
-    );
+    if STOPPABLE.load(Ordering::SeqCst) == 0 {
+        eprintln!("\n{}", stop_message(sig, false));
+        std::process::exit(128 + sig);
+    }
+    eprintln!("\n{}", stop_message(sig, true));
 }
 
 /// Starts the thread receiving SIGINT and SIGTERM (once per process; later calls do
@@ -81,7 +128,6 @@ fn on_signal(sig: i32) {
 pub fn install() -> std::io::Result<()> {
     #[cfg(unix)]
     {
-        use std::sync::OnceLock;
         static INSTALLED: OnceLock<()> = OnceLock::new();
         if INSTALLED.get().is_some() {
             return Ok(());

@@ -359,6 +359,17 @@ fn check_rate(
     }
 }
 
+/// A time in seconds as a user typed it: at most 3 decimals, trailing zeros dropped (the
+/// parsed value carries binary rounding, e.g. 99999.00000000001).
+fn show_s(x: f64) -> String {
+    if !x.is_finite() {
+        return x.to_string();
+    }
+    let s = format!("{x:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0" } else { s }.to_string()
+}
+
 /// Checks the outage options against the record `[t0, t_end]` and the IMU interval `dt_s`:
 /// every outage starts inside the record and lasts at least one IMU interval, and the
 /// periodic ones expand to at most [`MAX_OUTAGES`] in all (`existing` already present).
@@ -372,14 +383,23 @@ fn check_outages(
 ) -> anyhow::Result<()> {
     let record = (t_end - t0).max(0.0);
     let dt = dt_s.unwrap_or(0.0);
+    // as a user reads them: to the millisecond (an IMU interval to the microsecond)
+    let span = format!("the data span {record:.3} s (IMU time {t0:.3} to {t_end:.3} s)");
+    let interval = format!("one IMU interval, {:.3} ms", dt * 1e3);
     for o in &args.outages {
-        let inside = (0.0..record).contains(&o.start_s);
-        if !inside || !o.duration_s.is_finite() || o.duration_s < dt {
-            bail!(
-                "--outage {}:{}: START must be in [0, {record}) s (the record after its first IMU epoch) and DURATION finite and at least one IMU interval, {dt} s",
-                o.start_s,
-                o.duration_s
-            );
+        let given = format!("--outage {}:{}", show_s(o.start_s), show_s(o.duration_s));
+        if !(0.0..record).contains(&o.start_s) {
+            let why = if o.start_s.is_nan() {
+                "START is not a number"
+            } else if o.start_s < 0.0 {
+                "START is before the first IMU epoch"
+            } else {
+                "START is at or beyond the end of the data"
+            };
+            bail!("{given}: {why}: {span}, so START must be in [0, {record:.3}) s");
+        }
+        if !o.duration_s.is_finite() || o.duration_s < dt {
+            bail!("{given}: DURATION must be finite and at least {interval}");
         }
     }
     let mut n = existing + args.outages.len();
@@ -389,7 +409,9 @@ fn check_outages(
         } else {
             format!(
                 "--periodic-outage {}:{}:{}",
-                p.first_start_s, p.duration_s, p.period_s
+                show_s(p.first_start_s),
+                show_s(p.duration_s),
+                show_s(p.period_s)
             )
         };
         let inside = (0.0..record).contains(&p.first_start_s);
@@ -400,7 +422,8 @@ fn check_outages(
             || p.period_s < p.duration_s
         {
             bail!(
-                "{what}: FIRST must be in [0, {record}) s (the record after its first IMU epoch), DURATION finite and at least one IMU interval, {dt} s, and PERIOD finite and at least DURATION"
+                "{what}: FIRST must be in [0, {record:.3}) s ({span}), DURATION finite and at \
+                 least {interval}, and PERIOD finite and at least DURATION"
             );
         }
         // outages ending inside the record ([`PeriodicOutages::expand`])
@@ -412,7 +435,7 @@ fn check_outages(
         };
         if count > (MAX_OUTAGES - n.min(MAX_OUTAGES)) as f64 {
             bail!(
-                "{what}: {count} outages over the {record} s record; at most {MAX_OUTAGES} outages in a run (use a longer PERIOD)"
+                "{what}: {count} outages over the {record:.3} s record; at most {MAX_OUTAGES} outages in a run (use a longer PERIOD)"
             );
         }
         n += count as usize;

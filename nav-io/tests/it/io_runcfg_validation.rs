@@ -52,6 +52,36 @@ fn the_base_configuration_is_valid() {
     assert_eq!(c.effects.len(), 2);
 }
 
+/// A configuration without a required table is refused naming the table and the file, not
+/// with the position the TOML parser gives it (the start of the file).
+#[test]
+fn a_missing_table_is_named_without_a_position() {
+    let start = BASE.find("[noise.accel]").unwrap();
+    let e = err_of(&BASE[..start]);
+    // the whole chain, as the command lines print it
+    let mut m = e.to_string();
+    let mut src = std::error::Error::source(&e);
+    while let Some(s) = src {
+        m.push_str(&format!(": {s}"));
+        src = s.source();
+    }
+    assert!(
+        m.contains("missing table [noise] (the IMU noise model)"),
+        "{m}"
+    );
+    assert!(!m.contains("line 1") && !m.contains("column"), "{m}");
+    // two missing: both named
+    let no_gnss = BASE.replace("[gnss]\npath = \"gnss.txt\"\nformat = \"text\"\n", "");
+    let m = err_of(&no_gnss[..no_gnss.find("[noise.accel]").unwrap()]).to_string();
+    assert!(
+        m.contains("missing tables [gnss] (the GNSS input), [noise] (the IMU noise model)"),
+        "{m}"
+    );
+    // a required key inside a table keeps the parser's position (its table's)
+    let m = err_of(&BASE.replace("path = \"imu.txt\"\n", "")).to_string();
+    assert!(m.contains("missing field `path`"), "{m}");
+}
+
 #[test]
 fn negative_density_is_an_error_with_its_line() {
     // the TOML reader squared -0.2 deg/sqrt(h) into a valid PSD before
