@@ -359,13 +359,13 @@ fn check_rate(
     }
 }
 
-/// A time in seconds as a user typed it: at most 3 decimals, trailing zeros dropped (the
-/// parsed value carries binary rounding, e.g. 99999.00000000001).
+/// A time in seconds as a user typed it: to the nanosecond, trailing zeros dropped (the
+/// parsed value carries binary rounding, e.g. 99999.00000000001; a typed 1e-4 stays 0.0001).
 fn show_s(x: f64) -> String {
     if !x.is_finite() {
         return x.to_string();
     }
-    let s = format!("{x:.3}");
+    let s = format!("{x:.9}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" { "0" } else { s }.to_string()
 }
@@ -1498,5 +1498,22 @@ mod tests {
         let e = format!("{:#}", GnssStream::check(&bad).unwrap_err());
         assert!(e.contains("bad.txt") && e.contains('2'), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Times in option messages read as typed: no binary rounding digits, small values kept.
+    #[test]
+    fn option_times_are_shown_as_typed() {
+        let cases = [
+            (99999.000_000_000_01, "99999"),
+            (1e-4, "0.0001"),
+            (1e9, "1000000000"),
+            (0.3, "0.3"),
+            (-0.0, "0"),
+            (548.579_999_999_987_2, "548.58"),
+        ];
+        for (x, want) in cases {
+            assert_eq!(super::show_s(x), want, "{x}");
+        }
+        assert_eq!(super::show_s(f64::NAN), "NaN");
     }
 }
