@@ -213,15 +213,23 @@ pub(crate) fn judge_gnss_side(
 }
 
 /// Why a GNSS-side candidate `g` ([`is_noise_like`]) eligible on the fixes withheld one at a
-/// time is not added in this round, None when it may be: a specific effect of `results`
-/// pays (evidence over its BIC penalty) with held-out windows significantly lower than the
-/// current model's, and `g`'s windows are not significantly lower than that effect's (paired
-/// per window). The state absorbs any slowly varying misfit, so the fixes withheld one at a
-/// time favour it whatever the cause (a lever arm + accelerometer step drive: +38.9 % on those
-/// fixes, the step then not found); on the windows, the common ground, a specific effect it
-/// does not beat comes first. A correlated GNSS error of a single-point receiver (0.5-1.5 m)
-/// lowers the windows far more than an effect that absorbs a part of it: 19 of 20 windows
-/// lower than a lever arm's, RMS 15.3 -> 5.0 m.
+/// time is not added in this round, None when it may be. The state absorbs any slowly varying
+/// misfit, so the fixes withheld one at a time favour it whatever the cause (a lever arm +
+/// accelerometer step drive: +38.9 % on those fixes, the step then not found). It yields:
+///
+/// - to a specific effect that pays (evidence over its BIC penalty) with held-out windows
+///   significantly lower than the current model's, when `g`'s windows are not significantly
+///   lower than that effect's (paired per window): on the windows, the common ground, a
+///   specific effect it does not beat comes first. A correlated GNSS error of a single-point
+///   receiver (0.5-1.5 m) lowers the windows far more than an effect that absorbs a part of
+///   it: 19 of 20 windows lower than a lever arm's, RMS 15.3 -> 5.0 m;
+/// - when `g` is eligible on the single fixes alone (its windows not significantly lower),
+///   to a specific effect with more evidence than `g`'s whose windows are not significantly
+///   higher: that effect explains more of the same misfit, so the misfit is not shown to be
+///   the fixes' own. On a 10-minute accelerometer misalignment drive the state paid 12.7 nats
+///   against the misalignment's 61.9 (neither significant on the windows) and was named in
+///   its place; on drives with a correlated GNSS error the state's evidence is hundreds to
+///   thousands of nats, beyond every IMU effect's.
 pub(crate) fn yields_to(
     g: &CandidateEvidence,
     results: &[(CandidateEvidence, Option<Eval>)],
@@ -231,19 +239,34 @@ pub(crate) fn yields_to(
     if !gnss_side(g) {
         return None;
     }
+    let pays = |c: &CandidateEvidence| c.evidence.is_some_and(|e| e > 0.0);
+    let verdict = |c: &CandidateEvidence| c.heldout.map(|h| h.verdict);
+    let on_fixes_only = verdict(g) != Some(HeldoutVerdict::Better);
+    let evidence = g.evidence.unwrap_or(f64::INFINITY);
     results.iter().map(|r| &r.0).find_map(|c| {
-        let specific = !gnss_side(c)
-            && c.evidence.is_some_and(|e| e > 0.0)
-            && c.heldout.is_some_and(|h| h.verdict == HeldoutVerdict::Better);
-        if !specific {
+        if gnss_side(c) || !pays(c) {
             return None;
         }
-        let h = validate::compare_windows(&c.window_errors_m, &g.window_errors_m);
-        (h.verdict != HeldoutVerdict::Better).then(|| {
+        if verdict(c) == Some(HeldoutVerdict::Better) {
+            let h = validate::compare_windows(&c.window_errors_m, &g.window_errors_m);
+            return (h.verdict != HeldoutVerdict::Better).then(|| {
+                format!(
+                    "yields to {}, whose held-out windows are significantly lower and which it \
+                     does not beat there (paired with it: {})",
+                    c.name,
+                    h.describe()
+                )
+            });
+        }
+        let explains_more = c.evidence.is_some_and(|e| e > evidence)
+            && c.decision != Decision::Refused
+            && verdict(c) != Some(HeldoutVerdict::Worse);
+        (on_fixes_only && explains_more).then(|| {
             format!(
-                "yields to {}, whose held-out windows are significantly lower and which it does                  not beat there (paired with it: {})",
+                "yields to {} ({:.1} nats of evidence against its {evidence:.1}; held-out \
+                 windows not significantly higher): the misfit is not shown to be the fixes' own",
                 c.name,
-                h.describe()
+                c.evidence.unwrap_or(0.0)
             )
         })
     })
@@ -987,5 +1010,82 @@ pub(crate) fn push_added(s: &mut Search, b: Block, mut info: AddedEffect) {
     match s.added_info.iter_mut().find(|e| e.name == old.name()) {
         Some(e) => *e = info,
         None => s.added_info.push(info),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A round's candidate with `evidence` (nats), its windows' `verdict` and `decision`.
+    fn cand(
+        b: Block,
+        evidence: f64,
+        verdict: HeldoutVerdict,
+        decision: Decision,
+    ) -> (CandidateEvidence, Option<Eval>) {
+        let h = HeldoutComparison {
+            windows: 20,
+            improved: 10,
+            gain: 0.0,
+            gain_ci90: [0.0; 2],
+            p_better: 0.5,
+            p_worse: 0.5,
+            current_rms_m: 1.0,
+            new_rms_m: 1.0,
+            rms_raised_beyond_one_window: false,
+            verdict,
+            of_single_fixes: false,
+        };
+        let c = CandidateEvidence {
+            name: b.name().to_string(),
+            freed: false,
+            regressor_correlation: 0.0,
+            correlation_z: 0.0,
+            delta_log_likelihood: Some(evidence + 20.0),
+            bic_penalty: 20.0,
+            evidence: Some(evidence),
+            estimate: Vec::new(),
+            sigma: Vec::new(),
+            max_z: 3.0,
+            detectability_bound: Vec::new(),
+            outage_error_m: None,
+            errors: None,
+            heldout: Some(h),
+            window_errors_m: vec![1.0; 20],
+            heldout_fixes: None,
+            decision,
+            reason: String::new(),
+            refused: None,
+            note: None,
+        };
+        (c, None)
+    }
+
+    /// The GNSS error state eligible on the single fixes alone yields to an IMU effect that
+    /// explains more of the misfit and is not worse on the windows; not to a weaker, a
+    /// refused or a worse one, and not when the state itself lowers the windows.
+    #[test]
+    fn the_gnss_state_on_single_fixes_yields_to_an_effect_with_more_evidence() {
+        use Decision::{Eligible, NotSignificant, Refused};
+        use HeldoutVerdict::{Better, Worse};
+        let ns = HeldoutVerdict::NotSignificant;
+        let gm = cand(Block::GnssPositionGm, 12.7, ns, Eligible).0;
+        let mis = || cand(Block::AccelMisalignment, 61.9, ns, NotSignificant);
+        let why = yields_to(&gm, &[mis()]).expect("yields");
+        assert!(
+            why.contains("accel_misalignment") && why.contains("61.9"),
+            "{why}"
+        );
+        let weaker = cand(Block::AccelMisalignment, 5.0, ns, NotSignificant);
+        assert!(yields_to(&gm, &[weaker]).is_none());
+        let refused = cand(Block::AccelMisalignment, 61.9, ns, Refused);
+        assert!(yields_to(&gm, &[refused]).is_none());
+        let worse = cand(Block::AccelMisalignment, 61.9, Worse, NotSignificant);
+        assert!(yields_to(&gm, &[worse]).is_none());
+        let gm_on_windows = cand(Block::GnssPositionGm, 12.7, Better, Eligible).0;
+        assert!(yields_to(&gm_on_windows, &[mis()]).is_none());
+        // an IMU effect never yields
+        assert!(yields_to(&mis().0, &[cand(Block::GnssPositionGm, 99.0, ns, Eligible)]).is_none());
     }
 }
