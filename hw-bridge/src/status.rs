@@ -47,6 +47,22 @@ impl StatusLine {
         let _ = e.flush();
     }
 
+    /// Prints `text` as a line of its own on stderr ([`Self::message_line`]).
+    pub fn message(&self, text: &str) {
+        eprint!("{}", self.message_line(text));
+    }
+
+    /// `text` as a line of its own: on a terminal with the status line shown, the status line
+    /// is ended first so the message does not run into it; into a file or a pipe (whole lines
+    /// already) a plain line, no blank line before it.
+    pub fn message_line(&self, text: &str) -> String {
+        if self.enabled && self.terminal {
+            format!("\n{text}\n")
+        } else {
+            format!("{text}\n")
+        }
+    }
+
     /// Ends the line (on a terminal: a file or pipe has whole lines already).
     pub fn finish(&self) {
         if self.enabled && self.terminal {

@@ -284,7 +284,7 @@ fn record_into(
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
             Err(e) => {
                 if !a.quiet {
-                    eprintln!("\nport {}: {e}; reopening", a.port);
+                    status.message(&format!("port {}: {e}; reopening", a.port));
                 }
                 port = None;
                 lost_at = Some(Instant::now());

@@ -179,7 +179,7 @@ pub fn stream(a: &StreamOptions) -> anyhow::Result<StreamOutcome> {
                 }
             }
             Ok(PortEvent::Lost(name, e)) => {
-                eprintln!("\n{name} port lost: {e}; reopening");
+                status.message(&format!("{name} port lost: {e}; reopening"));
                 if name == "board" {
                     dec.reset_link();
                 }

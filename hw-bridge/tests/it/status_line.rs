@@ -28,3 +28,21 @@ fn stream_status_into_a_pipe_has_no_escape_codes() {
         "{err:?}"
     );
 }
+
+/// A message beside the status line (a port lost) is a line of its own; into a file or a pipe
+/// no blank line before it (on a terminal the shown status line is ended first).
+#[test]
+fn a_message_into_a_pipe_is_a_plain_line() {
+    use hw_bridge::status::StatusLine;
+    use std::io::IsTerminal;
+    use std::time::Duration;
+    let hidden = StatusLine::new(Duration::from_millis(500), false);
+    assert_eq!(hidden.message_line("port lost"), "port lost\n");
+    let shown = StatusLine::new(Duration::from_millis(500), true);
+    let want = if std::io::stderr().is_terminal() {
+        "\nport lost\n"
+    } else {
+        "port lost\n"
+    };
+    assert_eq!(shown.message_line("port lost"), want);
+}
