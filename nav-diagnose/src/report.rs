@@ -433,40 +433,33 @@ fn fold_gnss(doc: &mut toml::Table, d: &Diagnosis) -> Result<(), DiagnoseError> 
         .entry("gnss")
         .or_insert_with(|| toml::Value::Table(toml::Table::new()));
     if let toml::Value::Table(g) = gnss {
-        for e in &d.added_effects {
-            {
-                if e.name == "lever_arm" {
-                    let old: Vec<f64> = g
-                        .get("lever_arm_m")
-                        .and_then(|v| v.as_array())
-                        .map(|a| a.iter().filter_map(|x| x.as_float()).collect())
-                        .unwrap_or_else(|| vec![0.0; 3]);
-                    let new: Vec<toml::Value> = (0..3)
-                        .map(|i| {
-                            let o = old.get(i).copied().unwrap_or(0.0);
-                            toml::Value::Float(o + e.estimate.get(i).copied().unwrap_or(0.0))
-                        })
-                        .collect();
-                    g.insert("lever_arm_m".into(), toml::Value::Array(new));
-                }
-            }
+        for e in d.added_effects.iter().filter(|e| e.name == "lever_arm") {
+            let old: Vec<f64> = g
+                .get("lever_arm_m")
+                .and_then(|v| v.as_array())
+                .map(|a| a.iter().filter_map(|x| x.as_float()).collect())
+                .unwrap_or_else(|| vec![0.0; 3]);
+            let new: Vec<toml::Value> = (0..3)
+                .map(|i| {
+                    let o = old.get(i).copied().unwrap_or(0.0);
+                    toml::Value::Float(o + e.estimate.get(i).copied().unwrap_or(0.0))
+                })
+                .collect();
+            g.insert("lever_arm_m".into(), toml::Value::Array(new));
         }
+        let mut put = |key: &'static str, v: Result<toml::Value, toml::ser::Error>| {
+            let v = v.map_err(|source| DiagnoseError::GnssKey { key, source })?;
+            g.insert(key.into(), v);
+            Ok::<(), DiagnoseError>(())
+        };
+        // the configuration's scale times the tuned GNSS noise scale: one number when
+        // horizontal and vertical agree, else the table form
         if let Some(s) = d.final_gnss_sigma_scale {
-            // the configuration's scale times the tuned GNSS noise scale: one number when
-            // horizontal and vertical agree, else the table form
-            let v = toml::Value::try_from(s).map_err(|source| DiagnoseError::GnssKey {
-                key: "sigma_scale",
-                source,
-            })?;
-            g.insert("sigma_scale".into(), v);
+            put("sigma_scale", toml::Value::try_from(s))?;
         }
+        // the fitted prior of the GNSS error state, which the `effects` key adds
         if let Some(e) = d.final_gnss_error_prior {
-            // the fitted prior of the GNSS error state, which the `effects` key adds
-            let v = toml::Value::try_from(e).map_err(|source| DiagnoseError::GnssKey {
-                key: "error_state",
-                source,
-            })?;
-            g.insert("error_state".into(), v);
+            put("error_state", toml::Value::try_from(e))?;
         }
     }
     Ok(())

@@ -289,16 +289,19 @@ fn run_config_errors_name_the_file_and_the_problem() {
     assert!(m.contains("max_q"), "{m}");
 }
 
+/// `base` with `line` added to its `[gnss]` table (after its `time_offset_s`).
+fn with_gnss_line(base: &str, line: &str) -> String {
+    base.replace(
+        "time_offset_s = -0.01\n",
+        &format!("time_offset_s = -0.01\n{line}\n"),
+    )
+}
+
 #[test]
 fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
     let dir = tempfile::tempdir().unwrap();
     let base = base_toml(dir.path());
-    let with = |line: &str| {
-        base.replace(
-            "time_offset_s = -0.01\n",
-            &format!("time_offset_s = -0.01\n{line}\n"),
-        )
-    };
+    let with = |line: &str| with_gnss_line(&base, line);
     let p = Path::new("run.toml");
     let c = nav_io::parse_run_config(p, &with("sigma_scale = 10.0")).unwrap();
     assert_eq!(c.gnss.sigma_scale, nav_io::SigmaScale::both(10.0));
@@ -343,12 +346,7 @@ fn gnss_sigma_scale_is_one_number_or_horizontal_and_vertical() {
 fn gnss_error_state_prior_parses_validates_and_defaults_to_the_filter_prior() {
     let dir = tempfile::tempdir().unwrap();
     let base = base_toml(dir.path());
-    let with = |line: &str| {
-        base.replace(
-            "time_offset_s = -0.01\n",
-            &format!("time_offset_s = -0.01\n{line}\n"),
-        )
-    };
+    let with = |line: &str| with_gnss_line(&base, line);
     let p = Path::new("run.toml");
     // absent: none, and the written configuration has no such key
     let c = nav_io::parse_run_config(p, &base).unwrap();
