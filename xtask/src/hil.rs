@@ -584,16 +584,17 @@ pub struct HostBins {
     pub hw_bridge: PathBuf,
 }
 
-/// Builds `host-sim` and `hw-bridge` (release) and returns their paths (from cargo's JSON
+/// Builds `host-sim` and `hw-bridge` (profile `ci`) and returns their paths (from cargo's JSON
 /// messages, so any `CARGO_TARGET_DIR` works). It asks for exactly the build of the CI's test
-/// step (`cargo test --workspace --release`, which builds both binaries for its integration
+/// step (`cargo test --workspace --profile ci`, which builds both binaries for its integration
 /// tests), so after that step this is a no-op instead of a rebuild with other features.
 pub fn host_bins() -> Result<HostBins> {
     let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     c.args([
         "test",
         "--workspace",
-        "--release",
+        "--profile",
+        "ci",
         "--no-run",
         "--message-format=json-render-diagnostics",
     ])

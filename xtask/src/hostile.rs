@@ -36,7 +36,8 @@ use test_support::cli::{run_bounded, Bounded};
 /// Longest run of one try.
 const LIMIT: Duration = Duration::from_secs(120);
 
-/// The release binaries under test: the ones `cargo test --workspace --release` builds.
+/// The binaries under test: the ones the host test suite (`cargo test --workspace --profile
+/// ci`) builds.
 pub(crate) use crate::hil::HostBins as Bins;
 
 /// What a try must do.
@@ -245,7 +246,7 @@ mod tests {
     /// Every count of the table but `tried` is 0. Not a step of `cargo xtask ci`: it costs
     /// about 120 CPU-s (4 minutes wall on the 2-core machine, the case simulated and run some
     /// 48 times), over the ~25 s a CI step may add; run it with `cargo xtask hostile` or
-    /// `cargo test --release -p xtask -- --ignored hostile`.
+    /// `cargo test --profile ci -p xtask -- --ignored hostile`.
     #[test]
     #[ignore = "about 2 CPU-minutes: run with cargo xtask hostile"]
     fn hostile_inputs_find_nothing() {

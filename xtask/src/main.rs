@@ -90,8 +90,8 @@ enum Cmd {
         #[arg(long)]
         update_allowlist: bool,
     },
-    /// The host test suite (`cargo test --workspace --release`): no root, no embedded
-    /// toolchain, no qemu needed.
+    /// The host test suite (`cargo test --workspace --profile ci`: release optimisation
+    /// without LTO): no root, no embedded toolchain, no qemu needed.
     TestHost,
     /// Run every libFuzzer target of `fuzz/` for a bounded time (coverage-guided, address
     /// sanitizer; builds the instrumented targets first, about 2.5 CPU-minutes).
@@ -160,7 +160,8 @@ enum Cmd {
         #[arg(long)]
         hours: Option<f64>,
         /// Run the `host-sim` and `hw-bridge` executables in this folder (e.g.
-        /// `target/release`) instead of building the workspace's release test binaries.
+        /// `target/release`) instead of building the binaries of the host test suite (profile
+        /// `ci`).
         #[arg(long)]
         bins: Option<PathBuf>,
         /// Keep the case, capture and outputs (the directory is printed).
@@ -344,7 +345,8 @@ fn ci() -> Result<()> {
                 "clippy",
                 "--workspace",
                 "--all-targets",
-                "--release",
+                "--profile",
+                "ci",
                 "--",
                 "-D",
                 "warnings",
@@ -358,7 +360,8 @@ fn ci() -> Result<()> {
                 "doc",
                 "--workspace",
                 "--no-deps",
-                "--release",
+                "--profile",
+                "ci",
             ]))
         },
     )?;
@@ -367,7 +370,7 @@ fn ci() -> Result<()> {
         &mut || vectors::generate(true),
     )?;
     step(
-        "host test suite (cargo test --workspace --release)",
+        "host test suite (cargo test --workspace --profile ci)",
         &mut test_host,
     )?;
     firmware_steps(&mut step, &mut fw_bg)?;
@@ -386,9 +389,10 @@ fn ci() -> Result<()> {
     Ok(())
 }
 
-/// The host test suite: every host crate's tests in release mode, as CI builds them.
+/// The host test suite: every host crate's tests in the `ci` profile (release optimisation
+/// without LTO; see the workspace's Cargo.toml), as CI builds them.
 fn test_host() -> Result<()> {
-    run(cargo().args(["test", "--workspace", "--release"]))
+    run(cargo().args(["test", "--workspace", "--profile", "ci"]))
 }
 
 /// The firmware builds CI runs in the background: each board's ELFs, labelled by board name.

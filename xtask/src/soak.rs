@@ -19,7 +19,8 @@ pub fn run(seconds: u32) -> Result<()> {
     c.current_dir(crate::root())
         .args([
             "test",
-            "--release",
+            "--profile",
+            "ci",
             "-p",
             "hw-bridge",
             "--test",
