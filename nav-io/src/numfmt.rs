@@ -321,6 +321,27 @@ static POW5: [u64; 27] = {
 /// exponent is rewritten out of line (`positional_from_exp`).
 #[inline(always)]
 pub(crate) fn display_f64(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
+    // The common case in two comparisons: a normal x = m 2^e with 2^-13 <= |x| (biased
+    // exponent 1010 or more) whose significand m reduced by its trailing zeros leaves 27 or
+    // more binary places after the point (`maybe_tie`'s first test: not a tie; and |x| < 2^26).
+    // Then |x| is within zmij's positional range [1e-4, 1e15) and not an integer, so zmij's
+    // text is `Display`'s as it is: no ".0" to strip, no exponent to look for.
+    let bits = x.to_bits();
+    let biased = ((bits >> 52) & 0x7ff) as i32;
+    let tz = (bits | (1u64 << 52)).trailing_zeros() as i32;
+    if biased >= 1010 && biased + tz <= 1075 - 27 {
+        let mut rb = zmij::Buffer::new();
+        let s = rb.format_finite(x).as_bytes();
+        copy_short(out, s)?;
+        return Some(s.len());
+    }
+    display_f64_other(x, out)
+}
+
+/// [`display_f64`] for the values outside its common case: zero, non-finite, possible ties,
+/// integers, |x| below 2^-13 or from 2^26 up.
+#[inline(never)]
+fn display_f64_other(x: f64, out: &mut [u8; FAST_MAX]) -> Option<usize> {
     if !x.is_finite() {
         return None;
     }
