@@ -131,7 +131,7 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let dir: &PathBuf = &args.run.out;
     let d = match outcome {
         Outcome::Complete(d) => d,
-        Outcome::Interrupted(i) => return keep_partial(od, &p, i, dir),
+        Outcome::Interrupted(i) => return keep_partial(od, &p, *i, dir),
     };
     drop(stoppable);
     if let Some(t) = &truth_file {

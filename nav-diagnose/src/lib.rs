@@ -171,9 +171,9 @@ pub fn diagnose_cached(
     // a stop requested at any point: the runs since the last decided round may be cut (an
     // error, or a result of cut runs), whatever `res` is
     match nav_engine::run::interrupt::requested() {
-        Some(sig) => Ok(Outcome::Interrupted(
+        Some(sig) => Ok(Outcome::Interrupted(Box::new(
             cp.interrupted(nav_engine::run::interrupt::signal_name(sig)),
-        )),
+        ))),
         None => res.map(|d| Outcome::Complete(Box::new(d))),
     }
 }

@@ -78,7 +78,7 @@ pub enum Outcome {
     /// Every round, the final run and the figures.
     Complete(Box<DiagnoseOutput>),
     /// Stopped by SIGINT/SIGTERM.
-    Interrupted(Interrupted),
+    Interrupted(Box<Interrupted>),
 }
 
 /// What does not change during the search: the base run's figures, recorded once.
@@ -199,7 +199,14 @@ pub fn partial_markdown(description: &str, d: &PartialDiagnosis) -> String {
         "Candidates considered: {}\n",
         d.candidates_considered.join(", ")
     );
-    report::added_table(&mut s, &d.added_effects);
+    if !d.added_effects.is_empty() {
+        let _ = writeln!(
+            s,
+            "## Effects added by the decided rounds (estimates of the search runs that added \
+             them)\n"
+        );
+        report::added_table(&mut s, &d.added_effects);
+    }
     let _ = writeln!(s, "## Evidence (the decided rounds)\n");
     report::rounds_tables(&mut s, &d.rounds);
     s
