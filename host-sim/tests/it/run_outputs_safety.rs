@@ -405,7 +405,7 @@ fn diagnose_args<'a>(cfg: &'a Path, out: &'a Path) -> [&'a str; 5] {
 /// and it says so; exit 130, its runs end at once, its temporary folder goes, and the folder
 /// of an earlier complete run stays as it was.
 #[test]
-fn sigint_during_the_base_run_of_a_diagnosis_keeps_nothing_and_leaves_no_temporary_files() {
+fn sigint_during_the_base_run_of_diagnose_keeps_nothing_and_leaves_no_temporary_files() {
     let d = input_folder("sig-diag");
     let cfg = d.join("run.toml");
     let out = case().0.join("sig-diag-out");
@@ -471,7 +471,7 @@ fn sigint_during_the_base_run_of_a_diagnosis_keeps_nothing_and_leaves_no_tempora
 /// with the base run's solution as `nav_before.txt.partial`; the round in progress is not
 /// listed; no file takes a finished diagnosis's name; exit 130; no temporary file left.
 #[test]
-fn sigint_after_a_decided_round_keeps_that_round_as_a_partial_diagnosis() {
+fn sigint_after_a_decided_round_of_diagnose_keeps_that_round_as_a_partial_diagnosis() {
     let d = input_folder("sig-diag-round");
     let cfg = d.join("run.toml");
     let text = std::fs::read_to_string(&cfg)
