@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::run::cli::RunArgs;
-use nav_diagnose::{diagnose_cached, imu_cache, DiagnoseOptions, DiagnoseOutput};
+use nav_diagnose::{diagnose_cached, imu_cache, DiagnoseOptions, DiagnoseOutput, Outcome};
 use nav_engine::run::outdir::OutDir;
 use nav_engine::Prepared;
 
@@ -74,26 +74,38 @@ fn short_list(v: &[f64]) -> String {
 
 /// What `host-sim diagnose` keeps when SIGINT/SIGTERM stop it (the message on stderr).
 pub const KEPT_ON_STOP: &str =
-    "the diagnosis keeps no partial output: its runs end, its temporary files are removed and \
-     the output folder stays as it was";
+    "the diagnosis ends its runs and keeps the search rounds decided so far as \
+     report.md.partial, diagnosis.json.partial and nav_before.txt.partial in the output folder \
+     (nothing before the first round is decided)";
 
 /// What `host-sim diagnose` keeps when SIGINT/SIGTERM end it at once (while it loads its
 /// inputs or writes its outputs).
 pub const KEPT_ON_EXIT: &str = "the diagnosis keeps no partial output, the output folder as it was";
+
+/// `round N decided: ...` on stderr (the progress of the search).
+fn say_round(n: usize, r: &nav_diagnose::Round) {
+    match &r.added {
+        Some(a) => eprintln!("round {n} decided: {a} added"),
+        None => eprintln!("round {n} decided: nothing added"),
+    }
+}
 
 /// Runs `host-sim diagnose`.
 ///
 /// The outputs are written in the stage folder of `--out` ([`OutDir`]: refused when it holds
 /// one of the inputs or another run is writing into it) and moved into place at the end.
 /// SIGINT/SIGTERM (once [`nav_engine::run::interrupt::install`] is in place) end the
-/// diagnosis's runs at their next IMU read; the command then removes its temporary files and
-/// ends with the error [`KEPT_ON_STOP`] (exit `128 + signal`), `--out` as it was.
+/// diagnosis's runs at their next IMU read; the search rounds decided before the signal are
+/// written as `report.md.partial`, `diagnosis.json.partial` and `nav_before.txt.partial`
+/// ([`nav_diagnose::write_partial_files`]; nothing before the first round is decided), the
+/// previous complete outputs untouched, and the command ends with an error naming what it
+/// kept (exit `128 + signal`).
 pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
     let l = crate::run::cli::load(&args.run, true)?;
     let od = OutDir::open(&args.run.out, &l.inputs)?;
     let truth_file = l.truth_stream.clone();
     // a signal from here ends the runs (the IMU reads notice it) instead of the process,
-    // so that the temporary folder goes
+    // so that the rounds decided are kept and the temporary folder goes
     let stoppable = nav_engine::run::interrupt::Stoppable::enter();
     let (mut p, imu) = imu_cache::load_cached(l)?;
     println!("{}", p.description);
@@ -110,27 +122,87 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
         Some(_) => std::mem::take(&mut p.case),
         None => p.case.clone(),
     };
-    let d = diagnose_cached(case, &p.opts, imu, &dopts);
+    let quiet = args.run.quiet;
+    let outcome = diagnose_cached(case, &p.opts, imu, &dopts, &mut |n, r| {
+        if !quiet {
+            say_round(n, r);
+        }
+    })?;
+    let dir: &PathBuf = &args.run.out;
+    let d = match outcome {
+        Outcome::Complete(d) => d,
+        Outcome::Interrupted(i) => return keep_partial(od, &p, *i, dir),
+    };
     drop(stoppable);
-    // stopped by SIGINT/SIGTERM: the runs ended early (an error or a diagnosis of cut runs);
-    // nothing written, the temporary files removed with `d`
-    if let Some(sig) = nav_engine::run::interrupt::requested() {
-        drop(d);
-        anyhow::bail!(
-            "{}: stopped; {KEPT_ON_STOP}",
-            nav_engine::run::interrupt::signal_name(sig)
-        );
-    }
-    let d = d?;
     if let Some(t) = &truth_file {
         p.case.truth = Some(t.open()?.collect::<Result<_, _>>()?);
     }
-    let dir: &PathBuf = &args.run.out;
     write_outputs(od.stage(), &p, &d, Some(&args.run.config))?;
     let moving = nav_engine::run::interrupt::Stoppable::enter();
     od.commit()
         .with_context(|| format!("moving the outputs into {}", dir.display()))?;
     drop(moving);
+    if let Some(sig) = nav_engine::run::interrupt::requested() {
+        // the signal came once the diagnosis was complete: its outputs are in place
+        anyhow::bail!(
+            "{}: received as the diagnosis ended; its complete outputs are in {}",
+            nav_engine::run::interrupt::signal_name(sig),
+            dir.display()
+        );
+    }
+    summary(&d);
+    println!("wrote {}", dir.display());
+    Ok(())
+}
+
+/// A diagnosis stopped by a signal: the rounds it decided written as `*.partial` and moved
+/// into `dir` (nothing when none was decided: the stage folder removed), and the error
+/// naming what was kept.
+fn keep_partial(
+    od: OutDir,
+    p: &Prepared,
+    i: nav_diagnose::Interrupted,
+    dir: &Path,
+) -> anyhow::Result<()> {
+    let Some(kept) = &i.kept else {
+        drop(od);
+        anyhow::bail!(
+            "{}: stopped before the search decided its first round; nothing kept, the output \
+             folder as it was",
+            i.signal
+        );
+    };
+    let written = nav_diagnose::write_partial_files(od.stage(), &p.description, p.week, kept)
+        .map_err(anyhow::Error::from)
+        .and_then(|w| Ok((w, od.commit()?)));
+    match written {
+        Ok((w, _)) => {
+            let names: Vec<String> = w
+                .iter()
+                .filter_map(|f| f.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .collect();
+            anyhow::bail!(
+                "{}: stopped after round {} of the search; the decided rounds are kept in {} as \
+                 {} (incomplete: the search did not finish, no nav_after.txt or augmented.toml; \
+                 the previous complete outputs untouched)",
+                i.signal,
+                kept.0.after_round,
+                dir.display(),
+                names.join(", ")
+            )
+        }
+        Err(e) => anyhow::bail!(
+            "{}: stopped after round {} of the search; writing its partial diagnosis failed: \
+             {e:#}",
+            i.signal,
+            kept.0.after_round
+        ),
+    }
+}
+
+/// The console summary of a complete diagnosis.
+fn summary(d: &DiagnoseOutput) {
     let dg = &d.diagnosis;
     println!("held-out windows: {}", dg.heldout_windows.how);
     println!("effects the model lacks: {}", dg.verdict);
@@ -202,6 +274,4 @@ pub fn run(args: DiagnoseArgs) -> anyhow::Result<()> {
             String::new()
         }
     );
-    println!("wrote {}", dir.display());
-    Ok(())
 }

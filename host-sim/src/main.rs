@@ -10,7 +10,9 @@ Exit status:
   2        not a navigation solution: no GNSS fix (or too few) used; the outputs, when
            written, are a dead-reckoning track
   130/143  stopped by SIGINT/SIGTERM (128 + the signal): run keeps its outputs so far as
-           *.partial; diagnose keeps nothing (the output folder as it was)";
+           *.partial; diagnose keeps the search rounds decided before the signal as
+           report.md.partial, diagnosis.json.partial and nav_before.txt.partial (no
+           nav_after.txt or augmented.toml; nothing before its first round is decided)";
 
 /// INS/GNSS navigation core on the host: simulate, identify noise, run, study, diagnose.
 #[derive(Parser, Debug)]
@@ -35,6 +37,13 @@ enum Cmd {
     /// Find the effects the model lacks from the innovations, add each one whose held-out
     /// prediction is significantly better, and write report.md, diagnosis.json,
     /// augmented.toml, nav_before.txt, nav_after.txt and plots.
+    ///
+    /// Each search round says `round N decided: ...` on stderr (not with --quiet). Ctrl-C
+    /// (SIGINT) or SIGTERM ends the runs and keeps the rounds decided before the signal as
+    /// report.md.partial, diagnosis.json.partial ("complete": false) and
+    /// nav_before.txt.partial, exit 130/143: the round in progress is dropped, there is no
+    /// nav_after.txt or augmented.toml, and nothing is kept before the first round is
+    /// decided. A second signal ends it at once.
     Diagnose(host_sim::diagnose::DiagnoseArgs),
     /// Estimate the IMU-to-body rotation from the data (the configured [imu.mounting] is
     /// ignored) and print the [imu.mounting] section to paste.
@@ -59,7 +68,7 @@ fn main() -> std::process::ExitCode {
     };
     if matches!(cli.cmd, Cmd::Run(_) | Cmd::Diagnose(_)) {
         // SIGINT/SIGTERM: a run keeps what it processed as *.partial, a diagnosis ends its
-        // runs and keeps nothing (else the system's default)
+        // runs and keeps the rounds it decided as *.partial (else the system's default)
         if matches!(cli.cmd, Cmd::Diagnose(_)) {
             nav_engine::run::interrupt::say_on_stop(
                 host_sim::diagnose::KEPT_ON_STOP,

@@ -46,6 +46,12 @@ pub enum DiagnoseError {
     /// The diagnosis could not be written as JSON (`diagnosis.json`).
     #[error("diagnosis.json")]
     Json(#[from] serde_json::Error),
+    /// SIGINT or SIGTERM stopped the diagnosis (its runs ended at their next IMU read).
+    #[error("diagnosis: interrupted by {signal}")]
+    Interrupted {
+        /// The signal's name.
+        signal: String,
+    },
     /// A tuned `[gnss]` key (`sigma_scale`, `error_state`) could not be written as TOML
     /// (`augmented.toml`).
     #[error("gnss.{key} of augmented.toml")]

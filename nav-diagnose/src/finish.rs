@@ -210,7 +210,8 @@ pub(crate) fn final_run(
     }
 }
 
-/// The final run with every fix, the figures before and after, what was not added, the
+/// The final run with every fix (the final model's options `final_opts`), the figures
+/// before (the base run's position errors `error_before`) and after, what was not added, the
 /// verdict and the warnings.
 pub(crate) fn finish(
     ctx: &Ctx<'_>,
@@ -218,7 +219,7 @@ pub(crate) fn finish(
     all: &[Block],
     base: &Eval,
     (before, before_nav, errors_before): BaseRun,
-    final_opts: RunOptions,
+    (final_opts, error_before): (RunOptions, ErrorSummary),
 ) -> Result<DiagnoseOutput, DiagnoseError> {
     let p = ctx.p;
     let final_gnss_sigma_scale = (final_opts.gnss_sigma_scale != p.opts.gnss_sigma_scale)
@@ -260,7 +261,6 @@ pub(crate) fn finish(
     let ovf = |run: &RunOutput, nav: &spill::NavFile| {
         validate::written_solution_vs_fixes_file(run, nav, &p.case.gnss)
     };
-    let error_before = error_summary(&errors_before, ovf(&before, &before_nav)?);
     let error_after = error_summary(&errors_after, ovf(&after, &after_nav)?);
     let undetected = undetected(all, &s);
     let s_held = s.time_offset_held.is_some();

@@ -93,6 +93,7 @@ mod error;
 pub mod imu_cache;
 mod memo;
 pub mod noise;
+mod partial;
 pub mod prior;
 pub mod report;
 pub mod spill;
@@ -118,6 +119,10 @@ use nav_engine::metrics::{self, Metrics};
 use nav_engine::run::prepare::Prepared;
 use nav_engine::run::{output, run_filter, Outage, RunOptions, RunOutput, MAX_EXTRA_DIM};
 pub use noise::{NoiseFactors, NoiseTrial, NoiseTuning};
+pub use partial::{
+    partial_markdown, write_partial_files, Interrupted, Outcome, PartialDiagnosis, PARTIAL_SUFFIX,
+};
+use partial::{BeforeSearch, Checkpoint};
 pub use prior::{candidates, options_with};
 pub use round::*;
 pub use search::*;
@@ -128,7 +133,8 @@ pub use validate::{
 };
 
 /// Diagnoses a prepared case (see the module notes): its IMU samples are written into the
-/// diagnosis's record file first ([`imu_cache`]), then [`diagnose_cached`].
+/// diagnosis's record file first ([`imu_cache`]), then [`diagnose_cached`]. A diagnosis
+/// stopped by SIGINT/SIGTERM is the error [`DiagnoseError::Interrupted`].
 pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> Result<DiagnoseOutput, DiagnoseError> {
     let folder = spill::temp_folder()?;
     let imu = ImuCache::from_case(&folder, &p.case)?;
@@ -138,17 +144,58 @@ pub fn diagnose(p: &Prepared, dopts: &DiagnoseOptions) -> Result<DiagnoseOutput,
         truth: p.case.truth.clone(),
         imu_origin: None,
     };
-    diagnose_cached(case, &p.opts, imu, dopts)
+    match diagnose_cached(case, &p.opts, imu, dopts, &mut |_, _| {})? {
+        Outcome::Complete(d) => Ok(*d),
+        Outcome::Interrupted(i) => Err(DiagnoseError::Interrupted { signal: i.signal }),
+    }
 }
 
 /// Diagnoses the fixes and truth of `case` (its IMU list unused) with the IMU record `imu`
 /// and the configuration's options `opts` (see the module notes); the diagnosis's files go
-/// into the record's temporary folder.
+/// into the record's temporary folder. `on_round` is told of each search round once it is
+/// decided (its number from 1, the round).
+///
+/// Stopped by SIGINT/SIGTERM (inside a [`nav_engine::run::interrupt::Stoppable`] section:
+/// the runs end at their next IMU read), it returns [`Outcome::Interrupted`] with the rounds
+/// decided before the signal ([`PartialDiagnosis`]; none when the first round was not
+/// decided): a round whose runs the signal cut is never among them.
 pub fn diagnose_cached(
     case: nav_engine::run::CaseData,
     opts: &RunOptions,
     imu: ImuCache,
     dopts: &DiagnoseOptions,
+    on_round: &mut dyn FnMut(usize, &Round),
+) -> Result<Outcome, DiagnoseError> {
+    let mut cp = Checkpoint::new(on_round);
+    let res = search_and_finish(case, opts, imu, dopts, &mut cp);
+    // a stop requested at any point: the runs since the last decided round may be cut (an
+    // error, or a result of cut runs), whatever `res` is
+    match nav_engine::run::interrupt::requested() {
+        Some(sig) => Ok(Outcome::Interrupted(Box::new(
+            cp.interrupted(nav_engine::run::interrupt::signal_name(sig)),
+        ))),
+        None => res.map(|d| Outcome::Complete(Box::new(d))),
+    }
+}
+
+/// The error [`DiagnoseError::Interrupted`] once SIGINT/SIGTERM asked for a stop.
+fn stop_requested() -> Result<(), DiagnoseError> {
+    match nav_engine::run::interrupt::requested() {
+        Some(sig) => Err(DiagnoseError::Interrupted {
+            signal: nav_engine::run::interrupt::signal_name(sig),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The diagnosis of [`diagnose_cached`]: the base run, the search (the decided rounds
+/// recorded in `cp`), the final steps.
+fn search_and_finish(
+    case: nav_engine::run::CaseData,
+    opts: &RunOptions,
+    imu: ImuCache,
+    dopts: &DiagnoseOptions,
+    cp: &mut Checkpoint<'_>,
 ) -> Result<DiagnoseOutput, DiagnoseError> {
     let folder = imu.folder().clone();
     // the data with a step found after an added effect removed, when it is kept
@@ -162,6 +209,7 @@ pub fn diagnose_cached(
     let p = &data;
     let (before, before_nav, errors_before) =
         spill::run_to_file(&p.case, &p.opts, &folder, "before")?;
+    stop_requested()?;
     let before = Arc::new(before);
     let fix_times: Vec<f64> = if p.case.gnss.is_empty() {
         before.innovations.iter().map(|r| r.t_s).collect()
@@ -185,6 +233,18 @@ pub fn diagnose_cached(
         .clone()
         .unwrap_or_else(|| prior::candidates_with(p.case.imu.has_temperature(), &p.opts));
     let base = base_eval(&base_ctx, &before, &before_nav, &errors_before)?;
+    let error_before = error_summary(
+        &errors_before,
+        validate::written_solution_vs_fixes_file(&before, &before_nav, &p.case.gnss)?,
+    );
+    cp.before = Some(BeforeSearch {
+        plan: base_ctx.plan.clone(),
+        candidates: validate::names(&all),
+        windows: base.windows.clone(),
+        residuals: residual_stats(&before.innovations),
+        errors: error_before,
+        nav: before_nav.clone(),
+    });
     let found = find_bias_step(p, &before);
     // the search and the final model run on the data with the step removed when it is kept
     let (ctx, step) = judge_bias_step(base_ctx, &base, found.as_ref())?;
@@ -193,7 +253,8 @@ pub fn diagnose_cached(
     let mut ctx = ctx;
     let mut searched_with = 0;
     loop {
-        let more = search_rounds(&ctx, &mut s, &all, true);
+        let more = search_rounds(&ctx, &mut s, &all, true, &mut |s| cp.after_round(s));
+        stop_requested()?;
         if s.added.len() > searched_with {
             searched_with = s.added.len();
             if let Some(stepped) = late_bias_step(&ctx, &mut s)? {
@@ -230,13 +291,14 @@ pub fn diagnose_cached(
         Some((moved, o)) => (Ctx { p: moved, ..ctx }, o.clone()),
         None => (ctx, final_opts),
     };
+    stop_requested()?;
     finish(
         &ctx,
         s,
         &all,
         &base,
         (before, before_nav, errors_before),
-        final_opts,
+        (final_opts, error_before),
     )
 }
 

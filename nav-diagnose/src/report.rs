@@ -63,7 +63,7 @@ pub fn write_report(dir: &Path, p: &Prepared, d: &DiagnoseOutput) -> Result<(), 
 }
 
 /// The noise tuning: stage 1 and stage 0 tables, the re-tuning with the effects.
-fn noise_section(s: &mut String, t: &crate::NoiseTuning) {
+pub(crate) fn noise_section(s: &mut String, t: &crate::NoiseTuning) {
     let _ = writeln!(
         s,
         "Noise tuning (default; `--no-tune-noise` keeps the configuration's): stage 1 factor \
@@ -165,6 +165,19 @@ fn heldout_section(s: &mut String, dg: &Diagnosis, t0: f64) {
 
 /// Every model change with its errors, and the output clock of `nav_after.txt`.
 fn steps_section(s: &mut String, dg: &Diagnosis) {
+    steps_table(s, &dg.steps);
+    if dg.output_clock_shift_s != 0.0 {
+        let _ = writeln!(
+            s,
+            "nav_after.txt is on the GNSS clock: its times are the IMU times {:+.4} s (minus the \
+             time offset estimate).\n",
+            dg.output_clock_shift_s
+        );
+    }
+}
+
+/// The table of the model changes `steps` with their errors.
+pub(crate) fn steps_table(s: &mut String, steps: &[super::Step]) {
     let _ = writeln!(
         s,
         "## Steps (every model change; a change whose held-out errors are significantly higher is not made)\n"
@@ -174,7 +187,7 @@ fn steps_section(s: &mut String, dg: &Diagnosis) {
         "| step | kept | held-out windows RMS [m] | held-out gain vs the step before | GNSS prior residual, horizontal RMS [m] | outage error vs truth [m] | 3D RMS with GNSS vs truth [m] | NIS mean | why |\n|---|---|---|---|---|---|---|---|---|"
     );
     let o = fmt_opt;
-    for st in &dg.steps {
+    for st in steps {
         let e = &st.errors;
         let _ = writeln!(
             s,
@@ -191,14 +204,6 @@ fn steps_section(s: &mut String, dg: &Diagnosis) {
         );
     }
     s.push('\n');
-    if dg.output_clock_shift_s != 0.0 {
-        let _ = writeln!(
-            s,
-            "nav_after.txt is on the GNSS clock: its times are the IMU times {:+.4} s (minus the \
-             time offset estimate).\n",
-            dg.output_clock_shift_s
-        );
-    }
 }
 
 /// The effects not added with their detectability bounds, the warnings, the candidates.
@@ -235,14 +240,20 @@ fn not_added_section(s: &mut String, dg: &Diagnosis) {
 
 /// The added effects with their evidence and held-out gains.
 fn added_section(s: &mut String, dg: &Diagnosis) {
+    added_table(s, &dg.added_effects);
+}
+
+/// The table of the effects `added` with their evidence and held-out gains (nothing when
+/// empty).
+pub(crate) fn added_table(s: &mut String, added: &[super::AddedEffect]) {
     let o = fmt_opt;
-    if !dg.added_effects.is_empty() {
+    if !added.is_empty() {
         let _ = writeln!(
             s,
             "| effect | estimate | 1-sigma | unit | likelihood gain [nats] | evidence (gain - BIC) [nats] | held-out gain [90 % CI] | p (lower errors) | runner-up (nats behind) | held-out windows RMS before -> after [m] | GNSS prior residual before -> after [m] |"
         );
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
-        for e in &dg.added_effects {
+        for e in added {
             let ru = e
                 .runner_up
                 .as_ref()
@@ -334,7 +345,13 @@ fn residuals_section(s: &mut String, dg: &Diagnosis) {
 /// The search round by round: every candidate's evidence and decision.
 fn evidence_section(s: &mut String, dg: &Diagnosis) {
     let _ = writeln!(s, "## Evidence\n");
-    for (i, r) in dg.rounds.iter().enumerate() {
+    rounds_tables(s, &dg.rounds);
+    let _ = writeln!(s, "![evidence](evidence.png)");
+}
+
+/// One table per search round of `rounds`: every candidate's evidence and decision.
+pub(crate) fn rounds_tables(s: &mut String, rounds: &[super::Round]) {
+    for (i, r) in rounds.iter().enumerate() {
         let _ = writeln!(
             s,
             "Round {} (model effects: [{}]; added: {}):\n",
@@ -373,7 +390,6 @@ fn evidence_section(s: &mut String, dg: &Diagnosis) {
         }
         s.push('\n');
     }
-    let _ = writeln!(s, "![evidence](evidence.png)");
 }
 
 /// Writes `augmented.toml` into `dir`: the input configuration (a project TOML) with the

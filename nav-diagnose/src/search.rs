@@ -398,16 +398,23 @@ fn judge_step(
 
 /// Search rounds while an effect pays and fewer than [`DiagnoseOptions::max_effects`] are
 /// added; with `until_added` the rounds stop after the one that adds an effect. True when
-/// they stopped there (more rounds may pay).
+/// they stopped there (more rounds may pay). `decided` sees the search after each round; no
+/// round starts once SIGINT/SIGTERM asked for a stop.
 pub(crate) fn search_rounds(
     ctx: &Ctx<'_>,
     s: &mut Search,
     all: &[Block],
     until_added: bool,
+    decided: &mut dyn FnMut(&Search),
 ) -> bool {
     let n0 = s.added.len();
     while s.added.len() < ctx.dopts.max_effects {
-        if !search_round(ctx, s, all) {
+        if nav_engine::run::interrupt::requested().is_some() {
+            return false;
+        }
+        let more = search_round(ctx, s, all);
+        decided(s);
+        if !more {
             return false;
         }
         if until_added && s.added.len() > n0 {

@@ -21,7 +21,9 @@ use nav_core::earth::Llh;
 use nav_core::model::Block;
 use nav_core::types::{GnssFix, ImuSample, NavSolution};
 use nav_diagnose::imu_cache::ImuCache;
-use nav_diagnose::{diagnose, diagnose_cached, spill, DiagnoseOptions, SEARCH_NAV_RATE_HZ};
+use nav_diagnose::{
+    diagnose, diagnose_cached, spill, DiagnoseOptions, Outcome, SEARCH_NAV_RATE_HZ,
+};
 use nav_engine::run::{CaseData, ImuSourceInfo, InnovationRecord, RunOptions};
 use nav_engine::Prepared;
 use test_support::{alloc, standing};
@@ -103,7 +105,11 @@ fn peak_of(minutes: f64, tmp: &std::path::Path) -> (usize, usize) {
     let cache = ImuCache::write(&folder, samples, ImuSourceInfo::default()).unwrap();
     let n_imu = cache.len();
     drop(folder);
-    let out = diagnose_cached(case, &p.opts, cache, &dopts).expect("diagnose");
+    let Outcome::Complete(out) =
+        diagnose_cached(case, &p.opts, cache, &dopts, &mut |_, _| {}).expect("diagnose")
+    else {
+        panic!("the diagnosis was interrupted")
+    };
     let peak = alloc::peak_bytes().saturating_sub(base);
     let d = &out.diagnosis;
     println!(

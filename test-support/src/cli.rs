@@ -220,8 +220,8 @@ pub fn try_run_bounded(cmd: &mut Command, limit: std::time::Duration) -> std::io
     let secs = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
     Ok(Bounded {
         status: (!killed).then(|| ExitStatus::from_raw(status)),
-        stdout: out.join().unwrap_or_default(),
-        stderr: err.join().unwrap_or_default(),
+        stdout: out.join(),
+        stderr: err.join(),
         wall_s: t.elapsed().as_secs_f64(),
         max_rss_kib,
         cpu_s: secs(ru.ru_utime) + secs(ru.ru_stime),
@@ -243,6 +243,19 @@ pub fn interrupt_when_ready(
     start_limit: std::time::Duration,
     end_limit: std::time::Duration,
 ) -> Result<Bounded, String> {
+    interrupt_at_stderr(cmd, &mut |_| ready(), signal, start_limit, end_limit)
+}
+
+/// [`interrupt_when_ready`] with `ready` given the child's standard error so far (e.g. a
+/// progress line it waits for).
+#[cfg(unix)]
+pub fn interrupt_at_stderr(
+    cmd: &mut Command,
+    ready: &mut dyn FnMut(&str) -> bool,
+    signal: i32,
+    start_limit: std::time::Duration,
+    end_limit: std::time::Duration,
+) -> Result<Bounded, String> {
     let t = std::time::Instant::now();
     let (mut child, out, err) =
         spawn_drained(cmd).map_err(|e| format!("{cmd:?} could not be started: {e}"))?;
@@ -251,7 +264,7 @@ pub fn interrupt_when_ready(
         // SAFETY: signalling the process group of our own child, not reaped yet.
         unsafe { libc::kill(-pid, libc::SIGKILL) };
     };
-    while !ready() {
+    while !ready(&err.so_far()) {
         let ended = child.try_wait().map_err(|e| e.to_string())?;
         if ended.is_some() || t.elapsed() > start_limit {
             if ended.is_none() {
@@ -266,8 +279,8 @@ pub fn interrupt_when_ready(
                     "was killed at the start limit"
                 },
                 t.elapsed().as_secs_f64(),
-                out.join().unwrap_or_default(),
-                err.join().unwrap_or_default()
+                out.join(),
+                err.join()
             ));
         }
         std::thread::sleep(std::time::Duration::from_millis(2));
@@ -288,17 +301,64 @@ pub fn interrupt_when_ready(
     };
     Ok(Bounded {
         status: (!killed).then_some(status),
-        stdout: out.join().unwrap_or_default(),
-        stderr: err.join().unwrap_or_default(),
+        stdout: out.join(),
+        stderr: err.join(),
         wall_s: t_sig.elapsed().as_secs_f64(),
         max_rss_kib: 0,
         cpu_s: 0.0,
     })
 }
 
-/// A thread reading one of a child's outputs to its end, as text.
+/// A thread reading one of a child's outputs to its end, with what it has read so far.
 #[cfg(unix)]
-type Drain = std::thread::JoinHandle<String>;
+struct Drain {
+    thread: std::thread::JoinHandle<()>,
+    read: std::sync::Arc<std::sync::Mutex<Vec<u8>>>,
+}
+
+#[cfg(unix)]
+impl Drain {
+    /// Reads `r` (none: nothing) to its end in a thread of its own.
+    fn start(r: Option<Box<dyn std::io::Read + Send>>) -> Self {
+        let read = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let into = read.clone();
+        let thread = std::thread::spawn(move || {
+            let Some(mut r) = r else { return };
+            let mut b = [0u8; 4096];
+            loop {
+                match r.read(&mut b) {
+                    Ok(0) => break,
+                    Ok(n) => into
+                        .lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                        .extend_from_slice(&b[..n]),
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(_) => break,
+                }
+            }
+        });
+        Self { thread, read }
+    }
+
+    /// The text read so far.
+    fn so_far(&self) -> String {
+        let b = self
+            .read
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        String::from_utf8_lossy(&b).into_owned()
+    }
+
+    /// The whole text, once the output has ended.
+    fn join(self) -> String {
+        let Self { thread, read } = self;
+        let _ = thread.join();
+        let b = read
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        String::from_utf8_lossy(&b).into_owned()
+    }
+}
 
 /// Starts `cmd` with its standard input empty, in a process group of its own (so that killing
 /// the group also ends whatever it started, which would hold the output pipes open), and its
@@ -313,17 +373,8 @@ fn spawn_drained(cmd: &mut Command) -> std::io::Result<(std::process::Child, Dra
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()?;
-    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
-        std::thread::spawn(move || {
-            let mut b = Vec::new();
-            if let Some(mut r) = r {
-                let _ = r.read_to_end(&mut b);
-            }
-            String::from_utf8_lossy(&b).into_owned()
-        })
-    };
-    let out = drain(child.stdout.take().map(|r| Box::new(r) as _));
-    let err = drain(child.stderr.take().map(|r| Box::new(r) as _));
+    let out = Drain::start(child.stdout.take().map(|r| Box::new(r) as _));
+    let err = Drain::start(child.stderr.take().map(|r| Box::new(r) as _));
     Ok((child, out, err))
 }
 

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::sync::OnceLock;
 use std::time::Duration;
-use test_support::cli::{interrupt_when_ready, Bin, SIGINT, SIGTERM};
+use test_support::cli::{interrupt_at_stderr, interrupt_when_ready, Bin, SIGINT, SIGTERM};
 use test_support::runcase::{case_config, simulate_case, TACTICAL_NOISE};
 use test_support::scenario::four_minute_drive;
 
@@ -396,54 +396,60 @@ fn sigint_mid_run_keeps_the_partial_run_and_the_previous_outputs() {
     interrupt_mid_run("INT", SIGINT);
 }
 
-/// SIGINT in the middle of a diagnosis's search: the diagnosis keeps no partial output and
-/// says so, exits 130, its runs end at once, its temporary folder goes, and the folder of an
-/// earlier complete run stays as it was.
+/// The arguments of `host-sim diagnose` of `cfg` into `out`.
+fn diagnose_args<'a>(cfg: &'a Path, out: &'a Path) -> [&'a str; 5] {
+    ["diagnose", "--config", s(cfg), "--out", s(out)]
+}
+
+/// SIGINT while a diagnosis makes its base run: nothing is decided yet, so nothing is kept,
+/// and it says so; exit 130, its runs end at once, its temporary folder goes, and the folder
+/// of an earlier complete run stays as it was.
 #[test]
-fn sigint_mid_diagnosis_says_it_keeps_nothing_and_leaves_no_temporary_files() {
+fn sigint_during_the_base_run_of_diagnose_keeps_nothing_and_leaves_no_temporary_files() {
     let d = input_folder("sig-diag");
     let cfg = d.join("run.toml");
     let out = case().0.join("sig-diag-out");
     bin().run_ok(run_args(&cfg, &out));
     let before = hashes(&out);
     let tmp = tempfile::tempdir().unwrap();
-    // signalled once a search run is writing (the base run done)
+    // signalled once the base run is writing its navigation
     let mut ready = || {
         std::fs::read_dir(tmp.path()).unwrap().flatten().any(|e| {
             std::fs::read_dir(e.path()).is_ok_and(|rd| {
                 rd.flatten()
-                    .any(|f| f.file_name().to_string_lossy().starts_with("search-"))
+                    .any(|f| f.file_name().to_string_lossy().starts_with("before"))
             })
         })
     };
     let r = interrupt_when_ready(
-        bin().command().env("TMPDIR", tmp.path()).args([
-            "diagnose",
-            "--config",
-            s(&cfg),
-            "--out",
-            s(&out),
-            "--quiet",
-        ]),
+        bin()
+            .command()
+            .env("TMPDIR", tmp.path())
+            .args(diagnose_args(&cfg, &out))
+            .arg("--quiet"),
         &mut ready,
         SIGINT,
         Duration::from_secs(120),
         Duration::from_secs(30),
     )
-    .unwrap_or_else(|e| panic!("the diagnosis never searched: {e}"));
+    .unwrap_or_else(|e| panic!("the diagnosis never ran: {e}"));
     assert_eq!(r.code(), Some(130), "{r:?}");
     assert!(
-        r.stderr
-            .contains("SIGINT: stopping; the diagnosis keeps no partial output"),
+        r.stderr.contains(
+            "SIGINT: stopping; the diagnosis ends its runs and keeps the search rounds decided"
+        ),
         "{}",
         r.stderr
     );
     assert!(
-        r.stderr
-            .contains("error: SIGINT: stopped; the diagnosis keeps no partial output"),
+        r.stderr.contains(
+            "error: SIGINT: stopped before the search decided its first round; nothing kept, \
+             the output folder as it was"
+        ),
         "{}",
         r.stderr
     );
+    assert!(!r.stderr.contains("decided: "), "{}", r.stderr);
     let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().collect();
     assert!(left.is_empty(), "temporary files left: {left:?}");
     let after = hashes(&out);
@@ -453,7 +459,116 @@ fn sigint_mid_diagnosis_says_it_keeps_nothing_and_leaves_no_temporary_files() {
         .collect();
     assert!(changed.is_empty(), "{changed:?}");
     println!(
-        "SIGINT mid-diagnosis: exit {:?}, ended {:.2} s after the signal",
+        "SIGINT during the base run: exit {:?}, ended {:.2} s after the signal",
+        r.code(),
+        r.wall_s
+    );
+}
+
+/// SIGINT once the first round of a diagnosis's search is decided (the progress line on
+/// stderr), on a drive whose declared lever arm is wrong: the decided round is kept as
+/// `report.md.partial` and `diagnosis.json.partial` (incomplete, saying after which round),
+/// with the base run's solution as `nav_before.txt.partial`; the round in progress is not
+/// listed; no file takes a finished diagnosis's name; exit 130; no temporary file left.
+#[test]
+fn sigint_after_a_decided_round_of_diagnose_keeps_that_round_as_a_partial_diagnosis() {
+    let d = input_folder("sig-diag-round");
+    let cfg = d.join("run.toml");
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("[gnss]\n", "[gnss]\nlever_arm_m = [0.8, -0.6, -1.0]\n");
+    std::fs::write(&cfg, text).unwrap();
+    let out = case().0.join("sig-diag-round-out");
+    let tmp = tempfile::tempdir().unwrap();
+    let r = interrupt_at_stderr(
+        bin()
+            .command()
+            .env("TMPDIR", tmp.path())
+            .args(diagnose_args(&cfg, &out)),
+        &mut |err| err.contains("round 1 decided: "),
+        SIGINT,
+        Duration::from_secs(300),
+        Duration::from_secs(30),
+    )
+    .unwrap_or_else(|e| panic!("the diagnosis decided no round: {e}"));
+    assert_eq!(r.code(), Some(130), "{r:?}");
+    assert!(
+        r.stderr.contains(
+            "error: SIGINT: stopped after round 1 of the search; the decided rounds are kept in"
+        ),
+        "{}",
+        r.stderr
+    );
+    for name in [
+        "report.md.partial",
+        "diagnosis.json.partial",
+        "nav_before.txt.partial",
+    ] {
+        assert!(r.stderr.contains(name), "{name} not named: {}", r.stderr);
+    }
+    // no file under a finished diagnosis's name
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with(".nav-out.lock"))
+        .collect();
+    let mut expected = vec![
+        "diagnosis.json.partial".to_string(),
+        "nav_before.txt.partial".to_string(),
+        "report.md.partial".to_string(),
+    ];
+    let mut sorted = names.clone();
+    sorted.sort();
+    expected.sort();
+    assert_eq!(sorted, expected);
+    let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+    // the JSON: incomplete, interrupted after round 1, that round only
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json.partial")).unwrap())
+            .unwrap();
+    assert_eq!(j["complete"], serde_json::Value::Bool(false));
+    assert_eq!(j["interrupted"], "SIGINT");
+    assert_eq!(j["after_round"], 1);
+    let rounds = j["rounds"].as_array().unwrap();
+    assert_eq!(rounds.len(), 1, "{rounds:?}");
+    // every candidate of the decided round run and decided (no cut run among them)
+    let round = &rounds[0];
+    let candidates = round["candidates"].as_array().unwrap();
+    assert!(!candidates.is_empty());
+    for c in candidates {
+        assert_ne!(c["decision"], "failed", "{c}");
+        assert!(!c["reason"].as_str().unwrap().contains("SIGINT"), "{c}");
+    }
+    let said = r
+        .stderr
+        .lines()
+        .find(|l| l.starts_with("round 1 decided: "))
+        .unwrap();
+    let added = round["added"].as_str();
+    assert_eq!(
+        said,
+        format!(
+            "round 1 decided: {}",
+            added.map_or("nothing added".into(), |a| format!("{a} added"))
+        )
+    );
+    // the report: headed interrupted, round 1 listed, no second round
+    let md = std::fs::read_to_string(out.join("report.md.partial")).unwrap();
+    assert!(
+        md.starts_with("# Diagnosis: INTERRUPTED, INCOMPLETE"),
+        "{}",
+        &md[..md.len().min(400)]
+    );
+    assert!(md.contains("Interrupted by SIGINT after round 1 of the search."));
+    assert!(md.contains("Round 1 (model effects: []"), "{md}");
+    assert!(!md.contains("Round 2"), "{md}");
+    // the base run's solution whole: as many lines as a run of the configuration writes
+    let nav = std::fs::read_to_string(out.join("nav_before.txt.partial")).unwrap();
+    assert!(nav.lines().count() > 1000, "{} lines", nav.lines().count());
+    println!(
+        "SIGINT after round 1 (added {added:?}): exit {:?}, ended {:.2} s after the signal",
         r.code(),
         r.wall_s
     );
