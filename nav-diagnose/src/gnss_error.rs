@@ -127,11 +127,13 @@ pub(crate) struct Current<'a> {
 /// log-likelihood is above the current model's, the innovations carry no correlated misfit
 /// for the state to take and the better screen point is the fit (on the sweep's drives the
 /// whole climb then gained at most 2 nats, against a penalty of 23 or more). Otherwise a
-/// climb from `from` (or the default prior) over the white-noise factor (steps of 2^(1/2))
-/// in which every point has its Gauss-Markov prior climbed (horizontal sigma, then
-/// correlation time: a lower white noise pays only with a larger Gauss-Markov sigma, a ridge
-/// a climb one coordinate at a time does not follow), then the white-noise factor refined
-/// (steps of 2^(1/4)), the vertical ratio and the horizontal sigma once more.
+/// climb from the best of `from` (or the default prior) and the screen points: over the
+/// white-noise factor (steps of 2^(1/2)) with the horizontal sigma climbed at every point (a
+/// lower white noise pays only with a larger Gauss-Markov sigma, a ridge a climb one
+/// coordinate at a time does not follow), then the correlation time, the white-noise factor
+/// refined (steps of 2^(1/4)), the vertical ratio and the horizontal sigma once more. Every
+/// grid point is run once ([`Points`]); each coordinate is probed first in the direction it
+/// last moved in ([`climb`]).
 /// `floor`: the smallest white-noise factor (the configuration's sigma scale over the
 /// current one, per component, the larger).
 pub(crate) fn fit(
@@ -141,18 +143,15 @@ pub(crate) fn fit(
     from: Option<&GnssErrorFit>,
     current: &Current<'_>,
 ) -> Option<GnssErrorFit> {
-    let runs = std::sync::atomic::AtomicUsize::new(0);
-    let ll = |k: At| -> (At, f64) {
-        runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let run = |k: At| -> f64 {
         let mut o = ctx.searching(with_state);
         // the likelihood reads the used fixes' innovations only: no epoch records, no
         // predicted withheld fixes
         o.record.epoch_rate_hz = Some(0.0);
         GnssErrorFit::at(k).apply(&mut o);
-        let l = spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
+        spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
             residual_stats(&out.innovations).log_likelihood
-        });
-        (k, l)
+        })
     };
     let white_min = (4.0 * floor.max(1e-9).log2()).ceil() as i32;
     let ranges = [
@@ -173,44 +172,98 @@ pub(crate) fn fit(
     // estimate of its sigma, at the current GNSS sigma scale
     let bottom = clamp([*SIGMA_STEPS.start(), ratio, tau, 0]);
     let moment = clamp([sigma_start(current.innovations), ratio, tau, 0]);
-    let points = if moment == bottom {
-        vec![ll(bottom)]
+    let pts = Points::new(&run);
+    if moment == bottom {
+        pts.remember(bottom, run(bottom));
     } else {
-        let (b, m) = rayon::join(|| ll(bottom), || ll(moment));
-        vec![b, m]
-    };
-    let (at, screen) = points
-        .into_iter()
-        .filter(|p| p.1.is_finite())
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let (b, m) = rayon::join(|| run(bottom), || run(moment));
+        pts.remember(bottom, b);
+        pts.remember(moment, m);
+    }
+    let (at, screen) = pts.best()?;
     if screen <= current.log_likelihood {
         return Some(GnssErrorFit {
             log_likelihood: screen,
-            runs: runs.into_inner(),
+            runs: pts.runs(),
             screened: true,
             ..GnssErrorFit::at(at)
         });
     }
-    // the horizontal sigma and the correlation time climbed at the white-noise factor of `k`
-    let prior = |k: At| -> (At, f64) {
-        let mut cur = ll(k);
-        for axis in [0, 2] {
-            cur = climb(cur, (axis, 1), &ranges[axis], &ll);
-        }
-        cur
+    let point = |k: At| pts.ll(k);
+    // the horizontal sigma climbed at the white-noise factor of a point
+    let sigma_at = |cur: (At, f64)| climb(cur, (0, 1), &ranges[0], &pts, &point);
+    let sigma = |k: At| sigma_at(pts.ll(k));
+    // the climb starts where the previous fit (or the default prior) or a screen point is best
+    let first = pts.ll(clamp(prev.unwrap_or([0; 4])));
+    let start = if first.1 >= screen {
+        first
+    } else {
+        (at, screen)
     };
-    let start = clamp(prev.unwrap_or([0; 4]));
-    let mut best = climb(prior(start), (3, 2), &ranges[3], &prior);
-    // then the white-noise factor refined, the vertical ratio and the horizontal sigma
-    for (axis, stride) in [(3, 1), (1, 1), (0, 1)] {
-        best = climb(best, (axis, stride), &ranges[axis], &ll);
+    let mut best = climb(sigma_at(start), (3, 2), &ranges[3], &pts, &sigma);
+    // then the correlation time, the white-noise factor refined, the vertical ratio and the
+    // horizontal sigma
+    for (axis, stride) in [(2, 1), (3, 1), (1, 1), (0, 1)] {
+        best = climb(best, (axis, stride), &ranges[axis], &pts, &point);
     }
     let (at, best) = best;
     best.is_finite().then(|| GnssErrorFit {
         log_likelihood: best,
-        runs: runs.into_inner(),
+        runs: pts.runs(),
         ..GnssErrorFit::at(at)
     })
+}
+
+/// The grid points a fit has run, each once: their log-likelihoods (nats) by point, and the
+/// direction each coordinate last moved in (a climb probes it first).
+struct Points<'a> {
+    /// The run of a point: its log-likelihood, nats (NaN when the run failed).
+    run: &'a dyn Fn(At) -> f64,
+    /// Points run and their log-likelihoods.
+    seen: std::cell::RefCell<Vec<(At, f64)>>,
+    /// Per coordinate, the direction (+1 or -1) of its last gaining move.
+    dir: std::cell::Cell<At>,
+}
+
+impl<'a> Points<'a> {
+    fn new(run: &'a dyn Fn(At) -> f64) -> Self {
+        Self {
+            run,
+            seen: Default::default(),
+            dir: std::cell::Cell::new([1; 4]),
+        }
+    }
+
+    /// Records the log-likelihood `l` of point `k`, run outside.
+    fn remember(&self, k: At, l: f64) {
+        self.seen.borrow_mut().push((k, l));
+    }
+
+    /// The log-likelihood of point `k`: remembered, or run.
+    fn ll(&self, k: At) -> (At, f64) {
+        let known = self.seen.borrow().iter().find(|p| p.0 == k).map(|p| p.1);
+        let l = known.unwrap_or_else(|| {
+            let l = (self.run)(k);
+            self.remember(k, l);
+            l
+        });
+        (k, l)
+    }
+
+    /// The best point run (finite log-likelihood).
+    fn best(&self) -> Option<(At, f64)> {
+        self.seen
+            .borrow()
+            .iter()
+            .copied()
+            .filter(|p| p.1.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// Points run.
+    fn runs(&self) -> usize {
+        self.seen.borrow().len()
+    }
 }
 
 /// The screen's horizontal sigma as a grid index of [`SIGMA_STEPS`]: a Gauss-Markov error of
@@ -257,31 +310,39 @@ pub(crate) fn sigma_start(innovations: &[InnovationRecord]) -> i32 {
     ) as i32
 }
 
-/// One coordinate of a climb: from `cur` (a point and its log-likelihood), both neighbours
-/// `stride` grid steps away along `axis` (in parallel), then onwards from the one that gains while the log-likelihood
-/// rises, within `range`. `ll` gives a point's log-likelihood and the point it reached (an
-/// inner climb may move the other coordinates). Returns the best point and its
-/// log-likelihood.
+/// One coordinate of a climb: from `cur` (a point and its log-likelihood), the neighbour
+/// `stride` grid steps away along `axis` in the direction the coordinate last moved in
+/// (`pts`), the other neighbour only when that one does not gain, then onwards from the one
+/// that gains while the log-likelihood rises, within `range`. `ll` gives a point's
+/// log-likelihood and the point it reached (an inner climb may move the other coordinates).
+/// Returns the best point and its log-likelihood.
 fn climb(
     cur: (At, f64),
     (axis, stride): (usize, i32),
     range: &std::ops::RangeInclusive<i32>,
-    ll: &(dyn Fn(At) -> (At, f64) + Sync),
+    pts: &Points<'_>,
+    ll: &dyn Fn(At) -> (At, f64),
 ) -> (At, f64) {
     let moved = |k: At, d: i32| {
         let mut k = k;
         k[axis] += d * stride;
         range.contains(&k[axis]).then_some(k)
     };
-    let probe = |d: i32| moved(cur.0, d).map(ll);
-    let (lo, hi) = rayon::join(|| probe(-1), || probe(1));
-    let gain = |p: &Option<(At, f64)>| p.filter(|(_, l)| l.is_finite() && *l > cur.1);
-    let (mut best, step) = match (gain(&lo), gain(&hi)) {
-        (Some(l), Some(h)) if l.1 > h.1 => (l, -1),
-        (_, Some(h)) => (h, 1),
-        (Some(l), None) => (l, -1),
-        (None, None) => return cur,
+    let gain = |d: i32| {
+        moved(cur.0, d)
+            .map(ll)
+            .filter(|(_, l)| l.is_finite() && *l > cur.1)
+            .map(|p| (p, d))
     };
+    let first = pts.dir.get().get(axis).copied().unwrap_or(1);
+    let Some((mut best, step)) = gain(first).or_else(|| gain(-first)) else {
+        return cur;
+    };
+    let mut dir = pts.dir.get();
+    if let Some(d) = dir.get_mut(axis) {
+        *d = step;
+    }
+    pts.dir.set(dir);
     while let Some(k) = moved(best.0, step) {
         let next = ll(k);
         if !(next.1.is_finite() && next.1 > best.1) {
@@ -338,5 +399,35 @@ mod tests {
             .collect();
         let k = sigma_start(&records(&correlated));
         assert!((-7..=-3).contains(&k), "{k}");
+    }
+
+    #[test]
+    fn climb_reaches_the_maximum_along_a_coordinate_with_each_point_run_once() {
+        // one maximum along the axis, at 5: from -6 the neighbour in the direction last moved
+        // in (+1) gains, so the other is not run: -5..=6 beside the start
+        let runs = std::cell::Cell::new(0);
+        let f = |k: At| -> f64 {
+            runs.set(runs.get() + 1);
+            -f64::from((k[0] - 5) * (k[0] - 5))
+        };
+        let pts = Points::new(&f);
+        let ll = |k: At| pts.ll(k);
+        let start = pts.ll([-6, 0, 0, 0]);
+        let best = climb(start, (0, 1), &(-12..=8), &pts, &ll);
+        assert_eq!(best, ([5, 0, 0, 0], 0.0));
+        assert_eq!(pts.runs(), 13);
+        assert_eq!(runs.get(), pts.runs());
+        // at the maximum: both neighbours known, nothing run again
+        let again = climb(best, (0, 1), &(-12..=8), &pts, &ll);
+        assert_eq!(again.0, [5, 0, 0, 0]);
+        assert_eq!(runs.get(), 13);
+        // the maximum at the range's end, below the start: +1 tried first and lost, then -1
+        let g = |k: At| -> f64 { -f64::from(k[2] + 6).abs() };
+        let down = Points::new(&g);
+        let ll = |k: At| down.ll(k);
+        let best = climb(down.ll([0, 0, 3, 0]), (2, 1), &(-6..=4), &down, &ll);
+        assert_eq!(best.0, [0, 0, -6, 0]);
+        assert_eq!(down.dir.get()[2], -1);
+        assert_eq!(down.runs(), 11);
     }
 }
