@@ -143,8 +143,8 @@ fn crc32c_agrees_with_the_crc_crate_catalogue_implementation() {
 }
 
 /// A zero-filled tail (a file preallocated, or extended with zeros by a crash) is no records:
-/// every record before it is returned, then the first zero header is named as corrupt (before,
-/// each 12 zero bytes were read as an empty record at time 0).
+/// every record before it is returned, then the first zero header is named as corrupt (not
+/// each 12 zero bytes read as an empty record at time 0).
 #[test]
 fn a_zero_filled_tail_is_corrupt_not_empty_records() {
     let good = write_all();
