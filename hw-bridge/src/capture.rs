@@ -229,8 +229,8 @@ pub struct ResyncStats {
 
 /// Reads a capture record by record.
 ///
-/// A record header that cannot be valid (a data length over [`MAX_RECORD_LEN`], a link-reset
-/// flag with length bits set), whose record runs past the end of the file, or whose time is
+/// A record header that cannot be valid (a data length of 0 or over [`MAX_RECORD_LEN`], a
+/// link-reset flag with length bits set), whose record runs past the end of the file, or whose time is
 /// more than [`MAX_RESYNC_TIME_STEP_NS`] from the last record's while the header after its
 /// record is not valid (the previous record's length was too short) is not the end:
 /// the reader scans on (up to [`MAX_RESYNC_SCAN`] bytes) for the next valid record header and
@@ -445,7 +445,9 @@ impl<R: Read> CaptureReader<R> {
     fn data_len(len_flags: u32) -> Option<usize> {
         match len_flags {
             LINK_RESET => Some(0),
-            l if l <= MAX_RECORD_LEN => Some(l as usize),
+            // the writer never writes an empty data record: zeros are a damaged file's (a
+            // zero-filled tail after a crash), not records
+            l if l > 0 && l <= MAX_RECORD_LEN => Some(l as usize),
             _ => None,
         }
     }

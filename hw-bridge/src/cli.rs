@@ -201,7 +201,8 @@ pub struct SendArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Also write every byte sent, exactly as written to the port, to this file (e.g. to run
-    /// the same bytes through a host model of the receiver).
+    /// the same bytes through a host model of the receiver); a file or link under the name is
+    /// replaced (a link never written through), one of the case's own files is refused.
     #[arg(long)]
     pub copy_to: Option<PathBuf>,
     /// Open the port without the exclusive lock, so another program (e.g. `hw-bridge record`

@@ -432,13 +432,11 @@ pub fn parse_kf_gins_yaml(name: &Path, text: &str) -> Result<KfGinsConfig, IoErr
     Ok(cfg)
 }
 
-/// Reads and validates a KF-GINS YAML configuration file.
+/// Reads and validates a KF-GINS YAML configuration file (at most
+/// [`crate::runcfg::MAX_CONFIG_BYTES`]).
 pub fn read_kf_gins_yaml(path: impl AsRef<Path>) -> Result<KfGinsConfig, IoError> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::runcfg::read_config_text(path)?;
     // a UTF-8 byte-order mark (written by some Windows editors)
     parse_kf_gins_yaml(path, text.strip_prefix('\u{feff}').unwrap_or(&text))
 }

@@ -967,13 +967,65 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
     Ok(cfg)
 }
 
-/// Reads and validates a run configuration file.
-pub fn read_run_config(path: impl AsRef<Path>) -> Result<RunConfig, IoError> {
-    let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|source| IoError::Open {
+/// Largest configuration file read (TOML or KF-GINS YAML), bytes: a configuration is a few
+/// kB; a larger file (a data file or an image given as `--config`) is refused before it is
+/// read, never held in memory nor echoed in a parse error.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// The text of the configuration file `path`: at most [`MAX_CONFIG_BYTES`], UTF-8, without
+/// NUL bytes (else an error naming the file and the cause).
+pub(crate) fn read_config_text(path: &Path) -> Result<String, IoError> {
+    use std::io::Read as _;
+    let open = |source| IoError::Open {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    let f = std::fs::File::open(path).map_err(open)?;
+    let format = |message: String| IoError::Format {
+        path: path.to_path_buf(),
+        line: 0,
+        message,
+    };
+    let too_big = |n: u64| {
+        format(format!(
+            "{n} bytes or more: not a configuration (at most {MAX_CONFIG_BYTES} bytes are read); \
+             is it a data file given as the configuration?"
+        ))
+    };
+    let len = f.metadata().map_err(open)?.len();
+    if len > MAX_CONFIG_BYTES {
+        return Err(too_big(len));
+    }
+    let mut bytes = Vec::new();
+    f.take(MAX_CONFIG_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|source| IoError::Read {
+            path: path.to_path_buf(),
+            line: 0,
+            source,
+        })?;
+    if bytes.len() as u64 > MAX_CONFIG_BYTES {
+        return Err(too_big(bytes.len() as u64));
+    }
+    if let Some(at) = bytes.iter().position(|b| *b == 0) {
+        return Err(format(format!(
+            "a NUL byte at byte {at}: not a text configuration"
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..at].iter().filter(|b| **b == b'\n').count() + 1;
+        IoError::NotText {
+            path: path.to_path_buf(),
+            line,
+        }
+    })
+}
+
+/// Reads and validates a run configuration file (at most [`MAX_CONFIG_BYTES`]).
+pub fn read_run_config(path: impl AsRef<Path>) -> Result<RunConfig, IoError> {
+    let path = path.as_ref();
+    let text = read_config_text(path)?;
     // a UTF-8 byte-order mark (written by some Windows editors) is not TOML
     parse_run_config(path, text.strip_prefix('\u{feff}').unwrap_or(&text))
 }

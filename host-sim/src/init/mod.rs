@@ -5,8 +5,9 @@
 //! start, estimates the mounting (`nav_engine::mounting::estimate_mounting`) and proposes the
 //! noise and initial sigmas from the rest. Every guess is written with its evidence as a TOML
 //! comment; what could not be determined is printed. The file is checked by the run
-//! configuration's own parser before it is written, and an existing file is kept unless
-//! `--force`.
+//! configuration's own parser before it is written (as `OUT.partial`, then moved into place),
+//! and an existing file is kept unless `--force`; an output that is one of the input files (or
+//! a link to one) is refused even with `--force`.
 
 mod gnss;
 mod imu;
@@ -36,7 +37,7 @@ pub struct InitArgs {
     /// The configuration to write.
     #[arg(short = 'o', long = "out", default_value = "run.toml")]
     pub out: PathBuf,
-    /// Overwrite an existing output file.
+    /// Overwrite an existing output file (never one of the input files; a link is replaced).
     #[arg(long)]
     pub force: bool,
 }
@@ -254,6 +255,13 @@ pub fn run(a: InitArgs) -> anyhow::Result<()> {
             a.out.display()
         );
     }
+    // never over one of the files it reads, even with --force (a link to one included)
+    let mut tag = a.imu.clone().into_os_string();
+    tag.push(".tag");
+    let inputs = [Some(&a.imu), Some(&a.gnss), a.truth.as_ref()];
+    for input in inputs.into_iter().flatten().chain([&PathBuf::from(tag)]) {
+        nav_engine::run::outdir::check_not_input(&a.out, input)?;
+    }
     let out_dir = match a.out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -294,16 +302,14 @@ pub fn run(a: InitArgs) -> anyhow::Result<()> {
     text.push_str(&init_and_noise(rest.as_ref(), &fixes, t0, &mut g));
     nav_io::parse_run_config(&a.out, &text)
         .context("the written configuration does not parse (a defect of init)")?;
-    let mut f = if a.force {
-        std::fs::File::create(&a.out)
-    } else {
-        std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&a.out)
-    }
-    .with_context(|| format!("writing {}", a.out.display()))?;
-    std::io::Write::write_all(&mut f, text.as_bytes())?;
+    // written as OUT.partial and moved into place: a link at OUT is replaced, never written
+    // through, and an interrupted init leaves no half configuration under OUT
+    let staged = nav_engine::run::outdir::StagedFile::create(&a.out, a.force)?;
+    let mut f = staged.writer()?;
+    std::io::Write::write_all(&mut f, text.as_bytes())
+        .with_context(|| format!("writing {}", staged.partial().display()))?;
+    drop(f);
+    staged.commit()?;
     println!("wrote {}", a.out.display());
     for u in &g.unknown {
         eprintln!("not determined: {u}");

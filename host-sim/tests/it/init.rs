@@ -157,6 +157,66 @@ fn init_on_the_project_text_from_the_simulator_runs_as_the_hand_configuration() 
     assert!(!ok && text.contains("exists: give --force"), "{text}");
 }
 
+/// `-o` naming one of init's own inputs is refused even with `--force` (the data kept, byte
+/// for byte), and so is a link to one; a link to any other file is replaced by the
+/// configuration, its target untouched.
+#[test]
+fn init_never_writes_over_its_inputs_nor_through_a_link() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    nav_io::write_imu_text(d.join("imu.txt"), &s.imu).unwrap();
+    nav_io::write_gnss_text(d.join("gnss.txt"), &s.gnss).unwrap();
+    let gnss_before = std::fs::read(d.join("gnss.txt")).unwrap();
+    let imu_before = std::fs::read(d.join("imu.txt")).unwrap();
+    std::os::unix::fs::symlink("gnss.txt", d.join("to-gnss.toml")).unwrap();
+    std::fs::write(d.join("other.txt"), "other data\n").unwrap();
+    std::os::unix::fs::symlink("other.txt", d.join("to-other.toml")).unwrap();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    let args = |out: &str| -> Vec<String> {
+        [
+            "init",
+            "--imu",
+            &p("imu.txt"),
+            "--gnss",
+            &p("gnss.txt"),
+            "-o",
+            out,
+            "--force",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    for out in ["gnss.txt", "imu.txt", "to-gnss.toml"] {
+        let a = args(&p(out));
+        let (ok, text) = host_sim(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(!ok, "{out}: {text}");
+        assert!(
+            text.contains("holds the input") && text.contains("nothing was written"),
+            "{out}: {text}"
+        );
+        assert_eq!(
+            std::fs::read(d.join("gnss.txt")).unwrap(),
+            gnss_before,
+            "{out}"
+        );
+        assert_eq!(
+            std::fs::read(d.join("imu.txt")).unwrap(),
+            imu_before,
+            "{out}"
+        );
+        assert!(!d.join(format!("{out}.partial")).exists(), "{out}");
+    }
+    let a = args(&p("to-other.toml"));
+    let (ok, text) = host_sim(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(ok, "{text}");
+    assert_eq!(text_of(&d.join("other.txt")), "other data\n");
+    let m = std::fs::symlink_metadata(d.join("to-other.toml")).unwrap();
+    assert!(m.is_file(), "the link is replaced by the configuration");
+    nav_io::read_run_config(d.join("to-other.toml")).unwrap();
+}
+
 /// An IMU that writes increments in a layout of its own: a comma-separated file with a header,
 /// a GPS week column and seconds of week, velocity increments (m/s) before angle increments
 /// (rad); the GNSS in the project's text.

@@ -513,3 +513,48 @@ fn a_utf8_byte_order_mark_is_accepted_at_the_start_of_every_text_input() {
     let r = run(&cfg, d);
     assert!(r.ok, "{}", r.stderr);
 }
+
+/// A gap of 200 s in the IMU data (every time from one line on moved 200 s later, 1 Hz GNSS
+/// going on through it): the run stops at that line naming the gap too long to bridge, not a
+/// GNSS fix the filter could not queue; allowed (`--imu-max-gap 300`), the gap holds more
+/// fixes than the filter queues and the error says so, naming the same line.
+#[test]
+fn an_imu_gap_of_minutes_is_named_with_its_line() {
+    let c = case();
+    let mut rows = c.imu.clone();
+    let k = 30_000;
+    for r in &mut rows[k..] {
+        let t: f64 = r[0].parse().unwrap();
+        r[0] = format!("{:.6}", t + 200.0);
+    }
+    let (tmp, cfg) = setup("imu.txt", &join(&rows), &join(&c.gnss));
+    let r = run(&cfg, tmp.path());
+    assert_eq!(r.status.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(&format!("imu.txt line {} (t = ", k + 1))
+            && r.stderr
+                .contains("exceeds the longest bridged gap (1.000 s)")
+            && !r.stderr.contains("fix queue full"),
+        "{}",
+        r.stderr
+    );
+    let out = tmp.path().join("out2");
+    let r = HOST_SIM.run([
+        "run",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--imu-max-gap",
+        "300",
+    ]);
+    assert_eq!(r.status.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr
+            .contains("one of more than 128 fixes between two IMU samples")
+            && r.stderr.contains(&format!("imu.txt line {}", k + 1)),
+        "{}",
+        r.stderr
+    );
+}

@@ -109,13 +109,21 @@ pub fn send(a: &SendOptions) -> anyhow::Result<SendOutcome> {
             a.rate_x
         );
     }
+    if let Some(p) = &a.copy_to {
+        // the copy never lands on the case it is read from (a link to it included)
+        for input in ["imu.txt", "gnss.txt"] {
+            nav_engine::run::outdir::check_not_input(p, &a.case.join(input))?;
+        }
+    }
     let payloads = read_case(&a.case)?;
     let write_timeout = secs(a.write_timeout_s);
     let mut port = serial::open_for_writing(&a.port, a.baud, write_timeout, a.shared)?;
     let timeout_s = write_timeout.as_secs_f64();
     let mut copy = match &a.copy_to {
         Some(p) => Some(BufWriter::new(
-            std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
+            // a file or link under the name is replaced, a link never written through
+            nav_engine::run::outdir::create_new_file(p)
+                .with_context(|| format!("creating {}", p.display()))?,
         )),
         None => None,
     };

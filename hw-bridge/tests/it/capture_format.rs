@@ -141,3 +141,40 @@ fn crc32c_agrees_with_the_crc_crate_catalogue_implementation() {
         );
     }
 }
+
+/// A zero-filled tail (a file preallocated, or extended with zeros by a crash) is no records:
+/// every record before it is returned, then the first zero header is named as corrupt (not
+/// each 12 zero bytes read as an empty record at time 0).
+#[test]
+fn a_zero_filled_tail_is_corrupt_not_empty_records() {
+    let good = write_all();
+    let mut bytes = good.clone();
+    bytes.resize(good.len() + (1 << 20), 0);
+    let mut rd = CaptureReader::new(&bytes[..]).unwrap();
+    for want in &records() {
+        assert_eq!(&rd.next_record().unwrap().unwrap(), want);
+    }
+    match rd.next_record() {
+        Err(
+            e @ CaptureError::BadRecord {
+                record: 4,
+                len: 0,
+                offset,
+            },
+        ) => {
+            assert_eq!(offset, good.len() as u64);
+            assert!(e.to_string().contains("claims 0 bytes"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // a zero-filled stretch inside the file is skipped to the next record
+    let hlen = u32::from_le_bytes(good[8..12].try_into().unwrap()) as usize;
+    let r1 = 12 + hlen + 16;
+    let mut bytes = good[..r1].to_vec();
+    bytes.extend(std::iter::repeat_n(0u8, 4096));
+    bytes.extend_from_slice(&good[r1..]);
+    let mut rd = CaptureReader::new(&bytes[..]).unwrap();
+    let got: Vec<Record> = (&mut rd).map(|r| r.unwrap()).collect();
+    assert_eq!(got, records());
+    assert_eq!(rd.resync_stats().skipped_bytes, 4096);
+}

@@ -433,3 +433,48 @@ fn a_misspelt_configuration_key_is_named_once() {
     );
     assert!(!out.exists() || decoded(&out).is_empty(), "nothing written");
 }
+
+/// `send --copy-to` naming one of the case's own files (or a link to one) is refused before
+/// the port is opened, the case unchanged: the copy would truncate the data it sends.
+#[test]
+fn send_copy_to_a_file_of_its_own_case_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case");
+    std::fs::create_dir(&case).unwrap();
+    let imu: Vec<ImuSample> = (1..=400)
+        .map(|i| ImuSample {
+            t_s: 1000.0 + i as f64 * 0.005,
+            dtheta_rad: [1e-5, -2e-6, 3e-6],
+            dv_mps: [0.01, -0.002, -0.049],
+            temperature_c: 25.0,
+        })
+        .collect();
+    nav_io::write_imu_text(case.join("imu.txt"), &imu).unwrap();
+    std::fs::write(case.join("gnss.txt"), "1000.1 0.5 1.9 25 0.5 0.6 1.1\n").unwrap();
+    std::os::unix::fs::symlink(case.join("imu.txt"), dir.path().join("copy.bin")).unwrap();
+    let before = hashes(&case);
+    let port = dir.path().join("no-such-port");
+    for copy in [
+        case.join("imu.txt"),
+        case.join("gnss.txt"),
+        dir.path().join("copy.bin"),
+    ] {
+        let out = Command::new(BIN)
+            .args(["send", "--quiet", "--case"])
+            .arg(&case)
+            .arg("--port")
+            .arg(&port)
+            .arg("--copy-to")
+            .arg(&copy)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{}: {err}", copy.display());
+        assert!(
+            err.contains("holds the input") && !err.contains("no-such-port"),
+            "{}: {err}",
+            copy.display()
+        );
+        assert_eq!(hashes(&case), before, "{}", copy.display());
+    }
+}

@@ -795,9 +795,10 @@ where
             if self.done.is_multiple_of(4096) {
                 progress(self.done, 0);
             }
-            if let Some(f) = self.push_fixes_before(s.t_s)? {
-                return Ok(Some(f));
-            }
+            // a fix refused (more than the queue holds before this sample: a gap in the IMU
+            // data) is reported after the sample: an IMU gap too long to bridge is the cause
+            // to name, with its line
+            let refused = self.push_fixes_before(s.t_s)?;
             self.hooks.release_fixes(self.gi);
             let dt = self.nav.state().map_or(0.0, |st| s.t_s - st.t_s);
             self.hooks.raw = Some((s, next_t));
@@ -822,6 +823,15 @@ where
                 }
                 Ok(ev) => self.imu_event(ev, s.t_s, dt, k, it.line),
                 Err(e) => return Ok(Some((at(), s.t_s, e.into()))),
+            }
+            if let Some((what, t, cause)) = refused {
+                let what = format!(
+                    "{what}, one of more than {FIX_QUEUE} fixes between two IMU samples (a gap \
+                     in the IMU data before {}, t = {:.3} s)",
+                    self.feed.info.locate(k, it.line),
+                    s.t_s
+                );
+                return Ok(Some((what, t, cause)));
             }
         }
         Ok(None)

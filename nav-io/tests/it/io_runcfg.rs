@@ -584,3 +584,34 @@ fn rest_bias_check_warns_when_the_bias_at_rest_exceeds_the_configured_sigma() {
     // moving from the first fix: no rest
     assert!(rest_stats(imu.iter().copied(), Some(0.0), g).is_none());
 }
+
+/// A data file or a large sparse file given as the configuration (TOML or KF-GINS YAML) is
+/// refused from its size before it is read; a NUL byte or invalid UTF-8 is named, never echoed.
+#[test]
+fn a_huge_binary_or_non_utf8_file_as_configuration_is_refused_briefly() {
+    let dir = tempfile::tempdir().unwrap();
+    let big = dir.path().join("big.toml");
+    let f = std::fs::File::create(&big).unwrap();
+    f.set_len(2 << 30).unwrap(); // 2 GiB, sparse: nothing is written to the disk
+    drop(f);
+    for e in [
+        read_run_config(&big).unwrap_err(),
+        nav_io::read_kf_gins_yaml(&big).unwrap_err(),
+    ] {
+        let m = e.to_string();
+        assert!(m.contains("2147483648 bytes or more"), "{m}");
+        assert!(m.contains("big.toml") && m.len() < 300, "{m}");
+    }
+    let nul = dir.path().join("nul.toml");
+    std::fs::write(&nul, b"name = \"x\"\n\0\0\0\0").unwrap();
+    let m = read_run_config(&nul).unwrap_err().to_string();
+    assert!(m.contains("a NUL byte at byte 11") && m.len() < 200, "{m}");
+    let latin1 = dir.path().join("latin1.toml");
+    std::fs::write(&latin1, b"name = \"x\"\n# caf\xe9\n").unwrap();
+    let e = read_run_config(&latin1).unwrap_err();
+    assert!(matches!(e, IoError::NotText { line: 2, .. }), "{e}");
+    assert!(
+        e.to_string().contains("latin1.toml: line 2: not UTF-8"),
+        "{e}"
+    );
+}
