@@ -2,7 +2,7 @@
 //! `seed-nbk` sensor errors, RTK GNSS at 1 Hz, initial errors drawn from the initial
 //! uncertainty): the smoothed NEES inside the chi-square band over a Monte Carlo of runs, the
 //! smoothed outage error a fraction of the forward one, `run --smooth`'s files; and (ignored,
-//! `cargo test --release -p host-sim --test it -- smooth_sim:: --ignored`) the 40-minute 200 Hz
+//! `cargo test --profile ci -p host-sim --test it -- smooth_sim:: --ignored`) the 40-minute 200 Hz
 //! drive with three 60 s outages.
 use host_sim::run::case_data;
 use nav_core::types::NavSolution;

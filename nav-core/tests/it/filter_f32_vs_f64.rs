@@ -150,7 +150,7 @@ fn f32_and_f64_filters_agree_to_1cm_and_1mdeg_over_a_1_hour_drive() {
     f32_vs_f64(1, 77, 0.01, 0.001);
 }
 
-/// The 4-hour drive of the precision note (`docs/precision.md`): `cargo test --release -p
+/// The 4-hour drive of the precision note (`docs/precision.md`): `cargo test --profile ci -p
 /// nav-core --test it -- --ignored --nocapture filter_f32_vs_f64`.
 #[test]
 #[ignore = "4 hours of 200 Hz drive, two 21-state filters: about a minute in release"]

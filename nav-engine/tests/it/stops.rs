@@ -233,7 +233,7 @@ fn vibrating_stops_are_detected_and_creeping_is_not() {
 
 /// The real drive (`configs/drive0708_aided.toml`) with the fixed and the learned thresholds,
 /// without and with the reference outages: the detector against the GNSS speed and the
-/// outage error. Four runs (about 10 s): `cargo test --release -p nav-engine --test it --
+/// outage error. Four runs (about 10 s): `cargo test --profile ci -p nav-engine --test it --
 /// --ignored stops::real_drive`.
 #[test]
 #[ignore]

@@ -9,7 +9,7 @@
 //! - outage error (RMS over the outages of the per-outage maximum horizontal error) within
 //!   1.1x of the gate-off run.
 //!
-//! Each test prints its row of the table (`cargo test --release -- --nocapture`).
+//! Each test prints its row of the table (`cargo test --profile ci -- --nocapture`).
 use nav_engine::execute;
 use nav_engine::RunSpec;
 use nav_sim::undeclared::{generate, DriveSpec, Effect};
