@@ -118,6 +118,17 @@ pub enum OutDirError {
         /// What is there.
         what: String,
     },
+    /// The output's name holds the other kind of entry: a file where a folder is written, a
+    /// folder where a file is.
+    #[error("{} is {what}, not {want}: choose another name (nothing was written)", path.display())]
+    WrongKind {
+        /// The output's name.
+        path: PathBuf,
+        /// What is there (its size, or a link and where it points).
+        what: String,
+        /// What the output is ("a folder", "a file").
+        want: &'static str,
+    },
     /// A file-system operation failed.
     #[error("{}: {what}: {source}", path.display())]
     Io {
@@ -308,7 +319,14 @@ impl StagedFile {
         p.push(".partial");
         let partial = PathBuf::from(p);
         if let Ok(m) = std::fs::symlink_metadata(dest) {
-            if m.is_dir() || !force {
+            if m.is_dir() {
+                return Err(OutDirError::WrongKind {
+                    path: dest.to_path_buf(),
+                    what: "a folder".into(),
+                    want: "a file",
+                });
+            }
+            if !force {
                 return Err(OutDirError::Exists {
                     path: dest.to_path_buf(),
                     what: describe(dest).unwrap_or_default(),
@@ -485,6 +503,13 @@ impl OutDir {
     /// stage folders of dead runs and creates a fresh stage folder.
     pub fn open(out: &Path, inputs: &[PathBuf]) -> Result<Self, OutDirError> {
         check_inputs(out, inputs)?;
+        if std::fs::metadata(out).is_ok_and(|m| !m.is_dir()) {
+            return Err(OutDirError::WrongKind {
+                path: out.to_path_buf(),
+                what: describe(out).unwrap_or_default(),
+                want: "a folder",
+            });
+        }
         std::fs::create_dir_all(out).map_err(io_err(out, "creating the output folder"))?;
         let lock_path = out.join(LOCK_NAME);
         let mut lock = open_lock(&lock_path)?;
@@ -608,6 +633,31 @@ mod tests {
         assert!(left.is_empty());
         // the lock is free again
         drop(OutDir::open(&out, &[]).unwrap());
+    }
+
+    #[test]
+    fn a_file_as_the_folder_or_a_folder_as_the_file_is_named_so() {
+        let d = tempfile::tempdir().unwrap();
+        let file = d.path().join("afile");
+        std::fs::write(&file, "keep").unwrap();
+        let e = OutDir::open(&file, &[]).unwrap_err().to_string();
+        assert!(
+            e.ends_with("afile is a file of 4 bytes, not a folder: choose another name (nothing was written)"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+        let dir = d.path().join("adir");
+        std::fs::create_dir(&dir).unwrap();
+        for force in [false, true] {
+            let e = StagedFile::create(&dir, force).unwrap_err().to_string();
+            assert!(
+                e.ends_with(
+                    "adir is a folder, not a file: choose another name (nothing was written)"
+                ),
+                "{e}"
+            );
+        }
+        assert!(!d.path().join("adir.partial").exists());
     }
 
     #[test]
