@@ -123,6 +123,28 @@ impl Drop for QemuPty {
     }
 }
 
+/// Waits until socat has put the pty in raw mode without echo (`raw,echo=0`): socat sets the
+/// terminal once the pty is opened, and a write into the pty before that can fill its buffer
+/// while socat is not reading and block holding the terminal's write lock, which socat's
+/// `tcsetattr` then waits for: both hang.
+fn wait_for_raw_mode(tty_file: &File, tty: &Path) -> Result<()> {
+    use std::os::fd::AsRawFd;
+    let t0 = Instant::now();
+    loop {
+        // SAFETY: `termios` is plain data (integers and arrays): all zeros is a valid value.
+        let mut t: libc::termios = unsafe { std::mem::zeroed() };
+        // SAFETY: an open descriptor and a valid `termios` to fill.
+        let ok = unsafe { libc::tcgetattr(tty_file.as_raw_fd(), &mut t) } == 0;
+        if ok && t.c_lflag & (libc::ECHO | libc::ICANON) == 0 {
+            return Ok(());
+        }
+        if t0.elapsed() > Duration::from_secs(20) {
+            bail!("{}: socat did not set raw mode within 20 s", tty.display());
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 impl QemuLink {
     /// Starts `elf` on qemu mps2-an386 (`-icount shift=5`: deterministic tick counts) with
     /// UART0 on a socket, connects socat, opens the pty.
@@ -134,6 +156,7 @@ impl QemuLink {
             .write(true)
             .open(&tty)
             .with_context(|| format!("opening {}", tty.display()))?;
+        wait_for_raw_mode(&tty_file, &tty)?;
         let mut reader = tty_file.try_clone()?;
         let (txc, rx) = mpsc::channel();
         std::thread::spawn(move || {
