@@ -22,17 +22,22 @@ fn capture(dir: &Path, n: usize) -> PathBuf {
     capture_with(dir, n, [0.5, 0.6, 1.1], 0.0)
 }
 
-/// [`capture`] with the fixes' position sigmas `pos_std_ned_m` and their times moved by
-/// `dt_s`.
-fn capture_with(dir: &Path, n: usize, pos_std_ned_m: [f64; 3], dt_s: f64) -> PathBuf {
-    let imu: Vec<ImuSample> = (1..=n)
+/// `n` IMU samples at 200 Hz from t = 1000.005 s, the same increments in each.
+fn still_imu(n: usize) -> Vec<ImuSample> {
+    (1..=n)
         .map(|i| ImuSample {
             t_s: 1000.0 + i as f64 * 0.005,
             dtheta_rad: [1e-5, -2e-6, 3e-6],
             dv_mps: [0.01, -0.002, -0.049],
             temperature_c: 25.0,
         })
-        .collect();
+        .collect()
+}
+
+/// [`capture`] with the fixes' position sigmas `pos_std_ned_m` and their times moved by
+/// `dt_s`.
+fn capture_with(dir: &Path, n: usize, pos_std_ned_m: [f64; 3], dt_s: f64) -> PathBuf {
+    let imu = still_imu(n);
     let gnss: Vec<GnssFix> = (1..=n / 20)
         .map(|k| GnssFix {
             t_s: 1000.0 + k as f64 * 0.1 + dt_s,
@@ -441,14 +446,7 @@ fn send_copy_to_a_file_of_its_own_case_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let case = dir.path().join("case");
     std::fs::create_dir(&case).unwrap();
-    let imu: Vec<ImuSample> = (1..=400)
-        .map(|i| ImuSample {
-            t_s: 1000.0 + i as f64 * 0.005,
-            dtheta_rad: [1e-5, -2e-6, 3e-6],
-            dv_mps: [0.01, -0.002, -0.049],
-            temperature_c: 25.0,
-        })
-        .collect();
+    let imu = still_imu(400);
     nav_io::write_imu_text(case.join("imu.txt"), &imu).unwrap();
     std::fs::write(case.join("gnss.txt"), "1000.1 0.5 1.9 25 0.5 0.6 1.1\n").unwrap();
     std::os::unix::fs::symlink(case.join("imu.txt"), dir.path().join("copy.bin")).unwrap();
