@@ -54,6 +54,7 @@ fn simulate_writes_a_case_the_readers_and_kf_gins_config_agree_with() {
         gnss_rate_hz: Some(2.0),
         kf_gins: true,
         plot: true,
+        force: false,
     })
     .unwrap();
 
@@ -133,6 +134,7 @@ fn simulate_rejects_bad_inputs_with_clear_errors() {
         gnss_rate_hz: None,
         kf_gins: false,
         plot: false,
+        force: false,
     };
     let e = run(args("no/such/scenario.toml", "none"))
         .unwrap_err()
@@ -150,4 +152,112 @@ fn simulate_rejects_bad_inputs_with_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("no-such-preset"), "{e}");
+}
+
+const HOST_SIM: test_support::cli::Bin =
+    test_support::cli::Bin::new(env!("CARGO_BIN_EXE_host-sim"));
+
+/// Name -> bytes of every entry of `d` (a folder's entries as empty).
+fn contents(d: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(d)
+        .unwrap()
+        .flatten()
+        .map(|e| {
+            let bytes = std::fs::read(e.path()).unwrap_or_default();
+            (e.file_name().to_string_lossy().into_owned(), bytes)
+        })
+        .collect()
+}
+
+/// `simulate --out` follows the output-folder policy of `run`: a folder already holding a case
+/// is refused (named, with what to do) and left byte for byte as it was unless `--force`; a
+/// folder holding the scenario file, or a file in the folder's place, is refused before
+/// anything is written; with `--force` the case is replaced whole (an earlier `kf-gins.yaml`
+/// that this case does not write goes too) and the KF-GINS YAML names the files at their
+/// final place.
+#[test]
+fn simulate_refuses_to_write_over_an_existing_case_unless_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("short.toml");
+    std::fs::write(&sc, scenario_toml()).unwrap();
+    let out = dir.path().join("case");
+    let sim = |seed: &str, extra: &[&str]| {
+        let mut a = vec![
+            "simulate",
+            "--scenario",
+            sc.to_str().unwrap(),
+            "--errors",
+            "tactical",
+            "--seed",
+            seed,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        HOST_SIM.run(a)
+    };
+    let first = sim("1", &["--kf-gins"]);
+    assert!(first.ok, "{}", first.stderr);
+    let yaml = std::fs::read_to_string(out.join("kf-gins.yaml")).unwrap();
+    let abs = std::path::absolute(&out).unwrap();
+    assert!(
+        yaml.contains(&abs.join("imu.txt").display().to_string())
+            && !yaml.contains(".nav-out-stage"),
+        "{yaml}"
+    );
+    let before = contents(&out);
+
+    // a second case into the same folder: refused, exit 1, nothing changed
+    let again = sim("2", &[]);
+    assert_eq!(again.status.code(), Some(1), "{}", again.stderr);
+    let want = format!(
+        "error: --out {} already holds a case (imu.txt, gnss.txt, truth.nav, case.toml, \
+         kf-gins.yaml): pass --force to replace it, or choose another output folder (nothing \
+         was written)\n",
+        out.display()
+    );
+    assert_eq!(again.stderr, want);
+    assert_eq!(contents(&out), before);
+
+    // the scenario file inside the output folder: refused even with --force
+    let inside = out.join("short.toml");
+    std::fs::copy(&sc, &inside).unwrap();
+    let before = contents(&out);
+    let mut a: Vec<&str> = vec!["simulate", "--scenario", inside.to_str().unwrap()];
+    a.extend(["--out", out.to_str().unwrap(), "--force"]);
+    let held = HOST_SIM.run(a);
+    assert!(
+        !held.ok && held.stderr.contains("holds the input") && held.stderr.contains("short.toml"),
+        "{}",
+        held.stderr
+    );
+    assert_eq!(contents(&out), before);
+    std::fs::remove_file(&inside).unwrap();
+
+    // a file in the folder's place
+    let file = dir.path().join("afile");
+    std::fs::write(&file, "keep").unwrap();
+    let mut a: Vec<&str> = vec!["simulate", "--scenario", sc.to_str().unwrap()];
+    a.extend(["--out", file.to_str().unwrap()]);
+    let f = HOST_SIM.run(a);
+    assert!(
+        !f.ok
+            && f.stderr
+                .contains("afile is a file of 4 bytes, not a folder"),
+        "{}",
+        f.stderr
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+
+    // --force: the case replaced whole, no stage folder left
+    let forced = sim("2", &["--force"]);
+    assert!(forced.ok, "{}", forced.stderr);
+    let after = contents(&out);
+    assert_ne!(after["imu.txt"], before["imu.txt"]);
+    assert!(!after.contains_key("kf-gins.yaml"), "{:?}", after.keys());
+    assert!(
+        !after.keys().any(|k| k.starts_with(".nav-out-stage")),
+        "{:?}",
+        after.keys()
+    );
 }

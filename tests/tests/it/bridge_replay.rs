@@ -58,6 +58,7 @@ fn replay_with_config_on_a_capture_of_a_simulated_case_equals_host_sim_run_byte_
         gnss_rate_hz: None,
         kf_gins: true,
         plot: false,
+        force: false,
     })
     .unwrap();
     let config = case.join("kf-gins.yaml");
