@@ -16,12 +16,19 @@ const TEXT_FORMATS: [&str; 6] = [
     "%Y%m%d%H%M%S%.f",
 ];
 
-fn is_ubx(path: &Path) -> anyhow::Result<bool> {
+/// Bytes of the file's start searched for NMEA sentences.
+const HEAD_BYTES: u64 = 1 << 16;
+
+/// The first `n` bytes of `path` (all of it when shorter): a log of any length costs `n`.
+fn read_head(path: &Path, n: u64) -> anyhow::Result<Vec<u8>> {
     use std::io::Read as _;
     let mut head = Vec::new();
-    std::fs::File::open(path)?
-        .take(4096)
-        .read_to_end(&mut head)?;
+    std::fs::File::open(path)?.take(n).read_to_end(&mut head)?;
+    Ok(head)
+}
+
+fn is_ubx(path: &Path) -> anyhow::Result<bool> {
+    let head = read_head(path, 4096)?;
     let sync = head.windows(2).any(|w| w == [0xb5, 0x62]);
     let binary = head
         .iter()
@@ -43,8 +50,8 @@ pub(crate) fn detect(path: &Path, shown: &str, g: &mut Guess) -> anyhow::Result<
         return Ok(s);
     }
     let t = Table::read(path)?;
-    let raw = std::fs::read(path).unwrap_or_default();
-    let text = String::from_utf8_lossy(&raw[..raw.len().min(1 << 16)]).to_string();
+    let raw = read_head(path, HEAD_BYTES)?;
+    let text = String::from_utf8_lossy(&raw).into_owned();
     if text
         .lines()
         .any(|l| l.starts_with('$') && l.len() > 6 && &l[3..6] == "GGA")

@@ -157,6 +157,64 @@ fn init_on_the_project_text_from_the_simulator_runs_as_the_hand_configuration() 
     assert!(!ok && text.contains("exists: give --force"), "{text}");
 }
 
+/// `init` reads the start of a long GNSS log, never the whole file: the log is the simulated
+/// fixes followed by 110,000 more (past the lines the format detection reads) and a 256 MiB
+/// sparse tail of zero bytes (no disk used; a tail any reader would refuse as "not a text
+/// file"). Its peak resident set (the process's `VmHWM`) stays within 64 MiB of the same
+/// `init` on the short log, and the `[gnss]` section is the same. Reading the whole file
+/// would hold its 265 MB.
+#[test]
+fn init_reads_only_the_start_of_a_long_gnss_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    nav_io::write_imu_text(d.join("imu.txt"), &s.imu).unwrap();
+    nav_io::write_gnss_text(d.join("gnss.txt"), &s.gnss).unwrap();
+    let short = text_of(&d.join("gnss.txt"));
+    let last = short.lines().last().unwrap();
+    let (t, rest) = last.split_once(' ').unwrap();
+    let t: f64 = t.parse().unwrap();
+    let mut long = short.clone();
+    for k in 1..=110_000 {
+        writeln!(long, "{:.3} {rest}", t + f64::from(k)).unwrap();
+    }
+    let path = d.join("long.txt");
+    std::fs::write(&path, &long).unwrap();
+    let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.set_len(long.len() as u64 + (256 << 20)).unwrap();
+    drop(f);
+    let measure = |gnss: &str, out: &str| {
+        let o = d.join(out);
+        let r = test_support::cli::run_bounded(
+            Command::new(env!("CARGO_BIN_EXE_host-sim")).args([
+                "init",
+                "--imu",
+                d.join("imu.txt").to_str().unwrap(),
+                "--gnss",
+                d.join(gnss).to_str().unwrap(),
+                "-o",
+                o.to_str().unwrap(),
+            ]),
+            std::time::Duration::from_secs(60),
+        );
+        assert_eq!(r.code(), Some(0), "{}", r.stderr);
+        let gnss_section = text_of(&o)
+            .split("[gnss]")
+            .nth(1)
+            .unwrap()
+            .replace(gnss, "GNSS");
+        (r.max_rss_kib, gnss_section)
+    };
+    let (short_kib, short_gnss) = measure("gnss.txt", "short.toml");
+    let (long_kib, long_gnss) = measure("long.txt", "long.toml");
+    assert_eq!(long_gnss, short_gnss);
+    assert!(short_kib > 0, "VmHWM not read");
+    assert!(
+        long_kib < short_kib + 64 * 1024,
+        "init on the long log peaked at {long_kib} KiB, on the short one at {short_kib} KiB"
+    );
+}
+
 /// `-o` naming one of init's own inputs is refused even with `--force` (the data kept, byte
 /// for byte), and so is a link to one; a link to any other file is replaced by the
 /// configuration, its target untouched.
