@@ -15,6 +15,20 @@ pub enum IoError {
         /// The operating-system error.
         source: std::io::Error,
     },
+    /// A folder was given where a data file is read (the system would open it and fail at the
+    /// first read with "Is a directory").
+    #[error(
+        "{} is a folder, not a data file{}",
+        path.display(),
+        given_as.as_deref().map(|g| format!(" (given as {g})")).unwrap_or_default()
+    )]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// Where the path came from (a configuration key and file, a command-line flag), when
+        /// known.
+        given_as: Option<String>,
+    },
     /// Reading failed part-way (I/O error, corrupt gzip stream); `line` 0 (not named) before
     /// the first line or in a binary file.
     #[error("{}{}: read error: {source}", path.display(), at_line(*line))]
@@ -169,10 +183,26 @@ fn at_line(line: usize) -> String {
 }
 
 impl IoError {
+    /// The error with where its path came from (`given_as`, e.g. "`[imu] path` in run.toml"),
+    /// for an error about a folder given as a data file; any other error unchanged.
+    pub fn given_as(self, origin: impl FnOnce() -> String) -> Self {
+        match self {
+            IoError::Folder {
+                path,
+                given_as: None,
+            } => IoError::Folder {
+                path,
+                given_as: Some(origin()),
+            },
+            e => e,
+        }
+    }
+
     /// The file the error is about.
     pub fn path(&self) -> &std::path::Path {
         match self {
             IoError::Open { path, .. }
+            | IoError::Folder { path, .. }
             | IoError::Read { path, .. }
             | IoError::Write { path, .. }
             | IoError::NotText { path, .. }

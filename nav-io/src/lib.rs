@@ -57,7 +57,8 @@ pub use kfgins::{
     parse_kf_gins_yaml, read_kf_gins_yaml, write_kf_gins_yaml, KfGinsConfig, KfGinsImuNoiseYaml,
 };
 pub use lines::{
-    incomplete_last_line, open_text, parse_f64, DataLine, Fields, IncompleteLine, LineReader,
+    incomplete_last_line, open_data_file, open_text, parse_f64, DataLine, Fields, IncompleteLine,
+    LineReader,
 };
 pub use mount::Mounting;
 pub use noisecfg::AxisValue;

@@ -45,12 +45,30 @@ pub struct LineReader {
     unterminated: bool,
 }
 
-/// Opens `path` for line reading; gzip is detected from the magic bytes `1f 8b`.
-pub fn open_text(path: &Path) -> Result<LineReader, IoError> {
+/// Opens the data file `path` for reading; a folder under that name is
+/// [`IoError::Folder`] (checked before and after opening: a folder can be opened on some
+/// systems and fails only at the first read).
+pub fn open_data_file(path: &Path) -> Result<File, IoError> {
+    let folder = || IoError::Folder {
+        path: path.to_path_buf(),
+        given_as: None,
+    };
+    if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+        return Err(folder());
+    }
     let f = File::open(path).map_err(|source| IoError::Open {
         path: path.to_path_buf(),
         source,
     })?;
+    if f.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(folder());
+    }
+    Ok(f)
+}
+
+/// Opens `path` for line reading; gzip is detected from the magic bytes `1f 8b`.
+pub fn open_text(path: &Path) -> Result<LineReader, IoError> {
+    let f = open_data_file(path)?;
     LineReader::from_reader(path, f)
 }
 
@@ -644,10 +662,7 @@ const TAIL_BYTES: u64 = 1 << 16;
 /// ends with a line end or is as long (in fields) as the one before it.
 pub fn incomplete_last_line(path: &Path) -> Result<Option<IncompleteLine>, IoError> {
     use std::io::{Seek, SeekFrom};
-    let mut f = File::open(path).map_err(|source| IoError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let mut f = open_data_file(path)?;
     let read_err = |source| IoError::Read {
         path: path.to_path_buf(),
         line: 1,

@@ -915,10 +915,7 @@ impl ImuBinReader {
     /// Opens `path`.
     pub fn open(path: impl AsRef<Path>) -> Result<Self, IoError> {
         let path = path.as_ref();
-        let f = File::open(path).map_err(|source| IoError::Open {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let f = crate::lines::open_data_file(path)?;
         Self::from_reader(path, f)
     }
 

@@ -23,7 +23,9 @@ const HEAD_BYTES: u64 = 1 << 16;
 fn read_head(path: &Path, n: u64) -> anyhow::Result<Vec<u8>> {
     use std::io::Read as _;
     let mut head = Vec::new();
-    std::fs::File::open(path)?.take(n).read_to_end(&mut head)?;
+    nav_io::open_data_file(path)?
+        .take(n)
+        .read_to_end(&mut head)?;
     Ok(head)
 }
 

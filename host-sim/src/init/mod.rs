@@ -262,6 +262,21 @@ pub fn run(a: InitArgs) -> anyhow::Result<()> {
     for input in inputs.into_iter().flatten().chain([&PathBuf::from(tag)]) {
         nav_engine::run::outdir::check_not_input(&a.out, input)?;
     }
+    // a folder given as a data file: named with its flag (else the system's "Is a directory")
+    let flagged = [
+        ("--imu", Some(&a.imu)),
+        ("--gnss", Some(&a.gnss)),
+        ("--truth", a.truth.as_ref()),
+    ];
+    for (flag, p) in flagged {
+        if let Some(p) = p.filter(|p| p.is_dir()) {
+            return Err(nav_io::IoError::Folder {
+                path: p.clone(),
+                given_as: Some(flag.to_string()),
+            }
+            .into());
+        }
+    }
     let out_dir = match a.out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),

@@ -558,3 +558,68 @@ fn an_imu_gap_of_minutes_is_named_with_its_line() {
         r.stderr
     );
 }
+
+/// A folder given where a data file is read is named so, with the key or flag that gives it
+/// (not the system's "Is a directory"): the IMU and the GNSS path of a run configuration
+/// (`run` and `diagnose`), `init --imu` / `--gnss`, and the IMU file of `allan`; nothing is
+/// written.
+#[test]
+fn a_folder_given_as_a_data_file_is_named_with_its_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    std::fs::create_dir(d.join("imu.txt")).unwrap();
+    std::fs::create_dir(d.join("gnss.txt")).unwrap();
+    std::fs::write(d.join("i.txt"), "").unwrap();
+    std::fs::write(d.join("g.txt"), "").unwrap();
+    let truth = d.join("truth.nav");
+    let out = d.join("out");
+    let cfg = config(d, "imu.txt", None, "g.txt", &truth);
+    let shown = |p: &str| d.join(p).display().to_string();
+    for cmd in ["run", "diagnose"] {
+        let r = HOST_SIM.run([cmd, "--config", s(&cfg), "--out", s(&out)]);
+        assert_eq!(r.status.code(), Some(1), "{}", r.stderr);
+        assert_eq!(
+            r.stderr,
+            format!(
+                "error: {} is a folder, not a data file (given as `[imu] path` in {})\n",
+                shown("imu.txt"),
+                cfg.display()
+            )
+        );
+    }
+    let cfg = config(d, "i.txt", None, "gnss.txt", &truth);
+    let r = run(&cfg, d);
+    assert_eq!(
+        r.stderr,
+        format!(
+            "error: {} is a folder, not a data file (given as `[gnss] path` in {})\n",
+            shown("gnss.txt"),
+            cfg.display()
+        )
+    );
+    let init = d.join("init.toml");
+    for (imu, gnss, flag, folder) in [
+        ("imu.txt", "g.txt", "--imu", "imu.txt"),
+        ("i.txt", "gnss.txt", "--gnss", "gnss.txt"),
+    ] {
+        let (imu, gnss) = (d.join(imu), d.join(gnss));
+        let r = HOST_SIM.run(["init", "--imu", s(&imu), "--gnss", s(&gnss), "-o", s(&init)]);
+        assert_eq!(
+            r.stderr,
+            format!(
+                "error: {} is a folder, not a data file (given as {flag})\n",
+                shown(folder)
+            )
+        );
+    }
+    let r = HOST_SIM.run(["allan", s(&d.join("imu.txt")), "--out-dir", s(&out)]);
+    assert_eq!(
+        r.stderr,
+        format!("error: {} is a folder, not a data file\n", shown("imu.txt"))
+    );
+    assert!(!out.exists() && !init.exists());
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}

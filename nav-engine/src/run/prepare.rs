@@ -657,6 +657,57 @@ fn input_files(
     v
 }
 
+/// Refuses a data file of the run that is a folder ([`nav_io::IoError::Folder`]), naming the
+/// configuration key (and file) or the flag that gives it, before anything is read: a reader
+/// would otherwise fail at its first read with the system's "Is a directory".
+fn check_no_folder(
+    args: &RunSpec,
+    kind: &ConfigKind,
+    cfg_dir: &Path,
+) -> Result<(), nav_io::IoError> {
+    let cfg = args.config.display();
+    let mut named: Vec<(PathBuf, String)> = args
+        .truth
+        .iter()
+        .map(|t| (t.clone(), "--truth".to_string()))
+        .collect();
+    let key = |k: &str| format!("`{k}` in {cfg}");
+    match kind {
+        ConfigKind::Run(r) => {
+            named.push((RunConfig::resolve(cfg_dir, &r.imu.path), key("[imu] path")));
+            named.push((
+                RunConfig::resolve(cfg_dir, &r.gnss.path),
+                key("[gnss] path"),
+            ));
+            if let Some(t) = &r.truth {
+                named.push((RunConfig::resolve(cfg_dir, &t.path), key("[truth] path")));
+            }
+            if let Some(a) = &r.aiding {
+                if let Some(f) = &a.odometer.file {
+                    named.push((
+                        RunConfig::resolve(cfg_dir, f),
+                        key("[aiding.odometer] file"),
+                    ));
+                }
+                if let Some(f) = &a.heading.file {
+                    named.push((RunConfig::resolve(cfg_dir, f), key("[aiding.heading] file")));
+                }
+            }
+        }
+        ConfigKind::KfGins(k) => {
+            named.push((k.resolve_path(&k.imupath, cfg_dir), key("imupath")));
+            named.push((k.resolve_path(&k.gnsspath, cfg_dir), key("gnsspath")));
+        }
+    }
+    match named.into_iter().find(|(p, _)| p.is_dir()) {
+        Some((path, given_as)) => Err(nav_io::IoError::Folder {
+            path,
+            given_as: Some(given_as),
+        }),
+        None => Ok(()),
+    }
+}
+
 fn rpy_sigma_to_phi(att_std_rad: [f64; 3]) -> [f64; 3] {
     // small angles: roll/pitch/yaw sigmas as phi N/E/D sigmas (exact at zero roll/pitch)
     att_std_rad
@@ -704,6 +755,7 @@ fn load_with(args: &RunSpec, stream_imu: bool, check_in_run: bool) -> anyhow::Re
         }
         None => None,
     };
+    check_no_folder(args, &kind, &cfg_dir)?;
     let mut inputs = input_files(args, &kind, &cfg_dir, case_dir.as_ref());
     // streamed, the truth is not loaded: it is read as the solution advances
     let truth_stream = if stream {

@@ -86,10 +86,7 @@ impl UbxLogReader {
     /// Opens `path` (gzip detected from its magic bytes).
     pub fn open(path: impl AsRef<Path>, opts: &GnssLogOptions, max_q: u8) -> Result<Self, IoError> {
         let path = path.as_ref();
-        let f = std::fs::File::open(path).map_err(|source| IoError::Open {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let f = crate::lines::open_data_file(path)?;
         Self::from_reader(path, f, opts, max_q)
     }
 
