@@ -73,6 +73,9 @@ pub(crate) fn detect(path: &Path, shown: &str, g: &mut Guess) -> anyhow::Result<
         }
         return Ok(s);
     }
+    if let Some(sc) = &t.semicolons {
+        anyhow::bail!("{}", sc.describe());
+    }
     if t.head.iter().any(|l| {
         l.starts_with('%')
             && (l.contains("latitude(") || l.contains("x-ecef(") || l.contains("e-baseline("))

@@ -51,6 +51,9 @@ pub(crate) fn detect(
     g: &mut Guess,
 ) -> anyhow::Result<String> {
     let t = Table::read(path)?;
+    if let Some(sc) = &t.semicolons {
+        anyhow::bail!("{}", sc.describe());
+    }
     if t.rows.len() < 10 {
         anyhow::bail!("{}: fewer than 10 data rows recognised", path.display());
     }

@@ -22,6 +22,77 @@ pub(crate) struct Table {
     pub width: usize,
     /// The raw lines before the data (comments and header).
     pub head: Vec<String>,
+    /// The rows are separated by `;` (a separator init and the readers do not take): the
+    /// first such row.
+    pub semicolons: Option<SemicolonRows>,
+}
+
+/// Rows separated by `;` (see [`Table::semicolons`]).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SemicolonRows {
+    /// 1-based line of the first such row.
+    pub line: usize,
+    /// Its text.
+    pub text: String,
+    /// Its numbers are written with a decimal comma (`9,81`).
+    pub decimal_comma: bool,
+}
+
+impl SemicolonRows {
+    /// What a user is told: the separator, where, and how to convert the file.
+    pub fn describe(&self) -> String {
+        let mut shown: String = self.text.chars().take(60).collect();
+        if shown.len() < self.text.len() {
+            shown.push_str("...");
+        }
+        let (what, sed) = if self.decimal_comma {
+            (
+                " and the numbers have decimal commas",
+                "replace each ',' by '.' and then each ';' by ',' (e.g. `sed 's/,/./g; s/;/,/g'`)",
+            )
+        } else {
+            ("", "replace each ';' by ',' (e.g. `sed 's/;/,/g'`)")
+        };
+        format!(
+            "the rows are separated by ';'{what} (line {}: `{shown}`): init and the readers \
+             take commas or white space between the columns; {sed} and give init the converted \
+             file",
+            self.line
+        )
+    }
+}
+
+/// A row whose fields are separated by `;`: at least 3 fields, most of them numbers (with a
+/// decimal point or a decimal comma).
+fn semicolon_row(l: &str) -> Option<bool> {
+    let f: Vec<&str> = l.split(';').map(str::trim).collect();
+    if f.len() < 3 {
+        return None;
+    }
+    let point = f.iter().filter(|x| is_num(x)).count();
+    let comma = f.iter().filter(|x| is_num(&x.replace(',', "."))).count();
+    (comma * 2 >= f.len()).then_some(comma > point)
+}
+
+/// The first row of `lines` separated by `;`, when most rows (not comments or blank) are.
+fn semicolons(lines: &[String]) -> Option<SemicolonRows> {
+    let rows = lines.iter().enumerate().filter(|(_, l)| {
+        let t = l.trim();
+        !t.is_empty() && !t.starts_with('#') && !t.starts_with('%')
+    });
+    let (mut n, mut found) = (0usize, Vec::new());
+    for (i, l) in rows {
+        n += 1;
+        if let Some(dc) = semicolon_row(l.trim()) {
+            found.push((i, dc));
+        }
+    }
+    let &(i, decimal_comma) = found.first()?;
+    (found.len() * 2 > n).then(|| SemicolonRows {
+        line: i + 1,
+        text: lines[i].trim().to_string(),
+        decimal_comma,
+    })
 }
 
 fn split(line: &str, comma: bool) -> Vec<String> {
@@ -102,6 +173,7 @@ impl Table {
             rows: all.into_iter().filter(|r| r.len() == width).collect(),
             width,
             head: lines[..first].to_vec(),
+            semicolons: semicolons(lines),
         }
     }
 

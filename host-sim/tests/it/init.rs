@@ -215,6 +215,112 @@ fn init_reads_only_the_start_of_a_long_gnss_log() {
     );
 }
 
+/// Rows separated by `;` (a European spreadsheet's CSV, with decimal points or decimal commas)
+/// are named as such, with the line and how to convert the file, for the IMU and the GNSS
+/// file, instead of "fewer than 10 data rows recognised"; the file converted as said, and the
+/// same rows separated by tabs, are recognised.
+#[test]
+fn rows_separated_by_semicolons_are_named_with_the_conversion() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = sim();
+    nav_io::write_imu_text(d.join("imu.txt"), &s.imu).unwrap();
+    nav_io::write_gnss_text(d.join("gnss.txt"), &s.gnss).unwrap();
+    let sep = |f: &str, sep: &str, decimal: &str| {
+        text_of(&d.join(f))
+            .lines()
+            .map(|l| {
+                l.replace('.', decimal)
+                    .split_whitespace()
+                    .collect::<Vec<_>>()
+                    .join(sep)
+                    + "\n"
+            })
+            .collect::<String>()
+    };
+    let header = "t;gx;gy;gz;ax;ay;az\n";
+    std::fs::write(
+        d.join("imu_sc.csv"),
+        format!("{header}{}", sep("imu.txt", ";", ".")),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("imu_dc.csv"),
+        format!("{header}{}", sep("imu.txt", ";", ",")),
+    )
+    .unwrap();
+    std::fs::write(d.join("gnss_sc.csv"), sep("gnss.txt", ";", ".")).unwrap();
+    std::fs::write(d.join("imu_tab.txt"), sep("imu.txt", "\t", ".")).unwrap();
+    let out = d.join("init.toml");
+    let refused = |imu: &str, gnss: &str| {
+        let (ok, text) = host_sim(&[
+            "init",
+            "--imu",
+            d.join(imu).to_str().unwrap(),
+            "--gnss",
+            d.join(gnss).to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!ok && !out.exists(), "{text}");
+        text
+    };
+    let first = |f: &str, line: usize| -> String {
+        let l = text_of(&d.join(f))
+            .lines()
+            .nth(line - 1)
+            .unwrap()
+            .to_string();
+        l.chars().take(60).collect::<String>() + "..."
+    };
+    let e = refused("imu_sc.csv", "gnss.txt");
+    assert_eq!(
+        e,
+        format!(
+            "error: recognising the IMU file {}: the rows are separated by ';' (line 2: `{}`): \
+             init and the readers take commas or white space between the columns; replace each \
+             ';' by ',' (e.g. `sed 's/;/,/g'`) and give init the converted file\n",
+            d.join("imu_sc.csv").display(),
+            first("imu_sc.csv", 2)
+        )
+    );
+    let e = refused("imu_dc.csv", "gnss.txt");
+    assert!(
+        e.contains("the rows are separated by ';' and the numbers have decimal commas (line 2: ")
+            && e.contains(
+                "replace each ',' by '.' and then each ';' by ',' (e.g. `sed 's/,/./g; s/;/,/g'`)"
+            ),
+        "{e}"
+    );
+    let e = refused("imu.txt", "gnss_sc.csv");
+    assert!(
+        e.starts_with(&format!(
+            "error: recognising the GNSS file {}: the rows are separated by ';' (line 1: `{}`)",
+            d.join("gnss_sc.csv").display(),
+            first("gnss_sc.csv", 1)
+        )),
+        "{e}"
+    );
+    // converted as said: recognised (the header's names mapped), and tabs are white space
+    let converted = text_of(&d.join("imu_dc.csv"))
+        .replace(',', ".")
+        .replace(';', ",");
+    std::fs::write(d.join("imu_conv.csv"), converted).unwrap();
+    let (cfg, _) = init(d, "imu_conv.csv", "gnss.txt");
+    assert!(
+        text_of(&cfg).contains("format = \"csv\""),
+        "{}",
+        text_of(&cfg)
+    );
+    std::fs::remove_file(&cfg).unwrap();
+    let (cfg, _) = init(d, "imu_tab.txt", "gnss.txt");
+    assert!(
+        text_of(&cfg).contains("format = \"text\""),
+        "{}",
+        text_of(&cfg)
+    );
+}
+
 /// `-o` naming one of init's own inputs is refused even with `--force` (the data kept, byte
 /// for byte), and so is a link to one; a link to any other file is replaced by the
 /// configuration, its target untouched.
