@@ -34,6 +34,8 @@
 //! [`KfGinsConfig::filter_config_gauss_markov`] (the textbook Gauss-Markov reading,
 //! [`nav_core::config::FilterConfig::from_kf_gins`] applied to [`KfGinsConfig::imu_noise`]).
 
+mod quoted;
+
 use super::text::write_with;
 use super::IoError;
 use nav_core::config::{FilterConfig, KfGinsImuNoise, ScaleFactorNoise};
@@ -48,18 +50,25 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 #[serde(deny_unknown_fields)]
 pub struct KfGinsImuNoiseYaml {
     /// Angle random walk, deg/sqrt(h).
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub arw: [f64; 3],
     /// Velocity random walk, m/s/sqrt(h).
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub vrw: [f64; 3],
     /// Gyro bias Gauss-Markov sigma, deg/h.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub gbstd: [f64; 3],
     /// Accelerometer bias Gauss-Markov sigma, mGal.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub abstd: [f64; 3],
     /// Gyro scale-factor Gauss-Markov sigma, ppm.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub gsstd: [f64; 3],
     /// Accelerometer scale-factor Gauss-Markov sigma, ppm.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub asstd: [f64; 3],
     /// Correlation time of every Gauss-Markov state, h.
+    #[serde(deserialize_with = "quoted::f64")]
     pub corrtime: f64,
 }
 
@@ -108,52 +117,79 @@ pub struct KfGinsConfig {
     /// Output folder.
     pub outputpath: String,
     /// Number of columns of the IMU file.
+    #[serde(deserialize_with = "quoted::u32")]
     pub imudatalen: u32,
     /// IMU data rate, Hz.
+    #[serde(deserialize_with = "quoted::u32")]
     pub imudatarate: u32,
     /// Processing start, GPS seconds of week.
+    #[serde(deserialize_with = "quoted::f64")]
     pub starttime: f64,
     /// Processing end, GPS seconds of week (-1: to the end of the IMU file).
+    #[serde(deserialize_with = "quoted::f64")]
     pub endtime: f64,
     /// Initial position: latitude deg, longitude deg, height m.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initpos: [f64; 3],
     /// Initial velocity north, east, down, m/s.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initvel: [f64; 3],
     /// Initial attitude roll, pitch, yaw, deg.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initatt: [f64; 3],
     /// Initial gyro bias, deg/h.
-    #[serde(default = "zero3")]
+    #[serde(default = "zero3", deserialize_with = "quoted::f64x3")]
     pub initgyrbias: [f64; 3],
     /// Initial accelerometer bias, mGal.
-    #[serde(default = "zero3")]
+    #[serde(default = "zero3", deserialize_with = "quoted::f64x3")]
     pub initaccbias: [f64; 3],
     /// Initial gyro scale factor, ppm.
-    #[serde(default = "zero3")]
+    #[serde(default = "zero3", deserialize_with = "quoted::f64x3")]
     pub initgyrscale: [f64; 3],
     /// Initial accelerometer scale factor, ppm.
-    #[serde(default = "zero3")]
+    #[serde(default = "zero3", deserialize_with = "quoted::f64x3")]
     pub initaccscale: [f64; 3],
     /// Initial position std north, east, down, m.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initposstd: [f64; 3],
     /// Initial velocity std north, east, down, m/s.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initvelstd: [f64; 3],
     /// Initial attitude std roll, pitch, yaw, deg.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub initattstd: [f64; 3],
     /// Initial gyro bias std, deg/h (default `imunoise.gbstd`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "quoted::opt_f64x3"
+    )]
     pub initbgstd: Option<[f64; 3]>,
     /// Initial accelerometer bias std, mGal (default `imunoise.abstd`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "quoted::opt_f64x3"
+    )]
     pub initbastd: Option<[f64; 3]>,
     /// Initial gyro scale-factor std, ppm (default `imunoise.gsstd`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "quoted::opt_f64x3"
+    )]
     pub initsgstd: Option<[f64; 3]>,
     /// Initial accelerometer scale-factor std, ppm (default `imunoise.asstd`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "quoted::opt_f64x3"
+    )]
     pub initsastd: Option<[f64; 3]>,
     /// IMU noise.
     pub imunoise: KfGinsImuNoiseYaml,
     /// GNSS antenna phase centre in the IMU (body FRD) frame, m.
+    #[serde(deserialize_with = "quoted::f64x3")]
     pub antlever: [f64; 3],
     /// Top-level keys KF-GINS does not read (kept so a caller can warn about them).
     #[serde(skip)]

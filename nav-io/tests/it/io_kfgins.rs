@@ -158,6 +158,56 @@ fn malformed_kf_gins_yaml_gives_errors_naming_the_key_and_position() {
     assert!(matches!(e, IoError::Open { .. }));
 }
 
+/// Numbers written as quoted strings, which KF-GINS (yaml-cpp's `as<double>()` /
+/// `as<int>()`) reads as the numbers they spell: the same configuration as written plain. A
+/// quoted string that is not a number is refused with the key, line and column.
+#[test]
+fn quoted_numbers_read_as_kf_gins_reads_them() {
+    let plain = parse_kf_gins_yaml(name(), CFG).unwrap();
+    let quoted = CFG
+        .replace("imudatalen: 7", "imudatalen: '7'")
+        .replace("imudatarate: 200", "imudatarate: \"200\"")
+        .replace("starttime: 456300", "starttime: \"456300\"")
+        .replace("endtime: -1", "endtime: \"-1\"")
+        .replace(
+            "initpos: [ 30.4447873701, 114.4718632047, 20.899 ]",
+            "initpos: [ \"30.4447873701\", \"114.4718632047\", \" 20.899 \" ]",
+        )
+        .replace(
+            "initgyrbias: [ 0, 0, 0 ]",
+            "initgyrbias: [ \"0\", 0, '0.0' ]",
+        )
+        .replace(
+            "#initbgstd: [ 1, 1, 1 ]",
+            "initbgstd: [ \"0.027\", \"0.027\", \"0.027\" ]",
+        )
+        .replace("corrtime: 4.0", "corrtime: \"4.0\"")
+        .replace(
+            "antlever:  [ 0.136, -0.301, -0.184 ]",
+            "antlever: [ \"0.136\", \"-0.301\", \"-0.184\" ]",
+        );
+    let q = parse_kf_gins_yaml(name(), &quoted).unwrap();
+    let mut want = plain.clone();
+    want.initbgstd = Some([0.027; 3]);
+    assert_eq!(q, want);
+    // not a number, quoted or not: refused, naming the key and where
+    let m = cfg_err(&CFG.replace("imudatarate: 200", "imudatarate: \"200 Hz\""));
+    assert!(
+        m.contains("imudatarate") && m.contains("\"200 Hz\"") && m.contains("line 7 column 14"),
+        "{m}"
+    );
+    let m = cfg_err(&CFG.replace(
+        "initpos: [ 30.4447873701, 114.4718632047, 20.899 ]",
+        "initpos: [ \"30.4447873701\", \"north\", 20.899 ]",
+    ));
+    assert!(
+        m.contains("initpos") && m.contains("\"north\"") && m.contains("line 10 column "),
+        "{m}"
+    );
+    let m = cfg_err(&CFG.replace("imudatarate: 200", "imudatarate: \"200.5\""));
+    assert!(m.contains("imudatarate") && m.contains("200.5"), "{m}");
+}
+
 #[test]
 fn kf_gins_yaml_round_trips_through_the_writer() {
     let dir = tempfile::tempdir().unwrap();
