@@ -9,6 +9,8 @@
 //! The `[noise]` section and its keys (SI or datasheet units, one value or one per axis) are
 //! documented in [`super::noisecfg`].
 
+mod keys;
+
 use super::gnsscsv::GnssCsvFormat;
 use super::gnsslog::GnssLogOptions;
 use super::imucsv::ImuCsvFormat;
@@ -900,7 +902,11 @@ pub fn parse_run_config(name: &Path, text: &str) -> Result<RunConfig, IoError> {
             };
         }
         let mut message = e.to_string();
-        if let Some(hint) = nearest_name_hint(&message) {
+        // a key of another table: that table named (before any near misspelling)
+        let at = e.span().map(|s| s.start);
+        let hint =
+            keys::wrong_table_hint(e.message(), text, at).or_else(|| nearest_name_hint(&message));
+        if let Some(hint) = hint {
             message = format!("{}; {hint}", message.trim_end());
         }
         IoError::Config {

@@ -211,6 +211,54 @@ fn unknown_key_suggests_the_nearest_valid_one_with_its_line() {
     assert!(!e.to_string().contains("did you mean"), "{e}");
 }
 
+/// A key written in the wrong table is named with the table where it belongs (found from the
+/// configuration's own types), with its line; a key of several tables lists them all; a
+/// table's own near misspelling still gets "did you mean".
+#[test]
+fn a_key_in_the_wrong_table_names_the_table_where_it_belongs() {
+    let e = err_of(&BASE.replace(
+        "format = \"text\"\n\n[gnss]",
+        "format = \"text\"\nsigma_scale = 10.0\n\n[gnss]",
+    ));
+    let m = e.to_string();
+    assert!(
+        m.contains("line 7")
+            && m.trim_end()
+                .ends_with("; `sigma_scale` is a key of [gnss], not [imu]"),
+        "{m}"
+    );
+    // a key of the top level written under a table, and one of a nested table
+    let e = err_of(&BASE.replace("static_s = 10.0", "static_s = 10.0\nstart_s = 5.0"));
+    let m = e.to_string();
+    assert!(
+        m.contains("`start_s` is a key of the top level (before any [table]), not [init.align]"),
+        "{m}"
+    );
+    let e = err_of(&BASE.replace(
+        "pos_std_m = [1.0, 1.0, 2.0]",
+        "pos_std_m = [1.0, 1.0, 2.0]\nstatic_s = 3.0",
+    ));
+    let m = e.to_string();
+    assert!(
+        m.contains("`static_s` is a key of [init.align], not [init]"),
+        "{m}"
+    );
+    let e = err_of(&BASE.replace(
+        "format = \"text\"\n\n[gnss]",
+        "format = \"text\"\nlever_arm_m = [0.0, 0.0, 1.0]\n\n[gnss]",
+    ));
+    let m = e.to_string();
+    assert!(
+        m.contains(
+            "`lever_arm_m` is a key of [aiding.nhc], [aiding.odometer] and [gnss], not [imu]"
+        ),
+        "{m}"
+    );
+    // a key of no table: no such hint
+    let e = err_of(&BASE.replace("static_s = 10.0", "colour = 3"));
+    assert!(!e.to_string().contains("is a key of"), "{e}");
+}
+
 #[test]
 fn init_is_optional_and_defaults_to_an_alignment_from_the_data() {
     let dir = tempfile::tempdir().unwrap();
