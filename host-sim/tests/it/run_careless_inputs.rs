@@ -559,6 +559,36 @@ fn an_imu_gap_of_minutes_is_named_with_its_line() {
     );
 }
 
+/// A lever arm of 65 m (centimetres written as metres) is run as configured, with a warning
+/// on stderr naming its length and key; a lever arm of a metre or two draws none.
+#[test]
+fn an_implausible_lever_arm_is_warned_about() {
+    let c = case();
+    let (tmp, cfg) = setup("imu.txt", &join(&c.imu), &join(&c.gnss));
+    let base = std::fs::read_to_string(&cfg).unwrap();
+    let with_lever = |lever: &str| {
+        let text = base.replace(
+            "format = \"text\"\n[truth]",
+            &format!("format = \"text\"\nlever_arm_m = {lever}\n[truth]"),
+        );
+        assert!(text.contains("lever_arm_m"), "{text}");
+        std::fs::write(&cfg, text).unwrap();
+        run(&cfg, tmp.path())
+    };
+    let r = with_lever("[65.0, 0.0, 0.0]");
+    assert_ne!(r.status.code(), Some(1), "{}", r.stderr);
+    assert!(
+        r.stderr.contains(
+            "warning: lever arm 65.0 m ([gnss] lever_arm_m = [65, 0, 0]): a vehicle's antenna is \
+             usually within a few metres of the IMU; check the units\n"
+        ),
+        "{}",
+        r.stderr
+    );
+    let r = with_lever("[0.0, 1.2, -1.5]");
+    assert!(r.ok && !r.stderr.contains("lever arm"), "{}", r.stderr);
+}
+
 /// A folder given where a data file is read is named so, with the key or flag that gives it
 /// (not the system's "Is a directory"): the IMU and the GNSS path of a run configuration
 /// (`run` and `diagnose`), `init --imu` / `--gnss`, and the IMU file of `allan`; nothing is

@@ -657,6 +657,24 @@ fn input_files(
     v
 }
 
+/// Longest lever arm taken without a warning, m: a vehicle's GNSS antenna is within a few
+/// metres of its IMU; a longer one is most often a unit slip (cm or mm written as m). Up to
+/// [`nav_io::MAX_LEVER_ARM_M`] it is used; beyond, the configuration is refused.
+pub const PLAUSIBLE_LEVER_ARM_M: f64 = 10.0;
+
+/// The warning about a lever arm (`lever_m`, body FRD, m, given as `key`) longer than
+/// [`PLAUSIBLE_LEVER_ARM_M`].
+pub fn lever_arm_warning(lever_m: [f64; 3], key: &str) -> Option<String> {
+    let norm = lever_m.iter().map(|v| v * v).sum::<f64>().sqrt();
+    (norm > PLAUSIBLE_LEVER_ARM_M).then(|| {
+        format!(
+            "lever arm {norm:.1} m ({key} = [{}, {}, {}]): a vehicle's antenna is usually within \
+             a few metres of the IMU; check the units",
+            lever_m[0], lever_m[1], lever_m[2]
+        )
+    })
+}
+
 /// Refuses a data file of the run that is a folder ([`nav_io::IoError::Folder`]), naming the
 /// configuration key (and file) or the flag that gives it, before anything is read: a reader
 /// would otherwise fail at its first read with the system's "Is a directory".
@@ -756,6 +774,10 @@ fn load_with(args: &RunSpec, stream_imu: bool, check_in_run: bool) -> anyhow::Re
         None => None,
     };
     check_no_folder(args, &kind, &cfg_dir)?;
+    let lever_key = match &kind {
+        ConfigKind::Run(_) => "[gnss] lever_arm_m",
+        ConfigKind::KfGins(_) => "antlever",
+    };
     let mut inputs = input_files(args, &kind, &cfg_dir, case_dir.as_ref());
     // streamed, the truth is not loaded: it is read as the solution advances
     let truth_stream = if stream {
@@ -807,6 +829,7 @@ fn load_with(args: &RunSpec, stream_imu: bool, check_in_run: bool) -> anyhow::Re
         state.t_s += dt;
     }
     args.set.apply(&mut opts, &mut description)?;
+    warnings.extend(lever_arm_warning(opts.lever_arm_m, lever_key));
     let nav_rate_hz = schedule(
         args,
         &case,
@@ -1451,6 +1474,22 @@ impl CaseIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A lever arm beyond 10 m draws the warning with its length and key; one of a few
+    /// metres does not.
+    #[test]
+    fn a_lever_arm_beyond_ten_metres_is_warned_about() {
+        assert_eq!(
+            lever_arm_warning([65.0, 0.0, 0.0], "antlever").as_deref(),
+            Some(
+                "lever arm 65.0 m (antlever = [65, 0, 0]): a vehicle's antenna is usually within \
+                 a few metres of the IMU; check the units"
+            )
+        );
+        assert!(lever_arm_warning([6.0, 6.0, 6.0], "k").is_some());
+        assert!(lever_arm_warning([0.5, -1.2, -1.9], "k").is_none());
+        assert!(lever_arm_warning([10.0, 0.0, 0.0], "k").is_none());
+    }
 
     /// Every override lands in the option it names, once, over the configuration's value;
     /// unset ones keep the configuration's.
