@@ -21,13 +21,13 @@ pub struct SimulateArgs {
     /// Seed of the error realisation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output directory. A folder already holding a case (any of [`CASE_FILES`]) is refused
-    /// unless `--force`; a folder holding the scenario or error-model file, another process
-    /// writing into it, or a file in its place is refused ([`OutDir`]).
+    /// Output directory. A folder already holding a case (imu.txt, gnss.txt, truth.nav,
+    /// case.toml, ...) is refused unless --force; so is one holding the scenario or
+    /// error-model file, one another process is writing into, or a file in its place.
     #[arg(long)]
     pub out: PathBuf,
-    /// Replace the case already in `--out` (its files from an earlier `simulate` that this one
-    /// does not write are removed too, so the folder holds one case).
+    /// Replace the case already in --out (its files that this case does not write are
+    /// removed too, so the folder holds one case).
     #[arg(long)]
     pub force: bool,
     /// GNSS outage START:DURATION in seconds after the first IMU epoch (repeatable).
