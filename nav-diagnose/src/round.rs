@@ -441,6 +441,47 @@ pub(crate) fn drift_over_added_offset(
     }
 }
 
+/// The GNSS error state (`fit`, its fitted prior) is nested over the GNSS noise scale: with
+/// its sigma at zero it is the current model with a larger white noise, which is a noise
+/// parameter, not an effect. Unless its log-likelihood gain beyond the best white-noise
+/// scale alone ([`gnss_error::GnssErrorFit::white_only`]) pays the BIC penalty of what the
+/// state adds to that model, it has no evidence of its own: its evidence becomes that
+/// (negative) figure and it is not significant, so the misfit goes to the noise tuning. What
+/// the state adds are its three shape parameters (sigma, vertical ratio, correlation time):
+/// its states are a random process the filter integrates out of the innovation likelihood,
+/// not values fitted to the data. On the drives whose fixes carry white noise 3-8 times the
+/// declared sigmas and nothing else (10 minutes, 50 Hz, seeds 100-109) the state with its
+/// fitted white factor was named on 7 of 10; its gain beyond the scale alone is -0.1 to
+/// 0.3 nats there, against 12-16 nats on the drives with a Gauss-Markov error of 5-15 cm.
+fn beyond_noise_scale(
+    fit: &gnss_error::GnssErrorFit,
+    n_meas: f64,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let gm = Block::GnssPositionGm;
+    let (Some(gain), Some((w, _))) = (fit.gain_beyond_noise_scale(), fit.white_only) else {
+        return;
+    };
+    let params = gnss_error::FITTED_PARAMS - 1;
+    let penalty = 0.5 * params as f64 * n_meas.ln();
+    if gain > penalty {
+        return;
+    }
+    let Some((c, _)) = results.iter_mut().find(|(c, _)| c.name == gm.name()) else {
+        return;
+    };
+    c.evidence = Some(gain - penalty);
+    if c.decision != Decision::Refused {
+        c.decision = Decision::NotSignificant;
+    }
+    c.reason = format!(
+        "its gain beyond the GNSS noise scale alone (x{w:.2}) is {gain:.1} nats, not above the \
+         BIC penalty of its shape ({penalty:.1}): the misfit it takes is white noise; {}",
+        c.reason
+    );
+    c.refused = Some(c.reason.clone());
+}
+
 /// A GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
 /// bias step's): it yields to a specific effect that pays with significantly lower held-out
 /// windows ([`yields_to`]); the yielding candidates leave `eligible`, the reason noted.
@@ -507,7 +548,8 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
             log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
         };
         let from = s.gnss_error_fit.as_ref();
-        s.gnss_error_fit = gnss_error::fit(ctx, &plain_opts(gm), floor, from, &current);
+        s.gnss_error_fit =
+            gnss_error::fit(ctx, (&plain_opts(gm), &cur_opts), floor, from, &current);
     }
     let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
     let candidate_opts = |b: Block| {
@@ -526,12 +568,14 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         .par_iter()
         .map(|&b| {
             let o = candidate_opts(b);
-            let fitted = if b == gm && gm_fit.is_some() {
+            // the fitted GNSS error state's free parameters are its prior's (sigma, vertical
+            // ratio, correlation time, white-noise factor); its states are a random process
+            // the filter integrates out of the innovation likelihood, not values fitted
+            let params = if b == gm && gm_fit.is_some() {
                 gnss_error::FITTED_PARAMS
             } else {
-                0
+                prior::added_params(&s.added, b)
             };
-            let params = prior::added_params(&s.added, b) + fitted;
             let mut r = evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params));
             if let (true, Some(f)) = (b == gm, gm_fit.as_ref()) {
                 r.0.note.get_or_insert_with(|| f.describe());
@@ -550,6 +594,10 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         );
     } else {
         clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    }
+    if let Some(f) = gm_fit.as_ref() {
+        beyond_noise_scale(f, n_meas, &mut results);
+        results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
     }
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
     let mut eligible: Vec<usize> = (0..results.len())
@@ -786,9 +834,16 @@ pub(crate) fn add_joint(s: &mut Search, b: Block, v: JointVerdict, ev: &Eval, fr
 }
 
 /// The held-out check of a noise change (a nuisance parameter, not an effect that claims a
-/// gain): refused when its held-out window errors are significantly higher, or their RMS is
-/// higher (on the real drive a tuned noise the paired test let through raised the outage
-/// error 9.8 -> 17.2 m).
+/// gain): refused when its held-out window errors are significantly higher, or, unless they
+/// are significantly lower, their RMS is higher (on the real drive with imposed outages a
+/// tuned noise the paired test did not find worse raised the outage error 9.8 -> 17.2 m).
+/// Significantly lower windows are not refused over their RMS: a recording's 60 s gaps carry
+/// metres of free-inertial drift, three draws that scatter between runs and make the RMS.
+/// On the drives whose fixes carry white noise 3-8 times the declared sigmas (10 minutes,
+/// 50 Hz, seeds 100-109) the GNSS noise scale lowered the windows significantly on all ten
+/// and the file's gaps overall (seed 101: 3.32, 9.09, 9.20 -> 2.18, 2.94, 1.05 m; 109:
+/// 7.80, 2.39, 14.24 -> 2.21, 3.14, 6.68 m), but on seeds 100 and 105 two of the three gaps
+/// rose (1.22 -> 4.18 m; 4.71 -> 6.08 m) and a rule on the RMS refused it there.
 pub(crate) fn noise_heldout_check(
     cur: &StepErrors,
     new: &StepErrors,
@@ -801,7 +856,7 @@ pub(crate) fn noise_heldout_check(
         ));
     }
     if let (Some(c), Some(n)) = (cur.heldout_windows_rms_m, new.heldout_windows_rms_m) {
-        if n.is_nan() || n > c {
+        if n.is_nan() || (n > c && h.verdict != HeldoutVerdict::Better) {
             return Err(format!(
                 "held-out windows RMS raised ({}): {}",
                 crate::validate::rms_change_m(c, n),
