@@ -258,9 +258,8 @@ fn white_only(
     from: i32,
     current: &Current<'_>,
 ) -> ((f64, f64), usize) {
-    let run = |k: At| -> f64 {
-        innovation_log_likelihood(ctx, without_state, &GnssErrorFit::at(k))
-    };
+    let run =
+        |k: At| -> f64 { innovation_log_likelihood(ctx, without_state, &GnssErrorFit::at(k)) };
     let pts = Points::new(&run);
     if range.contains(&0) {
         pts.remember([0; 4], current.log_likelihood);

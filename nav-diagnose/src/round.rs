@@ -518,6 +518,21 @@ fn unexplained_gain(
     })
 }
 
+/// The GNSS error state's prior fitted in this round ([`gnss_error::fit`]) from the last
+/// round's fit, for the current model `cur_opts` with the state appended (`with_state`); the
+/// white-noise factor's floor is the configuration's GNSS sigma scale.
+fn refit_gnss_error(ctx: &Ctx<'_>, s: &mut Search, cur_opts: &RunOptions, with_state: &RunOptions) {
+    let cfg = ctx.p.opts.gnss_sigma_scale;
+    let now = cur_opts.gnss_sigma_scale;
+    let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
+    let current = gnss_error::Current {
+        innovations: &s.cur.run.innovations,
+        log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
+    };
+    let from = s.gnss_error_fit.as_ref();
+    s.gnss_error_fit = gnss_error::fit(ctx, (with_state, cur_opts), floor, from, &current);
+}
+
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
@@ -540,16 +555,7 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     // the GNSS error state's prior is fitted, not the default's ([`gnss_error`])
     let gm = Block::GnssPositionGm;
     if remaining.contains(&gm) {
-        let cfg = ctx.p.opts.gnss_sigma_scale;
-        let now = cur_opts.gnss_sigma_scale;
-        let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
-        let current = gnss_error::Current {
-            innovations: &s.cur.run.innovations,
-            log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
-        };
-        let from = s.gnss_error_fit.as_ref();
-        s.gnss_error_fit =
-            gnss_error::fit(ctx, (&plain_opts(gm), &cur_opts), floor, from, &current);
+        refit_gnss_error(ctx, s, &cur_opts, &plain_opts(gm));
     }
     let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
     let candidate_opts = |b: Block| {
@@ -683,7 +689,10 @@ pub(crate) fn try_noise(
     if let (Err(why), true) = (&check, evidence > 0.0 && h.verdict != HeldoutVerdict::Worse) {
         if let Some(f) = gnss_scale_on_single_fixes(ctx, cur_opts, &o, &k) {
             check = if f.verdict == HeldoutVerdict::Worse {
-                Err(format!("{why}; fixes withheld one at a time: {}", f.describe()))
+                Err(format!(
+                    "{why}; fixes withheld one at a time: {}",
+                    f.describe()
+                ))
             } else {
                 Ok(())
             };

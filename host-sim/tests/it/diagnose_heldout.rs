@@ -168,14 +168,18 @@ fn names_gnss_scale(d: &Diagnosis, m: &ErrorModel) -> bool {
 /// The GNSS noise scale of `d` and the true white-noise factor of `m`, for messages.
 fn gnss_scale_and_truth(d: &Diagnosis, m: &ErrorModel) -> String {
     let k = m.gnss.white_sigma_ned_m.0[0] / m.gnss.reported_std()[0];
-    let g = d
-        .final_gnss_sigma_scale
-        .map_or("none".into(), |g| format!("x{:.2} / x{:.2}", g.horizontal, g.vertical));
+    let g = d.final_gnss_sigma_scale.map_or("none".into(), |g| {
+        format!("x{:.2} / x{:.2}", g.horizontal, g.vertical)
+    });
     let gaps: Vec<String> = d
         .heldout_windows
         .windows
         .iter()
-        .zip(d.window_errors_before_m.iter().zip(&d.window_errors_after_m))
+        .zip(
+            d.window_errors_before_m
+                .iter()
+                .zip(&d.window_errors_after_m),
+        )
         .filter(|(w, _)| w.kind == WindowKind::GnssGap)
         .map(|(_, (b, a))| format!("{b:.2} -> {a:.2}"))
         .collect();
