@@ -521,7 +521,12 @@ fn unexplained_gain(
 /// The GNSS error state's prior fitted in this round ([`gnss_error::fit`]) from the last
 /// round's fit, for the current model `cur_opts` with the state appended (`with_state`); the
 /// white-noise factor's floor is the configuration's GNSS sigma scale.
-fn refit_gnss_error(ctx: &Ctx<'_>, s: &mut Search, cur_opts: &RunOptions, with_state: &RunOptions) {
+fn refit_gnss_error(
+    ctx: &Ctx<'_>,
+    s: &Search,
+    cur_opts: &RunOptions,
+    with_state: &RunOptions,
+) -> Option<gnss_error::GnssErrorFit> {
     let cfg = ctx.p.opts.gnss_sigma_scale;
     let now = cur_opts.gnss_sigma_scale;
     let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
@@ -530,7 +535,7 @@ fn refit_gnss_error(ctx: &Ctx<'_>, s: &mut Search, cur_opts: &RunOptions, with_s
         log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
     };
     let from = s.gnss_error_fit.as_ref();
-    s.gnss_error_fit = gnss_error::fit(ctx, (with_state, cur_opts), floor, from, &current);
+    gnss_error::fit(ctx, (with_state, cur_opts), floor, from, &current)
 }
 
 /// One round: every remaining candidate against the current model; adds the best eligible
@@ -555,7 +560,7 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     // the GNSS error state's prior is fitted, not the default's ([`gnss_error`])
     let gm = Block::GnssPositionGm;
     if remaining.contains(&gm) {
-        refit_gnss_error(ctx, s, &cur_opts, &plain_opts(gm));
+        s.gnss_error_fit = refit_gnss_error(ctx, s, &cur_opts, &plain_opts(gm));
     }
     let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
     let candidate_opts = |b: Block| {
