@@ -287,8 +287,8 @@ impl Default for EffectsConfig {
     /// Misalignments 1 mrad, lever arm 1 m, time offset 0.1 s, IMU clock drift 100 ppm, GNSS
     /// position Gauss-Markov error 0.5 m (N, E) / 1 m (D) with 300 s, accelerometer temperature
     /// coefficient 100 ug/degC, gyro temperature coefficient 0.1 deg/h/degC, g-sensitivity
-    /// 1 deg/h/g, odometer scale factor 5 %; all random constants; T_ref = the first
-    /// temperature.
+    /// 10 deg/h/g (a MEMS tactical gyro's order; a fibre-optic gyro's is under 1), odometer
+    /// scale factor 5 %; all random constants; T_ref = the first temperature.
     fn default() -> Self {
         Self {
             accel_misalignment: EffectNoise::constant(1e-3),
@@ -302,7 +302,7 @@ impl Default for EffectsConfig {
             },
             accel_temperature: EffectNoise::constant(100.0 * units::UG_MPS2),
             gyro_temperature: EffectNoise::constant(units::radps_from_deg_per_h(0.1)),
-            gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(1.0) / G0_MPS2),
+            gyro_g_sensitivity: EffectNoise::constant(units::radps_from_deg_per_h(10.0) / G0_MPS2),
             odometer_scale: EffectNoise::constant(0.05),
             temperature_ref_c: None,
         }

@@ -33,7 +33,8 @@ const TAU_STEPS: std::ops::RangeInclusive<i32> = -6..=4;
 /// one.
 const WHITE_STEPS: std::ops::RangeInclusive<i32> = -8..=12;
 /// Hyperparameters the fit chooses (horizontal sigma, vertical ratio, correlation time,
-/// white-noise factor): counted in the candidate's BIC penalty beside its three states.
+/// white-noise factor): the fitted candidate's BIC penalty counts these, not its three
+/// states (a random process the filter integrates out of the innovation likelihood).
 pub const FITTED_PARAMS: usize = 4;
 
 /// A point of the fit's grids: indices of horizontal sigma, vertical ratio, correlation time,
@@ -57,6 +58,10 @@ pub struct GnssErrorFit {
     /// True when the screen stopped the fit ([`fit`]): the prior is the better screen point,
     /// which gains nothing over the current model.
     pub screened: bool,
+    /// The nested model without the state: the best factor on the current GNSS sigma scale
+    /// for the current model alone and its log-likelihood, nats ([`white_only`]; None when
+    /// the screen stopped the fit).
+    pub white_only: Option<(f64, f64)>,
     /// Grid indices of the fit.
     at: At,
 }
@@ -74,6 +79,7 @@ impl GnssErrorFit {
             log_likelihood: f64::NAN,
             runs: 0,
             screened: false,
+            white_only: None,
             at: k,
         }
     }
@@ -89,10 +95,22 @@ impl GnssErrorFit {
         o.gnss_sigma_scale.vertical *= self.white_factor;
     }
 
+    /// The log-likelihood the state gains beyond the GNSS noise scale alone (the fit against
+    /// [`GnssErrorFit::white_only`]), nats; None when the screen stopped the fit.
+    pub fn gain_beyond_noise_scale(&self) -> Option<f64> {
+        self.white_only.map(|(_, l)| self.log_likelihood - l)
+    }
+
     /// The fit in words: sigma (cm), correlation time, the white-noise factor.
     pub fn describe(&self) -> String {
+        let nested = self.white_only.map_or(String::new(), |(w, l)| {
+            format!(
+                "; without the state GNSS sigma scale x{w:.2}: {:.1} nats below",
+                self.log_likelihood - l
+            )
+        });
         format!(
-            "prior {}: {:.1}/{:.1}/{:.1} cm, {:.0} s, GNSS sigma scale x{:.2} ({} runs)",
+            "prior {}: {:.1}/{:.1}/{:.1} cm, {:.0} s, GNSS sigma scale x{:.2} ({} runs{nested})",
             if self.screened {
                 "not fitted (no screen point gains over the current model)"
             } else {
@@ -135,24 +153,17 @@ pub(crate) struct Current<'a> {
 /// grid point is run once ([`Points`]); each coordinate is probed first in the direction it
 /// last moved in ([`climb`]).
 /// `floor`: the smallest white-noise factor (the configuration's sigma scale over the
-/// current one, per component, the larger).
+/// current one, per component, the larger). After a climb, the nested model without the
+/// state (`without_state`, the current model) is fitted over the white-noise factor alone
+/// ([`white_only`]).
 pub(crate) fn fit(
     ctx: &Ctx<'_>,
-    with_state: &RunOptions,
+    (with_state, without_state): (&RunOptions, &RunOptions),
     floor: f64,
     from: Option<&GnssErrorFit>,
     current: &Current<'_>,
 ) -> Option<GnssErrorFit> {
-    let run = |k: At| -> f64 {
-        let mut o = ctx.searching(with_state);
-        // the likelihood reads the used fixes' innovations only: no epoch records, no
-        // predicted withheld fixes
-        o.record.epoch_rate_hz = Some(0.0);
-        GnssErrorFit::at(k).apply(&mut o);
-        spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
-            residual_stats(&out.innovations).log_likelihood
-        })
-    };
+    let run = |k: At| -> f64 { innovation_log_likelihood(ctx, with_state, &GnssErrorFit::at(k)) };
     let white_min = (4.0 * floor.max(1e-9).log2()).ceil() as i32;
     let ranges = [
         SIGMA_STEPS,
@@ -207,11 +218,58 @@ pub(crate) fn fit(
         best = climb(best, (axis, stride), &ranges[axis], &pts, &point);
     }
     let (at, best) = best;
-    best.is_finite().then(|| GnssErrorFit {
+    if !best.is_finite() {
+        return None;
+    }
+    let (white, white_runs) = white_only(ctx, without_state, &ranges[3], at[3], current);
+    Some(GnssErrorFit {
         log_likelihood: best,
-        runs: pts.runs(),
+        runs: pts.runs() + white_runs,
+        white_only: Some(white),
         ..GnssErrorFit::at(at)
     })
+}
+
+/// The log-likelihood of the innovations (nats) of a search run of `o` with the fit's prior
+/// and white-noise factor applied (the prior is unused when `o` has no GNSS error state).
+fn innovation_log_likelihood(ctx: &Ctx<'_>, o: &RunOptions, fit: &GnssErrorFit) -> f64 {
+    let mut o = ctx.searching(o);
+    // the likelihood reads the used fixes' innovations only: no epoch records, no predicted
+    // withheld fixes
+    o.record.epoch_rate_hz = Some(0.0);
+    fit.apply(&mut o);
+    spill::run_innovations(&ctx.p.case, &o).map_or(f64::NAN, |out| {
+        residual_stats(&out.innovations).log_likelihood
+    })
+}
+
+/// The nested model of a fit: the current model (`without_state`) with only the factor on
+/// its GNSS sigma scale fitted, climbed from the fit's factor (grid index `from`, steps of
+/// 2^(1/4) within `range`; factor 1 is the current model, `current`). A white-noise scale
+/// is part of the noise model, so the state is named only for what it gains beyond this
+/// model (`round::beyond_noise_scale`): on drives whose fixes carry white noise 3-8 times the
+/// declared sigmas and nothing else the fitted state took the scale's thousands of nats and
+/// was named in its place. Returns the best factor with its log-likelihood (nats) and the
+/// runs made.
+fn white_only(
+    ctx: &Ctx<'_>,
+    without_state: &RunOptions,
+    range: &std::ops::RangeInclusive<i32>,
+    from: i32,
+    current: &Current<'_>,
+) -> ((f64, f64), usize) {
+    let run =
+        |k: At| -> f64 { innovation_log_likelihood(ctx, without_state, &GnssErrorFit::at(k)) };
+    let pts = Points::new(&run);
+    if range.contains(&0) {
+        pts.remember([0; 4], current.log_likelihood);
+    }
+    let start = pts.ll([0, 0, 0, from.clamp(*range.start(), *range.end())]);
+    climb(start, (3, 1), range, &pts, &|k| pts.ll(k));
+    let best = pts.best().map_or((1.0, current.log_likelihood), |(k, l)| {
+        (GnssErrorFit::at(k).white_factor, l)
+    });
+    (best, pts.runs() - usize::from(range.contains(&0)))
 }
 
 /// The grid points a fit has run, each once: their log-likelihoods (nats) by point, and the

@@ -247,7 +247,7 @@ fn search_and_finish(
     });
     let found = find_bias_step(p, &before);
     // the search and the final model run on the data with the step removed when it is kept
-    let (ctx, step) = judge_bias_step(base_ctx, &base, found.as_ref())?;
+    let (ctx, step) = judge_bias_step(base_ctx, &base, found.as_ref(), &all)?;
     let mut s = start_search(&ctx, &base, step)?;
     // a step the base model's misfit hid: looked for again after each added effect
     let mut ctx = ctx;

@@ -99,6 +99,11 @@ impl NoiseFactors {
         self.as_array().iter().all(|k| *k == 1.0)
     }
 
+    /// Whether only the GNSS factors differ from 1 (the IMU noise is the configuration's).
+    pub fn is_gnss_only(&self) -> bool {
+        self.as_array()[..4].iter().all(|k| *k == 1.0) && !self.is_one()
+    }
+
     /// Number of free parameters these factors change (for the BIC penalty): one per IMU
     /// factor that is not 1; the GNSS factors count one when equal (one scale), two when not.
     pub fn params(&self) -> usize {

@@ -441,6 +441,47 @@ pub(crate) fn drift_over_added_offset(
     }
 }
 
+/// The GNSS error state (`fit`, its fitted prior) is nested over the GNSS noise scale: with
+/// its sigma at zero it is the current model with a larger white noise, which is a noise
+/// parameter, not an effect. Unless its log-likelihood gain beyond the best white-noise
+/// scale alone ([`gnss_error::GnssErrorFit::white_only`]) pays the BIC penalty of what the
+/// state adds to that model, it has no evidence of its own: its evidence becomes that
+/// (negative) figure and it is not significant, so the misfit goes to the noise tuning. What
+/// the state adds are its three shape parameters (sigma, vertical ratio, correlation time):
+/// its states are a random process the filter integrates out of the innovation likelihood,
+/// not values fitted to the data. On the drives whose fixes carry white noise 3-8 times the
+/// declared sigmas and nothing else (10 minutes, 50 Hz, seeds 100-109) the state with its
+/// fitted white factor was named on 7 of 10; its gain beyond the scale alone is -0.1 to
+/// 0.3 nats there, against 12-16 nats on the drives with a Gauss-Markov error of 5-15 cm.
+fn beyond_noise_scale(
+    fit: &gnss_error::GnssErrorFit,
+    n_meas: f64,
+    results: &mut [(CandidateEvidence, Option<Eval>)],
+) {
+    let gm = Block::GnssPositionGm;
+    let (Some(gain), Some((w, _))) = (fit.gain_beyond_noise_scale(), fit.white_only) else {
+        return;
+    };
+    let params = gnss_error::FITTED_PARAMS - 1;
+    let penalty = 0.5 * params as f64 * n_meas.ln();
+    if gain > penalty {
+        return;
+    }
+    let Some((c, _)) = results.iter_mut().find(|(c, _)| c.name == gm.name()) else {
+        return;
+    };
+    c.evidence = Some(gain - penalty);
+    if c.decision != Decision::Refused {
+        c.decision = Decision::NotSignificant;
+    }
+    c.reason = format!(
+        "its gain beyond the GNSS noise scale alone (x{w:.2}) is {gain:.1} nats, not above the \
+         BIC penalty of its shape ({penalty:.1}): the misfit it takes is white noise; {}",
+        c.reason
+    );
+    c.refused = Some(c.reason.clone());
+}
+
 /// A GNSS error state absorbs any slowly varying misfit (a lever arm's, a clock drift's, a
 /// bias step's): it yields to a specific effect that pays with significantly lower held-out
 /// windows ([`yields_to`]); the yielding candidates leave `eligible`, the reason noted.
@@ -477,6 +518,26 @@ fn unexplained_gain(
     })
 }
 
+/// The GNSS error state's prior fitted in this round ([`gnss_error::fit`]) from the last
+/// round's fit, for the current model `cur_opts` with the state appended (`with_state`); the
+/// white-noise factor's floor is the configuration's GNSS sigma scale.
+fn refit_gnss_error(
+    ctx: &Ctx<'_>,
+    s: &Search,
+    cur_opts: &RunOptions,
+    with_state: &RunOptions,
+) -> Option<gnss_error::GnssErrorFit> {
+    let cfg = ctx.p.opts.gnss_sigma_scale;
+    let now = cur_opts.gnss_sigma_scale;
+    let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
+    let current = gnss_error::Current {
+        innovations: &s.cur.run.innovations,
+        log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
+    };
+    let from = s.gnss_error_fit.as_ref();
+    gnss_error::fit(ctx, (with_state, cur_opts), floor, from, &current)
+}
+
 /// One round: every remaining candidate against the current model; adds the best eligible
 /// one (or the tuned noise when its evidence is stronger). False when the search stops.
 pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool {
@@ -499,15 +560,7 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
     // the GNSS error state's prior is fitted, not the default's ([`gnss_error`])
     let gm = Block::GnssPositionGm;
     if remaining.contains(&gm) {
-        let cfg = ctx.p.opts.gnss_sigma_scale;
-        let now = cur_opts.gnss_sigma_scale;
-        let floor = (cfg.horizontal / now.horizontal).max(cfg.vertical / now.vertical);
-        let current = gnss_error::Current {
-            innovations: &s.cur.run.innovations,
-            log_likelihood: residual_stats(&s.cur.run.innovations).log_likelihood,
-        };
-        let from = s.gnss_error_fit.as_ref();
-        s.gnss_error_fit = gnss_error::fit(ctx, &plain_opts(gm), floor, from, &current);
+        s.gnss_error_fit = refit_gnss_error(ctx, s, &cur_opts, &plain_opts(gm));
     }
     let gm_fit = s.gnss_error_fit.filter(|_| remaining.contains(&gm));
     let candidate_opts = |b: Block| {
@@ -526,12 +579,14 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         .par_iter()
         .map(|&b| {
             let o = candidate_opts(b);
-            let fitted = if b == gm && gm_fit.is_some() {
+            // the fitted GNSS error state's free parameters are its prior's (sigma, vertical
+            // ratio, correlation time, white-noise factor); its states are a random process
+            // the filter integrates out of the innovation likelihood, not values fitted
+            let params = if b == gm && gm_fit.is_some() {
                 gnss_error::FITTED_PARAMS
             } else {
-                0
+                prior::added_params(&s.added, b)
             };
-            let params = prior::added_params(&s.added, b) + fitted;
             let mut r = evaluate_candidate(ctx, cur, &near, &cur_opts, n_meas, (b, &o, params));
             if let (true, Some(f)) = (b == gm, gm_fit.as_ref()) {
                 r.0.note.get_or_insert_with(|| f.describe());
@@ -550,6 +605,10 @@ pub(crate) fn search_round(ctx: &Ctx<'_>, s: &mut Search, all: &[Block]) -> bool
         );
     } else {
         clock_drift_beside_offset(ctx, &cur_opts, &mut results, n_meas);
+    }
+    if let Some(f) = gm_fit.as_ref() {
+        beyond_noise_scale(f, n_meas, &mut results);
+        results.sort_by(|a, b| key(&b.0).total_cmp(&key(&a.0)));
     }
     judge_gnss_side(ctx, &cur_opts, &candidate_opts, &mut results);
     let mut eligible: Vec<usize> = (0..results.len())
@@ -627,11 +686,23 @@ pub(crate) fn try_noise(
     let pen = 0.5 * params as f64 * n_meas.ln();
     let evidence = ev.errors.log_likelihood - s.cur.errors.log_likelihood - pen;
     let h = validate::compare_windows(&s.cur.windows, &ev.windows);
-    let check = if evidence <= 0.0 {
+    let mut check = if evidence <= 0.0 {
         Err("likelihood gain below the BIC penalty".to_string())
     } else {
         noise_heldout_check(&s.cur.errors, &ev.errors, &h)
     };
+    if let (Err(why), true) = (&check, evidence > 0.0 && h.verdict != HeldoutVerdict::Worse) {
+        if let Some(f) = gnss_scale_on_single_fixes(ctx, cur_opts, &o, &k) {
+            check = if f.verdict == HeldoutVerdict::Worse {
+                Err(format!(
+                    "{why}; fixes withheld one at a time: {}",
+                    f.describe()
+                ))
+            } else {
+                Ok(())
+            };
+        }
+    }
     // a noise change explains any misfit by widening the variances: it pre-empts an eligible
     // effect only when it also predicts the withheld fixes at least as well (on the real
     // drive the tuned noise out-gained the time offset, 28.9k nats, and then absorbed it)
@@ -663,6 +734,31 @@ pub(crate) fn try_noise(
             false
         }
     }
+}
+
+/// A GNSS noise scale alone (`k`: the IMU factors 1; `o`, the current model `cur_opts` with
+/// it) whose held-out windows are not significantly higher but raised their RMS, judged on
+/// the fixes withheld one at a time instead, paired per fix with the current model
+/// ([`Ctx::fix_errors`]): adopted unless those are significantly higher. The windows' RMS is
+/// the IMU's free-inertial drift across the recording's 60 s gaps, three draws of metres,
+/// while a GNSS sigma changes how the fixes are weighed; the RMS rule is there for the IMU
+/// noise (a tuned IMU white noise raised the real drive's outage error 9.8 -> 17.2 m). On the
+/// 10-minute drive of the vocabulary test (seed 21, white noise 3.31 times the declared
+/// sigmas) the scale x3.22 gains 2,353 nats, its windows +3.1 % (10 of 20 lower, not
+/// significant, one gap raising the RMS 1.13 -> 1.30 m), its 28 single fixes +1.7 % (not
+/// significant). None when it does not apply (IMU factors changed, too few interleaved fixes,
+/// a run failed).
+fn gnss_scale_on_single_fixes(
+    ctx: &Ctx<'_>,
+    cur_opts: &RunOptions,
+    o: &RunOptions,
+    k: &NoiseFactors,
+) -> Option<HeldoutComparison> {
+    if !k.is_gnss_only() || ctx.interleaved.len() < 10 {
+        return None;
+    }
+    let (cur, new) = rayon::join(|| ctx.fix_errors(cur_opts), || ctx.fix_errors(o));
+    Some(validate::compare_fixes(&cur.ok()?, &new.ok()?))
 }
 
 /// With no effect eligible and the tuned noise (pending) not adopted alone, the noise and the
@@ -786,9 +882,16 @@ pub(crate) fn add_joint(s: &mut Search, b: Block, v: JointVerdict, ev: &Eval, fr
 }
 
 /// The held-out check of a noise change (a nuisance parameter, not an effect that claims a
-/// gain): refused when its held-out window errors are significantly higher, or their RMS is
-/// higher (on the real drive a tuned noise the paired test let through raised the outage
-/// error 9.8 -> 17.2 m).
+/// gain): refused when its held-out window errors are significantly higher, or, unless they
+/// are significantly lower, their RMS is higher (on the real drive with imposed outages a
+/// tuned noise the paired test did not find worse raised the outage error 9.8 -> 17.2 m).
+/// Significantly lower windows are not refused over their RMS: a recording's 60 s gaps carry
+/// metres of free-inertial drift, three draws that scatter between runs and make the RMS.
+/// On the drives whose fixes carry white noise 3-8 times the declared sigmas (10 minutes,
+/// 50 Hz, seeds 100-109) the GNSS noise scale lowered the windows significantly on all ten
+/// and the file's gaps overall (seed 101: 3.32, 9.09, 9.20 -> 2.18, 2.94, 1.05 m; 109:
+/// 7.80, 2.39, 14.24 -> 2.21, 3.14, 6.68 m), but on seeds 100 and 105 two of the three gaps
+/// rose (1.22 -> 4.18 m; 4.71 -> 6.08 m) and a rule on the RMS refused it there.
 pub(crate) fn noise_heldout_check(
     cur: &StepErrors,
     new: &StepErrors,
@@ -801,7 +904,7 @@ pub(crate) fn noise_heldout_check(
         ));
     }
     if let (Some(c), Some(n)) = (cur.heldout_windows_rms_m, new.heldout_windows_rms_m) {
-        if n.is_nan() || n > c {
+        if n.is_nan() || (n > c && h.verdict != HeldoutVerdict::Better) {
             return Err(format!(
                 "held-out windows RMS raised ({}): {}",
                 crate::validate::rms_change_m(c, n),

@@ -68,12 +68,22 @@ pub enum Effect {
     /// Gyro bias step of 20-50 deg/h about a random body axis (random sign) at
     /// [`bias_step_time_s`].
     GyroBiasStep,
+    /// Gyro bias temperature coefficient, 0.3-0.6 deg/h/degC per axis, over a 20 degC warm-up
+    /// (time constant a third of the drive): 6-12 deg/h by the end.
+    GyroTemperature,
+    /// Gyro g-sensitivity, 10-30 deg/h/g per axis on the diagonal (each gyro sensing the
+    /// specific force along its own axis): on the vertical gyro a constant bias (f_z = -g),
+    /// on the horizontal ones a bias while the car accelerates, brakes and turns.
+    GyroGSensitivity,
+    /// GNSS standard deviations understated: the fixes' white noise 3-8 times the reported
+    /// sigmas (the same factor on every axis), nothing else changed.
+    GnssWhiteNoise,
 }
 
 impl Effect {
     /// Every effect: the sensor and installation effects first, then the clock, GNSS and
     /// bias-step effects.
-    pub const ALL: [Effect; 10] = [
+    pub const ALL: [Effect; 13] = [
         Effect::GyroScaleFactor,
         Effect::AccelScaleFactor,
         Effect::AccelMisalignment,
@@ -84,13 +94,17 @@ impl Effect {
         Effect::GnssCorrelatedError,
         Effect::AccelBiasStep,
         Effect::GyroBiasStep,
+        Effect::GyroTemperature,
+        Effect::GyroGSensitivity,
+        Effect::GnssWhiteNoise,
     ];
 
     /// The name of the effect in the diagnosis vocabulary: the effect block that models it
     /// (`nav_core::model::Block::effect_from_name`; the scale factors are KF-GINS's own
-    /// states, declared with a sigma of zero in the YAML), or for a bias step, which is not a
+    /// states, declared with a sigma of zero in the YAML), for a bias step, which is not a
     /// state, the change point the diagnosis reports
-    /// (`nav_diagnose::changepoint::BiasStepSensor::name`).
+    /// (`nav_diagnose::changepoint::BiasStepSensor::name`), and for understated GNSS sigmas
+    /// the noise model's GNSS sigma scale ([`GNSS_SIGMA_SCALE`]).
     pub const fn block_name(self) -> &'static str {
         match self {
             Effect::GyroScaleFactor => "gyro_scale_factor",
@@ -103,6 +117,9 @@ impl Effect {
             Effect::GnssCorrelatedError => "gnss_position_gm",
             Effect::AccelBiasStep => "accel_bias_step",
             Effect::GyroBiasStep => "gyro_bias_step",
+            Effect::GyroTemperature => "gyro_temperature_bias",
+            Effect::GyroGSensitivity => "gyro_g_sensitivity",
+            Effect::GnssWhiteNoise => GNSS_SIGMA_SCALE,
         }
     }
 
@@ -123,9 +140,18 @@ impl Effect {
             }
             Effect::AccelBiasStep => "accelerometer bias step 2-4 mg",
             Effect::GyroBiasStep => "gyro bias step 20-50 deg/h",
+            Effect::GyroTemperature => {
+                "gyro temperature coefficient 0.3-0.6 deg/h/degC, 20 degC warm-up"
+            }
+            Effect::GyroGSensitivity => "gyro g-sensitivity 10-30 deg/h/g",
+            Effect::GnssWhiteNoise => "GNSS white noise 3-8x the reported sigmas",
         }
     }
 }
+
+/// The name of the GNSS noise scale, the noise-model parameter that models understated GNSS
+/// sigmas ([`Effect::GnssWhiteNoise`]): the `[gnss] sigma_scale` of a run configuration.
+pub const GNSS_SIGMA_SCALE: &str = "gnss_sigma_scale";
 
 impl core::fmt::Display for Effect {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
@@ -527,13 +553,7 @@ pub fn add_effect(m: &mut ErrorModel, effect: Effect, seed: u64, duration_s: f64
         Effect::AccelTemperature => {
             m.accel.temp_coeff_per_c =
                 Axes3([0; 3].map(|_| signed(&mut rng, 25.0, 60.0) * UG_MPS2));
-            m.temperature = Some(Temperature {
-                start_c: 20.0,
-                rise_c: 20.0,
-                tau_s: duration_s / 3.0,
-                reference_c: None,
-                report_noise_c: 0.01,
-            });
+            m.temperature = Some(warm_up(duration_s));
         }
         Effect::LeverArm => m.gnss.lever_arm_b_m = Axes3(LEVER_ARM_TRUE_M),
         Effect::TimeOffset => m.gnss.time_offset_s = 0.05 + 0.05 * rng.random::<f64>(),
@@ -560,6 +580,35 @@ pub fn add_effect(m: &mut ErrorModel, effect: Effect, seed: u64, duration_s: f64
             m.gyro.bias_step = Axes3(step);
             m.gyro.bias_step_at_s = bias_step_time_s(duration_s);
         }
+        Effect::GyroTemperature => {
+            m.gyro.temp_coeff_per_c =
+                Axes3([0; 3].map(|_| signed(&mut rng, 0.3, 0.6) * DEG_PER_H_RADPS));
+            m.temperature = Some(warm_up(duration_s));
+        }
+        Effect::GyroGSensitivity => {
+            let per_g = DEG_PER_H_RADPS / nav_core::earth::G0_MPS2;
+            for i in 0..3 {
+                m.gyro.g_sensitivity_radps_per_mps2[i][i] = signed(&mut rng, 10.0, 30.0) * per_g;
+            }
+        }
+        Effect::GnssWhiteNoise => {
+            let white = 3.0 + 5.0 * rng.random::<f64>();
+            let reported = m.gnss.reported_std();
+            m.gnss.reported_std_ned_m = Some(Axes3(reported));
+            m.gnss.white_sigma_ned_m = Axes3(reported.map(|s| s * white));
+        }
+    }
+}
+
+/// The temperature profile of the temperature effects: 20 degC rising by 20 degC with a time
+/// constant of a third of the drive.
+fn warm_up(duration_s: f64) -> Temperature {
+    Temperature {
+        start_c: 20.0,
+        rise_c: 20.0,
+        tau_s: duration_s / 3.0,
+        reference_c: None,
+        report_noise_c: 0.01,
     }
 }
 
@@ -796,6 +845,27 @@ impl UndeclaredDrive {
                 e.gyro.bias_step.0.map(|x| r1(x / DEG_PER_H_RADPS)),
                 e.gyro.bias_step_at_s
             ),
+            Effect::GyroTemperature => format!(
+                "gyro temperature coefficient {:?} deg/h/degC over a 20 degC warm-up",
+                e.gyro
+                    .temp_coeff_per_c
+                    .0
+                    .map(|x| (x / DEG_PER_H_RADPS * 100.0).round() / 100.0)
+            ),
+            Effect::GyroGSensitivity => {
+                let per_g = DEG_PER_H_RADPS / nav_core::earth::G0_MPS2;
+                let g = e.gyro.g_sensitivity_radps_per_mps2;
+                format!(
+                    "gyro g-sensitivity (diagonal) {:?} deg/h/g",
+                    [0, 1, 2].map(|i| r1(g[i][i] / per_g))
+                )
+            }
+            Effect::GnssWhiteNoise => format!(
+                "GNSS white {:?} m (x{:.2} the reported {:?} m)",
+                e.gnss.white_sigma_ned_m.0,
+                e.gnss.white_sigma_ned_m.0[0] / e.gnss.reported_std()[0],
+                e.gnss.reported_std()
+            ),
         }
     }
 }
@@ -1010,6 +1080,38 @@ mod tests {
                         let dph = s.iter().map(|x| x.abs()).sum::<f64>() / DEG_PER_H_RADPS;
                         assert!((20.0..=50.0).contains(&dph), "{dph}");
                         assert!(s.iter().filter(|x| **x != 0.0).count() == 1);
+                    }
+                    Effect::GyroTemperature => {
+                        assert!(m
+                            .gyro
+                            .temp_coeff_per_c
+                            .0
+                            .iter()
+                            .all(|x| (0.3..=0.6).contains(&(x.abs() / DEG_PER_H_RADPS))));
+                        assert_eq!(m.temperature.as_ref().unwrap().rise_c, 20.0);
+                        assert_eq!(m.accel.temp_coeff_per_c.0, [0.0; 3]);
+                    }
+                    Effect::GyroGSensitivity => {
+                        let per_g = DEG_PER_H_RADPS / nav_core::earth::G0_MPS2;
+                        let g = m.gyro.g_sensitivity_radps_per_mps2;
+                        for (i, row) in g.iter().enumerate() {
+                            for (j, x) in row.iter().enumerate() {
+                                if i == j {
+                                    assert!((10.0..=30.0).contains(&(x.abs() / per_g)), "{x}");
+                                } else {
+                                    assert_eq!(*x, 0.0);
+                                }
+                            }
+                        }
+                    }
+                    Effect::GnssWhiteNoise => {
+                        let (w, r) = (m.gnss.white_sigma_ned_m.0, m.gnss.reported_std());
+                        let k = w[0] / r[0];
+                        assert!((3.0..=8.0).contains(&k), "{k}");
+                        for (w, r) in w.iter().zip(&r) {
+                            assert!((w / r - k).abs() < 1e-12);
+                        }
+                        assert_eq!(m.gnss.gm_sigma_ned_m.0, [0.005; 3]);
                     }
                 }
             }

@@ -77,6 +77,21 @@ fn summary(d: &Diagnosis) -> String {
             }
         }
     }
+    if let Some(t) = &d.noise_tuning {
+        s.push_str(&format!(
+            "  noise tuning: {} (adopted {}), evidence {:.1} nats\n",
+            t.chosen.describe(),
+            t.adopted,
+            t.total_evidence
+        ));
+    }
+    for st in d.steps.iter().filter(|st| !st.accepted) {
+        s.push_str(&format!(
+            "  step {} refused: {}\n",
+            st.label,
+            st.reason.as_deref().unwrap_or("-")
+        ));
+    }
     for w in &d.warnings {
         s.push_str(&format!("  warning: {w}\n"));
     }
@@ -125,16 +140,53 @@ fn check_named_first(effect: Effect, d: &Diagnosis) {
     assert!(h.p_worse >= 0.05, "{}", h.describe());
 }
 
-/// The diagnosis of a drive with `effect` (IMU at `rate_hz`) with `options`.
+/// The diagnosis of a drive with `effect` (IMU at `rate_hz`) with `options`, and the drive's
+/// complete error model.
 fn run_effect(
     effect: Effect,
     seed: u64,
     minutes: f64,
     rate_hz: f64,
     options: &DiagnoseOptions,
-) -> Diagnosis {
-    let (p, _) = drive(Some(effect), seed, minutes, rate_hz);
-    diagnose(&p, options).expect("diagnose").diagnosis
+) -> (Diagnosis, ErrorModel) {
+    let (p, m) = drive(Some(effect), seed, minutes, rate_hz);
+    (diagnose(&p, options).expect("diagnose").diagnosis, m)
+}
+
+/// Whether the diagnosis names understated GNSS sigmas ([`Effect::GnssWhiteNoise`] in `m`):
+/// its GNSS noise scale, horizontal and vertical, within a factor 1.5 of the drive's true
+/// white-noise factor, and nothing else named (no effect, no bias step).
+fn names_gnss_scale(d: &Diagnosis, m: &ErrorModel) -> bool {
+    let k = m.gnss.white_sigma_ned_m.0[0] / m.gnss.reported_std()[0];
+    let near = |x: f64| (k / 1.5..=k * 1.5).contains(&x);
+    d.added_effects.is_empty()
+        && d.bias_step.is_none()
+        && d.final_gnss_sigma_scale
+            .is_some_and(|g| near(g.horizontal) && near(g.vertical))
+}
+
+/// The GNSS noise scale of `d` and the true white-noise factor of `m`, for messages.
+fn gnss_scale_and_truth(d: &Diagnosis, m: &ErrorModel) -> String {
+    let k = m.gnss.white_sigma_ned_m.0[0] / m.gnss.reported_std()[0];
+    let g = d.final_gnss_sigma_scale.map_or("none".into(), |g| {
+        format!("x{:.2} / x{:.2}", g.horizontal, g.vertical)
+    });
+    let gaps: Vec<String> = d
+        .heldout_windows
+        .windows
+        .iter()
+        .zip(
+            d.window_errors_before_m
+                .iter()
+                .zip(&d.window_errors_after_m),
+        )
+        .filter(|(w, _)| w.kind == WindowKind::GnssGap)
+        .map(|(_, (b, a))| format!("{b:.2} -> {a:.2}"))
+        .collect();
+    format!(
+        "; GNSS noise scale (horizontal / vertical) {g}, truth x{k:.2}; the file's gaps {} m",
+        gaps.join(", ")
+    )
 }
 
 #[test]
@@ -148,14 +200,28 @@ fn vocabulary_effects_are_named_first_with_the_file_gaps_and_no_imposed_outage()
         max_effects: 1,
         ..DiagnoseOptions::default()
     };
-    let res: Vec<(Effect, Diagnosis)> = Effect::ALL
+    let res: Vec<(Effect, Diagnosis, ErrorModel)> = Effect::ALL
         .iter()
         .filter(|e| !matches!(e, Effect::AccelBiasStep | Effect::GyroBiasStep))
         .collect::<Vec<_>>()
         .par_iter()
-        .map(|&&e| (e, run_effect(e, 21, 10.0, 50.0, &first_only)))
+        .map(|&&e| {
+            let (d, m) = run_effect(e, 21, 10.0, 50.0, &first_only);
+            (e, d, m)
+        })
         .collect();
-    for (e, d) in &res {
+    for (e, d, m) in &res {
+        if *e == Effect::GnssWhiteNoise {
+            println!("{e}:\n{}{}", summary(d), gnss_scale_and_truth(d, m));
+            check_windows(d);
+            assert!(
+                names_gnss_scale(d, m),
+                "{}{}",
+                summary(d),
+                gnss_scale_and_truth(d, m)
+            );
+            continue;
+        }
         if e.block_name() == "gnss_position_gm" {
             // not met for the GNSS Gauss-Markov error (docs/diagnose.md, "GNSS-side
             // effects"): its evidence pays, but a model with the GNSS error state predicts
@@ -451,7 +517,7 @@ fn judged_drive_with_truth(
         .expect("diagnose")
         .diagnosis;
     check_windows(&d);
-    let (ok, why) = kind.judge(&d);
+    let (ok, why) = kind.judge(&d, &m);
     (d, ok, why, m)
 }
 
@@ -495,6 +561,7 @@ fn truth_and_estimates(d: &Diagnosis, m: &ErrorModel) -> String {
         for c in r.candidates.iter().filter(|c| {
             c.name == "accel_misalignment"
                 || c.name == "imu_clock_drift"
+                || c.name == "gnss_position_gm"
                 || c.decision == nav_diagnose::Decision::Added
         }) {
             let scale = if c.name == "accel_misalignment" {
@@ -663,10 +730,13 @@ fn step_and_truth(d: &Diagnosis, m: &ErrorModel) -> String {
     s
 }
 
-/// Whether the diagnosis named `e`: for a bias step the change point kept with the right
-/// sensor, otherwise `e`'s block among the added effects (`first`: as the first one).
-fn names(d: &Diagnosis, e: Effect, first: bool) -> bool {
+/// Whether the diagnosis named `e` (the drive's complete error model `m`): for a bias step the
+/// change point kept with the right sensor, for understated GNSS sigmas the noise scale
+/// ([`names_gnss_scale`]), otherwise `e`'s block among the added effects (`first`: as the
+/// first one).
+fn names(d: &Diagnosis, e: Effect, first: bool, m: &ErrorModel) -> bool {
     match e {
+        Effect::GnssWhiteNoise => names_gnss_scale(d, m),
         Effect::AccelBiasStep | Effect::GyroBiasStep => d
             .bias_step
             .as_ref()
@@ -760,17 +830,29 @@ impl SweepDrive {
         }
     }
 
-    /// Whether the diagnosis `d` meets the criterion, and why in words.
-    fn judge(self, d: &Diagnosis) -> (bool, String) {
+    /// Whether the diagnosis `d` of a drive with the complete error model `m` meets the
+    /// criterion, and why in words.
+    fn judge(self, d: &Diagnosis, m: &ErrorModel) -> (bool, String) {
         let change = d
             .heldout_change
             .map_or("model unchanged".into(), |h| h.describe());
         match self {
-            SweepDrive::One(e) => (names(d, e, true), String::new()),
-            SweepDrive::Two(a, b) => (names(d, a, false) && names(d, b, false), String::new()),
+            SweepDrive::One(Effect::GnssWhiteNoise) => {
+                (names_gnss_scale(d, m), gnss_scale_and_truth(d, m))
+            }
+            SweepDrive::One(e) => (names(d, e, true, m), String::new()),
+            SweepDrive::Two(a, b) => (
+                names(d, a, false, m) && names(d, b, false, m),
+                String::new(),
+            ),
             SweepDrive::Clean => (
                 d.added_effects.is_empty() && d.bias_step.is_none(),
-                String::new(),
+                d.final_gnss_sigma_scale.map_or(String::new(), |g| {
+                    format!(
+                        "; GNSS noise scale x{:.2} / x{:.2}",
+                        g.horizontal, g.vertical
+                    )
+                }),
             ),
             SweepDrive::Outside(_) => {
                 let not_worse = d.heldout_change.is_none_or(|h| h.gain >= -0.02);
